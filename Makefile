@@ -1,0 +1,74 @@
+# facette: the front door. `make scan` runs the one-button scan on the simulated rig,
+# `make test` runs every test. Both set everything up themselves on a fresh machine.
+SHELL    := /bin/bash
+VENV     := .venv
+PY       := $(VENV)/bin/python
+FACETTE  := $(VENV)/bin/facette
+BUILD    := build
+SIM_DEVICE := $(BUILD)/posix/facette-device
+FUZZ_SECONDS ?= 300
+SCAN_OUT ?= out/scan-demo
+
+.PHONY: setup deps venv firmware-posix generate check-generated test c-test fuzz fuzz-smoke \
+        pytest firmware qemu-test scan bench clean help
+
+help:
+	@echo "make scan             one-button scan on the simulated rig, then processing"
+	@echo "make test             every test (installs what it needs)"
+	@echo "make setup            .venv with facette (editable), Debian packages, simulated device"
+	@echo "make firmware         STM32F405 build (size printed)"
+	@echo "make qemu-test        boot the STM32 build in QEMU and talk Modbus to it"
+	@echo "make fuzz             libFuzzer on frame parsing and register writes ($(FUZZ_SECONDS) s)"
+	@echo "make bench            benchmarks: error and run time side by side"
+	@echo "make generate         regenerate protocol files from protocol/registers.toml"
+
+setup: deps venv firmware-posix
+
+deps:
+	@tools/install-debian-deps.sh
+
+$(VENV)/.installed: pyproject.toml
+	python3 -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[dev]'
+	touch $@
+
+venv: $(VENV)/.installed
+
+generate:
+	python3 tools/gen_protocol.py
+
+check-generated:
+	python3 tools/gen_protocol.py --check
+
+firmware-posix: deps
+	$(MAKE) -C firmware posix BUILD=$(abspath $(BUILD))
+
+firmware: deps
+	$(MAKE) -C firmware stm32 BUILD=$(abspath $(BUILD))
+
+c-test: deps
+	$(MAKE) -C firmware test BUILD=$(abspath $(BUILD))
+
+fuzz: deps
+	$(MAKE) -C firmware fuzz BUILD=$(abspath $(BUILD)) FUZZ_SECONDS=$(FUZZ_SECONDS)
+
+fuzz-smoke: deps
+	$(MAKE) -C firmware fuzz BUILD=$(abspath $(BUILD)) FUZZ_SECONDS=20
+
+qemu-test: setup firmware
+	$(VENV)/bin/pytest -q hil_tests/test_qemu_board.py --qemu-elf $(abspath $(BUILD))/stm32f4/facette-stm32f4.elf
+
+pytest: setup
+	$(VENV)/bin/pytest -q
+
+test: check-generated setup c-test fuzz-smoke pytest qemu-test
+
+scan: setup
+	$(FACETTE) scan --sim --press-button $(SCAN_OUT)
+
+bench: setup
+	$(FACETTE) bench all
+
+clean:
+	rm -rf $(BUILD)

@@ -1,0 +1,28 @@
+"""facette: reflectance capture, from the rig's LEDs to shape and material.
+
+Scripting entry points (see DESIGN.md §6)::
+
+    import facette
+    rig = facette.connect("sim")
+    scan = rig.scan("out/plaque", profile=facette.calib.load("calibration/profiles/sim-default"))
+    result = facette.process(scan, outputs=["normals", "height", "brdf"])
+"""
+import importlib
+
+__version__ = "0.1.0"
+
+_SUBPACKAGES = ("device", "sim", "camera", "hdr", "calib", "recon", "reflect", "brdf", "fit",
+                "pipeline", "io", "cli", "bench")
+# Top-level conveniences, resolved on first use so `import facette` stays fast.
+_SHORTCUTS = {"connect": ("facette.device", "connect"), "process": ("facette.pipeline", "process")}
+
+__all__ = list(_SUBPACKAGES) + list(_SHORTCUTS)
+
+
+def __getattr__(name):
+    if name in _SHORTCUTS:
+        module, attr = _SHORTCUTS[name]
+        return getattr(importlib.import_module(module), attr)
+    if name in _SUBPACKAGES:
+        return importlib.import_module(f"facette.{name}")
+    raise AttributeError(f"module 'facette' has no attribute {name!r}")

@@ -1,0 +1,1 @@
+"""File formats: EXR images, PNG masks, PLY meshes, DiLiGenT folders."""

@@ -1,0 +1,69 @@
+"""OpenEXR reading and writing (float32, linear, scanline, ZIP compression).
+
+Channels are named as the caller wishes; the conventional sets are
+``("R", "G", "B")`` for colour, ``("X", "Y", "Z")`` for normals and ``("Z",)``
+for heights and single-channel maps.
+"""
+from pathlib import Path
+
+import numpy as np
+import OpenEXR
+
+__all__ = ["write_exr", "read_exr", "channel_names_for"]
+
+
+def channel_names_for(n_channels):
+    """Default channel names for an image with `n_channels` channels."""
+    names = {1: ("Y",), 3: ("R", "G", "B"), 4: ("R", "G", "B", "A")}
+    if n_channels not in names:
+        raise ValueError(f"no default channel names for {n_channels} channels; pass `channels=`")
+    return names[n_channels]
+
+
+def write_exr(path, image, channels=None, header=None):
+    """Write `image` (H, W) or (H, W, C), any real dtype, as float32 EXR.
+
+    `header` is an optional dict of extra string attributes (provenance, units).
+    """
+    image = np.asarray(image)
+    if image.ndim == 2:
+        image = image[:, :, None]
+    if image.ndim != 3 or image.shape[0] == 0 or image.shape[1] == 0:
+        raise ValueError(f"write_exr expects an image of shape (H, W) or (H, W, C), got {image.shape}")
+    channels = tuple(channels) if channels is not None else channel_names_for(image.shape[2])
+    if len(channels) != image.shape[2]:
+        raise ValueError(f"{len(channels)} channel names for an image with {image.shape[2]} channels")
+    data = {name: np.ascontiguousarray(image[:, :, k], dtype=np.float32)
+            for k, name in enumerate(channels)}
+    hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    for key, value in (header or {}).items():
+        hdr[str(key)] = str(value)
+    path = Path(path)
+    tmp = path.with_name(path.name + ".partial")
+    with OpenEXR.File(hdr, data) as f:
+        f.write(str(tmp))
+    tmp.replace(path)  # never leave a half-written EXR under the final name
+
+
+def read_exr(path, channels=None):
+    """Read an EXR written by `write_exr` (or any scanline EXR).
+
+    Returns (image, channel_names): image is float32 (H, W, C) in the order of
+    `channels` (default: the file's order, with R, G, B / X, Y, Z first when present).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no EXR file at {path}")
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            stored = {name: np.asarray(ch.pixels, dtype=np.float32)
+                      for name, ch in f.channels().items()}
+    except Exception as exc:  # OpenEXR raises plain exceptions on corrupt files
+        raise ValueError(f"{path} is not a readable EXR file ({exc}); re-create it from the scan") from exc
+    if channels is None:
+        preferred = [c for c in ("R", "G", "B", "X", "Y", "Z", "A") if c in stored]
+        channels = preferred + sorted(c for c in stored if c not in preferred)
+    missing = [c for c in channels if c not in stored]
+    if missing:
+        raise ValueError(f"{path} has no channel(s) {missing}; it holds {sorted(stored)}")
+    return np.stack([stored[c] for c in channels], axis=-1), tuple(channels)
