@@ -1,0 +1,210 @@
+"""Rig calibration profiles: versioned, checksummed JSON (never pickle).
+
+A profile lives in a folder ``calibration/profiles/<rig>/`` as ``profile.json``,
+with optional array files beside it (the flat field as EXR), each referenced by
+name and sha256 so a profile that was edited or half-copied is refused on load.
+
+Schema 1::
+
+    {"schema": 1, "id": str, "rig": str, "created": ISO-8601 str,
+     "pixel_pitch_mm": float | null,          # on the object, at the HDR resolution
+     "lights": [{"index": int, "direction": [x, y, z],   # unit, camera frame (DESIGN §8)
+                 "intensity": [r, g, b],                 # relative, mean over LEDs = 1
+                 "position_mm": [x, y, z] | null}],      # near-light model, or null
+     "sensor": {"gain_e_per_dn", "read_noise_e", "dark_current_e_per_s",
+                "black_level_dn", "white_level_dn"} | null,
+     "flat_field": {"file": str, "sha256": str} | null,  # EXR, R,G,B, mean 1
+     "led_gains": [float, ...] | null,                   # written to the device store
+     "history": [str, ...],                              # what the wizard did
+     "checksum": sha256 of the canonical JSON of everything else}
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["Profile", "Lights", "load", "save", "nominal_light_directions", "SCHEMA_VERSION",
+           "ProfileError"]
+
+SCHEMA_VERSION = 1
+PROFILE_FILE = "profile.json"
+SENSOR_KEYS = ("gain_e_per_dn", "read_noise_e", "dark_current_e_per_s", "black_level_dn",
+               "white_level_dn")
+
+
+class ProfileError(ValueError):
+    """A profile file is missing, malformed, or does not match its checksum."""
+
+
+def nominal_light_directions():
+    """The thesis rig's 12 LED directions (thesis §4.3.2), shape (12, 3), camera frame.
+
+    Two alternating rings ordered by azimuth φ = 0°, 30°, …, 330°: zenith θ = 30°
+    at φ = 0°, 60°, …, 300° and θ = 15° at φ = 30°, 90°, …, 330°, so that
+    neighbouring LEDs never form an ill-conditioned triplet.
+    """
+    phi = np.deg2rad(np.arange(12) * 30.0)
+    theta = np.deg2rad(np.where(np.arange(12) % 2 == 0, 30.0, 15.0))
+    return np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=1)
+
+
+@dataclasses.dataclass
+class Lights:
+    """Per-LED calibration. directions (m, 3) unit vectors; intensities (m, 3) per
+    channel, relative; positions_mm (m, 3) or None when lights are distant."""
+    directions: np.ndarray
+    intensities: np.ndarray
+    positions_mm: np.ndarray | None = None
+
+    def __post_init__(self):
+        self.directions = np.asarray(self.directions, dtype=np.float64)
+        m = len(self.directions)
+        if self.directions.shape != (m, 3) or m == 0:
+            raise ProfileError(f"light directions must have shape (m, 3), got {self.directions.shape}")
+        norms = np.linalg.norm(self.directions, axis=1)
+        if not np.all(np.isfinite(norms)) or np.any(np.abs(norms - 1) > 1e-6):
+            raise ProfileError("light directions must be finite unit vectors; "
+                               f"norms are {np.round(norms, 6).tolist()}")
+        self.intensities = np.asarray(self.intensities, dtype=np.float64)
+        if self.intensities.shape != (m, 3) or not np.all(self.intensities > 0):
+            raise ProfileError(f"light intensities must be positive, shape ({m}, 3); "
+                               f"got shape {self.intensities.shape}")
+        if self.positions_mm is not None:
+            self.positions_mm = np.asarray(self.positions_mm, dtype=np.float64)
+            if self.positions_mm.shape != (m, 3):
+                raise ProfileError(f"light positions must have shape ({m}, 3)")
+
+    def __len__(self):
+        return len(self.directions)
+
+
+@dataclasses.dataclass
+class Profile:
+    """A rig calibration. See the module docstring for the file format."""
+    rig: str
+    lights: Lights
+    id: str = ""
+    created: str = ""
+    pixel_pitch_mm: float | None = None
+    sensor: dict | None = None
+    flat_field: np.ndarray | None = None   # (H, W, 3), mean 1, or None
+    led_gains: list | None = None
+    history: list = dataclasses.field(default_factory=list)
+    sha256: str = ""                        # checksum of the file it was loaded from
+    path: Path | None = None
+
+    def __post_init__(self):
+        if self.sensor is not None:
+            missing = [k for k in SENSOR_KEYS if k not in self.sensor]
+            if missing:
+                raise ProfileError(f"sensor section lacks {missing}")
+
+    def to_dict(self, flat_field_ref=None):
+        lights = [{"index": i, "direction": self.lights.directions[i].tolist(),
+                   "intensity": self.lights.intensities[i].tolist(),
+                   "position_mm": None if self.lights.positions_mm is None
+                   else self.lights.positions_mm[i].tolist()} for i in range(len(self.lights))]
+        return {"schema": SCHEMA_VERSION, "id": self.id, "rig": self.rig, "created": self.created,
+                "pixel_pitch_mm": self.pixel_pitch_mm, "lights": lights, "sensor": self.sensor,
+                "flat_field": flat_field_ref, "led_gains": self.led_gains,
+                "history": list(self.history)}
+
+
+def _canonical(data):
+    return json.dumps(data, sort_keys=True, separators=(",", ":")).encode()
+
+
+def _checksum(data):
+    return hashlib.sha256(_canonical({k: v for k, v in data.items() if k != "checksum"})).hexdigest()
+
+
+def _file_sha256(path):
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def save(profile, folder, keep_previous=True):
+    """Write `profile` to ``folder/profile.json`` (and ``flat_field.exr``).
+
+    An existing profile is renamed ``profile-<its id>.json`` first, so the wizard
+    never loses the previous calibration. Returns the path written.
+    """
+    from facette.io.exr import write_exr
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    if not profile.created:
+        profile.created = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    if not profile.id:
+        profile.id = f"{profile.rig}-{profile.created.replace(':', '').replace('+0000', 'Z')}"
+    target = folder / PROFILE_FILE
+    if keep_previous and target.exists():
+        try:
+            old_id = json.loads(target.read_text()).get("id") or "unknown"
+        except ValueError:
+            old_id = "unreadable"
+        backup = folder / f"profile-{old_id}.json"
+        n = 1
+        while backup.exists():
+            backup, n = folder / f"profile-{old_id}-{n}.json", n + 1
+        target.replace(backup)
+    ref = None
+    if profile.flat_field is not None:
+        ff_name = f"flat_field-{profile.id}.exr"
+        write_exr(folder / ff_name, profile.flat_field, channels=("R", "G", "B"))
+        ref = {"file": ff_name, "sha256": _file_sha256(folder / ff_name)}
+    data = profile.to_dict(flat_field_ref=ref)
+    data["checksum"] = _checksum(data)
+    tmp = target.with_suffix(".json.partial")
+    tmp.write_text(json.dumps(data, indent=2) + "\n")
+    tmp.replace(target)
+    profile.sha256, profile.path = data["checksum"], target
+    return target
+
+
+def load(path):
+    """Load a profile from a folder (its ``profile.json``) or a JSON file path.
+
+    Raises ProfileError saying what is wrong when the file is missing, not JSON,
+    of another schema version, or does not match its checksum.
+    """
+    from facette.io.exr import read_exr
+
+    path = Path(path)
+    file = path / PROFILE_FILE if path.is_dir() else path
+    if not file.is_file():
+        raise ProfileError(f"no calibration profile at {file}; run `facette calibrate` "
+                           "or give the folder of an existing profile")
+    try:
+        data = json.loads(file.read_text())
+    except ValueError as exc:
+        raise ProfileError(f"{file} is not valid JSON ({exc}); restore the previous profile "
+                           "(profile-<id>.json beside it) or recalibrate") from exc
+    if not isinstance(data, dict) or data.get("schema") != SCHEMA_VERSION:
+        raise ProfileError(f"{file} has schema {data.get('schema') if isinstance(data, dict) else '?'}, "
+                           f"this facette reads schema {SCHEMA_VERSION}")
+    if data.get("checksum") != _checksum(data):
+        raise ProfileError(f"{file} does not match its checksum: it was edited or damaged; "
+                           "recalibrate, or restore the previous profile beside it")
+    try:
+        lights = data["lights"]
+        positions = [l["position_mm"] for l in lights]
+        lt = Lights(directions=[l["direction"] for l in lights],
+                    intensities=[l["intensity"] for l in lights],
+                    positions_mm=None if any(p is None for p in positions) else positions)
+    except (KeyError, TypeError) as exc:
+        raise ProfileError(f"{file}: malformed lights section ({exc!r})") from exc
+    flat = None
+    if data.get("flat_field"):
+        ff = file.parent / data["flat_field"]["file"]
+        if not ff.is_file() or _file_sha256(ff) != data["flat_field"]["sha256"]:
+            raise ProfileError(f"flat field {ff} is missing or does not match the profile's checksum")
+        flat, _ = read_exr(ff, channels=("R", "G", "B"))
+    return Profile(rig=data["rig"], lights=lt, id=data["id"], created=data["created"],
+                   pixel_pitch_mm=data.get("pixel_pitch_mm"), sensor=data.get("sensor"),
+                   flat_field=flat, led_gains=data.get("led_gains"),
+                   history=list(data.get("history", [])), sha256=data["checksum"], path=file)
