@@ -1,0 +1,1 @@
+"""facette.camera: RAW decoding and camera backends."""

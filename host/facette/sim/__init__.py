@@ -1,0 +1,1 @@
+"""facette.sim: the simulated rig (sensor model, DNG writer, rig simulator)."""
