@@ -12,7 +12,10 @@ from pathlib import Path
 import numpy as np
 import tifffile
 
-__all__ = ["write_dng", "CFA_PATTERNS"]
+__all__ = ["write_dng", "CFA_PATTERNS", "MIN_SIDE"]
+
+# LibRaw's identify() rejects any image with a side under 22 pixels.
+MIN_SIDE = 22
 
 # CFA pattern codes (0 = R, 1 = G, 2 = B) of the 2×2 repeat, row major.
 CFA_PATTERNS = {"RGGB": (0, 1, 1, 2), "BGGR": (2, 1, 1, 0), "GRBG": (1, 0, 2, 1),
@@ -37,7 +40,7 @@ def write_dng(path, mosaic_uint16, black_level, white_level, exposure_time_s, is
     path : str or Path
         Destination (``.dng``). Written to a temporary name in the same folder and
         renamed, so a folder watcher never sees half a file.
-    mosaic_uint16 : ndarray (H, W), uint16, H and W even
+    mosaic_uint16 : ndarray (H, W), uint16, H and W even and >= MIN_SIDE (22)
         Raw CFA values in DN, black level included.
     black_level, white_level : int
         DN; written as BlackLevel / WhiteLevel.
@@ -60,6 +63,9 @@ def write_dng(path, mosaic_uint16, black_level, white_level, exposure_time_s, is
     raw = np.asarray(mosaic_uint16)
     if raw.ndim != 2 or raw.shape[0] % 2 or raw.shape[1] % 2 or raw.size == 0:
         raise ValueError(f"a Bayer mosaic must be 2-D with even, non-zero sides; got {raw.shape}")
+    if min(raw.shape) < MIN_SIDE:
+        raise ValueError(f"mosaic {raw.shape} is too small: LibRaw (rawpy) refuses images with a side "
+                         f"under {MIN_SIDE} photosites; simulate at least {MIN_SIDE}×{MIN_SIDE}")
     if raw.dtype != np.uint16:
         if np.issubdtype(raw.dtype, np.integer) and raw.min() >= 0 and raw.max() <= 0xFFFF:
             raw = raw.astype(np.uint16)

@@ -32,11 +32,13 @@ def test_round_trip_bit_exact(tmp_path, t_s):
 
 def test_rejects_bad_mosaics(tmp_path):
     with pytest.raises(ValueError, match="even"):
-        write_dng(tmp_path / "a.dng", np.zeros((3, 4), np.uint16), 0, 16383, 1.0, 400)
+        write_dng(tmp_path / "a.dng", np.zeros((23, 24), np.uint16), 0, 16383, 1.0, 400)
+    with pytest.raises(ValueError, match="too small"):
+        write_dng(tmp_path / "a.dng", np.zeros((20, 40), np.uint16), 0, 16383, 1.0, 400)
     with pytest.raises(ValueError, match="uint16"):
-        write_dng(tmp_path / "a.dng", np.full((4, 4), -1.0), 0, 16383, 1.0, 400)
+        write_dng(tmp_path / "a.dng", np.full((24, 24), -1.0), 0, 16383, 1.0, 400)
     with pytest.raises(ValueError, match="CFA"):
-        write_dng(tmp_path / "a.dng", np.zeros((4, 4), np.uint16), 0, 16383, 1.0, 400, cfa="XYZW")
+        write_dng(tmp_path / "a.dng", np.zeros((24, 24), np.uint16), 0, 16383, 1.0, 400, cfa="XYZW")
     with pytest.raises(ValueError, match="exposure"):
-        write_dng(tmp_path / "a.dng", np.zeros((4, 4), np.uint16), 0, 16383, 0.0, 400)
+        write_dng(tmp_path / "a.dng", np.zeros((24, 24), np.uint16), 0, 16383, 0.0, 400)
     assert not list(tmp_path.iterdir())

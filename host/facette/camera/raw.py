@@ -1,0 +1,224 @@
+"""RAW decoding with rawpy to linear per-channel float32 (no gamma, no white balance).
+
+Values are black-subtracted digital numbers (DN): ``raw - black_level`` per photosite,
+so the sensor noise model (``facette.sim.sensor``, eq 2.13) applies to them
+directly. Half-size (2×2 Bayer binning: R, mean of the two G, B) is the default;
+bilinear demosaicing at full resolution is an option.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import rawpy
+import tifffile
+from scipy import ndimage
+
+__all__ = ["RawFrame", "RawDecodeError", "read_raw", "read_raw_mosaic", "read_exposure_metadata",
+           "bin_half_size", "demosaic_bilinear"]
+
+
+class RawDecodeError(ValueError):
+    """A RAW file is missing, truncated, corrupt or not a RAW format rawpy knows."""
+
+
+@dataclass
+class RawFrame:
+    """One decoded RAW frame.
+
+    Attributes
+    ----------
+    image : ndarray (H, W, 3) float32
+        Linear R, G, B in black-subtracted DN (can be slightly negative from noise).
+        Half-size: H, W are half the sensor's; full size with bilinear demosaic.
+    peak : ndarray (H, W, 3) float32
+        Largest black-subtracted photosite value that contributed to each pixel
+        (differs from `image` where photosites were averaged): test it against
+        the saturation level to exclude clipped samples.
+    n_photosites : tuple of 3 ints
+        Photosites averaged into each channel value ((1, 2, 1) for half-size
+        RGGB): the noise variance of the value is the photosite variance / n.
+    black_level, white_level : float
+        DN, from the file (black: mean of the per-channel levels).
+    exposure_time_s : float or None
+        From the file's ExposureTime tag, if any.
+    iso : int or None
+    path : Path
+    metadata : dict
+        Extra metadata (JSON in ImageDescription, as written by the simulated camera).
+    """
+
+    image: np.ndarray
+    peak: np.ndarray
+    n_photosites: tuple
+    black_level: float
+    white_level: float
+    exposure_time_s: float | None
+    iso: int | None
+    path: Path
+    metadata: dict = field(default_factory=dict)
+
+    @property
+    def range_dn(self):
+        """Usable black-subtracted range, DN (white level − black level)."""
+        return self.white_level - self.black_level
+
+    def normalized(self):
+        """`image` scaled so that the white level is 1.0 (float32, (H, W, 3))."""
+        return (self.image / np.float32(self.range_dn)).astype(np.float32)
+
+
+def _fail(path, what):
+    return RawDecodeError(
+        f"cannot decode RAW file {path}: {what}. The file may be truncated or corrupt "
+        "(interrupted copy or capture): copy it again from the camera, or re-shoot that frame.")
+
+
+def read_raw_mosaic(path):
+    """Decode the CFA mosaic of a RAW file.
+
+    Returns (mosaic float32 (H, W) in raw DN, colors int (H, W) with 0=R, 1=G, 2=B,
+    3=second G, black_per_channel (4,) DN, white_level DN).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise RawDecodeError(f"no RAW file at {path}; check the scan's raw/ folder and scan.json")
+    try:
+        with rawpy.imread(str(path)) as raw:
+            mosaic = raw.raw_image_visible.astype(np.float32)
+            colors = raw.raw_colors_visible.astype(np.int8)
+            black = np.asarray(raw.black_level_per_channel, dtype=np.float32)
+            white = float(raw.white_level)
+            desc = raw.color_desc
+    except rawpy.LibRawFileUnsupportedError as exc:
+        raise _fail(path, f"not a RAW format LibRaw supports ({exc})") from exc
+    except (rawpy.LibRawError, OSError) as exc:
+        raise _fail(path, f"{type(exc).__name__}: {exc}") from exc
+    if mosaic.ndim != 2 or mosaic.size == 0:
+        raise _fail(path, f"no single-plane Bayer mosaic (shape {mosaic.shape})")
+    if desc[:3] != b"RGB":
+        raise _fail(path, f"colour filter {desc!r} is not an RGB Bayer pattern")
+    return mosaic, colors, black, white
+
+
+def read_exposure_metadata(path):
+    """(exposure_time_s or None, iso or None, extra dict) from a TIFF-based RAW (DNG, NEF).
+
+    rawpy does not expose the exposure time, so it is read with tifffile from IFD0
+    or the EXIF sub-IFD.
+    """
+    t, iso, extra = None, None, {}
+    try:
+        with tifffile.TiffFile(str(path)) as tf:
+            tags = tf.pages[0].tags
+            exif = tags["ExifTag"].value if "ExifTag" in tags else {}
+
+            def get(code, name):
+                if code in tags:
+                    return tags[code].value
+                return exif.get(name) if isinstance(exif, dict) else None
+
+            et = get(33434, "ExposureTime")
+            if et is not None:
+                num, den = (et if isinstance(et, tuple) else (et, 1))[:2]
+                t = float(num) / float(den) if den else None
+            iso_v = get(34855, "ISOSpeedRatings")
+            if iso_v is not None:
+                iso = int(iso_v[0] if isinstance(iso_v, tuple) else iso_v)
+            if 270 in tags:
+                try:
+                    extra = json.loads(tags[270].value)
+                    extra = extra if isinstance(extra, dict) else {}
+                except (ValueError, TypeError):
+                    extra = {}
+    except (tifffile.TiffFileError, OSError, KeyError, IndexError, ValueError):
+        pass  # not TIFF-based (e.g. CR3): the scan manifest carries the times instead
+    return t, iso, extra
+
+
+def bin_half_size(mosaic, colors):
+    """2×2 Bayer binning: (H, W) mosaic -> (H/2, W/2, 3) R, mean(G1, G2), B, and the peaks.
+
+    `colors` gives each photosite's colour (0 R, 1 G, 2 B, 3 second G); any 2×2
+    arrangement of one R, two G and one B works. Odd trailing rows/columns are dropped.
+    Returns (image, peak), both float32 (H/2, W/2, 3).
+    """
+    h, w = (mosaic.shape[0] // 2) * 2, (mosaic.shape[1] // 2) * 2
+    if h == 0 or w == 0:
+        raise ValueError(f"mosaic {mosaic.shape} is too small to bin 2×2")
+    m = mosaic[:h, :w]
+    c = np.where(colors[:2, :2] == 3, 1, colors[:2, :2])
+    if sorted(c.ravel().tolist()) != [0, 1, 1, 2]:
+        raise ValueError(f"CFA cell {colors[:2, :2].tolist()} is not one R, two G and one B")
+    planes = {0: [], 1: [], 2: []}
+    for dy in (0, 1):
+        for dx in (0, 1):
+            planes[int(c[dy, dx])].append(m[dy::2, dx::2])
+    img = np.stack([planes[0][0], 0.5 * (planes[1][0] + planes[1][1]), planes[2][0]], axis=-1)
+    peak = np.stack([planes[0][0], np.maximum(planes[1][0], planes[1][1]), planes[2][0]], axis=-1)
+    return img.astype(np.float32), peak.astype(np.float32)
+
+
+_BILINEAR = np.array([[1, 2, 1], [2, 4, 2], [1, 2, 1]], dtype=np.float32) / 4.0
+
+
+def demosaic_bilinear(mosaic, colors):
+    """Bilinear demosaic: full-resolution (H, W, 3) float32 from a Bayer mosaic.
+
+    Each missing sample is the normalised 3×3 weighted mean of the same-colour
+    neighbours (normalised convolution); measured samples are kept unchanged.
+    """
+    c = np.where(colors == 3, 1, colors)
+    out = np.empty(mosaic.shape + (3,), dtype=np.float32)
+    for k in range(3):
+        mask = (c == k).astype(np.float32)
+        num = ndimage.convolve(mosaic * mask, _BILINEAR, mode="mirror")
+        den = ndimage.convolve(mask, _BILINEAR, mode="mirror")
+        out[..., k] = np.where(mask > 0, mosaic, num / np.maximum(den, 1e-12))
+    return out
+
+
+def read_raw(path, half_size=True, demosaic="bilinear", white_balance=None):
+    """Decode a RAW file to linear, black-subtracted, per-channel float32.
+
+    Parameters
+    ----------
+    path : str or Path
+    half_size : bool
+        True (default): 2×2 Bayer binning to (H/2, W/2, 3). False: full
+        resolution through `demosaic`.
+    demosaic : {"bilinear"}
+        Demosaicing method for full resolution.
+    white_balance : None or sequence of 3 floats
+        Per-channel multipliers applied to `image` and `peak`; None (default)
+        keeps raw sensor ratios.
+
+    Returns
+    -------
+    RawFrame
+    """
+    path = Path(path)
+    mosaic, colors, black, white = read_raw_mosaic(path)
+    # Per-photosite black level (LibRaw gives one per colour index 0..3).
+    mosaic = mosaic - black[colors]
+    if half_size:
+        image, peak = bin_half_size(mosaic, colors)
+        n = (1, 2, 1)
+    elif demosaic == "bilinear":
+        image = demosaic_bilinear(mosaic, colors)
+        # Peak: largest same-colour photosite in the 3×3 neighbourhood the value came from.
+        c = np.where(colors == 3, 1, colors)
+        peak = np.stack([ndimage.maximum_filter(np.where(c == k, mosaic, -np.inf), size=3,
+                                                mode="mirror") for k in range(3)], axis=-1)
+        peak = peak.astype(np.float32)
+        n = (1, 1, 1)
+    else:
+        raise ValueError(f"unknown demosaic method {demosaic!r}; choose 'bilinear' or half_size=True")
+    if white_balance is not None:
+        wb = np.asarray(white_balance, dtype=np.float32).reshape(3)
+        image, peak = image * wb, peak * wb
+    t, iso, extra = read_exposure_metadata(path)
+    return RawFrame(image=image, peak=peak, n_photosites=n, black_level=float(black.mean()),
+                    white_level=white, exposure_time_s=t, iso=iso, path=path, metadata=extra)
