@@ -1,0 +1,195 @@
+"""Integration of the gradient field of a normal map into heights (mm), and a mesh.
+
+Gradients: p = dz/dx = -n_x / n_z, q = dz/dy = -n_y / n_z in the camera frame (x right,
+y up). Image row 0 is the top, so dz/d(row) = -q * pitch and dz/d(col) = p * pitch.
+Heights are defined up to a constant: each method returns heights whose mean over
+the mask (or the whole image) is 0.
+"""
+import numpy as np
+import scipy.fft
+import scipy.sparse
+import scipy.sparse.csgraph
+import scipy.sparse.linalg
+
+__all__ = ["normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
+           "integrate_least_squares", "integrate", "INTEGRATION_METHODS", "mesh_from_height"]
+
+MAX_SLOPE = 20.0   # |p|, |q| are clipped here: n_z -> 0 (silhouettes) would give infinite slopes
+
+
+def normals_to_gradients(normals, mask=None, max_slope=MAX_SLOPE):
+    """(p, q) = (-n_x/n_z, -n_y/n_z), each (H, W) float64, clipped to +-max_slope.
+
+    normals : (H, W, 3) camera frame. Pixels outside `mask`, not finite, zero, or facing away
+    (n_z <= 0) get p = q = 0.
+    """
+    normals = np.asarray(normals, dtype=np.float64)
+    if normals.ndim != 3 or normals.shape[2] != 3:
+        raise ValueError(f"normals must have shape (H, W, 3), got {normals.shape}")
+    nz = normals[..., 2]
+    ok = np.all(np.isfinite(normals), axis=-1) & (nz > 1e-9)
+    if mask is not None:
+        ok &= np.asarray(mask, bool)
+    safe = np.where(ok, nz, 1.0)
+    p = np.where(ok, np.clip(-normals[..., 0] / safe, -max_slope, max_slope), 0.0)
+    q = np.where(ok, np.clip(-normals[..., 1] / safe, -max_slope, max_slope), 0.0)
+    return p, q
+
+
+def _image_gradients(normals, mask, pixel_pitch_mm):
+    if pixel_pitch_mm <= 0 or not np.isfinite(pixel_pitch_mm):
+        raise ValueError(f"pixel_pitch_mm must be a positive length in mm, got {pixel_pitch_mm}")
+    p, q = normals_to_gradients(normals, mask)
+    # per-pixel steps in mm along columns (x) and rows (-y)
+    return p * pixel_pitch_mm, -q * pixel_pitch_mm
+
+
+def _centre(z, mask):
+    sel = mask if mask is not None and mask.any() else np.ones(z.shape, bool)
+    z = z - z[sel].mean()
+    if mask is not None:
+        z = np.where(mask, z, 0.0)
+    return z.astype(np.float32)
+
+
+def integrate_frankot_chellappa1988(normals, pixel_pitch_mm=1.0, mask=None):
+    """Heights (H, W) float32 in mm from a normal map, by projection on integrable
+    Fourier bases (Frankot & Chellappa 1988; the thesis's choice, §4.2.1).
+
+    normals : (H, W, 3) unit vectors, camera frame; pixel_pitch_mm : object-side pixel size.
+    mask : optional (H, W) bool; outside it the gradients are 0 and the height is 0.
+    The field is treated as periodic: keep a flat margin around the object.
+    """
+    mask = None if mask is None else np.asarray(mask, bool)
+    gx, gy = _image_gradients(normals, mask, pixel_pitch_mm)
+    h, w = gx.shape
+    wx = 2 * np.pi * scipy.fft.fftfreq(w)[None, :]
+    wy = 2 * np.pi * scipy.fft.fftfreq(h)[:, None]
+    denom = wx ** 2 + wy ** 2
+    denom[0, 0] = 1.0
+    zf = (-1j * wx * scipy.fft.fft2(gx) - 1j * wy * scipy.fft.fft2(gy)) / denom
+    zf[0, 0] = 0.0
+    return _centre(np.real(scipy.fft.ifft2(zf)), mask)
+
+
+def integrate_simchony1990(normals, pixel_pitch_mm=1.0, mask=None):
+    """Heights (H, W) float32 in mm: discrete Poisson equation with Neumann boundaries,
+    solved exactly by the DCT (Simchony, Chellappa & Shao 1990).
+
+    Minimises sum over neighbour pairs of (z_j+1 - z_j - (g_j + g_j+1)/2)^2 on the full grid.
+    normals, pixel_pitch_mm, mask as `integrate_frankot_chellappa1988`.
+    """
+    mask = None if mask is None else np.asarray(mask, bool)
+    gx, gy = _image_gradients(normals, mask, pixel_pitch_mm)
+    h, w = gx.shape
+    # gradients on the edges between neighbours (averaged), zero flux through the border
+    ex = np.zeros((h, w + 1))
+    ex[:, 1:w] = 0.5 * (gx[:, :-1] + gx[:, 1:])
+    ey = np.zeros((h + 1, w))
+    ey[1:h] = 0.5 * (gy[:-1] + gy[1:])
+    div = (ex[:, 1:] - ex[:, :-1]) + (ey[1:] - ey[:-1])
+    f = scipy.fft.dctn(div, type=2, norm="ortho")
+    lam = (2 * np.cos(np.pi * np.arange(w) / w) - 2)[None, :] + \
+          (2 * np.cos(np.pi * np.arange(h) / h) - 2)[:, None]
+    lam[0, 0] = 1.0
+    f /= lam
+    f[0, 0] = 0.0
+    return _centre(scipy.fft.idctn(f, type=2, norm="ortho"), mask)
+
+
+def integrate_least_squares(normals, pixel_pitch_mm=1.0, mask=None):
+    """Heights (H, W) float32 in mm by sparse least squares restricted to the mask.
+
+    One equation per pair of 4-neighbours both in the mask: z_b - z_a = mean of their
+    gradients. Works on any mask (holes, one-pixel strands, several pieces): each connected
+    piece is integrated on its own and has mean 0; isolated pixels get 0.
+    Solved by the normal equations (sparse Cholesky-like direct solve up to ~1e6 pixels,
+    conjugate gradients above).
+    """
+    normals = np.asarray(normals)
+    h, w = normals.shape[:2]
+    mask = np.ones((h, w), bool) if mask is None else np.asarray(mask, bool)
+    if mask.shape != (h, w):
+        raise ValueError(f"mask has shape {mask.shape}, normals are {h}x{w}")
+    gx, gy = _image_gradients(normals, mask, pixel_pitch_mm)
+    index = -np.ones((h, w), np.int64)
+    n = int(mask.sum())
+    index[mask] = np.arange(n)
+    z = np.zeros((h, w))
+    if n == 0:
+        return z.astype(np.float32)
+    rows_a, rows_b, rhs = [], [], []
+    hx = mask[:, :-1] & mask[:, 1:]
+    rows_a.append(index[:, :-1][hx]); rows_b.append(index[:, 1:][hx])
+    rhs.append(0.5 * (gx[:, :-1] + gx[:, 1:])[hx])
+    vy = mask[:-1] & mask[1:]
+    rows_a.append(index[:-1][vy]); rows_b.append(index[1:][vy])
+    rhs.append(0.5 * (gy[:-1] + gy[1:])[vy])
+    a_idx, b_idx, b = np.concatenate(rows_a), np.concatenate(rows_b), np.concatenate(rhs)
+    ne = a_idx.size
+    eq = np.arange(ne)
+    d = scipy.sparse.csr_matrix((np.r_[-np.ones(ne), np.ones(ne)], (np.r_[eq, eq], np.r_[a_idx, b_idx])),
+                                shape=(ne, n))
+    # each connected piece has one free constant: pin its first pixel, then centre the piece
+    ncomp, labels = scipy.sparse.csgraph.connected_components(
+        scipy.sparse.csr_matrix((np.ones(ne), (a_idx, b_idx)), shape=(n, n)), directed=False)
+    first = np.unique(labels, return_index=True)[1]
+    pin = np.zeros(n)
+    pin[first] = 1.0
+    lhs = (d.T @ d + scipy.sparse.diags(pin)).tocsc()
+    rhs_v = d.T @ b
+    if n <= 1_000_000:
+        sol = scipy.sparse.linalg.spsolve(lhs, rhs_v)
+    else:
+        diag = lhs.diagonal()
+        pre = scipy.sparse.diags(1.0 / np.where(diag > 0, diag, 1.0))
+        sol, _ = scipy.sparse.linalg.cg(lhs, rhs_v, M=pre, rtol=1e-8, maxiter=5000)
+    sizes = np.bincount(labels, minlength=ncomp)
+    sol = sol - (np.bincount(labels, weights=sol, minlength=ncomp) / sizes)[labels]
+    z[mask] = sol
+    return z.astype(np.float32)
+
+
+INTEGRATION_METHODS = {"frankot_chellappa1988": integrate_frankot_chellappa1988,
+                       "simchony1990": integrate_simchony1990,
+                       "least_squares": integrate_least_squares}
+
+
+def integrate(normals, pixel_pitch_mm=1.0, mask=None, method="frankot_chellappa1988"):
+    """Dispatch by name: "frankot_chellappa1988", "simchony1990" or "least_squares"."""
+    if method not in INTEGRATION_METHODS:
+        raise ValueError(f"unknown integration method {method!r}; choose from "
+                         f"{', '.join(INTEGRATION_METHODS)}")
+    return INTEGRATION_METHODS[method](normals, pixel_pitch_mm=pixel_pitch_mm, mask=mask)
+
+
+def mesh_from_height(height_mm, mask, pixel_pitch_mm=1.0, step=1):
+    """Triangle mesh of a height map: one vertex per masked pixel (every `step` px).
+
+    Returns (vertices (V, 3) float32 in mm, camera frame: x right, y up, z = height;
+    faces (F, 3) int32, counter-clockwise seen from +z). Two triangles per 2x2 block whose
+    four corners are in the mask, one where exactly three are.
+    """
+    if step < 1:
+        raise ValueError(f"step must be >= 1, got {step}")
+    hgt = np.asarray(height_mm)[::step, ::step]
+    msk = np.asarray(mask, bool)[::step, ::step] & np.isfinite(hgt)
+    h, w = hgt.shape
+    index = -np.ones((h, w), np.int64)
+    index[msk] = np.arange(int(msk.sum()))
+    rows, cols = np.nonzero(msk)
+    verts = np.stack([cols * step * pixel_pitch_mm, -rows * step * pixel_pitch_mm, hgt[msk]],
+                     axis=1).astype(np.float32)
+    a, b = index[:-1, :-1], index[:-1, 1:]      # top-left, top-right
+    c, d = index[1:, :-1], index[1:, 1:]        # bottom-left, bottom-right
+    faces = []
+    # image rows go down (y decreases): (a, c, b) is counter-clockwise seen from +z
+    for t in ((a, c, b), (b, c, d), (a, c, d), (a, d, b)):
+        faces.append(np.stack([x for x in t], axis=-1))
+    full = (a >= 0) & (b >= 0) & (c >= 0) & (d >= 0)
+    f = [faces[0][full], faces[1][full]]
+    f.append(faces[2][(a >= 0) & (c >= 0) & (d >= 0) & (b < 0)])
+    f.append(faces[3][(a >= 0) & (d >= 0) & (b >= 0) & (c < 0)])
+    f.append(np.stack([a, c, b], -1)[(a >= 0) & (b >= 0) & (c >= 0) & (d < 0)])
+    f.append(np.stack([b, c, d], -1)[(b >= 0) & (c >= 0) & (d >= 0) & (a < 0)])
+    return verts, np.concatenate(f).astype(np.int32)

@@ -1,0 +1,457 @@
+"""Photometric stereo: Woodham's least squares and Tautzia's hierarchical elimination.
+
+Conventions (DESIGN §8): camera frame x right, y up, z towards the camera; light
+directions are unit vectors from the surface towards the light, in that frame.
+Images are linear radiance already divided by each light's intensity, so that a
+Lambertian surface of reflectance rho gives E_i = (rho / pi) s_i . n  (thesis eq 4.3).
+"""
+from dataclasses import dataclass, field
+from itertools import combinations
+
+import numpy as np
+
+__all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "photometric_stereo",
+           "PS_METHODS", "triplet_inverses", "near_light_directions"]
+
+T_OMBRE = 1.5          # rad, thesis §4.2.1 ("slightly below pi/2")
+T_SPEC = 0.25          # variance of the kept unit normals, thesis §4.2.1
+T_SOURCE = 10.0        # max |entry| of S^-1; the thesis gives no value: 10 drops the 34
+                       # near-collinear triplets of the 12-LED rig (entries 10.6-43) and keeps 186
+T_RESIDUAL = 0.03      # relative least-squares residual under which a pixel skips the hierarchy
+_CHUNK = 16384         # pixels per block in the hierarchical stage (~45 MB of float32 per block)
+
+
+@dataclass
+class PSResult:
+    """Per-pixel photometric-stereo output, all at the image size (H, W).
+
+    normal : (H, W, 3) float32 unit vectors, camera frame; (0, 0, 0) where not valid.
+    albedo : (H, W, C) float32 Lambertian reflectance rho per channel (eq 4.3), 0 where not valid.
+    valid : (H, W) bool, inside the mask and a normal was found.
+    n_triplets : (H, W) int16, light triplets kept for the final mean (hierarchical;
+        for least squares and for pixels that skipped the hierarchy, the number of
+        conditioned triplets whose lights are all usable).
+    shadow, specular : (H, W, m) bool, lights removed by the shadow test (T_ombre) and
+        by the specular test (T_spec); all False for least squares.
+    residual : (H, W) float32, relative least-squares residual ||E - S g|| / ||E||
+        on the chosen channel (a confidence map: high means non-Lambertian or shadowed).
+    skipped : (H, W) bool, pixels that least squares already explained (residual <
+        t_residual, no light near grazing), so the hierarchy did not run on them.
+    """
+    normal: np.ndarray
+    albedo: np.ndarray
+    valid: np.ndarray
+    n_triplets: np.ndarray
+    shadow: np.ndarray
+    specular: np.ndarray
+    residual: np.ndarray
+    skipped: np.ndarray
+    method: str = ""
+    info: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------- input checks
+
+def _check_inputs(images, light_dirs, mask, channel):
+    images = np.asarray(images)
+    if images.ndim == 3:
+        images = images[..., None]
+    if images.ndim != 4:
+        raise ValueError(f"images must have shape (m, H, W) or (m, H, W, C), got {images.shape}")
+    m, h, w, c = images.shape
+    if m < 4:
+        raise ValueError(f"photometric stereo needs at least 4 lights here (3 to solve, one more to "
+                         f"check the fit); got {m}. Capture with more lights.")
+    light_dirs = np.asarray(light_dirs, dtype=np.float64)
+    if light_dirs.shape == (m, 3):
+        pass
+    elif light_dirs.shape == (h, w, m, 3):
+        pass
+    else:
+        raise ValueError(f"light_dirs must have shape ({m}, 3) or ({h}, {w}, {m}, 3) for {m} "
+                         f"images of {h}x{w}, got {light_dirs.shape}")
+    if not np.all(np.isfinite(light_dirs)):
+        raise ValueError("light_dirs contains NaN or inf; check the calibration profile")
+    norms = np.linalg.norm(light_dirs, axis=-1)
+    if np.any(np.abs(norms - 1) > 1e-3):
+        raise ValueError("light_dirs must be unit vectors (found norms from "
+                         f"{norms.min():.4g} to {norms.max():.4g}); normalise them first")
+    if mask is None:
+        mask = np.ones((h, w), bool)
+    mask = np.asarray(mask, bool)
+    if mask.shape != (h, w):
+        raise ValueError(f"mask has shape {mask.shape}, images are {h}x{w}")
+    if channel is None:
+        channel = 1 if c == 3 else 0  # the thesis uses the green channel (eq 4.7)
+    if not 0 <= channel < c:
+        raise ValueError(f"channel {channel} out of range for {c}-channel images")
+    return images, light_dirs, mask, channel
+
+
+def _usable(values, saturation):
+    """(N, m) bool: finite and (when given) below the saturation level."""
+    ok = np.isfinite(values)
+    if saturation is not None:
+        ok &= values < saturation
+    return ok
+
+
+def near_light_directions(positions_mm, shape, pixel_pitch_mm, heights_mm=None):
+    """Per-pixel light directions and 1/r^2 fall-off for lights at finite distance.
+
+    positions_mm : (m, 3) light positions in the camera frame (origin on the optical axis
+        in the object plane z = 0, which passes through the image centre).
+    shape : (H, W); pixel_pitch_mm : object-side size of one pixel (mm).
+    heights_mm : optional (H, W) surface heights (default: the plane z = 0).
+    Returns (dirs (H, W, m, 3) unit vectors towards each light, falloff (H, W, m)):
+    falloff = |P|^2 / |P - X|^2, the irradiance relative to the one at the origin, so
+    that intensities calibrated at the origin stay valid (divide images by it).
+    """
+    positions_mm = np.asarray(positions_mm, dtype=np.float64)
+    if positions_mm.ndim != 2 or positions_mm.shape[1] != 3:
+        raise ValueError(f"positions_mm must have shape (m, 3), got {positions_mm.shape}")
+    h, w = shape
+    x = (np.arange(w) - (w - 1) / 2) * pixel_pitch_mm
+    y = -(np.arange(h) - (h - 1) / 2) * pixel_pitch_mm      # row 0 is the top, y points up
+    pts = np.zeros((h, w, 3))
+    pts[..., 0] = x[None, :]
+    pts[..., 1] = y[:, None]
+    if heights_mm is not None:
+        pts[..., 2] = heights_mm
+    d = positions_mm[None, None, :, :] - pts[:, :, None, :]
+    r2 = np.sum(d * d, axis=-1)
+    dirs = d / np.sqrt(r2)[..., None]
+    falloff = np.sum(positions_mm ** 2, axis=-1)[None, None, :] / r2
+    return dirs.astype(np.float32), falloff.astype(np.float32)
+
+
+# ----------------------------------------------------------------------------- least squares
+
+def _ls_normals(e, s, ok):
+    """Least squares g = argmin ||W (E - S g)|| per pixel.
+
+    e : (N, m) values; s : (m, 3) or (N, m, 3); ok : (N, m) bool weights.
+    Returns g (N, 3) float64 (rho/pi times the normal); NaN where fewer than 3 usable lights.
+    """
+    n = e.shape[0]
+    e0 = np.where(ok, e, 0.0)
+    g = np.full((n, 3), np.nan)
+    if s.ndim == 2 and ok.all():
+        g[:] = e0 @ np.linalg.pinv(s).T
+        return g
+    # Weighted normal equations, batched 3x3 (per-pixel lights or missing values).
+    w = ok.astype(np.float64)
+    if s.ndim == 2:
+        a = np.einsum("nm,mi,mj->nij", w, s, s)
+        b = np.einsum("nm,mi->ni", w * e0, s)
+    else:
+        a = np.einsum("nm,nmi,nmj->nij", w, s, s)
+        b = np.einsum("nm,nmi->ni", w * e0, s)
+    good = ok.sum(1) >= 3
+    good &= np.abs(np.linalg.det(a)) > 1e-9
+    if good.any():
+        g[good] = np.linalg.solve(a[good], b[good][..., None])[..., 0]
+    return g
+
+
+def _albedo(e_all, s, n, keep):
+    """rho per channel for fixed unit normals: rho = pi * sum(E s.n) / sum((s.n)^2) over kept lights.
+
+    e_all : (N, m, C); s : (m, 3) or (N, m, 3); n : (N, 3); keep : (N, m) bool.
+    """
+    sn = (n @ s.T) if s.ndim == 2 else np.einsum("nmi,ni->nm", s, n)
+    w = keep & (sn > 0)
+    sn_w = np.where(w, sn, 0.0)
+    num = np.einsum("nmc,nm->nc", np.where(w[..., None], np.nan_to_num(e_all), 0.0), sn_w)
+    den = np.sum(sn_w ** 2, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rho = np.pi * num / den[:, None]
+    return np.where(den[:, None] > 1e-12, rho, 0.0)
+
+
+def _gather(images, mask, channel):
+    idx = np.flatnonzero(mask.ravel())
+    m, h, w, c = images.shape
+    flat = images.reshape(m, h * w, c)
+    e_all = np.ascontiguousarray(np.transpose(flat[:, idx, :], (1, 0, 2)), dtype=np.float32)
+    return idx, e_all, np.ascontiguousarray(e_all[:, :, channel])
+
+
+def _empty_result(h, w, m, c, method):
+    return PSResult(normal=np.zeros((h, w, 3), np.float32), albedo=np.zeros((h, w, c), np.float32),
+                    valid=np.zeros((h, w), bool), n_triplets=np.zeros((h, w), np.int16),
+                    shadow=np.zeros((h, w, m), bool), specular=np.zeros((h, w, m), bool),
+                    residual=np.zeros((h, w), np.float32), skipped=np.zeros((h, w), bool),
+                    method=method)
+
+
+def _scatter(res, idx, name, values):
+    arr = getattr(res, name)
+    flat = arr.reshape((-1,) + arr.shape[2:])
+    flat[idx] = values
+
+
+def _pixel_dirs(light_dirs, idx):
+    if light_dirs.ndim == 2:
+        return light_dirs
+    h, w, m, _ = light_dirs.shape
+    return light_dirs.reshape(h * w, m, 3)[idx].astype(np.float64)
+
+
+def _ls_stage(e, s, ok):
+    """Least squares on the chosen channel: unit normals (N, 3), relative residual (N,)."""
+    g = _ls_normals(e.astype(np.float64), s, ok)
+    norm = np.linalg.norm(g, axis=1)
+    found = np.isfinite(norm) & (norm > 1e-12)
+    n = np.zeros_like(g)
+    n[found] = g[found] / norm[found, None]
+    pred = (g @ s.T) if s.ndim == 2 else np.einsum("nmi,ni->nm", s, g)
+    diff = np.where(ok, e - pred, 0.0)
+    e_norm = np.sqrt(np.sum(np.where(ok, e, 0.0) ** 2, axis=1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        resid = np.sqrt(np.sum(diff ** 2, axis=1)) / e_norm
+    resid = np.where(found & (e_norm > 0), resid, np.inf)
+    return n, found, resid
+
+
+def ps_woodham1980(images, light_dirs, mask=None, channel=None, saturation=None):
+    """Least-squares photometric stereo (Woodham 1980), the baseline.
+
+    images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
+    light_dirs : (m, 3) unit vectors towards the lights (camera frame), or (H, W, m, 3) per pixel
+        (near lights, see `near_light_directions`).
+    mask : (H, W) bool, pixels to solve (default all).
+    channel : channel used for the normal (default green when C == 3, as the thesis).
+    saturation : values >= this are treated as missing (like NaN); None: no limit.
+    Returns a `PSResult`. Pixels with fewer than 3 usable values, or all black, are not valid.
+
+    Notes: g = argmin ||E - S g||, n = g / ||g||, rho = pi ||g|| fitted per channel (eq 4.3).
+    """
+    images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
+    m, h, w, c = images.shape
+    res = _empty_result(h, w, m, c, "woodham1980")
+    idx, e_all, e = _gather(images, mask, channel)
+    if idx.size == 0:
+        return res
+    s = _pixel_dirs(light_dirs, idx)
+    ok = _usable(e, saturation)
+    n, found, resid = _ls_stage(e, s, ok)
+    rho = _albedo(e_all.astype(np.float64), s, n, ok)
+    _scatter(res, idx, "normal", n)
+    _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
+    _scatter(res, idx, "valid", found)
+    _scatter(res, idx, "residual", np.where(np.isfinite(resid), resid, 0.0))
+    res.info = {"pixels": int(idx.size)}
+    return res
+
+
+# ----------------------------------------------------------------------------- hierarchical
+
+def triplet_inverses(light_dirs, t_source=T_SOURCE):
+    """The global step of thesis §4.2.1: all C(m,3) triplets and their inverses.
+
+    light_dirs : (m, 3) unit vectors. Returns (triplets (K, 3) int, inverses (K, 3, 3),
+    kept (K,) bool) where kept = |det S| > 1e-6 and max |S^-1| <= t_source.
+    """
+    light_dirs = np.asarray(light_dirs, dtype=np.float64)
+    trip = np.array(list(combinations(range(len(light_dirs)), 3)), dtype=np.intp)
+    s = light_dirs[trip]                                   # (K, 3, 3), rows = lights
+    det = np.linalg.det(s)
+    kept = np.abs(det) > 1e-6
+    inv = np.zeros_like(s)
+    inv[kept] = np.linalg.inv(s[kept])
+    kept &= np.abs(inv).max(axis=(1, 2)) <= t_source
+    return trip, inv, kept
+
+
+def _triplet_matrices(trip, inv):
+    """(3, m, K) float32 M such that g_k[j] = (E @ M[j])[k] = (S_k^-1 E_k)[j] (eq 4.7)."""
+    m = int(trip.max()) + 1 if trip.size else 0
+    k = len(trip)
+    big = np.zeros((3, m, k), np.float32)
+    for a in range(3):
+        for j in range(3):
+            big[j, trip[:, a], np.arange(k)] += inv[:, j, a]
+    return big
+
+
+def _triplet_normals_local(e, s, trip, t_source):
+    """Per-pixel triplets (near lights) by Cramer's rule: g = sum_a E_a (s_b x s_c) / det.
+
+    e : (N, m); s : (N, m, 3). Returns (gx, gy, gz) each (N, K) and conditioned (N, K) bool.
+    """
+    s1, s2, s3 = s[:, trip[:, 0]], s[:, trip[:, 1]], s[:, trip[:, 2]]   # (N, K, 3)
+    c1, c2, c3 = np.cross(s2, s3), np.cross(s3, s1), np.cross(s1, s2)
+    det = np.sum(s1 * c1, axis=-1)
+    good = np.abs(det) > 1e-6
+    safe = np.where(good, det, 1.0)[..., None]
+    e1, e2, e3 = (e[:, trip[:, a]][..., None] for a in range(3))
+    g = ((e1 * c1 + e2 * c2 + e3 * c3) / safe).astype(np.float32)
+    # the columns of S^-1 are the cofactor vectors divided by det
+    cof = np.maximum(np.abs(c1).max(-1), np.maximum(np.abs(c2).max(-1), np.abs(c3).max(-1)))
+    good &= cof / np.abs(safe[..., 0]) <= t_source
+    return (g[..., 0], g[..., 1], g[..., 2]), good
+
+
+def _hierarchy_block(e, s, ok, trip, mats, t_ombre, t_spec, t_source):
+    """The local step of thesis §4.2.1 on a block of N pixels (components kept apart as
+    (N, K) arrays so every reduction is a matrix product).
+
+    e : (N, m); s : (m, 3) or (N, m, 3); ok : (N, m) usable values; trip : (K, 3) the
+    triplets in play; mats : `_triplet_matrices` for global lights, None for per-pixel.
+    Returns normal (N, 3), n_kept (N,), shadow (N, m), specular (N, m), found (N,).
+    """
+    n_pix, m = e.shape
+    e0 = np.where(ok, e, 0.0).astype(np.float32)
+    if mats is not None:
+        g = [e0 @ mats[j] for j in range(3)]
+        tvalid = None
+    else:
+        g, tvalid = _triplet_normals_local(e0, s, trip, t_source)
+    norm = np.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
+    good = norm > 1e-12
+    tvalid = good if tvalid is None else tvalid & good
+    inv_norm = np.where(tvalid, 1.0 / np.where(good, norm, 1.0), 0.0).astype(np.float32)
+    nh = [gj * inv_norm for gj in g]                         # unit normals, 0 where invalid
+    uses = np.zeros((len(trip), m), np.float32)              # triplet k uses light l
+    uses[np.arange(len(trip))[:, None], trip] = 1.0
+
+    def alive_triplets(alive, rows=slice(None)):
+        dead = (~alive).astype(np.float32) @ uses.T          # dead lights in each triplet
+        return (dead == 0) & tvalid[rows]
+
+    alive = ok.copy()
+    ta = alive_triplets(alive)
+    taf = ta.astype(np.float32)
+    # Shadows: per light, the mean of the normals of the triplets using it; its angle to the light.
+    mean_l = [(taf * nj) @ uses for nj in nh]                # 3 x (N, m)
+    sl = s.astype(np.float32)
+    if s.ndim == 2:
+        dot = mean_l[0] * sl[:, 0] + mean_l[1] * sl[:, 1] + mean_l[2] * sl[:, 2]
+    else:
+        dot = mean_l[0] * sl[..., 0] + mean_l[1] * sl[..., 1] + mean_l[2] * sl[..., 2]
+    ml = np.sqrt(mean_l[0] ** 2 + mean_l[1] ** 2 + mean_l[2] ** 2)
+    shadow = alive & (ml > 0) & (dot < np.cos(t_ombre) * ml)
+    alive &= ~shadow
+    ta = alive_triplets(alive)
+    # Specularities: while the variance of the kept normals exceeds T_spec and more than one
+    # triplet is left, drop the brightest remaining light and every triplet using it.
+    specular = np.zeros_like(shadow)
+    todo = np.arange(n_pix)
+    for _ in range(m):
+        if todo.size == 0:
+            break
+        tat = ta[todo].astype(np.float32)
+        cnt = tat.sum(1)
+        inv_cnt = 1.0 / np.maximum(cnt, 1)
+        mx, my, mz = ((tat * nj[todo]).sum(1) * inv_cnt for nj in nh)
+        var = 1.0 - (mx * mx + my * my + mz * mz)            # total variance of unit vectors
+        act = (cnt > 1) & (var > t_spec)
+        todo = todo[act]
+        if todo.size == 0:
+            break
+        used = (tat[act] @ uses) > 0                          # lights still in a kept triplet
+        brightest = np.argmax(np.where(used, e0[todo], -np.inf), axis=1)
+        alive[todo, brightest] = False
+        specular[todo, brightest] = True
+        ta[todo] = alive_triplets(alive[todo], todo)
+    taf = ta.astype(np.float32)
+    cnt = ta.sum(1)
+    mean = np.stack([(taf * nj).sum(1) for nj in nh], axis=1)
+    mn = np.linalg.norm(mean, axis=1)
+    found = (cnt > 0) & (mn > 1e-12)
+    normal = np.where(found[:, None], mean / np.where(found, mn, 1.0)[:, None], 0.0)
+    return normal, cnt, shadow, specular, found
+
+
+def ps_hierarchical_tautzia2016(images, light_dirs, mask=None, channel=None, saturation=None,
+                                t_ombre=T_OMBRE, t_spec=T_SPEC, t_source=T_SOURCE,
+                                t_residual=T_RESIDUAL, chunk=_CHUNK):
+    """Photometric stereo with hierarchical elimination of shadows and specularities.
+
+    images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
+    light_dirs : (m, 3) unit vectors towards the lights, or (H, W, m, 3) per pixel.
+    mask : (H, W) bool (default all); channel : default green when C == 3 (thesis).
+    saturation : values >= this are treated as missing, as are NaN values.
+    t_ombre : shadow angle threshold (rad), default 1.5. t_spec : threshold on the variance
+        of the kept unit normals, 1 - ||mean||^2 in [0, 1], default 0.25.
+    t_source : triplets whose inverse has an entry above this are dropped (default 10).
+    t_residual : pixels whose least-squares relative residual is below this, with every
+        light usable and none at grazing incidence (angle < t_ombre), keep the least-squares
+        normal and skip the hierarchy (0 disables the shortcut).
+    Returns a `PSResult`; `info` holds the triplet counts and the share of skipped pixels.
+
+    Notes: thesis §4.2.1. Global step: all C(m,3) triplets, inverses, T_source test.
+    Local step per pixel: n_k = S_k^-1 E_k / ||S_k^-1 E_k|| (eq 4.7, green channel); a light
+    whose mean triplet normal makes an angle > T_ombre with it is a shadow, and every triplet
+    using it is dropped; then while the variance of the kept normals > T_spec and more than
+    one triplet remains, the brightest remaining light is dropped; final normal = mean of the
+    kept normals. Eq 4.7 is printed with [p q 1]^T on the left, which is not a unit vector:
+    the right-hand side is the unit normal n, and (p, q) = (-n_x/n_z, -n_y/n_z).
+    """
+    images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
+    m, h, w, c = images.shape
+    res = _empty_result(h, w, m, c, "hierarchical_tautzia2016")
+    trip, inv, kept = (triplet_inverses(light_dirs, t_source) if light_dirs.ndim == 2
+                       else (np.array(list(combinations(range(m), 3))), None, None))
+    if kept is not None and not kept.any():
+        raise ValueError(f"no light triplet passes T_source = {t_source} (all inverses have larger "
+                         "entries): the lights are nearly coplanar; raise t_source or check directions")
+    idx, e_all, e = _gather(images, mask, channel)
+    res.info = {"pixels": int(idx.size), "triplets": len(trip),
+                "triplets_conditioned": int(kept.sum()) if kept is not None else None}
+    if idx.size == 0:
+        res.info["skipped_fraction"] = 0.0
+        return res
+    s = _pixel_dirs(light_dirs, idx)
+    ok = _usable(e, saturation)
+    n_ls, found_ls, resid = _ls_stage(e, s, ok)
+    sn = (n_ls @ s.T) if s.ndim == 2 else np.einsum("nmi,ni->nm", s, n_ls)
+    skip = (found_ls & ok.all(1) & (resid < t_residual)
+            & np.all(sn > np.cos(t_ombre), axis=1)) if t_residual > 0 else np.zeros(idx.size, bool)
+    normal = np.where(skip[:, None], n_ls, 0.0)
+    found = skip.copy()
+    n_trip = np.zeros(idx.size, np.int16)
+    if kept is not None:
+        n_trip[skip] = int(kept.sum())
+    else:
+        n_trip[skip] = len(trip)
+    shadow = np.zeros((idx.size, m), bool)
+    specular = np.zeros((idx.size, m), bool)
+    rest = np.flatnonzero(~skip)
+    if kept is not None:
+        trip_used, mats = trip[kept], _triplet_matrices(trip[kept], inv[kept])
+    else:
+        trip_used, mats = trip, None
+    for a in range(0, rest.size, chunk):
+        sel = rest[a:a + chunk]
+        s_blk = s if s.ndim == 2 else s[sel]
+        nb, cb, shb, spb, fb = _hierarchy_block(e[sel], s_blk, ok[sel], trip_used, mats,
+                                                t_ombre, t_spec, t_source)
+        normal[sel], n_trip[sel], shadow[sel], specular[sel], found[sel] = nb, cb, shb, spb, fb
+    keep = ok & ~shadow & ~specular
+    rho = _albedo(e_all.astype(np.float64), s, normal, keep)
+    _scatter(res, idx, "normal", normal)
+    _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
+    _scatter(res, idx, "valid", found)
+    _scatter(res, idx, "n_triplets", n_trip)
+    _scatter(res, idx, "shadow", shadow)
+    _scatter(res, idx, "specular", specular)
+    _scatter(res, idx, "residual", np.where(np.isfinite(resid), resid, 0.0))
+    _scatter(res, idx, "skipped", skip)
+    res.info["skipped_fraction"] = float(skip.mean())
+    return res
+
+
+PS_METHODS = {"woodham1980": ps_woodham1980, "least_squares": ps_woodham1980,
+              "hierarchical_tautzia2016": ps_hierarchical_tautzia2016,
+              "hierarchical": ps_hierarchical_tautzia2016}
+
+
+def photometric_stereo(images, light_dirs, method="hierarchical_tautzia2016", **kwargs):
+    """Dispatch by name: "woodham1980" (alias "least_squares") or "hierarchical_tautzia2016"
+    (alias "hierarchical"). Arguments as the chosen function."""
+    if method not in PS_METHODS:
+        raise ValueError(f"unknown photometric-stereo method {method!r}; choose from "
+                         f"{', '.join(sorted(PS_METHODS))}")
+    return PS_METHODS[method](images, light_dirs, **kwargs)
