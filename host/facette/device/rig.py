@@ -1,0 +1,257 @@
+"""`Rig`: the instrument as a user scripts it (DESIGN §6).
+
+    rig = facette.connect("sim")              # or "/dev/ttyACM0", "socket://127.0.0.1:5020"
+    rig.configure(exposures=[(1_000_000, 500)], lights=range(12))
+    scan = rig.scan("out/plaque", profile=profile)
+"""
+from __future__ import annotations
+
+import time
+
+from facette.device.client import DeviceClient, DeviceError
+
+__all__ = ["Rig", "connect", "FrameRecord", "TIMING_MODES", "RigFault"]
+
+TIMING_MODES = ("camera", "bulb", "led")
+RING_STRIDE = 8
+
+class RigFault(DeviceError):
+    """The device latched a fault (over-temperature, open LED, missed sync...)."""
+
+    def __init__(self, message, faults):
+        super().__init__(message)
+        self.faults = faults
+
+def FrameRecord(words, n):
+    """Decode one 8-word frame-ring record (see protocol/registers.toml, ring_*)."""
+    return {"n": n, "frame": words[0], "light": words[1], "exposure": words[2],
+            "current_set_mA": words[3], "current_meas_mA": words[4],
+            "start_us": (words[5] << 16) | words[6], "sync": bool(words[7] & 1),
+            "retry": bool(words[7] & 2), "valid": bool(words[7] & 4)}
+
+class Rig:
+    """A connected rig: device registers plus (optionally) a camera backend and a simulator.
+
+    Parameters
+    ----------
+    device : DeviceClient
+    camera : a camera backend (facette.camera) or None
+    sim : facette.sim.SimulatedRig or None (closed with the rig)
+    """
+
+    def __init__(self, device, camera=None, sim=None):
+        self.device = device
+        self.camera = camera
+        self.sim = sim
+        self.config = None
+
+    # -- identity and status -------------------------------------------------------
+    @property
+    def identity(self):
+        """Firmware version, protocol, definition hash, serial, boot count, LED count..."""
+        ident = dict(self.device.identity)
+        v = ident.get("fw_version", 0)
+        ident["fw_version"] = f"{v >> 8}.{v & 0xFF}"
+        ident["definition_hash"] = f"{ident.get('definition_hash', 0):#010x}"
+        return ident
+
+    def status(self):
+        """State, faults, progress of the scan: a dict (times in µs)."""
+        st = self.device.read_block(["state", "fault_bits", "current_light", "current_exposure",
+                                     "frames_done", "frames_expected", "time_left_us", "ring_count",
+                                     "retries_used", "fault_log_count", "last_error"])
+        st["state"] = self.device.map.enum_name("state", st["state"])
+        st["faults"] = self._fault_names(st["fault_bits"])
+        return st
+
+    def progress(self):
+        """(frames_done, frames_expected)."""
+        st = self.device.read_block(["frames_done", "frames_expected"])
+        return st["frames_done"], st["frames_expected"]
+
+    def _fault_names(self, bits):
+        return [name for name, bit in self.device.map.enums.get("fault", {}).items() if bits >> bit & 1]
+
+    def faults(self):
+        """Latched faults (names) and the fault log: {"latched": [...], "log": [{"code", "detail", "time_ms"}]}."""
+        bits = self.device.read("fault_bits")
+        count = self.device.read("fault_log_count")
+        log = []
+        for n in range(max(0, count - 8), count):
+            i = n % 8
+            e = self.device.read_block(["fault_log_code", "fault_log_detail", "fault_log_time_ms"], index=i)
+            log.append({"code": self.device.map.enum_name("fault", e["fault_log_code"]),
+                        "detail": e["fault_log_detail"], "time_ms": e["fault_log_time_ms"]})
+        return {"latched": self._fault_names(bits), "log": log}
+
+    def measurements(self):
+        m = self.device.read_block(["led_temp_cC", "led_current_mA", "supply_mV", "led_channel", "led_set_mA"])
+        m["led_temp_C"] = m.pop("led_temp_cC") / 100.0
+        return m
+
+    # -- configuration and commands ------------------------------------------------
+    def configure(self, exposures, lights=None, light_current_mA=500, mode="camera", retries=1,
+                  **timing):
+        """Write a scan configuration (lights × exposures) to the device.
+
+        Parameters
+        ----------
+        exposures : sequence of (time_us, current_mA) or of time_us; current 0 means
+            the light's current. 1..16 of them.
+        lights : sequence of LED channels in scan order (default: every LED, 0..max_leds-1)
+        light_current_mA : int or sequence, drive current per light, mA (before calibration gain)
+        mode : "camera" (the camera's shutter speed), "bulb", or "led" (LED pulse defines t)
+        retries : repeats of a setting whose flash sync is missing
+        timing : other µs registers: prefocus_us, mirror_up_us, settle_us, gap_us,
+            led_pre_us, led_post_us, sync_timeout_us
+        """
+        if mode not in TIMING_MODES:
+            raise ValueError(f"mode must be one of {TIMING_MODES}, got {mode!r}")
+        n_leds = self.device.identity.get("max_leds", 12) or 12
+        lights = list(range(n_leds)) if lights is None else [int(c) for c in lights]
+        if not 1 <= len(lights) <= 16 or any(not 0 <= c < n_leds for c in lights):
+            raise ValueError(f"lights must be 1..16 LED channels in [0, {n_leds}), got {lights}")
+        exps = [(int(e), 0) if not hasattr(e, "__len__") else (int(e[0]), int(e[1])) for e in exposures]
+        if not 1 <= len(exps) <= 16:
+            raise ValueError(f"a scan has 1..16 exposures per light, got {len(exps)}")
+        currents = [int(light_current_mA)] * len(lights) if not hasattr(light_current_mA, "__len__") \
+            else [int(c) for c in light_current_mA]
+        unknown = set(timing) - {"prefocus_us", "mirror_up_us", "settle_us", "gap_us", "led_pre_us",
+                                 "led_post_us", "sync_timeout_us"}
+        if unknown:
+            raise ValueError(f"unknown timing settings {sorted(unknown)}")
+        d = self.device
+        d.write("n_lights", len(lights))
+        d.write("n_exposures", len(exps))
+        d.write("timing_mode", d.map.enum_value("timing_mode", mode.upper()))
+        d.write("retries", retries)
+        d.write_array("light_order", lights)
+        d.write_array("light_current_mA", currents)
+        d.write_array("exposure_time_us", [t for t, _ in exps])
+        d.write_array("exposure_current_mA", [c for _, c in exps])
+        for k, v in timing.items():
+            d.write(k, int(v))
+        self.config = {"lights": lights, "exposures": exps, "light_current_mA": currents, "mode": mode,
+                       "retries": retries, "timing": dict(timing)}
+        return self.config
+
+    def arm(self):
+        self.device.command("ARM", accept_states={"ARMED"})
+
+    def start(self):
+        """Arm (if needed) and start the configured scan."""
+        if self.device.state() != "ARMED":
+            self.arm()
+        self.device.command("START", accept_states={"RUNNING", "DONE"})
+
+    def pause(self):
+        self.device.command("PAUSE", accept_states={"PAUSED"})
+
+    def resume(self):
+        self.device.command("RESUME", accept_states={"RUNNING", "DONE"})
+
+    def abort(self):
+        self.device.command("ABORT", accept_states={"ABORTED", "IDLE"})
+
+    def clear_faults(self):
+        self.device.command("CLEAR_FAULTS", accept_states={"IDLE"})
+
+    def reboot(self):
+        self.device.command("REBOOT")
+
+    # -- frame records -------------------------------------------------------------------
+    def ring_count(self):
+        return self.device.read("ring_count")
+
+    def frame_records(self, since=0, count=None):
+        """Frame-ring records ``since`` .. ring_count-1 (at most ring_len back): (list, next).
+
+        A record says the device released the camera for (light, exposure) at
+        start_us (µs since the scan started) with the set and measured current,
+        and whether the camera's flash sync came back (a frame was really taken).
+        """
+        count = self.ring_count() if count is None else count
+        ring_len = self.device.identity.get("ring_len", 16) or 16
+        lost = max(0, count - since - ring_len)
+        out = []
+        base = self.device.map["ring_frame"].address
+        for n in range(since + lost, count):
+            words = self.device.read_words("input", base + RING_STRIDE * (n % ring_len), RING_STRIDE)
+            out.append(FrameRecord(words, n))
+        return out, count, lost
+
+    # -- calibration gains ---------------------------------------------------------------
+    def gains(self):
+        """Per-LED current gains (1.0 = nominal), one per channel."""
+        n = self.device.identity.get("max_leds", 12) or 12
+        return [g / 1e4 for g in self.device.read_array("cal_gain")[:n]]
+
+    def set_gains(self, gains, save=True):
+        """Write per-LED gains (0.5..2.0) and, with `save`, store them in the device's flash."""
+        words = [int(round(g * 1e4)) for g in gains]
+        key = self.device.map.meta.get("unlock_key", 0xCA1B)
+        self.device.write("cal_unlock", key)
+        self.device.write_array("cal_gain", words)
+        if save:
+            self.device.command("SAVE")
+
+    # -- buttons, scans ------------------------------------------------------------------
+    def wait_state(self, states, timeout_s=30.0, poll_s=0.01):
+        """Poll until the sequencer state is one of `states`; returns it."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            s = self.device.state()
+            if s in states:
+                return s
+            if time.monotonic() > deadline:
+                raise DeviceError(f"the device stayed in {s} for {timeout_s} s (waiting for {sorted(states)})")
+            time.sleep(poll_s)
+
+    def scan(self, directory, profile=None, **kw):
+        """Acquire a scan into `directory` (resumable); see facette.scan.run_scan."""
+        from facette.scan import run_scan
+
+        return run_scan(self, directory, profile=profile, **kw)
+
+    def close(self):
+        """Close the port; a simulated rig is stopped too."""
+        try:
+            self.device.close()
+        finally:
+            if self.sim is not None:
+                self.sim.close()
+                self.sim = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __repr__(self):
+        return f"Rig({self.device.url!r}, boot {self.device.boot_count})"
+
+def connect(target="sim", camera=None, **kw):
+    """Connect to a rig.
+
+    Parameters
+    ----------
+    target : "sim" (start a simulated rig: device + rig simulator, stopped when the Rig
+        closes), a serial port, a pty path, or a pyserial URL (``socket://host:port``)
+    camera : camera backend for scans (facette.camera); the simulated rig brings its own
+    kw : for "sim", options of facette.sim.SimulatedRig (scene, shape, faults, speed...);
+        otherwise options of DeviceClient (timeout_s, retries, check_hash, baudrate)
+    """
+    if target == "sim":
+        from facette.camera import FolderWatchCamera
+        from facette.sim import SimulatedRig
+
+        client_kw = {k: kw.pop(k) for k in ("timeout_s", "retries", "check_hash") if k in kw}
+        sim = SimulatedRig(**kw)
+        try:
+            device = DeviceClient(sim.port, **client_kw)
+        except Exception:
+            sim.close()
+            raise
+        return Rig(device, camera=camera or FolderWatchCamera(sim.camera_dir), sim=sim)
+    return Rig(DeviceClient(target, **kw), camera=camera)

@@ -1,0 +1,128 @@
+"""`SimulatedRig`: the firmware's posix build plus the rig simulator, as one object."""
+from __future__ import annotations
+
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from facette.sim.device_process import SimulatedDevice
+from facette.sim.lights import thesis_leds
+from facette.sim.render import radiance_per_led
+from facette.sim.rig import Faults, RigSimulator, SimCamera
+from facette.sim.scene import make_scene
+from facette.sim.sensor import DEFAULT_SENSOR
+
+__all__ = ["SimulatedRig", "DEFAULT_RAW_SHAPE"]
+
+DEFAULT_RAW_SHAPE = (96, 128)   # (rows, columns) of the RAW mosaic; HDR/truth are half that
+
+
+class SimulatedRig:
+    """Start a simulated device and a rig simulator following it.
+
+    Parameters
+    ----------
+    scene : str, a name of facette.sim.scene.SCENES (default "plaque_sphere")
+    raw_shape : (rows, cols) of the RAW images, even (default 96×128; HDR is half)
+    pixel_pitch_mm : mm per half-size pixel on the object (default: scene 120 mm wide)
+    brdf : {"model", "params"} or None (Cook–Torrance σ = 0.1, n_i = 1.3)
+    near : bool, point LEDs at 1.5 m with per-pixel directions and 1/r²
+    direction_error_deg, intensity_error : LED errors (see facette.sim.lights.thesis_leds)
+    sensor : facette.sim.sensor.SensorModel or None (the default D300-like sensor at ISO 400)
+    electrons_per_mA_s : exposure scale (see facette.sim.render.radiance_per_led)
+    faults : Faults, or a string for Faults.parse ("biterr=1e-3,reset_at_shot=5")
+    speed : virtual clock rate of the device (× real time)
+    workdir : folder for the camera folder, the side socket and the flash (default: temporary)
+    seed : int
+    """
+
+    def __init__(self, scene="plaque_sphere", raw_shape=DEFAULT_RAW_SHAPE, pixel_pitch_mm=None, brdf=None,
+                 near=False, direction_error_deg=0.5, intensity_error=0.05, sensor=None,
+                 electrons_per_mA_s=20.0, faults=None, speed=200.0, workdir=None, seed=0, shadows=True):
+        rows, cols = (int(v) for v in raw_shape)
+        if rows % 2 or cols % 2 or rows < 22 or cols < 22:
+            raise ValueError(f"raw_shape must be even and at least 22×22 (a DNG limit), got {raw_shape}")
+        self._tmp = None
+        if workdir is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="facette-rig-")
+            workdir = self._tmp.name
+        self.workdir = Path(workdir)
+        self.camera_dir = self.workdir / "camera"
+        self.faults = Faults.parse(faults) if isinstance(faults, str) or faults is None else faults
+        self.scene = make_scene(scene, (rows // 2, cols // 2), pixel_pitch_mm, seed=seed, brdf=brdf)
+        self.leds = thesis_leds(direction_error_deg, intensity_error, near=near, seed=seed + 1)
+        self.sensor = sensor or DEFAULT_SENSOR
+        self.radiance = radiance_per_led(self.scene, self.leds, electrons_per_mA_s, shadows=shadows)
+        self.device = SimulatedDevice(speed=speed, side=True, workdir=self.workdir / "device")
+        try:
+            self.camera = SimCamera(self.camera_dir, self.radiance, self.sensor, iso=self.sensor.iso,
+                                    seed=seed + 2)
+            self.simulator = RigSimulator(self.device.side_socket, self.camera, self.faults)
+        except Exception:
+            self.device.close()
+            raise
+        self.port = self.device.port
+
+    # -- controls ---------------------------------------------------------------------
+    def press_button(self, wait_for=None, timeout_s=10.0):
+        """Press and release the rig's button. `wait_for` : callable returning True once
+        the device saw the press (e.g. its state left ARMED); the button is held until
+        then (bounded by `timeout_s`) so the firmware's debounce always sees it."""
+        self.simulator.button(True)
+        deadline = time.monotonic() + timeout_s
+        while wait_for is not None and not wait_for() and time.monotonic() < deadline:
+            time.sleep(0.002)
+        self.simulator.button(False)
+
+    def set_temperature(self, celsius):
+        self.simulator.set_ntc(celsius)
+
+    def summary(self):
+        return self.simulator.summary()
+
+    # -- truth ---------------------------------------------------------------------------
+    def truth(self):
+        """The simulator's truth at the HDR (half-size) resolution (contract 3)."""
+        s = self.scene
+        return {"normals": s.normals.astype(np.float32), "height_mm": s.height_mm.astype(np.float32),
+                "mask": s.mask, "albedo": s.albedo.astype(np.float32),
+                "light_dirs": self.leds.directions.astype(np.float64),
+                "light_intensity": self.leds.intensities.astype(np.float64),
+                "light_positions_mm": (self.leds.positions_mm if self.leds.positions_mm is not None
+                                       else np.full((len(self.leds), 3), np.nan)),
+                "pixel_pitch_mm": np.float64(s.pixel_pitch_mm),
+                "brdf": np.str_(s.brdf_json()),
+                "sensor": np.str_(json.dumps(self.sensor.to_profile_dict(), sort_keys=True))}
+
+    def save_truth(self, directory, channels=None):
+        """Write truth.npz into `directory`. `channels` : LED channel of each scan light
+        (light_dirs/light_intensity then follow the scan's light order)."""
+        t = self.truth()
+        if channels is not None:
+            idx = np.asarray(list(channels), int)
+            for k in ("light_dirs", "light_intensity", "light_positions_mm"):
+                t[k] = t[k][idx]
+        path = Path(directory) / "truth.npz"
+        tmp = path.with_name(".truth.npz.partial")
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **t)
+        tmp.replace(path)
+        return path
+
+    def close(self):
+        try:
+            self.simulator.close()
+        finally:
+            self.device.close()
+            if self._tmp is not None:
+                self._tmp.cleanup()
+                self._tmp = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
