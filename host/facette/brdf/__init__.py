@@ -1,0 +1,28 @@
+"""BRDF models, the interfaced Lambertian (LI) microfacet model and its building blocks.
+
+Every model is ``f(s, o, **params) -> ndarray`` (1/sr) with s, o (..., 3) unit vectors in
+the local frame (normal +z); ``get(name)`` returns one by name ("lambert", "oren_nayar",
+"cook_torrance", "li"). Thesis chapter 3; equation numbers in each docstring.
+"""
+from ._fresnel import fresnel_dielectric, r_e_molenaar1999, r_i_simonot2009
+from ._interreflection import interreflection_integral_vcavity, interreflection_vcavity
+from ._microfacet import (DISTRIBUTIONS, MASKINGS, distribution_d, gaussian_norm_exact,
+                          gaussian_norm_rational_tsb2014, masking_g, microfacet_quadrature,
+                          sample_microfacet_normals, smith_g1)
+from ._models import (INTERREFLECTION_MIN_SIGMA, MODELS, brdf_li, cook_torrance1982, get, lambert,
+                      li_kd_factor, li_specular, li_volume, oren_nayar1994)
+from ._volume import (VOLUME_METHODS, VolumeTable, build_volume_table, volume_integral,
+                      volume_integral_approx, volume_integral_monte_carlo, volume_integral_quadrature,
+                      volume_integral_table)
+from ._albedo import directional_albedo
+
+__all__ = [
+    "fresnel_dielectric", "r_e_molenaar1999", "r_i_simonot2009",
+    "DISTRIBUTIONS", "MASKINGS", "distribution_d", "gaussian_norm_exact", "gaussian_norm_rational_tsb2014",
+    "masking_g", "microfacet_quadrature", "sample_microfacet_normals", "smith_g1",
+    "INTERREFLECTION_MIN_SIGMA", "MODELS", "brdf_li", "cook_torrance1982", "get", "lambert", "li_kd_factor",
+    "li_specular", "li_volume", "oren_nayar1994",
+    "VOLUME_METHODS", "VolumeTable", "build_volume_table", "volume_integral", "volume_integral_approx",
+    "volume_integral_monte_carlo", "volume_integral_quadrature", "volume_integral_table",
+    "interreflection_integral_vcavity", "interreflection_vcavity", "directional_albedo",
+]
