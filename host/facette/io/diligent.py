@@ -1,0 +1,93 @@
+"""DiLiGenT-style photometric-stereo folders (Shi et al. 2016/2019).
+
+A folder holds `filenames.txt` (one image file per line), `light_directions.txt` (one unit
+vector per line, camera frame x right, y up, z towards the camera), `light_intensities.txt`
+(R G B per line; images are divided by them), `mask.png`, and 16-bit PNG images.
+"""
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from facette.io.png import read_mask, read_png, write_png, write_mask
+
+__all__ = ["DiligentData", "is_diligent_dir", "read_diligent", "write_diligent"]
+
+
+@dataclass
+class DiligentData:
+    """images (m, H, W, 3) float32 in [0, 1] divided by the light intensities; light_dirs (m, 3);
+    light_intensities (m, 3); mask (H, W) bool; normals (H, W, 3) or None (Normal_gt.txt/.png
+    is not read here); names (m,) file names."""
+    images: np.ndarray
+    light_dirs: np.ndarray
+    light_intensities: np.ndarray
+    mask: np.ndarray
+    names: list
+
+
+def is_diligent_dir(path):
+    path = Path(path)
+    return (path / "filenames.txt").is_file() and (path / "light_directions.txt").is_file()
+
+
+def _table(path, m=None, what=""):
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} is missing; a DiLiGenT folder needs {path.name} ({what})")
+    arr = np.loadtxt(path, ndmin=2, dtype=np.float64)
+    if arr.shape[1] != 3 or (m is not None and arr.shape[0] != m):
+        raise ValueError(f"{path} must hold {m or 'm'} lines of 3 numbers ({what}); "
+                         f"found shape {arr.shape}")
+    return arr
+
+
+def read_diligent(folder, dtype=np.float32):
+    """Read a DiLiGenT-style folder. Returns `DiligentData` (images divided by intensities,
+    scaled so that 65535 -> 1 before the division)."""
+    folder = Path(folder)
+    names = [l.strip() for l in (folder / "filenames.txt").read_text().splitlines() if l.strip()]
+    if not names:
+        raise ValueError(f"{folder / 'filenames.txt'} lists no images")
+    m = len(names)
+    dirs = _table(folder / "light_directions.txt", m, "unit light directions")
+    norms = np.linalg.norm(dirs, axis=1)
+    if np.any(norms <= 0):
+        raise ValueError(f"{folder / 'light_directions.txt'} has a zero direction")
+    dirs = dirs / norms[:, None]
+    inten_path = folder / "light_intensities.txt"
+    inten = _table(inten_path, m, "R G B intensity per light") if inten_path.is_file() else np.ones((m, 3))
+    if np.any(inten <= 0):
+        raise ValueError(f"{inten_path} has a non-positive intensity; every light must be > 0")
+    first = read_png(folder / names[0])
+    h, w = first.shape[:2]
+    images = np.empty((m, h, w, 3), dtype)
+    for i, name in enumerate(names):
+        arr = first if i == 0 else read_png(folder / name)
+        if arr.shape[:2] != (h, w):
+            raise ValueError(f"{name} is {arr.shape[1]}x{arr.shape[0]}, {names[0]} is {w}x{h}")
+        if arr.ndim == 2:
+            arr = np.repeat(arr[..., None], 3, axis=2)
+        scale = 65535.0 if arr.dtype == np.uint16 else 255.0
+        images[i] = arr[..., :3] / (scale * inten[i])
+    mask_path = folder / "mask.png"
+    mask = read_mask(mask_path) if mask_path.is_file() else np.ones((h, w), bool)
+    if mask.shape != (h, w):
+        raise ValueError(f"mask.png is {mask.shape[1]}x{mask.shape[0]}, images are {w}x{h}")
+    return DiligentData(images, dirs, inten, mask, names)
+
+
+def write_diligent(folder, images_uint16, light_dirs, light_intensities=None, mask=None):
+    """Write a DiLiGenT-style folder (for tests and exchange): images (m, H, W, 3) uint16."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    images_uint16 = np.asarray(images_uint16)
+    m = len(images_uint16)
+    names = [f"{i + 1:03d}.png" for i in range(m)]
+    for name, img in zip(names, images_uint16):
+        write_png(folder / name, img)
+    (folder / "filenames.txt").write_text("\n".join(names) + "\n")
+    np.savetxt(folder / "light_directions.txt", np.asarray(light_dirs), fmt="%.8f")
+    if light_intensities is not None:
+        np.savetxt(folder / "light_intensities.txt", np.asarray(light_intensities), fmt="%.8f")
+    if mask is not None:
+        write_mask(folder / "mask.png", mask)

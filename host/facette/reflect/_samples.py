@@ -1,0 +1,109 @@
+"""Reflectance samples from the HDR images and the estimated normals (thesis eq 4.11).
+
+Each sample is one (pixel, light, channel) value f = E / (k (n.s)), with its incidence and
+observation directions rotated into the local frame of the normal (n = +z) and about n so
+that the incidence lies in the half-plane phi_s = 0 (thesis §4.2.2, fig 4.17).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["ReflectanceSamples", "reflectance_samples", "local_frame_directions", "MIN_COS"]
+
+MIN_COS = 0.05   # samples with n.s below this (incidence beyond ~87 deg) divide noise by ~0
+
+
+@dataclass
+class ReflectanceSamples:
+    """Flat arrays of K samples.
+
+    s, o : (K, 3) float32 unit vectors in the local frame (n = +z, s_y = 0, s_x >= 0).
+    f : (K, C) float32 BRDF estimates (1/sr when images are radiance per unit irradiance).
+    pixel : (K,) int64 flat pixel index (row * W + col); light : (K,) int16 light index.
+    """
+    s: np.ndarray
+    o: np.ndarray
+    f: np.ndarray
+    pixel: np.ndarray
+    light: np.ndarray
+
+    def __len__(self):
+        return len(self.f)
+
+    def subset(self, index):
+        return ReflectanceSamples(self.s[index], self.o[index], self.f[index], self.pixel[index],
+                                  self.light[index])
+
+
+def local_frame_directions(n, s, o):
+    """Rotate unit vectors into the frame of n, turned about n so that phi_s = 0.
+
+    n, s, o : (..., 3) unit vectors (camera frame), broadcasting. Returns (s_local, o_local),
+    each (..., 3): s_local = (sin theta_s, 0, cos theta_s), o_local keeps the angles of o to n
+    and to the incidence plane. Where s is parallel to n any tangent is used (phi is undefined).
+    """
+    n, s, o = np.broadcast_arrays(*(np.asarray(v, dtype=np.float32) for v in (n, s, o)))
+    sn = np.sum(s * n, axis=-1, keepdims=True)
+    t = s - sn * n
+    tn = np.linalg.norm(t, axis=-1, keepdims=True)
+    # fallback tangent when s // n: anything perpendicular to n
+    alt = np.cross(n, np.where(np.abs(n[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]))
+    alt /= np.maximum(np.linalg.norm(alt, axis=-1, keepdims=True), 1e-12)
+    t = np.where(tn > 1e-6, t / np.maximum(tn, 1e-12), alt)
+    b = np.cross(n, t)
+    s_loc = np.concatenate([np.sum(s * t, -1, keepdims=True), np.zeros_like(sn), sn], axis=-1)
+    o_loc = np.stack([np.sum(o * t, -1), np.sum(o * b, -1), np.sum(o * n, -1)], axis=-1)
+    return s_loc.astype(np.float32), o_loc.astype(np.float32)
+
+
+def reflectance_samples(images, normals, light_dirs, mask=None, exclude=None, view=(0.0, 0.0, 1.0),
+                        k=1.0, min_cos=MIN_COS):
+    """BRDF samples per pixel, light and channel (thesis eq 4.11): f = E / (k L_i (n.s) dw_s).
+
+    images : (m, H, W) or (m, H, W, C) linear radiance already divided by each light's
+        intensity L_i dw_s (so a Lambertian surface of reflectance rho gives f = rho / pi).
+    normals : (H, W, 3) unit vectors (camera frame); zero or non-finite ones are skipped.
+    light_dirs : (m, 3) unit vectors towards the lights, or (H, W, m, 3) per pixel.
+    mask : (H, W) bool pixels to use; exclude : optional (H, W, m) bool samples to leave out
+        (e.g. the shadows found by photometric stereo).
+    view : unit vector towards the camera (orthographic: +z). k : camera constant of eq 4.8
+        ((pi/4)(d_l/f)^2 cos^4 alpha); 1 when the intensity calibration already includes it.
+    min_cos : samples with n.s < min_cos, or n.o <= 0, or a non-finite E are left out.
+    Returns `ReflectanceSamples`.
+    """
+    images = np.asarray(images, dtype=np.float32)
+    if images.ndim == 3:
+        images = images[..., None]
+    if images.ndim != 4:
+        raise ValueError(f"images must have shape (m, H, W) or (m, H, W, C), got {images.shape}")
+    m, h, w, c = images.shape
+    normals = np.asarray(normals, dtype=np.float32)
+    if normals.shape != (h, w, 3):
+        raise ValueError(f"normals must have shape ({h}, {w}, 3), got {normals.shape}")
+    light_dirs = np.asarray(light_dirs, dtype=np.float32)
+    if light_dirs.shape not in ((m, 3), (h, w, m, 3)):
+        raise ValueError(f"light_dirs must have shape ({m}, 3) or ({h}, {w}, {m}, 3), got {light_dirs.shape}")
+    if not k > 0:
+        raise ValueError(f"k must be positive, got {k}")
+    ok_n = np.all(np.isfinite(normals), -1) & (np.linalg.norm(np.nan_to_num(normals), axis=-1) > 0.5)
+    if mask is not None:
+        ok_n &= np.asarray(mask, bool)
+    pix = np.flatnonzero(ok_n.ravel())
+    n = normals.reshape(-1, 3)[pix]                                       # (P, 3)
+    s = light_dirs[None] if light_dirs.ndim == 2 else light_dirs.reshape(h * w, m, 3)[pix]
+    s = np.broadcast_to(s, (pix.size, m, 3))
+    e = np.transpose(images.reshape(m, h * w, c)[:, pix], (1, 0, 2))     # (P, m, C)
+    o = np.asarray(view, dtype=np.float32)
+    ns = np.einsum("pmi,pi->pm", s, n)
+    no = n @ o
+    keep = (ns >= min_cos) & (no > 0)[:, None] & np.all(np.isfinite(e), axis=-1)
+    if exclude is not None:
+        exclude = np.asarray(exclude, bool)
+        if exclude.shape != (h, w, m):
+            raise ValueError(f"exclude must have shape ({h}, {w}, {m}), got {exclude.shape}")
+        keep &= ~exclude.reshape(h * w, m)[pix]
+    pi_, li = np.nonzero(keep)
+    s_loc, o_loc = local_frame_directions(n[pi_], s[pi_, li], o)
+    f = e[pi_, li] / (k * ns[pi_, li])[:, None]
+    return ReflectanceSamples(s_loc, o_loc, f.astype(np.float32), pix[pi_].astype(np.int64),
+                              li.astype(np.int16))
