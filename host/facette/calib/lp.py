@@ -1,0 +1,65 @@
+"""Read and write the RTI world's ``.lp`` light-position files.
+
+Format (RTIBuilder, relight, PTM fitter): the first line is the number of lights,
+then one line per light ``filename x y z`` (whitespace separated; a file name may
+contain spaces, the last three fields are the numbers). Vectors are in the
+camera frame x right, y up, z towards the camera, as in facette (DESIGN §8);
+most tools write unit vectors (directions), domes sometimes positions.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["read_lp", "write_lp"]
+
+
+def read_lp(path, normalize=True):
+    """Read an .lp file. Returns (filenames [str] * m, vectors (m, 3) float64).
+
+    With `normalize` the vectors are scaled to unit length (directions). Raises
+    ValueError naming the line when the count or a line is malformed.
+    """
+    path = Path(path)
+    lines = [ln.strip() for ln in path.read_text().splitlines()]
+    lines = [ln for ln in lines if ln and not ln.startswith("#")]
+    if not lines:
+        raise ValueError(f"{path} is empty: an .lp file starts with the number of lights")
+    try:
+        count = int(lines[0].split()[0])
+    except ValueError:
+        raise ValueError(f"{path}: the first line must be the number of lights, got {lines[0]!r}")
+    body = lines[1:]
+    if len(body) != count:
+        raise ValueError(f"{path} announces {count} lights but lists {len(body)}")
+    names, vecs = [], []
+    for i, ln in enumerate(body, start=2):
+        parts = ln.rsplit(None, 3)
+        try:
+            if len(parts) != 4:
+                raise ValueError
+            v = [float(p) for p in parts[1:]]
+        except ValueError:
+            raise ValueError(f"{path} line {i}: expected 'filename x y z', got {ln!r}") from None
+        if not np.all(np.isfinite(v)) or not np.any(v):
+            raise ValueError(f"{path} line {i}: the vector must be finite and non-zero, got {v}")
+        names.append(parts[0])
+        vecs.append(v)
+    vecs = np.array(vecs, dtype=np.float64).reshape(-1, 3)
+    if normalize:
+        vecs /= np.linalg.norm(vecs, axis=1, keepdims=True)
+    return names, vecs
+
+
+def write_lp(path, filenames, vectors):
+    """Write an .lp file: count, then ``filename x y z`` per light (9 decimals)."""
+    v = np.asarray(vectors, float)
+    if v.ndim != 2 or v.shape[1] != 3 or len(filenames) != len(v):
+        raise ValueError(f"need one (x, y, z) per file name: {len(filenames)} names, vectors {v.shape}")
+    bad = [f for f in filenames if not str(f).strip() or "\n" in str(f)]
+    if bad:
+        raise ValueError(f"file names must be non-empty single lines, got {bad[:3]}")
+    text = [str(len(v))] + [f"{f} {x:.9f} {y:.9f} {z:.9f}" for f, (x, y, z) in zip(filenames, v)]
+    Path(path).write_text("\n".join(text) + "\n")
+    return Path(path)

@@ -1,0 +1,74 @@
+"""Light directions from a matte (Lambertian) sphere: the cross-check of the mirror sphere.
+
+On a sphere of known outline every pixel's normal n is known, and a distant LED
+gives E = n · b with b = (ρ/π) I s (thesis eq 4.3) wherever n·s > 0. The lit
+pixels give b by least squares: its direction is the light's, its norm the
+(relative) intensity. Pixels near the terminator are left out (they carry the
+most shading error, and those past it are zero).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from facette.calib.mirror_sphere import Circle, fit_sphere_outline, sphere_mask
+
+__all__ = ["matte_sphere_directions", "lambert_fit_direction"]
+
+
+def _normals(shape, circle, margin):
+    h, w = shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    u = (cols - circle.cx) / circle.r
+    v = -(rows - circle.cy) / circle.r
+    rho2 = u * u + v * v
+    inside = rho2 < margin ** 2
+    n = np.stack([u, v, np.sqrt(np.clip(1 - rho2, 0, None))], -1)
+    return n, inside
+
+
+def lambert_fit_direction(image, circle, margin=0.95, min_cos=0.1, iterations=3):
+    """Fit E = n·b on the lit part of a Lambertian sphere.
+
+    image : (H, W) or (H, W, 3) linear radiance; circle : the sphere's outline.
+    Pixels within `margin` × radius, with n·b̂ > `min_cos` (iterated from the pixels
+    brighter than 10 % of the peak). Returns (direction (3,), |b| per channel (3,) or
+    (1,), rms residual relative to |b|).
+    """
+    g = np.asarray(image, float)
+    g = g[..., None] if g.ndim == 2 else g
+    n, inside = _normals(g.shape[:2], circle, margin)
+    lum = g.mean(axis=2)
+    sel = inside & (lum > 0.1 * lum[inside].max())
+    for _ in range(iterations):
+        N = n[sel]
+        if len(N) < 10:
+            raise ValueError("too few lit pixels on the matte sphere to fit a direction: is the LED "
+                             "on, and the sphere in view?")
+        b, *_ = np.linalg.lstsq(N, lum[sel], rcond=None)
+        s = b / np.linalg.norm(b)
+        sel = inside & (n @ s > min_cos)
+    N = n[sel]
+    res = lum[sel] - N @ b
+    scale = np.array([np.linalg.lstsq(N, g[sel][:, c], rcond=None)[0] @ s for c in range(g.shape[2])])
+    return s, scale, float(np.sqrt(np.mean(res ** 2)) / np.linalg.norm(b))
+
+
+def matte_sphere_directions(images, circle=None):
+    """Directions (m, 3), intensities (m, C) (mean over LEDs = 1 per channel) and
+    relative rms residuals (m,) from images (m, H, W[, 3]) of a matte sphere.
+
+    The outline (`circle`) is fitted on the brightest-anywhere image (the maximum
+    over LEDs, where the whole sphere is lit) unless given.
+    """
+    img = np.asarray(images, float)
+    if img.ndim not in (3, 4):
+        raise ValueError(f"images must be (m, H, W) or (m, H, W, 3), got {img.shape}")
+    if circle is None:
+        ref = img.max(axis=0)
+        circle = fit_sphere_outline(sphere_mask(ref, dark=False), ref)
+    if not isinstance(circle, Circle):
+        raise ValueError("circle must be a facette.calib.mirror_sphere.Circle")
+    out = [lambert_fit_direction(im, circle) for im in img]
+    dirs = np.array([o[0] for o in out])
+    inten = np.array([o[1] for o in out])
+    return dirs, inten / inten.mean(axis=0, keepdims=True), np.array([o[2] for o in out]), circle

@@ -1,0 +1,302 @@
+"""Light directions and LED positions from a mirror (chrome) sphere.
+
+Orthographic camera, view direction v = (0, 0, 1) (towards the camera), camera
+frame x right, y up, z to the camera; image row 0 is the top, so a pixel (col,
+row) on a sphere of centre (cx, cy) and radius R (px) has the normal
+
+    n = ((col − cx)/R, −(row − cy)/R, √(1 − ...)).
+
+The LED seen as a highlight at n lies in the mirror direction l = 2(n·v)n − v.
+A highlight located to σ px on a sphere of R px gives about 1.44°·σ·(100/R) of
+direction error (REFERENCE §6).
+
+Near-light model: the highlight is the ray from the sphere point X = C + R n
+towards l; rays from two or more placements of the sphere meet at the LED
+(`light_positions_from_rays`).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from scipy import ndimage, optimize
+
+__all__ = ["Circle", "Highlight", "fit_circle", "sphere_mask", "fit_sphere_outline",
+           "highlight_centroid", "mirror_direction", "mirror_sphere_directions",
+           "light_positions_from_rays", "sphere_rays"]
+
+
+@dataclasses.dataclass
+class Circle:
+    """A sphere's outline in pixels: centre (cx = column, cy = row), radius r, and
+    rms the rms distance of the edge points to the circle (px)."""
+    cx: float
+    cy: float
+    r: float
+    rms: float = 0.0
+
+
+@dataclasses.dataclass
+class Highlight:
+    """A highlight's centroid (x = column, y = row, px), its peak value, whether it
+    holds saturated pixels, and its area (px)."""
+    x: float
+    y: float
+    peak: float
+    saturated: bool
+    area: int
+
+
+def fit_circle(points):
+    """Least-squares circle through points (N, 2) as (x, y): algebraic (Kåsa) start,
+    then geometric distances. Returns Circle."""
+    p = np.asarray(points, float)
+    if p.ndim != 2 or p.shape[1] != 2 or len(p) < 3:
+        raise ValueError(f"need at least 3 points (N, 2) to fit a circle, got shape {p.shape}")
+    A = np.c_[2 * p, np.ones(len(p))]
+    b = np.sum(p * p, axis=1)
+    (cx, cy, c), *_ = np.linalg.lstsq(A, b, rcond=None)
+    r0 = np.sqrt(max(c + cx * cx + cy * cy, 1e-12))
+
+    def res(q):
+        return np.hypot(p[:, 0] - q[0], p[:, 1] - q[1]) - q[2]
+    sol = optimize.least_squares(res, [cx, cy, r0], method="lm")
+    cx, cy, r = sol.x
+    return Circle(float(cx), float(cy), float(abs(r)), float(np.sqrt(np.mean(sol.fun ** 2))))
+
+
+def sphere_mask(image, dark=True):
+    """The sphere's silhouette in an image (H, W) or (H, W, 3): bool (H, W).
+
+    The mirror sphere is dark on the lit card (`dark=True`); a matte sphere is
+    bright on a dark card (`dark=False`). Otsu threshold, the largest connected
+    region, holes (the highlights) filled.
+    """
+    g = np.asarray(image, float)
+    if g.ndim == 3:
+        g = g.mean(axis=2)
+    if g.ndim != 2 or not np.all(np.isfinite(g)):
+        raise ValueError(f"need a finite (H, W) or (H, W, 3) image, got shape {g.shape}")
+    lo, hi = np.percentile(g, [1, 99])
+    if hi <= lo:
+        raise ValueError("the image is uniform: no sphere in view (place the sphere under the "
+                         "camera, or check that the LEDs light the card)")
+    # Otsu on a histogram clipped to the 1–99 % range (highlights would dominate).
+    hist, edges = np.histogram(np.clip(g, lo, hi), bins=256, range=(lo, hi))
+    mids = 0.5 * (edges[1:] + edges[:-1])
+    w0 = np.cumsum(hist)
+    w1 = w0[-1] - w0
+    m0 = np.cumsum(hist * mids) / np.maximum(w0, 1)
+    m1 = (np.sum(hist * mids) - np.cumsum(hist * mids)) / np.maximum(w1, 1)
+    t = mids[np.argmax(w0 * w1 * (m0 - m1) ** 2)]
+    fg = g < t if dark else g > t
+    lab, n = ndimage.label(fg)
+    if n == 0:
+        raise ValueError("no sphere found in the image")
+    # the largest region that does not touch the frame (the card may be dark at its corners)
+    sizes = ndimage.sum(fg, lab, index=np.arange(1, n + 1))
+    border = set(np.unique(np.r_[lab[0], lab[-1], lab[:, 0], lab[:, -1]]).tolist())
+    order = np.argsort(sizes)[::-1]
+    pick = next((i + 1 for i in order if (i + 1) not in border), None)
+    if pick is None:
+        raise ValueError("the sphere touches the edge of the frame: centre it under the camera")
+    return ndimage.binary_fill_holes(lab == pick)
+
+
+def fit_sphere_outline(mask, image=None, min_radius_px=8):
+    """Circle of a sphere's silhouette, sub-pixel.
+
+    Edge points are taken between each inside pixel and its outside 4-neighbour:
+    at the midpoint for a bare mask, or where the image crosses the level halfway
+    between the sphere's and the card's typical values when `image` is given
+    (sub-pixel). A geometric circle fit follows (`fit_circle`), then points further
+    than 2 px from it (highlights touching the rim, dust) are dropped and it is refit.
+    """
+    mask = np.asarray(mask, bool)
+    if mask.ndim != 2:
+        raise ValueError(f"mask must be (H, W), got {mask.shape}")
+    g = None
+    if image is not None:
+        g = np.asarray(image, float)
+        g = g.mean(axis=2) if g.ndim == 3 else g
+    pts = []
+    h, w = mask.shape
+    for dr, dc in ((0, 1), (1, 0), (0, -1), (-1, 0)):
+        shifted = np.zeros_like(mask)
+        src = mask[max(-dr, 0):h - max(dr, 0), max(-dc, 0):w - max(dc, 0)]
+        shifted[max(dr, 0):h - max(-dr, 0), max(dc, 0):w - max(-dc, 0)] = src
+        # pixels outside whose neighbour at (−dr, −dc) is inside
+        rr, cc = np.nonzero(shifted & ~mask)
+        ri, ci = rr - dr, cc - dc
+        t = np.full(rr.shape, 0.5)
+        if g is not None:
+            # local level: halfway between the values 2 px further in and 2 px further out,
+            # so a rim whose brightness varies around the sphere is still found
+            r_in = np.clip(ri - 2 * dr, 0, h - 1)
+            c_in = np.clip(ci - 2 * dc, 0, w - 1)
+            r_out = np.clip(rr + 2 * dr, 0, h - 1)
+            c_out = np.clip(cc + 2 * dc, 0, w - 1)
+            level = 0.5 * (g[r_in, c_in] + g[r_out, c_out])
+            gi, go = g[ri, ci], g[rr, cc]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                tt = (level - gi) / (go - gi)
+            ok = np.isfinite(tt) & (tt >= -0.5) & (tt <= 1.5)
+            t = np.where(ok, tt, 0.5)
+        pts.append(np.c_[ci + t * dc, ri + t * dr])
+    pts = np.concatenate(pts)
+    if len(pts) < 12:
+        raise ValueError("the sphere is too small in the image to fit its outline")
+    c = fit_circle(pts)
+    d = np.abs(np.hypot(pts[:, 0] - c.cx, pts[:, 1] - c.cy) - c.r)
+    if np.any(d > 2.0) and np.sum(d <= 2.0) >= 12:
+        c = fit_circle(pts[d <= 2.0])
+    if c.r < min_radius_px:
+        raise ValueError(f"the sphere is only {c.r:.1f} px in radius (need ≥ {min_radius_px}): "
+                         "use a larger sphere or a longer focal length")
+    return c
+
+
+def highlight_centroid(image, circle, white_level=None, threshold=0.5, margin=0.98):
+    """Sub-pixel centroid of the brightest highlight inside the sphere.
+
+    Pixels above `threshold` × the peak in the region connected to the peak, weighted
+    by their value above the threshold. Saturated pixels (≥ `white_level`, when
+    given) all weigh the same: the centroid of a clipped, symmetric blob is still
+    its centre, and the result says it was saturated.
+    """
+    g = np.asarray(image, float)
+    # a pixel is saturated when any of its channels is
+    clipped = None if white_level is None else (g >= white_level if g.ndim == 2
+                                                 else np.any(g >= white_level, axis=2))
+    g = g.mean(axis=2) if g.ndim == 3 else g
+    h, w = g.shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    inside = np.hypot(cols - circle.cx, rows - circle.cy) < margin * circle.r
+    vals = np.where(inside, g, -np.inf)
+    k = int(np.argmax(vals))
+    peak = float(vals.flat[k])
+    base = float(np.median(g[inside]))
+    if not np.isfinite(peak) or peak <= base:
+        raise ValueError("no highlight on the sphere: is the LED on and the sphere in its view?")
+    thr = base + threshold * (peak - base)
+    lab, _ = ndimage.label(inside & (g > thr))
+    core = lab == lab.flat[k]
+    # weigh every pixel near the blob by its value above the sphere's level: a box-filtered
+    # (pixel-integrated) blob keeps its first moment, a thresholded one does not
+    blob = ndimage.binary_dilation(core, iterations=2) & inside
+    wts = g[blob] - base
+    sat = False
+    if clipped is not None:
+        s = clipped[blob]
+        sat = bool(s.any())
+        if sat:
+            wts = np.where(s, white_level - base, wts)
+    wts = np.maximum(wts, 0)
+    x = float(np.sum(cols[blob] * wts) / np.sum(wts))
+    y = float(np.sum(rows[blob] * wts) / np.sum(wts))
+    return Highlight(x, y, peak, sat, int(core.sum()))
+
+
+def _normal_at(circle, x, y):
+    u = (x - circle.cx) / circle.r
+    v = -(y - circle.cy) / circle.r
+    rho2 = u * u + v * v
+    if rho2 >= 1:
+        raise ValueError(f"highlight at ({x:.1f}, {y:.1f}) lies outside the sphere's outline")
+    return np.array([u, v, np.sqrt(1 - rho2)])
+
+
+def mirror_direction(circle, x, y):
+    """Light direction from a highlight at (x = column, y = row) on a mirror sphere.
+
+    l = 2(n·v)n − v with v = (0, 0, 1) (orthographic). Returns a unit (3,) vector.
+    """
+    n = _normal_at(circle, x, y)
+    v = np.array([0.0, 0.0, 1.0])
+    l = 2 * (n @ v) * n - v
+    return l / np.linalg.norm(l)
+
+
+def mirror_sphere_directions(images, white_level=None, outline_image=None):
+    """Light directions from mirror-sphere images, one per LED.
+
+    Parameters
+    ----------
+    images : (m, H, W) or (m, H, W, 3) linear images of the sphere on its card.
+    white_level : value at which a pixel saturated (single exposures), or None (HDR).
+    outline_image : image to find the silhouette in (default the mean of `images`,
+        where the card is lit from every side).
+
+    Returns (directions (m, 3), circle, [Highlight] * m).
+    """
+    img = np.asarray(images, float)
+    if img.ndim == 4:
+        img = img.mean(axis=3)
+    if img.ndim != 3:
+        raise ValueError(f"images must be (m, H, W) or (m, H, W, 3), got {np.shape(images)}")
+    ref = img.mean(axis=0) if outline_image is None else np.asarray(outline_image, float)
+    if ref.ndim == 3:
+        ref = ref.mean(axis=2)
+    circle = fit_sphere_outline(sphere_mask(ref, dark=True), ref)
+    hl = [highlight_centroid(im, circle, white_level) for im in img]
+    dirs = np.array([mirror_direction(circle, h.x, h.y) for h in hl])
+    return dirs, circle, hl
+
+
+def sphere_rays(circle, highlights, shape, pixel_pitch_mm, sphere_radius_mm=None, center_z_mm=None):
+    """Rays (origins (m, 3) mm, directions (m, 3)) from the sphere's highlights to the LEDs.
+
+    The pixel pitch turns pixels into mm; with a known sphere radius and no pitch,
+    the pitch is radius_mm / radius_px. The sphere centre's height is `center_z_mm`
+    (default its radius: resting on the object plane z = 0).
+    """
+    if pixel_pitch_mm is None:
+        if sphere_radius_mm is None:
+            raise ValueError("give the pixel pitch or the sphere's radius in mm to place it")
+        pixel_pitch_mm = sphere_radius_mm / circle.r
+    h, w = shape[:2]
+    r_mm = circle.r * pixel_pitch_mm if sphere_radius_mm is None else sphere_radius_mm
+    c = np.array([(circle.cx - (w - 1) / 2) * pixel_pitch_mm,
+                  ((h - 1) / 2 - circle.cy) * pixel_pitch_mm,
+                  r_mm if center_z_mm is None else center_z_mm])
+    origins, dirs = [], []
+    for hl in highlights:
+        n = _normal_at(circle, hl.x, hl.y)
+        origins.append(c + r_mm * n)
+        dirs.append(2 * n[2] * n - np.array([0.0, 0.0, 1.0]))
+    return np.array(origins), np.array(dirs)
+
+
+def light_positions_from_rays(origins, directions):
+    """Least-squares point nearest to k ≥ 2 rays, for each LED.
+
+    origins, directions : (k, m, 3) — placement k, LED m (mm; directions unit).
+    Minimises Σ_k |(I − d dᵀ)(P − o)|². Returns (positions (m, 3) mm, rms distance
+    of the rays to the point (m,) mm). Raises if the rays are (nearly) parallel:
+    move the sphere further between placements.
+    """
+    o = np.asarray(origins, float)
+    d = np.asarray(directions, float)
+    if o.ndim == 2:
+        o, d = o[:, None], d[:, None]
+    if o.shape != d.shape or o.shape[0] < 2:
+        raise ValueError("need rays from at least two sphere placements (k ≥ 2) to locate the "
+                         "LEDs; with one placement only directions are known")
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    P, rms = [], []
+    for j in range(o.shape[1]):
+        A = np.zeros((3, 3))
+        b = np.zeros(3)
+        projs = []
+        for k in range(o.shape[0]):
+            M = np.eye(3) - np.outer(d[k, j], d[k, j])
+            A += M
+            b += M @ o[k, j]
+            projs.append(M)
+        if np.linalg.cond(A) > 1e8:
+            raise ValueError(f"LED {j}: the rays are parallel; move the sphere further between "
+                             "placements (a few cm across the field)")
+        p = np.linalg.solve(A, b)
+        P.append(p)
+        rms.append(np.sqrt(np.mean([np.sum((M @ (p - o[k, j])) ** 2) for k, M in enumerate(projs)])))
+    return np.array(P), np.array(rms)

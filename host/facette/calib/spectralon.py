@@ -1,0 +1,235 @@
+"""Spectralon calibration: relative LED intensities, flat field, LED current gains.
+
+The thesis (§4.3.2, condition 4) calibrates the rig with a Spectralon target so
+that the LEDs' intensity ratios are known and corrected. A flat white diffuser of
+certified reflectance ρ (per channel) on the object plane, lit by LED i, gives the
+radiance (thesis eq 4.3 with n = target normal)
+
+    E_i(x) = ρ/π · I_i · k_i(x) · (n · s_i(x)) · F(x)
+
+with I_i the LED's irradiance at the field centre, k_i the near-light fall-off
+(|P_i|²/|P_i − X|², 1 for a distant light), s_i the direction to the LED and F the
+camera's own flat field (vignetting, pixel response). Inverting this gives I_i per
+channel (`spectralon_intensities`) and F (`flat_field`).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from facette.calib.targets import light_vectors, pixel_grid_mm
+
+__all__ = ["SpectralonResult", "spectralon_intensities", "flat_field", "led_current_gains",
+           "target_mask"]
+
+
+@dataclasses.dataclass
+class SpectralonResult:
+    """intensities (m, 3) relative; absolute (m, 3) in image units per unit irradiance
+    (the pre-normalisation values); nonuniformity (m,) relative spatial std of each
+    corrected image over the target (what the model leaves unexplained)."""
+    intensities: np.ndarray
+    absolute: np.ndarray
+    nonuniformity: np.ndarray
+
+
+def _check_stack(images):
+    img = np.asarray(images, dtype=np.float64)
+    if img.ndim == 3:
+        img = img[None]
+    if img.ndim != 4 or img.shape[-1] != 3:
+        raise ValueError(f"images must have shape (m, H, W, 3) (one HDR image per LED), got {img.shape}")
+    if not np.all(np.isfinite(img)):
+        raise ValueError("images contain NaN or inf: merge the HDR images with saturation masking "
+                         "first, or pass a mask that excludes the bad pixels")
+    return img
+
+
+def target_mask(images, low=0.5, border=0.05):
+    """Pixels that see the target: brighter than `low` × the median of the mean image,
+    minus a `border` fraction of the frame on each side (target edges, lens rim).
+    Returns bool (H, W)."""
+    img = _check_stack(images)
+    mean = img.mean(axis=(0, 3))
+    m = mean > low * np.median(mean)
+    h, w = m.shape
+    bh, bw = int(round(border * h)), int(round(border * w))
+    frame = np.zeros_like(m)
+    frame[bh:h - bh, bw:w - bw] = True
+    return m & frame
+
+
+def _geometry(shape, directions, positions_mm, pixel_pitch_mm, normal):
+    """cos(incidence) × fall-off per light and pixel, (m, H, W)."""
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    if positions_mm is None:
+        d = np.asarray(directions, float)
+        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        return np.broadcast_to(np.clip(d @ n, 0, None)[:, None, None], (len(d),) + tuple(shape))
+    if pixel_pitch_mm is None:
+        raise ValueError("near-light positions need pixel_pitch_mm to place the pixels in mm")
+    x, y = pixel_grid_mm(shape, pixel_pitch_mm)
+    pts = np.stack([x, y, -(n[0] * x + n[1] * y) / n[2]], -1)
+    out = []
+    for p in np.asarray(positions_mm, float):
+        s, k = light_vectors(pts, position_mm=p)
+        out.append(np.clip(s @ n, 0, None) * k)
+    return np.stack(out)
+
+
+def spectralon_intensities(images, directions=None, reflectance=(0.99, 0.99, 0.99), mask=None,
+                           positions_mm=None, pixel_pitch_mm=None, normal=(0.0, 0.0, 1.0),
+                           flat=None, normalise="channel"):
+    """Relative intensity of each LED per channel from Spectralon images (thesis §4.3.2).
+
+    Parameters
+    ----------
+    images : ndarray (m, H, W, 3)
+        Linear HDR radiance of the target under each LED (any common unit).
+    directions : ndarray (m, 3)
+        Unit light directions, camera frame (distant lights). Ignored for the
+        geometry when `positions_mm` is given.
+    reflectance : (3,) certified reflectance per channel, in (0, 1]
+        (`facette.calib.targets.channel_reflectance`).
+    mask : bool (H, W) or None — target pixels (default `target_mask`).
+    positions_mm : (m, 3) or None — near-light LED positions (1/r² and per-pixel cosine).
+    pixel_pitch_mm : float — object-plane pixel size, needed with positions.
+    normal : (3,) target normal (camera frame), default facing the camera.
+    flat : (H, W, 3) or None — the camera flat field to divide out first.
+    normalise : "channel" (each channel's mean over LEDs = 1, the profile's
+        convention) or "green" (green mean 1; R and B keep their ratio to green, so
+        dividing by the intensities also white-balances against the certified white).
+
+    Returns
+    -------
+    SpectralonResult
+        I_i = π · mean_x(E_i / (k_i cos_i F)) / ρ, normalised.
+    """
+    img = _check_stack(images)
+    m, h, w, _ = img.shape
+    if directions is None and positions_mm is None:
+        raise ValueError("give the light directions (m, 3) or the LED positions_mm (m, 3)")
+    nl = len(positions_mm if positions_mm is not None else directions)
+    if nl != m:
+        raise ValueError(f"{m} images but {nl} lights: give one Spectralon image per LED")
+    rho = np.broadcast_to(np.asarray(reflectance, float), (3,))
+    if np.any((rho <= 0) | (rho > 1)):
+        raise ValueError(f"reflectance must lie in (0, 1], got {rho}")
+    if mask is None:
+        mask = target_mask(img)
+    mask = np.asarray(mask, bool)
+    if mask.shape != (h, w) or mask.sum() < 10:
+        raise ValueError(f"the target mask has {int(mask.sum())} pixels (shape {mask.shape}); the "
+                         "Spectralon must fill most of the field: place it under the camera")
+    geo = _geometry((h, w), directions, positions_mm, pixel_pitch_mm, normal)
+    if np.any(geo[:, mask] <= 1e-3):
+        raise ValueError("some LED grazes or is behind the target (cos ≤ 0.001): check the "
+                         "directions and the target normal")
+    corr = img / geo[..., None]
+    if flat is not None:
+        corr = corr / np.asarray(flat, float)[None]
+    vals = corr[:, mask, :]                                       # (m, N, 3)
+    absolute = np.pi * vals.mean(axis=1) / rho
+    if np.any(absolute <= 0):
+        raise ValueError("an LED gave no light on the target (mean ≤ 0): is it connected and on?")
+    nonuni = (vals[..., 1].std(axis=1) / vals[..., 1].mean(axis=1))
+    if normalise == "channel":
+        rel = absolute / absolute.mean(axis=0, keepdims=True)
+    elif normalise == "green":
+        rel = absolute / absolute[:, 1].mean()
+    else:
+        raise ValueError(f"normalise must be 'channel' or 'green', got {normalise!r}")
+    return SpectralonResult(rel, absolute, nonuni)
+
+
+def _poly_basis(h, w, degree):
+    yy, xx = np.mgrid[0:h, 0:w]
+    u = (xx - (w - 1) / 2) / (w / 2)
+    v = (yy - (h - 1) / 2) / (h / 2)
+    return np.stack([u ** i * v ** j for i in range(degree + 1) for j in range(degree + 1 - i)], -1)
+
+
+def flat_field(images, directions=None, mask=None, positions_mm=None, pixel_pitch_mm=None,
+               normal=(0.0, 0.0, 1.0), degree=None):
+    """Per-pixel flat field from Spectralon images, (H, W, 3), mean 1 over the frame.
+
+    Each LED's image is divided by its own geometry (incidence cosine and, when
+    `positions_mm` is given, the 1/r² fall-off) and by its mean over the target,
+    then the LEDs are averaged. So:
+
+    - without positions (distant-light pipeline), F includes the near-light
+      fall-off averaged over the LEDs (divide the scan's images by it);
+    - with positions (near-light pipeline), F holds only the camera's share
+      (vignetting, pixel response), since the pipeline models 1/r² itself.
+
+    Pixels outside `mask` (and all pixels when `degree` is an int) take the value
+    of a least-squares polynomial surface of that degree (default 4 outside the
+    mask only), which also smooths out the target's texture and noise.
+    """
+    img = _check_stack(images)
+    m, h, w, _ = img.shape
+    if directions is None and positions_mm is None:
+        directions = np.tile([0.0, 0.0, 1.0], (m, 1))
+    geo = _geometry((h, w), directions, positions_mm, pixel_pitch_mm, normal)
+    if mask is None:
+        mask = target_mask(img)
+    mask = np.asarray(mask, bool)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        corr = img / geo[..., None]
+    corr = corr / corr[:, mask, :].mean(axis=1)[:, None, None, :]
+    ff = corr.mean(axis=0)
+    if degree is not None or not mask.all():
+        deg = 4 if degree is None else int(degree)
+        basis = _poly_basis(h, w, deg)
+        A = basis[mask]
+        fit = np.empty_like(ff)
+        for c in range(3):
+            coef, *_ = np.linalg.lstsq(A, ff[mask, c], rcond=None)
+            fit[..., c] = basis @ coef
+        ff = fit if degree is not None else np.where(mask[..., None], ff, fit)
+    if not np.all(np.isfinite(ff)) or np.any(ff <= 0):
+        raise ValueError("the flat field has non-positive or non-finite pixels: the target "
+                         "does not cover the field, or some LED leaves part of it dark")
+    return (ff / ff.mean(axis=(0, 1), keepdims=True)).astype(np.float32)
+
+
+def led_current_gains(intensities, current_gains=None, channel=1, target="min", limits=(0.25, 1.0)):
+    """Per-LED current gains that equalise the LEDs' intensities.
+
+    LED output is taken as proportional to current, so the new gain of LED i is
+    g_i · T / I_i, with T the target intensity: the dimmest LED (``"min"``: no LED
+    is driven above its present current) or the mean (``"mean"``).
+
+    Parameters
+    ----------
+    intensities : (m, 3) or (m,) relative intensities measured with `current_gains`.
+    current_gains : (m,) gains in force during the measurement (default 1).
+    channel : int channel index used (1 = green) or "mean" of the three.
+    limits : (lo, hi) range the device accepts; a gain outside it is an error (the
+        LED is too weak or too strong to equalise: replace it or check its wiring).
+
+    Returns ndarray (m,).
+    """
+    I = np.asarray(intensities, float)
+    if I.ndim == 2:
+        I = I.mean(axis=1) if channel == "mean" else I[:, int(channel)]
+    g0 = np.ones_like(I) if current_gains is None else np.asarray(current_gains, float)
+    if g0.shape != I.shape:
+        raise ValueError(f"{len(I)} intensities but {g0.size} current gains")
+    if np.any(I <= 0) or np.any(g0 <= 0):
+        raise ValueError("intensities and gains must be > 0")
+    if target == "min":
+        t = I.min()
+    elif target == "mean":
+        t = I.mean()
+    else:
+        raise ValueError(f"target must be 'min' or 'mean', got {target!r}")
+    g = g0 * t / I
+    lo, hi = limits
+    bad = np.flatnonzero((g < lo - 1e-12) | (g > hi + 1e-12))
+    if bad.size:
+        raise ValueError(f"LED(s) {bad.tolist()} would need gains {np.round(g[bad], 3).tolist()}, "
+                         f"outside the device's range [{lo}, {hi}]: the LED is too weak or too "
+                         "strong to equalise; check it (or its current) and recalibrate")
+    return g

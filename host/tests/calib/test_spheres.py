@@ -1,0 +1,129 @@
+import numpy as np
+import pytest
+
+from facette.calib import nominal_light_directions
+from facette.calib.matte_sphere import matte_sphere_directions
+from facette.calib.mirror_sphere import (Circle, fit_circle, fit_sphere_outline, highlight_centroid,
+                                         light_positions_from_rays, mirror_direction,
+                                         mirror_sphere_directions, sphere_mask, sphere_rays)
+from facette.calib.targets import render_matte_sphere, render_mirror_sphere
+
+SHAPE, PITCH = (150, 180), 0.2
+CENTER, R = (88.3, 71.6), 50.4
+
+
+def _angle_deg(a, b):
+    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1, 1)))
+
+
+def _mirror_stack(dirs=None, positions=None, center=CENTER, noise=0.0, seed=0, **kw):
+    rng = np.random.default_rng(seed)
+    n = len(dirs if dirs is not None else positions)
+    out = []
+    for i in range(n):
+        lk = {"direction": dirs[i]} if positions is None else {"position_mm": positions[i]}
+        img = render_mirror_sphere(SHAPE, center, R, PITCH, source_radius_deg=1.0, psf_px=1.0,
+                                   supersample=6, **lk, **kw)
+        out.append(img + noise * rng.standard_normal(img.shape))
+    return np.stack(out)
+
+
+def test_fit_circle_exact_and_rejects_too_few_points():
+    t = np.linspace(0, 2 * np.pi, 50, endpoint=False)
+    c = fit_circle(np.c_[10.25 + 7.5 * np.cos(t), -3.5 + 7.5 * np.sin(t)])
+    assert (c.cx, c.cy, c.r) == pytest.approx((10.25, -3.5, 7.5), abs=1e-9)
+    with pytest.raises(ValueError, match="at least 3"):
+        fit_circle([[0, 0], [1, 1]])
+
+
+def test_outline_is_sub_pixel_from_the_grey_edge():
+    img = _mirror_stack(nominal_light_directions()).mean(axis=0)
+    mask = sphere_mask(img, dark=True)
+    binary = fit_sphere_outline(mask)
+    grey = fit_sphere_outline(mask, img)
+    for c, tol in ((binary, 0.3), (grey, 0.05)):
+        assert abs(c.cx - CENTER[0]) < tol and abs(c.cy - CENTER[1]) < tol and abs(c.r - R) < tol
+
+
+def test_mirror_directions_match_truth_to_a_tenth_of_a_degree():
+    d = nominal_light_directions()
+    dirs, circle, hl = mirror_sphere_directions(_mirror_stack(d, noise=0.02))
+    err = _angle_deg(dirs, d)
+    assert err.max() < 0.15, err
+    assert not any(h.saturated for h in hl)
+
+
+def test_mirror_direction_formula_and_frame():
+    c = Circle(50.0, 50.0, 40.0)
+    np.testing.assert_allclose(mirror_direction(c, 50.0, 50.0), [0, 0, 1], atol=1e-12)
+    # a highlight right of and above the centre: the light is right (+x) and up (+y)
+    l = mirror_direction(c, 50.0 + 40 * np.sin(np.radians(10)), 50.0)
+    np.testing.assert_allclose(l, [np.sin(np.radians(20)), 0, np.cos(np.radians(20))], atol=1e-12)
+    assert mirror_direction(c, 50.0, 40.0)[1] > 0      # row above the centre: y up
+    with pytest.raises(ValueError, match="outside the sphere"):
+        mirror_direction(c, 95.0, 50.0)
+
+
+def test_saturated_highlight_is_flagged_and_still_centred():
+    d = nominal_light_directions()[:1]
+    img = _mirror_stack(d)[0]
+    c = Circle(*CENTER, R)
+    ref = highlight_centroid(img, c)
+    white = 0.3 * ref.peak
+    clipped = highlight_centroid(np.minimum(img, white), c, white_level=white)
+    assert clipped.saturated and not ref.saturated
+    assert np.hypot(clipped.x - ref.x, clipped.y - ref.y) < 0.05
+
+
+def test_missing_sphere_or_highlight_errors():
+    flat = np.ones(SHAPE)
+    with pytest.raises(ValueError, match="no sphere"):
+        sphere_mask(flat)
+    img = render_mirror_sphere(SHAPE, CENTER, R, PITCH, direction=[0, 0, 1.0], intensity=0.0,
+                               supersample=1)   # the LED did not light
+    with pytest.raises(ValueError, match="no highlight"):
+        highlight_centroid(img, Circle(*CENTER, R), )
+
+
+def test_led_positions_from_two_placements():
+    d = nominal_light_directions()
+    P = d * 400.0 + np.array([5.0, -3.0, 0.0])
+    origins, dirs = [], []
+    for center in ((52.0, 72.0), (128.0, 78.0)):
+        stack = _mirror_stack(positions=P, center=center)
+        _, circle, hl = mirror_sphere_directions(stack)
+        o, l = sphere_rays(circle, hl, SHAPE, PITCH)
+        origins.append(o)
+        dirs.append(l)
+    est, rms = light_positions_from_rays(np.array(origins), np.array(dirs))
+    err = np.linalg.norm(est - P, axis=1)
+    # 15 mm baseline at 400 mm: a 0.05° ray error moves the point ~ 400²/15 · 1e-3 mm along the ray
+    assert np.median(err) < 15.0, err
+    assert _angle_deg(est / np.linalg.norm(est, axis=1, keepdims=True),
+                      P / np.linalg.norm(P, axis=1, keepdims=True)).max() < 0.5
+    with pytest.raises(ValueError, match="two sphere placements"):
+        light_positions_from_rays(np.array(origins[:1]), np.array(dirs[:1]))
+
+
+def test_rays_intersect_exactly_when_noise_free():
+    P = np.array([[100.0, 50.0, 900.0], [-300.0, 20.0, 1200.0]])
+    o = np.array([[[0, 0, 10.0], [0, 0, 10.0]], [[30.0, 0, 10.0], [30.0, 0, 10.0]],
+                  [[0, 25.0, 10.0], [0, 25.0, 10.0]]])
+    d = P[None] - o
+    est, rms = light_positions_from_rays(o, d / np.linalg.norm(d, axis=-1, keepdims=True))
+    np.testing.assert_allclose(est, P, atol=1e-8)
+    assert rms.max() < 1e-8
+    with pytest.raises(ValueError, match="parallel"):
+        light_positions_from_rays(o[:2], np.broadcast_to([0, 0, 1.0], o[:2].shape))
+
+
+def test_matte_sphere_cross_check():
+    d = nominal_light_directions()
+    I = np.random.default_rng(3).uniform(0.85, 1.15, 12)
+    imgs = np.stack([render_matte_sphere(SHAPE, CENTER, R, PITCH, direction=l, intensity=i)
+                     for l, i in zip(d, I)])
+    dirs, inten, resid, circle = matte_sphere_directions(imgs)
+    assert _angle_deg(dirs, d).max() < 0.3
+    np.testing.assert_allclose(inten[:, 1], I / I.mean(), rtol=5e-3)
+    assert resid.max() < 0.01
+    assert abs(circle.r - R) < 0.3
