@@ -119,10 +119,10 @@ def gen_c(d: dict) -> str:
         "",
         "#include <stdint.h>",
         "",
-        f"#define FW_REG_GENERATOR_VERSION {GENERATOR_VERSION}",
-        f"#define FW_REG_DEFINITION_HASH 0x{d['hash32']:08X}u",
-        f"#define FW_REG_PROTOCOL_VERSION {d['meta'].get('protocol_version', 1)}u",
-        f"#define FW_REG_UNLOCK_KEY 0x{d['meta'].get('unlock_key', 0):04X}u",
+        f"#define FW_GENERATOR_VERSION {GENERATOR_VERSION}",
+        f"#define FW_DEFINITION_HASH 0x{d['hash32']:08X}u",
+        f"#define FW_PROTOCOL_VERSION {d['meta'].get('protocol_version', 1)}u",
+        f"#define FW_UNLOCK_KEY 0x{d['meta'].get('unlock_key', 0):04X}u",
         "",
     ]
     for ename, members in d["enums"].items():
