@@ -1,0 +1,128 @@
+import numpy as np
+import pytest
+
+import facette.brdf as B
+
+
+def direction(theta, phi=0.0):
+    return np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
+
+
+S = direction(0.6)
+O = np.stack([direction(t, p) for t in (0.0, 0.4, 0.9, 1.3) for p in (0.0, 1.5, 3.0)])
+
+
+def test_get_returns_each_model_and_rejects_unknown_names():
+    for name in ("lambert", "oren_nayar", "cook_torrance", "li"):
+        assert callable(B.get(name))
+    with pytest.raises(ValueError, match="unknown BRDF model"):
+        B.get("phong")
+
+
+@pytest.mark.parametrize("volume", ["quadrature", "monte_carlo", "table"])
+def test_li_with_n_1_and_sigma_0_is_lambert(volume):
+    np.testing.assert_allclose(B.brdf_li(S, O, 0.7, 0.0, 1.0, volume=volume), 0.7 / np.pi, rtol=1e-12)
+    np.testing.assert_allclose(B.brdf_li(S, O, 0.7, 0.0, 1.0, volume=volume), B.lambert(S, O, 0.7), rtol=1e-12)
+
+
+def test_li_with_kd_0_is_the_specular_microfacet_model():
+    for dist, masking in (("beckmann", "smith"), ("ggx", "smith"), ("gaussian", "vcavity")):
+        li = B.brdf_li(S, O, 0.0, 0.2, 1.5, dist, masking)
+        ct = B.cook_torrance1982(S, O, 0.0, 0.2, 1.5, dist, masking)
+        np.testing.assert_allclose(li, ct, rtol=1e-12)
+        assert li.max() > 0
+
+
+def test_li_with_n_1_is_lambertian_microfacets_close_to_oren_nayar():
+    # Gaussian + V-cavity single bounce vs the Oren–Nayar qualitative model without L2
+    f = B.brdf_li(S, O, 0.8, 0.3, 1.0, "gaussian", "vcavity", interreflection=False)
+    on = B.oren_nayar1994(S, O, 0.8, 0.3, interreflection=False)
+    # the qualitative model is itself an approximation of this integral (±15 % at grazing)
+    np.testing.assert_allclose(f, on, rtol=0.15)
+    np.testing.assert_allclose(f[:3], on[:3], rtol=0.03)
+
+
+def test_per_channel_kd_gives_a_channel_axis_and_matches_scalar_calls():
+    kd = [0.2, 0.5, 0.9]
+    for name, params in (("lambert", {}), ("oren_nayar", {"sigma": 0.3}),
+                         ("cook_torrance", {"sigma": 0.2, "n_i": 1.4}), ("li", {"sigma": 0.2, "n_i": 1.4})):
+        f = B.get(name)
+        out = f(S, O, kd=kd, **params)
+        assert out.shape == (len(O), 3)
+        for c, k in enumerate(kd):
+            np.testing.assert_allclose(out[:, c], f(S, O, kd=k, **params), rtol=1e-12)
+
+
+def test_broadcasting_and_horizon():
+    s = np.broadcast_to(S, (2, 1, 3))
+    o = O.reshape(1, -1, 3)
+    assert B.brdf_li(s, o, 0.5, 0.2, 1.3).shape == (2, len(O))
+    below = direction(1.8)
+    for name, params in (("lambert", {}), ("oren_nayar", {"sigma": 0.3}),
+                         ("cook_torrance", {"sigma": 0.2, "n_i": 1.4}), ("li", {"sigma": 0.2, "n_i": 1.4})):
+        assert B.get(name)(S, below, kd=0.5, **params) == 0
+        assert B.get(name)(below, S, kd=0.5, **params) == 0
+
+
+@pytest.mark.parametrize("dist,masking", [("beckmann", "smith"), ("ggx", "smith"), ("gaussian", "vcavity"),
+                                          ("beckmann", "vcavity")])
+def test_volume_evaluations_agree_with_the_quadrature_reference(dist, masking):
+    ref = B.volume_integral_quadrature(S, O, 0.25, 1.3, dist, masking, n_theta=128, n_phi=128)
+    q = B.volume_integral_quadrature(S, O, 0.25, 1.3, dist, masking)
+    mc = B.volume_integral_monte_carlo(S, O, 0.25, 1.3, dist, masking, n_samples=4096, rng=1)
+    tb = B.volume_integral_table(S, O, 0.25, 1.3, dist, masking, step_deg=10.0)
+    np.testing.assert_allclose(q, ref, rtol=5e-3)
+    np.testing.assert_allclose(mc, ref, rtol=0.05)
+    np.testing.assert_allclose(tb, ref, rtol=0.05)
+
+
+def test_monte_carlo_error_follows_the_inverse_square_root_law():
+    ref = B.volume_integral_quadrature(S, O, 0.3, 1.3, n_theta=96, n_phi=96)
+    errs = []
+    for n in (64, 4096):
+        runs = np.stack([B.volume_integral_monte_carlo(S, O, 0.3, 1.3, n_samples=n, rng=r) for r in range(8)])
+        errs.append(np.sqrt(np.mean((runs - ref) ** 2)))
+    assert 4 < errs[0] / errs[1] < 16  # √64 = 8
+
+
+@pytest.mark.parametrize("dist", ["beckmann", "gaussian"])
+def test_approx_formula_tracks_the_reference_inside_its_domain(dist):
+    o = np.stack([direction(t, p) for t in (0.0, 0.3, 0.6) for p in (0.0, 3.0)])
+    ref = B.volume_integral_quadrature(direction(0.4), o, 0.1, 1.2, dist, "vcavity")
+    ap = B.volume_integral_approx(direction(0.4), o, 0.1, 1.2, dist)
+    np.testing.assert_allclose(ap, ref, rtol=0.1)
+
+
+def test_interreflection_is_close_to_the_oren_nayar_two_bounce_term():
+    s = direction(0.8)
+    o = np.stack([direction(t, np.pi) for t in (0.2, 0.6, 1.0)])
+    j = B.interreflection_integral_vcavity(s, o, 0.3, 1.0, "gaussian", n_paths=20000, rng=2)
+    beta = np.minimum(0.8, np.array([0.2, 0.6, 1.0]))
+    on_l2 = 0.17 * 0.09 / (0.09 + 0.13) * (1 + (2 * beta / np.pi) ** 2)  # cos Δφ = −1
+    np.testing.assert_allclose(j / np.pi, on_l2, rtol=0.2)
+    assert np.all(B.interreflection_integral_vcavity(s, o, 0.0, 1.3) == 0)
+
+
+def test_interreflection_is_used_only_where_it_matters():
+    base = B.brdf_li(S, O, 0.8, 0.1, 1.2, "beckmann", "vcavity")
+    assert np.array_equal(base, B.brdf_li(S, O, 0.8, 0.1, 1.2, "beckmann", "vcavity", interreflection=False))
+    rough = B.brdf_li(S, O, 0.8, 0.4, 1.2, "beckmann", "vcavity")
+    single = B.brdf_li(S, O, 0.8, 0.4, 1.2, "beckmann", "vcavity", interreflection=False)
+    assert np.all(rough >= single) and np.mean(rough / single) > 1.03
+
+
+def test_bad_arguments_raise_clear_errors():
+    with pytest.raises(ValueError, match="K_d"):
+        B.brdf_li(S, O, 1.5, 0.1, 1.3)
+    with pytest.raises(ValueError, match="diverges"):
+        B.brdf_li(S, O, 0.5, 0.1, 1.3, "gaussian", "smith")
+    with pytest.raises(ValueError, match="volume"):
+        B.brdf_li(S, O, 0.5, 0.1, 1.3, volume="magic")
+    with pytest.raises(ValueError, match="3-vectors"):
+        B.lambert(np.zeros(2), O, 0.5)
+    with pytest.raises(ValueError, match="non-zero"):
+        B.lambert(np.zeros(3), O, 0.5)
+    with pytest.raises(ValueError, match="isotropic"):
+        B.brdf_li(S, O, 0.5, (0.1, 0.3), 1.3, volume="table")
+    with pytest.raises(ValueError, match="approx"):
+        B.brdf_li(S, O, 0.5, 0.1, 1.3, "ggx", volume="approx")
