@@ -39,16 +39,23 @@ uint64_t stm32_time_us(void);
 /* Called from SysTick_Handler every millisecond, after the tick is counted. */
 void stm32_tick_hook(void);
 
-/* USART1, 8N1. Bytes received go to an interrupt-filled ring; writes go to an
- * interrupt-drained ring. */
+/* USART1, 8N1. Bytes received go to an interrupt-filled ring with the line
+ * silence before each; writes go to an interrupt-drained ring. */
 void stm32_uart_init(uint32_t baud);
-size_t stm32_uart_read(uint8_t *buf, size_t max);
+/* Next byte (0..255) and the silence before it in µs, or -1 if none. */
+int stm32_uart_getc(uint32_t *gap_us);
+bool stm32_uart_rx_pending(void);
+/* µs since the last byte ended (UINT32_MAX before the first byte). */
+uint32_t stm32_uart_idle_us(void);
+/* Queue up to len bytes; returns how many were queued (the ring may be full). */
 size_t stm32_uart_write(const uint8_t *buf, size_t len);
 bool stm32_uart_tx_idle(void);
-/* µs timestamp of the last byte received (for 3.5-character framing). */
-uint64_t stm32_uart_last_rx_us(void);
 /* Bytes lost because the ring was full or the USART overran. */
 uint32_t stm32_uart_rx_dropped(void);
+
+/* Main-loop wake-up: interrupts that may give fw_poll() work call
+ * stm32_wake(); the main loop sleeps only when no wake-up is pending. */
+void stm32_wake(void);
 
 static inline uint32_t stm32_irq_save(void)
 {

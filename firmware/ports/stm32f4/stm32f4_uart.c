@@ -17,7 +17,10 @@
 #define TX_RING 512u
 
 static uint8_t s_rx[RX_RING];
+static uint32_t s_rx_gap[RX_RING];                 /* silence before each byte, µs */
 static volatile uint32_t s_rx_head, s_rx_tail;   /* head written by the ISR */
+static uint32_t s_char_us;                        /* one 10-bit character */
+static volatile bool s_rx_seen;
 static uint8_t s_tx[TX_RING];
 static volatile uint32_t s_tx_head, s_tx_tail;   /* tail written by the ISR */
 static volatile uint64_t s_last_rx_us;
@@ -46,6 +49,7 @@ void stm32_uart_init(uint32_t baud)
     USART_CR2(USART1_BASE) = 0u;   /* 1 stop bit */
     USART_CR3(USART1_BASE) = 0u;
     USART_BRR(USART1_BASE) = (stm32_pclk2_hz() + baud / 2u) / baud;  /* OVER8 = 0 */
+    s_char_us = (10u * 1000000u + baud - 1u) / baud;
     s_rx_head = s_rx_tail = 0u;
     s_tx_head = s_tx_tail = 0u;
     USART_CR1(USART1_BASE) = USART_CR1_UE | USART_CR1_TE | USART_CR1_RE | USART_CR1_RXNEIE;
@@ -76,33 +80,65 @@ void USART1_IRQHandler(void)
     if (sr & (USART_SR_RXNE | USART_SR_ORE)) {
         /* Reading DR after SR clears RXNE and the error flags. */
         uint8_t byte = (uint8_t)USART_DR(USART1_BASE);
+        uint64_t now = stm32_time_us();
         if (sr & USART_SR_ORE) {
             s_rx_dropped++;
+        }
+        /* RXNE rises at the end of a character: the silence before this byte
+         * is the time since the previous one ended, less its own length. */
+        uint32_t gap = UINT32_MAX;
+        if (s_rx_seen) {
+            uint64_t d = now - s_last_rx_us;
+            gap = d > UINT32_MAX ? UINT32_MAX : (uint32_t)d;
+            gap = gap > s_char_us ? gap - s_char_us : 0u;
         }
         uint32_t head = s_rx_head;
         if (head - s_rx_tail < RX_RING) {
             s_rx[head % RX_RING] = byte;
+            s_rx_gap[head % RX_RING] = gap;
             s_rx_head = head + 1u;
         } else {
             s_rx_dropped++;
         }
-        s_last_rx_us = stm32_time_us();
+        s_last_rx_us = now;
+        s_rx_seen = true;
+        stm32_wake();
     }
     if (USART_CR1(USART1_BASE) & USART_CR1_TXEIE) {
         tx_pump();
     }
 }
 
-size_t stm32_uart_read(uint8_t *buf, size_t max)
+int stm32_uart_getc(uint32_t *gap_us)
 {
-    size_t n = 0;
     uint32_t tail = s_rx_tail;
-    while (n < max && tail != s_rx_head) {
-        buf[n++] = s_rx[tail % RX_RING];
-        tail++;
+    if (tail == s_rx_head) {
+        return -1;
     }
-    s_rx_tail = tail;
-    return n;
+    int byte = s_rx[tail % RX_RING];
+    if (gap_us != NULL) {
+        *gap_us = s_rx_gap[tail % RX_RING];
+    }
+    s_rx_tail = tail + 1u;
+    return byte;
+}
+
+bool stm32_uart_rx_pending(void)
+{
+    return s_rx_tail != s_rx_head;
+}
+
+uint32_t stm32_uart_idle_us(void)
+{
+    uint32_t pm = stm32_irq_save();
+    bool seen = s_rx_seen;
+    uint64_t last = s_last_rx_us;
+    stm32_irq_restore(pm);
+    if (!seen) {
+        return UINT32_MAX;
+    }
+    uint64_t d = stm32_time_us() - last;
+    return d > UINT32_MAX ? UINT32_MAX : (uint32_t)d;
 }
 
 size_t stm32_uart_write(const uint8_t *buf, size_t len)
@@ -123,14 +159,6 @@ size_t stm32_uart_write(const uint8_t *buf, size_t len)
 bool stm32_uart_tx_idle(void)
 {
     return s_tx_head == s_tx_tail && (USART_SR(USART1_BASE) & USART_SR_TC);
-}
-
-uint64_t stm32_uart_last_rx_us(void)
-{
-    uint32_t pm = stm32_irq_save();
-    uint64_t t = s_last_rx_us;
-    stm32_irq_restore(pm);
-    return t;
 }
 
 uint32_t stm32_uart_rx_dropped(void) { return s_rx_dropped; }
