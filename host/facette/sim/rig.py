@@ -255,7 +255,8 @@ class RigSimulator:
             self.send("ack")
         elif kind == "shutter":
             level = int(parts[2])
-            params = dict(p.split("=", 1) for p in parts[3:] if "=" in p)
+            params = {k: (int(v) if v.lstrip("-").isdigit() else v)
+                      for k, v in (p.split("=", 1) for p in parts[3:] if "=" in p)}
             if level == 1:
                 if self._open(t, params) == "reset":
                     self.send("ack")        # release the lockstep first, then pull the plug

@@ -1,0 +1,379 @@
+"""Acquire a scan: configure the rig, run it, match RAW files to frame records.
+
+``run_scan(rig, directory, profile=...)`` (also ``rig.scan(...)``, ``facette scan``):
+
+1. plan: lights (LED channels in scan order) × exposures (time µs, current mA);
+2. open the scan directory: new, or resume (same plan), completing any file move
+   the journal says was under way and keeping stray camera files in raw/unmatched/;
+3. for the (light, exposure) pairs still missing, grouped so that the device runs
+   lights × exposures scans: configure, start (or wait for the button), and for
+   every frame record whose flash sync was seen take the camera's next file,
+   move it to raw/L<l>_E<e>.dng, hash it, add it to scan.json;
+4. a device reset (boot count changed) is journaled, the frames of the interrupted
+   run that arrived without a record are kept in raw/unmatched/, and the missing
+   pairs are scanned again; a device fault stops the scan with the fault's name and
+   an intact journal (run again to resume once the cause is fixed).
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from pathlib import Path
+
+from facette.scan.directory import ScanDirectory, ScanDirectoryError, frame_name, sha256_file
+
+__all__ = ["run_scan", "ScanPlan", "ScanError", "ScanAborted", "THESIS_BRACKET_US", "default_plan"]
+
+# Thesis §4.3.2 exposure bracket: 15, 10, 2, 1, 1/5, 1/15, 1/30 s.
+THESIS_BRACKET_US = (15_000_000, 10_000_000, 2_000_000, 1_000_000, 200_000, 66_667, 33_333)
+# Faults that report a past event and do not make the next scan unsafe.
+_BENIGN_FAULTS = {"HOST_SILENT", "CAL_INVALID", "WATCHDOG_RESET"}
+
+
+class ScanError(RuntimeError):
+    """The scan stopped; the directory holds everything captured so far."""
+
+
+class ScanAborted(ScanError):
+    """The scan was aborted (host call or second button press)."""
+
+
+@dataclasses.dataclass
+class ScanPlan:
+    """What to acquire.
+
+    lights : LED channels in scan order (light index i ↔ channel lights[i])
+    exposures : [(time_us, current_mA)] (current 0: the light's current)
+    light_current_mA : one current per light, mA
+    mode : "camera" | "bulb" | "led"
+    retries : repeats of a setting with a missing flash sync
+    timing : other µs registers (settle_us, gap_us, ...)
+    """
+    lights: list
+    exposures: list
+    light_current_mA: list
+    mode: str = "camera"
+    retries: int = 1
+    timing: dict = dataclasses.field(default_factory=dict)
+
+    def key(self):
+        return {"lights": list(self.lights), "exposures": [list(e) for e in self.exposures],
+                "light_current_mA": list(self.light_current_mA), "mode": self.mode}
+
+    def to_dict(self):
+        return {**self.key(), "retries": self.retries, "timing": dict(self.timing)}
+
+
+def default_plan(n_leds=12, exposures=None, lights=None, light_current_mA=500, mode="camera", retries=1,
+                 timing=None):
+    """A plan with the thesis bracket (camera-timed) on every LED unless told otherwise.
+    `exposures` : times in µs or (time_us, current_mA) pairs."""
+    lights = list(range(n_leds)) if lights is None else [int(c) for c in lights]
+    exps = THESIS_BRACKET_US if exposures is None else exposures
+    exps = [(int(e), 0) if not hasattr(e, "__len__") else (int(e[0]), int(e[1])) for e in exps]
+    cur = [int(light_current_mA)] * len(lights) if not hasattr(light_current_mA, "__len__") \
+        else [int(c) for c in light_current_mA]
+    if len(cur) != len(lights):
+        raise ValueError(f"{len(cur)} light currents for {len(lights)} lights")
+    return ScanPlan(lights, exps, cur, mode, int(retries), dict(timing or {}))
+
+
+def _load_profile(profile):
+    if profile is None or hasattr(profile, "lights"):
+        return profile
+    from facette.calib import load
+
+    return load(profile)
+
+
+def _lights_section(plan, profile):
+    from facette.calib import nominal_light_directions
+
+    nominal = nominal_light_directions()
+    out = []
+    for i, ch in enumerate(plan.lights):
+        if profile is not None:
+            lt = profile.lights
+            if ch >= len(lt):
+                raise ValueError(f"LED channel {ch} is not in profile {profile.id!r} ({len(lt)} lights)")
+            d, inten = lt.directions[ch].tolist(), lt.intensities[ch].tolist()
+            pos = None if lt.positions_mm is None else lt.positions_mm[ch].tolist()
+        else:
+            d, inten, pos = (nominal[ch].tolist() if ch < len(nominal) else None), [1.0, 1.0, 1.0], None
+        out.append({"index": i, "channel": ch, "direction": d, "position_mm": pos, "intensity": inten})
+    return out
+
+
+def _exposures_section(plan):
+    return [{"index": e, "time_us": t, "current_mA": c if c else plan.light_current_mA[0],
+             "mode": plan.mode} for e, (t, c) in enumerate(plan.exposures)]
+
+
+def _groups(pending, n_lights):
+    """Split missing (light, exposure) pairs into device runs: lights sharing the same
+    set of missing exposures form one lights × exposures scan."""
+    by_light = {}
+    for l, e in sorted(pending):
+        by_light.setdefault(l, []).append(e)
+    groups = {}
+    for l, es in by_light.items():
+        groups.setdefault(tuple(es), []).append(l)
+    return [(ls, list(es)) for es, ls in sorted(groups.items(), key=lambda kv: kv[1][0])]
+
+
+class _Acquisition:
+    def __init__(self, rig, sd, plan, progress, on_frame, frame_timeout_s, poll_s):
+        self.rig, self.sd, self.plan = rig, sd, plan
+        self.camera = rig.camera
+        self.progress = progress
+        self.on_frame = on_frame
+        self.frame_timeout_s = frame_timeout_s
+        self.poll_s = poll_s
+        self.unmatched_dir = sd.path / "raw" / "unmatched"
+
+    # -- files ------------------------------------------------------------------------
+    def keep_unmatched(self, src, why):
+        self.unmatched_dir.mkdir(parents=True, exist_ok=True)
+        dst = self.unmatched_dir / Path(src).name
+        n = 1
+        while dst.exists():
+            dst, n = self.unmatched_dir / f"{Path(src).stem}-{n}{Path(src).suffix}", n + 1
+        self.sd.journal("unmatched", src=str(src), dst=str(dst.relative_to(self.sd.path)), why=why)
+        os.replace(src, dst)
+        self.camera.claimed(src)
+        return dst
+
+    def sweep_camera(self, why):
+        for p in self.camera.pending():
+            self.keep_unmatched(p, why)
+
+    def take(self, rec, light, exposure, run):
+        """Move the camera's next file to raw/L<l>_E<e> and record it."""
+        t_us, c = self.plan.exposures[exposure]
+
+        while True:
+            src = self.camera.wait_for_file(self.frame_timeout_s)
+            if self.plan.mode in ("camera", "bulb") and src.suffix.lower() == ".dng":
+                from facette.camera.raw import read_exposure_metadata
+
+                et, _, _ = read_exposure_metadata(src)
+                if et is not None and abs(et * 1e6 - t_us) > max(0.05 * t_us, 1000):
+                    self.keep_unmatched(src, f"exposure {et:g} s does not match the frame record "
+                                             f"({t_us / 1e6:g} s, light {light} exposure {exposure})")
+                    continue
+            break
+        dst_rel = frame_name(light, exposure, src.suffix.lower())
+        dst = self.sd.path / dst_rel
+        record = {"file": dst_rel, "light": light, "exposure": exposure, "time_us": t_us,
+                  "current_set_mA": rec["current_set_mA"], "current_meas_mA": rec["current_meas_mA"],
+                  "start_us": rec["start_us"], "sync": rec["sync"], "retry": rec["retry"], "run": run,
+                  "ring": rec["n"]}
+        self.sd.journal("capture", src=str(src), record=record)
+        if dst.exists():   # a frame taken again (after a reset): keep the earlier one too
+            self.keep_unmatched_existing(dst)
+        os.replace(src, dst)
+        self.camera.claimed(src)
+        record["sha256"] = sha256_file(dst)
+        self.sd.add_frame(record)
+        self.sd.journal("captured", file=dst_rel, sha256=record["sha256"])
+        if self.progress is not None:
+            self.progress.update(1)
+        if self.on_frame is not None:
+            self.on_frame(record)
+        return record
+
+    def keep_unmatched_existing(self, dst):
+        self.unmatched_dir.mkdir(parents=True, exist_ok=True)
+        keep = self.unmatched_dir / f"{dst.stem}-superseded-{int(time.time() * 1e3)}{dst.suffix}"
+        self.sd.journal("superseded", file=str(dst.relative_to(self.sd.path)),
+                        kept=str(keep.relative_to(self.sd.path)))
+        os.replace(dst, keep)
+
+    # -- device runs ------------------------------------------------------------------
+    def prepare_device(self):
+        dev = self.rig.device
+        state = dev.state()
+        if state in ("ARMED", "RUNNING", "PAUSED"):
+            self.sd.journal("abort_stale", state=state)
+            self.rig.abort()
+            self.rig.wait_state({"ABORTED", "IDLE"}, timeout_s=30)
+        bits = dev.read("fault_bits")
+        names = self.rig._fault_names(bits)
+        if names:
+            if set(names) <= _BENIGN_FAULTS or dev.state() == "FAULT" and not (set(names) - _BENIGN_FAULTS):
+                self.sd.journal("clear_faults", faults=names)
+                self.rig.clear_faults()
+            else:
+                self.sd.journal("fault_latched", faults=names)
+                raise ScanError(f"the device has latched faults {names}: fix the cause (see `facette device "
+                                "faults`), clear them (`facette device clear`) and run the scan again to resume")
+
+    def run_group(self, lights, exposures, run, button):
+        rig, plan = self.rig, self.plan
+        channels = [plan.lights[l] for l in lights]
+        self.prepare_device()
+        rig.configure([plan.exposures[e] for e in exposures], lights=channels,
+                      light_current_mA=[plan.light_current_mA[l] for l in lights], mode=plan.mode,
+                      retries=plan.retries, **plan.timing)
+        boot = rig.device.check_reset()
+        self.sd.journal("start", run=run, lights=lights, exposures=exposures, boot=boot, button=button)
+        if button in ("wait", "press"):
+            rig.arm()
+            if button == "press":
+                rig.sim.press_button(wait_for=lambda: rig.device.state() != "ARMED")
+            else:
+                print("press the rig's button to start the scan", flush=True)
+            rig.wait_state({"RUNNING", "DONE", "ABORTED", "FAULT"}, timeout_s=float("inf") if button == "wait"
+                           else 30.0)
+        else:
+            rig.start()
+        seen, end_us = 0, 0
+        from facette.device.client import DeviceReset
+
+        while True:
+            try:
+                rig.device.check_reset()
+                st = rig.status()
+            except DeviceReset as exc:
+                self.sd.journal("device_reset", run=run, old_boot=exc.old_boot, new_boot=exc.new_boot)
+                self.sweep_camera("arrived during a run interrupted by a device reset: no frame record")
+                return end_us, "reset"
+            records, seen, lost = rig.frame_records(seen, st["ring_count"])
+            if lost:
+                self.sd.journal("ring_overflow", lost=lost)
+            for rec in records:
+                if not (0 <= rec["light"] < len(lights) and 0 <= rec["exposure"] < len(exposures)):
+                    continue
+                light, exposure = lights[rec["light"]], exposures[rec["exposure"]]
+                end_us = max(end_us, rec["start_us"] + plan.exposures[exposure][0])
+                if not rec["sync"]:
+                    self.sd.journal("no_sync", light=light, exposure=exposure, ring=rec["n"])
+                    continue
+                self.take(rec, light, exposure, run)
+            state = st["state"]
+            if state == "DONE" and seen >= st["ring_count"]:
+                return end_us, "done"
+            if state in ("FAULT", "ABORTED", "IDLE") and seen >= st["ring_count"]:
+                faults = rig.faults()
+                self.sd.journal("stopped", state=state, faults=faults, run=run)
+                self.sweep_camera(f"arrived after the device stopped ({state})")
+                done = len(self.sd.frames_done())
+                total = len(plan.lights) * len(plan.exposures)
+                if state == "ABORTED":
+                    raise ScanAborted(f"scan aborted with {done}/{total} frames in {self.sd.path}; "
+                                      "run the same scan again to resume")
+                raise ScanError(f"the device stopped in {state} with faults {faults['latched']} "
+                                f"({done}/{total} frames kept in {self.sd.path}); fix the cause, clear "
+                                "the faults and run the same scan again to resume")
+            time.sleep(self.poll_s)
+
+
+def _recover(sd, camera):
+    """Finish what the journal says was under way when the last run stopped."""
+    entries = sd.read_journal()
+    done = {e["file"] for e in entries if e.get("step") == "captured"}
+    for e in entries:
+        if e.get("step") != "capture":
+            continue
+        rec = dict(e["record"])
+        if rec["file"] in done:
+            continue
+        dst, src = sd.path / rec["file"], Path(e["src"])
+        if not dst.exists() and src.exists():
+            os.replace(src, dst)
+        if dst.exists():
+            rec["sha256"] = sha256_file(dst)
+            sd.add_frame(rec)
+            sd.journal("recovered", file=rec["file"], sha256=rec["sha256"])
+            done.add(rec["file"])
+
+
+def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_current_mA=500,
+             mode="camera", retries=1, timing=None, button=None, progress=True, on_frame=None,
+             frame_timeout_s=60.0, poll_s=0.003, max_runs=8, save_truth=True):
+    """Acquire (or resume) a scan into `directory`; returns the ScanDirectory.
+
+    Parameters
+    ----------
+    rig : facette.device.Rig with a camera backend (`rig.camera`)
+    directory : path of the scan directory (created; an existing one with the same
+        plan is resumed, one with another plan is refused)
+    profile : facette.calib.Profile, its folder, or None (nominal light directions)
+    exposures : times in µs or (time_us, current_mA) pairs (default: the thesis bracket)
+    lights : LED channels in scan order (default every LED)
+    light_current_mA : int or one per light
+    mode : "camera" | "bulb" | "led"
+    button : None (start now), "wait" (the rig's button starts it) or "press"
+        (simulated rig: press its button)
+    progress : show a tqdm progress bar
+    on_frame : callable(record) after each frame is stored (tests use it to abort/pause)
+    frame_timeout_s : how long to wait for the camera's file after its record
+    max_runs : device runs allowed (resets re-run the missing frames)
+    """
+    if rig.camera is None:
+        raise ValueError("this rig has no camera backend: connect with camera=FolderWatchCamera(folder) "
+                         "or GPhoto2Camera()")
+    profile = _load_profile(profile)
+    n_leds = rig.device.identity.get("max_leds", 12) or 12
+    plan = default_plan(n_leds, exposures, lights, light_current_mA, mode, retries, timing)
+    sd = ScanDirectory(directory)
+    pitch = getattr(profile, "pixel_pitch_mm", None)
+    if pitch is None and rig.sim is not None:
+        pitch = rig.sim.scene.pixel_pitch_mm
+    if sd.manifest is None:
+        if (sd.path / "journal.jsonl").exists() or (sd.path.exists() and any(
+                p.name not in (".DS_Store",) for p in sd.path.iterdir())):
+            raise ScanDirectoryError(f"{sd.path} is not empty and holds no scan.json: choose a new directory")
+        ignored = rig.camera.ignore_existing()
+        sd.journal("begin", plan=plan.to_dict(), rig=rig.identity, camera=repr(rig.camera),
+                   camera_ignored=ignored)
+        sd.create(rig.identity, None if profile is None else {"id": profile.id, "sha256": profile.sha256},
+                  pitch, _lights_section(plan, profile), _exposures_section(plan), plan.to_dict())
+    else:
+        old = sd.manifest.get("plan", {})
+        if {k: old.get(k) for k in plan.key()} != plan.key():
+            raise ScanDirectoryError(f"{sd.path} holds another scan (plan {({k: old.get(k) for k in plan.key()})}); "
+                                     "resume it with the same settings or choose a new directory")
+        sd.journal("resume", rig=rig.identity)
+        _recover(sd, rig.camera)
+    acq = _Acquisition(rig, sd, plan, None, on_frame, frame_timeout_s, poll_s)
+    acq.sweep_camera("in the camera folder before this run: no frame record")
+    all_pairs = {(l, e) for l in range(len(plan.lights)) for e in range(len(plan.exposures))}
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(all_pairs), initial=len(sd.frames_done()), unit="frame", desc="scan",
+                   leave=True, dynamic_ncols=True)
+    acq.progress = bar
+    runs = sd.manifest.get("runs", 0)
+    try:
+        for _ in range(max_runs):
+            pending = all_pairs - set(sd.frames_done())
+            if not pending:
+                break
+            for ls, es in _groups(pending, len(plan.lights)):
+                end_us, how = acq.run_group(ls, es, runs, button)
+                button = None           # the button starts the first run only
+                runs += 1
+                sd.manifest["runs"] = runs
+                sd.manifest["rig_time_s"] = round(sd.manifest.get("rig_time_s", 0.0) + end_us * 1e-6, 6)
+                sd.save()
+                if how == "reset":
+                    break
+        pending = all_pairs - set(sd.frames_done())
+        if pending:
+            raise ScanError(f"{len(pending)} frames still missing after {max_runs} device runs in {sd.path}")
+    finally:
+        if bar is not None:
+            bar.close()
+    if save_truth and rig.sim is not None:
+        rig.sim.save_truth(sd.path, channels=plan.lights)
+        sd.manifest["truth"] = "truth.npz"
+    sd.manifest["complete"] = True
+    sd.manifest["faults_seen"] = [e for e in sd.read_journal() if e.get("step") in
+                                  ("device_reset", "no_sync", "unmatched", "clear_faults")]
+    sd.save()
+    sd.journal("done", frames=len(sd.manifest["frames"]), rig_time_s=sd.manifest["rig_time_s"])
+    return sd

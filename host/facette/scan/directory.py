@@ -1,0 +1,146 @@
+"""The scan directory (DESIGN §7, contract 3): scan.json, raw/, journal.jsonl.
+
+The journal is appended (and fsync'ed) *before* each step, the manifest is
+rewritten atomically *after* each captured frame, so that whatever stops the
+scan (power cut, Ctrl-C, a device fault), the directory says what was taken and
+a second run resumes where the first stopped.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import json
+import os
+from pathlib import Path
+
+__all__ = ["ScanDirectory", "ScanDirectoryError", "sha256_file", "frame_name", "SCHEMA"]
+
+SCHEMA = 1
+
+
+class ScanDirectoryError(ValueError):
+    """The directory holds something that is not this scan."""
+
+
+def sha256_file(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def frame_name(light, exposure, suffix=".dng"):
+    """raw/L00_E00.dng: light index (scan order) and exposure index."""
+    return f"raw/L{light:02d}_E{exposure:02d}{suffix}"
+
+
+def _now():
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
+
+
+class ScanDirectory:
+    """One scan on disk.
+
+    Attributes: ``path``, ``manifest`` (the scan.json dict, None before `create`).
+    """
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.manifest = None
+        if (self.path / "scan.json").is_file():
+            try:
+                self.manifest = json.loads((self.path / "scan.json").read_text())
+            except ValueError as exc:
+                raise ScanDirectoryError(f"{self.path / 'scan.json'} is damaged ({exc}); the journal "
+                                         f"{self.path / 'journal.jsonl'} and raw/ hold what was captured") from exc
+
+    def __fspath__(self):
+        return str(self.path)
+
+    def __repr__(self):
+        n = len((self.manifest or {}).get("frames", []))
+        return f"ScanDirectory({str(self.path)!r}, {n} frames)"
+
+    # -- journal --------------------------------------------------------------------
+    def journal(self, step, **data):
+        """Append one step to journal.jsonl and make it durable before returning."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        line = json.dumps({"t": _now(), "step": step, **data}, sort_keys=True, default=_jsonable)
+        with open(self.path / "journal.jsonl", "a", encoding="utf-8") as fh:
+            fh.write(line + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+
+    def read_journal(self):
+        """Journal entries (a truncated last line, from a crash mid-write, is skipped)."""
+        p = self.path / "journal.jsonl"
+        if not p.is_file():
+            return []
+        out = []
+        for line in p.read_text(encoding="utf-8").splitlines():
+            try:
+                out.append(json.loads(line))
+            except ValueError:
+                continue
+        return out
+
+    # -- manifest -------------------------------------------------------------------
+    def create(self, rig, profile, pixel_pitch_mm, lights, exposures, plan):
+        """A new manifest with no frames; refuses to overwrite a different scan."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        (self.path / "raw").mkdir(exist_ok=True)
+        self.manifest = {"schema": SCHEMA, "rig": rig, "profile": profile,
+                         "pixel_pitch_mm": pixel_pitch_mm, "lights": lights, "exposures": exposures,
+                         "frames": [], "rig_time_s": 0.0, "truth": None, "plan": plan,
+                         "complete": False, "created": _now()}
+        self.save()
+
+    def save(self):
+        tmp = self.path / ".scan.json.partial"
+        with open(tmp, "w", encoding="utf-8") as fh:
+            json.dump(self.manifest, fh, indent=1, default=_jsonable)
+            fh.write("\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, self.path / "scan.json")
+
+    def frames_done(self):
+        """{(light, exposure): frame record} of frames whose file is present."""
+        out = {}
+        for f in (self.manifest or {}).get("frames", []):
+            if (self.path / f["file"]).is_file():
+                out[(f["light"], f["exposure"])] = f
+        return out
+
+    def add_frame(self, record):
+        """Record a captured frame (its file must already be at record["file"])."""
+        frames = [f for f in self.manifest["frames"]
+                  if (f["light"], f["exposure"]) != (record["light"], record["exposure"])]
+        frames.append(record)
+        frames.sort(key=lambda f: (f["light"], f["exposure"]))
+        self.manifest["frames"] = frames
+        self.save()
+
+    def verify(self):
+        """Check every frame file against its sha256: list of problems (empty when intact)."""
+        problems = []
+        for f in (self.manifest or {}).get("frames", []):
+            p = self.path / f["file"]
+            if not p.is_file():
+                problems.append(f"{f['file']}: missing")
+            elif sha256_file(p) != f["sha256"]:
+                problems.append(f"{f['file']}: sha256 differs from scan.json")
+        return problems
+
+
+def _jsonable(obj):
+    import numpy as np
+
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"cannot store {type(obj).__name__} in JSON")
