@@ -62,7 +62,8 @@ def _check_inputs(images, light_dirs, mask, channel):
     if m < 4:
         raise ValueError(f"photometric stereo needs at least 4 lights here (3 to solve, one more to "
                          f"check the fit); got {m}. Capture with more lights.")
-    light_dirs = np.asarray(light_dirs, dtype=np.float64)
+    light_dirs = np.asarray(light_dirs)
+    light_dirs = light_dirs.astype(np.float64 if light_dirs.ndim == 2 else np.float32)
     if light_dirs.shape == (m, 3):
         pass
     elif light_dirs.shape == (h, w, m, 3):
@@ -154,19 +155,23 @@ def _ls_normals(e, s, ok):
     return g
 
 
-def _albedo(e_all, s, n, keep):
+def _albedo(e_all, s, n, keep, chunk=262144):
     """rho per channel for fixed unit normals: rho = pi * sum(E s.n) / sum((s.n)^2) over kept lights.
 
-    e_all : (N, m, C); s : (m, 3) or (N, m, 3); n : (N, 3); keep : (N, m) bool.
+    e_all : (N, m, C); s : (m, 3) or (N, m, 3); n : (N, 3); keep : (N, m) bool. Returns (N, C).
     """
-    sn = (n @ s.T) if s.ndim == 2 else np.einsum("nmi,ni->nm", s, n)
-    w = keep & (sn > 0)
-    sn_w = np.where(w, sn, 0.0)
-    num = np.einsum("nmc,nm->nc", np.where(w[..., None], np.nan_to_num(e_all), 0.0), sn_w)
-    den = np.sum(sn_w ** 2, axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rho = np.pi * num / den[:, None]
-    return np.where(den[:, None] > 1e-12, rho, 0.0)
+    out = np.zeros((len(n), e_all.shape[2]), np.float32)
+    for a in range(0, len(n), chunk):
+        sl = slice(a, a + chunk)
+        nn = n[sl].astype(np.float32)
+        sn = (nn @ s.T.astype(np.float32)) if s.ndim == 2 else np.einsum("nmi,ni->nm", s[sl], nn)
+        w = keep[sl] & (sn > 0)
+        sn_w = np.where(w, sn, 0.0).astype(np.float32)
+        num = np.einsum("nmc,nm->nc", np.where(w[..., None], np.nan_to_num(e_all[sl]), 0.0), sn_w)
+        den = np.sum(sn_w ** 2, axis=1)
+        ok = den > 1e-12
+        out[sl] = np.where(ok[:, None], np.pi * num / np.where(ok, den, 1.0)[:, None], 0.0)
+    return out
 
 
 def _gather(images, mask, channel):
@@ -195,7 +200,7 @@ def _pixel_dirs(light_dirs, idx):
     if light_dirs.ndim == 2:
         return light_dirs
     h, w, m, _ = light_dirs.shape
-    return light_dirs.reshape(h * w, m, 3)[idx].astype(np.float64)
+    return light_dirs.reshape(h * w, m, 3)[idx].astype(np.float32)
 
 
 def _ls_stage(e, s, ok):
@@ -236,7 +241,7 @@ def ps_woodham1980(images, light_dirs, mask=None, channel=None, saturation=None)
     s = _pixel_dirs(light_dirs, idx)
     ok = _usable(e, saturation)
     n, found, resid = _ls_stage(e, s, ok)
-    rho = _albedo(e_all.astype(np.float64), s, n, ok)
+    rho = _albedo(e_all, s, n, ok)
     _scatter(res, idx, "normal", n)
     _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
     _scatter(res, idx, "valid", found)
@@ -430,7 +435,7 @@ def ps_hierarchical_tautzia2016(images, light_dirs, mask=None, channel=None, sat
                                                 t_ombre, t_spec, t_source)
         normal[sel], n_trip[sel], shadow[sel], specular[sel], found[sel] = nb, cb, shb, spb, fb
     keep = ok & ~shadow & ~specular
-    rho = _albedo(e_all.astype(np.float64), s, normal, keep)
+    rho = _albedo(e_all, s, normal, keep)
     _scatter(res, idx, "normal", normal)
     _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
     _scatter(res, idx, "valid", found)

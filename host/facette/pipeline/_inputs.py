@@ -1,0 +1,115 @@
+"""Inputs of `process`: a facette scan directory or a DiLiGenT-style folder."""
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from facette.io.diligent import is_diligent_dir, read_diligent
+from facette.io.exr import read_exr
+from facette.io.png import read_mask
+
+__all__ = ["PSInput", "load_input", "source_path"]
+
+
+@dataclass
+class PSInput:
+    """images (m, H, W, 3) float32 divided by the light intensities (NaN where unknown);
+    light_dirs (m, 3) unit vectors (camera frame); positions_mm (m, 3) or None;
+    mask (H, W) bool; pixel_pitch_mm; kind "scan" or "diligent"; truth: dict or None."""
+    images: np.ndarray
+    light_dirs: np.ndarray
+    positions_mm: object
+    mask: np.ndarray
+    pixel_pitch_mm: float
+    kind: str
+    source: Path
+    truth: object = None
+    notes: list = field(default_factory=list)
+
+
+def source_path(source):
+    """A path from a str/PathLike or an object with .path / .directory / .root (a Scan)."""
+    if isinstance(source, (str, os.PathLike)):
+        return Path(source)
+    for attr in ("path", "directory", "root", "scan_dir"):
+        value = getattr(source, attr, None)
+        if isinstance(value, (str, os.PathLike)):
+            return Path(value)
+    raise TypeError(f"cannot process {type(source).__name__}: pass a scan directory, a "
+                    "DiLiGenT-style folder, or a Scan object")
+
+
+def _auto_mask(images):
+    """Pixels lit above 2 % of the bright end in at least one image, finite everywhere."""
+    lum = np.nanmax(np.nan_to_num(images.mean(axis=-1), nan=0.0), axis=0)
+    ref = np.percentile(lum, 99) if lum.size else 0.0
+    return (lum > 0.02 * ref) if ref > 0 else np.zeros(lum.shape, bool)
+
+
+def _load_hdr_images(scan_dir, data):
+    try:
+        from facette.hdr import load_hdr
+    except ImportError:  # the HDR helper's module not installed: read hdr/ directly
+        load_hdr = None
+    if load_hdr is not None:
+        images, variances, lights = load_hdr(scan_dir)
+        images = np.where(np.isfinite(variances), images, np.nan).astype(np.float32)
+        return images, lights
+    lights = sorted(data["lights"], key=lambda l: int(l["index"]))
+    images = np.stack([read_exr(scan_dir / "hdr" / f"light_{int(l['index']):02d}.exr",
+                                ("R", "G", "B"))[0] for l in lights])
+    return images, lights
+
+
+def _load_scan(scan_dir, pixel_pitch_mm):
+    data = json.loads((scan_dir / "scan.json").read_text())
+    images, lights = _load_hdr_images(scan_dir, data)
+    dirs = np.array([l["direction"] for l in lights], dtype=np.float64)
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    inten = np.array([l.get("intensity") or [1.0, 1.0, 1.0] for l in lights], dtype=np.float64)
+    if np.any(inten <= 0):
+        raise ValueError(f"{scan_dir / 'scan.json'}: a light has a non-positive intensity; "
+                         "fix the calibration profile")
+    images = (images / inten[:, None, None, :]).astype(np.float32)
+    pos = [l.get("position_mm") for l in lights]
+    positions = np.array(pos, dtype=np.float64) if all(p is not None for p in pos) else None
+    pitch = pixel_pitch_mm or data.get("pixel_pitch_mm")
+    if not pitch:
+        raise ValueError(f"{scan_dir / 'scan.json'} gives no pixel_pitch_mm; pass pixel_pitch_mm=")
+    truth = None
+    if data.get("truth") and (scan_dir / data["truth"]).is_file():
+        with np.load(scan_dir / data["truth"], allow_pickle=False) as z:
+            truth = {k: z[k] for k in z.files}
+    mask = _auto_mask(images)
+    return PSInput(images, dirs, positions, mask, float(pitch), "scan", scan_dir, truth)
+
+
+def load_input(source, mask=None, pixel_pitch_mm=None):
+    """Read a scan directory (scan.json + hdr/) or a DiLiGenT-style folder into a `PSInput`.
+
+    mask : optional (H, W) bool array or path to a PNG; default: scan -> lit pixels,
+    DiLiGenT -> its mask.png. pixel_pitch_mm overrides the scan's (DiLiGenT default 1).
+    """
+    path = source_path(source)
+    if not path.is_dir():
+        raise FileNotFoundError(f"{path} is not a directory; give a scan directory (with scan.json) "
+                                "or a DiLiGenT-style folder (with filenames.txt)")
+    if (path / "scan.json").is_file():
+        inp = _load_scan(path, pixel_pitch_mm)
+    elif is_diligent_dir(path):
+        d = read_diligent(path)
+        inp = PSInput(d.images, d.light_dirs, None, d.mask, float(pixel_pitch_mm or 1.0),
+                      "diligent", path)
+        if pixel_pitch_mm is None:
+            inp.notes.append("DiLiGenT folders carry no pixel pitch: heights are in pixels (pitch 1)")
+    else:
+        raise ValueError(f"{path} holds neither scan.json (a facette scan) nor filenames.txt and "
+                         "light_directions.txt (a DiLiGenT-style folder)")
+    if mask is not None:
+        m = read_mask(mask) if isinstance(mask, (str, os.PathLike)) else np.asarray(mask, bool)
+        if m.shape != inp.mask.shape:
+            raise ValueError(f"mask is {m.shape}, images are {inp.mask.shape}")
+        inp.mask = m
+    return inp

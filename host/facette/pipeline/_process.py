@@ -1,0 +1,256 @@
+"""`process`: from HDR images to normals, heights, mesh, reflectance samples, BRDF and report.
+
+Stages run only when a requested output needs them (DESIGN §2):
+
+    output    needs stages
+    normals   load, ps                       (normal.exr)
+    albedo    load, ps                       (albedo.exr)
+    mask      load, ps                       (mask.png)
+    height    load, ps, integrate            (height.exr)
+    mesh      load, ps, integrate, mesh      (mesh.ply)
+    samples   load, ps, samples              (samples.npz)
+    brdf      load, ps, samples, fit         (brdf.json; needs facette.fit)
+    report    load, ps (+ whatever else ran) (report.html)
+"""
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from facette.io.exr import write_exr
+from facette.io.ply import write_ply
+from facette.io.png import write_mask
+from facette.recon import (integrate, mesh_from_height, near_light_directions, photometric_stereo)
+from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
+from facette.reflect import HemisphereSensor, samples_from_pixels, THETA0_DEG
+from facette.pipeline._inputs import load_input
+
+__all__ = ["OUTPUTS", "STAGES_FOR", "ProcessResult", "process", "stages_needed"]
+
+OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "report")
+STAGES_FOR = {
+    "normals": ("load", "ps"), "albedo": ("load", "ps"), "mask": ("load", "ps"),
+    "height": ("load", "ps", "integrate"), "mesh": ("load", "ps", "integrate", "mesh"),
+    "samples": ("load", "ps", "samples"), "brdf": ("load", "ps", "samples", "fit"),
+    "report": ("load", "ps"),
+}
+FILES = {"normals": "normal.exr", "albedo": "albedo.exr", "mask": "mask.png", "height": "height.exr",
+         "mesh": "mesh.ply", "samples": "samples.npz", "brdf": "brdf.json", "report": "report.html"}
+RAW_SAMPLES_KEPT = 200_000   # raw samples stored next to the filtered ones (a uniform subset)
+
+
+def stages_needed(outputs):
+    """Ordered stage names for a list of outputs (unknown names raise ValueError)."""
+    bad = [o for o in outputs if o not in STAGES_FOR]
+    if bad:
+        raise ValueError(f"unknown output(s) {bad}; choose from {', '.join(OUTPUTS)}")
+    order = ("load", "ps", "integrate", "mesh", "samples", "fit")
+    want = {s for o in outputs for s in STAGES_FOR[o]}
+    return [s for s in order if s in want]
+
+
+@dataclass
+class ProcessResult:
+    """What `process` computed. Arrays at the input image size (H, W):
+
+    normals (H, W, 3) unit vectors, camera frame (0 where not valid); albedo (H, W, 3);
+    mask (H, W) bool (valid normals inside the input mask); height (H, W) mm or None;
+    mesh (vertices, faces) or None; filtered `FilteredReflectance` or None; samples raw
+    `ReflectanceSamples` subset or None; brdf dict or None; ps the full `PSResult`;
+    timings {stage: seconds}; files {output: path}; errors {name: value} against the
+    scan's truth.npz when present (angular error in degrees, height RMS in mm).
+    """
+    normals: np.ndarray = None
+    albedo: np.ndarray = None
+    mask: np.ndarray = None
+    height: np.ndarray = None
+    mesh: tuple = None
+    filtered: object = None
+    samples: object = None
+    brdf: object = None
+    ps: object = None
+    inputs: object = None
+    timings: dict = field(default_factory=dict)
+    files: dict = field(default_factory=dict)
+    errors: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+    options: dict = field(default_factory=dict)
+
+
+def _samples_stage(inp, ps, light_dirs, theta0_deg, chunk=262144, keep=RAW_SAMPLES_KEPT, seed=0):
+    """Samples (eq 4.11) pixel block by pixel block into the hemisphere sensor, keeping a
+    uniform random subset of the raw samples. Shadows found by the PS stage are left out."""
+    m, h, w, c = inp.images.shape
+    sensor = HemisphereSensor(theta0_deg, channels=c)
+    pix = np.flatnonzero((ps.valid & inp.mask).ravel())
+    flat = inp.images.reshape(m, h * w, c)
+    rng = np.random.default_rng(seed)
+    total = max(pix.size * m, 1)
+    parts = []
+    for a in range(0, pix.size, chunk):
+        p = pix[a:a + chunk]
+        e = np.transpose(flat[:, p], (1, 0, 2))
+        n = ps.normal.reshape(-1, 3)[p]
+        s = light_dirs if light_dirs.ndim == 2 else light_dirs.reshape(h * w, m, 3)[p]
+        smp = samples_from_pixels(e, n, s, ps.shadow.reshape(-1, m)[p])
+        smp.pixel = p[smp.pixel]
+        sensor.add(smp.s, smp.o, smp.f)
+        take = rng.random(len(smp)) < keep / total
+        parts.append(smp.subset(take))
+    raw = parts[0] if len(parts) == 1 else None
+    if len(parts) > 1:
+        from facette.reflect import ReflectanceSamples
+        raw = ReflectanceSamples(*(np.concatenate([getattr(q, k) for q in parts])
+                                   for k in ("s", "o", "f", "pixel", "light")))
+    return sensor.result(), raw
+
+
+def _fit_stage(filtered):
+    """Call facette.fit when it exists. Returns (dict or None, note)."""
+    try:
+        import facette.fit as fit_mod
+    except ImportError:
+        return None, "brdf: facette.fit is not available yet; no brdf.json written"
+    fn = getattr(fit_mod, "fit_brdf", None) or getattr(fit_mod, "fit", None)
+    if fn is None:
+        return None, "brdf: facette.fit has no fit_brdf() or fit(); no brdf.json written"
+    s, o, f, count = filtered.flat()
+    try:
+        res = fn(s, o, f, weights=count)
+    except TypeError:
+        res = fn(s, o, f)
+    if hasattr(res, "to_dict"):
+        res = res.to_dict()
+    elif hasattr(res, "__dict__") and not isinstance(res, dict):
+        res = {k: v for k, v in vars(res).items() if not k.startswith("_")}
+    return json.loads(json.dumps(res, default=lambda x: np.asarray(x).tolist())), ""
+
+
+def _truth_errors(inp, res):
+    t = inp.truth
+    out = {}
+    if not t or "normals" not in t or t["normals"].shape != res.normals.shape:
+        return out
+    sel = res.mask & t.get("mask", np.ones(res.mask.shape, bool)).astype(bool)
+    if sel.any():
+        dot = np.clip(np.sum(res.normals[sel] * t["normals"][sel], -1), -1, 1)
+        err = np.degrees(np.arccos(dot))
+        out.update(normal_mean_deg=float(err.mean()), normal_median_deg=float(np.median(err)),
+                   normal_p95_deg=float(np.percentile(err, 95)))
+        if res.height is not None and "height_mm" in t:
+            d = res.height[sel] - t["height_mm"][sel]
+            out["height_rms_mm"] = float(np.sqrt(np.mean((d - d.mean()) ** 2)))
+    return out
+
+
+def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016",
+            integration="frankot_chellappa1988", t_ombre=T_OMBRE, t_spec=T_SPEC,
+            t_source=T_SOURCE, t_residual=T_RESIDUAL, theta0_deg=THETA0_DEG, mask=None,
+            pixel_pitch_mm=None, near_light=True, mesh_step=None, ascii_ply=False,
+            saturation=None):
+    """Run the processing chain on a scan directory or a DiLiGenT-style folder.
+
+    source : path (or Scan object) of a facette scan (scan.json + hdr/) or a DiLiGenT folder.
+    outputs : list from OUTPUTS (default all); only the stages they need run.
+    out_dir : where to write the files of DESIGN §7 (None: compute only, write nothing).
+    method : photometric stereo, "hierarchical_tautzia2016" or "woodham1980".
+    integration : "frankot_chellappa1988" (thesis), "simchony1990" or "least_squares" (mask only).
+    t_ombre (rad), t_spec, t_source, t_residual : see `ps_hierarchical_tautzia2016`.
+    theta0_deg : hemisphere-sensor cell size (deg). mask : (H, W) bool or PNG path.
+    near_light : use the lights' positions (per-pixel directions, 1/r^2) when the scan has them.
+    mesh_step : pixel step of the mesh (default: so that it has at most ~1e6 vertices).
+    Returns a `ProcessResult`.
+    """
+    outputs = list(OUTPUTS if outputs is None else outputs)
+    stages = stages_needed(outputs)
+    res = ProcessResult(options=dict(method=method, integration=integration, t_ombre=t_ombre,
+                                     t_spec=t_spec, t_source=t_source, t_residual=t_residual,
+                                     theta0_deg=theta0_deg, outputs=outputs))
+    t_all = time.perf_counter()
+
+    t0 = time.perf_counter()
+    inp = load_input(source, mask=mask, pixel_pitch_mm=pixel_pitch_mm)
+    res.inputs = inp
+    res.notes.extend(inp.notes)
+    res.timings["load"] = time.perf_counter() - t0
+    m, h, w, c = inp.images.shape
+
+    t0 = time.perf_counter()
+    light_dirs = inp.light_dirs
+    images = inp.images
+    if near_light and inp.positions_mm is not None:
+        light_dirs, falloff = near_light_directions(inp.positions_mm, (h, w), inp.pixel_pitch_mm)
+        images = images / np.transpose(falloff, (2, 0, 1))[..., None]
+        res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
+    kwargs = dict(mask=inp.mask, saturation=saturation)
+    if method in ("hierarchical_tautzia2016", "hierarchical"):
+        kwargs.update(t_ombre=t_ombre, t_spec=t_spec, t_source=t_source, t_residual=t_residual)
+    ps = photometric_stereo(images, light_dirs, method=method, **kwargs)
+    res.ps = ps
+    res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
+    res.timings["ps"] = time.perf_counter() - t0
+
+    if "integrate" in stages:
+        t0 = time.perf_counter()
+        mk = res.mask if integration == "least_squares" else None
+        hgt = integrate(res.normals, inp.pixel_pitch_mm, mask=mk, method=integration)
+        res.height = np.where(res.mask, hgt, 0.0).astype(np.float32)
+        res.timings["integrate"] = time.perf_counter() - t0
+    if "mesh" in stages:
+        t0 = time.perf_counter()
+        step = mesh_step or max(1, int(np.ceil(np.sqrt(res.mask.sum() / 1e6))))
+        res.mesh = mesh_from_height(res.height, res.mask, inp.pixel_pitch_mm, step=step)
+        res.timings["mesh"] = time.perf_counter() - t0
+    if "samples" in stages:
+        t0 = time.perf_counter()
+        res.filtered, res.samples = _samples_stage(
+            inp, ps, light_dirs if light_dirs.ndim == 2 else light_dirs, theta0_deg)
+        res.timings["samples"] = time.perf_counter() - t0
+    if "fit" in stages:
+        t0 = time.perf_counter()
+        res.brdf, note = _fit_stage(res.filtered)
+        if note:
+            res.notes.append(note)
+        res.timings["fit"] = time.perf_counter() - t0
+    res.errors = _truth_errors(inp, res)
+    res.timings["total_compute"] = time.perf_counter() - t_all
+    if out_dir is not None:
+        t0 = time.perf_counter()
+        _write(res, Path(out_dir), outputs, ascii_ply, images, light_dirs)
+        res.timings["write"] = time.perf_counter() - t0
+    return res
+
+
+def _write(res, out, outputs, ascii_ply, images, light_dirs):
+    out.mkdir(parents=True, exist_ok=True)
+    meta = {"software": "facette", "source": str(res.inputs.source),
+            "method": res.options["method"], "frame": "camera: x right, y up, z towards the camera"}
+    if "normals" in outputs:
+        write_exr(out / FILES["normals"], res.normals, ("X", "Y", "Z"), header=meta)
+    if "albedo" in outputs:
+        write_exr(out / FILES["albedo"], res.albedo, ("R", "G", "B"), header=meta)
+    if "height" in outputs:
+        write_exr(out / FILES["height"], res.height, ("Z",), header={**meta, "unit": "mm"})
+    if "mask" in outputs:
+        write_mask(out / FILES["mask"], res.mask)
+    if "mesh" in outputs:
+        write_ply(out / FILES["mesh"], *res.mesh, binary=not ascii_ply)
+    if "samples" in outputs:
+        fr, raw = res.filtered, res.samples
+        np.savez_compressed(
+            out / FILES["samples"], filtered_mean=fr.mean.astype(np.float32), filtered_count=fr.count,
+            filtered_theta_s=fr.theta_s, filtered_s=fr.s, filtered_o=fr.o, partition_edges=fr.edges,
+            partition_counts=fr.counts, theta0_deg=res.options["theta0_deg"],
+            raw_s=raw.s, raw_o=raw.o, raw_f=raw.f, raw_pixel=raw.pixel, raw_light=raw.light,
+            image_shape=np.array(res.normals.shape[:2]))
+    if "brdf" in outputs and res.brdf is not None:
+        (out / FILES["brdf"]).write_text(json.dumps(res.brdf, indent=2))
+    for o in outputs:
+        if (out / FILES[o]).exists() and o != "report":
+            res.files[o] = str(out / FILES[o])
+    if "report" in outputs:
+        from facette.pipeline._report import write_report
+        write_report(res, out / FILES["report"])
+        res.files["report"] = str(out / FILES["report"])

@@ -1,0 +1,116 @@
+"""report.html: one self-contained page (pictures embedded as PNG) describing a `process` run."""
+import base64
+import html
+import io
+
+import numpy as np
+
+__all__ = ["write_report"]
+
+
+def _png(fig):
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    import matplotlib.pyplot as plt
+    plt.close(fig)
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _decimate(a, max_side=800):
+    step = max(1, int(np.ceil(max(a.shape[:2]) / max_side)))
+    return a[::step, ::step]
+
+
+def _map(title, img, cmap=None, vmin=None, vmax=None, label=""):
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(5, 4))
+    im = ax.imshow(_decimate(img), cmap=cmap, vmin=vmin, vmax=vmax, interpolation="nearest")
+    if img.ndim == 2:
+        fig.colorbar(im, ax=ax, label=label)
+    ax.set_title(title)
+    ax.axis("off")
+    return title, _png(fig)
+
+
+def _curves(filtered):
+    """In-plane reflectance curves: mean BRDF (green) against signed theta_o for cells near
+    the incidence plane, one curve per incidence bin with data."""
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    o = filtered.o
+    theta_o = np.degrees(np.arccos(np.clip(o[:, 2], -1, 1)))
+    phi_o = np.arctan2(o[:, 1], o[:, 0])
+    near = np.minimum(np.abs(phi_o), np.pi - np.abs(phi_o)) < np.radians(15)
+    signed = np.where(np.abs(phi_o) < np.pi / 2, theta_o, -theta_o)
+    ch = 1 if filtered.mean.shape[2] > 1 else 0
+    drawn = 0
+    for b in np.argsort(-filtered.count.sum(1))[:6]:
+        sel = near & (filtered.count[b] > 0)
+        if sel.sum() < 2:
+            continue
+        order = np.argsort(signed[sel])
+        ax.plot(signed[sel][order], filtered.mean[b, sel, ch][order], "o-", ms=3,
+                label=f"θs ≈ {np.degrees(filtered.theta_s[b]):.1f}°")
+        drawn += 1
+    ax.set_xlabel("θo in the incidence plane (deg; + = towards the light side)")
+    ax.set_ylabel("BRDF, green (1/sr)")
+    ax.set_yscale("log")
+    ax.set_title("Filtered reflectance (hemispherical sensor)")
+    if drawn:
+        ax.legend(fontsize=8)
+    return "Reflectance curves", _png(fig)
+
+
+def write_report(res, path):
+    """Write report.html for a `ProcessResult` (maps, masks, curves, timings, options)."""
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    figs = []
+    n = res.normals
+    figs.append(_map("Normal map ((n+1)/2 as RGB)", np.where(res.mask[..., None], (n + 1) / 2, 0)))
+    alb = res.albedo / max(float(np.percentile(res.albedo[res.mask], 99)) if res.mask.any() else 1, 1e-12)
+    figs.append(_map("Albedo (scaled to the 99th percentile)", np.clip(alb, 0, 1)))
+    ps = res.ps
+    figs.append(_map("Least-squares relative residual (confidence: low is Lambertian)",
+                     np.where(res.mask, ps.residual, np.nan), cmap="magma", vmin=0,
+                     vmax=max(float(np.nanpercentile(np.where(res.mask, ps.residual, np.nan), 99))
+                              if res.mask.any() else 1, 1e-6)))
+    if ps.method.startswith("hierarchical"):
+        figs.append(_map("Triplets kept", np.where(res.mask, ps.n_triplets, np.nan), cmap="viridis"))
+        figs.append(_map("Lights flagged as shadow", np.where(res.mask, ps.shadow.sum(-1), np.nan),
+                         cmap="Reds", label="lights"))
+        figs.append(_map("Lights flagged as specular", np.where(res.mask, ps.specular.sum(-1), np.nan),
+                         cmap="Blues", label="lights"))
+    if res.height is not None:
+        figs.append(_map("Height (mm)", np.where(res.mask, res.height, np.nan), cmap="terrain",
+                         label="mm"))
+    truth = res.inputs.truth if res.inputs is not None else None
+    if truth and "normals" in truth and truth["normals"].shape == n.shape:
+        err = np.degrees(np.arccos(np.clip(np.sum(n * truth["normals"], -1), -1, 1)))
+        figs.append(_map("Angular error against truth (deg)", np.where(res.mask, err, np.nan),
+                         cmap="inferno", vmin=0, vmax=10, label="deg"))
+    if res.filtered is not None:
+        figs.append(_curves(res.filtered))
+    rows = "".join(f"<tr><td>{html.escape(k)}</td><td>{v:.3f} s</td></tr>" for k, v in res.timings.items())
+    opts = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(str(v))}</td></tr>"
+                   for k, v in res.options.items())
+    errs = "".join(f"<tr><td>{html.escape(k)}</td><td>{v:.3f}</td></tr>" for k, v in res.errors.items())
+    info = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(str(v))}</td></tr>"
+                   for k, v in (ps.info or {}).items())
+    notes = "".join(f"<li>{html.escape(x)}</li>" for x in res.notes)
+    brdf = f"<pre>{html.escape(str(res.brdf))}</pre>" if res.brdf is not None else "<p>not fitted</p>"
+    imgs = "".join(f'<figure><img src="{src}" alt="{html.escape(t)}"><figcaption>{html.escape(t)}'
+                   "</figcaption></figure>" for t, src in figs)
+    src = html.escape(str(res.inputs.source)) if res.inputs is not None else ""
+    page = f"""<!DOCTYPE html><html><head><meta charset="utf-8"><title>facette report</title>
+<style>body{{font-family:sans-serif;margin:2em}}figure{{display:inline-block;margin:0.5em}}
+td{{padding:0 1em}}img{{max-width:520px}}</style></head><body>
+<h1>facette process</h1><p>Source: {src} ({res.inputs.kind if res.inputs else ''},
+{n.shape[1]}×{n.shape[0]} px, {int(res.mask.sum())} valid pixels)</p>
+<h2>Options</h2><table>{opts}</table><h2>Photometric stereo</h2><table>{info}</table>
+<h2>Error against the scan's truth</h2>{('<table>' + errs + '</table>') if errs else '<p>no truth.npz</p>'}
+<h2>Timings</h2><table>{rows}</table><h2>BRDF</h2>{brdf}<h2>Notes</h2><ul>{notes}</ul>
+<h2>Pictures</h2>{imgs}</body></html>"""
+    tmp = path.with_name(path.name + ".partial")
+    tmp.write_text(page, encoding="utf-8")
+    tmp.replace(path)
