@@ -315,7 +315,12 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
         raise ValueError("this rig has no camera backend: connect with camera=FolderWatchCamera(folder) "
                          "or GPhoto2Camera()")
     profile = _load_profile(profile)
-    n_leds = rig.device.identity.get("max_leds", 12) or 12
+    if profile is not None:
+        n_leds = len(profile.lights)
+    elif rig.sim is not None:
+        n_leds = len(rig.sim.leds)
+    else:   # the thesis rig has 12 LEDs; a device may drive more channels than are fitted
+        n_leds = min(rig.device.identity.get("max_leds", 12) or 12, 12)
     plan = default_plan(n_leds, exposures, lights, light_current_mA, mode, retries, timing)
     sd = ScanDirectory(directory)
     pitch = getattr(profile, "pixel_pitch_mm", None)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import socket
 import threading
 import time
@@ -90,6 +91,12 @@ class SimCamera:
         self.prefix = prefix
         existing = sorted(self.folder.glob(f"{prefix}*.dng"))
         self.count = len(existing)
+        self._written = []
+
+    def unclaimed(self):
+        """Number of frames still in the camera folder (nobody moved them away yet)."""
+        self._written = [p for p in self._written if os.path.exists(p)]
+        return len(self._written)
 
     def expose(self, charges_mA_us, t_s, extra=None):
         """Take one frame; `charges_mA_us` : (m,) LED current × time inside the window.
@@ -103,6 +110,7 @@ class SimCamera:
         path = self.folder / f"{self.prefix}{self.count:04d}.dng"
         write_dng(path, mosaic, self.sensor.black_level_dn, self.sensor.white_level_dn,
                   max(t_s, 1e-6), self.iso, model="sim", extra=extra)
+        self._written.append(path)
         return path
 
 
@@ -116,14 +124,21 @@ class RigSimulator:
     faults : Faults or None
     open_led_dark : bool, an open LED emits no light (True: it is open)
     shutter_lag_us : int, delay from the shutter line to the flash-sync edge (µs)
+    max_unclaimed : int or None; when set, a shutter opening is not acknowledged
+        (the device's virtual clock stays frozen) while the camera folder holds this
+        many files nobody took yet. With a host in the loop this keeps a fast virtual
+        clock from outrunning the host (the device's frame ring holds 16 records);
+        leave it None when nobody collects the files.
 
     Attributes (read them from another thread): ``shots`` (shutter openings seen),
     ``frames`` (list of dicts for the frames written), ``boots`` (boot counts seen),
     ``log`` (the last event lines), ``virtual_us`` (last device time seen).
     """
 
-    def __init__(self, side_socket, camera, faults=None, shutter_lag_us=40, connect_timeout_s=10.0):
+    def __init__(self, side_socket, camera, faults=None, shutter_lag_us=40, connect_timeout_s=10.0,
+                 max_unclaimed=None):
         self.camera = camera
+        self.max_unclaimed = max_unclaimed
         self.faults = faults or Faults()
         self.shutter_lag_us = int(shutter_lag_us)
         self.m = camera.radiance.shape[0]
@@ -258,6 +273,7 @@ class RigSimulator:
             params = {k: (int(v) if v.lstrip("-").isdigit() else v)
                       for k, v in (p.split("=", 1) for p in parts[3:] if "=" in p)}
             if level == 1:
+                self._backpressure()
                 if self._open(t, params) == "reset":
                     self.send("ack")        # release the lockstep first, then pull the plug
                     self.reset_device()
@@ -296,6 +312,12 @@ class RigSimulator:
         else:
             with self._lock:
                 self.missed.append({"shot": shot, "why": "missed flash sync", **params})
+
+    def _backpressure(self):
+        if not self.max_unclaimed:
+            return
+        while not self._stop.is_set() and self.camera.unclaimed() >= self.max_unclaimed:
+            time.sleep(0.001)
 
     def close(self):
         """Stop following the device and close the socket."""

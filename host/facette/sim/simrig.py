@@ -37,11 +37,14 @@ class SimulatedRig:
     speed : virtual clock rate of the device (× real time)
     workdir : folder for the camera folder, the side socket and the flash (default: temporary)
     seed : int
+    max_unclaimed : int or None, see RigSimulator (default 4: a host collects the files;
+        None for a simulator nobody takes files from)
     """
 
     def __init__(self, scene="plaque_sphere", raw_shape=DEFAULT_RAW_SHAPE, pixel_pitch_mm=None, brdf=None,
                  near=False, direction_error_deg=0.5, intensity_error=0.05, sensor=None,
-                 electrons_per_mA_s=20.0, faults=None, speed=200.0, workdir=None, seed=0, shadows=True):
+                 electrons_per_mA_s=20.0, faults=None, speed=200.0, workdir=None, seed=0, shadows=True,
+                 max_unclaimed=4):
         rows, cols = (int(v) for v in raw_shape)
         if rows % 2 or cols % 2 or rows < 22 or cols < 22:
             raise ValueError(f"raw_shape must be even and at least 22×22 (a DNG limit), got {raw_shape}")
@@ -60,7 +63,8 @@ class SimulatedRig:
         try:
             self.camera = SimCamera(self.camera_dir, self.radiance, self.sensor, iso=self.sensor.iso,
                                     seed=seed + 2)
-            self.simulator = RigSimulator(self.device.side_socket, self.camera, self.faults)
+            self.simulator = RigSimulator(self.device.side_socket, self.camera, self.faults,
+                                         max_unclaimed=max_unclaimed)
         except Exception:
             self.device.close()
             raise
