@@ -53,12 +53,44 @@ def lambert_fit_direction(image, circle, margin=0.95, min_cos=0.1, iterations=3)
     return s, scale, float(np.sqrt(np.mean(res ** 2)) / np.linalg.norm(b))
 
 
-def matte_sphere_directions(images, circle=None):
-    """Directions (m, 3), intensities (m, C) (mean over LEDs = 1 per channel) and
-    relative rms residuals (m,) from images (m, H, W[, 3]) of a matte sphere.
+def _refine_joint(lum, circle, dirs, scale, margin=0.9, min_cos=0.15):
+    """Refine the outline and every b_i = scale_i · s_i together: the shading of all the
+    images pins the sphere's centre and radius better than its blurred silhouette."""
+    from scipy import optimize
+
+    m, h, w = lum.shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    near = np.hypot(cols - circle.cx, rows - circle.cy) < margin * circle.r
+    rr, cc = rows[near].astype(float), cols[near].astype(float)
+    vals = lum[:, near]
+    b0 = dirs * scale[:, None]
+
+    def normals(q):
+        u = (cc - q[0]) / q[2]
+        v = -(rr - q[1]) / q[2]
+        return np.stack([u, v, np.sqrt(np.clip(1 - u * u - v * v, 0, None))], -1)
+
+    n0 = normals([circle.cx, circle.cy, circle.r])
+    use = (n0 @ (b0 / np.linalg.norm(b0, axis=1, keepdims=True)).T).T > min_cos    # (m, N)
+
+    def res(p):
+        n = normals(p[:3])
+        b = p[3:].reshape(m, 3)
+        return ((b @ n.T) - vals)[use]
+    sol = optimize.least_squares(res, np.r_[circle.cx, circle.cy, circle.r, b0.ravel()],
+                                 x_scale="jac")
+    cx, cy, r = sol.x[:3]
+    b = sol.x[3:].reshape(m, 3)
+    return Circle(float(cx), float(cy), float(r), circle.rms), b
+
+
+def matte_sphere_directions(images, circle=None, refine=True):
+    """Directions (m, 3), intensities (m, C) (mean over LEDs = 1 per channel), relative
+    rms residuals (m,) and the sphere's Circle, from images (m, H, W[, 3]) of a matte sphere.
 
     The outline (`circle`) is fitted on the brightest-anywhere image (the maximum
-    over LEDs, where the whole sphere is lit) unless given.
+    over LEDs, where the whole sphere is lit) unless given; with `refine`, the
+    outline and all the directions are then refined together on the shading.
     """
     img = np.asarray(images, float)
     if img.ndim not in (3, 4):
@@ -69,6 +101,12 @@ def matte_sphere_directions(images, circle=None):
     if not isinstance(circle, Circle):
         raise ValueError("circle must be a facette.calib.mirror_sphere.Circle")
     out = [lambert_fit_direction(im, circle) for im in img]
+    if refine:
+        lum = img.mean(axis=3) if img.ndim == 4 else img
+        dirs0 = np.array([o[0] for o in out])
+        scale0 = np.array([o[1].mean() for o in out])
+        circle, _ = _refine_joint(lum, circle, dirs0, scale0)
+        out = [lambert_fit_direction(im, circle) for im in img]
     dirs = np.array([o[0] for o in out])
     inten = np.array([o[1] for o in out])
     return dirs, inten / inten.mean(axis=0, keepdims=True), np.array([o[2] for o in out]), circle
