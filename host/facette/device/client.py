@@ -68,11 +68,13 @@ class DeviceClient:
     timeout_s : float, how long to wait for one answer
     retries : int, repeats of a request without a valid answer (timeouts, CRC errors)
     check_hash : bool, refuse a device whose definition hash differs from this host's
+    expected_hash : int or None, the hash to expect (default: the generated module's)
 
     Attributes: ``stats`` (requests, retries, timeouts), ``boot_count``, ``identity``.
     """
 
-    def __init__(self, url, unit=1, baudrate=115200, timeout_s=0.3, retries=5, check_hash=True):
+    def __init__(self, url, unit=1, baudrate=115200, timeout_s=0.3, retries=5, check_hash=True,
+                 expected_hash=None):
         from pymodbus.client import ModbusSerialClient
 
         # pymodbus logs every lost frame at error level; our retries handle them.
@@ -81,6 +83,7 @@ class DeviceClient:
         self.unit = unit
         self.retries = int(retries)
         self.map = load_map()
+        self.expected_hash = self.map.definition_hash if expected_hash is None else int(expected_hash)
         self.stats = {"requests": 0, "retries": 0, "timeouts": 0, "exceptions": 0, "resets": 0}
         self._client = ModbusSerialClient(url, baudrate=baudrate, timeout=timeout_s, retries=0)
         self._client.set_max_no_responses(1 << 30)
@@ -96,7 +99,7 @@ class DeviceClient:
                               "holds it (a running `facette device` or a terminal program)")
         ident = self.read_block(["fw_version", "protocol_version", "definition_hash", "serial_number",
                                  "uptime_s", "boot_count", "reset_cause", "max_leds", "ring_len"])
-        expected = self.map.definition_hash
+        expected = self.expected_hash
         if check_hash and expected is not None and ident["definition_hash"] != expected:
             self.close()
             raise DeviceMismatch(
