@@ -20,8 +20,9 @@ Sample exclusion and documented results at the edges (both methods):
   noise standard deviations of the saturation level) is excluded;
 - a near-black sample (signal below `black_sigma` read-noise standard deviations)
   is excluded when a longer exposure of the same pixel is valid; the longest valid
-  exposure is always kept, so a pixel black in every frame gets the longest
-  exposure's estimate (close to 0) with its finite variance;
+  exposure is always kept, so a pixel black in every frame gets (mostly) the longest
+  exposure's estimate (close to 0) with its finite variance; with hat weights,
+  positive noise outliers of shorter frames bias black pixels upwards (< 1 σ/µs);
 - a pixel saturated in every frame gets the lower bound z_sat / k_min as its
   radiance, variance +inf, and ``saturated = True``;
 - NaN or inf samples raise ValueError (``invalid="raise"``, default) or are

@@ -91,7 +91,8 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     ----------
     scan_dir : path with scan.json and raw/ (contract 3)
     sensor : SensorModel, profile sensor dict, facette.calib Profile, or None
-        Noise model; None uses the nominal simulated sensor (recorded as such).
+        Noise model; None uses scan.json's "sensor" dict when the scan recorded
+        one, else the nominal simulated sensor (recorded as such).
     method : str
         A `facette.hdr.MERGE_METHODS` name.
     current : {"measured", "set"}
@@ -111,6 +112,11 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     """
     scan_dir = Path(scan_dir)
     data = read_scan_manifest(scan_dir)
+    source = "given"
+    if sensor is None and isinstance(data.get("sensor"), dict):
+        sensor, source = data["sensor"], "scan.json sensor"
+    elif sensor is None:
+        source = "nominal (no profile given)"
     sens = as_sensor(sensor)
     by_light = {}
     for fr in data["frames"]:
@@ -157,7 +163,7 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
                         "no_sample_fraction": float(np.mean(res.n_used == 0))})
     record = {"method": method, "unit": HDR_UNIT, "current": current,
               "resolution": "half-size", "sensor": sens.to_profile_dict(),
-              "sensor_source": "given" if sensor is not None else "nominal (no profile given)",
+              "sensor_source": source,
               "lights": records, "merge_time_s": round(time.perf_counter() - t0, 3),
               "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
     data = read_scan_manifest(scan_dir)  # re-read: keep anything written meanwhile

@@ -1,0 +1,100 @@
+"""Scan directory: raw/ DNGs listed in scan.json -> hdr/light_XX.exr (+ _var), load_hdr."""
+import hashlib
+import json
+
+import numpy as np
+import pytest
+
+from facette.hdr import MissingFrameWarning, load_hdr, merge_scan
+from facette.io.exr import read_exr
+from facette.sim.dng import write_dng
+from facette.sim.sensor import SensorModel, bayer_mosaic_rggb
+
+SENSOR = SensorModel()
+EXPOSURES = [(200_000, 500), (20_000, 500), (2_000, 800)]  # (time_us, mA)
+
+
+def _make_scan(tmp_path, n_lights=2, h=24, w=32, seed=0):
+    """A scan directory as the acquisition writes it (contract 3), with known radiance."""
+    rng = np.random.default_rng(seed)
+    (tmp_path / "raw").mkdir()
+    truth = np.exp(rng.uniform(np.log(1e-6), np.log(7e-3), size=(n_lights, h, w, 3)))  # DN/(µs·mA)
+    frames = []
+    for li in range(n_lights):
+        for e, (t_us, i_ma) in enumerate(EXPOSURES):
+            electrons = bayer_mosaic_rggb(truth[li] * SENSOR.gain_e_per_dn * t_us * i_ma)
+            mosaic = SENSOR.expose_charge(electrons, t_us * 1e-6, rng)
+            name = f"raw/L{li:02d}_E{e:02d}.dng"
+            write_dng(tmp_path / name, mosaic, SENSOR.black_level_dn, SENSOR.white_level_dn,
+                      t_us * 1e-6, 400)
+            frames.append({"file": name, "light": li, "exposure": e, "time_us": t_us,
+                           "current_set_mA": i_ma, "current_meas_mA": i_ma, "start_us": 0,
+                           "sync": True,
+                           "sha256": hashlib.sha256((tmp_path / name).read_bytes()).hexdigest()})
+    lights = [{"index": li, "direction": [0.0, 0.0, 1.0], "position_mm": None,
+               "intensity": [1.0, 1.0, 1.0]} for li in range(n_lights)]
+    data = {"schema": 1, "rig": {"name": "test"}, "profile": None, "pixel_pitch_mm": 0.1,
+            "lights": lights,
+            "exposures": [{"index": e, "time_us": t, "current_mA": i, "mode": "led"}
+                          for e, (t, i) in enumerate(EXPOSURES)],
+            "frames": frames, "rig_time_s": 1.0, "truth": None}
+    (tmp_path / "scan.json").write_text(json.dumps(data))
+    return truth
+
+
+def test_merge_scan_writes_exr_and_records_it(tmp_path):
+    truth = _make_scan(tmp_path)
+    rec = merge_scan(tmp_path, sensor=SENSOR)
+    img, names = read_exr(tmp_path / "hdr" / "light_01.exr")
+    var, _ = read_exr(tmp_path / "hdr" / "light_01_var.exr")
+    assert names == ("R", "G", "B") and img.shape == (24, 32, 3) and img.dtype == np.float32
+    z = (img - truth[1]) / np.sqrt(var)
+    assert abs(z.mean()) < 0.2 and 0.8 < z.std() < 1.2
+    data = json.loads((tmp_path / "scan.json").read_text())
+    assert data["hdr"] == rec
+    assert rec["unit"] == "DN/(us*mA)" and rec["sensor_source"] == "given"
+    assert [l["file"] for l in rec["lights"]] == ["hdr/light_00.exr", "hdr/light_01.exr"]
+    assert data["frames"] and data["rig_time_s"] == 1.0  # the rest of the manifest kept
+
+
+def test_load_hdr_merges_when_needed_and_uses_scan_sensor(tmp_path):
+    truth = _make_scan(tmp_path, n_lights=3)
+    data = json.loads((tmp_path / "scan.json").read_text())
+    data["sensor"] = SENSOR.to_profile_dict()
+    (tmp_path / "scan.json").write_text(json.dumps(data))
+    images, variances, lights = load_hdr(tmp_path)
+    assert images.shape == variances.shape == (3, 24, 32, 3)
+    assert [l["index"] for l in lights] == [0, 1, 2]
+    assert np.median(np.abs(images - truth) / truth) < 0.01
+    assert json.loads((tmp_path / "scan.json").read_text())["hdr"]["sensor_source"] == "scan.json sensor"
+    with pytest.raises(FileNotFoundError, match="merge_scan"):
+        (tmp_path / "hdr" / "light_02.exr").unlink()
+        load_hdr(tmp_path, merge_missing=False)
+
+
+def test_missing_frame_is_skipped_with_warning_and_recorded(tmp_path):
+    truth = _make_scan(tmp_path)
+    (tmp_path / "raw" / "L00_E00.dng").unlink()
+    with pytest.warns(MissingFrameWarning, match="light 0"):
+        rec = merge_scan(tmp_path, sensor=SENSOR)
+    assert rec["lights"][0]["missing"][0]["exposure"] == 0
+    assert rec["lights"][1]["missing"] == []
+    img, _ = read_exr(tmp_path / "hdr" / "light_00.exr")
+    assert np.median(np.abs(img - truth[0]) / truth[0]) < 0.03  # still a valid, noisier merge
+
+
+def test_light_without_frames_and_changed_file_are_errors(tmp_path):
+    _make_scan(tmp_path)
+    for e in range(len(EXPOSURES)):
+        (tmp_path / "raw" / f"L01_E{e:02d}.dng").unlink()
+    with pytest.raises(FileNotFoundError, match="light 1"), pytest.warns(MissingFrameWarning):
+        merge_scan(tmp_path, sensor=SENSOR)
+    p = tmp_path / "raw" / "L00_E01.dng"
+    p.write_bytes(p.read_bytes()[:-4] + b"\0\0\0\1")
+    with pytest.raises(ValueError, match="sha256"):
+        merge_scan(tmp_path, sensor=SENSOR, lights=[0])
+
+
+def test_not_a_scan_directory(tmp_path):
+    with pytest.raises(FileNotFoundError, match="scan.json"):
+        merge_scan(tmp_path)
