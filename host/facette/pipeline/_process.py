@@ -24,7 +24,7 @@ from facette.io.ply import write_ply
 from facette.io.png import write_mask
 from facette.recon import (integrate, mesh_from_height, near_light_directions, photometric_stereo)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
-from facette.reflect import HemisphereSensor, samples_from_pixels, THETA0_DEG
+from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_angles, THETA0_DEG
 from facette.pipeline._inputs import load_input
 
 __all__ = ["OUTPUTS", "STAGES_FOR", "ProcessResult", "process", "stages_needed"]
@@ -89,19 +89,23 @@ def _samples_stage(inp, ps, light_dirs, theta0_deg, chunk=262144, keep=RAW_SAMPL
     rng = np.random.default_rng(seed)
     total = max(pix.size * m, 1)
     parts = []
+    shadow = ps.shadow.reshape(-1, m)
     for a in range(0, pix.size, chunk):
         p = pix[a:a + chunk]
-        e = np.transpose(flat[:, p], (1, 0, 2))
-        n = ps.normal.reshape(-1, 3)[p]
         s = light_dirs if light_dirs.ndim == 2 else light_dirs.reshape(h * w, m, 3)[p]
-        smp = samples_from_pixels(e, n, s, ps.shadow.reshape(-1, m)[p])
-        smp.pixel = p[smp.pixel]
-        sensor.add(smp.s, smp.o, smp.f)
-        take = rng.random(len(smp)) < keep / total
-        parts.append(smp.subset(take))
+        li, pi_, cs, o_loc, f = sample_angles(flat[:, p], ps.normal.reshape(-1, 3)[p], s,
+                                              shadow[p].T)
+        sensor.add_angles(cs, o_loc, f)
+        take = np.flatnonzero(rng.random(len(f)) < keep / total)
+        cs_t = cs[take]
+        s_t = np.stack([np.sqrt(np.maximum(1 - cs_t ** 2, 0)), np.zeros_like(cs_t), cs_t], axis=1)
+        parts.append(ReflectanceSamples(s_t, o_loc[take], f[take], p[pi_[take]],
+                                        li[take].astype(np.int16)))
+    if not parts:
+        parts.append(ReflectanceSamples(*(np.zeros((0, 3), np.float32),) * 3,
+                                        np.zeros(0, np.int64), np.zeros(0, np.int16)))
     raw = parts[0] if len(parts) == 1 else None
     if len(parts) > 1:
-        from facette.reflect import ReflectanceSamples
         raw = ReflectanceSamples(*(np.concatenate([getattr(q, k) for q in parts])
                                    for k in ("s", "o", "f", "pixel", "light")))
     return sensor.result(), raw

@@ -129,56 +129,67 @@ def near_light_directions(positions_mm, shape, pixel_pitch_mm, heights_mm=None):
 # ----------------------------------------------------------------------------- least squares
 
 def _ls_normals(e, s, ok):
-    """Least squares g = argmin ||W (E - S g)|| per pixel.
+    """Least squares g = argmin ||W (E - S g)|| per pixel (light-major layout).
 
-    e : (N, m) values; s : (m, 3) or (N, m, 3); ok : (N, m) bool weights.
-    Returns g (N, 3) float64 (rho/pi times the normal); NaN where fewer than 3 usable lights.
+    e : (m, N) float32 values; s : (m, 3) or (N, m, 3); ok : (m, N) bool weights.
+    Returns g (3, N) float32 (rho/pi times the normal); NaN where fewer than 3 usable lights.
     """
-    n = e.shape[0]
-    e0 = np.where(ok, e, 0.0)
-    g = np.full((n, 3), np.nan)
+    n = e.shape[1]
+    e0 = np.where(ok, e, np.float32(0))
     if s.ndim == 2 and ok.all():
-        g[:] = e0 @ np.linalg.pinv(s).T
-        return g
+        return np.linalg.pinv(s).astype(np.float32) @ e0
     # Weighted normal equations, batched 3x3 (per-pixel lights or missing values).
-    w = ok.astype(np.float64)
+    g = np.full((3, n), np.nan, np.float32)
+    w = ok.astype(np.float32)
     if s.ndim == 2:
-        a = np.einsum("nm,mi,mj->nij", w, s, s)
-        b = np.einsum("nm,mi->ni", w * e0, s)
+        a = np.einsum("mn,mi,mj->nij", w, s, s)
+        b = np.einsum("mn,mi->ni", w * e0, s)
     else:
-        a = np.einsum("nm,nmi,nmj->nij", w, s, s)
-        b = np.einsum("nm,nmi->ni", w * e0, s)
-    good = ok.sum(1) >= 3
+        a = np.einsum("mn,nmi,nmj->nij", w, s, s)
+        b = np.einsum("mn,nmi->ni", w * e0, s)
+    good = ok.sum(0) >= 3
     good &= np.abs(np.linalg.det(a)) > 1e-9
     if good.any():
-        g[good] = np.linalg.solve(a[good], b[good][..., None])[..., 0]
+        g[:, good] = np.linalg.solve(a[good].astype(np.float64),
+                                     b[good][..., None].astype(np.float64))[..., 0].T
     return g
+
+
+def _shading(s, n):
+    """s.n as (m, N): s (m, 3) or (N, m, 3), n (3, N)."""
+    return (s.astype(np.float32) @ n) if s.ndim == 2 else np.einsum("nmi,in->mn", s, n)
 
 
 def _albedo(e_all, s, n, keep, chunk=262144):
     """rho per channel for fixed unit normals: rho = pi * sum(E s.n) / sum((s.n)^2) over kept lights.
 
-    e_all : (N, m, C); s : (m, 3) or (N, m, 3); n : (N, 3); keep : (N, m) bool. Returns (N, C).
+    e_all : (m, N, C); s : (m, 3) or (N, m, 3); n : (3, N); keep : (m, N) bool. Returns (N, C).
     """
-    out = np.zeros((len(n), e_all.shape[2]), np.float32)
-    for a in range(0, len(n), chunk):
+    c = e_all.shape[2]
+    out = np.zeros((n.shape[1], c), np.float32)
+    for a in range(0, n.shape[1], chunk):
         sl = slice(a, a + chunk)
-        nn = n[sl].astype(np.float32)
-        sn = (nn @ s.T.astype(np.float32)) if s.ndim == 2 else np.einsum("nmi,ni->nm", s[sl], nn)
-        w = keep[sl] & (sn > 0)
-        sn_w = np.where(w, sn, 0.0).astype(np.float32)
-        num = np.einsum("nmc,nm->nc", np.where(w[..., None], np.nan_to_num(e_all[sl]), 0.0), sn_w)
-        den = np.sum(sn_w ** 2, axis=1)
-        ok = den > 1e-12
-        out[sl] = np.where(ok[:, None], np.pi * num / np.where(ok, den, 1.0)[:, None], 0.0)
+        sn = _shading(s if s.ndim == 2 else s[sl], n[:, sl])
+        w = keep[:, sl] & (sn > 0)
+        sn_w = np.where(w, sn, np.float32(0))
+        den = np.sum(sn_w * sn_w, axis=0)
+        good = den > 1e-12
+        for ch in range(c):
+            num = np.sum(np.where(w, e_all[:, sl, ch], np.float32(0)) * sn_w, axis=0)
+            out[sl, ch] = np.where(good, np.pi * num / np.where(good, den, 1.0), 0.0)
     return out
 
 
 def _gather(images, mask, channel):
-    idx = np.flatnonzero(mask.ravel())
+    """Pixels of the mask, light-major: idx (N,), e_all (m, N, C), e (m, N) float32."""
     m, h, w, c = images.shape
     flat = images.reshape(m, h * w, c)
-    e_all = np.ascontiguousarray(np.transpose(flat[:, idx, :], (1, 0, 2)), dtype=np.float32)
+    if mask.all():
+        idx = np.arange(h * w)
+        e_all = flat if flat.dtype == np.float32 else flat.astype(np.float32)
+    else:
+        idx = np.flatnonzero(mask.ravel())
+        e_all = flat[:, idx, :].astype(np.float32, copy=False)
     return idx, e_all, np.ascontiguousarray(e_all[:, :, channel])
 
 
@@ -204,17 +215,16 @@ def _pixel_dirs(light_dirs, idx):
 
 
 def _ls_stage(e, s, ok):
-    """Least squares on the chosen channel: unit normals (N, 3), relative residual (N,)."""
-    g = _ls_normals(e.astype(np.float64), s, ok)
-    norm = np.linalg.norm(g, axis=1)
+    """Least squares on the chosen channel: unit normals (3, N), found (N,), relative residual (N,)."""
+    g = _ls_normals(e, s, ok)
+    norm = np.sqrt(np.sum(g * g, axis=0))
     found = np.isfinite(norm) & (norm > 1e-12)
-    n = np.zeros_like(g)
-    n[found] = g[found] / norm[found, None]
-    pred = (g @ s.T) if s.ndim == 2 else np.einsum("nmi,ni->nm", s, g)
-    diff = np.where(ok, e - pred, 0.0)
-    e_norm = np.sqrt(np.sum(np.where(ok, e, 0.0) ** 2, axis=1))
+    n = np.where(found, g / np.where(found, norm, 1.0), np.float32(0))
+    pred = _shading(s, np.nan_to_num(g))
+    diff = np.where(ok, e - pred, np.float32(0))
+    e_norm = np.sqrt(np.sum(np.where(ok, e, np.float32(0)) ** 2, axis=0))
     with np.errstate(invalid="ignore", divide="ignore"):
-        resid = np.sqrt(np.sum(diff ** 2, axis=1)) / e_norm
+        resid = np.sqrt(np.sum(diff * diff, axis=0)) / e_norm
     resid = np.where(found & (e_norm > 0), resid, np.inf)
     return n, found, resid
 
@@ -242,7 +252,7 @@ def ps_woodham1980(images, light_dirs, mask=None, channel=None, saturation=None)
     ok = _usable(e, saturation)
     n, found, resid = _ls_stage(e, s, ok)
     rho = _albedo(e_all, s, n, ok)
-    _scatter(res, idx, "normal", n)
+    _scatter(res, idx, "normal", n.T)
     _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
     _scatter(res, idx, "valid", found)
     _scatter(res, idx, "residual", np.where(np.isfinite(resid), resid, 0.0))
@@ -411,16 +421,15 @@ def ps_hierarchical_tautzia2016(images, light_dirs, mask=None, channel=None, sat
     s = _pixel_dirs(light_dirs, idx)
     ok = _usable(e, saturation)
     n_ls, found_ls, resid = _ls_stage(e, s, ok)
-    sn = (n_ls @ s.T) if s.ndim == 2 else np.einsum("nmi,ni->nm", s, n_ls)
-    skip = (found_ls & ok.all(1) & (resid < t_residual)
-            & np.all(sn > np.cos(t_ombre), axis=1)) if t_residual > 0 else np.zeros(idx.size, bool)
-    normal = np.where(skip[:, None], n_ls, 0.0)
+    if t_residual > 0:
+        sn = _shading(s, n_ls)
+        skip = (found_ls & ok.all(0) & (resid < t_residual) & np.all(sn > np.cos(t_ombre), axis=0))
+    else:
+        skip = np.zeros(idx.size, bool)
+    normal = np.where(skip, n_ls, np.float32(0))                  # (3, N)
     found = skip.copy()
     n_trip = np.zeros(idx.size, np.int16)
-    if kept is not None:
-        n_trip[skip] = int(kept.sum())
-    else:
-        n_trip[skip] = len(trip)
+    n_trip[skip] = int(kept.sum()) if kept is not None else len(trip)
     shadow = np.zeros((idx.size, m), bool)
     specular = np.zeros((idx.size, m), bool)
     rest = np.flatnonzero(~skip)
@@ -431,12 +440,12 @@ def ps_hierarchical_tautzia2016(images, light_dirs, mask=None, channel=None, sat
     for a in range(0, rest.size, chunk):
         sel = rest[a:a + chunk]
         s_blk = s if s.ndim == 2 else s[sel]
-        nb, cb, shb, spb, fb = _hierarchy_block(e[sel], s_blk, ok[sel], trip_used, mats,
+        nb, cb, shb, spb, fb = _hierarchy_block(e[:, sel].T, s_blk, ok[:, sel].T, trip_used, mats,
                                                 t_ombre, t_spec, t_source)
-        normal[sel], n_trip[sel], shadow[sel], specular[sel], found[sel] = nb, cb, shb, spb, fb
-    keep = ok & ~shadow & ~specular
+        normal[:, sel], n_trip[sel], shadow[sel], specular[sel], found[sel] = nb.T, cb, shb, spb, fb
+    keep = ok & ~shadow.T & ~specular.T
     rho = _albedo(e_all, s, normal, keep)
-    _scatter(res, idx, "normal", normal)
+    _scatter(res, idx, "normal", normal.T)
     _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
     _scatter(res, idx, "valid", found)
     _scatter(res, idx, "n_triplets", n_trip)

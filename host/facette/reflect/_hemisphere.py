@@ -109,13 +109,17 @@ class HemisphereSensor:
     def add(self, s_local, o_local, f):
         """Accumulate samples: s_local, o_local (K, 3) local-frame unit vectors (phi_s = 0),
         f (K, C). Non-finite values and directions below the horizon are ignored."""
-        f = np.asarray(f, dtype=np.float64).reshape(len(s_local), -1)
+        self.add_angles(np.asarray(s_local)[:, 2], np.asarray(o_local), f)
+
+    def add_angles(self, cos_theta_s, o_local, f):
+        """As `add`, with the incidence given by cos(theta_s) (K,) alone."""
+        f = np.asarray(f, dtype=np.float64).reshape(len(cos_theta_s), -1)
         if f.shape[1] != self.channels:
             raise ValueError(f"f has {f.shape[1]} channels, the sensor {self.channels}")
-        ok = np.all(np.isfinite(f), 1) & (o_local[:, 2] >= 0) & (s_local[:, 2] >= 0)
+        ok = np.all(np.isfinite(f), 1) & (o_local[:, 2] >= 0) & (cos_theta_s >= 0)
         if not ok.all():
-            s_local, o_local, f = s_local[ok], o_local[ok], f[ok]
-        theta_s = np.arccos(np.clip(s_local[:, 2], -1, 1))
+            cos_theta_s, o_local, f = cos_theta_s[ok], o_local[ok], f[ok]
+        theta_s = np.arccos(np.clip(cos_theta_s, -1, 1))
         idx = self.ring_of(theta_s) * self.n_cells + self.cell_of(o_local)
         size = self._cnt.size
         self._cnt += np.bincount(idx, minlength=size)

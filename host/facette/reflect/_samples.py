@@ -8,7 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ReflectanceSamples", "reflectance_samples", "local_frame_directions", "MIN_COS"]
+__all__ = ["ReflectanceSamples", "reflectance_samples", "samples_from_pixels", "sample_angles",
+           "local_frame_directions", "MIN_COS"]
 
 MIN_COS = 0.05   # samples with n.s below this (incidence beyond ~87 deg) divide noise by ~0
 
@@ -88,22 +89,60 @@ def reflectance_samples(images, normals, light_dirs, mask=None, exclude=None, vi
     ok_n = np.all(np.isfinite(normals), -1) & (np.linalg.norm(np.nan_to_num(normals), axis=-1) > 0.5)
     if mask is not None:
         ok_n &= np.asarray(mask, bool)
-    pix = np.flatnonzero(ok_n.ravel())
-    n = normals.reshape(-1, 3)[pix]                                       # (P, 3)
-    s = light_dirs[None] if light_dirs.ndim == 2 else light_dirs.reshape(h * w, m, 3)[pix]
-    s = np.broadcast_to(s, (pix.size, m, 3))
-    e = np.transpose(images.reshape(m, h * w, c)[:, pix], (1, 0, 2))     # (P, m, C)
-    o = np.asarray(view, dtype=np.float32)
-    ns = np.einsum("pmi,pi->pm", s, n)
-    no = n @ o
-    keep = (ns >= min_cos) & (no > 0)[:, None] & np.all(np.isfinite(e), axis=-1)
     if exclude is not None:
         exclude = np.asarray(exclude, bool)
         if exclude.shape != (h, w, m):
             raise ValueError(f"exclude must have shape ({h}, {w}, {m}), got {exclude.shape}")
-        keep &= ~exclude.reshape(h * w, m)[pix]
-    pi_, li = np.nonzero(keep)
-    s_loc, o_loc = local_frame_directions(n[pi_], s[pi_, li], o)
-    f = e[pi_, li] / (k * ns[pi_, li])[:, None]
-    return ReflectanceSamples(s_loc, o_loc, f.astype(np.float32), pix[pi_].astype(np.int64),
-                              li.astype(np.int16))
+    pix = np.flatnonzero(ok_n.ravel())
+    n = normals.reshape(-1, 3)[pix]                                       # (P, 3)
+    s = light_dirs if light_dirs.ndim == 2 else light_dirs.reshape(h * w, m, 3)[pix]
+    e = images.reshape(m, h * w, c)[:, pix]                              # (m, P, C)
+    ex = None if exclude is None else exclude.reshape(h * w, m)[pix].T
+    out = samples_from_pixels(e, n, s, ex, view, k, min_cos)
+    out.pixel = pix[out.pixel]
+    return out
+
+
+def sample_angles(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MIN_COS):
+    """The core of eq 4.11 on gathered pixels, light-major, without building rotation matrices.
+
+    e : (m, P, C); n : (P, 3) unit; s : (m, 3) or (P, m, 3); exclude : (m, P) bool or None.
+    In the frame of n turned so that phi_s = 0: s_local = (sin ts, 0, cos ts) with cos ts = n.s,
+    o_local = ((s.o - (n.s)(n.o)) / sin ts, n.(s x o) / sin ts, n.o).
+    Returns (light (K,), pixel (K,), cos_s (K,), o_local (K, 3), f (K, C)) for the kept samples.
+    """
+    o = np.asarray(view, dtype=np.float32)
+    n = np.asarray(n, dtype=np.float32)
+    s = np.asarray(s, dtype=np.float32)
+    if s.ndim == 2:
+        ns = s @ n.T                                   # (m, P)
+        so = (s @ o)[:, None]
+        sxo = np.cross(s, o) @ n.T                     # n.(s x o)
+    else:
+        ns = np.einsum("pmi,pi->mp", s, n)
+        so = np.einsum("pmi,i->mp", s, o)
+        sxo = np.einsum("pmi,pi->mp", np.cross(s, o), n)
+    no = n @ o                                         # (P,)
+    keep = (ns >= min_cos) & (no > 0)[None, :]
+    keep &= np.all(np.isfinite(e), axis=-1)
+    if exclude is not None:
+        keep &= ~exclude
+    li, pi_ = np.nonzero(keep)
+    cs = ns[li, pi_]
+    sin_s = np.sqrt(np.maximum(1 - cs * cs, 0))
+    cz = no[pi_]
+    safe = np.where(sin_s > 1e-6, sin_s, 1.0)
+    ox = np.where(sin_s > 1e-6, (so[li, pi_ if so.shape[1] > 1 else 0] - cs * cz) / safe,
+                  np.sqrt(np.maximum(1 - cz * cz, 0)))        # s // n: phi undefined, use phi_o = 0
+    oy = np.where(sin_s > 1e-6, sxo[li, pi_] / safe, 0.0)
+    o_loc = np.stack([ox, oy, cz], axis=1).astype(np.float32)
+    f = (e[li, pi_] / (k * cs)[:, None]).astype(np.float32)
+    return li, pi_, cs.astype(np.float32), o_loc, f
+
+
+def samples_from_pixels(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MIN_COS):
+    """`reflectance_samples` on pixels already gathered: e (m, P, C), n (P, 3) unit,
+    s (m, 3) or (P, m, 3), exclude (m, P) bool or None. `pixel` in the result indexes P."""
+    li, pi_, cs, o_loc, f = sample_angles(e, n, s, exclude, view, k, min_cos)
+    s_loc = np.stack([np.sqrt(np.maximum(1 - cs * cs, 0)), np.zeros_like(cs), cs], axis=1)
+    return ReflectanceSamples(s_loc, o_loc, f, pi_.astype(np.int64), li.astype(np.int16))
