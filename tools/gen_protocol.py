@@ -135,7 +135,7 @@ def gen_c(d: dict) -> str:
         if r["count"] == 1:
             out.append(f"#define FW_REG_{n} 0x{r['address']:04X}u")
         else:
-            out.append(f"#define FW_REG_{n}(i) (0x{r['address']:04X}u + (unsigned)(i) * {r['stride']}u)")
+            out.append(f"#define FW_REG_{n}(i) ((uint16_t)(0x{r['address']:04X}u + (unsigned)(i) * {r['stride']}u))")
             out.append(f"#define FW_REG_{n}_COUNT {r['count']}u")
     out += ["", "/* Value slots: one per register (a u32 is one slot), arrays consecutive. */",
             "enum {"]

@@ -77,25 +77,25 @@
 #define FW_REG_SUPPLY_MV 0x0182u
 #define FW_REG_LED_CHANNEL 0x0183u
 #define FW_REG_LED_SET_MA 0x0184u
-#define FW_REG_RING_FRAME(i) (0x0200u + (unsigned)(i) * 8u)
+#define FW_REG_RING_FRAME(i) ((uint16_t)(0x0200u + (unsigned)(i) * 8u))
 #define FW_REG_RING_FRAME_COUNT 16u
-#define FW_REG_RING_LIGHT(i) (0x0201u + (unsigned)(i) * 8u)
+#define FW_REG_RING_LIGHT(i) ((uint16_t)(0x0201u + (unsigned)(i) * 8u))
 #define FW_REG_RING_LIGHT_COUNT 16u
-#define FW_REG_RING_EXPOSURE(i) (0x0202u + (unsigned)(i) * 8u)
+#define FW_REG_RING_EXPOSURE(i) ((uint16_t)(0x0202u + (unsigned)(i) * 8u))
 #define FW_REG_RING_EXPOSURE_COUNT 16u
-#define FW_REG_RING_CURRENT_SET_MA(i) (0x0203u + (unsigned)(i) * 8u)
+#define FW_REG_RING_CURRENT_SET_MA(i) ((uint16_t)(0x0203u + (unsigned)(i) * 8u))
 #define FW_REG_RING_CURRENT_SET_MA_COUNT 16u
-#define FW_REG_RING_CURRENT_MEAS_MA(i) (0x0204u + (unsigned)(i) * 8u)
+#define FW_REG_RING_CURRENT_MEAS_MA(i) ((uint16_t)(0x0204u + (unsigned)(i) * 8u))
 #define FW_REG_RING_CURRENT_MEAS_MA_COUNT 16u
-#define FW_REG_RING_START_US(i) (0x0205u + (unsigned)(i) * 8u)
+#define FW_REG_RING_START_US(i) ((uint16_t)(0x0205u + (unsigned)(i) * 8u))
 #define FW_REG_RING_START_US_COUNT 16u
-#define FW_REG_RING_FLAGS(i) (0x0207u + (unsigned)(i) * 8u)
+#define FW_REG_RING_FLAGS(i) ((uint16_t)(0x0207u + (unsigned)(i) * 8u))
 #define FW_REG_RING_FLAGS_COUNT 16u
-#define FW_REG_FAULT_LOG_CODE(i) (0x0300u + (unsigned)(i) * 4u)
+#define FW_REG_FAULT_LOG_CODE(i) ((uint16_t)(0x0300u + (unsigned)(i) * 4u))
 #define FW_REG_FAULT_LOG_CODE_COUNT 8u
-#define FW_REG_FAULT_LOG_DETAIL(i) (0x0301u + (unsigned)(i) * 4u)
+#define FW_REG_FAULT_LOG_DETAIL(i) ((uint16_t)(0x0301u + (unsigned)(i) * 4u))
 #define FW_REG_FAULT_LOG_DETAIL_COUNT 8u
-#define FW_REG_FAULT_LOG_TIME_MS(i) (0x0302u + (unsigned)(i) * 4u)
+#define FW_REG_FAULT_LOG_TIME_MS(i) ((uint16_t)(0x0302u + (unsigned)(i) * 4u))
 #define FW_REG_FAULT_LOG_TIME_MS_COUNT 8u
 #define FW_REG_COMMAND 0x1000u
 #define FW_REG_HOST_WATCHDOG_MS 0x1001u
@@ -112,17 +112,17 @@
 #define FW_REG_LED_PRE_US 0x110Cu
 #define FW_REG_LED_POST_US 0x110Eu
 #define FW_REG_SYNC_TIMEOUT_US 0x1110u
-#define FW_REG_LIGHT_ORDER(i) (0x1120u + (unsigned)(i) * 1u)
+#define FW_REG_LIGHT_ORDER(i) ((uint16_t)(0x1120u + (unsigned)(i) * 1u))
 #define FW_REG_LIGHT_ORDER_COUNT 16u
-#define FW_REG_LIGHT_CURRENT_MA(i) (0x1130u + (unsigned)(i) * 1u)
+#define FW_REG_LIGHT_CURRENT_MA(i) ((uint16_t)(0x1130u + (unsigned)(i) * 1u))
 #define FW_REG_LIGHT_CURRENT_MA_COUNT 16u
-#define FW_REG_EXPOSURE_TIME_US(i) (0x1140u + (unsigned)(i) * 2u)
+#define FW_REG_EXPOSURE_TIME_US(i) ((uint16_t)(0x1140u + (unsigned)(i) * 2u))
 #define FW_REG_EXPOSURE_TIME_US_COUNT 16u
-#define FW_REG_EXPOSURE_CURRENT_MA(i) (0x1160u + (unsigned)(i) * 1u)
+#define FW_REG_EXPOSURE_CURRENT_MA(i) ((uint16_t)(0x1160u + (unsigned)(i) * 1u))
 #define FW_REG_EXPOSURE_CURRENT_MA_COUNT 16u
 #define FW_REG_CAL_UNLOCK 0x1200u
 #define FW_REG_CAL_SERIAL 0x1202u
-#define FW_REG_CAL_GAIN(i) (0x1210u + (unsigned)(i) * 1u)
+#define FW_REG_CAL_GAIN(i) ((uint16_t)(0x1210u + (unsigned)(i) * 1u))
 #define FW_REG_CAL_GAIN_COUNT 16u
 #define FW_REG_MAX_CURRENT_MA 0x1300u
 #define FW_REG_TEMP_DERATE_CC 0x1301u
