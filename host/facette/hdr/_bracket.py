@@ -97,6 +97,22 @@ class BracketPlan:
                     "light_current_mA": [c[0] for c in currents], "timing_mode": self.mode}
         return None
 
+    def scan_kwargs(self):
+        """Keyword arguments for `facette.scan.run_scan` (exposures, light_current_mA, mode).
+
+        Raises ValueError when the lights do not share one exposure list (plan with
+        ``shared=True``, or scan the lights in groups).
+        """
+        regs = self.registers()
+        if regs is None:
+            raise ValueError("the lights of this plan have different exposure lists, which one "
+                             "scan cannot run; plan with shared=True or scan lights in groups")
+        if "light_current_mA" in regs:
+            return {"exposures": [(t, 0) for t in regs["exposure_time_us"]],
+                    "light_current_mA": regs["light_current_mA"], "mode": self.mode}
+        return {"exposures": list(zip(regs["exposure_time_us"], regs["exposure_current_mA"])),
+                "mode": self.mode}
+
     def to_dict(self):
         return {"name": self.name, "mode": self.mode,
                 "exposures": [[[int(t), int(c)] for t, c in light] for light in self.exposures],
@@ -168,7 +184,7 @@ def plan_adaptive(meterings, metering_exposures, sensor=None, masks=None, *, tar
                   shadow_percentile=10.0, highlight_percentile=100.0, max_dynamic_range=1e3,
                   mode="led", light_current_mA=500, max_current_mA=1000, min_current_mA=10,
                   min_time_us=100, max_time_us=30_000_000, max_frames=10, headroom=0.85,
-                  n_photosites=(1, 2, 1)):
+                  n_photosites=(1, 2, 1), shared=False):
     """Plan the fewest exposures per light reaching `target_snr_db` without clipping highlights.
 
     Parameters
@@ -197,6 +213,10 @@ def plan_adaptive(meterings, metering_exposures, sensor=None, masks=None, *, tar
         Cap on exposures per light (the prediction then reports the SNR reached).
     headroom : float in (0, 1)
         The brightest value sits at this fraction of saturation in the shortest exposure.
+    shared : bool
+        One exposure list for all lights (planned over the union of their ranges),
+        as the device's registers and `facette.scan.run_scan` take it; False plans
+        each light on its own (fewer frames, but one scan per distinct list).
 
     Returns
     -------
@@ -212,8 +232,9 @@ def plan_adaptive(meterings, metering_exposures, sensor=None, masks=None, *, tar
                          "metering exposures")
     sat = sensor.saturation_dn - sensor.black_level_dn
     n_g = float(np.max(n_photosites))
-    per_light, predicted = [], []
     base_mA = light_current_mA if mode != "led" else max_current_mA
+    k_max_time = float(max_time_us) * (max_current_mA if mode == "led" else light_current_mA)
+    ranges = []
     for li, (img, (t_us, i_ma)) in enumerate(zip(meterings, metering_exposures)):
         km = float(t_us) * float(i_ma)
         if not km > 0:
@@ -242,30 +263,20 @@ def plan_adaptive(meterings, metering_exposures, sensor=None, masks=None, *, tar
             raise ValueError(f"light {li}: the metering frame is black over the object; meter "
                              "with a longer exposure or a higher current")
         x_lo = max(float(np.percentile(x, shadow_percentile)), x_hi / float(max_dynamic_range))
-        grid = np.geomspace(x_lo, x_hi, 256)
-        target = (target_snr_db(grid) if callable(target_snr_db)
-                  else np.full(grid.shape, float(target_snr_db)))
-        target_lin = 10.0 ** (np.asarray(target, dtype=np.float64) / 20.0)
-        ks = [headroom * sat / x_hi]  # shortest: brightest value below saturation
-        k_max_time = float(max_time_us) * (max_current_mA if mode == "led" else light_current_mA)
-        while len(ks) < max_frames:
-            snr = predicted_snr(grid, ks, sensor, n_g)
-            short = np.nonzero(snr < target_lin)[0]
-            if short.size == 0:
-                break
-            xf = grid[short[-1]]  # brightest failing value: fix from the top down
-            # Longest exposure keeping xf unsaturated: the fewest frames overall ...
-            k_top = min(headroom * sat / xf, k_max_time)
-            chosen = k_top
-            # ... unless a shorter one already brings every failing value to target (last frame).
-            if k_top > ks[-1]:
-                for kc in np.geomspace(ks[-1], k_top, 48)[1:]:
-                    if np.all(predicted_snr(grid[short], ks + [kc], sensor, n_g)
-                              >= target_lin[short]):
-                        chosen = kc
-                        break
-            ks.append(chosen)
-        snr = predicted_snr(grid, ks, sensor, n_g)
+        ranges.append((x_lo, x_hi, notes))
+    if shared:
+        # One exposure list for every light (what the device's registers express):
+        # plan for the union of the lights' ranges.
+        x_lo = min(r[0] for r in ranges)
+        x_hi = max(r[1] for r in ranges)
+        notes = sorted({n for r in ranges for n in r[2]})
+        ranges = [(x_lo, x_hi, notes)] * len(ranges)
+    per_light, predicted, cache = [], [], {}
+    for li, (x_lo, x_hi, notes) in enumerate(ranges):
+        if (x_lo, x_hi) not in cache:
+            cache[(x_lo, x_hi)] = _plan_range(x_lo, x_hi, target_snr_db, sensor, sat, n_g, headroom,
+                                              k_max_time, max_frames)
+        ks, grid, snr, target_lin = cache[(x_lo, x_hi)]
         light = [_to_time_current(k, mode, base_mA, max_current_mA, min_current_mA, min_time_us,
                                   max_time_us) for k in sorted(ks)]
         per_light.append(light)
@@ -273,5 +284,31 @@ def plan_adaptive(meterings, metering_exposures, sensor=None, masks=None, *, tar
                           "snr_db_at_shadow": float(20 * np.log10(max(snr[0], 1e-12))),
                           "snr_db_min": float(20 * np.log10(max(snr.min(), 1e-12))),
                           "target_met": bool(np.all(snr >= target_lin * 0.999)),
-                          "notes": notes})
+                          "notes": list(notes)})
     return BracketPlan(exposures=per_light, mode=mode, name="adaptive", predicted=predicted)
+
+
+def _plan_range(x_lo, x_hi, target_snr_db, sensor, sat, n_g, headroom, k_max_time, max_frames):
+    """Greedy exposure choice (µs·mA) for radiances in [x_lo, x_hi]; see `plan_adaptive`."""
+    grid = np.geomspace(x_lo, x_hi, 256)
+    target = (target_snr_db(grid) if callable(target_snr_db)
+              else np.full(grid.shape, float(target_snr_db)))
+    target_lin = 10.0 ** (np.asarray(target, dtype=np.float64) / 20.0)
+    ks = [headroom * sat / x_hi]  # shortest: brightest value below saturation
+    while len(ks) < max_frames:
+        snr = predicted_snr(grid, ks, sensor, n_g)
+        short = np.nonzero(snr < target_lin)[0]
+        if short.size == 0:
+            break
+        xf = grid[short[-1]]  # brightest failing value: fix from the top down
+        # Longest exposure keeping xf unsaturated: the fewest frames overall ...
+        k_top = min(headroom * sat / xf, k_max_time)
+        chosen = k_top
+        # ... unless a shorter one already brings every failing value to target (last frame).
+        if k_top > ks[-1]:
+            for kc in np.geomspace(ks[-1], k_top, 48)[1:]:
+                if np.all(predicted_snr(grid[short], ks + [kc], sensor, n_g) >= target_lin[short]):
+                    chosen = kc
+                    break
+        ks.append(chosen)
+    return ks, grid, predicted_snr(grid, ks, sensor, n_g), target_lin

@@ -111,3 +111,18 @@ def test_predicted_snr_and_black_metering():
         plan_adaptive([np.zeros((8, 8, 3))], [(1000, 100)], SENSOR)
     with pytest.raises(ValueError, match="selects no pixel"):
         plan_adaptive([np.ones((8, 8, 3))], [(1000, 100)], SENSOR, masks=np.zeros((8, 8), bool))
+
+
+def test_shared_plan_covers_every_light_and_feeds_run_scan():
+    rng = np.random.default_rng(4)
+    meter = (33333, 500)
+    ms = [_shoot(_scene(seed=s, decades=d), [meter], rng)[0][0] for s, d in ((0, 1.0), (1, 2.5))]
+    own = plan_adaptive(ms, [meter] * 2, SENSOR, target_snr_db=38.0)
+    shared = plan_adaptive(ms, [meter] * 2, SENSOR, target_snr_db=38.0, shared=True)
+    assert own.exposures[0] != own.exposures[1]
+    with pytest.raises(ValueError, match="shared=True"):
+        own.scan_kwargs()
+    kw = shared.scan_kwargs()
+    assert kw["mode"] == "led" and kw["exposures"] == shared.exposures[0] == shared.exposures[1]
+    assert shared.n_frames() >= own.n_frames()
+    assert all(p["target_met"] for p in shared.predicted)
