@@ -199,7 +199,9 @@ def led_current_gains(intensities, current_gains=None, channel=1, target="min", 
 
     LED output is taken as proportional to current, so the new gain of LED i is
     g_i · T / I_i, with T the target intensity: the dimmest LED (``"min"``: no LED
-    is driven above its present current) or the mean (``"mean"``).
+    is driven above its present current), the mean (``"mean"``), or ``"lowest"``:
+    the dimmest level every LED reaches within `limits` (the dimmest LED when the
+    spread allows it, else the level at which the brightest needs the lowest gain).
 
     Parameters
     ----------
@@ -219,14 +221,18 @@ def led_current_gains(intensities, current_gains=None, channel=1, target="min", 
         raise ValueError(f"{len(I)} intensities but {g0.size} current gains")
     if np.any(I <= 0) or np.any(g0 <= 0):
         raise ValueError("intensities and gains must be > 0")
+    lo, hi = limits
+    eff = I / g0                      # light per unit gain
     if target == "min":
         t = I.min()
     elif target == "mean":
         t = I.mean()
+    elif target == "lowest":
+        # the dimmest common level every LED reaches with a gain within [lo, hi]
+        t = max(eff.min(), lo * eff.max())
     else:
-        raise ValueError(f"target must be 'min' or 'mean', got {target!r}")
+        raise ValueError(f"target must be 'min', 'mean' or 'lowest', got {target!r}")
     g = g0 * t / I
-    lo, hi = limits
     bad = np.flatnonzero((g < lo - 1e-12) | (g > hi + 1e-12))
     if bad.size:
         raise ValueError(f"LED(s) {bad.tolist()} would need gains {np.round(g[bad], 3).tolist()}, "

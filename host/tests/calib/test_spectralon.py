@@ -111,3 +111,13 @@ def test_led_gains_equalise_to_the_dimmest():
     np.testing.assert_allclose(g2, np.array([0.8, 1.0, 0.9]) * 0.95 / I[:, 1])
     with pytest.raises(ValueError, match=r"LED\(s\) \[1\]"):
         led_current_gains([1.0, 0.1, 1.0], target="mean")
+
+
+def test_led_gains_lowest_target_stays_in_the_device_range():
+    I = np.array([0.57, 0.9, 1.0, 1.33])       # 133 % spread: the dimmest cannot be the target
+    with pytest.raises(ValueError, match="outside the device's range"):
+        led_current_gains(I, target="min", limits=(0.5, 2.0))
+    g = led_current_gains(I, target="lowest", limits=(0.5, 2.0))
+    np.testing.assert_allclose(g * I, (g * I)[0])            # equal light
+    assert g.min() == pytest.approx(0.5) and g.max() <= 2.0
+    np.testing.assert_allclose(led_current_gains(I[1:3], target="lowest"), [1.0, 0.9])
