@@ -15,8 +15,8 @@ __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "photome
 
 T_OMBRE = 1.5          # rad, thesis §4.2.1 ("slightly below pi/2")
 T_SPEC = 0.25          # variance of the kept unit normals, thesis §4.2.1
-T_SOURCE = 10.0        # max |entry| of S^-1; the thesis gives no value: 10 drops the 34
-                       # near-collinear triplets of the 12-LED rig (entries 10.6-43) and keeps 186
+T_SOURCE = 10.0        # max |entry| of S^-1; the thesis gives no value: 10 drops the 36
+                       # near-collinear triplets of the 12-LED rig (entries 10.6-43) and keeps 184
 T_RESIDUAL = 0.03      # relative least-squares residual under which a pixel skips the hierarchy
 _CHUNK = 16384         # pixels per block in the hierarchical stage (~45 MB of float32 per block)
 

@@ -84,12 +84,13 @@ def _cook_torrance(n, s, o, kd, ks, sigma, n_i):
 
 
 def render(scene, light_dirs, material="glossy", albedo=(0.6, 0.5, 0.4), noise=0.0,
-           cast_shadows=True, rng=None):
+           cast_shadows=True, rng=None, ks=1.0):
     """Images (m, H, W, 3) float32 of `scene` under unit-intensity distant lights.
 
     material : "matte" (Lambert), "satin" (Cook-Torrance sigma 0.15, n_i 1.3, ks 1), or
         "glossy" (sigma 0.05, n_i 1.2, ks 1: the thesis's mask, §4.3.1).
     noise : relative Gaussian noise (standard deviation as a fraction of each value).
+    ks : weight of the specular term (1: a dielectric interface; larger: stronger highlights).
     E = f(s, o, n) (n.s)^+ per channel (radiance for unit irradiance, orthographic view).
     """
     rng = np.random.default_rng(0) if rng is None else rng
@@ -110,7 +111,7 @@ def render(scene, light_dirs, material="glossy", albedo=(0.6, 0.5, 0.4), noise=0
         else:
             sigma, n_i = params[material]
             f = _cook_torrance(n, np.broadcast_to(s, n.shape), np.broadcast_to(o, n.shape),
-                               kd, 1.0, sigma, n_i)
+                               kd, ks, sigma, n_i)
         img = f * ns[..., None]
         if cast_shadows:
             # plane point P (z = 0) is shadowed if the ray P + t s (t > 0) meets the sphere

@@ -1,0 +1,114 @@
+"""Integration of normal maps into heights (mm) and the mesh."""
+import numpy as np
+import pytest
+
+from facette.recon import (integrate, integrate_frankot_chellappa1988, integrate_least_squares,
+                           integrate_simchony1990, mesh_from_height, normals_to_gradients)
+
+
+def surface_normals(z_fn, h=64, w=80, pitch=1.0):
+    """Normals (H, W, 3) of z(x, y) in mm on a grid (x right, y up, row 0 at the top)."""
+    yy, xx = np.mgrid[0:h, 0:w].astype(float)
+    x, y = (xx - w / 2) * pitch, -(yy - h / 2) * pitch
+    z, zx, zy = z_fn(x, y)
+    n = np.stack([-zx, -zy, np.ones_like(z)], -1)
+    return n / np.linalg.norm(n, axis=-1, keepdims=True), z
+
+
+def bump(x, y, a=3.0, s=8.0):
+    g = a * np.exp(-(x ** 2 + y ** 2) / (2 * s ** 2))
+    return g, -x / s ** 2 * g, -y / s ** 2 * g
+
+
+def centred(z, mask=None):
+    sel = np.ones(z.shape, bool) if mask is None else mask
+    return np.where(sel, z - z[sel].mean(), 0)
+
+
+@pytest.mark.parametrize("fn", [integrate_frankot_chellappa1988, integrate_simchony1990,
+                                integrate_least_squares])
+def test_gaussian_bump_heights(fn):
+    n, z = surface_normals(bump)
+    got = fn(n, pixel_pitch_mm=1.0)
+    assert got.shape == z.shape and got.dtype == np.float32
+    assert np.max(np.abs(got - centred(z))) < 0.05 * z.max()
+
+
+@pytest.mark.parametrize("method", ["frankot_chellappa1988", "simchony1990", "least_squares"])
+def test_heights_scale_with_the_pixel_pitch(method):
+    # the same normal map read at twice the pitch is twice as high
+    n, _ = surface_normals(bump)
+    a = integrate(n, 0.05, method=method)
+    b = integrate(n, 0.1, method=method)
+    np.testing.assert_allclose(b, 2 * a, rtol=1e-4, atol=1e-6)
+
+
+@pytest.mark.parametrize("method", ["simchony1990", "least_squares"])
+def test_sign_conventions_x_right_y_up(method):
+    # z = 0.1 x + 0.2 y: height grows to the right and towards the top row
+    n, z = surface_normals(lambda x, y: (0.1 * x + 0.2 * y, 0.1 + 0 * x, 0.2 + 0 * x), 20, 30)
+    got = integrate(n, 1.0, method=method)
+    np.testing.assert_allclose(got, centred(z), atol=1e-4)
+    assert got[10, 29] > got[10, 0] and got[0, 15] > got[19, 15]
+
+
+def test_least_squares_on_a_mask_with_holes_strands_and_isolated_pixels():
+    n, z = surface_normals(bump, 48, 48)
+    mask = np.zeros((48, 48), bool)
+    mask[5:40, 5:40] = True
+    mask[15:25, 15:25] = False            # a hole
+    mask[44, 2:46] = True                 # a one-pixel strand, separate from the block
+    mask[2, 2] = True                     # an isolated pixel
+    got = integrate_least_squares(n, 1.0, mask)
+    assert np.all(np.isfinite(got))
+    assert np.all(got[~mask] == 0)
+    block = np.zeros_like(mask)
+    block[5:40, 5:40] = True
+    block &= mask
+    assert np.max(np.abs(got[block] - centred(z, block)[block])) < 0.02 * z.max()
+    strand = np.zeros_like(mask)
+    strand[44, 2:46] = True
+    # along a strand only the x gradient is seen: the profile of z along that row
+    np.testing.assert_allclose(got[strand], centred(z, strand)[strand], atol=0.01 * z.max())
+    assert got[2, 2] == 0.0
+
+
+def test_normals_to_gradients_edges():
+    n = np.zeros((2, 3, 3))
+    n[..., 2] = 1
+    n[0, 0] = [np.nan, 0, 1]
+    n[0, 1] = [1, 0, 0]                  # grazing: n_z = 0
+    n[0, 2] = [0.6, 0, -0.8]             # facing away
+    n[1, 0] = [-0.6, 0, 0.8]             # slope dz/dx = 0.75
+    p, q = normals_to_gradients(n)
+    assert p[0, 0] == p[0, 1] == p[0, 2] == 0 and q[0, 0] == 0
+    assert p[1, 0] == pytest.approx(0.75)
+    p, _ = normals_to_gradients(np.array([[[-0.9999, 0, 0.0001]]]))
+    assert p[0, 0] == 20.0                # clipped slope
+
+
+def test_bad_arguments():
+    n, _ = surface_normals(bump, 8, 8)
+    with pytest.raises(ValueError, match="pixel_pitch_mm"):
+        integrate_simchony1990(n, 0.0)
+    with pytest.raises(ValueError, match="unknown integration method"):
+        integrate(n, method="magic")
+    with pytest.raises(ValueError, match=r"\(H, W, 3\)"):
+        integrate_frankot_chellappa1988(n[..., :2])
+
+
+def test_mesh_from_height_counts_coordinates_and_orientation():
+    hgt = np.arange(12, dtype=float).reshape(3, 4)
+    mask = np.ones((3, 4), bool)
+    mask[0, 0] = False
+    v, f = mesh_from_height(hgt, mask, pixel_pitch_mm=0.5)
+    assert len(v) == 11
+    # 6 blocks of 2x2: 5 full (2 triangles) and 1 with three corners (1 triangle)
+    assert len(f) == 11
+    assert v[:, 0].max() == 1.5 and v[:, 1].min() == -1.0
+    flat_v, flat_f = mesh_from_height(np.zeros((3, 3)), np.ones((3, 3), bool))
+    tri = flat_v[flat_f]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    assert np.all(normals[:, 2] > 0)      # counter-clockwise seen from the camera
+    v2, _ = mesh_from_height(np.zeros((9, 9)), np.ones((9, 9), bool), step=2)
+    assert len(v2) == 25
