@@ -106,7 +106,7 @@ def check_exposure(images, longest_us, shortest_us, current_mA, full_scale_dn, w
     if over.size:
         i = int(over[np.argmax(sat[over])])
         raise WizardError(
-            f"{what}: overexposed — {100 * sat[i]:.1f} % of the image is saturated even at the shortest "
+            f"{what}: overexposed — {100 * sat[i]:.2g} % of the image is saturated even at the shortest "
             f"exposure ({shortest_us / 1e6:g} s at {current_mA} mA) under LED(s) {over.tolist()}. "
             "Shorten the exposures (--exposures) or lower the LED current (--current), then run the "
             "step again.")
@@ -286,8 +286,10 @@ class Wizard:
     def _hdr(self, kind, name, current="measured", mask=None):
         ex = self._bracket(kind)
         images, d = self.st.capture(name, ex, current=current)
+        # a clipped highlight biases its centroid: on the mirror sphere no pixel may saturate
+        tol = dataclasses.replace(self.tol, saturated_fraction=0.0) if kind == "mirror_sphere" else self.tol
         level, sat = check_exposure(images, max(ex), min(ex), self.st.current_mA, self.st.full_scale_dn,
-                                    kind.replace("_", " "), mask=mask, tol=self.tol)
+                                    kind.replace("_", " "), mask=mask, tol=tol)
         return images, level
 
     # -- steps -----------------------------------------------------------------------------
