@@ -1,0 +1,117 @@
+"""Parametrised models for the fits: a parameter vector ↔ predictions (N, C), with caching.
+
+Vector layout: [σ, n_i, K_d_1 … K_d_C] for "li" and "cook_torrance"; [σ, K_d…] for
+"oren_nayar"; [K_d…] for "lambert". σ and n_i are shared between channels (they describe
+the geometry and the interface, thesis §4.2.2), K_d is per channel.
+
+Everything that depends on (σ, n_i) alone (the specular lobe, the volume integral I and the
+inter-reflection integral J) is cached per (σ, n_i), so changing K_d — and the finite-difference
+columns of the Jacobian for K_d — costs a multiply-add.
+"""
+import numpy as np
+
+from facette.brdf import (interreflection_integral_vcavity, li_specular, oren_nayar1994,
+                          r_i_simonot2009, volume_integral)
+
+__all__ = ["FitModel", "MODEL_NAMES", "BOUNDS"]
+
+MODEL_NAMES = ("li", "cook_torrance", "oren_nayar", "lambert")
+# thesis §4.2.2: ρ ∈ [0, 1], σ ∈ [0, 2], n_i ∈ [1, 2.5]; σ starts at 1e-3 (σ = 0 is a Dirac lobe)
+BOUNDS = {"sigma": (1e-3, 2.0), "n_i": (1.0, 2.5), "kd": (0.0, 1.0)}
+
+
+class FitModel:
+    """One model with fixed options, evaluated on fixed sample directions s, o (N, 3)."""
+
+    def __init__(self, name, s, o, channels, distribution="beckmann", masking="smith", volume="quadrature",
+                 interreflection=False, volume_options=None, n_paths=256):
+        if name not in MODEL_NAMES:
+            raise ValueError(f"model = {name!r}: choose one of {', '.join(MODEL_NAMES)}")
+        self.name = name
+        self.s, self.o = s, o
+        self.channels = int(channels)
+        self.distribution, self.masking, self.volume = distribution, masking, volume
+        self.interreflection = bool(interreflection)
+        self.volume_options = dict(volume_options or {})
+        self.n_paths = int(n_paths)
+        self.up = ((s[:, 2] > 0) & (o[:, 2] > 0)).astype(float)
+        self._cache = {}
+        self.n_evaluations = 0
+        if name in ("li", "cook_torrance"):
+            self.names = ["sigma", "n_i"]
+        elif name == "oren_nayar":
+            self.names = ["sigma"]
+        else:
+            self.names = []
+        self.n_shared = len(self.names)
+        self.names = self.names + [f"kd[{c}]" for c in range(self.channels)]
+
+    @property
+    def n_params(self):
+        return len(self.names)
+
+    def bounds(self):
+        lo, hi = [], []
+        for nm in self.names:
+            key = "kd" if nm.startswith("kd") else nm
+            lo.append(BOUNDS[key][0])
+            hi.append(BOUNDS[key][1])
+        return np.array(lo), np.array(hi)
+
+    def split(self, p):
+        p = np.asarray(p, dtype=float)
+        shared = dict(zip(self.names[:self.n_shared], p[:self.n_shared]))
+        return shared, p[self.n_shared:]
+
+    def _parts(self, sigma, n_i):
+        """K_d-free parts for these (σ, n_i), cached (a handful of entries)."""
+        key = (round(float(sigma), 15), round(float(n_i), 15))
+        if key in self._cache:
+            return self._cache[key]
+        self.n_evaluations += 1
+        spec = li_specular(self.s, self.o, sigma, n_i, self.distribution, self.masking)
+        parts = {"spec": spec}
+        if self.name == "li":
+            parts["I"] = self.up * volume_integral(self.s, self.o, sigma, n_i, self.distribution, self.masking,
+                                                   self.volume, **self.volume_options)
+            if self.interreflection:
+                parts["J"] = interreflection_integral_vcavity(self.s, self.o, sigma, n_i, self.distribution,
+                                                              n_paths=self.n_paths, rng=12345)
+        if len(self._cache) > 64:
+            self._cache.clear()
+        self._cache[key] = parts
+        return parts
+
+    def predict(self, p):
+        """(N, C) model values for parameter vector p."""
+        shared, kd = self.split(p)
+        if self.name == "lambert":
+            return self.up[:, None] * kd[None, :] / np.pi
+        if self.name == "oren_nayar":
+            key = ("on", round(float(shared["sigma"]), 15))
+            if key not in self._cache:
+                self.n_evaluations += 1
+                a = oren_nayar1994(self.s, self.o, 1.0, shared["sigma"], interreflection=False)
+                b = oren_nayar1994(self.s, self.o, 1.0, shared["sigma"], interreflection=True) - a
+                self._cache[key] = (a, b)
+            a, b = self._cache[key]
+            return a[:, None] * kd[None, :] + b[:, None] * kd[None, :] ** 2
+        sigma, n_i = shared["sigma"], shared["n_i"]
+        parts = self._parts(sigma, n_i)
+        if self.name == "cook_torrance":
+            return parts["spec"][:, None] + self.up[:, None] * kd[None, :] / np.pi
+        kappa = kd / (np.pi * n_i * n_i * (1.0 - kd * r_i_simonot2009(n_i)))
+        out = parts["spec"][:, None] + parts["I"][:, None] * kappa[None, :]
+        if self.interreflection:
+            out = out + parts["J"][:, None] * kappa[None, :] ** 2
+        return out
+
+    def describe(self):
+        d = {"model": self.name}
+        if self.name in ("li", "cook_torrance"):
+            d.update(distribution=self.distribution, masking=self.masking)
+        if self.name == "oren_nayar":
+            d.update(distribution="gaussian", masking="vcavity")
+        if self.name == "li":
+            d.update(volume=self.volume, interreflection=self.interreflection)
+        return d

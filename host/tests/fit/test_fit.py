@@ -1,0 +1,127 @@
+import json
+
+import numpy as np
+import pytest
+
+import facette.brdf as B
+from facette.fit import FitResult, fit_brdf, fit_genetic, fit_least_squares
+
+
+def random_pairs(n, seed=0):
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(2, n, 3))
+    v[..., 2] = np.abs(v[..., 2]) + 0.05
+    v /= np.linalg.norm(v, axis=-1, keepdims=True)
+    return v[0], v[1]
+
+
+S, O = random_pairs(250)
+KD = [0.3, 0.5, 0.7]
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.3])
+def test_least_squares_recovers_cook_torrance_with_shared_sigma_and_index(noise):
+    v = B.cook_torrance1982(S, O, KD, 0.1, 1.3)
+    v = v * (1 + noise * np.random.default_rng(1).normal(size=v.shape))
+    r = fit_brdf(S, O, v, model="cook_torrance", select=False)
+    assert r.success, r.message
+    tol = 0.01 if noise == 0 else 0.08
+    assert r.params["sigma"] == pytest.approx(0.1, rel=tol)
+    assert r.params["n_i"] == pytest.approx(1.3, rel=tol)
+    np.testing.assert_allclose(r.params["kd"], KD, rtol=tol)
+    # the 1-sd uncertainties are honest: the truth lies within a few of them
+    if noise:
+        assert abs(r.params["sigma"] - 0.1) < 5 * r.uncertainties["sigma"]
+        assert abs(r.params["n_i"] - 1.3) < 5 * r.uncertainties["n_i"]
+
+
+def test_least_squares_recovers_the_li_model():
+    s, o = S[:150], O[:150]
+    v = B.brdf_li(s, o, KD, 0.15, 1.4, n_theta=24, n_phi=24)
+    r = fit_least_squares(s, o, v, model="li", n_starts=2)
+    assert r.success, r.message
+    assert r.params["sigma"] == pytest.approx(0.15, rel=0.02)
+    assert r.params["n_i"] == pytest.approx(1.4, rel=0.02)
+    np.testing.assert_allclose(r.params["kd"], KD, rtol=0.03)
+
+
+def test_genetic_algorithm_is_seeded_and_fits_cook_torrance():
+    v = B.cook_torrance1982(S, O, KD, 0.1, 1.3)
+    a = fit_genetic(S, O, v, model="cook_torrance", masking="vcavity", population=30, generations=40, rng=5)
+    b = fit_genetic(S, O, v, model="cook_torrance", masking="vcavity", population=30, generations=40, rng=5)
+    assert a.params == b.params
+    assert a.success
+    assert a.params["sigma"] == pytest.approx(0.1, rel=0.1)
+    np.testing.assert_allclose(a.params["kd"], KD, rtol=0.1)
+
+
+def test_genetic_algorithm_stops_at_the_error_threshold():
+    v = B.lambert(S, O, KD)
+    r = fit_genetic(S, O, v, model="lambert", population=20, generations=500, error_threshold=0.05, rng=0)
+    assert r.success and r.error["weighted_rms"] < 0.05
+    assert int(r.selection[-1].split()[0]) < 500
+
+
+def test_selection_drops_the_interface_when_n_is_one():
+    v = B.oren_nayar1994(S, O, KD, 0.3)
+    r = fit_brdf(S, O, v, model="li", distribution="gaussian", masking="vcavity", interreflection=False,
+                 volume_options={"n_theta": 12, "n_phi": 16}, n_starts=2)
+    assert r.model in ("oren_nayar", "lambert"), r.selection
+    assert any("no interface" in note for note in r.selection)
+    lam = fit_brdf(S, O, B.lambert(S, O, KD), model="cook_torrance")
+    assert lam.model == "lambert", lam.selection
+    np.testing.assert_allclose(lam.params["kd"], KD, rtol=1e-6)
+
+
+def test_no_interreflection_below_sigma_0_2():
+    s, o = S[:120], O[:120]
+    v = B.brdf_li(s, o, 0.6, 0.1, 1.3, masking="vcavity")
+    r = fit_brdf(s, o, v, model="li", masking="vcavity", volume_options={"n_theta": 12, "n_phi": 16}, n_starts=2)
+    assert r.model == "li" and not r.interreflection
+    assert any("no inter-reflection term" in note for note in r.selection)
+
+
+def test_to_json_has_the_brdf_json_fields_and_no_nan():
+    v = B.cook_torrance1982(S, O, KD, 0.1, 1.3)
+    r = fit_brdf(S, O, v, model="cook_torrance")
+    d = json.loads(r.to_json())
+    for key in ("model", "distribution", "masking", "parameters", "uncertainties", "fit_error", "success"):
+        assert key in d
+    assert d["model"] == "cook_torrance" and len(d["parameters"]["kd"]) == 3
+    assert "NaN" not in r.to_json()
+    np.testing.assert_allclose(r.predict(S, O), v, rtol=1e-4, atol=1e-6)
+
+
+def test_failures_say_why_and_never_return_nan():
+    r = fit_brdf(S[:2], O[:2], np.ones((2, 3)), model="li")
+    assert not r.success and "too few" in r.message
+    assert json.loads(r.to_json())["parameters"] == {}
+    z = fit_brdf(S, O, np.zeros((len(S), 3)), model="cook_torrance")
+    assert not z.success and "zero" in z.message
+    v = B.lambert(S, O, KD)
+    v[:10] = np.nan
+    r = fit_brdf(S, O, v, model="lambert")
+    assert r.success and "10 of 250 samples dropped" in r.message
+
+
+def test_bad_input_raises_clear_errors():
+    with pytest.raises(ValueError, match=r"\(N, 3\)"):
+        fit_brdf(S[:, :2], O, np.ones(len(S)))
+    with pytest.raises(ValueError, match="one row per"):
+        fit_brdf(S, O, np.ones(len(S) + 1))
+    with pytest.raises(ValueError, match="method"):
+        fit_brdf(S, O, np.ones(len(S)), method="annealing")
+    with pytest.raises(ValueError, match="weighting"):
+        fit_brdf(S, O, np.ones(len(S)), weighting="log")
+    with pytest.raises(ValueError, match="V-cavities"):
+        fit_brdf(S, O, np.ones(len(S)), interreflection=True, masking="smith")
+
+
+def test_counts_weight_the_cells():
+    v = B.lambert(S, O, 0.5)[:, None] * np.ones((1, 1))
+    v[0] = 5.0  # one outlier cell holding a single sample, the others 1000
+    counts = np.full(len(S), 1000)
+    counts[0] = 1
+    r = fit_brdf(S, O, v, model="lambert", counts=counts, weighting="absolute")
+    assert r.params["kd"][0] == pytest.approx(0.5, rel=0.02)
+    assert isinstance(r, FitResult)
