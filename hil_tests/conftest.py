@@ -1,0 +1,225 @@
+"""Fixtures of the hardware-in-the-loop tests.
+
+QEMU board (``--qemu-elf``): ``qemu_board`` boots the STM32F405 build under
+``qemu-system-arm -M netduinoplus2`` with USART1 on a local TCP port and yields
+its pyserial URL (``socket://127.0.0.1:PORT``). ``make qemu-test`` builds the ELF
+and passes it; without the option, test_qemu_board.py is not collected.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+QEMU_TEST_FILE = "test_qemu_board.py"
+QEMU_BOOT_TIMEOUT_S = 10.0
+
+
+def pytest_addoption(parser):
+    dev = parser.getgroup("device")
+    dev.addoption("--device", metavar="PORT_OR_URL", default=None,
+                  help="serial port or pyserial URL of a real rig for the Modbus conformance "
+                       "tests (default: start a fresh simulated device, build/posix/facette-device)")
+    group = parser.getgroup("qemu board")
+    group.addoption("--qemu-elf", metavar="PATH", default=None,
+                    help="STM32F405 ELF to boot under qemu-system-arm -M netduinoplus2 "
+                         "for hil_tests/test_qemu_board.py (make qemu-test passes it)")
+
+
+def pytest_ignore_collect(collection_path, config):
+    # The QEMU board tests need a firmware build: they run from `make qemu-test`,
+    # not in the plain `pytest` run (which has no ELF yet on a fresh clone).
+    if collection_path.name == QEMU_TEST_FILE and config.getoption("--qemu-elf") is None:
+        explicit = any(Path(a.split("::")[0]).name == QEMU_TEST_FILE for a in config.args)
+        if explicit:
+            raise pytest.UsageError(
+                f"{QEMU_TEST_FILE} needs --qemu-elf PATH (the STM32 build); "
+                "`make qemu-test` builds it and passes it")
+        return True
+    return None
+
+
+@dataclass
+class QemuBoard:
+    """A running emulated board: ``url`` for pyserial/pymodbus, QEMU's process and log."""
+
+    url: str
+    port: int
+    process: subprocess.Popen
+    log_path: Path
+
+    def log_tail(self, lines: int = 30) -> str:
+        """Last lines of QEMU's log (unimplemented-device accesses, guest errors)."""
+        try:
+            text = self.log_path.read_text(errors="replace").splitlines()
+        except OSError:
+            return "(no QEMU log)"
+        return "\n".join(text[-lines:])
+
+
+def _free_local_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait_listening(proc: subprocess.Popen, port: int, timeout_s: float) -> bool:
+    """Poll until QEMU accepts on port (True) or exits / times out (False)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            return False
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=0.2):
+                return True
+        except OSError:
+            time.sleep(0.02)   # poll interval while QEMU opens its socket
+    return False
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.kill()
+    try:
+        proc.wait(timeout=5)
+    except subprocess.TimeoutExpired:  # pragma: no cover - kill is not ignorable
+        pass
+
+
+@pytest.fixture
+def qemu_board(request, tmp_path):
+    """Boot the --qemu-elf firmware under QEMU; killed at teardown whatever happens."""
+    elf = request.config.getoption("--qemu-elf")
+    if elf is None:
+        raise pytest.UsageError("qemu_board needs --qemu-elf PATH (make qemu-test passes it)")
+    elf = Path(elf)
+    if not elf.is_file():
+        raise FileNotFoundError(f"--qemu-elf {elf}: no such file; build it with `make firmware`")
+    qemu = shutil.which("qemu-system-arm")
+    if qemu is None:
+        raise FileNotFoundError("qemu-system-arm not found: run `make deps` "
+                                "(tools/install-debian-deps.sh installs qemu-system-arm)")
+    log_path = tmp_path / "qemu.log"
+    out_path = tmp_path / "qemu.out"
+    for _attempt in range(3):   # the free port can be taken between probe and bind
+        port = _free_local_port()
+        cmd = [qemu, "-M", "netduinoplus2", "-nographic", "-monitor", "none",
+               "-serial", f"tcp:127.0.0.1:{port},server=on,wait=off",
+               "-kernel", os.fspath(elf), "-d", "unimp,guest_errors", "-D", os.fspath(log_path)]
+        with open(out_path, "wb") as out:
+            proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out,
+                                    stderr=subprocess.STDOUT)
+        request.addfinalizer(lambda p=proc: _stop(p))
+        if _wait_listening(proc, port, QEMU_BOOT_TIMEOUT_S):
+            return QemuBoard(f"socket://127.0.0.1:{port}", port, proc, log_path)
+        _stop(proc)
+    raise RuntimeError(f"QEMU did not open its serial port: {' '.join(cmd)}\n"
+                       f"{out_path.read_text(errors='replace')}")
+
+
+# ---------------------------------------------------------------- rig library (test_rig_*.py)
+# A fresh simulated rig per test: the posix device plus the rig simulator (camera, LEDs,
+# faults) on its side channel, through `facette.connect("sim")`. Options go to
+# facette.sim.SimulatedRig (faults="biterr=1e-3", scene=..., speed=...).
+RIG_SIM_SPEED = 2000.0
+
+
+@pytest.fixture
+def sim_rig_factory():
+    """make(**options) -> a connected simulated Rig; every rig is closed at teardown."""
+    import facette
+
+    rigs = []
+
+    def make(**options):
+        options.setdefault("speed", RIG_SIM_SPEED)
+        rig = facette.connect("sim", **options)
+        rigs.append(rig)
+        return rig
+
+    yield make
+    for rig in rigs:
+        rig.close()
+
+
+# ---------------------------------------------------------------- simulated device (posix build)
+# `posix_device` starts a fresh build/posix/facette-device per test (its own pty, side-channel
+# socket and flash state directory) and stops it at teardown; `device_port` is the port the
+# Modbus conformance tests talk to: --device when given, else the fresh simulated device's pty.
+REPO = Path(__file__).resolve().parent.parent
+POSIX_DEVICE = REPO / "build" / "posix" / "facette-device"
+
+
+@dataclass
+class PosixDevice:
+    """A running simulated device: ``port`` (pty path), ``side`` (Unix socket path), ``state`` dir."""
+
+    port: str
+    side: str
+    state: Path
+    process: subprocess.Popen
+
+    def side_connect(self) -> socket.socket:
+        """Connect to the side channel (the device then runs in lockstep with this client)."""
+        s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        s.connect(self.side)
+        return s
+
+
+def _posix_binary() -> Path:
+    if not POSIX_DEVICE.is_file():
+        r = subprocess.run(["make", "-s", "-C", os.fspath(REPO / "firmware"), "posix",
+                            f"BUILD={REPO / 'build'}"], capture_output=True, text=True)
+        if r.returncode != 0 or not POSIX_DEVICE.is_file():
+            raise FileNotFoundError(f"{POSIX_DEVICE} is missing and building it failed; run "
+                                    f"`make firmware-posix`:\n{r.stdout}{r.stderr}")
+    return POSIX_DEVICE
+
+
+def start_posix_device(tmp: Path, speed: float = 100.0, state: Path | None = None) -> PosixDevice:
+    """Start facette-device in tmp; returns once its pty path has been printed."""
+    state = state or tmp / "state"
+    side = tmp / "side.sock"
+    proc = subprocess.Popen([os.fspath(_posix_binary()), "--speed", str(speed), "--side",
+                             os.fspath(side), "--state", os.fspath(state)],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True)
+    line = proc.stdout.readline().strip()
+    if not line.startswith("port: "):
+        _stop(proc)
+        raise RuntimeError(f"facette-device printed {line!r} instead of 'port: <path>'")
+    return PosixDevice(line.split(": ", 1)[1], os.fspath(side), state, proc)
+
+
+def stop_posix_device(dev: PosixDevice) -> None:
+    dev.process.terminate()
+    try:
+        dev.process.wait(timeout=5)
+    except subprocess.TimeoutExpired:
+        _stop(dev.process)
+    dev.process.stdout.close()
+
+
+@pytest.fixture
+def posix_device(tmp_path):
+    """A fresh simulated device, stopped at teardown."""
+    dev = start_posix_device(tmp_path)
+    yield dev
+    stop_posix_device(dev)
+
+
+@pytest.fixture
+def device_port(request, tmp_path):
+    """--device when given, else the pty of a fresh simulated device."""
+    given = request.config.getoption("--device")
+    if given:
+        yield given
+        return
+    dev = start_posix_device(tmp_path)
+    yield dev.port
+    stop_posix_device(dev)
