@@ -151,8 +151,24 @@ def bench_methods(sensor, h, w, seed):
     return rows
 
 
-def bench_bracketing(sensor, h, w, seed, target_db):
-    rad, mask = synthetic_scene(h, w, sensor, seed)
+def rig_default_scene(h, w, sensor, seed=0):
+    """The simulated rig's default scene (facette.sim: plaque_sphere, thesis LEDs, its exposure
+    scale), as radiance per µs·mA in black-subtracted DN, (12, h, w, 3), and its object mask."""
+    from facette.sim.lights import thesis_leds
+    from facette.sim.render import radiance_per_led
+    from facette.sim.scene import make_scene
+    scene = make_scene("plaque_sphere", (h, w), seed=seed)
+    leds = thesis_leds(0.5, 0.05, seed=seed + 1)
+    return radiance_per_led(scene, leds) / sensor.gain_e_per_dn, np.asarray(scene.mask, bool)
+
+
+def bench_bracketing(sensor, h, w, seed, target_db, scene="synthetic"):
+    if scene == "rig":
+        rad, mask = rig_default_scene(h, w, sensor, seed)
+        label = "simulated rig's default scene (plaque_sphere)"
+    else:
+        rad, mask = synthetic_scene(h, w, sensor, seed)
+        label = "synthetic glossy dome, highlight at 80 % of saturation in 1/30 s"
     rng = np.random.default_rng(seed + 2)
     fixed = bracket_fixed("thesis2016", 12, CURRENT_MA, mode="bulb")
     # Metering: one frame per light at the fixed bracket's shortest exposure (1/30 s, 500 mA).
@@ -179,8 +195,8 @@ def bench_bracketing(sensor, h, w, seed, target_db):
     plans["adaptive = fixed SNR"] = (
         plan_adaptive(meters, [meter_exp] * 12, sensor, mask, target_snr_db=match, mode="led",
                       max_frames=16), meter_time)
-    print(f"\n[2] bracketing, 12 lights, {h}x{w} half-size; SNR (dB) vs known radiance, "
-          "median over lights")
+    print(f"\n[2] bracketing, 12 lights, {label}, {h}x{w} half-size; SNR (dB) vs known "
+          "radiance, median over lights")
     print(f"{'plan':26s} {'frames':>6s} {'expo s':>7s} {'rig s':>7s} {'shadow':>7s} {'mid':>7s} "
           f"{'high':>7s} {'merge s':>7s}")
     out = {}
@@ -248,6 +264,7 @@ def main(argv=None):
     h, w = args.size
     bench_methods(sensor, h, w, args.seed)
     bench_bracketing(sensor, h, w, args.seed, args.target_db)
+    bench_bracketing(sensor, h, w, args.seed, args.target_db, scene="rig")
     if not args.skip_12mp:
         bench_12mp(sensor, args.seed)
     return 0
