@@ -23,7 +23,7 @@ from scipy import ndimage, optimize
 
 __all__ = ["Circle", "Highlight", "fit_circle", "sphere_mask", "fit_sphere_outline",
            "highlight_centroid", "mirror_direction", "mirror_sphere_directions",
-           "light_positions_from_rays", "sphere_rays"]
+           "light_positions_from_rays", "sphere_rays", "directions_from_origin"]
 
 
 @dataclasses.dataclass
@@ -300,3 +300,25 @@ def light_positions_from_rays(origins, directions):
         P.append(p)
         rms.append(np.sqrt(np.mean([np.sum((M @ (p - o[k, j])) ** 2) for k, M in enumerate(projs)])))
     return np.array(P), np.array(rms)
+
+
+def directions_from_origin(origins, directions, distance_mm):
+    """Directions of LEDs seen from the field's origin, given rays from the sphere.
+
+    A highlight gives the direction from its point on the sphere (mm above and
+    beside the object plane's origin); for LEDs at a finite `distance_mm` from the
+    origin (the rig's nominal distance, e.g. 1500 mm) the LED is the point of the
+    ray at that distance, and its direction from the origin differs from the ray's
+    by about offset/distance (≈ 0.7° for a 76 mm sphere at 1.5 m). origins,
+    directions (m, 3); returns unit (m, 3).
+    """
+    o = np.asarray(origins, float)
+    d = np.asarray(directions, float)
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    # |o + t d| = D  →  t = −o·d + sqrt((o·d)² − |o|² + D²)
+    od = np.sum(o * d, axis=-1)
+    disc = od ** 2 - np.sum(o * o, axis=-1) + float(distance_mm) ** 2
+    if np.any(disc < 0) or not distance_mm > 0:
+        raise ValueError("the LED distance must exceed the sphere's distance from the origin")
+    p = o + (-od + np.sqrt(disc))[..., None] * d
+    return p / np.linalg.norm(p, axis=-1, keepdims=True)

@@ -54,6 +54,9 @@ def register(sub):
     p.add_argument("--base", help="profile whose values are kept for steps not run (default nominal)")
     p.add_argument("--exposures", type=_exposures, help="bracket for every target, e.g. '1,1/4,1/16' (s)")
     p.add_argument("--current", type=int, default=500, help="LED current during calibration, mA")
+    p.add_argument("--led-distance", type=float, metavar="MM",
+                   help="LEDs' distance from the object (e.g. 1500): directions from the field's centre, "
+                        "not from the sphere (default: distant LEDs)")
     p.add_argument("--leds", type=int, default=12, help="number of LEDs fitted (default 12)")
     p.add_argument("--keep-captures", metavar="DIR", help="keep the calibration captures in DIR")
     sim = p.add_argument_group("simulated rig")
@@ -119,7 +122,7 @@ def run(args):
         station = RigStation(rig, workdir, attended=not args.yes, sim_faults=args.sim_target_fault,
                              n_leds=args.leds, light_current_mA=args.current)
         wiz = Wizard(station, out=lambda s="": print(s, flush=True), steps=steps, base=base or check,
-                     exposures=args.exposures)
+                     exposures=args.exposures, led_distance_mm=args.led_distance)
         try:
             if check is not None:
                 ok, _ = wiz.check(check)

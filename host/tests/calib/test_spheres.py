@@ -127,3 +127,16 @@ def test_matte_sphere_cross_check():
     np.testing.assert_allclose(inten[:, 1], I / I.mean(), rtol=5e-3)
     assert resid.max() < 0.01
     assert abs(circle.r - R) < 0.3
+
+
+def test_directions_from_origin_remove_the_sphere_parallax():
+    from facette.calib.mirror_sphere import directions_from_origin
+
+    P = nominal_light_directions() * 1500.0
+    o = np.tile([10.0, -5.0, 50.0], (12, 1))            # highlight points above the table
+    l = (P - o) / np.linalg.norm(P - o, axis=1, keepdims=True)
+    assert _angle_deg(l, P / 1500.0).max() > 0.5          # the raw rays are off by the parallax
+    d = directions_from_origin(o, l, 1500.0)
+    np.testing.assert_allclose(d, P / 1500.0, atol=1e-12)
+    with pytest.raises(ValueError, match="LED distance"):
+        directions_from_origin(o, l, 10.0)
