@@ -75,6 +75,14 @@ def frame_exposure(frame, current="measured"):
     return t_us * i_ma, i_ma
 
 
+def _journal(scan_dir, step, **data):
+    """Append a line to the scan's journal.jsonl (same format as facette.scan)."""
+    line = json.dumps({"t": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds"),
+                       "step": step, **data}, sort_keys=True)
+    with open(Path(scan_dir) / "journal.jsonl", "a", encoding="utf-8") as fh:
+        fh.write(line + "\n")
+
+
 def _sha256(path):
     h = hashlib.sha256()
     with open(path, "rb") as f:
@@ -84,7 +92,7 @@ def _sha256(path):
 
 
 def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measured",
-               verify_sha256=True, lights=None):
+               verify_sha256=True, lights=None, per="us*mA"):
     """Merge every light of a scan directory into hdr/light_XX.exr and hdr/light_XX_var.exr.
 
     Parameters
@@ -101,6 +109,9 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
         Refuse a frame whose file no longer matches the sha256 recorded at capture.
     lights : iterable of int or None
         Only these light indices (default all lights with frames).
+    per : {"us*mA", "us"}
+        Unit of exposure: µs·mA (contract 3, default) or µs alone (the LED current
+        ignored, e.g. for a constant-current rig whose currents are not recorded).
 
     Returns
     -------
@@ -110,6 +121,8 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     `MissingFrameWarning` and recorded under ``missing``; a light with no frame on
     disk at all raises FileNotFoundError.
     """
+    if per not in ("us*mA", "us"):
+        raise ValueError(f"per must be 'us*mA' or 'us', got {per!r}")
     scan_dir = Path(scan_dir)
     data = read_scan_manifest(scan_dir)
     source = "given"
@@ -124,6 +137,8 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     wanted = sorted(by_light) if lights is None else sorted(int(i) for i in lights)
     n_exposures = len(data.get("exposures") or [])
     (scan_dir / "hdr").mkdir(exist_ok=True)
+    _journal(scan_dir, "hdr_begin", method=method, lights=wanted)
+    unit = HDR_UNIT if per == "us*mA" else "DN/us"
     t0 = time.perf_counter()
     records = []
     for li in wanted:
@@ -148,20 +163,21 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
         if not frames:
             raise FileNotFoundError(f"light {li} has no RAW frame on disk in {scan_dir / 'raw'}; "
                                     "re-run the scan for that light")
-        exposures = [frame_exposure(fr, current)[0] for fr, _ in frames]
+        exposures = [frame_exposure(fr, current)[0] if per == "us*mA" else float(fr["time_us"])
+                     for fr, _ in frames]
         times_s = [float(fr["time_us"]) * 1e-6 for fr, _ in frames]
         res = merge([rf for _, rf in frames], exposures, sens, method=method, times_s=times_s)
         name = f"light_{li:02d}"
-        hdr_attrs = {"facette_unit": HDR_UNIT, "facette_method": method,
+        hdr_attrs = {"facette_unit": unit, "facette_method": method,
                      "facette_light": str(li)}
         write_exr(scan_dir / "hdr" / f"{name}.exr", res.radiance, ("R", "G", "B"), hdr_attrs)
         write_exr(scan_dir / "hdr" / f"{name}_var.exr", res.variance, ("R", "G", "B"),
-                  dict(hdr_attrs, facette_unit=f"({HDR_UNIT})^2"))
+                  dict(hdr_attrs, facette_unit=f"({unit})^2"))
         records.append({"index": li, "file": f"hdr/{name}.exr", "var_file": f"hdr/{name}_var.exr",
                         "frames": [fr["file"] for fr, _ in frames], "missing": missing,
                         "saturated_fraction": float(res.saturated.mean()),
                         "no_sample_fraction": float(np.mean(res.n_used == 0))})
-    record = {"method": method, "unit": HDR_UNIT, "current": current,
+    record = {"method": method, "unit": unit, "current": current if per == "us*mA" else None,
               "resolution": "half-size", "sensor": sens.to_profile_dict(),
               "sensor_source": source,
               "lights": records, "merge_time_s": round(time.perf_counter() - t0, 3),
@@ -169,6 +185,7 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     data = read_scan_manifest(scan_dir)  # re-read: keep anything written meanwhile
     data["hdr"] = record
     _write_manifest(scan_dir, data)
+    _journal(scan_dir, "hdr_done", lights=wanted, merge_time_s=record["merge_time_s"])
     return record
 
 

@@ -14,14 +14,14 @@ SENSOR = SensorModel()
 EXPOSURES = [(200_000, 500), (20_000, 500), (2_000, 800)]  # (time_us, mA)
 
 
-def _make_scan(tmp_path, n_lights=2, h=24, w=32, seed=0):
+def _make_scan(tmp_path, n_lights=2, h=24, w=32, seed=0, exposures=EXPOSURES):
     """A scan directory as the acquisition writes it (contract 3), with known radiance."""
     rng = np.random.default_rng(seed)
     (tmp_path / "raw").mkdir()
     truth = np.exp(rng.uniform(np.log(1e-6), np.log(7e-3), size=(n_lights, h, w, 3)))  # DN/(µs·mA)
     frames = []
     for li in range(n_lights):
-        for e, (t_us, i_ma) in enumerate(EXPOSURES):
+        for e, (t_us, i_ma) in enumerate(exposures):
             electrons = bayer_mosaic_rggb(truth[li] * SENSOR.gain_e_per_dn * t_us * i_ma)
             mosaic = SENSOR.expose_charge(electrons, t_us * 1e-6, rng)
             name = f"raw/L{li:02d}_E{e:02d}.dng"
@@ -36,7 +36,7 @@ def _make_scan(tmp_path, n_lights=2, h=24, w=32, seed=0):
     data = {"schema": 1, "rig": {"name": "test"}, "profile": None, "pixel_pitch_mm": 0.1,
             "lights": lights,
             "exposures": [{"index": e, "time_us": t, "current_mA": i, "mode": "led"}
-                          for e, (t, i) in enumerate(EXPOSURES)],
+                          for e, (t, i) in enumerate(exposures)],
             "frames": frames, "rig_time_s": 1.0, "truth": None}
     (tmp_path / "scan.json").write_text(json.dumps(data))
     return truth
@@ -55,6 +55,18 @@ def test_merge_scan_writes_exr_and_records_it(tmp_path):
     assert rec["unit"] == "DN/(us*mA)" and rec["sensor_source"] == "given"
     assert [l["file"] for l in rec["lights"]] == ["hdr/light_00.exr", "hdr/light_01.exr"]
     assert data["frames"] and data["rig_time_s"] == 1.0  # the rest of the manifest kept
+    steps = [json.loads(l)["step"] for l in (tmp_path / "journal.jsonl").read_text().splitlines()]
+    assert steps == ["hdr_begin", "hdr_done"]
+
+
+def test_per_microsecond_unit(tmp_path):
+    truth = _make_scan(tmp_path, n_lights=1, exposures=[(200_000, 400), (20_000, 400), (2_000, 400)])
+    rec = merge_scan(tmp_path, sensor=SENSOR, per="us")
+    img, _ = read_exr(tmp_path / "hdr" / "light_00.exr")
+    assert rec["unit"] == "DN/us" and rec["current"] is None
+    assert np.median(img / (truth[0] * 400)) == pytest.approx(1.0, abs=0.005)
+    with pytest.raises(ValueError, match="per must be"):
+        merge_scan(tmp_path, sensor=SENSOR, per="s")
 
 
 def test_load_hdr_merges_when_needed_and_uses_scan_sensor(tmp_path):
