@@ -251,3 +251,284 @@ def test_small_led_scan_fills_the_frame_ring(client):
         assert rec[0] == k and rec[1] == k // 2 and rec[2] == k % 2
         assert rec[3] == 500 and rec[4] == 500
         assert rec[7] == 5  # valid, flash-sync seen (the simulated device's own camera)
+
+
+# ================================================================ simulated device contract
+# The posix build's side channel and options, as fixed by the shared contract (the rig
+# simulator codes to them). These need the simulated device, not a real rig.
+import os  # noqa: E402
+import re  # noqa: E402
+import socket  # noqa: E402
+import subprocess  # noqa: E402
+import threading  # noqa: E402
+
+from conftest import POSIX_DEVICE, start_posix_device, stop_posix_device  # noqa: E402
+
+EVENT = re.compile(r"^(\d+) (led -?\d+ \d+|shutter [01] frame=\d+ light=\d+ exp=\d+ exp_us=\d+ "
+                   r"mode=(camera|bulb|led)|focus [01]|boot \d+)$")
+
+
+class Side:
+    """Side-channel client; with auto=True it acks events and answers openings with sync."""
+
+    def __init__(self, path: str, auto: bool = True):
+        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self.sock.connect(path)
+        self.lines: list[str] = []
+        self.auto = auto
+        self.cond = threading.Condition()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        buf = b""
+        while True:
+            try:
+                chunk = self.sock.recv(4096)
+            except OSError:
+                return
+            if not chunk:
+                return
+            buf += chunk
+            while b"\n" in buf:
+                raw, buf = buf.split(b"\n", 1)
+                line = raw.decode()
+                parts = line.split()
+                if self.auto and parts[1] == "shutter" and parts[2] == "1":
+                    self.send(f"sync {parts[0]}", "ack")
+                elif self.auto and parts[1] in ("shutter", "led"):
+                    self.send("ack")
+                with self.cond:
+                    self.lines.append(line)
+                    self.cond.notify_all()
+
+    def send(self, *lines: str):
+        try:
+            self.sock.sendall("".join(line + "\n" for line in lines).encode())
+        except OSError:  # the device side closed (reset of the test, teardown)
+            pass
+
+    def wait_for(self, pattern: str, timeout: float = 5.0) -> str:
+        rx = re.compile(pattern)
+        with self.cond:
+            ok = self.cond.wait_for(lambda: any(rx.search(x) for x in self.lines), timeout)
+            assert ok, f"no side-channel line matching {pattern!r} in {self.lines[-5:]}"
+            return next(x for x in self.lines if rx.search(x))
+
+    def close(self):
+        try:
+            self.sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        self.thread.join(timeout=2)
+        self.sock.close()
+
+
+@pytest.fixture
+def sim(tmp_path):
+    dev = start_posix_device(tmp_path)
+    yield dev
+    stop_posix_device(dev)
+
+
+def modbus(port):
+    c = ModbusSerialClient(port=port, baudrate=R.BAUD, timeout=1, retries=0)
+    assert c.connect()
+    return c
+
+
+def wreg(c, name, v, i=0):
+    reg = R.REGISTERS[name]
+    a = addr(name, i)
+    r = (c.write_registers(a, [v >> 16, v & 0xFFFF], device_id=UNIT) if reg.words == 2
+         else c.write_register(a, v & 0xFFFF, device_id=UNIT))
+    assert not r.isError(), (name, r)
+
+
+def rreg(c, name, i=0):
+    reg = R.REGISTERS[name]
+    fn = c.read_input_registers if reg.space == "input" else c.read_holding_registers
+    r = fn(addr(name, i), count=reg.words, device_id=UNIT)
+    assert not r.isError(), (name, r)
+    return r.registers[0] << 16 | r.registers[1] if reg.words == 2 else r.registers[0]
+
+
+def one_frame_scan(c, mode=R.TimingMode.LED, exp_us=20_000, lights=1):
+    wreg(c, "timing_mode", int(mode))
+    wreg(c, "n_lights", lights)
+    wreg(c, "n_exposures", 1)
+    wreg(c, "exposure_time_us", exp_us)
+    wreg(c, "command", int(R.Command.ARM))
+    wreg(c, "command", int(R.Command.START))
+
+
+def wait_state(c, *states, polls=3000):
+    for _ in range(polls):  # request/answer round trips, no sleeping
+        s = rreg(c, "state")
+        if s in states:
+            return R.State(s)
+    return R.State(s)
+
+
+def test_sim_prints_the_port_first_and_links_it(tmp_path):
+    link = tmp_path / "ttyRIG"
+    proc = subprocess.Popen([os.fspath(POSIX_DEVICE), "--link", os.fspath(link)],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        first = proc.stdout.readline()
+        assert re.fullmatch(r"port: /dev/pts/\d+\n", first)
+        assert os.path.realpath(link) == first.split(": ")[1].strip()
+        c = modbus(os.fspath(link))
+        assert rreg(c, "definition_hash") == R.DEFINITION_HASH
+        c.close()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=5)
+        proc.stdout.close()
+    assert not link.exists()  # removed on exit
+
+
+def test_sim_refuses_bad_options_with_a_message():
+    r = subprocess.run([os.fspath(POSIX_DEVICE), "--speed", "-3"], capture_output=True, text=True)
+    assert r.returncode == 2 and "--speed -3: give a number > 0" in r.stderr
+
+
+def test_sim_events_follow_the_contract_and_carry_the_frame(sim):
+    side = Side(sim.side)
+    c = modbus(sim.port)
+    wreg(c, "prefocus_us", 10_000)
+    one_frame_scan(c, R.TimingMode.BULB, exp_us=30_000, lights=2)
+    assert wait_state(c, R.State.DONE) == R.State.DONE
+    side.wait_for(r" shutter 0 frame=1 ")
+    c.close()
+    side.close()
+    lines = side.lines
+    assert lines[0].split()[1:] == ["boot", "1"]
+    assert all(EVENT.match(x) for x in lines), [x for x in lines if not EVENT.match(x)]
+    t = {k: int(side.wait_for(p).split()[0]) for k, p in
+         (("on", r" led 0 500$"), ("open", r" shutter 1 frame=0 light=0 exp=0 exp_us=30000 mode=bulb"),
+          ("close", r" shutter 0 frame=0"), ("off", r" led -1 0$"))}
+    assert t["close"] - t["open"] == 30_000 and t["off"] == t["close"]
+    assert t["open"] - t["on"] == R.REGISTERS["settle_us"].default[0]
+
+
+def test_sim_lockstep_freezes_virtual_time_until_ack(sim):
+    side = Side(sim.side, auto=False)
+    c = modbus(sim.port)
+    one_frame_scan(c, R.TimingMode.LED, exp_us=1000)
+    side.wait_for(r" shutter 1 frame=0")
+    left = [rreg(c, "time_left_us") for _ in range(20)]
+    assert len(set(left)) == 1 and rreg(c, "state") == R.State.RUNNING
+    side.send(f"sync {side.lines[-1].split()[0]}", "ack")
+    side.wait_for(r" led 0 500$")
+    side.send("ack")
+    side.wait_for(r" led -1 0$")
+    side.send("ack")
+    side.wait_for(r" shutter 0 frame=0")
+    side.send("ack")
+    assert wait_state(c, R.State.DONE) == R.State.DONE
+    assert rreg(c, "ring_flags", 0) == 5  # the sync we sent was counted
+    c.close()
+    side.close()
+
+
+def test_sim_miss_sync_without_simulator_retries_then_faults(sim):
+    side = Side(sim.side)
+    side.send("miss_sync 1")
+    side.close()
+    c = modbus(sim.port)
+    one_frame_scan(c)
+    assert wait_state(c, R.State.DONE, R.State.FAULT) == R.State.DONE
+    assert rreg(c, "retries_used") == 1 and rreg(c, "ring_count") == 2
+    side = Side(sim.side)
+    side.send("miss_sync 2")
+    side.close()
+    wreg(c, "command", int(R.Command.ARM))
+    wreg(c, "command", int(R.Command.START))
+    assert wait_state(c, R.State.FAULT) == R.State.FAULT
+    assert rreg(c, "fault_bits") & (1 << R.Fault.SYNC_MISSED)
+    c.close()
+
+
+def test_sim_injected_faults_and_measurements(sim):
+    side = Side(sim.side)
+    c = modbus(sim.port)
+    side.send("supply 11500", "ntc 4321")
+    for _ in range(200):
+        if rreg(c, "led_temp_cC") == 4321:
+            break
+    assert rreg(c, "led_temp_cC") == 4321 and rreg(c, "supply_mV") == 11500
+    side.send("led_fault 0 open")
+    one_frame_scan(c)
+    assert wait_state(c, R.State.FAULT) == R.State.FAULT
+    assert rreg(c, "fault_bits") & (1 << R.Fault.LED_OPEN)
+    side.send("led_fault 0 ok")
+    wreg(c, "command", int(R.Command.CLEAR_FAULTS))
+    side.send("ntc 9000")
+    assert wait_state(c, R.State.FAULT) == R.State.FAULT
+    assert rreg(c, "fault_bits") & (1 << R.Fault.OVERTEMP)
+    c.close()
+    side.close()
+
+
+def test_sim_button_starts_and_aborts_the_scan(sim):
+    side = Side(sim.side)
+    c = modbus(sim.port)
+    wreg(c, "n_lights", 2)
+    side.send("button 1")
+    rreg(c, "state")  # let the device see the level for a while (debounce in virtual time)
+    side.send("button 0")
+    # default bracket: 2 lights x 28 s of exposures, far longer than these few requests
+    assert wait_state(c, R.State.RUNNING) == R.State.RUNNING
+    side.send("button 1")
+    rreg(c, "state")
+    side.send("button 0")
+    assert wait_state(c, R.State.ABORTED) == R.State.ABORTED
+    assert rreg(c, "led_channel") == 0xFFFF  # -1: lights off
+    c.close()
+    side.close()
+
+
+def test_sim_reset_keeps_flash_and_counts_boots(sim):
+    side = Side(sim.side)
+    c = modbus(sim.port)
+    wreg(c, "cal_unlock", R.UNLOCK_KEY)
+    wreg(c, "cal_gain", 12345, 2)
+    wreg(c, "command", int(R.Command.SAVE))
+    side.send("reset")
+    side.wait_for(r" boot 2$")
+    assert rreg(c, "boot_count") == 2 and rreg(c, "reset_cause") == R.ResetCause.PIN
+    assert rreg(c, "cal_gain", 2) == 12345 and rreg(c, "cal_sequence") == 1
+    c.close()
+    side.close()
+
+
+def test_sim_state_dir_keeps_calibration_across_restarts(tmp_path):
+    state = tmp_path / "state"
+    (tmp_path / "a").mkdir()
+    dev = start_posix_device(tmp_path / "a", state=state)
+    c = modbus(dev.port)
+    wreg(c, "cal_unlock", R.UNLOCK_KEY)
+    wreg(c, "cal_serial", 777_000)
+    wreg(c, "command", int(R.Command.SAVE))
+    c.close()
+    stop_posix_device(dev)
+    (tmp_path / "b").mkdir()
+    dev = start_posix_device(tmp_path / "b", state=state)
+    c = modbus(dev.port)
+    assert rreg(c, "serial_number") == 777_000 and rreg(c, "boot_count") == 2
+    c.close()
+    stop_posix_device(dev)
+
+
+def test_sim_bit_errors_are_caught_by_the_crc(sim):
+    side = Side(sim.side)
+    ln = Line(sim.port)
+    side.send("biterr 1.0")
+    rreg_line = frame("01 03 1100 0001")
+    got = ln.ask(rreg_line, None)
+    assert got == b""  # every byte corrupted: no frame passes its CRC
+    side.send("biterr 0")
+    assert ln.ask(rreg_line, 7) == frame("01 03 02 000C")
+    ln.close()
+    side.close()
