@@ -49,7 +49,8 @@ def synthetic_scene(h, w, sensor, seed=0):
     # Dome plus bumps: height field -> normals.
     z = np.sqrt(np.clip(1 - r2, 0, None)) * 0.6
     for _ in range(12):
-        cx, cy, s, a = rng.uniform(-.7, .7), rng.uniform(-.7, .7), rng.uniform(.05, .2), rng.uniform(-.15, .15)
+        cx, cy = rng.uniform(-.7, .7, size=2)
+        s, a = rng.uniform(.05, .2), rng.uniform(-.15, .15)
         z = z + a * np.exp(-((u - cx) ** 2 + (v - cy) ** 2) / (2 * s ** 2))
     gy, gx = np.gradient(z, 1.0 / (0.45 * min(h, w)))
     n = np.stack([-gx, gy, np.ones_like(z)], -1)

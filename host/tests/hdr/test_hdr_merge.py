@@ -44,6 +44,10 @@ def test_inverse_variance_unbiased_and_variance_calibrated():
     assert 0.95 < z.std() < 1.05         # the reported variance is the real one
     rel = (r.radiance - x) / x
     assert abs(np.median(rel)) < 2e-3
+    # Reported SNR: the predicted and the achieved relative error agree for bright pixels.
+    bright = x > 1e4
+    predicted = np.sqrt(np.mean(1 / r.snr[bright] ** 2))
+    assert np.sqrt(np.mean(rel[bright] ** 2)) == pytest.approx(predicted, rel=0.1)
 
 
 def test_inverse_variance_beats_debevec_hat_on_same_frames():
