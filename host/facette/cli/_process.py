@@ -32,6 +32,9 @@ def register(sub):
                    help="ignore light positions: one direction per light for every pixel")
     p.add_argument("--mesh-step", type=int, help="mesh vertex every N pixels (default: <= ~1e6 vertices)")
     p.add_argument("--ascii-ply", action="store_true", help="write mesh.ply as ASCII")
+    p.add_argument("--brdf-model", default="li",
+                   help="model fitted for brdf.json: li, cook_torrance, oren_nayar, lambert")
+    p.add_argument("--fit-method", default="least_squares", help="least_squares or genetic")
     return p
 
 
@@ -43,7 +46,8 @@ def run(args):
                       integration=args.integration, t_ombre=args.t_ombre, t_spec=args.t_spec,
                       t_source=args.t_source, t_residual=args.t_residual, theta0_deg=args.theta0,
                       mask=args.mask, pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light,
-                      mesh_step=args.mesh_step, ascii_ply=args.ascii_ply)
+                      mesh_step=args.mesh_step, ascii_ply=args.ascii_ply,
+                      fit_options={"model": args.brdf_model, "method": args.fit_method})
     except (ValueError, FileNotFoundError, TypeError) as exc:
         print(f"facette process: {exc}", file=sys.stderr)
         return 2
@@ -57,6 +61,8 @@ def run(args):
     for k, v in res.errors.items():
         print(f"  against truth: {k} = {v:.3f}")
     print("  times: " + ", ".join(f"{k} {v:.2f} s" for k, v in res.timings.items()))
+    if res.brdf is not None:
+        print(f"  brdf: {res.brdf}")
     for note in res.notes:
         print(f"  note: {note}")
     for o, path in res.files.items():

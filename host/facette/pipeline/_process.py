@@ -58,7 +58,7 @@ class ProcessResult:
     normals (H, W, 3) unit vectors, camera frame (0 where not valid); albedo (H, W, 3);
     mask (H, W) bool (valid normals inside the input mask); height (H, W) mm or None;
     mesh (vertices, faces) or None; filtered `FilteredReflectance` or None; samples raw
-    `ReflectanceSamples` subset or None; brdf dict or None; ps the full `PSResult`;
+    `ReflectanceSamples` subset or None; brdf a facette.fit FitResult or None; ps the full `PSResult`;
     timings {stage: seconds}; files {output: path}; errors {name: value} against the
     scan's truth.npz when present (angular error in degrees, height RMS in mm).
     """
@@ -111,25 +111,19 @@ def _samples_stage(inp, ps, light_dirs, theta0_deg, chunk=262144, keep=RAW_SAMPL
     return sensor.result(), raw
 
 
-def _fit_stage(filtered):
-    """Call facette.fit when it exists. Returns (dict or None, note)."""
+def _fit_stage(filtered, fit_options):
+    """BRDF identification on the filtered cells with facette.fit.fit_brdf (the BRDF helper's
+    module). Returns (FitResult or None, note)."""
     try:
-        import facette.fit as fit_mod
+        from facette.fit import fit_brdf
     except ImportError:
-        return None, "brdf: facette.fit is not available yet; no brdf.json written"
-    fn = getattr(fit_mod, "fit_brdf", None) or getattr(fit_mod, "fit", None)
-    if fn is None:
-        return None, "brdf: facette.fit has no fit_brdf() or fit(); no brdf.json written"
+        return None, "brdf: facette.fit.fit_brdf is not available; no brdf.json written"
     s, o, f, count = filtered.flat()
-    try:
-        res = fn(s, o, f, weights=count)
-    except TypeError:
-        res = fn(s, o, f)
-    if hasattr(res, "to_dict"):
-        res = res.to_dict()
-    elif hasattr(res, "__dict__") and not isinstance(res, dict):
-        res = {k: v for k, v in vars(res).items() if not k.startswith("_")}
-    return json.loads(json.dumps(res, default=lambda x: np.asarray(x).tolist())), ""
+    if len(f) < 3:
+        return None, "brdf: fewer than 3 filled sensor cells; nothing to fit"
+    res = fit_brdf(s, o, f, counts=count, **fit_options)
+    note = "" if getattr(res, "success", True) else f"brdf: the fit failed ({res.message})"
+    return res, note
 
 
 def _truth_errors(inp, res):
@@ -153,7 +147,7 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
             integration="frankot_chellappa1988", t_ombre=T_OMBRE, t_spec=T_SPEC,
             t_source=T_SOURCE, t_residual=T_RESIDUAL, theta0_deg=THETA0_DEG, mask=None,
             pixel_pitch_mm=None, near_light=True, mesh_step=None, ascii_ply=False,
-            saturation=None):
+            saturation=None, fit_options=None):
     """Run the processing chain on a scan directory or a DiLiGenT-style folder.
 
     source : path (or Scan object) of a facette scan (scan.json + hdr/) or a DiLiGenT folder.
@@ -165,6 +159,8 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
     theta0_deg : hemisphere-sensor cell size (deg). mask : (H, W) bool or PNG path.
     near_light : use the lights' positions (per-pixel directions, 1/r^2) when the scan has them.
     mesh_step : pixel step of the mesh (default: so that it has at most ~1e6 vertices).
+    saturation : image values >= this are treated as missing.
+    fit_options : keyword arguments of facette.fit.fit_brdf (model, method, volume, ...).
     Returns a `ProcessResult`.
     """
     outputs = list(OUTPUTS if outputs is None else outputs)
@@ -214,7 +210,7 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
         res.timings["samples"] = time.perf_counter() - t0
     if "fit" in stages:
         t0 = time.perf_counter()
-        res.brdf, note = _fit_stage(res.filtered)
+        res.brdf, note = _fit_stage(res.filtered, dict(fit_options or {}))
         if note:
             res.notes.append(note)
         res.timings["fit"] = time.perf_counter() - t0
@@ -250,7 +246,8 @@ def _write(res, out, outputs, ascii_ply, images, light_dirs):
             raw_s=raw.s, raw_o=raw.o, raw_f=raw.f, raw_pixel=raw.pixel, raw_light=raw.light,
             image_shape=np.array(res.normals.shape[:2]))
     if "brdf" in outputs and res.brdf is not None:
-        (out / FILES["brdf"]).write_text(json.dumps(res.brdf, indent=2))
+        text = res.brdf.to_json() if hasattr(res.brdf, "to_json") else json.dumps(res.brdf, indent=2)
+        (out / FILES["brdf"]).write_text(text)
     for o in outputs:
         if (out / FILES[o]).exists() and o != "report":
             res.files[o] = str(out / FILES[o])

@@ -1,0 +1,87 @@
+"""16-bit PNG codec, PLY meshes and DiLiGenT-style folders."""
+import struct
+import zlib
+
+import numpy as np
+import pytest
+
+from facette.io.diligent import is_diligent_dir, read_diligent, write_diligent
+from facette.io.ply import read_ply, write_ply
+from facette.io.png import read_mask, read_png, write_mask, write_png
+
+
+def _encode_filtered(img):
+    """A 16-bit RGB PNG whose rows cycle through the five filter types (as encoders do)."""
+    h, w, _ = img.shape
+    bpp = 6
+    rows = img.astype(">u2").reshape(h, -1).view(np.uint8).astype(np.int16)
+    out, prev = [], np.zeros(w * bpp, np.int16)
+    for r in range(h):
+        f, cur = r % 5, rows[r]
+        left = np.r_[np.zeros(bpp, np.int16), cur[:-bpp]]
+        ul = np.r_[np.zeros(bpp, np.int16), prev[:-bpp]]
+        p = left + prev - ul
+        pa, pb, pc = abs(p - left), abs(p - prev), abs(p - ul)
+        paeth = np.where((pa <= pb) & (pa <= pc), left, np.where(pb <= pc, prev, ul))
+        pred = [0 * cur, left, prev, (left + prev) // 2, paeth][f]
+        out.append(bytes([f]) + ((cur - pred) & 255).astype(np.uint8).tobytes())
+        prev = cur
+
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"".join(out))) + chunk(b"IEND", b""))
+
+
+def test_png_16bit_roundtrip_and_all_filter_types(tmp_path):
+    img = (np.random.default_rng(0).random((23, 31, 3)) * 65535).astype(np.uint16)
+    write_png(tmp_path / "a.png", img)
+    back = read_png(tmp_path / "a.png")
+    assert back.dtype == np.uint16 and np.array_equal(back, img)
+    (tmp_path / "f.png").write_bytes(_encode_filtered(img))
+    assert np.array_equal(read_png(tmp_path / "f.png"), img)
+
+
+def test_png_8bit_grey_mask_and_errors(tmp_path):
+    m = np.zeros((5, 7), bool)
+    m[1:3, 2:6] = True
+    write_mask(tmp_path / "m.png", m)
+    assert np.array_equal(read_mask(tmp_path / "m.png"), m)
+    with pytest.raises(ValueError, match="uint8 or uint16"):
+        write_png(tmp_path / "x.png", np.zeros((2, 2), np.float32))
+    (tmp_path / "bad.png").write_bytes(b"not a png")
+    with pytest.raises(ValueError, match="not a PNG"):
+        read_png(tmp_path / "bad.png")
+    with pytest.raises(FileNotFoundError):
+        read_png(tmp_path / "missing.png")
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_ply_roundtrip(tmp_path, binary):
+    v = np.array([[0, 0, 0], [1, 0, 0.5], [0, 1, 0.25], [1, 1, 1]], np.float32)
+    f = np.array([[0, 2, 1], [1, 2, 3]], np.int32)
+    write_ply(tmp_path / "m.ply", v, f, binary=binary)
+    v2, f2 = read_ply(tmp_path / "m.ply")
+    np.testing.assert_allclose(v2, v)
+    assert np.array_equal(f2, f)
+    with pytest.raises(ValueError, match="face indices"):
+        write_ply(tmp_path / "bad.ply", v, f + 3)
+
+
+def test_diligent_folder_roundtrip_divides_by_intensities(tmp_path):
+    rng = np.random.default_rng(3)
+    imgs = (rng.random((5, 6, 8, 3)) * 60000).astype(np.uint16)
+    dirs = rng.normal(size=(5, 3))
+    dirs[:, 2] = np.abs(dirs[:, 2]) + 1
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    inten = rng.random((5, 3)) + 0.5
+    mask = rng.random((6, 8)) > 0.3
+    write_diligent(tmp_path, imgs, dirs, inten, mask)
+    assert is_diligent_dir(tmp_path)
+    d = read_diligent(tmp_path)
+    np.testing.assert_allclose(d.images, imgs / 65535.0 / inten[:, None, None, :], rtol=1e-6)
+    np.testing.assert_allclose(d.light_dirs, dirs, atol=1e-7)
+    assert np.array_equal(d.mask, mask)
+    (tmp_path / "light_intensities.txt").write_text("1 1 1\n")
+    with pytest.raises(ValueError, match="light_intensities.txt must hold 5 lines"):
+        read_diligent(tmp_path)

@@ -1,0 +1,138 @@
+"""`facette process` end to end: DiLiGenT-style folders and scan directories."""
+import json
+
+import numpy as np
+import pytest
+
+from facette.cli.main import main
+from facette.io.diligent import write_diligent
+from facette.io.exr import read_exr, write_exr
+from facette.io.ply import read_ply
+from facette.io.png import read_mask
+from facette.pipeline import process, stages_needed
+from facette.recon.synthetic import angular_error_deg, render, sphere_on_plane, thesis_light_directions
+
+L = thesis_light_directions()
+
+
+@pytest.fixture(scope="module")
+def diligent_dir(tmp_path_factory):
+    """A small DiLiGenT-style folder: a glossy sphere on a plane, 12 lights, 16-bit PNGs."""
+    folder = tmp_path_factory.mktemp("diligent")
+    sc = sphere_on_plane(48, 64)
+    imgs = render(sc, L, "glossy", noise=0.002)
+    inten = np.tile([1.0, 0.8, 1.2], (12, 1)) * np.linspace(0.8, 1.2, 12)[:, None]
+    scale = 60000 / float((imgs * inten[:, None, None, :]).max())
+    u16 = np.round(imgs * inten[:, None, None, :] * scale).astype(np.uint16)
+    mask = sc.mask.copy()
+    mask[:2] = False
+    write_diligent(folder, u16, L, inten, mask)
+    return folder, sc, mask
+
+
+def test_cli_processes_a_diligent_folder_end_to_end(diligent_dir, tmp_path, capsys):
+    folder, sc, mask = diligent_dir
+    out = tmp_path / "out"
+    outputs = "normals,albedo,mask,height,mesh,samples,report"     # brdf: see the scan test
+    assert main(["process", str(folder), "-o", str(out), "--outputs", outputs]) == 0
+    text = capsys.readouterr().out
+    assert "diligent" in text and "valid pixels" in text
+    normals, names = read_exr(out / "normal.exr")
+    assert names == ("X", "Y", "Z") and normals.shape == (48, 64, 3)
+    got_mask = read_mask(out / "mask.png")
+    assert not got_mask[:2].any() and got_mask[mask].mean() > 0.97
+    err = angular_error_deg(normals, sc.normals, got_mask)
+    assert np.median(err) < 1.0 and np.percentile(err, 95) < 3.0
+    albedo, _ = read_exr(out / "albedo.exr")
+    # images were divided by the intensities: the albedo is the rendered one up to one scale
+    ratio = albedo[got_mask & ~sc.sphere] / np.array([0.6, 0.5, 0.4])
+    assert np.std(ratio) / np.mean(ratio) < 0.02
+    height, _ = read_exr(out / "height.exr", ("Z",))
+    r, c = np.unravel_index(np.argmax(sc.height), sc.height.shape)
+    assert height[r, c, 0] > np.median(height[got_mask & ~sc.sphere]) + 5   # the sphere stands out
+    v, f = read_ply(out / "mesh.ply")
+    assert len(v) == got_mask.sum() and len(f) > len(v)
+    with np.load(out / "samples.npz") as z:
+        assert z["filtered_mean"].shape[2] == 3 and z["raw_f"].shape[1] == 3
+        assert z["filtered_count"].sum() > 0
+    page = (out / "report.html").read_text()
+    assert page.count("data:image/png;base64,") >= 6 and "Reflectance curves" in page
+
+
+def test_outputs_limit_the_stages(diligent_dir, tmp_path):
+    folder, _, _ = diligent_dir
+    assert stages_needed(["normals"]) == ["load", "ps"]
+    assert stages_needed(["mesh", "samples"]) == ["load", "ps", "integrate", "mesh", "samples"]
+    res = process(folder, outputs=["normals"], out_dir=tmp_path)
+    assert "integrate" not in res.timings and "samples" not in res.timings
+    assert res.height is None and res.filtered is None
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["normal.exr"]
+    with pytest.raises(ValueError, match="unknown output"):
+        process(folder, outputs=["normal"])
+
+
+def test_least_squares_method_and_bad_sources(diligent_dir, tmp_path, capsys):
+    folder, sc, _ = diligent_dir
+    res = process(folder, outputs=["normals"], method="woodham1980")
+    assert res.ps.method == "woodham1980" and res.mask.any()
+    assert main(["process", str(tmp_path), "-o", str(tmp_path / "o")]) == 2
+    assert "neither scan.json" in capsys.readouterr().err
+    with pytest.raises(FileNotFoundError, match="not a directory"):
+        process(tmp_path / "nothing")
+
+
+def _write_scan(folder, sc, imgs, pitch, positions=None):
+    m = len(L)
+    inten = np.full((m, 3), 2.0)
+    lights = [{"index": i, "direction": L[i].tolist(),
+               "position_mm": None if positions is None else positions[i].tolist(),
+               "intensity": inten[i].tolist()} for i in range(m)]
+    frames = [{"file": f"raw/L{i:02d}_E00.dng", "light": i, "exposure": 0, "time_us": 1000,
+               "current_set_mA": 100, "current_meas_mA": 100, "start_us": 0, "sync": True,
+               "sha256": ""} for i in range(m)]
+    (folder / "hdr").mkdir(parents=True)
+    for i in range(m):
+        write_exr(folder / "hdr" / f"light_{i:02d}.exr", imgs[i] * inten[i])
+        var = np.full(imgs[i].shape, 1e-6, np.float32)
+        var[0, 0] = np.inf                       # a pixel saturated in every frame
+        write_exr(folder / "hdr" / f"light_{i:02d}_var.exr", var)
+    np.savez(folder / "truth.npz", normals=sc.normals, height_mm=sc.height * pitch,
+             mask=sc.mask, albedo=np.zeros(sc.normals.shape), light_dirs=L,
+             light_intensity=inten, brdf=json.dumps({"model": "lambert"}))
+    (folder / "scan.json").write_text(json.dumps({
+        "schema": 1, "rig": {"id": "test"}, "profile": None, "pixel_pitch_mm": pitch,
+        "lights": lights, "exposures": [{"index": 0, "time_us": 1000, "current_mA": 100,
+                                         "mode": "camera"}],
+        "frames": frames, "rig_time_s": 0.0, "truth": "truth.npz"}))
+
+
+def test_scan_directory_with_truth(tmp_path):
+    sc = sphere_on_plane(40, 40)
+    imgs = render(sc, L, "matte")
+    _write_scan(tmp_path / "scan", sc, imgs, pitch=0.05)
+    res = process(tmp_path / "scan", outputs=["normals", "height", "brdf", "report"],
+                  out_dir=tmp_path / "o", fit_options={"model": "lambert"})
+    assert res.inputs.kind == "scan" and res.inputs.pixel_pitch_mm == 0.05
+    assert not res.mask[0, 0]                   # unknown everywhere: no normal there
+    assert res.errors["normal_median_deg"] < 0.5
+    assert "height_rms_mm" in res.errors
+    assert "Error against the scan" in (tmp_path / "o" / "report.html").read_text()
+    # images / intensities = (rho / pi) n.s: the Lambert fit finds rho per channel
+    brdf = json.loads((tmp_path / "o" / "brdf.json").read_text())
+    assert brdf["model"] == "lambert"
+    np.testing.assert_allclose(np.ravel(brdf["parameters"]["kd"]), [0.6, 0.5, 0.4], rtol=0.02)
+
+
+def test_scan_with_near_lights_uses_positions(tmp_path):
+    sc = sphere_on_plane(40, 40)
+    pitch = 1.0
+    pos = L * 150.0
+    from facette.recon import near_light_directions
+    dirs, fall = near_light_directions(pos, sc.normals.shape[:2], pitch)
+    shade = np.maximum(np.einsum("hwmi,hwi->mhw", dirs, sc.normals), 0) * np.transpose(fall, (2, 0, 1))
+    imgs = (0.5 / np.pi * shade[..., None] * np.ones(3)).astype(np.float32)
+    _write_scan(tmp_path / "scan", sc, imgs, pitch, positions=pos)
+    near = process(tmp_path / "scan", outputs=["normals"])
+    far = process(tmp_path / "scan", outputs=["normals"], near_light=False)
+    assert any("near lights" in n for n in near.notes)
+    assert near.errors["normal_median_deg"] < 0.2 < far.errors["normal_median_deg"]
