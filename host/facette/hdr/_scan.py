@@ -117,9 +117,10 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     -------
     dict: the ``"hdr"`` record also written into scan.json.
 
-    A frame listed in scan.json whose file is missing is skipped with a
-    `MissingFrameWarning` and recorded under ``missing``; a light with no frame on
-    disk at all raises FileNotFoundError.
+    A frame listed in scan.json whose file is missing, or recorded with
+    ``"sync": false``, is skipped with a `MissingFrameWarning` and recorded under
+    ``missing``; a light with no usable frame at all raises FileNotFoundError;
+    frames of different sizes raise ValueError naming the light and files.
     """
     if per not in ("us*mA", "us"):
         raise ValueError(f"per must be 'us*mA' or 'us', got {per!r}")
@@ -148,6 +149,10 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
                     for e in range(n_exposures) if e not in recorded]
         for fr in sorted(by_light.get(li, []), key=lambda f: int(f["exposure"])):
             path = scan_dir / fr["file"]
+            if fr.get("sync") is False:  # the camera's flash sync never came: not a real frame
+                missing.append({"exposure": int(fr["exposure"]), "file": fr["file"],
+                                "reason": "no flash sync"})
+                continue
             if not path.is_file():
                 missing.append({"exposure": int(fr["exposure"]), "file": fr["file"],
                                 "reason": "file missing"})
@@ -166,7 +171,11 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
         exposures = [frame_exposure(fr, current)[0] if per == "us*mA" else float(fr["time_us"])
                      for fr, _ in frames]
         times_s = [float(fr["time_us"]) * 1e-6 for fr, _ in frames]
-        res = merge([rf for _, rf in frames], exposures, sens, method=method, times_s=times_s)
+        try:
+            res = merge([rf for _, rf in frames], exposures, sens, method=method, times_s=times_s)
+        except ValueError as exc:
+            raise ValueError(f"light {li} of {scan_dir}: {exc} (files "
+                             f"{[fr['file'] for fr, _ in frames]})") from exc
         name = f"light_{li:02d}"
         hdr_attrs = {"facette_unit": unit, "facette_method": method,
                      "facette_light": str(li)}

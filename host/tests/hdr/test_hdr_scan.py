@@ -110,3 +110,20 @@ def test_light_without_frames_and_changed_file_are_errors(tmp_path):
 def test_not_a_scan_directory(tmp_path):
     with pytest.raises(FileNotFoundError, match="scan.json"):
         merge_scan(tmp_path)
+
+
+def test_unsynced_frame_skipped_and_mismatched_sizes_named(tmp_path):
+    _make_scan(tmp_path)
+    data = json.loads((tmp_path / "scan.json").read_text())
+    data["frames"][1]["sync"] = False
+    (tmp_path / "scan.json").write_text(json.dumps(data))
+    with pytest.warns(MissingFrameWarning, match="no flash sync"):
+        rec = merge_scan(tmp_path, sensor=SENSOR, lights=[0])
+    assert rec["lights"][0]["missing"] == [{"exposure": 1, "file": "raw/L00_E01.dng",
+                                            "reason": "no flash sync"}]
+    # A frame from another camera size in light 1.
+    big = SENSOR.expose(np.zeros((30, 40, 3)), 0.01, 0)
+    name = data["frames"][4]["file"]
+    write_dng(tmp_path / name, big, SENSOR.black_level_dn, SENSOR.white_level_dn, 0.02, 400)
+    with pytest.raises(ValueError, match=r"light 1 .*different sizes.*L01_E00"):
+        merge_scan(tmp_path, sensor=SENSOR, lights=[1], verify_sha256=False)
