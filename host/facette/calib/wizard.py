@@ -86,6 +86,12 @@ def angle_deg(a, b):
     return np.degrees(np.arccos(np.clip(np.sum(np.asarray(a) * np.asarray(b), axis=-1), -1, 1)))
 
 
+def _pct(x):
+    """A fraction as a percentage with two significant digits, never in e-notation."""
+    p = 100.0 * float(x)
+    return f"{p:.0f} %" if p >= 10 else f"{p:.2g} %"
+
+
 def check_exposure(images, longest_us, shortest_us, current_mA, full_scale_dn, what, mask=None,
                    tol=Tolerances()):
     """Is a target's HDR capture usable? Raises WizardError saying why not.
@@ -107,7 +113,7 @@ def check_exposure(images, longest_us, shortest_us, current_mA, full_scale_dn, w
     if over.size:
         i = int(over[np.argmax(sat[over])])
         raise WizardError(
-            f"{what}: overexposed — {100 * sat[i]:.2g} % of the image is saturated even at the shortest "
+            f"{what}: overexposed — {_pct(sat[i])} of the image is saturated even at the shortest "
             f"exposure ({shortest_us / 1e6:g} s at {current_mA} mA) under LED(s) {over.tolist()}. "
             "Shorten the exposures (--exposures) or lower the LED current (--current), then run the "
             "step again.")
@@ -180,6 +186,9 @@ class RigStation:
 
         self.n += 1
         d = self.workdir / f"{self.n:02d}-{name}"
+        while d.exists():             # a capture folder is never reused: each is one scan
+            self.n += 1
+            d = self.workdir / f"{self.n:02d}-{name}"
         run_scan(self.rig, d, exposures=list(exposures), lights=list(lights),
                  light_current_mA=self.current_mA, mode="camera", progress=False, save_truth=False)
         return d
