@@ -303,6 +303,36 @@ def gen_md(d: dict) -> str:
         "Checks run in that order (function, quantity, address, value, execution), as the",
         "Modbus application protocol specification's state diagrams do.",
         "",
+        "## Running a scan",
+        "",
+        "1. Read `definition_hash` and refuse a device whose hash differs from this page's.",
+        "2. Write the scan configuration (holding 0x1100..): `n_lights`, `n_exposures`,",
+        "   `timing_mode`, `light_order[i]` (LED channel of light i), `light_current_mA[i]`,",
+        "   `exposure_time_us[e]`, `exposure_current_mA[e]` (0: the light's current), `settle_us`,",
+        "   `gap_us`, `prefocus_us`, `mirror_up_us`, `led_pre_us`, `led_post_us`, `sync_timeout_us`,",
+        "   `retries`. Configuration writes are refused (04) while a scan is ARMED/RUNNING/PAUSED.",
+        "3. `command` = ARM (checks the whole configuration against `max_current_mA` after gain",
+        "   and `max_pulse_us`; refused with 04 and `last_error` = -7 otherwise), then START",
+        "   (or press the button: it arms and starts; a second press aborts).",
+        "4. Frames run light-major: frame k = light k / n_exposures, exposure k % n_exposures.",
+        "   Poll `state`, `frames_done`, `ring_count`; record n (0-based, retries included) is ring",
+        "   entry n % `ring_len`, 8 registers from `ring_frame(n % ring_len)`: frame, light,",
+        "   exposure, current set, current measured, start_us (u32), flags (bit 0 sync seen, bit 1",
+        "   retry, bit 2 valid). Read new records before 16 more are written (one request of",
+        "   125 registers reads 15 records).",
+        "5. The scan ends in DONE, ABORTED (command or button) or FAULT (`fault_bits`, fault log at",
+        "   0x0300; CLEAR_FAULTS returns to IDLE). PAUSE lets the frame in progress finish.",
+        "",
+        "Frame timeline (t_open = shutter line active; exp = `exposure_time_us[e]`):",
+        "",
+        "- every mode: focus line held `prefocus_us` (if > 0), then `mirror_up_us` of waiting;",
+        "- CAMERA: LED on, `settle_us`, shutter pressed for min(exp, 100 ms); LED off at t_open + exp;",
+        "- BULB: LED on, `settle_us`, shutter held exactly exp, LED off with the shutter;",
+        "- LED: shutter open, `led_pre_us`, LED on for exactly exp, `led_post_us`, shutter released;",
+        "- then the flash-sync check: an edge after t_open and before max(window end, t_open +",
+        "  `sync_timeout_us`) counts the frame; otherwise the setting is repeated up to `retries`",
+        "  times, then the scan faults with SYNC_MISSED; `gap_us` separates frames.",
+        "",
     ]
     for ename, members in d["enums"].items():
         out.append(f"### enum `{ename}`")
@@ -326,8 +356,9 @@ def gen_md(d: dict) -> str:
             dflt = "" if r["space"] == "input" else (
                 str(r["defaults"][0]) if len(set(r["defaults"])) == 1 else
                 ", ".join(str(x) for x in r["defaults"]))
+            desc = r["description"].replace("|", "\\|")
             out.append(f"| {addr} | `{r['name']}` | {r['type']} | {r['unit']} | {rng} | "
-                       f"{dflt} | {r['description']} |")
+                       f"{dflt} | {desc} |")
         out.append("")
     return "\n".join(out)
 
