@@ -93,15 +93,29 @@ class HemisphereSensor:
         self.channels = channels
         self._sum = np.zeros((self.n_bins * self.n_cells, channels))
         self._cnt = np.zeros(self.n_bins * self.n_cells, np.int64)
+        # Rings are found from u = 1 - cos(theta) (proportional to the equal-area r^2) with a
+        # table finer than the thinnest ring, then one comparison: no arccos, no binary search.
+        self._u_edges = 1.0 - np.cos(self.edges)
+        self._u_edges[-1] = 1.0
+        n_lut = 4 * max(self.n_cells, 1024)
+        self._lut_scale = n_lut
+        self._lut = np.clip(np.searchsorted(self._u_edges, np.arange(n_lut + 1) / n_lut,
+                                            side="right") - 1, 0, self.n_bins - 1)
+        self._u_next = np.append(self._u_edges[1:], np.inf)
 
     def ring_of(self, theta):
-        return np.clip(np.searchsorted(self.edges, theta, side="right") - 1, 0, self.n_bins - 1)
+        """(K,) ring index of zenith angles theta (rad)."""
+        return self.ring_of_cos(np.cos(np.asarray(theta, dtype=np.float64)))
+
+    def ring_of_cos(self, cos_theta):
+        u = 1.0 - np.clip(cos_theta, 0.0, 1.0)
+        ring = self._lut[(u * self._lut_scale).astype(np.int64)]
+        return np.minimum(ring + (u >= self._u_next[ring]), self.n_bins - 1)
 
     def cell_of(self, o_local):
         """(K,) cell index of local directions (K, 3) with o_z >= 0."""
-        theta = np.arccos(np.clip(o_local[:, 2], -1, 1))
         phi = np.arctan2(o_local[:, 1], o_local[:, 0])           # (-pi, pi]
-        ring = self.ring_of(theta)
+        ring = self.ring_of_cos(o_local[:, 2])
         k = self.counts[ring]
         j = np.minimum(((phi + np.pi) / (2 * np.pi) * k).astype(np.int64), k - 1)
         return self.start[ring] + j
@@ -119,8 +133,7 @@ class HemisphereSensor:
         ok = np.all(np.isfinite(f), 1) & (o_local[:, 2] >= 0) & (cos_theta_s >= 0)
         if not ok.all():
             cos_theta_s, o_local, f = cos_theta_s[ok], o_local[ok], f[ok]
-        theta_s = np.arccos(np.clip(cos_theta_s, -1, 1))
-        idx = self.ring_of(theta_s) * self.n_cells + self.cell_of(o_local)
+        idx = self.ring_of_cos(cos_theta_s) * self.n_cells + self.cell_of(o_local)
         size = self._cnt.size
         self._cnt += np.bincount(idx, minlength=size)
         for ch in range(self.channels):

@@ -115,3 +115,11 @@ def test_filter_keeps_the_glossy_lobe_at_the_mirror_direction():
     mirror = fr.s[b] * [-1, 1, 1]                     # reflection of s about n, phi = pi
     ang = np.degrees(np.arccos(np.clip(fr.o[peak] @ mirror, -1, 1)))
     assert ang < 8.0
+
+
+@pytest.mark.parametrize("theta0_deg", [1.0, 3.0, 6.0])
+def test_ring_lookup_table_agrees_with_the_edges(theta0_deg):
+    sensor = HemisphereSensor(theta0_deg)
+    theta = np.r_[np.random.default_rng(4).random(200_000) * np.pi / 2, sensor.edges]
+    expected = np.clip(np.searchsorted(sensor.edges, theta, side="right") - 1, 0, sensor.n_bins - 1)
+    np.testing.assert_array_equal(sensor.ring_of(theta), expected)
