@@ -5,7 +5,6 @@
 #define SAFE_BLOCKING_MASK                                                            \
     ((1u << FW_FAULT_OVERTEMP) | (1u << FW_FAULT_LED_OPEN) | (1u << FW_FAULT_LED_SHORT) | \
      (1u << FW_FAULT_SYNC_MISSED) | (1u << FW_FAULT_MAX_PULSE) | (1u << FW_FAULT_SUPPLY_LOW))
-#define SAFE_SAMPLE_US 10000u /* temperature and supply sampled every 10 ms */
 
 static bool s_derating;
 static uint64_t s_last_host, s_last_sample;
@@ -63,7 +62,7 @@ void fw_host_seen(void) { s_last_host = hal_time_us(); }
 void safe_poll(void)
 {
     uint64_t now = hal_time_us();
-    if (!s_sampled || now - s_last_sample >= SAFE_SAMPLE_US) {
+    if (!s_sampled || now - s_last_sample >= FW_CFG_SAFE_SAMPLE_US) {
         s_sampled = true;
         s_last_sample = now;
         int32_t t = hal_adc_read(HAL_ADC_NTC_CENTI_C);

@@ -16,10 +16,6 @@
  */
 #include "fw_core.h"
 
-#ifndef FW_CFG_RELEASE_PULSE_US
-#define FW_CFG_RELEASE_PULSE_US 100000u /* camera mode: length of the release press */
-#endif
-
 typedef enum {
     ST_NONE,
     ST_FOCUS,

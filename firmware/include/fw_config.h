@@ -53,6 +53,12 @@
 #ifndef FW_CFG_SUPPLY_MIN_MV
 #define FW_CFG_SUPPLY_MIN_MV 9000u        /* LED supply below this while lit: fault */
 #endif
+#ifndef FW_CFG_RELEASE_PULSE_US
+#define FW_CFG_RELEASE_PULSE_US 100000u   /* camera mode: length of the shutter-release press */
+#endif
+#ifndef FW_CFG_SAFE_SAMPLE_US
+#define FW_CFG_SAFE_SAMPLE_US 10000u      /* temperature and supply sampled this often */
+#endif
 #ifndef FW_CFG_DEBOUNCE_US
 #define FW_CFG_DEBOUNCE_US 20000u         /* button level must hold this long */
 #endif

@@ -151,4 +151,25 @@ void test_mb(void)
         CHECK_EQ((int16_t)th_reg_in(FW_REG_LAST_ERROR), FW_ERR_STATE);
         CHECK_EQ(th_write(FW_REG_HOST_WATCHDOG_MS, 100), 0); /* not scan configuration */
     }
+    SHOULD("accept the largest write (123 registers) and the full u32 range where allowed")
+    {
+        static uint8_t req[300] = {1, 16, 0x11, 0x20, 0, 80, 160};
+        /* light_order[16], light_current_mA[16], exposure_time_us[16] (u32), exposure_current_mA[16] */
+        for (unsigned i = 0; i < 16; i++) {
+            req[7 + 2 * i + 1] = (uint8_t)(15 - i);
+            req[7 + 32 + 2 * i + 1] = 100;
+            req[7 + 64 + 4 * i + 3] = 50;
+            req[7 + 128 + 2 * i + 1] = 0;
+        }
+        uint8_t resp[300];
+        CHECK_EQ(th_transact_crc(req, 7 + 160, resp), 8);
+        CHECK_EQ(th_reg_hold(FW_REG_LIGHT_ORDER(0)), 15);
+        CHECK_EQ(mb_reg_get(FW_SLOT_EXPOSURE_TIME_US + 15), 50);
+        uint8_t big[16] = {1, 16, 0x11, 0x00, 0, 124, 248, 0, 1};
+        CHECK_EQ(th_transact_crc(big, 9, resp), 5); /* quantity 124 > 123: exception 03 */
+        CHECK_EQ(resp[2], 3);
+        CHECK_EQ(th_write(FW_REG_CAL_UNLOCK, FW_UNLOCK_KEY), 0);
+        CHECK_EQ(th_write32(FW_REG_CAL_SERIAL, 0xFFFFFFFFu), 0);
+        CHECK_EQ(mb_reg_get(FW_SLOT_CAL_SERIAL), 0xFFFFFFFFu);
+    }
 }

@@ -259,4 +259,34 @@ void test_seq(void)
         CHECK(th_run_until_state(FW_STATE_DONE, 5000000));
         CHECK_EQ(th_reg_in32(FW_REG_TIME_LEFT_US), 0);
     }
+    SHOULD("run the largest scan (16 lights x 16 exposures) and wrap the frame ring")
+    {
+        static uint32_t e16[16];
+        for (unsigned e = 0; e < 16; e++)
+            e16[e] = 100u + 7u * e;
+        config(FW_TIMING_MODE_LED, 16, 16, e16);
+        start();
+        CHECK(th_run_until_state(FW_STATE_DONE, 60000000));
+        CHECK_EQ(th_reg_in(FW_REG_FRAMES_DONE), 256);
+        CHECK_EQ(th_reg_in(FW_REG_FRAMES_EXPECTED), 256);
+        CHECK_EQ(th_reg_in(FW_REG_RING_COUNT), 256);
+        CHECK_EQ(th_reg_in(FW_REG_RING_FRAME(15)), 255); /* record 255 -> entry 255 % 16 */
+        CHECK_EQ(th_reg_in(FW_REG_RING_LIGHT(15)), 15);
+        CHECK_EQ(th_reg_in(FW_REG_RING_EXPOSURE(15)), 15);
+        CHECK_EQ(th_reg_in(FW_REG_RING_FRAME(0)), 240);
+        const th_event_t *on = LED_ON(255), *off = LED_OFF(255);
+        CHECK(on && off && off->t - on->t == e16[15] && on->a == 15);
+    }
+    SHOULD("record the derated measured current next to the set one when the LEDs run hot")
+    {
+        static const uint32_t e1[1] = {30000};
+        config(FW_TIMING_MODE_BULB, 1, 1, e1);
+        th.ntc_cC = 7000;
+        th_advance(20000);
+        start();
+        CHECK(th_run_until_state(FW_STATE_DONE, 3000000));
+        CHECK_EQ(th_reg_in(FW_REG_RING_CURRENT_SET_MA(0)), 500);
+        CHECK_EQ(th_reg_in(FW_REG_RING_CURRENT_MEAS_MA(0)), 250);
+        CHECK_EQ(LED_ON(0)->b, 250);
+    }
 }
