@@ -39,8 +39,9 @@ class _Data:
     values (1/|noisy value| favours the draws that came out low and biases K_d down by
     several % at 30 % noise)."""
 
-    def __init__(self, s, o, values, base, relative, notes):
+    def __init__(self, s, o, values, base, relative, notes, o_spread=None):
         self.s, self.o, self.values, self.base, self.relative, self.notes = s, o, values, base, relative, notes
+        self.o_spread = o_spread
         self.floor = 0.05 * np.maximum(np.mean(np.abs(values), axis=0), 1e-12)  # for values near 0
         self.reweight(values)
 
@@ -55,9 +56,11 @@ class _Data:
         return self.values.shape[1]
 
 
-def prepare_samples(s, o, values, counts=None, weighting="relative", specular_weight=1.0, specular_cone_deg=10.0):
+def prepare_samples(s, o, values, counts=None, weighting="relative", specular_weight=1.0, specular_cone_deg=10.0,
+                    o_spread=None):
     """Check and weight samples. s, o: (N, 3) local-frame unit vectors; values (N,) or (N, C) in 1/sr;
-    counts: (N,) samples averaged in each value (hemisphere-filter cells), or None.
+    counts: (N,) samples averaged in each value (hemisphere-filter cells), or None;
+    o_spread: (N, K, 3) directions spread over each value's observation cell, or None.
 
     Rows with a non-finite value, a direction at or below the horizon or a count of 0 are dropped
     (and said in the result's message). Raises ValueError on shapes that do not match.
@@ -76,6 +79,11 @@ def prepare_samples(s, o, values, counts=None, weighting="relative", specular_we
         raise ValueError(f"weighting = {weighting!r}: choose one of {', '.join(WEIGHTINGS)}")
     if not (np.isfinite(specular_weight) and specular_weight > 0):
         raise ValueError(f"specular_weight = {specular_weight}: give a positive factor (1 = no extra weight)")
+    if o_spread is not None:
+        o_spread = np.asarray(o_spread, dtype=float)
+        if o_spread.ndim != 3 or o_spread.shape[0] != len(s) or o_spread.shape[2] != 3:
+            raise ValueError(f"o_spread must be (N, K, 3) with N = {len(s)}: K directions spread over each "
+                             f"sample's observation cell; got {o_spread.shape}")
     c = np.ones(len(s)) if counts is None else np.asarray(counts, dtype=float).reshape(-1)
     if c.shape != (len(s),):
         raise ValueError(f"counts must be (N,) = ({len(s)},), one count per sample; got {c.shape}")
@@ -89,12 +97,14 @@ def prepare_samples(s, o, values, counts=None, weighting="relative", specular_we
         notes.append(f"{int((~ok).sum())} of {len(ok)} samples dropped (non-finite, at/below the horizon, "
                      "or empty cells)")
     s, o, v, c = s[ok] / ns[ok, None], o[ok] / no[ok, None], v[ok], c[ok]
+    if o_spread is not None:
+        o_spread = o_spread[ok] / np.linalg.norm(o_spread[ok], axis=-1, keepdims=True)
     base = np.sqrt(c)[:, None] * np.ones((1, v.shape[1]))
     if specular_weight != 1.0 and len(s):
         h = s + o
         h /= np.linalg.norm(h, axis=1, keepdims=True)
         base[h[:, 2] > np.cos(np.radians(specular_cone_deg))] *= specular_weight
-    return _Data(s, o, v, base, weighting == "relative", notes)
+    return _Data(s, o, v, base, weighting == "relative", notes, o_spread)
 
 
 def _residual_fn(model, data):
@@ -197,13 +207,13 @@ def _default_volume_options(volume, options):
 
 def _make_model(model, data, distribution, masking, volume, interreflection, volume_options, n_paths=256):
     return FitModel(model, data.s, data.o, data.channels, distribution, masking, volume, interreflection,
-                    _default_volume_options(volume, volume_options or {}), n_paths)
+                    _default_volume_options(volume, volume_options or {}), n_paths, data.o_spread)
 
 
 def fit_least_squares(s, o, values, model="li", distribution="beckmann", masking="smith", volume="quadrature",
                       interreflection=False, counts=None, weighting="relative", specular_weight=1.0,
                       specular_cone_deg=10.0, n_starts=6, x0=None, volume_options=None, max_nfev=200,
-                      reweight_passes=2):
+                      reweight_passes=2, o_spread=None):
     """Bounded least squares (scipy ``least_squares``, TRF) from ``n_starts`` starts; the best kept.
 
     Starts: a grid over σ ∈ {0.05, 0.15, 0.4, 0.8} × n_i ∈ {1.15, 1.5} (first n_starts of it) with
@@ -213,7 +223,7 @@ def fit_least_squares(s, o, values, model="li", distribution="beckmann", masking
     Returns a FitResult (success False with the reason when it fails).
     """
     t0 = time.perf_counter()
-    data = prepare_samples(s, o, values, counts, weighting, specular_weight, specular_cone_deg)
+    data = prepare_samples(s, o, values, counts, weighting, specular_weight, specular_cone_deg, o_spread)
     fm = _make_model(model, data, distribution, masking, volume, interreflection, volume_options)
     bad = _check_enough(fm, data, "least_squares", t0)
     if bad:
@@ -253,7 +263,7 @@ def fit_least_squares(s, o, values, model="li", distribution="beckmann", masking
 def fit_genetic(s, o, values, model="li", distribution="beckmann", masking="smith", volume="quadrature",
                 interreflection=False, counts=None, weighting="relative", specular_weight=1.0,
                 specular_cone_deg=10.0, population=40, generations=60, keep=0.2, p_mutation=0.4,
-                error_threshold=0.0, rng=0, volume_options=None):
+                error_threshold=0.0, rng=0, volume_options=None, o_spread=None):
     """The thesis's genetic algorithm (§4.2.2, fig 4.18), seeded by ``rng``.
 
     1. ``population`` random parameter sets, uniform in the bounds;
@@ -265,7 +275,7 @@ def fit_genetic(s, o, values, model="li", distribution="beckmann", masking="smit
     4. stop when the best weighted RMS error < ``error_threshold`` or after ``generations``.
     """
     t0 = time.perf_counter()
-    data = prepare_samples(s, o, values, counts, weighting, specular_weight, specular_cone_deg)
+    data = prepare_samples(s, o, values, counts, weighting, specular_weight, specular_cone_deg, o_spread)
     fm = _make_model(model, data, distribution, masking, volume, interreflection, volume_options)
     bad = _check_enough(fm, data, "genetic", t0)
     if bad:
@@ -321,7 +331,8 @@ def fit_genetic(s, o, values, model="li", distribution="beckmann", masking="smit
 
 def fit_brdf(s, o, values, model="li", method="least_squares", distribution="beckmann", masking=None,
              volume="quadrature", interreflection="auto", counts=None, weighting="relative", specular_weight=1.0,
-             specular_cone_deg=10.0, select=True, n_i_tolerance=0.01, rel_error_tolerance=0.02, **options):
+             specular_cone_deg=10.0, select=True, n_i_tolerance=0.01, rel_error_tolerance=0.02, o_spread=None,
+             **options):
     """Fit a BRDF to reflectance samples and keep only what the data needs.
 
     Parameters
@@ -333,6 +344,9 @@ def fit_brdf(s, o, values, model="li", method="least_squares", distribution="bec
     interreflection : "auto" (LI with masking="vcavity": added only if the fitted σ ≥ 0.2 and it lowers
         the error), True, or False.
     counts : (N,) samples per value (hemisphere-filter cells) or None.
+    o_spread : (N, K, 3) or None. When each value averages a cell of the hemisphere filter, K
+        directions spread over that cell: the model is then averaged over them (the filter's
+        forward model), which removes the bias a cell as wide as the specular lobe puts on σ.
     weighting, specular_weight, specular_cone_deg : the residual weights (module doc).
     select : try the simpler models when the interface is not needed (n_i − 1 < max(n_i_tolerance,
         2 × its uncertainty)): Oren–Nayar, then Lambert; a simpler model is kept when its relative
@@ -349,7 +363,7 @@ def fit_brdf(s, o, values, model="li", method="least_squares", distribution="bec
         masking = "vcavity" if model == "cook_torrance" else "smith"
     fitter = fit_least_squares if method == "least_squares" else fit_genetic
     common = dict(counts=counts, weighting=weighting, specular_weight=specular_weight,
-                  specular_cone_deg=specular_cone_deg)
+                  specular_cone_deg=specular_cone_deg, o_spread=o_spread)
     t0 = time.perf_counter()
     if interreflection not in ("auto", True, False):
         raise ValueError(f"interreflection = {interreflection!r}: use 'auto', True or False")

@@ -24,7 +24,7 @@ class FitModel:
     """One model with fixed options, evaluated on fixed sample directions s, o (N, 3)."""
 
     def __init__(self, name, s, o, channels, distribution="beckmann", masking="smith", volume="quadrature",
-                 interreflection=False, volume_options=None, n_paths=256):
+                 interreflection=False, volume_options=None, n_paths=256, o_spread=None):
         if name not in MODEL_NAMES:
             raise ValueError(f"model = {name!r}: choose one of {', '.join(MODEL_NAMES)}")
         self.name = name
@@ -34,7 +34,11 @@ class FitModel:
         self.interreflection = bool(interreflection)
         self.volume_options = dict(volume_options or {})
         self.n_paths = int(n_paths)
-        self.up = ((s[:, 2] > 0) & (o[:, 2] > 0)).astype(float)
+        if o_spread is not None:
+            # each value is a cell average: evaluate at K directions spread over the cell and
+            # average (exact for the K_d-free parts, which enter the model linearly)
+            self.s, self.o = s[:, None, :], o_spread
+        self.up = self._mean((self.s[..., 2] > 0) & (self.o[..., 2] > 0))
         self._cache = {}
         self.n_evaluations = 0
         if name in ("li", "cook_torrance"):
@@ -45,6 +49,10 @@ class FitModel:
             self.names = []
         self.n_shared = len(self.names)
         self.names = self.names + [f"kd[{c}]" for c in range(self.channels)]
+
+    def _mean(self, x):
+        x = np.asarray(x, dtype=float)
+        return x.mean(axis=1) if x.ndim == 2 else x
 
     @property
     def n_params(self):
@@ -69,14 +77,15 @@ class FitModel:
         if key in self._cache:
             return self._cache[key]
         self.n_evaluations += 1
-        spec = li_specular(self.s, self.o, sigma, n_i, self.distribution, self.masking)
+        spec = self._mean(li_specular(self.s, self.o, sigma, n_i, self.distribution, self.masking))
         parts = {"spec": spec}
         if self.name == "li":
-            parts["I"] = self.up * volume_integral(self.s, self.o, sigma, n_i, self.distribution, self.masking,
-                                                   self.volume, **self.volume_options)
+            up = (self.s[..., 2] > 0) & (self.o[..., 2] > 0)
+            parts["I"] = self._mean(up * volume_integral(self.s, self.o, sigma, n_i, self.distribution,
+                                                         self.masking, self.volume, **self.volume_options))
             if self.interreflection:
-                parts["J"] = interreflection_integral_vcavity(self.s, self.o, sigma, n_i, self.distribution,
-                                                              n_paths=self.n_paths, rng=12345)
+                parts["J"] = self._mean(interreflection_integral_vcavity(
+                    self.s, self.o, sigma, n_i, self.distribution, n_paths=self.n_paths, rng=12345))
         if len(self._cache) > 64:
             self._cache.clear()
         self._cache[key] = parts
@@ -91,8 +100,8 @@ class FitModel:
             key = ("on", round(float(shared["sigma"]), 15))
             if key not in self._cache:
                 self.n_evaluations += 1
-                a = oren_nayar1994(self.s, self.o, 1.0, shared["sigma"], interreflection=False)
-                b = oren_nayar1994(self.s, self.o, 1.0, shared["sigma"], interreflection=True) - a
+                a = self._mean(oren_nayar1994(self.s, self.o, 1.0, shared["sigma"], interreflection=False))
+                b = self._mean(oren_nayar1994(self.s, self.o, 1.0, shared["sigma"], interreflection=True)) - a
                 self._cache[key] = (a, b)
             a, b = self._cache[key]
             return a[:, None] * kd[None, :] + b[:, None] * kd[None, :] ** 2
