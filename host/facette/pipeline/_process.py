@@ -24,7 +24,7 @@ from facette.io.ply import write_ply
 from facette.io.png import write_mask
 from facette.recon import (integrate, mesh_from_height, near_light_directions, photometric_stereo)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
-from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_angles, THETA0_DEG
+from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
 from facette.pipeline._inputs import load_input
 
 __all__ = ["OUTPUTS", "STAGES_FOR", "ProcessResult", "process", "stages_needed"]
@@ -93,14 +93,15 @@ def _samples_stage(inp, ps, light_dirs, theta0_deg, chunk=262144, keep=RAW_SAMPL
     for a in range(0, pix.size, chunk):
         p = pix[a:a + chunk]
         s = light_dirs if light_dirs.ndim == 2 else light_dirs.reshape(h * w, m, 3)[p]
-        li, pi_, cs, o_loc, f = sample_angles(flat[:, p], ps.normal.reshape(-1, 3)[p], s,
-                                              shadow[p].T)
-        sensor.add_angles(cs, o_loc, f)
-        take = np.flatnonzero(rng.random(len(f)) < keep / total)
-        cs_t = cs[take]
-        s_t = np.stack([np.sqrt(np.maximum(1 - cs_t ** 2, 0)), np.zeros_like(cs_t), cs_t], axis=1)
-        parts.append(ReflectanceSamples(s_t, o_loc[take], f[take], p[pi_[take]],
-                                        li[take].astype(np.int16)))
+        g = sample_grid(flat[:, p], ps.normal.reshape(-1, 3)[p], s, shadow[p].T)
+        sensor.add_grid(g["cos_s"], g["o_x"], g["o_y"], g["cos_o"], g["f"], g["keep"])
+        li, pi_ = np.nonzero(g["keep"] & (rng.random(g["keep"].shape, np.float32) < keep / total))
+        cs = g["cos_s"][li, pi_]
+        s_t = np.stack([np.sqrt(np.maximum(1 - cs ** 2, 0)), np.zeros_like(cs), cs], axis=1)
+        o_t = np.stack([g["o_x"][li, pi_], g["o_y"][li, pi_], g["cos_o"][pi_]], axis=1)
+        parts.append(ReflectanceSamples(s_t.astype(np.float32), o_t.astype(np.float32),
+                                        g["f"][li, pi_].astype(np.float32), p[pi_],
+                                        li.astype(np.int16)))
     if not parts:
         parts.append(ReflectanceSamples(*(np.zeros((0, 3), np.float32),) * 3,
                                         np.zeros(0, np.int64), np.zeros(0, np.int16)))

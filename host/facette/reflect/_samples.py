@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ReflectanceSamples", "reflectance_samples", "samples_from_pixels", "sample_angles",
+__all__ = ["ReflectanceSamples", "reflectance_samples", "samples_from_pixels", "sample_angles", "sample_grid",
            "local_frame_directions", "MIN_COS"]
 
 MIN_COS = 0.05   # samples with n.s below this (incidence beyond ~87 deg) divide noise by ~0
@@ -138,6 +138,38 @@ def sample_angles(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MI
     o_loc = np.stack([ox, oy, cz], axis=1).astype(np.float32)
     f = (e[li, pi_] / (k * cs)[:, None]).astype(np.float32)
     return li, pi_, cs.astype(np.float32), o_loc, f
+
+
+def sample_grid(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MIN_COS):
+    """Eq 4.11 on a whole (light, pixel) grid, nothing gathered (for the hemisphere sensor).
+
+    e : (m, P, C); n : (P, 3) unit; s : (m, 3) or (P, m, 3); exclude : (m, P) bool or None.
+    Returns dict of cos_s (m, P), o_x, o_y (m, P), cos_o (P,), f (m, P, C), keep (m, P);
+    the local frame as in `sample_angles`.
+    """
+    o = np.asarray(view, dtype=np.float32)
+    n = np.asarray(n, dtype=np.float32)
+    s = np.asarray(s, dtype=np.float32)
+    if s.ndim == 2:
+        ns = s @ n.T
+        so = (s @ o)[:, None]
+        sxo = np.cross(s, o) @ n.T
+    else:
+        ns = np.einsum("pmi,pi->mp", s, n)
+        so = np.einsum("pmi,i->mp", s, o)
+        sxo = np.einsum("pmi,pi->mp", np.cross(s, o), n)
+    no = n @ o
+    keep = (ns >= min_cos) & (no > 0)[None, :]
+    if exclude is not None:
+        keep &= ~exclude
+    sin_s = np.sqrt(np.maximum(1 - ns * ns, 0))
+    big = sin_s > 1e-6
+    inv = np.where(big, 1.0 / np.where(big, sin_s, 1.0), 0.0).astype(np.float32)
+    o_x = np.where(big, (so - ns * no) * inv, np.sqrt(np.maximum(1 - no * no, 0)))
+    o_y = sxo * inv
+    with np.errstate(invalid="ignore", divide="ignore"):
+        f = e / (k * np.where(keep, ns, 1.0))[..., None]
+    return dict(cos_s=ns, o_x=o_x, o_y=o_y, cos_o=no, f=f, keep=keep)
 
 
 def samples_from_pixels(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MIN_COS):

@@ -123,3 +123,19 @@ def test_ring_lookup_table_agrees_with_the_edges(theta0_deg):
     theta = np.r_[np.random.default_rng(4).random(200_000) * np.pi / 2, sensor.edges]
     expected = np.clip(np.searchsorted(sensor.edges, theta, side="right") - 1, 0, sensor.n_bins - 1)
     np.testing.assert_array_equal(sensor.ring_of(theta), expected)
+
+
+def test_grid_accumulation_equals_accumulating_gathered_samples():
+    from facette.reflect import sample_grid
+    sc = sphere_on_plane(48, 48)
+    imgs = render(sc, L, "glossy", ks=3.0)
+    imgs[3, 10, 10] = np.nan
+    smp = reflectance_samples(imgs, sc.normals, L)
+    a = hemisphere_filter(smp)
+    sensor = HemisphereSensor(channels=3)
+    e = imgs.reshape(12, -1, 3)
+    g = sample_grid(e, sc.normals.reshape(-1, 3), L)
+    sensor.add_grid(g["cos_s"], g["o_x"], g["o_y"], g["cos_o"], g["f"], g["keep"])
+    b = sensor.result()
+    np.testing.assert_array_equal(a.count, b.count)
+    np.testing.assert_allclose(np.nan_to_num(a.mean), np.nan_to_num(b.mean), rtol=1e-5)
