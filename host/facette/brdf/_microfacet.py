@@ -15,11 +15,12 @@ import numpy as np
 from scipy.special import erfc
 
 __all__ = [
-    "DISTRIBUTIONS", "MASKINGS", "check_sigma", "gaussian_norm_exact", "gaussian_norm_rational_tsb2014",
+    "DISTRIBUTIONS", "MASKINGS", "SIGMA_FLAT", "check_sigma", "gaussian_norm_exact", "gaussian_norm_rational_tsb2014",
     "distribution_d", "smith_g1", "masking_g", "sample_microfacet_normals", "microfacet_quadrature",
 ]
 
 DISTRIBUTIONS = ("gaussian", "beckmann", "ggx")
+SIGMA_FLAT = 1e-9  # roughness below this is treated as 0 (a flat facet, Dirac lobe)
 MASKINGS = ("smith", "vcavity")
 _SQRT_PI = np.sqrt(np.pi)
 
@@ -32,6 +33,9 @@ def check_sigma(sigma, distribution="beckmann"):
     if arr.shape not in ((1,), (2,)) or not np.all(np.isfinite(arr)) or np.any(arr < 0) or np.any(arr > 10):
         raise ValueError(f"sigma = {sigma!r}: give a roughness in [0, 10] (float) or a pair "
                          "(sigma_x, sigma_y) for an anisotropic distribution (the fits use [0, 2])")
+    # A lobe narrower than SIGMA_FLAT cannot be resolved in double precision (1 − cos of that
+    # angle is below the machine epsilon) and 1/(π σ²) overflows for σ ≲ 1e-154: flat surface.
+    arr = np.where(arr < SIGMA_FLAT, 0.0, arr)
     sx, sy = float(arr[0]), float(arr[-1])
     iso = sx == sy
     if not iso and distribution == "gaussian":
