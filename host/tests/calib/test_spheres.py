@@ -16,16 +16,26 @@ def _angle_deg(a, b):
     return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1, 1)))
 
 
-def _mirror_stack(dirs=None, positions=None, center=CENTER, noise=0.0, seed=0, **kw):
+def _mirror_stack(dirs=None, positions=None, center=CENTER, noise=0.0, seed=0, supersample=6, **kw):
     rng = np.random.default_rng(seed)
     n = len(dirs if dirs is not None else positions)
     out = []
     for i in range(n):
         lk = {"direction": dirs[i]} if positions is None else {"position_mm": positions[i]}
         img = render_mirror_sphere(SHAPE, center, R, PITCH, source_radius_deg=1.0, psf_px=1.0,
-                                   supersample=6, **lk, **kw)
+                                   supersample=supersample, **lk, **kw)
         out.append(img + noise * rng.standard_normal(img.shape))
     return np.stack(out)
+
+
+_NOMINAL = {}
+
+
+def _nominal_stack():
+    """The 12 nominal LEDs on the mirror sphere, rendered once for the tests that share it."""
+    if "stack" not in _NOMINAL:
+        _NOMINAL["stack"] = _mirror_stack(nominal_light_directions())
+    return _NOMINAL["stack"]
 
 
 def test_fit_circle_exact_and_rejects_too_few_points():
@@ -37,7 +47,7 @@ def test_fit_circle_exact_and_rejects_too_few_points():
 
 
 def test_outline_is_sub_pixel_from_the_grey_edge():
-    img = _mirror_stack(nominal_light_directions()).mean(axis=0)
+    img = _nominal_stack().mean(axis=0)
     mask = sphere_mask(img, dark=True)
     binary = fit_sphere_outline(mask)
     grey = fit_sphere_outline(mask, img)
@@ -47,7 +57,8 @@ def test_outline_is_sub_pixel_from_the_grey_edge():
 
 def test_mirror_directions_match_truth_to_a_tenth_of_a_degree():
     d = nominal_light_directions()
-    dirs, circle, hl = mirror_sphere_directions(_mirror_stack(d, noise=0.02))
+    noisy = _nominal_stack() + 0.02 * np.random.default_rng(0).standard_normal(_nominal_stack().shape)
+    dirs, circle, hl = mirror_sphere_directions(noisy)
     err = _angle_deg(dirs, d)
     assert err.max() < 0.15, err
     assert not any(h.saturated for h in hl)
@@ -90,7 +101,7 @@ def test_led_positions_from_two_placements():
     P = d * 400.0 + np.array([5.0, -3.0, 0.0])
     origins, dirs = [], []
     for center in ((52.0, 72.0), (128.0, 78.0)):
-        stack = _mirror_stack(positions=P, center=center)
+        stack = _mirror_stack(positions=P, center=center, supersample=3)
         _, circle, hl = mirror_sphere_directions(stack)
         o, l = sphere_rays(circle, hl, SHAPE, PITCH)
         origins.append(o)
