@@ -1,5 +1,22 @@
-"""Rig calibration: profiles (load/save), and the calibration procedures."""
+"""Rig calibration: profiles (load/save), and the calibration procedures.
+
+- profiles: `load`, `save`, `Profile`, `Lights`, `nominal_light_directions`;
+- Spectralon: `spectralon_intensities`, `flat_field`, `led_current_gains`;
+- mirror sphere: `mirror_sphere_directions`, `light_positions_from_rays`; matte sphere:
+  `matte_sphere_directions` (cross-check);
+- RTI interop: `read_lp`, `write_lp`;
+- the wizard (`facette calibrate`): `facette.calib.wizard`; targets shown on the
+  simulated rig: `facette.calib.targets`.
+"""
+from facette.calib.lp import lights_from_lp, read_lp, write_lp, write_profile_lp
+from facette.calib.matte_sphere import matte_sphere_directions
+from facette.calib.mirror_sphere import (directions_from_origin, light_positions_from_rays,
+                                         mirror_sphere_directions)
 from facette.calib.profile import (Lights, Profile, ProfileError, load, nominal_light_directions,
                                    save)
+from facette.calib.spectralon import flat_field, led_current_gains, spectralon_intensities
 
-__all__ = ["Lights", "Profile", "ProfileError", "load", "save", "nominal_light_directions"]
+__all__ = ["Lights", "Profile", "ProfileError", "load", "save", "nominal_light_directions",
+           "spectralon_intensities", "flat_field", "led_current_gains", "mirror_sphere_directions",
+           "light_positions_from_rays", "directions_from_origin", "matte_sphere_directions",
+           "read_lp", "write_lp", "lights_from_lp", "write_profile_lp"]

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["read_lp", "write_lp"]
+__all__ = ["read_lp", "write_lp", "lights_from_lp", "write_profile_lp"]
 
 
 def read_lp(path, normalize=True):
@@ -63,3 +63,20 @@ def write_lp(path, filenames, vectors):
     text = [str(len(v))] + [f"{f} {x:.9f} {y:.9f} {z:.9f}" for f, (x, y, z) in zip(filenames, v)]
     Path(path).write_text("\n".join(text) + "\n")
     return Path(path)
+
+
+def lights_from_lp(path):
+    """`facette.calib.Lights` from an .lp file: its unit directions, unit intensities
+    (an .lp file carries no intensity). Returns (Lights, filenames)."""
+    from facette.calib.profile import Lights
+
+    names, dirs = read_lp(path)
+    return Lights(dirs, np.ones((len(dirs), 3))), names
+
+
+def write_profile_lp(profile, path, filenames=None):
+    """Write a profile's light directions as an .lp file (default file names
+    ``hdr/light_XX.exr``, the HDR images of a facette scan)."""
+    m = len(profile.lights)
+    names = filenames or [f"hdr/light_{i:02d}.exr" for i in range(m)]
+    return write_lp(path, names, profile.lights.directions)

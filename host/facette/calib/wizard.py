@@ -527,6 +527,10 @@ class Wizard:
                        history=[f"{now} facette calibrate: {', '.join(self.steps)}"] + self.history)
         folder = Path(folder) if folder else Path("calibration/profiles") / rig_name
         path = save(prof, folder)
+        from facette.calib.lp import write_profile_lp
+
+        # the same directions for the RTI world (RTIBuilder, relight): one .lp per profile
+        write_profile_lp(prof, folder / f"lights-{prof.id}.lp")
         self._say()
         self._say(f"profile {prof.id} written to {path} (sha256 {prof.sha256[:12]}…; previous kept "
                   f"beside it) in {time.perf_counter() - t0:.1f} s")
