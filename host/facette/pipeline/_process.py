@@ -14,6 +14,7 @@ Stages run only when a requested output needs them (DESIGN §2):
 """
 import json
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -79,37 +80,51 @@ class ProcessResult:
     options: dict = field(default_factory=dict)
 
 
-def _samples_stage(inp, ps, light_dirs, theta0_deg, chunk=262144, keep=RAW_SAMPLES_KEPT, seed=0):
+def _samples_stage(inp, ps, light_dirs, theta0_deg, chunk=131072, keep=RAW_SAMPLES_KEPT, seed=0,
+                   workers=2):
     """Samples (eq 4.11) pixel block by pixel block into the hemisphere sensor, keeping a
-    uniform random subset of the raw samples. Shadows found by the PS stage are left out."""
+    uniform random subset of the raw samples. Shadows found by the PS stage are left out.
+    Blocks run on `workers` threads (numpy releases the GIL), each with its own sensor."""
     m, h, w, c = inp.images.shape
-    sensor = HemisphereSensor(theta0_deg, channels=c)
     pix = np.flatnonzero((ps.valid & inp.mask).ravel())
     flat = inp.images.reshape(m, h * w, c)
-    rng = np.random.default_rng(seed)
     total = max(pix.size * m, 1)
-    parts = []
     shadow = ps.shadow.reshape(-1, m)
-    for a in range(0, pix.size, chunk):
+    normals = ps.normal.reshape(-1, 3)
+    finite = bool(np.isfinite(inp.images).all())          # one pass instead of one per block
+
+    def block(a):
+        sensor = HemisphereSensor(theta0_deg, channels=c)
+        rng = np.random.default_rng([seed, a])
         p = pix[a:a + chunk]
         s = light_dirs if light_dirs.ndim == 2 else light_dirs.reshape(h * w, m, 3)[p]
-        g = sample_grid(flat[:, p], ps.normal.reshape(-1, 3)[p], s, shadow[p].T)
-        sensor.add_grid(g["cos_s"], g["o_x"], g["o_y"], g["cos_o"], g["f"], g["keep"])
+        e = flat[:, p]
+        g = sample_grid(e, normals[p], s, shadow[p].T, check_finite=not finite)
+        sensor.add_grid(g["cos_s"], g["o_x"], g["o_y"], g["cos_o"], e, g["keep"], g["scale"])
         li, pi_ = np.nonzero(g["keep"] & (rng.random(g["keep"].shape, np.float32) < keep / total))
         cs = g["cos_s"][li, pi_]
         s_t = np.stack([np.sqrt(np.maximum(1 - cs ** 2, 0)), np.zeros_like(cs), cs], axis=1)
         o_t = np.stack([g["o_x"][li, pi_], g["o_y"][li, pi_], g["cos_o"][pi_]], axis=1)
-        parts.append(ReflectanceSamples(s_t.astype(np.float32), o_t.astype(np.float32),
-                                        g["f"][li, pi_].astype(np.float32), p[pi_],
-                                        li.astype(np.int16)))
+        f_t = e[li, pi_] * g["scale"][li, pi_][:, None]
+        return sensor, ReflectanceSamples(s_t.astype(np.float32), o_t.astype(np.float32),
+                                          f_t.astype(np.float32), p[pi_], li.astype(np.int16))
+
+    starts = range(0, pix.size, chunk)
+    if workers > 1 and len(starts) > 1:
+        with ThreadPoolExecutor(workers) as pool:
+            done = list(pool.map(block, starts))
+    else:
+        done = [block(a) for a in starts]
+    total_sensor = HemisphereSensor(theta0_deg, channels=c)
+    for sensor, _ in done:
+        total_sensor.merge(sensor)
+    parts = [smp for _, smp in done]
     if not parts:
         parts.append(ReflectanceSamples(*(np.zeros((0, 3), np.float32),) * 3,
                                         np.zeros(0, np.int64), np.zeros(0, np.int16)))
-    raw = parts[0] if len(parts) == 1 else None
-    if len(parts) > 1:
-        raw = ReflectanceSamples(*(np.concatenate([getattr(q, k) for q in parts])
-                                   for k in ("s", "o", "f", "pixel", "light")))
-    return sensor.result(), raw
+    raw = parts[0] if len(parts) == 1 else ReflectanceSamples(
+        *(np.concatenate([getattr(q, k) for q in parts]) for k in ("s", "o", "f", "pixel", "light")))
+    return total_sensor.result(), raw
 
 
 def _fit_stage(filtered, fit_options):

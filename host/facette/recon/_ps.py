@@ -5,6 +5,7 @@ directions are unit vectors from the surface towards the light, in that frame.
 Images are linear radiance already divided by each light's intensity, so that a
 Lambertian surface of reflectance rho gives E_i = (rho / pi) s_i . n  (thesis eq 4.3).
 """
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from itertools import combinations
 
@@ -128,6 +129,19 @@ def near_light_directions(positions_mm, shape, pixel_pitch_mm, heights_mm=None):
 
 # ----------------------------------------------------------------------------- least squares
 
+WORKERS = 2   # threads for independent pixel blocks (numpy releases the GIL in its loops)
+
+
+def _run_blocks(fn, starts, workers=WORKERS):
+    """Call fn(start) for each block start, on threads; blocks write disjoint slices."""
+    starts = list(starts)
+    if workers > 1 and len(starts) > 1:
+        with ThreadPoolExecutor(workers) as pool:
+            list(pool.map(fn, starts))
+    else:
+        for a in starts:
+            fn(a)
+
 def _ls_normals(e, s, ok):
     """Least squares g = argmin ||W (E - S g)|| per pixel (light-major layout).
 
@@ -167,7 +181,8 @@ def _albedo(e_all, s, n, keep, chunk=262144):
     """
     c = e_all.shape[2]
     out = np.zeros((n.shape[1], c), np.float32)
-    for a in range(0, n.shape[1], chunk):
+
+    def block(a):
         sl = slice(a, a + chunk)
         sn = _shading(s if s.ndim == 2 else s[sl], n[:, sl])
         w = keep[:, sl] & (sn > 0)
@@ -177,6 +192,8 @@ def _albedo(e_all, s, n, keep, chunk=262144):
         for ch in range(c):
             num = np.sum(np.where(w, e_all[:, sl, ch], np.float32(0)) * sn_w, axis=0)
             out[sl, ch] = np.where(good, np.pi * num / np.where(good, den, 1.0), 0.0)
+
+    _run_blocks(block, range(0, n.shape[1], chunk))
     return out
 
 
@@ -214,18 +231,29 @@ def _pixel_dirs(light_dirs, idx):
     return light_dirs.reshape(h * w, m, 3)[idx].astype(np.float32)
 
 
-def _ls_stage(e, s, ok):
+def _ls_stage(e, s, ok, chunk=262144):
     """Least squares on the chosen channel: unit normals (3, N), found (N,), relative residual (N,)."""
-    g = _ls_normals(e, s, ok)
-    norm = np.sqrt(np.sum(g * g, axis=0))
-    found = np.isfinite(norm) & (norm > 1e-12)
-    n = np.where(found, g / np.where(found, norm, 1.0), np.float32(0))
-    pred = _shading(s, np.nan_to_num(g))
-    diff = np.where(ok, e - pred, np.float32(0))
-    e_norm = np.sqrt(np.sum(np.where(ok, e, np.float32(0)) ** 2, axis=0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        resid = np.sqrt(np.sum(diff * diff, axis=0)) / e_norm
-    resid = np.where(found & (e_norm > 0), resid, np.inf)
+    n_pix = e.shape[1]
+    n = np.zeros((3, n_pix), np.float32)
+    found = np.zeros(n_pix, bool)
+    resid = np.zeros(n_pix, np.float32)
+
+    def block(a):
+        sl = slice(a, a + chunk)
+        eb, okb = e[:, sl], ok[:, sl]
+        sb = s if s.ndim == 2 else s[sl]
+        g = _ls_normals(eb, sb, okb)
+        norm = np.sqrt(np.sum(g * g, axis=0))
+        fb = np.isfinite(norm) & (norm > 1e-12)
+        n[:, sl] = np.where(fb, g / np.where(fb, norm, 1.0), np.float32(0))
+        diff = np.where(okb, eb - _shading(sb, np.nan_to_num(g)), np.float32(0))
+        e_norm = np.sqrt(np.sum(np.where(okb, eb, np.float32(0)) ** 2, axis=0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = np.sqrt(np.sum(diff * diff, axis=0)) / e_norm
+        resid[sl] = np.where(fb & (e_norm > 0), r, np.inf)
+        found[sl] = fb
+
+    _run_blocks(block, range(0, n_pix, chunk))
     return n, found, resid
 
 
@@ -437,12 +465,14 @@ def ps_hierarchical_tautzia2016(images, light_dirs, mask=None, channel=None, sat
         trip_used, mats = trip[kept], _triplet_matrices(trip[kept], inv[kept])
     else:
         trip_used, mats = trip, None
-    for a in range(0, rest.size, chunk):
+    def block(a):
         sel = rest[a:a + chunk]
         s_blk = s if s.ndim == 2 else s[sel]
         nb, cb, shb, spb, fb = _hierarchy_block(e[:, sel].T, s_blk, ok[:, sel].T, trip_used, mats,
                                                 t_ombre, t_spec, t_source)
         normal[:, sel], n_trip[sel], shadow[sel], specular[sel], found[sel] = nb.T, cb, shb, spb, fb
+
+    _run_blocks(block, range(0, rest.size, chunk))
     keep = ok & ~shadow.T & ~specular.T
     rho = _albedo(e_all, s, normal, keep)
     _scatter(res, idx, "normal", normal.T)

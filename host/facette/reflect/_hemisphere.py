@@ -139,25 +139,32 @@ class HemisphereSensor:
         for ch in range(self.channels):
             self._sum[:, ch] += np.bincount(idx, weights=f[:, ch], minlength=size)
 
-    def add_grid(self, cos_s, o_x, o_y, cos_o, f, keep):
+    def add_grid(self, cos_s, o_x, o_y, cos_o, e, keep, scale):
         """Accumulate a grid of samples without gathering them first (the fast path).
 
         cos_s, o_x, o_y : (m, P) incidence cosines and observation x, y in the local frame;
         cos_o : (P,) observation cosines (one per pixel: it does not depend on the light);
-        f : (m, P, C) values; keep : (m, P) bool. Left-out samples go to a discarded bin.
+        e : (m, P, C) image values; scale : (m, P), f = e * scale; keep : (m, P) bool (e must
+        be finite where kept). Left-out samples go to a discarded bin.
         """
         ring_o = self.ring_of_cos(cos_o)                               # (P,)
         k = self.counts[ring_o]
         phi = np.arctan2(o_y, o_x)
         j = np.minimum(((phi + np.pi) * (k / (2 * np.pi))).astype(np.int64), k - 1)
         idx = self.ring_of_cos(cos_s) * self.n_cells + (self.start[ring_o] + j)
-        keep = keep & np.all(np.isfinite(f), axis=-1)
         size = self._cnt.size
         idx = np.where(keep, idx, size).ravel()                      # size = the discard bin
         self._cnt += np.bincount(idx, minlength=size + 1)[:size]
         for ch in range(self.channels):
-            w = np.where(keep, f[..., ch], 0.0).ravel()
+            w = (e[..., ch] * scale).ravel()                          # 0 where not kept
             self._sum[:, ch] += np.bincount(idx, weights=w, minlength=size + 1)[:size]
+
+    def merge(self, other):
+        """Add the accumulated samples of another sensor with the same partition."""
+        if other._cnt.shape != self._cnt.shape or other.channels != self.channels:
+            raise ValueError("cannot merge sensors with different partitions or channel counts")
+        self._cnt += other._cnt
+        self._sum += other._sum
 
     def centres(self):
         """(N, 3) cell-centre directions (equal-area middle of the ring, middle of the arc)."""

@@ -140,12 +140,14 @@ def sample_angles(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MI
     return li, pi_, cs.astype(np.float32), o_loc, f
 
 
-def sample_grid(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MIN_COS):
+def sample_grid(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MIN_COS,
+                check_finite=True):
     """Eq 4.11 on a whole (light, pixel) grid, nothing gathered (for the hemisphere sensor).
 
     e : (m, P, C); n : (P, 3) unit; s : (m, 3) or (P, m, 3); exclude : (m, P) bool or None.
-    Returns dict of cos_s (m, P), o_x, o_y (m, P), cos_o (P,), f (m, P, C), keep (m, P);
-    the local frame as in `sample_angles`.
+    Returns dict of cos_s (m, P), o_x, o_y (m, P), cos_o (P,), keep (m, P) and scale (m, P) =
+    1 / (k n.s) where kept, 0 elsewhere, so that f = e * scale[..., None]; the local frame as in
+    `sample_angles`. check_finite=False skips the NaN test (when the caller knows e is finite).
     """
     o = np.asarray(view, dtype=np.float32)
     n = np.asarray(n, dtype=np.float32)
@@ -162,14 +164,15 @@ def sample_grid(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MIN_
     keep = (ns >= min_cos) & (no > 0)[None, :]
     if exclude is not None:
         keep &= ~exclude
+    if check_finite:
+        keep &= np.isfinite(e).all(axis=-1)
     sin_s = np.sqrt(np.maximum(1 - ns * ns, 0))
     big = sin_s > 1e-6
-    inv = np.where(big, 1.0 / np.where(big, sin_s, 1.0), 0.0).astype(np.float32)
+    inv = 1.0 / np.where(big, sin_s, 1.0)
     o_x = np.where(big, (so - ns * no) * inv, np.sqrt(np.maximum(1 - no * no, 0)))
-    o_y = sxo * inv
-    with np.errstate(invalid="ignore", divide="ignore"):
-        f = e / (k * np.where(keep, ns, 1.0))[..., None]
-    return dict(cos_s=ns, o_x=o_x, o_y=o_y, cos_o=no, f=f, keep=keep)
+    o_y = np.where(big, sxo * inv, 0.0)
+    scale = np.where(keep, 1.0 / (k * np.where(keep, ns, 1.0)), 0.0).astype(np.float32)
+    return dict(cos_s=ns, o_x=o_x, o_y=o_y, cos_o=no, keep=keep, scale=scale)
 
 
 def samples_from_pixels(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MIN_COS):
