@@ -62,7 +62,9 @@ def test_missing_or_overexposed_targets_stop_with_what_to_do(sim_rig_factory, tm
 
 def test_cli_unattended_keeps_the_previous_profile_and_checks_drift(tmp_path, capsys):
     out = tmp_path / "prof"
-    assert main(["calibrate", "--rig", "sim", "--yes", "-o", str(out), "--only", "mirror,spectralon"]) == 0
+    # the rig's button starts each capture (the simulated rig presses it)
+    assert main(["calibrate", "--rig", "sim", "--yes", "--button", "-o", str(out), "--only", "mirror,spectralon"]) == 0
+    assert "press the rig's button" in capsys.readouterr().out
     first = json.loads((out / "profile.json").read_text())["id"]
     assert main(["calibrate", "--rig", "sim", "--yes", "-o", str(out), "--only", "spectralon",
                  "--base", str(out)]) == 0

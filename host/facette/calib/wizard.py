@@ -144,7 +144,7 @@ class RigStation:
     """
 
     def __init__(self, rig, workdir, attended=True, out=print, ask=input, sim_faults=None,
-                 n_leds=12, light_current_mA=500):
+                 n_leds=12, light_current_mA=500, button=False):
         self.rig = rig
         self.workdir = Path(workdir)
         self.workdir.mkdir(parents=True, exist_ok=True)
@@ -155,6 +155,8 @@ class RigStation:
         self.n_leds = int(n_leds)
         self.current_mA = int(light_current_mA)
         self.n = 0
+        self.button = bool(button)  # the person starts each capture with the rig's button
+        self._wait_button = False
         self.sensor = None          # set by the noise step (a SensorModel)
         ident = rig.identity
         self.rig_name = "sim-default" if rig.sim is not None else f"rig-{ident.get('serial_number', 0)}"
@@ -171,7 +173,10 @@ class RigStation:
             show_target(self.rig.sim, shown, **sim_kw)
             if fault == "overexposed":
                 self.rig.sim.camera.radiance = self.rig.sim.camera.radiance * 300.0
-        if self.attended:
+        if self.button:
+            self._wait_button = True
+            self.out("    then press the rig's button to take the pictures")
+        elif self.attended:
             self.ask("    press Enter when it is in place (Ctrl-C stops; nothing is written) ")
 
     def restore(self):
@@ -189,8 +194,14 @@ class RigStation:
         while d.exists():             # a capture folder is never reused: each is one scan
             self.n += 1
             d = self.workdir / f"{self.n:02d}-{name}"
+        button = None
+        if self._wait_button:
+            # the simulated rig presses its own button; a person presses a real one
+            button = "press" if self.rig.sim is not None else "wait"
+            self._wait_button = False
         run_scan(self.rig, d, exposures=list(exposures), lights=list(lights),
-                 light_current_mA=self.current_mA, mode="camera", progress=False, save_truth=False)
+                 light_current_mA=self.current_mA, mode="camera", progress=False, save_truth=False,
+                 button=button)
         return d
 
     def capture(self, name, exposures, current="measured"):
@@ -280,11 +291,20 @@ class Wizard:
         self.gains = None if base is None else base.led_gains
         self.pitch = None if base is None else base.pixel_pitch_mm
         self.led_distance_mm = led_distance_mm
+        if self.sensor is not None:
+            self._use_sensor(self.sensor)
         self.history = []
         self.figures = {}
         self.circle = None
 
     # -- helpers -----------------------------------------------------------------------------
+    def _use_sensor(self, sensor):
+        """Merge the captures with this noise model (a profile `sensor` dict)."""
+        from facette.sim.sensor import SensorModel
+
+        self.st.sensor = SensorModel.from_profile_dict(sensor)
+        self.st.full_scale_dn = float(sensor["white_level_dn"] - sensor["black_level_dn"])
+
     def _say(self, text=""):
         self.out(text)
 
@@ -307,7 +327,6 @@ class Wizard:
     # -- steps -----------------------------------------------------------------------------
     def step_noise(self):
         from facette.hdr import estimate_sensor_ptc_files
-        from facette.sim.sensor import SensorModel
 
         self._say("Step: camera noise (photon transfer curve, thesis eq 2.12–2.13)")
         self.st.place("lens_cap")
@@ -325,8 +344,7 @@ class Wizard:
                               "close the enclosure and run the step again")
         d = ptc.to_profile_dict()
         self.sensor = {k: d[k] for k in SENSOR_KEYS} | ({"full_well_e": d["full_well_e"]} if "full_well_e" in d else {})
-        self.st.sensor = ptc.sensor_model()
-        self.st.full_scale_dn = float(d["white_level_dn"] - d["black_level_dn"])
+        self._use_sensor(self.sensor)
         self.figures["sensor"] = self.sensor
         self._note(f"sensor: gain {d['gain_e_per_dn']:.3f} e-/DN, read noise {d['read_noise_e']:.2f} e-, "
                    f"dark current {d['dark_current_e_per_s']:.2f} e-/s, black {d['black_level_dn']} DN, "
@@ -541,9 +559,7 @@ class Wizard:
         drift against `profile`. Returns (ok, report dict)."""
         self._say(f"facette calibrate --check {profile.id}")
         if profile.sensor is not None:
-            from facette.sim.sensor import SensorModel
-
-            self.st.sensor = SensorModel.from_profile_dict(profile.sensor)
+            self._use_sensor(profile.sensor)
         self.positions, self.pitch = profile.lights.positions_mm, profile.pixel_pitch_mm
         try:
             self._say()

@@ -48,6 +48,8 @@ def register(sub):
     p.add_argument("--gphoto2", action="store_true", help="tethered camera over gphoto2 (real rigs)")
     p.add_argument("-o", "--output", help="profile folder (default calibration/profiles/<rig>)")
     p.add_argument("--yes", action="store_true", help="unattended: do not wait for a person to place targets")
+    p.add_argument("--button", action="store_true",
+                   help="start each capture with the rig's button instead of Enter (simulated rig: pressed for you)")
     p.add_argument("--check", metavar="PROFILE", help="re-measure and report drift against this profile")
     p.add_argument("--only", help="comma-separated steps (noise,mirror,positions,matte,spectralon,gains)")
     p.add_argument("--positions", action="store_true", help="also locate the LEDs (two sphere placements)")
@@ -120,7 +122,7 @@ def run(args):
     rig = connect_rig(args)
     try:
         station = RigStation(rig, workdir, attended=not args.yes, sim_faults=args.sim_target_fault,
-                             n_leds=args.leds, light_current_mA=args.current)
+                             n_leds=args.leds, light_current_mA=args.current, button=args.button)
         wiz = Wizard(station, out=lambda s="": print(s, flush=True), steps=steps, base=base or check,
                      exposures=args.exposures, led_distance_mm=args.led_distance)
         try:
