@@ -240,34 +240,42 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
 
 
 def _write(res, out, outputs, ascii_ply, images, light_dirs):
+    """Write the requested files; the independent ones on two threads while the report
+    (matplotlib, main thread only) is drawn."""
     out.mkdir(parents=True, exist_ok=True)
     meta = {"software": "facette", "source": str(res.inputs.source),
             "method": res.options["method"], "frame": "camera: x right, y up, z towards the camera"}
+    jobs = []
     if "normals" in outputs:
-        write_exr(out / FILES["normals"], res.normals, ("X", "Y", "Z"), header=meta)
+        jobs.append(lambda: write_exr(out / FILES["normals"], res.normals, ("X", "Y", "Z"), header=meta))
     if "albedo" in outputs:
-        write_exr(out / FILES["albedo"], res.albedo, ("R", "G", "B"), header=meta)
+        jobs.append(lambda: write_exr(out / FILES["albedo"], res.albedo, ("R", "G", "B"), header=meta))
     if "height" in outputs:
-        write_exr(out / FILES["height"], res.height, ("Z",), header={**meta, "unit": "mm"})
+        jobs.append(lambda: write_exr(out / FILES["height"], res.height, ("Z",),
+                                      header={**meta, "unit": "mm"}))
     if "mask" in outputs:
-        write_mask(out / FILES["mask"], res.mask)
+        jobs.append(lambda: write_mask(out / FILES["mask"], res.mask))
     if "mesh" in outputs:
-        write_ply(out / FILES["mesh"], *res.mesh, binary=not ascii_ply)
+        jobs.append(lambda: write_ply(out / FILES["mesh"], *res.mesh, binary=not ascii_ply))
     if "samples" in outputs:
         fr, raw = res.filtered, res.samples
-        np.savez_compressed(
+        jobs.append(lambda: np.savez_compressed(
             out / FILES["samples"], filtered_mean=fr.mean.astype(np.float32), filtered_count=fr.count,
             filtered_theta_s=fr.theta_s, filtered_s=fr.s, filtered_o=fr.o, partition_edges=fr.edges,
             partition_counts=fr.counts, theta0_deg=res.options["theta0_deg"],
             raw_s=raw.s, raw_o=raw.o, raw_f=raw.f, raw_pixel=raw.pixel, raw_light=raw.light,
-            image_shape=np.array(res.normals.shape[:2]))
+            image_shape=np.array(res.normals.shape[:2])))
     if "brdf" in outputs and res.brdf is not None:
         text = res.brdf.to_json() if hasattr(res.brdf, "to_json") else json.dumps(res.brdf, indent=2)
-        (out / FILES["brdf"]).write_text(text)
+        jobs.append(lambda: (out / FILES["brdf"]).write_text(text))
+    with ThreadPoolExecutor(2) as pool:
+        futures = [pool.submit(job) for job in jobs]
+        if "report" in outputs:
+            from facette.pipeline._report import write_report
+            write_report(res, out / FILES["report"])
+            res.files["report"] = str(out / FILES["report"])
+        for fut in futures:
+            fut.result()                      # re-raise any write error here
     for o in outputs:
         if (out / FILES[o]).exists() and o != "report":
             res.files[o] = str(out / FILES[o])
-    if "report" in outputs:
-        from facette.pipeline._report import write_report
-        write_report(res, out / FILES["report"])
-        res.files["report"] = str(out / FILES["report"])
