@@ -83,6 +83,38 @@ def _wait_listening(proc: subprocess.Popen, port: int, timeout_s: float) -> bool
     return False
 
 
+def _crc16(frame: bytes) -> bytes:
+    crc = 0xFFFF
+    for byte in frame:
+        crc ^= byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return bytes([crc & 0xFF, crc >> 8])
+
+
+def _wait_modbus_ready(url: str, timeout_s: float) -> bool:
+    """Poll with a Modbus 08/00 echo until the firmware answers it.
+
+    QEMU listens before the guest has enabled its USART, and bytes that arrive
+    earlier are dropped, so the first request after boot would be lost."""
+    import serial   # pyserial: the same transport the tests use
+
+    pdu = bytes([1, 0x08, 0x00, 0x00, 0xA5, 0x5A])
+    request = pdu + _crc16(pdu)
+    deadline = time.monotonic() + timeout_s
+    with serial.serial_for_url(url, timeout=0.05) as port:
+        while time.monotonic() < deadline:
+            port.reset_input_buffer()
+            port.write(request)
+            answer = b""
+            answer_deadline = time.monotonic() + 0.3
+            while len(answer) < len(request) and time.monotonic() < answer_deadline:
+                answer += port.read(len(request) - len(answer))
+            if answer == request:
+                return True
+    return False
+
+
 def _stop(proc: subprocess.Popen) -> None:
     if proc.poll() is None:
         proc.kill()
@@ -109,15 +141,22 @@ def qemu_board(request, tmp_path):
     out_path = tmp_path / "qemu.out"
     for _attempt in range(3):   # the free port can be taken between probe and bind
         port = _free_local_port()
+        # nodelay: QEMU sends each transmitted byte on its own; with Nagle on,
+        # every answer would wait ~40 ms for the client's delayed ACK.
         cmd = [qemu, "-M", "netduinoplus2", "-nographic", "-monitor", "none",
-               "-serial", f"tcp:127.0.0.1:{port},server=on,wait=off",
+               "-serial", f"tcp:127.0.0.1:{port},server=on,wait=off,nodelay=on",
                "-kernel", os.fspath(elf), "-d", "unimp,guest_errors", "-D", os.fspath(log_path)]
         with open(out_path, "wb") as out:
             proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out,
                                     stderr=subprocess.STDOUT)
         request.addfinalizer(lambda p=proc: _stop(p))
         if _wait_listening(proc, port, QEMU_BOOT_TIMEOUT_S):
-            return QemuBoard(f"socket://127.0.0.1:{port}", port, proc, log_path)
+            board = QemuBoard(f"socket://127.0.0.1:{port}", port, proc, log_path)
+            if not _wait_modbus_ready(board.url, QEMU_BOOT_TIMEOUT_S):
+                raise RuntimeError(f"the firmware under QEMU does not answer a Modbus "
+                                   f"08/00 echo within {QEMU_BOOT_TIMEOUT_S} s\n"
+                                   f"{board.log_tail()}")
+            return board
         _stop(proc)
     raise RuntimeError(f"QEMU did not open its serial port: {' '.join(cmd)}\n"
                        f"{out_path.read_text(errors='replace')}")

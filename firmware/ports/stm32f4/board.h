@@ -46,6 +46,8 @@
 #define BOARD_NTC_PULLUP_OHM 10000.0f
 
 /* Wait for interrupts between main-loop polls (SysTick wakes the core every ms). */
+#ifndef BOARD_IDLE_WFI
 #define BOARD_IDLE_WFI       1
+#endif
 
 #endif /* BOARD_H */

@@ -1,0 +1,179 @@
+"""The STM32F405 build booted under QEMU (netduinoplus2), spoken to over Modbus RTU.
+
+`make qemu-test` builds build/stm32f4/facette-stm32f4.elf and runs this file with
+``--qemu-elf``; the ``qemu_board`` fixture (conftest.py) boots it with USART1 on a
+local TCP port and kills QEMU afterwards. The host side is pymodbus's serial
+client on pyserial's ``socket://`` URL, plus pyserial alone for the raw-frame
+checks. What QEMU does not model (RCC, GPIO, ADC conversions, DAC, flash
+controller, IWDG) is handled by the port as documented in
+firmware/ports/stm32f4/README.md; the expectations below follow from it.
+"""
+from __future__ import annotations
+
+import struct
+import time
+
+import pytest
+import serial
+from pymodbus.client import ModbusSerialClient
+from pymodbus.pdu import ExceptionResponse
+
+from facette.device import registers as R
+
+UNIT = R.UNIT_ID
+EMULATED_UID = 0x454D5531   # hal_unique_id() when the RCC is absent ("EMU1")
+REQUEST_TIMEOUT_S = 1.0
+
+
+@pytest.fixture
+def modbus(qemu_board):
+    """pymodbus RTU client on the board's socket:// URL."""
+    client = ModbusSerialClient(qemu_board.url, baudrate=R.BAUD, timeout=REQUEST_TIMEOUT_S,
+                                retries=3)
+    assert client.connect(), f"cannot open {qemu_board.url}\n{qemu_board.log_tail()}"
+    yield client
+    client.close()
+
+
+def _ok(response, what):
+    assert not response.isError(), f"{what}: {response}"
+    return response
+
+
+def _read(client, name, index=0):
+    """Read one register (element `index`) by name, decoded per its type."""
+    reg = R.REGISTERS[name]
+    address = reg.address + index * reg.stride
+    if reg.space == "input":
+        rr = client.read_input_registers(address, count=reg.words, device_id=UNIT)
+    else:
+        rr = client.read_holding_registers(address, count=reg.words, device_id=UNIT)
+    words = _ok(rr, f"read {name}").registers
+    if reg.type == "u32":
+        return words[0] << 16 | words[1]
+    if reg.type == "i16":
+        return struct.unpack(">h", struct.pack(">H", words[0]))[0]
+    return words[0]
+
+
+def _write(client, name, value):
+    """Write a holding register by name: 06 for 16-bit, 16 for u32 (high word first)."""
+    reg = R.REGISTERS[name]
+    if reg.type == "u32":
+        return client.write_registers(reg.address, [value >> 16 & 0xFFFF, value & 0xFFFF],
+                                      device_id=UNIT)
+    return client.write_register(reg.address, value & 0xFFFF, device_id=UNIT)
+
+
+def _crc16(frame: bytes) -> bytes:
+    crc = 0xFFFF
+    for byte in frame:
+        crc ^= byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return struct.pack("<H", crc)
+
+
+def _read_frame(port: serial.Serial, expected_len: int, timeout_s: float) -> bytes:
+    """Bytes received until expected_len or the deadline (bounded poll)."""
+    deadline = time.monotonic() + timeout_s
+    data = b""
+    while len(data) < expected_len and time.monotonic() < deadline:
+        data += port.read(expected_len - len(data))
+    return data
+
+
+def test_read_device_identification_43_14(modbus):
+    rr = _ok(modbus.read_device_information(read_code=1, object_id=0, device_id=UNIT),
+             "43/14 basic")
+    fw_version = _read(modbus, "fw_version")
+    assert rr.information[0].decode() == R.VENDOR
+    assert rr.information[1].decode() == R.PRODUCT
+    assert rr.information[2].decode() == f"{fw_version >> 8}.{fw_version & 0xFF}"
+
+
+def test_identity_registers_and_definition_hash(modbus):
+    assert _read(modbus, "definition_hash") == R.DEFINITION_HASH
+    assert _read(modbus, "protocol_version") == R.PROTOCOL_VERSION
+    assert _read(modbus, "max_leds") == 16
+    # No calibration is stored (QEMU's flash is a ROM), so the serial number is
+    # the port's unique id, which is fixed under emulation.
+    assert _read(modbus, "serial_number") == EMULATED_UID
+    # QEMU has no RCC reset flags and no backup domain.
+    assert _read(modbus, "reset_cause") == R.ResetCause.UNKNOWN
+    assert _read(modbus, "boot_count") == 1
+
+
+def test_boots_idle_with_only_the_missing_calibration_fault(modbus):
+    # The emulated board reports a healthy idle rig (no ADC under QEMU): no
+    # temperature, supply or LED fault may be latched at boot. The flash holds
+    # no calibration record, which the core latches as CAL_INVALID.
+    assert _read(modbus, "state") == R.State.IDLE
+    assert _read(modbus, "fault_bits") == 1 << R.Fault.CAL_INVALID
+    assert _read(modbus, "led_temp_cC") == 2500
+    assert _read(modbus, "supply_mV") == 12000
+    assert _read(modbus, "led_channel") == -1
+
+
+@pytest.mark.parametrize("name", ["settle_us", "n_lights", "max_current_mA"])
+def test_configuration_register_written_and_read_back(modbus, name):
+    reg = R.REGISTERS[name]
+    value = (reg.minimum + reg.maximum) // 2
+    if value == reg.default[0]:
+        value += 1
+    _ok(_write(modbus, name, value), f"write {name}")
+    assert _read(modbus, name) == value
+
+
+@pytest.mark.parametrize("name", ["settle_us", "n_lights", "max_current_mA"])
+def test_out_of_range_write_is_exception_03_and_changes_nothing(modbus, name):
+    reg = R.REGISTERS[name]
+    before = _read(modbus, name)
+    rr = _write(modbus, name, reg.maximum + 1)
+    assert isinstance(rr, ExceptionResponse), f"write {name}={reg.maximum + 1}: {rr}"
+    assert rr.exception_code == 3
+    assert _read(modbus, name) == before
+
+
+def test_frame_with_bad_crc_gets_no_answer_and_the_next_one_does(qemu_board):
+    reg = R.REGISTERS["definition_hash"]
+    pdu = struct.pack(">BBHH", UNIT, 0x04, reg.address, 2)
+    good = pdu + _crc16(pdu)
+    bad = good[:-1] + bytes([good[-1] ^ 0xFF])
+    expected = struct.pack(">BBBI", UNIT, 0x04, 4, R.DEFINITION_HASH)
+    expected += _crc16(expected)
+    with serial.serial_for_url(qemu_board.url, baudrate=R.BAUD, timeout=0.05) as port:
+        # The device may still be booting: retry the good frame until it answers.
+        answer = b""
+        deadline = time.monotonic() + 5.0
+        while answer != expected and time.monotonic() < deadline:
+            port.reset_input_buffer()
+            port.write(good)
+            answer = _read_frame(port, len(expected), REQUEST_TIMEOUT_S)
+        assert answer == expected, f"no answer to a valid request\n{qemu_board.log_tail()}"
+
+        port.write(bad)
+        assert _read_frame(port, 1, 0.5) == b"", "a frame with a bad CRC was answered"
+        # The bad frame must have been dropped at the 3.5-character silence,
+        # not glued to the next request.
+        port.write(good)
+        assert _read_frame(port, len(expected), REQUEST_TIMEOUT_S) == expected
+
+
+def test_uptime_follows_the_host_clock(modbus):
+    """The µs clock (SysTick at the emulated 168 MHz) runs at real-time rate:
+    two successive increments of uptime_s are about a second apart on the host."""
+    def next_increment(after, timeout_s=5.0):
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            now = _read(modbus, "uptime_s")
+            if now > after:
+                return now, time.monotonic()
+            time.sleep(0.01)   # poll interval
+        raise AssertionError(f"uptime_s stuck at {after} for {timeout_s} s")
+
+    first, _ = next_increment(_read(modbus, "uptime_s"))
+    second, t1 = next_increment(first)
+    third, t2 = next_increment(second)
+    assert third == second + 1
+    assert 0.5 < t2 - t1 < 2.0, f"uptime_s ticked after {t2 - t1:.2f} s of host time"
