@@ -66,28 +66,33 @@ def write_report(res, path):
     import matplotlib
     matplotlib.use("Agg", force=False)
     figs = []
-    n = res.normals
-    figs.append(_map("Normal map ((n+1)/2 as RGB)", np.where(res.mask[..., None], (n + 1) / 2, 0)))
-    alb = res.albedo / max(float(np.percentile(res.albedo[res.mask], 99)) if res.mask.any() else 1, 1e-12)
-    figs.append(_map("Albedo (scaled to the 99th percentile)", np.clip(alb, 0, 1)))
-    ps = res.ps
-    figs.append(_map("Least-squares relative residual (confidence: low is Lambertian)",
-                     np.where(res.mask, ps.residual, np.nan), cmap="magma", vmin=0,
-                     vmax=max(float(np.nanpercentile(np.where(res.mask, ps.residual, np.nan), 99))
-                              if res.mask.any() else 1, 1e-6)))
+    st = max(1, int(np.ceil(max(res.normals.shape[:2]) / 800)))   # pictures need no more
+    n, mask, ps = res.normals[::st, ::st], res.mask[::st, ::st], res.ps
+    figs.append(_map("Normal map ((n+1)/2 as RGB)", np.where(mask[..., None], (n + 1) / 2, 0)))
+    albedo = res.albedo[::st, ::st]
+    top = float(np.percentile(albedo[mask], 99)) if mask.any() else 1.0
+    figs.append(_map("Albedo (scaled to the 99th percentile)", np.clip(albedo / max(top, 1e-12), 0, 1)))
+    resid = np.where(mask, ps.residual[::st, ::st], np.nan)
+    figs.append(_map("Least-squares relative residual (confidence: low is Lambertian)", resid,
+                     cmap="magma", vmin=0,
+                     vmax=max(float(np.nanpercentile(resid, 99)) if mask.any() else 1, 1e-6)))
     if ps.method.startswith("hierarchical"):
-        figs.append(_map("Triplets kept", np.where(res.mask, ps.n_triplets, np.nan), cmap="viridis"))
-        figs.append(_map("Lights flagged as shadow", np.where(res.mask, ps.shadow.sum(-1), np.nan),
-                         cmap="Reds", label="lights"))
-        figs.append(_map("Lights flagged as specular", np.where(res.mask, ps.specular.sum(-1), np.nan),
-                         cmap="Blues", label="lights"))
+        figs.append(_map("Triplets kept", np.where(mask, ps.n_triplets[::st, ::st], np.nan),
+                         cmap="viridis"))
+        figs.append(_map("Lights flagged as shadow",
+                         np.where(mask, ps.shadow[::st, ::st].sum(-1), np.nan), cmap="Reds",
+                         label="lights"))
+        figs.append(_map("Lights flagged as specular",
+                         np.where(mask, ps.specular[::st, ::st].sum(-1), np.nan), cmap="Blues",
+                         label="lights"))
     if res.height is not None:
-        figs.append(_map("Height (mm)", np.where(res.mask, res.height, np.nan), cmap="terrain",
-                         label="mm"))
+        figs.append(_map("Height (mm)", np.where(mask, res.height[::st, ::st], np.nan),
+                         cmap="terrain", label="mm"))
     truth = res.inputs.truth if res.inputs is not None else None
-    if truth and "normals" in truth and truth["normals"].shape == n.shape:
-        err = np.degrees(np.arccos(np.clip(np.sum(n * truth["normals"], -1), -1, 1)))
-        figs.append(_map("Angular error against truth (deg)", np.where(res.mask, err, np.nan),
+    if truth and "normals" in truth and truth["normals"].shape == res.normals.shape:
+        tn = truth["normals"][::st, ::st]
+        err = np.degrees(np.arccos(np.clip(np.sum(n * tn, -1), -1, 1)))
+        figs.append(_map("Angular error against truth (deg)", np.where(mask, err, np.nan),
                          cmap="inferno", vmin=0, vmax=10, label="deg"))
     if res.filtered is not None:
         figs.append(_curves(res.filtered))
@@ -106,7 +111,7 @@ def write_report(res, path):
 <style>body{{font-family:sans-serif;margin:2em}}figure{{display:inline-block;margin:0.5em}}
 td{{padding:0 1em}}img{{max-width:520px}}</style></head><body>
 <h1>facette process</h1><p>Source: {src} ({res.inputs.kind if res.inputs else ''},
-{n.shape[1]}×{n.shape[0]} px, {int(res.mask.sum())} valid pixels)</p>
+{res.normals.shape[1]}×{res.normals.shape[0]} px, {int(res.mask.sum())} valid pixels)</p>
 <h2>Options</h2><table>{opts}</table><h2>Photometric stereo</h2><table>{info}</table>
 <h2>Error against the scan's truth</h2>{('<table>' + errs + '</table>') if errs else '<p>no truth.npz</p>'}
 <h2>Timings</h2><table>{rows}</table><h2>BRDF</h2>{brdf}<h2>Notes</h2><ul>{notes}</ul>
