@@ -213,15 +213,17 @@ class _Acquisition:
         rig, plan = self.rig, self.plan
         channels = [plan.lights[l] for l in lights]
         self.prepare_device()
+        self.sweep_camera("in the camera folder before this device run: no frame record")
         rig.configure([plan.exposures[e] for e in exposures], lights=channels,
                       light_current_mA=[plan.light_current_mA[l] for l in lights], mode=plan.mode,
                       retries=plan.retries, **plan.timing)
         boot = rig.device.check_reset()
         self.sd.journal("start", run=run, lights=lights, exposures=exposures, boot=boot, button=button)
         if button in ("wait", "press"):
-            rig.arm()
+            # the button arms and starts a configured scan from IDLE/DONE/ABORTED (a press
+            # while armed or running aborts), so the host leaves the device unarmed here
             if button == "press":
-                rig.sim.press_button(wait_for=lambda: rig.device.state() != "ARMED")
+                rig.sim.press_button()
             else:
                 print("press the rig's button to start the scan", flush=True)
             rig.wait_state({"RUNNING", "DONE", "ABORTED", "FAULT"}, timeout_s=float("inf") if button == "wait"
@@ -343,7 +345,6 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
         sd.journal("resume", rig=rig.identity)
         _recover(sd, rig.camera)
     acq = _Acquisition(rig, sd, plan, None, on_frame, frame_timeout_s, poll_s)
-    acq.sweep_camera("in the camera folder before this run: no frame record")
     all_pairs = {(l, e) for l in range(len(plan.lights)) for e in range(len(plan.exposures))}
     bar = None
     if progress:

@@ -282,7 +282,9 @@ class RigSimulator:
                 w = self._window
                 if w is not None:
                     w["closed"] = True
-                    if w["t_end"] is None or t >= w["t_end"]:
+                    # camera-timed: with the light already off nothing more can reach the
+                    # sensor, so the camera writes its file now (also after an abort)
+                    if w["t_end"] is None or t >= w["t_end"] or self._led[0] < 0:
                         self._finish(t)
             self.send("ack")
 

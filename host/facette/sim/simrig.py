@@ -37,14 +37,15 @@ class SimulatedRig:
     speed : virtual clock rate of the device (× real time)
     workdir : folder for the camera folder, the side socket and the flash (default: temporary)
     seed : int
-    max_unclaimed : int or None, see RigSimulator (default 4: a host collects the files;
+    max_unclaimed : int or None, see RigSimulator (default 1: the next shot waits until the
+        host took the previous file, which makes runs deterministic; a host collects the files;
         None for a simulator nobody takes files from)
     """
 
     def __init__(self, scene="plaque_sphere", raw_shape=DEFAULT_RAW_SHAPE, pixel_pitch_mm=None, brdf=None,
                  near=False, direction_error_deg=0.5, intensity_error=0.05, sensor=None,
                  electrons_per_mA_s=20.0, faults=None, speed=200.0, workdir=None, seed=0, shadows=True,
-                 max_unclaimed=4):
+                 max_unclaimed=1):
         rows, cols = (int(v) for v in raw_shape)
         if rows % 2 or cols % 2 or rows < 22 or cols < 22:
             raise ValueError(f"raw_shape must be even and at least 22×22 (a DNG limit), got {raw_shape}")
@@ -72,9 +73,12 @@ class SimulatedRig:
 
     # -- controls ---------------------------------------------------------------------
     def press_button(self, wait_for=None, timeout_s=10.0):
-        """Press and release the rig's button. `wait_for` : callable returning True once
-        the device saw the press (e.g. its state left ARMED); the button is held until
-        then (bounded by `timeout_s`) so the firmware's debounce always sees it."""
+        """Press and release the rig's button. The button is held until `wait_for()`
+        is true (default: the device sent an event, i.e. the scan started), bounded by
+        `timeout_s`, so that the firmware's debounce (in virtual time) always sees it."""
+        if wait_for is None:
+            before = self.simulator.events
+            wait_for = lambda: self.simulator.events > before  # noqa: E731
         self.simulator.button(True)
         deadline = time.monotonic() + timeout_s
         while wait_for is not None and not wait_for() and time.monotonic() < deadline:
