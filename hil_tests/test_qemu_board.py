@@ -177,3 +177,46 @@ def test_uptime_follows_the_host_clock(modbus):
     third, t2 = next_increment(second)
     assert third == second + 1
     assert 0.5 < t2 - t1 < 2.0, f"uptime_s ticked after {t2 - t1:.2f} s of host time"
+
+
+def test_scan_runs_on_the_board_timer_and_faults_without_flash_sync(modbus):
+    """A 1 x 1 LED-timed scan runs on the one-shot timer (under QEMU: the SysTick
+    backstop, TIM5 compares are not modelled). No camera drives the sync input
+    (QEMU has no GPIO), so the frame is retried once and SYNC_MISSED latches."""
+    config = {"n_lights": 1, "n_exposures": 1, "timing_mode": R.TimingMode.LED, "retries": 1,
+              "settle_us": 0, "gap_us": 3000, "led_pre_us": 1000, "led_post_us": 1000,
+              "sync_timeout_us": 5000}
+    _ok(_write(modbus, "command", R.Command.CLEAR_FAULTS), "clear faults")
+    for name, value in config.items():
+        _ok(_write(modbus, name, value), f"write {name}")
+    reg = R.REGISTERS["exposure_time_us"]
+    _ok(modbus.write_registers(reg.address, [0, 2000], device_id=UNIT), "exposure 0")
+    _ok(_write(modbus, "command", R.Command.ARM), "arm")
+    assert _read(modbus, "state") == R.State.ARMED
+    _ok(_write(modbus, "command", R.Command.START), "start")
+
+    deadline = time.monotonic() + 10.0
+    state = _read(modbus, "state")
+    while state in (R.State.ARMED, R.State.RUNNING) and time.monotonic() < deadline:
+        time.sleep(0.01)   # poll interval
+        state = _read(modbus, "state")
+    assert state == R.State.FAULT, f"scan ended in {R.State(state).name}"
+    assert _read(modbus, "fault_bits") & (1 << R.Fault.SYNC_MISSED)
+    assert _read(modbus, "ring_count") == 2
+
+    def ring(name, i):
+        reg = R.REGISTERS[name]
+        rr = modbus.read_input_registers(reg.address + i * reg.stride, count=reg.words,
+                                         device_id=UNIT)
+        words = _ok(rr, f"read {name}[{i}]").registers
+        return words[0] << 16 | words[1] if reg.type == "u32" else words[0]
+
+    # flags: bit 0 sync seen, bit 1 retry, bit 2 valid.
+    assert [ring("ring_flags", i) for i in range(2)] == [0b100, 0b110]
+    set_mA = ring("ring_current_set_mA", 0)
+    assert set_mA == R.REGISTERS["light_current_mA"].default[0]
+    # The emulated sense reads the DAC setpoint back (within one DAC step, ~0.5 mA).
+    assert abs(ring("ring_current_meas_mA", 0) - set_mA) <= 1
+    # The retry's shutter opens once the sync wait and the gap are over.
+    step = ring("ring_start_us", 1) - ring("ring_start_us", 0)
+    assert 5000 + 3000 <= step < 5000 + 3000 + 2000, step

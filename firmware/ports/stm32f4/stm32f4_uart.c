@@ -14,10 +14,12 @@
 #include "stm32f405_regs.h"
 
 #define RX_RING 512u    /* power of two; > one 256-byte Modbus frame */
-#define TX_RING 512u
+#define TX_RING 256u    /* one answer; hal_uart_write() waits for room */
 
 static uint8_t s_rx[RX_RING];
-static uint32_t s_rx_gap[RX_RING];                 /* silence before each byte, µs */
+/* Silence before each byte in µs, saturated: UINT16_MAX (65 ms, far above any
+ * framing time) stands for "long", reported as UINT32_MAX. */
+static uint16_t s_rx_gap[RX_RING];
 static volatile uint32_t s_rx_head, s_rx_tail;   /* head written by the ISR */
 static uint32_t s_char_us;                        /* one 10-bit character */
 static uint32_t s_burst_us;                       /* emulator: jitter inside a burst */
@@ -106,7 +108,7 @@ void USART1_IRQHandler(void)
         uint32_t head = s_rx_head;
         if (head - s_rx_tail < RX_RING) {
             s_rx[head % RX_RING] = byte;
-            s_rx_gap[head % RX_RING] = gap;
+            s_rx_gap[head % RX_RING] = gap >= UINT16_MAX ? UINT16_MAX : (uint16_t)gap;
             s_rx_head = head + 1u;
         } else {
             s_rx_dropped++;
@@ -128,7 +130,8 @@ int stm32_uart_getc(uint32_t *gap_us)
     }
     int byte = s_rx[tail % RX_RING];
     if (gap_us != NULL) {
-        *gap_us = s_rx_gap[tail % RX_RING];
+        uint16_t gap = s_rx_gap[tail % RX_RING];
+        *gap_us = gap == UINT16_MAX ? UINT32_MAX : gap;
     }
     s_rx_tail = tail + 1u;
     return byte;
