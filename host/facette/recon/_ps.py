@@ -19,6 +19,7 @@ T_SPEC = 0.25          # variance of the kept unit normals, thesis §4.2.1
 T_SOURCE = 10.0        # max |entry| of S^-1; the thesis gives no value: 10 drops the 36
                        # near-collinear triplets of the 12-LED rig (entries 10.6-43) and keeps 184
 T_RESIDUAL = 0.03      # relative least-squares residual under which a pixel skips the hierarchy
+MAX_TRIPLETS = 2000    # best-conditioned triplets kept when there are more (many lights)
 _CHUNK = 16384         # pixels per block in the hierarchical stage (~45 MB of float32 per block)
 
 
@@ -290,11 +291,12 @@ def ps_woodham1980(images, light_dirs, mask=None, channel=None, saturation=None)
 
 # ----------------------------------------------------------------------------- hierarchical
 
-def triplet_inverses(light_dirs, t_source=T_SOURCE):
+def triplet_inverses(light_dirs, t_source=T_SOURCE, max_triplets=None):
     """The global step of thesis §4.2.1: all C(m,3) triplets and their inverses.
 
     light_dirs : (m, 3) unit vectors. Returns (triplets (K, 3) int, inverses (K, 3, 3),
-    kept (K,) bool) where kept = |det S| > 1e-6 and max |S^-1| <= t_source.
+    kept (K,) bool) where kept = |det S| > 1e-6 and max |S^-1| <= t_source; with
+    max_triplets, only that many of the best-conditioned ones are kept (ties kept).
     """
     light_dirs = np.asarray(light_dirs, dtype=np.float64)
     trip = np.array(list(combinations(range(len(light_dirs)), 3)), dtype=np.intp)
@@ -303,7 +305,11 @@ def triplet_inverses(light_dirs, t_source=T_SOURCE):
     kept = np.abs(det) > 1e-6
     inv = np.zeros_like(s)
     inv[kept] = np.linalg.inv(s[kept])
-    kept &= np.abs(inv).max(axis=(1, 2)) <= t_source
+    worst = np.where(kept, np.abs(inv).max(axis=(1, 2)), np.inf)
+    kept &= worst <= t_source
+    if max_triplets is not None and kept.sum() > max_triplets:
+        # many lights: keep the best-conditioned triplets only (cost grows as C(m, 3))
+        kept &= worst <= np.sort(worst[kept])[max_triplets - 1]
     return trip, inv, kept
 
 
@@ -409,7 +415,7 @@ def _hierarchy_block(e, s, ok, trip, mats, t_ombre, t_spec, t_source):
 
 def ps_hierarchical_tautzia2016(images, light_dirs, mask=None, channel=None, saturation=None,
                                 t_ombre=T_OMBRE, t_spec=T_SPEC, t_source=T_SOURCE,
-                                t_residual=T_RESIDUAL, chunk=_CHUNK):
+                                t_residual=T_RESIDUAL, max_triplets=MAX_TRIPLETS, chunk=_CHUNK):
     """Photometric stereo with hierarchical elimination of shadows and specularities.
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
@@ -422,6 +428,9 @@ def ps_hierarchical_tautzia2016(images, light_dirs, mask=None, channel=None, sat
     t_residual : pixels whose least-squares relative residual is below this, with every
         light usable and none at grazing incidence (angle < t_ombre), keep the least-squares
         normal and skip the hierarchy (0 disables the shortcut).
+    max_triplets : at most this many triplets, the best-conditioned (default 2000: no effect
+        with the rig's 12 lights, 184 triplets; 96 DiLiGenT lights would give 142880).
+        None: all of them, as the thesis (cost per pixel grows as C(m, 3)).
     Returns a `PSResult`; `info` holds the triplet counts and the share of skipped pixels.
 
     Notes: thesis §4.2.1. Global step: all C(m,3) triplets, inverses, T_source test.
@@ -435,7 +444,7 @@ def ps_hierarchical_tautzia2016(images, light_dirs, mask=None, channel=None, sat
     images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
     m, h, w, c = images.shape
     res = _empty_result(h, w, m, c, "hierarchical_tautzia2016")
-    trip, inv, kept = (triplet_inverses(light_dirs, t_source) if light_dirs.ndim == 2
+    trip, inv, kept = (triplet_inverses(light_dirs, t_source, max_triplets) if light_dirs.ndim == 2
                        else (np.array(list(combinations(range(m), 3))), None, None))
     if kept is not None and not kept.any():
         raise ValueError(f"no light triplet passes T_source = {t_source} (all inverses have larger "
@@ -465,6 +474,9 @@ def ps_hierarchical_tautzia2016(images, light_dirs, mask=None, channel=None, sat
         trip_used, mats = trip[kept], _triplet_matrices(trip[kept], inv[kept])
     else:
         trip_used, mats = trip, None
+    # many lights mean many triplets (96 lights: 142880): keep each (pixels, triplets) array
+    # near 2^24 elements
+    chunk = int(min(chunk, max(16, 2 ** 24 // max(len(trip_used), 1))))
     def block(a):
         sel = rest[a:a + chunk]
         s_blk = s if s.ndim == 2 else s[sel]

@@ -170,3 +170,23 @@ def test_near_lights_per_pixel_directions_recover_a_plane():
         assert np.max(angular_error_deg(near.normal, n)) < 0.05
         np.testing.assert_allclose(near.albedo[..., 0], 0.5, rtol=1e-3)
     assert np.max(angular_error_deg(far.normal, n)) > 1.0    # ignoring positions costs degrees
+
+
+def test_many_lights_keep_only_the_best_conditioned_triplets():
+    rng = np.random.default_rng(5)
+    d = rng.normal(size=(30, 3))
+    d[:, 2] = np.abs(d[:, 2]) + 1.5
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    trip, inv, kept = triplet_inverses(d, max_triplets=300)
+    assert len(trip) == 4060 and kept.sum() == 300
+    worst = np.abs(inv).max(axis=(1, 2))
+    assert worst[kept].max() <= worst[~kept & (np.abs(np.linalg.det(d[trip])) > 1e-6)].min()
+    sc = sphere_on_plane(32, 32)
+    imgs = render(sc, d, "glossy", ks=3.0)
+    r = ps_hierarchical_tautzia2016(imgs, d, max_triplets=300)
+    assert r.info["triplets_conditioned"] == 300
+    every = ps_hierarchical_tautzia2016(imgs, d, max_triplets=None)
+    ls = ps_woodham1980(imgs, d)
+    med = np.median(angular_error_deg(r.normal, sc.normals, sc.mask & r.valid))
+    assert med < 0.5 * np.median(angular_error_deg(ls.normal, sc.normals, sc.mask))
+    assert med < np.median(angular_error_deg(every.normal, sc.normals, sc.mask & every.valid)) + 1.0
