@@ -59,6 +59,7 @@ def main(argv=None):
     ap.add_argument("--direction-error", type=float, default=2.0, help="LED direction error, degrees RMS")
     ap.add_argument("--intensity-error", type=float, default=0.15, help="LED intensity error, relative RMS")
     ap.add_argument("--near", action="store_true", help="LEDs as near points at 1.5 m (wizard told the distance)")
+    ap.add_argument("--positions", action="store_true", help="also locate the LEDs (two sphere placements)")
     ap.add_argument("--transcript", action="store_true", help="print the wizard's whole transcript")
     ap.add_argument("--quick", action="store_true", help="skip the pipeline comparison and the fault demos")
     args = ap.parse_args(argv)
@@ -79,7 +80,8 @@ def main(argv=None):
         save(nominal, work / "nominal")
         lines = []
         station = RigStation(rig, work / "captures", attended=False, out=lines.append)
-        wiz = Wizard(station, out=lines.append, led_distance_mm=1500.0 if args.near else None)
+        steps = ["noise", "mirror", "positions", "matte", "spectralon", "gains"] if args.positions else None
+        wiz = Wizard(station, out=lines.append, steps=steps, led_distance_mm=1500.0 if args.near else None)
         t0 = time.perf_counter()
         prof, path = wiz.run(work / "profile")
         t_wiz = time.perf_counter() - t0
@@ -105,6 +107,16 @@ def main(argv=None):
                   + f"       {d_nom[i]:8.2f}°       {d_err[i]:8.3f}°      {m_err[i]:8.3f}°")
         print(f" max  intensity error {np.abs(i_err).max():.2f} %, direction error mirror {d_err.max():.3f}° "
               f"(mean {d_err.mean():.3f}°), matte {m_err.max():.3f}° (mean {m_err.mean():.3f}°)")
+        if args.positions and "positions" in wiz.figures:
+            est = np.array(wiz.figures["positions"]["positions_mm"])
+            if leds.positions_mm is not None:
+                perr = np.linalg.norm(est - leds.positions_mm, axis=1)
+                print(f" LED positions (two placements 40 mm apart): error {np.median(perr):.0f} mm median, "
+                      f"{perr.max():.0f} mm max at {np.linalg.norm(leds.positions_mm, axis=1).mean():.0f} mm; "
+                      f"{'stored' if prof.lights.positions_mm is not None else 'not stored'}")
+            else:
+                print(f" LED positions: distant LEDs, rays meet at {np.median(np.linalg.norm(est, axis=1)):.0f} mm "
+                      f"(median); {'stored' if prof.lights.positions_mm is not None else 'not stored'}")
         s, t = prof.sensor, rig.sim.sensor
         print(f" sensor: gain {s['gain_e_per_dn']:.3f} e-/DN (true {t.gain_e_per_dn}), read noise "
               f"{s['read_noise_e']:.2f} e- (true {t.read_noise_e}), dark {s['dark_current_e_per_s']:.2f} e-/s "

@@ -585,6 +585,12 @@ class Wizard:
             self._say(f"    {i:3d}   {dd[i]:8.2f}°        "
                       + "  ".join(f"{100 * v:+6.2f} %" for v in di[i]) + flag)
         ok = bool(dd.max() <= self.tol.drift_deg and worst_i.max() <= self.tol.drift_intensity)
+        if profile.led_gains is not None:
+            now = np.asarray(self.st.gains()[:len(profile.led_gains)])
+            if not np.allclose(now, profile.led_gains, atol=1.5e-4):
+                # intensities are per measured mA, so the profile still holds; the LEDs are not equal
+                self._say(f"  ! the device's calibration store holds gains {np.round(now, 4).tolist()}, not the "
+                          "profile's: the device was recalibrated or replaced; run `facette calibrate --only gains`")
         verdict = ("within tolerance" if ok else
                    f"DRIFTED beyond {self.tol.drift_deg}° / {100 * self.tol.drift_intensity:.0f} %: recalibrate "
                    "(facette calibrate)")
