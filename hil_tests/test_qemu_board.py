@@ -220,3 +220,30 @@ def test_scan_runs_on_the_board_timer_and_faults_without_flash_sync(modbus):
     # The retry's shutter opens once the sync wait and the gap are over.
     step = ring("ring_start_us", 1) - ring("ring_start_us", 0)
     assert 5000 + 3000 <= step < 5000 + 3000 + 2000, step
+
+
+def test_calibration_save_reports_the_flash_error_on_the_emulated_rom(modbus):
+    """QEMU's flash is a ROM: the port's erase read-back fails, and the device
+    answers exception 04 (flash error) instead of claiming a save."""
+    _ok(_write(modbus, "cal_unlock", R.UNLOCK_KEY), "unlock")
+    rr = _write(modbus, "command", R.Command.SAVE)
+    assert isinstance(rr, ExceptionResponse) and rr.exception_code == 4, rr
+    assert _read(modbus, "last_error") == -8   # FW_ERR_FLASH
+    assert _read(modbus, "cal_sequence") == 0
+
+
+def test_reboot_command_resets_the_board(modbus):
+    reg = R.REGISTERS["n_lights"]
+    changed = reg.default[0] - 1
+    _ok(_write(modbus, "n_lights", changed), "write n_lights")
+    assert _read(modbus, "n_lights") == changed
+    _ok(_write(modbus, "command", R.Command.REBOOT), "reboot")
+    # After the reset the configuration is back to its defaults.
+    deadline = time.monotonic() + 5.0
+    value = changed
+    while value == changed and time.monotonic() < deadline:
+        time.sleep(0.01)   # poll interval
+        value = _read(modbus, "n_lights")
+    assert value == reg.default[0]
+    assert _read(modbus, "uptime_s") <= 1
+    assert _read(modbus, "state") == R.State.IDLE
