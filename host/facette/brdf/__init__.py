@@ -6,7 +6,7 @@ the local frame (normal +z); ``get(name)`` returns one by name ("lambert", "oren
 """
 from ._fresnel import fresnel_dielectric, r_e_molenaar1999, r_i_simonot2009
 from ._interreflection import interreflection_integral_vcavity, interreflection_vcavity
-from ._microfacet import (DISTRIBUTIONS, MASKINGS, distribution_d, gaussian_norm_exact,
+from ._microfacet import (DISTRIBUTIONS, MASKINGS, SIGMA_FLAT, distribution_d, gaussian_norm_exact,
                           gaussian_norm_rational_tsb2014, masking_g, microfacet_quadrature,
                           sample_microfacet_normals, smith_g1)
 from ._models import (INTERREFLECTION_MIN_SIGMA, MODELS, brdf_li, cook_torrance1982, get, lambert,
@@ -18,7 +18,7 @@ from ._albedo import directional_albedo
 
 __all__ = [
     "fresnel_dielectric", "r_e_molenaar1999", "r_i_simonot2009",
-    "DISTRIBUTIONS", "MASKINGS", "distribution_d", "gaussian_norm_exact", "gaussian_norm_rational_tsb2014",
+    "DISTRIBUTIONS", "MASKINGS", "SIGMA_FLAT", "distribution_d", "gaussian_norm_exact", "gaussian_norm_rational_tsb2014",
     "masking_g", "microfacet_quadrature", "sample_microfacet_normals", "smith_g1",
     "INTERREFLECTION_MIN_SIGMA", "MODELS", "brdf_li", "cook_torrance1982", "get", "lambert", "li_kd_factor",
     "li_specular", "li_volume", "oren_nayar1994",

@@ -126,3 +126,11 @@ def test_bad_arguments_raise_clear_errors():
         B.brdf_li(S, O, 0.5, (0.1, 0.3), 1.3, volume="table")
     with pytest.raises(ValueError, match="approx"):
         B.brdf_li(S, O, 0.5, 0.1, 1.3, "ggx", volume="approx")
+
+
+def test_sub_resolution_roughness_is_a_flat_surface():
+    # σ = 5e-324 once gave NaN (1/(π σ²) overflows); below SIGMA_FLAT the surface is flat
+    for sg in (5e-324, 1e-200, B.SIGMA_FLAT / 2):
+        f = B.brdf_li(S, O, 0.5, sg, 1.3)
+        np.testing.assert_array_equal(f, B.brdf_li(S, O, 0.5, 0.0, 1.3))
+    assert np.all(np.isfinite(B.brdf_li(S, O, 0.5, 2 * B.SIGMA_FLAT, 1.3)))
