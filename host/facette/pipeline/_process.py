@@ -80,18 +80,18 @@ class ProcessResult:
     options: dict = field(default_factory=dict)
 
 
-def _samples_stage(inp, ps, light_dirs, theta0_deg, chunk=131072, keep=RAW_SAMPLES_KEPT, seed=0,
-                   workers=2):
+def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=RAW_SAMPLES_KEPT,
+                   seed=0, workers=2):
     """Samples (eq 4.11) pixel block by pixel block into the hemisphere sensor, keeping a
     uniform random subset of the raw samples. Shadows found by the PS stage are left out.
     Blocks run on `workers` threads (numpy releases the GIL), each with its own sensor."""
-    m, h, w, c = inp.images.shape
-    pix = np.flatnonzero((ps.valid & inp.mask).ravel())
-    flat = inp.images.reshape(m, h * w, c)
+    m, h, w, c = images.shape
+    pix = np.flatnonzero((ps.valid & mask).ravel())
+    flat = images.reshape(m, h * w, c)
     total = max(pix.size * m, 1)
     shadow = ps.shadow.reshape(-1, m)
     normals = ps.normal.reshape(-1, 3)
-    finite = bool(np.isfinite(inp.images).all())          # one pass instead of one per block
+    finite = bool(np.isfinite(images).all())          # one pass instead of one per block
 
     def block(a):
         sensor = HemisphereSensor(theta0_deg, channels=c)
@@ -221,8 +221,8 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
         res.timings["mesh"] = time.perf_counter() - t0
     if "samples" in stages:
         t0 = time.perf_counter()
-        res.filtered, res.samples = _samples_stage(
-            inp, ps, light_dirs if light_dirs.ndim == 2 else light_dirs, theta0_deg)
+        # the images as photometric stereo saw them (near lights: fall-off divided out)
+        res.filtered, res.samples = _samples_stage(images, inp.mask, ps, light_dirs, theta0_deg)
         res.timings["samples"] = time.perf_counter() - t0
     if "fit" in stages:
         t0 = time.perf_counter()

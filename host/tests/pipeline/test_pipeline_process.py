@@ -132,7 +132,10 @@ def test_scan_with_near_lights_uses_positions(tmp_path):
     shade = np.maximum(np.einsum("hwmi,hwi->mhw", dirs, sc.normals), 0) * np.transpose(fall, (2, 0, 1))
     imgs = (0.5 / np.pi * shade[..., None] * np.ones(3)).astype(np.float32)
     _write_scan(tmp_path / "scan", sc, imgs, pitch, positions=pos)
-    near = process(tmp_path / "scan", outputs=["normals"])
+    near = process(tmp_path / "scan", outputs=["normals", "samples"])
     far = process(tmp_path / "scan", outputs=["normals"], near_light=False)
     assert any("near lights" in n for n in near.notes)
     assert near.errors["normal_median_deg"] < 0.2 < far.errors["normal_median_deg"]
+    # reflectance with the 1/r^2 fall-off divided out: the Lambertian 0.5 / pi everywhere
+    _, _, f, count = near.filtered.flat(min_count=5)
+    np.testing.assert_allclose(f, 0.5 / np.pi, rtol=0.01)
