@@ -114,9 +114,14 @@ def _process(scan_dir):
 
 
 def run(args):
+    from facette.sim.device_process import REPO_ROOT
+
     profile = args.profile
-    if profile is None and args.sim and Path(DEFAULT_SIM_PROFILE).is_dir():
-        profile = DEFAULT_SIM_PROFILE
+    if profile is None and args.sim:
+        for candidate in (Path(DEFAULT_SIM_PROFILE), REPO_ROOT / DEFAULT_SIM_PROFILE):
+            if candidate.is_dir():
+                profile = str(candidate)
+                break
     t0 = time.perf_counter()
     rig = _connect(args)
     try:
