@@ -69,6 +69,13 @@ def test_cli_unattended_keeps_the_previous_profile_and_checks_drift(tmp_path, ca
     assert main(["calibrate", "--rig", "sim", "--yes", "-o", str(out), "--only", "spectralon",
                  "--base", str(out)]) == 0
     assert (out / f"profile-{first}.json").is_file()
+    # an RTI .lp file (written beside each profile) as the base: its directions are kept
+    lp = out / f"lights-{first}.lp"
+    assert lp.is_file()
+    assert main(["calibrate", "--rig", "sim", "--yes", "-o", str(tmp_path / "from-lp"), "--only", "spectralon",
+                 "--base", str(lp)]) == 0
+    np.testing.assert_allclose(load(tmp_path / "from-lp").lights.directions,
+                               load(out / f"profile-{first}.json").lights.directions, atol=1e-8)
     capsys.readouterr()
     assert main(["calibrate", "--rig", "sim", "--yes", "--check", str(out)]) == 0
     assert "within tolerance" in capsys.readouterr().out

@@ -35,11 +35,12 @@ from facette.calib.mirror_sphere import (directions_from_origin, light_positions
                                          mirror_sphere_directions, sphere_rays)
 from facette.calib.profile import SENSOR_KEYS, Lights, Profile, nominal_light_directions, save
 from facette.calib.spectralon import flat_field, led_current_gains, spectralon_intensities, target_mask
-from facette.calib.targets import channel_reflectance, load_target
+from facette.calib.targets import TARGETS_DIR, channel_reflectance, load_target
 
 __all__ = ["Wizard", "WizardError", "RigStation", "Tolerances", "STEPS", "BRACKETS_US",
            "check_exposure", "angle_deg"]
 
+PROFILES_DIR = TARGETS_DIR.parent / "profiles"     # calibration/profiles/ of the repository
 STEPS = ("noise", "mirror", "positions", "matte", "spectralon", "gains")
 # Exposure brackets per target (µs), at the wizard's LED current: the sphere's
 # highlight is ~100× brighter than the Spectralon, hence its short end.
@@ -549,7 +550,7 @@ class Wizard:
         prof = Profile(rig=rig_name, lights=lights, created=now, pixel_pitch_mm=self.pitch,
                        sensor=self.sensor, flat_field=self.flat, led_gains=self.gains,
                        history=[f"{now} facette calibrate: {', '.join(self.steps)}"] + self.history)
-        folder = Path(folder) if folder else Path("calibration/profiles") / rig_name
+        folder = Path(folder) if folder else PROFILES_DIR / rig_name
         path = save(prof, folder)
         from facette.calib.lp import write_profile_lp
 

@@ -53,7 +53,8 @@ def register(sub):
     p.add_argument("--check", metavar="PROFILE", help="re-measure and report drift against this profile")
     p.add_argument("--only", help="comma-separated steps (noise,mirror,positions,matte,spectralon,gains)")
     p.add_argument("--positions", action="store_true", help="also locate the LEDs (two sphere placements)")
-    p.add_argument("--base", help="profile whose values are kept for steps not run (default nominal)")
+    p.add_argument("--base", help="profile (or an RTI .lp file) whose values are kept for steps not run "
+                                  "(default nominal)")
     p.add_argument("--exposures", type=_exposures, help="bracket for every target, e.g. '1,1/4,1/16' (s)")
     p.add_argument("--current", type=int, default=500, help="LED current during calibration, mA")
     p.add_argument("--led-distance", type=float, metavar="MM",
@@ -108,7 +109,14 @@ def run(args):
     elif args.positions:
         steps = ["noise", "mirror", "positions", "matte", "spectralon", "gains"]
     try:
-        base = load(args.base) if args.base else None
+        if args.base and args.base.endswith(".lp"):
+            # directions from the RTI world (RTIBuilder, a dome's .lp), unit intensities
+            from facette.calib import Profile
+            from facette.calib.lp import lights_from_lp
+
+            base = Profile(rig="lp", lights=lights_from_lp(args.base)[0])
+        else:
+            base = load(args.base) if args.base else None
         check = load(args.check) if args.check else None
     except ProfileError as exc:
         print(f"error: {exc}", file=sys.stderr)
