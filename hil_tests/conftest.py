@@ -104,7 +104,7 @@ def _wait_modbus_ready(url: str, timeout_s: float) -> bool:
             port.reset_input_buffer()
             port.write(request)
             answer = b""
-            answer_deadline = time.monotonic() + 0.3
+            answer_deadline = time.monotonic() + 0.1
             while len(answer) < len(request) and time.monotonic() < answer_deadline:
                 answer += port.read(len(request) - len(answer))
             if answer == request:
