@@ -78,6 +78,8 @@ def sphere_mask(image, dark=True):
     if g.ndim != 2 or not np.all(np.isfinite(g)):
         raise ValueError(f"need a finite (H, W) or (H, W, 3) image, got shape {g.shape}")
     lo, hi = np.percentile(g, [1, 99])
+    if hi <= lo:                      # a sphere under 1 % of the frame: use the full range
+        lo, hi = float(g.min()), float(g.max())
     if hi <= lo:
         raise ValueError("the image is uniform: no sphere in view (place the sphere under the "
                          "camera, or check that the LEDs light the card)")

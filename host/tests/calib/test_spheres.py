@@ -151,3 +151,25 @@ def test_directions_from_origin_remove_the_sphere_parallax():
     np.testing.assert_allclose(d, P / 1500.0, atol=1e-12)
     with pytest.raises(ValueError, match="LED distance"):
         directions_from_origin(o, l, 10.0)
+
+
+def test_sphere_cut_by_the_frame_or_too_small_is_refused():
+    img = render_mirror_sphere(SHAPE, (5.0, 70.0), R, PITCH, direction=[0, 0, 1.0], supersample=1)
+    with pytest.raises(ValueError, match="touches the edge of the frame"):
+        sphere_mask(img)
+    small = render_mirror_sphere(SHAPE, CENTER, 5.0, PITCH, direction=[0, 0, 1.0], supersample=2)
+    with pytest.raises(ValueError, match="too small|only .* px in radius"):
+        fit_sphere_outline(sphere_mask(small), small)
+    with pytest.raises(ValueError, match="finite"):
+        sphere_mask(np.full(SHAPE, np.nan))
+
+
+def test_matte_sphere_edges_no_light_and_bad_shapes():
+    with pytest.raises(ValueError, match=r"\(m, H, W\)"):
+        matte_sphere_directions(np.zeros((4, 4)))
+    imgs = np.stack([render_matte_sphere(SHAPE, CENTER, R, PITCH, direction=l)
+                     for l in nominal_light_directions()[:3]])
+    dark = imgs.copy()
+    dark[1] = 0.0
+    with pytest.raises(ValueError, match="too few lit pixels"):
+        matte_sphere_directions(dark, circle=Circle(*CENTER, R))
