@@ -14,9 +14,10 @@ from facette.calib.mirror_sphere import (directions_from_origin, light_positions
                                          mirror_sphere_directions)
 from facette.calib.profile import (Lights, Profile, ProfileError, load, nominal_light_directions,
                                    save)
-from facette.calib.spectralon import flat_field, led_current_gains, spectralon_intensities
+from facette.calib.spectralon import (apply_flat_field, flat_field, led_current_gains,
+                                      spectralon_intensities)
 
 __all__ = ["Lights", "Profile", "ProfileError", "load", "save", "nominal_light_directions",
            "spectralon_intensities", "flat_field", "led_current_gains", "mirror_sphere_directions",
            "light_positions_from_rays", "directions_from_origin", "matte_sphere_directions",
-           "read_lp", "write_lp", "lights_from_lp", "write_profile_lp"]
+           "read_lp", "write_lp", "lights_from_lp", "write_profile_lp", "apply_flat_field"]

@@ -21,7 +21,7 @@ import numpy as np
 from facette.calib.targets import light_vectors, pixel_grid_mm
 
 __all__ = ["SpectralonResult", "spectralon_intensities", "flat_field", "led_current_gains",
-           "target_mask"]
+           "target_mask", "apply_flat_field"]
 
 
 @dataclasses.dataclass
@@ -239,3 +239,23 @@ def led_current_gains(intensities, current_gains=None, channel=1, target="min", 
                          f"outside the device's range [{lo}, {hi}]: the LED is too weak or too "
                          "strong to equalise; check it (or its current) and recalibrate")
     return g
+
+
+def apply_flat_field(images, flat):
+    """Divide images by a profile's flat field (what a pipeline does before photometric stereo).
+
+    images : (..., H, W, 3) linear; flat : (H, W, 3) mean 1 or None (returned unchanged).
+    The flat field must have the images' resolution (the HDR half-size grid of the
+    rig it was calibrated on): a mismatch means the profile belongs to another camera
+    setting, and is an error rather than a silent resampling.
+    """
+    if flat is None:
+        return images
+    f = np.asarray(flat, dtype=np.float32)
+    img = np.asarray(images)
+    if f.ndim != 3 or f.shape != img.shape[-3:]:
+        raise ValueError(f"the flat field is {f.shape} but the images are {img.shape[-3:]}: the profile "
+                         "was made at another resolution; recalibrate at this one (facette calibrate)")
+    if not np.all(np.isfinite(f)) or np.any(f <= 0):
+        raise ValueError("the flat field has non-positive or non-finite values: the profile is damaged")
+    return img / f

@@ -121,3 +121,16 @@ def test_led_gains_lowest_target_stays_in_the_device_range():
     np.testing.assert_allclose(g * I, (g * I)[0])            # equal light
     assert g.min() == pytest.approx(0.5) and g.max() <= 2.0
     np.testing.assert_allclose(led_current_gains(I[1:3], target="lowest"), [1.0, 0.9])
+
+
+def test_apply_flat_field_divides_and_refuses_other_resolutions():
+    from facette.calib import apply_flat_field
+
+    ff = np.random.default_rng(5).uniform(0.8, 1.2, SHAPE + (3,)).astype(np.float32)
+    imgs = np.ones((2,) + SHAPE + (3,), np.float32) * ff
+    np.testing.assert_allclose(apply_flat_field(imgs, ff), 1, rtol=1e-6)
+    assert apply_flat_field(imgs, None) is imgs
+    with pytest.raises(ValueError, match="another resolution"):
+        apply_flat_field(imgs, ff[:10])
+    with pytest.raises(ValueError, match="damaged"):
+        apply_flat_field(imgs, np.zeros_like(ff))
