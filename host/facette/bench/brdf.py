@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 import facette.brdf as B
-from facette.fit import fit_brdf
+from facette.fit import fit_brdf, fit_hemisphere_cells
 
 __all__ = ["main"]
 
@@ -261,21 +261,6 @@ def bench_fit(quick, rng, out):
     return rows
 
 
-def _cell_spread(sensor, cells, k=4):
-    """(len(cells), k*k, 3) directions stratified over each equal-area cell (uniform in cos θ and φ)."""
-    start = sensor.start
-    ring = np.searchsorted(start, cells, side="right") - 1
-    j = cells - start[ring]
-    n = sensor.counts[ring]
-    u = (np.arange(k) + 0.5) / k
-    cu, pu = np.meshgrid(u, u, indexing="ij")
-    c0, c1 = np.cos(sensor.edges[ring]), np.cos(sensor.edges[ring + 1])
-    z = c0[:, None] + (c1 - c0)[:, None] * cu.ravel()[None, :]
-    phi = -np.pi + (j[:, None] + pu.ravel()[None, :]) * 2 * np.pi / n[:, None]
-    r = np.sqrt(np.clip(1 - z * z, 0, 1))
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
-
-
 def bench_thesis(quick, rng, out):
     print("\n# 3. thesis test: Cook–Torrance K_d = 0.5, n_i = 1.3, noisy, filtered at θ0 = 3°, then fitted")
     from facette.reflect import HemisphereSensor
@@ -309,11 +294,9 @@ def bench_thesis(quick, rng, out):
                 f = f * (1 + noise * rng.normal(size=f.shape))
                 sensor.add(s, o, f[:, None])
             filt = sensor.result()
-            s_c, o_c, f_c, cnt = filt.flat()
-            spread = _cell_spread(sensor, np.nonzero(filt.count >= 1)[1], k=3 if quick else 4)
-            for label, extra in (("centres", {}), ("cells", {"o_spread": spread})):
-                res, dt = _timed(fit_brdf, s_c, o_c, f_c, model="cook_torrance", counts=cnt, select=False,
-                                 n_starts=4, **extra)
+            for label, k in (("centres", 0), ("cells", 3 if quick else 4)):
+                res, dt = _timed(fit_hemisphere_cells, filt, model="cook_torrance", spread=k, select=False,
+                                 n_starts=4)
                 p = res.params
                 errs = [abs(p["sigma"] - sigma) / sigma, abs(p["n_i"] - 1.3) / 1.3, abs(p["kd"][0] - 0.5) / 0.5]
                 ok = max(errs) < 0.05

@@ -3,9 +3,11 @@
 ``fit_brdf(s, o, values, model="li", method="least_squares"|"genetic", ...) -> FitResult``;
 ``FitResult.to_json()`` is the content of brdf.json.
 """
+from ._cells import cell_spread_directions, fit_hemisphere_cells
 from ._fit import METHODS, WEIGHTINGS, fit_brdf, fit_genetic, fit_least_squares, prepare_samples
 from ._models import BOUNDS, MODEL_NAMES, FitModel
 from ._result import FitResult
 
-__all__ = ["fit_brdf", "fit_genetic", "fit_least_squares", "prepare_samples", "FitResult", "FitModel",
+__all__ = ["fit_brdf", "fit_genetic", "fit_least_squares", "prepare_samples", "fit_hemisphere_cells",
+           "cell_spread_directions", "FitResult", "FitModel",
            "BOUNDS", "MODEL_NAMES", "METHODS", "WEIGHTINGS"]

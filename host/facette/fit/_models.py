@@ -27,6 +27,9 @@ class FitModel:
                  interreflection=False, volume_options=None, n_paths=256, o_spread=None):
         if name not in MODEL_NAMES:
             raise ValueError(f"model = {name!r}: choose one of {', '.join(MODEL_NAMES)}")
+        if name == "li" and volume == "table":
+            raise ValueError("volume='table' builds a table for every (σ, n_i) the fit visits (seconds each): "
+                             "use volume='quadrature' (default, coarse nodes) or 'approx' to fit")
         self.name = name
         self.s, self.o = s, o
         self.channels = int(channels)
