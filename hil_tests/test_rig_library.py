@@ -1,12 +1,26 @@
-"""Protocol conformance through the library (facette.device) on a simulated rig."""
+"""Protocol conformance through the library (facette.device): a fresh simulated rig,
+or the real rig given with ``--device PORT`` (tests that need the rig simulator's
+camera say so by using ``sim_rig_factory`` directly)."""
 import numpy as np
 import pytest
 
+import facette
 from facette.device import DeviceClient, DeviceException, DeviceMismatch, DeviceReset, registers
 
 
-def test_identity_and_definition_hash(sim_rig_factory):
-    rig = sim_rig_factory()
+@pytest.fixture
+def lib_rig(request, sim_rig_factory):
+    given = request.config.getoption("--device")
+    if not given:
+        yield sim_rig_factory()
+        return
+    rig = facette.connect(given)
+    yield rig
+    rig.close()
+
+
+def test_identity_and_definition_hash(lib_rig):
+    rig = lib_rig
     ident = rig.identity
     assert ident["definition_hash"] == f"{registers.DEFINITION_HASH:#010x}"
     assert ident["protocol_version"] == registers.PROTOCOL_VERSION
@@ -16,18 +30,18 @@ def test_identity_and_definition_hash(sim_rig_factory):
     assert info["revision"] == ident["fw_version"]
 
 
-def test_a_device_of_another_definition_is_refused(sim_rig_factory):
-    rig = sim_rig_factory()
+def test_a_device_of_another_definition_is_refused(lib_rig):
+    rig = lib_rig
     rig.device.close()                          # free the port for a host of another definition
     with pytest.raises(DeviceMismatch, match="speaks protocol definition"):
-        DeviceClient(rig.sim.port, expected_hash=registers.DEFINITION_HASH ^ 0x1)
-    ok = DeviceClient(rig.sim.port)             # the matching host is accepted
+        DeviceClient(rig.device.url, expected_hash=registers.DEFINITION_HASH ^ 0x1)
+    ok = DeviceClient(rig.device.url)           # the matching host is accepted
     assert ok.identity["definition_hash"] == registers.DEFINITION_HASH
     ok.close()
 
 
-def test_register_round_trip_and_range_checks(sim_rig_factory):
-    rig = sim_rig_factory()
+def test_register_round_trip_and_range_checks(lib_rig):
+    rig = lib_rig
     dev = rig.device
     dev.write("gap_us", 123456)
     assert dev.read("gap_us") == 123456
@@ -42,8 +56,8 @@ def test_register_round_trip_and_range_checks(sim_rig_factory):
     assert dev.read("n_lights") != 17
 
 
-def test_commands_follow_the_state_machine(sim_rig_factory):
-    rig = sim_rig_factory()
+def test_commands_follow_the_state_machine(lib_rig):
+    rig = lib_rig
     with pytest.raises(DeviceException, match="not allowed in this state"):
         rig.pause()                                             # nothing is running
     rig.clear_faults()
@@ -55,19 +69,19 @@ def test_commands_follow_the_state_machine(sim_rig_factory):
     assert rig.device.state() == "ABORTED"
 
 
-def test_gains_persist_in_flash_across_a_device_reset(sim_rig_factory):
-    rig = sim_rig_factory()
-    gains = list(np.round(np.linspace(0.8, 1.2, len(rig.gains())), 4))
+def test_gains_persist_in_flash_across_a_reboot(lib_rig):
+    rig = lib_rig
+    original = rig.gains()
+    gains = list(np.round(np.linspace(0.8, 1.2, len(original)), 4))
     rig.set_gains(gains, save=True)
     boot = rig.device.check_reset()
-    rig.sim.simulator.reset_device()
-    with pytest.raises(DeviceReset):
-        deadline = 200
-        while deadline:
+    rig.reboot()
+    with pytest.raises(DeviceReset):            # seen through the boot count
+        for _ in range(500):
             rig.device.check_reset()
-            deadline -= 1
     assert rig.device.boot_count == boot + 1
     assert rig.gains() == pytest.approx(gains, abs=1e-4)
+    rig.set_gains(original, save=True)          # leave a real rig as it was
 
 
 def test_frame_records_match_what_the_camera_took(sim_rig_factory, tmp_path):
