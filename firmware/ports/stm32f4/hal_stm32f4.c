@@ -52,6 +52,7 @@ static uint32_t s_crit_depth;
 static uint32_t s_crit_primask;
 static bool s_wdt_started;
 static int s_led_channel = -1;
+static uint32_t s_lines_known, s_lines_level;   /* shadow of the hal_line_t outputs */
 static uint16_t s_dac_code;
 
 /* One-shot timer: deadline checked by TIM5 compare (µs-precise on silicon)
@@ -285,8 +286,17 @@ void hal_gpio_write(hal_line_t line, bool active)
     if ((unsigned)line >= HAL_LINE_COUNT) {
         return;
     }
-    uint32_t bit = 1u << pins[line];
-    GPIO_BSRR(BOARD_CTRL_PORT) = active ? bit : bit << 16;
+    /* The core refreshes the status line on every poll: write the pin only
+     * when it changes (under QEMU every device access takes its global lock). */
+    uint32_t mask = 1u << line;
+    uint32_t pm = stm32_irq_save();
+    if (((s_lines_known & mask) == 0u) || (((s_lines_level & mask) != 0u) != active)) {
+        uint32_t bit = 1u << pins[line];
+        GPIO_BSRR(BOARD_CTRL_PORT) = active ? bit : bit << 16;
+        s_lines_known |= mask;
+        s_lines_level = active ? (s_lines_level | mask) : (s_lines_level & ~mask);
+    }
+    stm32_irq_restore(pm);
 }
 
 void hal_led_select(int ch)
