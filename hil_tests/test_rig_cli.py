@@ -1,0 +1,61 @@
+"""The command line: `facette sim` (first line `port: <path>`), `facette device`,
+`facette scan --sim --press-button` (what `make scan` runs)."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+FACETTE = [sys.executable, "-m", "facette.cli.main"]
+
+
+def test_facette_sim_prints_its_port_first_and_facette_device_talks_to_it(tmp_path):
+    with subprocess.Popen(FACETTE + ["sim", "--speed", "100", "--workdir", str(tmp_path / "sim")],
+                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True) as sim:
+        _talk(sim)
+    assert sim.returncode == 0
+
+
+def _talk(sim):
+    try:
+        first = sim.stdout.readline()
+        assert first.startswith("port: /")
+        port = first.split(": ", 1)[1].strip()
+        assert sim.stdout.readline().startswith("camera: ")
+        out = subprocess.run(FACETTE + ["device", "--port", port, "info"], capture_output=True, text=True,
+                             timeout=60)
+        assert out.returncode == 0, out.stderr
+        info = json.loads(out.stdout)
+        assert info["identification"]["vendor"] == "facette" and info["boot_count"] >= 1
+        out = subprocess.run(FACETTE + ["device", "--port", port, "write", "gap_us", "250000"],
+                             capture_output=True, text=True, timeout=60)
+        assert json.loads(out.stdout) == {"gap_us": 250000}
+        bad = subprocess.run(FACETTE + ["device", "--port", port, "write", "n_lights", "99"],
+                             capture_output=True, text=True, timeout=60)
+        assert bad.returncode != 0 and "out of range" in bad.stderr
+    finally:
+        sim.stdin.write("quit\n")
+        sim.stdin.flush()
+        sim.wait(timeout=30)
+
+
+def test_facette_scan_sim_press_button(tmp_path):
+    out_dir = tmp_path / "demo"
+    run = subprocess.run(FACETTE + ["scan", "--sim", "--press-button", "--no-process", "--quiet",
+                                    "--exposures", "1/5,1/50", "--lights", "0,1,2,3", str(out_dir)],
+                         capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "scan: 8 frames" in run.stdout and f"results: {out_dir}" in run.stdout
+    m = json.loads((out_dir / "scan.json").read_text())
+    assert [e["time_us"] for e in m["exposures"]] == [200000, 20000] and m["complete"]
+    truth = np.load(out_dir / "truth.npz")
+    assert truth["light_dirs"].shape == (4, 3)
+    # the same command again resumes: nothing left to take, nothing retaken
+    again = subprocess.run(FACETTE + ["scan", "--sim", "--press-button", "--no-process", "--quiet",
+                                      "--exposures", "1/5,1/50", "--lights", "0,1,2,3", str(out_dir)],
+                           capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert json.loads((out_dir / "scan.json").read_text())["frames"] == m["frames"]
+    assert Path(out_dir / "raw").is_dir()
