@@ -37,9 +37,11 @@ class FitModel:
         self.interreflection = bool(interreflection)
         self.volume_options = dict(volume_options or {})
         self.n_paths = int(n_paths)
+        self.s_c, self.o_c = s, o  # cell centres
         if o_spread is not None:
             # each value is a cell average: evaluate at K directions spread over the cell and
-            # average (exact for the K_d-free parts, which enter the model linearly)
+            # average (exact for the K_d-free parts, which enter the model linearly). Only the
+            # specular lobe varies inside a 2–6° cell; the volume parts are taken at the centre.
             self.s, self.o = s[:, None, :], o_spread
         self.up = self._mean((self.s[..., 2] > 0) & (self.o[..., 2] > 0))
         self._cache = {}
@@ -83,12 +85,11 @@ class FitModel:
         spec = self._mean(li_specular(self.s, self.o, sigma, n_i, self.distribution, self.masking))
         parts = {"spec": spec}
         if self.name == "li":
-            up = (self.s[..., 2] > 0) & (self.o[..., 2] > 0)
-            parts["I"] = self._mean(up * volume_integral(self.s, self.o, sigma, n_i, self.distribution,
-                                                         self.masking, self.volume, **self.volume_options))
+            parts["I"] = self.up * volume_integral(self.s_c, self.o_c, sigma, n_i, self.distribution,
+                                                   self.masking, self.volume, **self.volume_options)
             if self.interreflection:
-                parts["J"] = self._mean(interreflection_integral_vcavity(
-                    self.s, self.o, sigma, n_i, self.distribution, n_paths=self.n_paths, rng=12345))
+                parts["J"] = interreflection_integral_vcavity(self.s_c, self.o_c, sigma, n_i, self.distribution,
+                                                              n_paths=self.n_paths, rng=12345)
         if len(self._cache) > 64:
             self._cache.clear()
         self._cache[key] = parts
