@@ -139,3 +139,18 @@ def test_a_directory_holding_another_scan_is_refused(sim_rig_factory, tmp_path):
     (tmp_path / "other" / "notes.txt").write_text("mine")
     with pytest.raises(ScanDirectoryError, match="not empty"):
         rig.scan(tmp_path / "other", lights=[0], exposures=SHORT[:1], progress=False)
+
+
+def test_led_defined_exposures_bracket_by_duration_and_current(sim_rig_factory, tmp_path):
+    rig = sim_rig_factory()
+    exposures = [(5000, 1000), (5000, 200), (500, 200)]          # (pulse µs, mA)
+    scan = rig.scan(tmp_path / "s", lights=[0, 7], exposures=exposures, mode="led", progress=False)
+    frames = scan.manifest["frames"]
+    assert [e["current_mA"] for e in scan.manifest["exposures"]] == [1000, 200, 200]
+    for rec, sim_frame in zip(frames, rig.sim.simulator.frames):
+        t_us, ma = exposures[rec["exposure"]]
+        assert rec["current_set_mA"] == ma and rec["current_meas_mA"] == ma
+        charge = np.asarray(sim_frame["charge_mA_us"])
+        assert charge[[0, 7][rec["light"]]] == pytest.approx(t_us * ma)    # the pulse, nothing else
+        assert charge.sum() == pytest.approx(t_us * ma)
+        assert sim_frame["window_us"] > t_us                                # the shutter window is longer
