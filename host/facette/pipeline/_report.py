@@ -33,27 +33,45 @@ def _map(title, img, cmap=None, vmin=None, vmax=None, label=""):
 
 
 def _curves(filtered):
-    """In-plane reflectance curves: mean BRDF (green) against signed theta_o for cells near
-    the incidence plane, one curve per incidence bin with data."""
+    """In-plane reflectance curves: the mean BRDF (green) of the cells within 15 deg of the
+    incidence plane, averaged per ring (weighted by samples), against the signed theta_o
+    (negative: the mirror side, phi_o = pi), for up to six incidence bins spread over theta_s."""
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(7, 4.5))
     o = filtered.o
-    theta_o = np.degrees(np.arccos(np.clip(o[:, 2], -1, 1)))
-    phi_o = np.arctan2(o[:, 1], o[:, 0])
-    near = np.minimum(np.abs(phi_o), np.pi - np.abs(phi_o)) < np.radians(15)
-    signed = np.where(np.abs(phi_o) < np.pi / 2, theta_o, -theta_o)
+    phi = np.arctan2(o[:, 1], o[:, 0])
+    cosz = np.clip(o[:, 2], -1, 1)
+    ring = np.clip(np.searchsorted(filtered.edges, np.arccos(cosz), side="right") - 1, 0,
+                   len(filtered.counts) - 1)
+    theta_mid = np.degrees(np.arccos(cosz))
     ch = 1 if filtered.mean.shape[2] > 1 else 0
+    tol = np.radians(15)
     drawn = 0
-    for b in np.argsort(-filtered.count.sum(1))[:6]:
-        sel = near & (filtered.count[b] > 0)
-        if sel.sum() < 2:
+    filled = filtered.count.sum(1)
+    usable = np.flatnonzero(filled >= 0.01 * max(filled.max(), 1))
+    # spread over the incidences: with lights near the camera only small theta_s reach the mirror
+    picks = usable[np.unique(np.linspace(0, len(usable) - 1, min(6, len(usable))).round().astype(int))] \
+        if len(usable) else []
+    for b in picks:
+        xs, ys = [], []
+        for side, sel_side in ((1, np.abs(phi) < tol), (-1, np.abs(np.abs(phi) - np.pi) < tol)):
+            for j in np.unique(ring):
+                sel = sel_side & (ring == j) & (filtered.count[b] > 0)
+                if j == 0:
+                    sel = (ring == 0) & (filtered.count[b] > 0)
+                if not sel.any():
+                    continue
+                wts = filtered.count[b, sel]
+                xs.append(side * float(theta_mid[sel].mean()))
+                ys.append(float(np.sum(filtered.mean[b, sel, ch] * wts) / wts.sum()))
+        if len(xs) < 2:
             continue
-        order = np.argsort(signed[sel])
-        ax.plot(signed[sel][order], filtered.mean[b, sel, ch][order], "o-", ms=3,
+        order = np.argsort(xs)
+        ax.plot(np.array(xs)[order], np.array(ys)[order], "o-", ms=3,
                 label=f"θs ≈ {np.degrees(filtered.theta_s[b]):.1f}°")
         drawn += 1
-    ax.set_xlabel("θo in the incidence plane (deg; + = towards the light side)")
-    ax.set_ylabel("BRDF, green (1/sr)")
+    ax.set_xlabel("θo in the incidence plane (deg; − mirror side, + light side)")
+    ax.set_ylabel("BRDF, green (1/sr with calibrated intensities)")
     ax.set_yscale("log")
     ax.set_title("Filtered reflectance (hemispherical sensor)")
     if drawn:
