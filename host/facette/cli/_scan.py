@@ -60,6 +60,7 @@ def register(sub):
     btn = p.add_mutually_exclusive_group()
     btn.add_argument("--wait-button", action="store_true", help="wait for the rig's button to start")
     btn.add_argument("--press-button", action="store_true", help="simulated rig: press its button")
+    btn.add_argument("--hid-button", metavar="VID:PID", help="wait for a USB HID button (hidapi) to start")
     p.add_argument("--no-process", action="store_true", help="acquire only")
     p.add_argument("--scene", default="plaque_sphere", help="simulated object (plaque_sphere, plaque, sphere, plane)")
     p.add_argument("--raw-size", type=_shape, default=(96, 128), metavar="WxH",
@@ -129,6 +130,13 @@ def run(args):
         print(f"rig: {rig.device.url} firmware {ident['fw_version']} definition {ident['definition_hash']} "
               f"boot {ident['boot_count']}", flush=True)
         button = "press" if args.press_button else "wait" if args.wait_button else None
+        if args.hid_button:
+            from facette.device.hid_button import HidButton, parse_vid_pid
+
+            hid_button = HidButton(*parse_vid_pid(args.hid_button))
+            print("press the USB button to start the scan", flush=True)
+            hid_button.wait_press()
+            hid_button.close()
         if button == "press" and rig.sim is None:
             raise SystemExit("--press-button needs --sim (a real rig's button is pressed by a person: "
                              "use --wait-button)")
