@@ -54,11 +54,13 @@ FLAT_US = (10_000, 30_000, 100_000, 300_000, 600_000, 1_200_000, 2_400_000, 4_00
 
 INSTRUCTIONS = {
     "lens_cap": "Put the lens cap on (dark frames for the camera's noise).",
-    "spectralon": "Take the lens cap off. Lay the Spectralon flat under the camera, filling the field.",
-    "mirror_sphere": "Replace the Spectralon by the chrome sphere on its black collar, at the centre of "
-                     "the field, on the grey card.",
-    "mirror_sphere_2": "Move the chrome sphere {dx:+.0f} mm sideways (keep it on the card, fully in view).",
-    "matte_sphere": "Replace the chrome sphere by the matte sphere, at the centre of the field.",
+    "spectralon": "Lens cap off. Lay the Spectralon flat under the camera, filling the field "
+                  "(nothing else in view).",
+    "mirror_sphere": "Lens cap off. Place the chrome sphere on its black collar at the centre of the field, "
+                     "on the grey card (nothing else in view).",
+    "mirror_sphere_2": "Move the chrome sphere to {dx:+.0f} mm from the centre, sideways (keep it on the card, "
+                       "fully in view).",
+    "matte_sphere": "Lens cap off. Place the matte sphere at the centre of the field (nothing else in view).",
 }
 
 

@@ -142,6 +142,10 @@ def run(args):
             print(f"\n  ✗ {exc}", flush=True)
             print("nothing was written; the previous profile is unchanged", flush=True)
             return 2
+        except EOFError:
+            print("\n  ✗ no one to answer (the input is closed): run with --yes for an unattended "
+                  "calibration; nothing was written", flush=True)
+            return 2
         return 0
     finally:
         rig.close()
