@@ -247,3 +247,20 @@ def test_reboot_command_resets_the_board(modbus):
     assert value == reg.default[0]
     assert _read(modbus, "uptime_s") <= 1
     assert _read(modbus, "state") == R.State.IDLE
+
+
+def test_host_device_client_talks_to_the_board(qemu_board):
+    """facette.device.DeviceClient reaches the emulated board through its
+    socket:// URL exactly as a serial port, and refuses another definition."""
+    from facette.device.client import DeviceClient, DeviceMismatch
+
+    dev = DeviceClient(qemu_board.url)
+    try:
+        assert dev.identity["definition_hash"] == R.DEFINITION_HASH
+        assert dev.identity["serial_number"] == EMULATED_UID
+        dev.write("gap_us", 123457)
+        assert dev.read("gap_us") == 123457
+    finally:
+        dev.close()
+    with pytest.raises(DeviceMismatch):
+        DeviceClient(qemu_board.url, expected_hash=R.DEFINITION_HASH ^ 1)
