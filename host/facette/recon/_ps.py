@@ -386,17 +386,18 @@ def _hierarchy_block(e, s, ok, trip, mats, t_ombre, t_spec, t_source):
     # Specularities: while the variance of the kept normals exceeds T_spec and more than one
     # triplet is left, drop the brightest remaining light and every triplet using it.
     specular = np.zeros_like(shadow)
-    todo = np.arange(n_pix)
+    todo = None                                              # None: every pixel of the block
     for _ in range(m):
-        if todo.size == 0:
+        if todo is not None and todo.size == 0:
             break
-        tat = ta[todo].astype(np.float32)
+        tat = (ta if todo is None else ta[todo]).astype(np.float32)
         cnt = tat.sum(1)
         inv_cnt = 1.0 / np.maximum(cnt, 1)
-        mx, my, mz = ((tat * nj[todo]).sum(1) * inv_cnt for nj in nh)
+        mx, my, mz = (np.einsum("nk,nk->n", tat, nj if todo is None else nj[todo]) * inv_cnt
+                      for nj in nh)
         var = 1.0 - (mx * mx + my * my + mz * mz)            # total variance of unit vectors
         act = (cnt > 1) & (var > t_spec)
-        todo = todo[act]
+        todo = np.flatnonzero(act) if todo is None else todo[act]
         if todo.size == 0:
             break
         used = (tat[act] @ uses) > 0                          # lights still in a kept triplet
@@ -406,7 +407,7 @@ def _hierarchy_block(e, s, ok, trip, mats, t_ombre, t_spec, t_source):
         ta[todo] = alive_triplets(alive[todo], todo)
     taf = ta.astype(np.float32)
     cnt = ta.sum(1)
-    mean = np.stack([(taf * nj).sum(1) for nj in nh], axis=1)
+    mean = np.stack([np.einsum("nk,nk->n", taf, nj) for nj in nh], axis=1)
     mn = np.linalg.norm(mean, axis=1)
     found = (cnt > 0) & (mn > 1e-12)
     normal = np.where(found[:, None], mean / np.where(found, mn, 1.0)[:, None], 0.0)
