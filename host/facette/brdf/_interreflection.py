@@ -18,12 +18,15 @@ Left out (and said in the docs): volume↔specular mixed paths, specular–specu
 bounces (the thin mirror peak of fig 3.22) and three or more bounces (fig 3.23: the two-bounce
 term carries most of the extra light for rough diffuse facets).
 """
+import functools
+
 import numpy as np
 
 from ._fresnel import check_n_i, fresnel_dielectric, r_i_simonot2009
 from ._microfacet import check_sigma, sample_microfacet_normals
+from ._volume import tabulate_isotropic
 
-__all__ = ["interreflection_integral_vcavity", "interreflection_vcavity"]
+__all__ = ["interreflection_integral_vcavity", "interreflection_vcavity", "build_interreflection_table"]
 
 
 def _hits_partner(px, pz, dx, dz, ct, st):
@@ -94,10 +97,34 @@ def interreflection_integral_vcavity(s, o, sigma, n_i, distribution="beckmann", 
     return np.where(up, out.reshape(shape), 0.0)
 
 
-def interreflection_vcavity(s, o, kd, sigma, n_i, distribution="beckmann", n_paths=2048, rng=None):
-    """Two-bounce volume inter-reflection term κ² J(s, o), (...) or (..., C) per K_d channel."""
+@functools.lru_cache(maxsize=16)
+def build_interreflection_table(sigma, n_i, distribution="beckmann", step_deg=5.0, n_paths=512):
+    """J tabulated like the volume part (K_d-free, so one table serves every K_d), by path
+    sampling with ``n_paths`` paths per node (seeded). Isotropic σ only."""
+    sx, sy, iso = check_sigma(sigma, distribution)
+    if not iso:
+        raise ValueError("a table of inter-reflections assumes an isotropic distribution")
+    n = check_n_i(n_i)
+    return tabulate_isotropic(
+        lambda s, o: interreflection_integral_vcavity(s, o, sx, n, distribution, n_paths, rng=7),
+        step_deg, ("J", sx, n, distribution))
+
+
+def interreflection_vcavity(s, o, kd, sigma, n_i, distribution="beckmann", n_paths=2048, rng=None,
+                            table_step_deg=None):
+    """Two-bounce volume inter-reflection term κ² J(s, o), (...) or (..., C) per K_d channel.
+
+    ``table_step_deg``: read J from a cached table (built on first use) instead of simulating
+    per call — what ``brdf_li(volume="table")`` does, for rendering-sized calls.
+    """
     k = np.asarray(kd, dtype=float)
     n = check_n_i(n_i)
     kappa = k / (np.pi * n * n * (1.0 - k * r_i_simonot2009(n)))
-    j = interreflection_integral_vcavity(s, o, sigma, n, distribution, n_paths, rng)
+    if table_step_deg:
+        j = build_interreflection_table(float(check_sigma(sigma, distribution)[0]), n, distribution,
+                                        float(table_step_deg))(np.asarray(s, float), np.asarray(o, float))
+        up = (np.asarray(s)[..., 2] > 0) & (np.asarray(o)[..., 2] > 0)
+        j = np.where(up, j, 0.0)
+    else:
+        j = interreflection_integral_vcavity(s, o, sigma, n, distribution, n_paths, rng)
     return j[..., None] * kappa**2 if k.ndim == 1 else j * kappa**2

@@ -125,9 +125,10 @@ def brdf_li(s, o, kd, sigma, n_i, distribution="beckmann", masking="smith", volu
     n_i : float in [1, 10] (fits use [1, 2.5]), relative index of the interface.
     distribution : "beckmann" | "ggx" | "gaussian".   masking : "smith" | "vcavity".
     volume : "quadrature" (reference) | "monte_carlo" | "table" | "approx".
-    interreflection : "auto" (V-cavity multi-bounce term added when σ ≥ 0.2 and masking is
+    interreflection : "auto" (V-cavity two-bounce term added when σ ≥ 0.2 and masking is
         "vcavity", with a quadrature/table/MC volume; the approx formula has it built in),
-        True, or False.
+        True, or False. Simulated per call (2048 paths per pair), or read from a table
+        built once per (σ, n_i, D) with volume="table".
     **options : passed to the volume evaluation (n_theta, n_phi, n_samples, rng, step_deg).
 
     Returns
@@ -151,7 +152,8 @@ def brdf_li(s, o, kd, sigma, n_i, distribution="beckmann", masking="smith", volu
         if masking != "vcavity":
             raise ValueError("inter-reflections are simulated in V-cavities: use masking='vcavity' "
                              "(or interreflection=False)")
-        out = out + interreflection_vcavity(s, o, kd, sigma, n_i, distribution)
+        step = options.get("step_deg", 5.0) if volume == "table" else None
+        out = out + interreflection_vcavity(s, o, kd, sigma, n_i, distribution, table_step_deg=step)
     return out
 
 

@@ -163,6 +163,31 @@ class VolumeTable:
             return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
 
 
+def check_table_step(step_deg):
+    step = float(step_deg)
+    if not 0.5 <= step <= 30 or abs(90 / step - round(90 / step)) > 1e-9:
+        raise ValueError(f"step_deg = {step_deg}: choose a step in [0.5°, 30°] that divides 90°")
+    return step
+
+
+def tabulate_isotropic(fn, step_deg, key=None):
+    """VolumeTable of fn(s, o) (K_d-free, isotropic) on the grid θ_s, θ_o ∈ [0, 90°], Δφ ∈ [0, 180°]."""
+    step = check_table_step(step_deg)
+    nt = int(round(90 / step)) + 1
+    nphi = int(round(180 / step)) + 1
+    th = np.radians(np.minimum(np.arange(nt) * step, 90.0 - 0.01))
+    ph = np.radians(np.arange(nphi) * step)
+    s = np.stack([np.sin(th), np.zeros(nt), np.cos(th)], axis=-1)[:, None, None, :]
+    o = np.stack([np.sin(th)[:, None] * np.cos(ph)[None, :], np.sin(th)[:, None] * np.sin(ph)[None, :],
+                  np.broadcast_to(np.cos(th)[:, None], (nt, nphi))], axis=-1)[None, :, :, :]
+    values = np.asarray(fn(s, o), dtype=float).reshape(nt, nt, nphi)
+    values = values * np.cos(th)[:, None, None] * np.cos(th)[None, :, None]
+    values[-1, :, :] = 0.0  # the limit at θ = 90° (cos θ · I → 0)
+    values[:, -1, :] = 0.0
+    values.setflags(write=False)
+    return VolumeTable(step, values, key)
+
+
 @functools.lru_cache(maxsize=32)
 def build_volume_table(sigma, n_i, distribution="beckmann", masking="smith", step_deg=5.0,
                        n_theta=24, n_phi=32):
@@ -175,22 +200,9 @@ def build_volume_table(sigma, n_i, distribution="beckmann", masking="smith", ste
     if not iso:
         raise ValueError("volume='table' assumes an isotropic distribution (a table over θ_s, θ_o, "
                          "φ_o); use volume='quadrature' or 'monte_carlo' for an anisotropic sigma pair")
-    step = float(step_deg)
-    if not 0.5 <= step <= 30 or abs(90 / step - round(90 / step)) > 1e-9:
-        raise ValueError(f"step_deg = {step_deg}: choose a step in [0.5°, 30°] that divides 90°")
-    nt = int(round(90 / step)) + 1
-    nphi = int(round(180 / step)) + 1
-    th = np.radians(np.minimum(np.arange(nt) * step, 90.0 - 0.01))
-    ph = np.radians(np.arange(nphi) * step)
-    s = np.stack([np.sin(th), np.zeros(nt), np.cos(th)], axis=-1)[:, None, None, :]
-    o = np.stack([np.sin(th)[:, None] * np.cos(ph)[None, :], np.sin(th)[:, None] * np.sin(ph)[None, :],
-                  np.broadcast_to(np.cos(th)[:, None], (nt, nphi))], axis=-1)[None, :, :, :]
-    values = volume_integral_quadrature(s, o, sx, n, distribution, masking, n_theta, n_phi)
-    values = values * np.cos(th)[:, None, None] * np.cos(th)[None, :, None]
-    values[-1, :, :] = 0.0  # the limit at θ = 90° (cos θ · I → 0)
-    values[:, -1, :] = 0.0
-    values.setflags(write=False)
-    return VolumeTable(step, values, (sx, n, distribution, masking))
+    return tabulate_isotropic(
+        lambda s, o: volume_integral_quadrature(s, o, sx, n, distribution, masking, n_theta, n_phi),
+        step_deg, (sx, n, distribution, masking))
 
 
 def volume_integral_table(s, o, sigma, n_i, distribution="beckmann", masking="smith", step_deg=5.0):
