@@ -233,9 +233,15 @@ static void timer_program(void)
     if (delta > 0x7FFFFFFFu) {
         delta = 0x7FFFFFFFu;                /* > 35 min: re-armed on expiry */
     }
-    TIM_CCR1(TIM5_BASE) = TIM_CNT(TIM5_BASE) + (uint32_t)delta;
+    uint32_t ccr = TIM_CNT(TIM5_BASE) + (uint32_t)delta;
+    TIM_CCR1(TIM5_BASE) = ccr;
     TIM_SR(TIM5_BASE) = ~TIM_SR_CC1IF;
     TIM_DIER(TIM5_BASE) |= TIM_DIER_CC1IE;
+    if ((int32_t)(ccr - TIM_CNT(TIM5_BASE)) <= 0) {
+        /* The counter passed the compare value while it was being written: the
+         * match would come a whole wrap later, so take the interrupt now. */
+        NVIC_ISPR(IRQ_TIM5 / 32u) = 1u << (IRQ_TIM5 % 32u);
+    }
 }
 
 void hal_timer_start(uint64_t at_us)
