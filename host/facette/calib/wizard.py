@@ -211,12 +211,17 @@ class RigStation:
         """HDR images (m, H, W, 3) in DN/(µs·mA) of every LED, merged with the station's
         sensor model; `current` "measured" (the LED's own efficiency) or "set" (what
         the host asked for: shows the effect of the calibration gains)."""
-        from facette.hdr import load_hdr, merge_scan
+        from facette.hdr import MissingFrameWarning, load_hdr, merge_scan
 
         d = self._scan(name, exposures, range(self.n_leds))
         with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            merge_scan(d, sensor=self.sensor, current=current)
+            # a calibration capture is merged only when complete
+            warnings.simplefilter("error", MissingFrameWarning)
+            try:
+                merge_scan(d, sensor=self.sensor, current=current)
+            except MissingFrameWarning as exc:
+                raise WizardError(f"{name}: a frame is missing ({exc}): check the camera's card and "
+                                  "tether, then run the step again") from None
         images, _, _ = load_hdr(d, sensor=self.sensor, merge_missing=False)
         return np.asarray(images, np.float64), d
 
