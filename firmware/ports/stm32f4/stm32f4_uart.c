@@ -1,10 +1,11 @@
 /*
  * stm32f4_uart.c - USART1 on PA9 (TX) / PA10 (RX), AF7, 8N1, interrupt driven.
  *
- * Received bytes go into a ring with the µs time of the last one, so the
- * Modbus layer can frame on the 3.5-character silence even when bytes arrive
- * in bursts (QEMU's USART model delivers them as fast as DR is read, with no
- * baud timing). Transmission drains a ring so the core never waits on the
+ * The receive interrupt timestamps every byte on the µs clock and stores the
+ * line silence before it next to it in the ring, so the Modbus layer frames
+ * on the 3.5-character silence of the line, not on when it happens to poll
+ * (QEMU's USART model delivers bytes as fast as DR is read, with no baud
+ * timing: see stm32_uart_init). Transmission drains a ring so the core never waits on the
  * line: tx_pump() fills DR while TXE is set, from the writer and from the TXE
  * interrupt. On silicon TXE is set for about one byte at a time and the
  * interrupt does the rest; QEMU 7.2's USART never raises a TXE interrupt but
