@@ -201,7 +201,7 @@ class _Acquisition:
         bits = dev.read("fault_bits")
         names = self.rig._fault_names(bits)
         if names:
-            if set(names) <= _BENIGN_FAULTS or dev.state() == "FAULT" and not (set(names) - _BENIGN_FAULTS):
+            if set(names) <= _BENIGN_FAULTS:
                 self.sd.journal("clear_faults", faults=names)
                 self.rig.clear_faults()
             else:
