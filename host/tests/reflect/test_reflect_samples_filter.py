@@ -135,7 +135,7 @@ def test_grid_accumulation_equals_accumulating_gathered_samples():
     sensor = HemisphereSensor(channels=3)
     e = imgs.reshape(12, -1, 3)
     g = sample_grid(e, sc.normals.reshape(-1, 3), L)
-    sensor.add_grid(g["cos_s"], g["o_x"], g["o_y"], g["cos_o"], g["f"], g["keep"])
+    sensor.add_grid(g["cos_s"], g["o_x"], g["o_y"], g["cos_o"], e, g["keep"], g["scale"])
     b = sensor.result()
     np.testing.assert_array_equal(a.count, b.count)
     np.testing.assert_allclose(np.nan_to_num(a.mean), np.nan_to_num(b.mean), rtol=1e-5)
