@@ -70,7 +70,9 @@ def test_open_led_stops_the_scan_with_a_clear_message_then_resumes(sim_rig_facto
         rig.scan(tmp_path / "s", exposures=SHORT, progress=False)
     sd = ScanDirectory(tmp_path / "s")
     assert len(sd.manifest["frames"]) == 3 * len(SHORT)       # lights 0..2 complete
-    assert _journal(tmp_path / "s")[-1]["step"] in ("stopped", "unmatched")
+    steps = [e["step"] for e in _journal(tmp_path / "s")]
+    assert steps[-1] == "interrupted" and "stopped" in steps[-4:]
+    assert "LED_OPEN" in _journal(tmp_path / "s")[-1]["error"]
     _nothing_lost(rig, tmp_path / "s")
     with pytest.raises(ScanError, match="latched faults"):   # not cleared: refused, nothing shot
         rig.scan(tmp_path / "s", exposures=SHORT, progress=False)

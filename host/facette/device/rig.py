@@ -55,6 +55,14 @@ class Rig:
         ident["definition_hash"] = f"{ident.get('definition_hash', 0):#010x}"
         return ident
 
+    @property
+    def n_lights(self):
+        """LEDs fitted: the simulator's, else 12 (the thesis rig; the firmware drives up to
+        `max_leds` channels, not all of which need an LED)."""
+        if self.sim is not None:
+            return len(self.sim.leds)
+        return min(self.device.identity.get("max_leds", 12) or 12, 12)
+
     def status(self):
         """State, faults, progress of the scan: a dict (times in µs)."""
         st = self.device.read_block(["state", "fault_bits", "current_light", "current_exposure",
@@ -98,7 +106,7 @@ class Rig:
         ----------
         exposures : sequence of (time_us, current_mA) or of time_us; current 0 means
             the light's current. 1..16 of them.
-        lights : sequence of LED channels in scan order (default: every LED, 0..max_leds-1)
+        lights : sequence of LED channels in scan order (default: every fitted LED, see n_lights)
         light_current_mA : int or sequence, drive current per light, mA (before calibration gain)
         mode : "camera" (the camera's shutter speed), "bulb", or "led" (LED pulse defines t)
         retries : repeats of a setting whose flash sync is missing
@@ -108,7 +116,7 @@ class Rig:
         if mode not in TIMING_MODES:
             raise ValueError(f"mode must be one of {TIMING_MODES}, got {mode!r}")
         n_leds = self.device.identity.get("max_leds", 12) or 12
-        lights = list(range(n_leds)) if lights is None else [int(c) for c in lights]
+        lights = list(range(self.n_lights)) if lights is None else [int(c) for c in lights]
         if not 1 <= len(lights) <= 16 or any(not 0 <= c < n_leds for c in lights):
             raise ValueError(f"lights must be 1..16 LED channels in [0, {n_leds}), got {lights}")
         exps = [(int(e), 0) if not hasattr(e, "__len__") else (int(e[0]), int(e[1])) for e in exposures]

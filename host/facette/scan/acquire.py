@@ -21,6 +21,7 @@ import os
 import time
 from pathlib import Path
 
+from facette.camera.folder import CameraTimeout
 from facette.scan.directory import ScanDirectory, ScanDirectoryError, frame_name, sha256_file
 
 __all__ = ["run_scan", "ScanPlan", "ScanError", "ScanAborted", "THESIS_BRACKET_US", "default_plan"]
@@ -214,6 +215,7 @@ class _Acquisition:
         channels = [plan.lights[l] for l in lights]
         self.prepare_device()
         self.sweep_camera("in the camera folder before this device run: no frame record")
+        self.sd.journal("configure", run=run, lights=lights, exposures=exposures)
         rig.configure([plan.exposures[e] for e in exposures], lights=channels,
                       light_current_mA=[plan.light_current_mA[l] for l in lights], mode=plan.mode,
                       retries=plan.retries, **plan.timing)
@@ -252,7 +254,12 @@ class _Acquisition:
                 if not rec["sync"]:
                     self.sd.journal("no_sync", light=light, exposure=exposure, ring=rec["n"])
                     continue
-                self.take(rec, light, exposure, run)
+                try:
+                    self.take(rec, light, exposure, run)
+                except CameraTimeout as exc:
+                    self.sd.journal("missing_file", light=light, exposure=exposure, ring=rec["n"], error=str(exc))
+                    raise ScanError(f"the device took light {light} exposure {exposure} (flash sync seen) but "
+                                    f"no image arrived: {exc}") from exc
             state = st["state"]
             if state == "DONE" and seen >= st["ring_count"]:
                 return end_us, "done"
@@ -317,12 +324,7 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
         raise ValueError("this rig has no camera backend: connect with camera=FolderWatchCamera(folder) "
                          "or GPhoto2Camera()")
     profile = _load_profile(profile)
-    if profile is not None:
-        n_leds = len(profile.lights)
-    elif rig.sim is not None:
-        n_leds = len(rig.sim.leds)
-    else:   # the thesis rig has 12 LEDs; a device may drive more channels than are fitted
-        n_leds = min(rig.device.identity.get("max_leds", 12) or 12, 12)
+    n_leds = len(profile.lights) if profile is not None else rig.n_lights
     plan = default_plan(n_leds, exposures, lights, light_current_mA, mode, retries, timing)
     sd = ScanDirectory(directory)
     pitch = getattr(profile, "pixel_pitch_mm", None)
@@ -371,6 +373,10 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
         pending = all_pairs - set(sd.frames_done())
         if pending:
             raise ScanError(f"{len(pending)} frames still missing after {max_runs} device runs in {sd.path}")
+    except BaseException as exc:   # say in the journal why this run stopped (then re-raise)
+        sd.journal("interrupted", error=f"{type(exc).__name__}: {exc}",
+                   frames=len(sd.manifest.get("frames", [])))
+        raise
     finally:
         if bar is not None:
             bar.close()

@@ -44,7 +44,7 @@ class SimulatedRig:
 
     def __init__(self, scene="plaque_sphere", raw_shape=DEFAULT_RAW_SHAPE, pixel_pitch_mm=None, brdf=None,
                  near=False, direction_error_deg=0.5, intensity_error=0.05, sensor=None,
-                 electrons_per_mA_s=20.0, faults=None, speed=200.0, workdir=None, seed=0, shadows=True,
+                 electrons_per_mA_s=20.0, faults=None, speed=2000.0, workdir=None, seed=0, shadows=True,
                  max_unclaimed=1):
         rows, cols = (int(v) for v in raw_shape)
         if rows % 2 or cols % 2 or rows < 22 or cols < 22:
