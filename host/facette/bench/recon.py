@@ -22,8 +22,8 @@ import numpy as np
 from facette.io.exr import write_exr
 from facette.pipeline import process
 from facette.pipeline._process import _samples_stage
-from facette.recon import (integrate_frankot_chellappa1988, ps_hierarchical_tautzia2016,
-                           ps_woodham1980)
+from facette.recon import (INTEGRATION_METHODS, integrate, integrate_frankot_chellappa1988,
+                           ps_hierarchical_tautzia2016, ps_woodham1980)
 from facette.recon.synthetic import angular_error_deg, render, sphere_on_plane, thesis_light_directions
 
 L = thesis_light_directions()
@@ -60,6 +60,20 @@ def accuracy(size=256, noise=0.01):
             e = angular_error_deg(r.normal, sc.normals, sc.mask)   # invalid pixels count (n = 0)
             rows.append((label, name, e.mean(), np.median(e), np.percentile(e, 95), dt,
                          r.info.get("skipped_fraction")))
+    return rows
+
+
+def integration_accuracy(size=256):
+    """Height error (RMS after removing the mean, in % of the sphere radius) of each method
+    from the true normals of the sphere on a plane, and its time."""
+    sc = sphere_on_plane(size, size)
+    inner = sc.mask & (np.sum(sc.normals[..., :2] ** 2, -1) < 0.9 ** 2)   # away from the rim
+    rows = []
+    for name in INTEGRATION_METHODS:
+        mask = sc.mask if name == "least_squares" else None
+        z, dt = _timed(integrate, sc.normals, 1.0, mask=mask, method=name)
+        d = (z - sc.height)[inner]
+        rows.append((name, 100 * np.sqrt(np.mean((d - d.mean()) ** 2)) / sc.radius, dt))
     return rows
 
 
@@ -132,6 +146,11 @@ def main(argv=None):
     for label, name, mean, med, p95, dt, skip in accuracy(acc_size):
         sk = f"{100 * skip:5.1f} %" if skip is not None and name.endswith("(tautzia2016)") else ""
         print(f"{label:34s} {name:30s} {mean:6.2f}° {med:6.2f}° {p95:6.2f}° {dt:7.3f}  {sk}")
+
+    print(f"\nIntegration of the true normals ({acc_size}x{acc_size} sphere on a plane; slopes "
+          "clipped at 20 near the rim)")
+    for name, rms, dt in integration_accuracy(acc_size):
+        print(f"  {name:24s} height RMS error {rms:6.2f} % of the radius   {dt:7.3f} s")
 
     print(f"\nSpeed: 12 lights at {w}x{h} (tiled glossy spheres, ks 3), one run, 2 cores")
     t, skipped, n_samples, res, (e_ls, e_hi) = speed(h, w)

@@ -3,6 +3,9 @@
 Each sample is one (pixel, light, channel) value f = E / (k (n.s)), with its incidence and
 observation directions rotated into the local frame of the normal (n = +z) and about n so
 that the incidence lies in the half-plane phi_s = 0 (thesis §4.2.2, fig 4.17).
+
+Eq 4.10-4.11 write the source term as L_i(o); the radiance that arrives is the source's,
+from direction s (one LED per image): L_i here is the calibrated intensity of that light.
 """
 from dataclasses import dataclass
 
