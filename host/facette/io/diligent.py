@@ -16,7 +16,8 @@ __all__ = ["DiligentData", "is_diligent_dir", "read_diligent", "write_diligent"]
 
 @dataclass
 class DiligentData:
-    """images (m, H, W, 3) float32 in [0, 1] divided by the light intensities; light_dirs (m, 3);
+    """images (m, H, W, 3) float32 in [0, 1] divided by the light intensities, NaN where the
+    PNG value was saturated; light_dirs (m, 3);
     light_intensities (m, 3); mask (H, W) bool; normals (H, W, 3) or None (Normal_gt.txt/.png
     is not read here); names (m,) file names."""
     images: np.ndarray
@@ -43,7 +44,8 @@ def _table(path, m=None, what=""):
 
 def read_diligent(folder, dtype=np.float32):
     """Read a DiLiGenT-style folder. Returns `DiligentData` (images divided by intensities,
-    scaled so that 65535 -> 1 before the division)."""
+    scaled so that 65535 -> 1 before the division; values at the top of the range (saturated)
+    become NaN, which photometric stereo treats as missing)."""
     folder = Path(folder)
     names = [l.strip() for l in (folder / "filenames.txt").read_text().splitlines() if l.strip()]
     if not names:
@@ -68,7 +70,9 @@ def read_diligent(folder, dtype=np.float32):
         if arr.ndim == 2:
             arr = np.repeat(arr[..., None], 3, axis=2)
         scale = 65535.0 if arr.dtype == np.uint16 else 255.0
-        images[i] = arr[..., :3] / (scale * inten[i])
+        rgb = arr[..., :3]
+        images[i] = rgb / (scale * inten[i])
+        images[i][rgb >= scale] = np.nan        # clipped at the top of the range: unknown
     mask_path = folder / "mask.png"
     mask = read_mask(mask_path) if mask_path.is_file() else np.ones((h, w), bool)
     if mask.shape != (h, w):

@@ -71,6 +71,7 @@ def test_ply_roundtrip(tmp_path, binary):
 def test_diligent_folder_roundtrip_divides_by_intensities(tmp_path):
     rng = np.random.default_rng(3)
     imgs = (rng.random((5, 6, 8, 3)) * 60000).astype(np.uint16)
+    imgs[2, 3, 4, 1] = 65535                       # a saturated value
     dirs = rng.normal(size=(5, 3))
     dirs[:, 2] = np.abs(dirs[:, 2]) + 1
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
@@ -79,7 +80,9 @@ def test_diligent_folder_roundtrip_divides_by_intensities(tmp_path):
     write_diligent(tmp_path, imgs, dirs, inten, mask)
     assert is_diligent_dir(tmp_path)
     d = read_diligent(tmp_path)
-    np.testing.assert_allclose(d.images, imgs / 65535.0 / inten[:, None, None, :], rtol=1e-6)
+    expected = imgs / 65535.0 / inten[:, None, None, :]
+    expected[2, 3, 4, 1] = np.nan
+    np.testing.assert_allclose(d.images, expected, rtol=1e-6)
     np.testing.assert_allclose(d.light_dirs, dirs, atol=1e-7)
     assert np.array_equal(d.mask, mask)
     (tmp_path / "light_intensities.txt").write_text("1 1 1\n")
