@@ -13,6 +13,18 @@ __all__ = ["SimulatedDevice", "device_binary", "DeviceBinaryMissing", "REPO_ROOT
 REPO_ROOT = Path(__file__).resolve().parents[3]
 
 
+def _die_with_parent():
+    """Linux: the device gets SIGTERM when the Python process that started it dies
+    (a killed test run leaves no simulated device behind)."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGTERM))   # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 class DeviceBinaryMissing(FileNotFoundError):
     """build/posix/facette-device is not there and could not be built."""
 
@@ -73,7 +85,8 @@ class SimulatedDevice:
             args += ["--side", str(self.side_socket)]
         args += list(extra_args)
         self.proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     stdin=subprocess.DEVNULL, text=True, bufsize=1)
+                                     stdin=subprocess.DEVNULL, text=True, bufsize=1,
+                                     preexec_fn=_die_with_parent)
         self.port = self._read_port(startup_timeout_s)
         if side:
             deadline = time.monotonic() + startup_timeout_s
