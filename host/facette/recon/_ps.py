@@ -30,9 +30,9 @@ class PSResult:
     normal : (H, W, 3) float32 unit vectors, camera frame; (0, 0, 0) where not valid.
     albedo : (H, W, C) float32 Lambertian reflectance rho per channel (eq 4.3), 0 where not valid.
     valid : (H, W) bool, inside the mask and a normal was found.
-    n_triplets : (H, W) int16, light triplets kept for the final mean (hierarchical;
-        for least squares and for pixels that skipped the hierarchy, the number of
-        conditioned triplets whose lights are all usable).
+    n_triplets : (H, W) int16, light triplets kept for the final mean (hierarchical; the
+        number of conditioned triplets for pixels that skipped the hierarchy; 0 for least
+        squares).
     shadow, specular : (H, W, m) bool, lights removed by the shadow test (T_ombre) and
         by the specular test (T_spec); all False for least squares.
     residual : (H, W) float32, relative least-squares residual ||E - S g|| / ||E||
