@@ -1,6 +1,5 @@
 """`facette process DIR -o OUT`: shape, reflectance samples and report from a scan or a
 DiLiGenT-style folder."""
-import math
 import sys
 
 
