@@ -110,7 +110,7 @@ def speed(h, w):
     imgs, normals, height = _tiled_scene(h, w)
     t = {}
     ls, t["least squares"] = _timed_cpu(ps_woodham1980, imgs, L)
-    hi, t["hierarchical"] = _timed_cpu(ps_hierarchical_tautzia2016, imgs, L)
+    hi, t["hierarchical (incl. its LS pass)"] = _timed_cpu(ps_hierarchical_tautzia2016, imgs, L)
     skipped = hi.info["skipped_fraction"]
     _, t["integration (Frankot-Chellappa)"] = _timed_cpu(integrate_frankot_chellappa1988, hi.normal,
                                                          0.0334)
