@@ -133,8 +133,9 @@ def near_light_directions(positions_mm, shape, pixel_pitch_mm, heights_mm=None):
 WORKERS = 2   # threads for independent pixel blocks (numpy releases the GIL in its loops)
 
 
-def _run_blocks(fn, starts, workers=WORKERS):
+def _run_blocks(fn, starts, workers=None):
     """Call fn(start) for each block start, on threads; blocks write disjoint slices."""
+    workers = WORKERS if workers is None else workers
     starts = list(starts)
     if workers > 1 and len(starts) > 1:
         with ThreadPoolExecutor(workers) as pool:
