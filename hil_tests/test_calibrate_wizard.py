@@ -8,6 +8,9 @@ import pytest
 from facette.calib import load
 from facette.calib.wizard import RigStation, Wizard, WizardError, angle_deg
 from facette.cli.main import main
+from facette.device.client import DeviceClient
+from facette.device.rig import Rig
+from facette.sim.device_process import SimulatedDevice
 
 
 def _wizard(rig, tmp_path, steps=None, **kw):
@@ -102,3 +105,21 @@ def test_near_leds_positions_and_parallax(sim_rig_factory, tmp_path):
     assert angle_deg(prof.lights.directions, P / np.linalg.norm(P, axis=1, keepdims=True)).max() < 0.5
     truth = rig.sim.leds.intensities / rig.sim.leds.intensities.mean(axis=0)
     assert np.abs(prof.lights.intensities / truth - 1).max() < 0.02
+
+
+def test_gains_survive_a_power_cycle_of_the_simulated_device(sim_rig_factory, tmp_path):
+    """The wizard's gains are in the device's flash: a new device process on the same
+    flash (power off and on) reads them back."""
+    rig = sim_rig_factory(intensity_error=0.15, seed=5, workdir=tmp_path / "rig1")
+    wiz, _ = _wizard(rig, tmp_path, steps=["spectralon", "gains"])
+    prof, _ = wiz.run(tmp_path / "profile")
+    rig.close()
+    dev = SimulatedDevice(speed=2000.0, side=False, state_dir=tmp_path / "rig1" / "device" / "flash",
+                          workdir=tmp_path / "power-cycled")
+    try:
+        r = Rig(DeviceClient(dev.port))
+        np.testing.assert_allclose(r.gains()[:12], prof.led_gains, atol=1e-4)
+        assert r.device.read("boot_count") >= 1
+        r.device.close()
+    finally:
+        dev.close()

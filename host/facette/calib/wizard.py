@@ -237,8 +237,24 @@ class RigStation:
     def gains(self):
         return list(self.rig.gains())
 
-    def set_gains(self, gains):
-        self.rig.set_gains(gains, save=True)
+    def set_gains(self, gains, attempts=4):
+        """Write the gains and store them in flash (Rig.set_gains: unlock, write, SAVE).
+
+        The unlock lasts 30 s of the device's clock; a simulated device running
+        2000× faster gives 15 ms of real time, which a busy host can miss: a refusal
+        for that reason is retried (unlocking again), any other is an error.
+        """
+        from facette.device.client import DeviceException
+
+        for attempt in range(attempts):
+            try:
+                self.rig.set_gains(gains, save=True)
+                return
+            except DeviceException as exc:
+                if "locked" not in str(exc) or attempt == attempts - 1:
+                    raise WizardError(f"LED gains: the device refused them ({exc}); check "
+                                      "`facette device faults`, then run `facette calibrate --only "
+                                      "spectralon,gains`") from exc
 
     def reboot(self):
         """Reboot the device and wait until it answers again; returns the new boot count."""
