@@ -191,6 +191,10 @@ class _Acquisition:
                         kept=str(keep.relative_to(self.sd.path)))
         os.replace(dst, keep)
 
+    def add_rig_time(self, end_us):
+        self.sd.manifest["rig_time_s"] = round(self.sd.manifest.get("rig_time_s", 0.0) + end_us * 1e-6, 6)
+        self.sd.save()
+
     # -- device runs ------------------------------------------------------------------
     def prepare_device(self):
         dev = self.rig.device
@@ -240,9 +244,10 @@ class _Acquisition:
                 rig.device.check_reset()
                 st = rig.status()
             except DeviceReset as exc:
+                self.add_rig_time(end_us)
                 self.sd.journal("device_reset", run=run, old_boot=exc.old_boot, new_boot=exc.new_boot)
                 self.sweep_camera("arrived during a run interrupted by a device reset: no frame record")
-                return end_us, "reset"
+                return 0, "reset"
             records, seen, lost = rig.frame_records(seen, st["ring_count"])
             if lost:
                 self.sd.journal("ring_overflow", lost=lost)
@@ -264,6 +269,7 @@ class _Acquisition:
             if state == "DONE" and seen >= st["ring_count"]:
                 return end_us, "done"
             if state in ("FAULT", "ABORTED", "IDLE") and seen >= st["ring_count"]:
+                self.add_rig_time(end_us)      # the time this stopped run took still counts
                 faults = rig.faults()
                 self.sd.journal("stopped", state=state, faults=faults, run=run)
                 self.sweep_camera(f"arrived after the device stopped ({state})")
@@ -362,12 +368,11 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
             if not pending:
                 break
             for ls, es in _groups(pending, len(plan.lights)):
-                end_us, how = acq.run_group(ls, es, runs, button)
+                run, runs = runs, runs + 1
+                sd.manifest["runs"] = runs      # saved with the next manifest write
+                end_us, how = acq.run_group(ls, es, run, button)
                 button = None           # the button starts the first run only
-                runs += 1
-                sd.manifest["runs"] = runs
-                sd.manifest["rig_time_s"] = round(sd.manifest.get("rig_time_s", 0.0) + end_us * 1e-6, 6)
-                sd.save()
+                acq.add_rig_time(end_us)
                 if how == "reset":
                     break
         pending = all_pairs - set(sd.frames_done())
