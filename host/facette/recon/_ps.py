@@ -315,20 +315,21 @@ def triplet_inverses(light_dirs, t_source=T_SOURCE, max_triplets=None):
 
 
 def _triplet_matrices(trip, inv):
-    """(3, m, K) float32 M such that g_k[j] = (E @ M[j])[k] = (S_k^-1 E_k)[j] (eq 4.7)."""
+    """(m, 3K) float32 M such that (E @ M)[j*K + k] = (S_k^-1 E_k)[j] (eq 4.7): one product
+    gives every triplet's three components."""
     m = int(trip.max()) + 1 if trip.size else 0
     k = len(trip)
-    big = np.zeros((3, m, k), np.float32)
+    big = np.zeros((m, 3, k), np.float32)
     for a in range(3):
         for j in range(3):
-            big[j, trip[:, a], np.arange(k)] += inv[:, j, a]
-    return big
+            big[trip[:, a], j, np.arange(k)] += inv[:, j, a]
+    return big.reshape(m, 3 * k)
 
 
 def _triplet_normals_local(e, s, trip, t_source):
     """Per-pixel triplets (near lights) by Cramer's rule: g = sum_a E_a (s_b x s_c) / det.
 
-    e : (N, m); s : (N, m, 3). Returns (gx, gy, gz) each (N, K) and conditioned (N, K) bool.
+    e : (N, m); s : (N, m, 3). Returns g (N, 3, K) and conditioned (N, K) bool.
     """
     s1, s2, s3 = s[:, trip[:, 0]], s[:, trip[:, 1]], s[:, trip[:, 2]]   # (N, K, 3)
     c1, c2, c3 = np.cross(s2, s3), np.cross(s3, s1), np.cross(s1, s2)
@@ -340,29 +341,30 @@ def _triplet_normals_local(e, s, trip, t_source):
     # the columns of S^-1 are the cofactor vectors divided by det
     cof = np.maximum(np.abs(c1).max(-1), np.maximum(np.abs(c2).max(-1), np.abs(c3).max(-1)))
     good &= cof / np.abs(safe[..., 0]) <= t_source
-    return (g[..., 0], g[..., 1], g[..., 2]), good
+    return np.ascontiguousarray(np.transpose(g, (0, 2, 1))), good
 
 
 def _hierarchy_block(e, s, ok, trip, mats, t_ombre, t_spec, t_source):
-    """The local step of thesis §4.2.1 on a block of N pixels (components kept apart as
-    (N, K) arrays so every reduction is a matrix product).
+    """The local step of thesis §4.2.1 on a block of N pixels. The triplet normals are held
+    as one (N, 3, K) array so that each reduction over triplets is one matrix product.
 
     e : (N, m); s : (m, 3) or (N, m, 3); ok : (N, m) usable values; trip : (K, 3) the
     triplets in play; mats : `_triplet_matrices` for global lights, None for per-pixel.
     Returns normal (N, 3), n_kept (N,), shadow (N, m), specular (N, m), found (N,).
     """
     n_pix, m = e.shape
+    k = len(trip)
     e0 = np.where(ok, e, 0.0).astype(np.float32)
     if mats is not None:
-        g = [e0 @ mats[j] for j in range(3)]
+        g = (e0 @ mats).reshape(n_pix, 3, k)
         tvalid = None
     else:
         g, tvalid = _triplet_normals_local(e0, s, trip, t_source)
-    norm = np.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
+    norm = np.sqrt(np.einsum("njk,njk->nk", g, g))
     good = norm > 1e-12
     tvalid = good if tvalid is None else tvalid & good
     inv_norm = np.where(tvalid, 1.0 / np.where(good, norm, 1.0), 0.0).astype(np.float32)
-    nh = [gj * inv_norm for gj in g]                         # unit normals, 0 where invalid
+    nh = g * inv_norm[:, None, :]                            # unit normals, 0 where invalid
     uses = np.zeros((len(trip), m), np.float32)              # triplet k uses light l
     uses[np.arange(len(trip))[:, None], trip] = 1.0
 
@@ -371,19 +373,21 @@ def _hierarchy_block(e, s, ok, trip, mats, t_ombre, t_spec, t_source):
         return (dead == 0) & tvalid[rows]
 
     alive = ok.copy()
-    ta = alive_triplets(alive)
-    taf = ta.astype(np.float32)
+    all_ok = bool(ok.all())
+    # with every light usable the alive triplets are the valid ones, and nh is already 0
+    # elsewhere: no mask product needed (the common case)
+    ta = tvalid.copy() if all_ok else alive_triplets(alive)
     # Shadows: per light, the mean of the normals of the triplets using it; its angle to the light.
-    mean_l = [(taf * nj) @ uses for nj in nh]                # 3 x (N, m)
+    w = nh if all_ok else nh * ta[:, None, :]
+    mean_l = (w.reshape(3 * n_pix, k) @ uses).reshape(n_pix, 3, m)
     sl = s.astype(np.float32)
-    if s.ndim == 2:
-        dot = mean_l[0] * sl[:, 0] + mean_l[1] * sl[:, 1] + mean_l[2] * sl[:, 2]
-    else:
-        dot = mean_l[0] * sl[..., 0] + mean_l[1] * sl[..., 1] + mean_l[2] * sl[..., 2]
-    ml = np.sqrt(mean_l[0] ** 2 + mean_l[1] ** 2 + mean_l[2] ** 2)
+    dot = np.einsum("njl,lj->nl", mean_l, sl) if s.ndim == 2 else np.einsum("njl,nlj->nl", mean_l, sl)
+    ml = np.sqrt(np.einsum("njl,njl->nl", mean_l, mean_l))
     shadow = alive & (ml > 0) & (dot < np.cos(t_ombre) * ml)
     alive &= ~shadow
-    ta = alive_triplets(alive)
+    rows = np.flatnonzero(shadow.any(axis=1))                # only these lose triplets
+    if rows.size:
+        ta[rows] = alive_triplets(alive[rows], rows)
     # Specularities: while the variance of the kept normals exceeds T_spec and more than one
     # triplet is left, drop the brightest remaining light and every triplet using it.
     specular = np.zeros_like(shadow)
@@ -394,9 +398,8 @@ def _hierarchy_block(e, s, ok, trip, mats, t_ombre, t_spec, t_source):
         tat = (ta if todo is None else ta[todo]).astype(np.float32)
         cnt = tat.sum(1)
         inv_cnt = 1.0 / np.maximum(cnt, 1)
-        mx, my, mz = (np.einsum("nk,nk->n", tat, nj if todo is None else nj[todo]) * inv_cnt
-                      for nj in nh)
-        var = 1.0 - (mx * mx + my * my + mz * mz)            # total variance of unit vectors
+        mean = np.einsum("nk,njk->nj", tat, nh if todo is None else nh[todo]) * inv_cnt[:, None]
+        var = 1.0 - np.sum(mean * mean, axis=1)              # total variance of unit vectors
         act = (cnt > 1) & (var > t_spec)
         todo = np.flatnonzero(act) if todo is None else todo[act]
         if todo.size == 0:
@@ -408,7 +411,7 @@ def _hierarchy_block(e, s, ok, trip, mats, t_ombre, t_spec, t_source):
         ta[todo] = alive_triplets(alive[todo], todo)
     taf = ta.astype(np.float32)
     cnt = ta.sum(1)
-    mean = np.stack([np.einsum("nk,nk->n", taf, nj) for nj in nh], axis=1)
+    mean = np.einsum("nk,njk->nj", taf, nh)
     mn = np.linalg.norm(mean, axis=1)
     found = (cnt > 0) & (mn > 1e-12)
     normal = np.where(found[:, None], mean / np.where(found, mn, 1.0)[:, None], 0.0)
