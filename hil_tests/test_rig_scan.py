@@ -154,3 +154,24 @@ def test_led_defined_exposures_bracket_by_duration_and_current(sim_rig_factory, 
         assert charge[[0, 7][rec["light"]]] == pytest.approx(t_us * ma)    # the pulse, nothing else
         assert charge.sum() == pytest.approx(t_us * ma)
         assert sim_frame["window_us"] > t_us                                # the shutter window is longer
+
+
+def test_design_script_scan_then_process_matches_the_truth(sim_rig_factory, tmp_path):
+    """DESIGN §6: rig.scan(...) then facette.process(scan, ...), compared with truth.npz."""
+    import facette
+    from facette.calib import Lights, Profile
+
+    rig = sim_rig_factory()
+    leds = rig.sim.leds        # a perfect calibration: the simulator's own LEDs
+    profile = Profile(rig="sim", id="sim-truth", lights=Lights(leds.directions, leds.intensities),
+                      pixel_pitch_mm=rig.sim.scene.pixel_pitch_mm)
+    scan = rig.scan(tmp_path / "plaque", profile=profile, progress=False)
+    assert scan.manifest["profile"]["id"] == "sim-truth"
+    result = facette.process(scan, outputs=["normals"])
+    truth = np.load(tmp_path / "plaque" / "truth.npz")
+    n, tn = np.asarray(result.normals), truth["normals"]
+    ang = np.degrees(np.arccos(np.clip(np.sum(n * tn, axis=-1), -1, 1)))
+    h, w = tn.shape[:2]
+    sphere = truth["mask"] & (np.arange(w)[None, :] > 0.6 * w)
+    # the sphere is smooth, mostly diffuse and lit by every LED: normals within 1°
+    assert sphere.sum() > 100 and np.nanmedian(ang[sphere]) < 1.0
