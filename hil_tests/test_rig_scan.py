@@ -175,3 +175,26 @@ def test_design_script_scan_then_process_matches_the_truth(sim_rig_factory, tmp_
     sphere = truth["mask"] & (np.arange(w)[None, :] > 0.6 * w)
     # the sphere is smooth, mostly diffuse and lit by every LED: normals within 1°
     assert sphere.sum() > 100 and np.nanmedian(ang[sphere]) < 1.0
+
+
+def test_wait_button_scans_only_once_the_rig_button_is_pressed(sim_rig_factory, tmp_path):
+    import threading
+    import time
+
+    rig = sim_rig_factory()
+    out = {}
+
+    def scan():
+        out["scan"] = rig.scan(tmp_path / "s", lights=[0], exposures=SHORT[:1], button="wait", progress=False)
+
+    worker = threading.Thread(target=scan)
+    worker.start()
+    journal = tmp_path / "s" / "journal.jsonl"
+    deadline = time.monotonic() + 30
+    while not (journal.exists() and '"step": "start"' in journal.read_text()):
+        assert time.monotonic() < deadline, "the host never got ready to start"
+        time.sleep(0.005)                                   # poll the journal, bounded
+    assert worker.is_alive() and rig.sim.simulator.shots == 0   # nothing is taken before the press
+    rig.sim.press_button()
+    worker.join(timeout=60)
+    assert not worker.is_alive() and len(out["scan"].manifest["frames"]) == 1

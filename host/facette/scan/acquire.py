@@ -229,11 +229,13 @@ class _Acquisition:
             # the button arms and starts a configured scan from IDLE/DONE/ABORTED (a press
             # while armed or running aborts), so the host leaves the device unarmed here
             if button == "press":
-                rig.sim.press_button()
+                rig.sim.press_button()      # returns once the device started (sent an event)
             else:
+                initial = rig.device.state()
                 print("press the rig's button to start the scan", flush=True)
-            rig.wait_state({"RUNNING", "DONE", "ABORTED", "FAULT"}, timeout_s=float("inf") if button == "wait"
-                           else 30.0)
+                # a finished state counts only if it is not the one left by an earlier scan
+                rig.wait_state({"RUNNING", "PAUSED", "FAULT"} | ({"DONE", "ABORTED"} - {initial}),
+                               timeout_s=float("inf"))
         else:
             rig.start()
         seen, end_us = 0, 0
