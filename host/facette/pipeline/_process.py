@@ -101,7 +101,11 @@ def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=
         e = flat[:, p]
         g = sample_grid(e, normals[p], s, shadow[p].T, check_finite=not finite)
         sensor.add_grid(g["cos_s"], g["o_x"], g["o_y"], g["cos_o"], e, g["keep"], g["scale"])
-        li, pi_ = np.nonzero(g["keep"] & (rng.random(g["keep"].shape, np.float32) < keep / total))
+        # a uniform subset of the kept samples: draw grid positions, keep the kept ones
+        size = g["keep"].size
+        draw = rng.integers(0, size, int(np.ceil(size * min(1.0, keep / total))))
+        draw = np.unique(draw[g["keep"].ravel()[draw]])
+        li, pi_ = np.unravel_index(draw, g["keep"].shape)
         cs = g["cos_s"][li, pi_]
         s_t = np.stack([np.sqrt(np.maximum(1 - cs ** 2, 0)), np.zeros_like(cs), cs], axis=1)
         o_t = np.stack([g["o_x"][li, pi_], g["o_y"][li, pi_], g["cos_o"][pi_]], axis=1)

@@ -89,6 +89,7 @@ def reflectance_samples(images, normals, light_dirs, mask=None, exclude=None, vi
         raise ValueError(f"light_dirs must have shape ({m}, 3) or ({h}, {w}, {m}, 3), got {light_dirs.shape}")
     if not k > 0:
         raise ValueError(f"k must be positive, got {k}")
+    _check_min_cos(min_cos)
     ok_n = np.all(np.isfinite(normals), -1) & (np.linalg.norm(np.nan_to_num(normals), axis=-1) > 0.5)
     if mask is not None:
         ok_n &= np.asarray(mask, bool)
@@ -143,6 +144,12 @@ def sample_angles(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MI
     return li, pi_, cs.astype(np.float32), o_loc, f
 
 
+def _check_min_cos(min_cos):
+    if not min_cos > 0:
+        raise ValueError(f"min_cos must be > 0 (got {min_cos}): eq 4.11 divides by n.s, which "
+                         "is 0 at grazing incidence")
+
+
 def sample_grid(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MIN_COS,
                 check_finite=True):
     """Eq 4.11 on a whole (light, pixel) grid, nothing gathered (for the hemisphere sensor).
@@ -152,6 +159,7 @@ def sample_grid(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MIN_
     1 / (k n.s) where kept, 0 elsewhere, so that f = e * scale[..., None]; the local frame as in
     `sample_angles`. check_finite=False skips the NaN test (when the caller knows e is finite).
     """
+    _check_min_cos(min_cos)
     o = np.asarray(view, dtype=np.float32)
     n = np.asarray(n, dtype=np.float32)
     s = np.asarray(s, dtype=np.float32)
@@ -169,13 +177,18 @@ def sample_grid(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MIN_
         keep &= ~exclude
     if check_finite:
         keep &= np.isfinite(e).all(axis=-1)
-    sin_s = np.sqrt(np.maximum(1 - ns * ns, 0))
-    big = sin_s > 1e-6
-    inv = 1.0 / np.where(big, sin_s, 1.0)
-    o_x = np.where(big, (so - ns * no) * inv, np.sqrt(np.maximum(1 - no * no, 0)))
-    o_y = np.where(big, sxo * inv, 0.0)
-    scale = np.where(keep, 1.0 / (k * np.where(keep, ns, 1.0)), 0.0).astype(np.float32)
-    return dict(cos_s=ns, o_x=o_x, o_y=o_y, cos_o=no, keep=keep, scale=scale)
+    sin_s = np.sqrt(np.maximum(1 - ns * ns, 1e-12))
+    inv = 1.0 / sin_s
+    o_x = (so - ns * no) * inv
+    o_y = sxo * inv
+    flat = sin_s < 1e-5                        # s along n: phi undefined, put o at phi = 0
+    if flat.any():
+        li, pi_ = np.nonzero(flat)
+        o_x[li, pi_] = np.sqrt(np.maximum(1 - no[pi_] ** 2, 0))
+        o_y[li, pi_] = 0.0
+    # ns >= min_cos > 0 wherever keep is set
+    scale = keep / (np.float32(k) * np.maximum(ns, np.float32(min_cos)))
+    return dict(cos_s=ns, o_x=o_x, o_y=o_y, cos_o=no, keep=keep, scale=scale.astype(np.float32))
 
 
 def samples_from_pixels(e, n, s, exclude=None, view=(0.0, 0.0, 1.0), k=1.0, min_cos=MIN_COS):

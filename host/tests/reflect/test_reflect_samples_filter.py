@@ -139,3 +139,10 @@ def test_grid_accumulation_equals_accumulating_gathered_samples():
     b = sensor.result()
     np.testing.assert_array_equal(a.count, b.count)
     np.testing.assert_allclose(np.nan_to_num(a.mean), np.nan_to_num(b.mean), rtol=1e-5)
+
+
+def test_min_cos_must_be_positive():
+    sc = sphere_on_plane(8, 8)
+    imgs = render(sc, L, "matte")
+    with pytest.raises(ValueError, match="min_cos must be > 0"):
+        reflectance_samples(imgs, sc.normals, L, min_cos=0.0)
