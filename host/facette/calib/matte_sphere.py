@@ -26,7 +26,7 @@ def _normals(shape, circle, margin):
     return n, inside
 
 
-def lambert_fit_direction(image, circle, margin=0.95, min_cos=0.1, iterations=3):
+def lambert_fit_direction(image, circle, margin=0.95, min_cos=0.1, iterations=3, max_pixels=50_000):
     """Fit E = n·b on the lit part of a Lambertian sphere.
 
     image : (H, W) or (H, W, 3) linear radiance; circle : the sphere's outline.
@@ -36,6 +36,11 @@ def lambert_fit_direction(image, circle, margin=0.95, min_cos=0.1, iterations=3)
     """
     g = np.asarray(image, float)
     g = g[..., None] if g.ndim == 2 else g
+    # a sphere hundreds of pixels wide: fit on a regular grid of at most `max_pixels` of it
+    step = max(1, int(np.ceil(np.sqrt(np.pi * circle.r ** 2 / max_pixels))))
+    if step > 1:
+        g = g[::step, ::step]
+        circle = Circle(circle.cx / step, circle.cy / step, circle.r / step, circle.rms)
     n, inside = _normals(g.shape[:2], circle, margin)
     lum = g.mean(axis=2)
     sel = inside & (lum > 0.1 * lum[inside].max())
@@ -53,7 +58,7 @@ def lambert_fit_direction(image, circle, margin=0.95, min_cos=0.1, iterations=3)
     return s, scale, float(np.sqrt(np.mean(res ** 2)) / np.linalg.norm(b))
 
 
-def _refine_joint(lum, circle, dirs, scale, margin=0.9, min_cos=0.15):
+def _refine_joint(lum, circle, dirs, scale, margin=0.9, min_cos=0.15, max_pixels=4000):
     """Refine the outline and every b_i = scale_i · s_i together: the shading of all the
     images pins the sphere's centre and radius better than its blurred silhouette."""
     from scipy import optimize
@@ -63,6 +68,8 @@ def _refine_joint(lum, circle, dirs, scale, margin=0.9, min_cos=0.15):
     near = np.hypot(cols - circle.cx, rows - circle.cy) < margin * circle.r
     rr, cc = rows[near].astype(float), cols[near].astype(float)
     vals = lum[:, near]
+    step = max(1, int(np.ceil(len(rr) / max_pixels)))   # a regular subsample bounds the Jacobian
+    rr, cc, vals = rr[::step], cc[::step], vals[:, ::step].astype(np.float64)
     b0 = dirs * scale[:, None]
 
     def normals(q):
@@ -92,17 +99,17 @@ def matte_sphere_directions(images, circle=None, refine=True):
     over LEDs, where the whole sphere is lit) unless given; with `refine`, the
     outline and all the directions are then refined together on the shading.
     """
-    img = np.asarray(images, float)
+    img = np.asarray(images)
     if img.ndim not in (3, 4):
         raise ValueError(f"images must be (m, H, W) or (m, H, W, 3), got {img.shape}")
     if circle is None:
-        ref = img.max(axis=0)
+        ref = img.max(axis=0).astype(np.float64)
         circle = fit_sphere_outline(sphere_mask(ref, dark=False), ref)
     if not isinstance(circle, Circle):
         raise ValueError("circle must be a facette.calib.mirror_sphere.Circle")
     out = [lambert_fit_direction(im, circle) for im in img]
     if refine:
-        lum = img.mean(axis=3) if img.ndim == 4 else img
+        lum = np.stack([im.mean(axis=2) if im.ndim == 3 else im for im in img])
         dirs0 = np.array([o[0] for o in out])
         scale0 = np.array([o[1].mean() for o in out])
         circle, _ = _refine_joint(lum, circle, dirs0, scale0)

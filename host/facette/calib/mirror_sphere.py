@@ -231,14 +231,17 @@ def mirror_sphere_directions(images, white_level=None, outline_image=None):
 
     Returns (directions (m, 3), circle, [Highlight] * m).
     """
-    img = np.asarray(images, float)
-    if img.ndim == 4:
-        img = img.mean(axis=3)
-    if img.ndim != 3:
+    img = np.asarray(images)
+    if img.ndim not in (3, 4):
         raise ValueError(f"images must be (m, H, W) or (m, H, W, 3), got {np.shape(images)}")
-    ref = img.mean(axis=0) if outline_image is None else np.asarray(outline_image, float)
-    if ref.ndim == 3:
-        ref = ref.mean(axis=2)
+    if outline_image is None:
+        ref = np.zeros(img.shape[1:3])
+        for im in img:                       # one LED at a time: full-size stacks are large
+            ref += im.mean(axis=2) if im.ndim == 3 else im
+        ref /= len(img)
+    else:
+        ref = np.asarray(outline_image, float)
+        ref = ref.mean(axis=2) if ref.ndim == 3 else ref
     circle = fit_sphere_outline(sphere_mask(ref, dark=True), ref)
     hl = [highlight_centroid(im, circle, white_level) for im in img]
     dirs = np.array([mirror_direction(circle, h.x, h.y) for h in hl])

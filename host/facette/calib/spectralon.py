@@ -35,7 +35,9 @@ class SpectralonResult:
 
 
 def _check_stack(images):
-    img = np.asarray(images, dtype=np.float64)
+    img = np.asarray(images)
+    if img.dtype != np.float32:     # float32 stays float32: full-size HDR stacks are large
+        img = img.astype(np.float64)
     if img.ndim == 3:
         img = img[None]
     if img.ndim != 4 or img.shape[-1] != 3:
@@ -60,22 +62,33 @@ def target_mask(images, low=0.5, border=0.05):
     return m & frame
 
 
-def _geometry(shape, directions, positions_mm, pixel_pitch_mm, normal):
-    """cos(incidence) × fall-off per light and pixel, (m, H, W)."""
-    n = np.asarray(normal, float) / np.linalg.norm(normal)
-    if positions_mm is None:
-        d = np.asarray(directions, float)
-        d = d / np.linalg.norm(d, axis=1, keepdims=True)
-        return np.broadcast_to(np.clip(d @ n, 0, None)[:, None, None], (len(d),) + tuple(shape))
-    if pixel_pitch_mm is None:
-        raise ValueError("near-light positions need pixel_pitch_mm to place the pixels in mm")
-    x, y = pixel_grid_mm(shape, pixel_pitch_mm)
-    pts = np.stack([x, y, -(n[0] * x + n[1] * y) / n[2]], -1)
-    out = []
-    for p in np.asarray(positions_mm, float):
-        s, k = light_vectors(pts, position_mm=p)
-        out.append(np.clip(s @ n, 0, None) * k)
-    return np.stack(out)
+class _Geometry:
+    """cos(incidence) × fall-off of each light at every pixel: ``geo[i]`` is (H, W)
+    (or a scalar for a distant light), computed one light at a time."""
+
+    def __init__(self, shape, directions, positions_mm, pixel_pitch_mm, normal):
+        self.n = np.asarray(normal, float) / np.linalg.norm(normal)
+        self.positions = None if positions_mm is None else np.asarray(positions_mm, float)
+        if self.positions is None:
+            d = np.asarray(directions, float)
+            self.cos = np.clip((d / np.linalg.norm(d, axis=1, keepdims=True)) @ self.n, 0, None)
+            self.m = len(d)
+            return
+        if pixel_pitch_mm is None:
+            raise ValueError("near-light positions need pixel_pitch_mm to place the pixels in mm")
+        x, y = pixel_grid_mm(shape, pixel_pitch_mm)
+        n = self.n
+        self.pts = np.stack([x, y, -(n[0] * x + n[1] * y) / n[2]], -1)
+        self.m = len(self.positions)
+
+    def __len__(self):
+        return self.m
+
+    def __getitem__(self, i):
+        if self.positions is None:
+            return self.cos[i]
+        s, k = light_vectors(self.pts, position_mm=self.positions[i])
+        return np.clip(s @ self.n, 0, None) * k
 
 
 def spectralon_intensities(images, directions=None, reflectance=(0.99, 0.99, 0.99), mask=None,
@@ -122,18 +135,23 @@ def spectralon_intensities(images, directions=None, reflectance=(0.99, 0.99, 0.9
     if mask.shape != (h, w) or mask.sum() < 10:
         raise ValueError(f"the target mask has {int(mask.sum())} pixels (shape {mask.shape}); the "
                          "Spectralon must fill most of the field: place it under the camera")
-    geo = _geometry((h, w), directions, positions_mm, pixel_pitch_mm, normal)
-    if np.any(geo[:, mask] <= 1e-3):
-        raise ValueError("some LED grazes or is behind the target (cos ≤ 0.001): check the "
-                         "directions and the target normal")
-    corr = img / geo[..., None]
-    if flat is not None:
-        corr = corr / np.asarray(flat, float)[None]
-    vals = corr[:, mask, :]                                       # (m, N, 3)
-    absolute = np.pi * vals.mean(axis=1) / rho
+    geo = _Geometry((h, w), directions, positions_mm, pixel_pitch_mm, normal)
+    ff = None if flat is None else np.asarray(flat, float)[mask]
+    means, nonuni = np.empty((m, 3)), np.empty(m)
+    for i in range(m):                                   # one LED at a time: full-size stacks
+        g = geo[i]
+        g = g[mask] if np.ndim(g) else np.full(int(mask.sum()), float(g))
+        if np.any(g <= 1e-3):
+            raise ValueError(f"LED {i} grazes or is behind the target (cos ≤ 0.001): check the "
+                             "directions and the target normal")
+        vals = img[i][mask].astype(np.float64) / g[:, None]          # (N, 3)
+        if ff is not None:
+            vals /= ff
+        means[i] = vals.mean(axis=0)
+        nonuni[i] = vals[:, 1].std() / vals[:, 1].mean() if vals[:, 1].mean() > 0 else np.inf
+    absolute = np.pi * means / rho
     if np.any(absolute <= 0):
         raise ValueError("an LED gave no light on the target (mean ≤ 0): is it connected and on?")
-    nonuni = (vals[..., 1].std(axis=1) / vals[..., 1].mean(axis=1))
     if normalise == "channel":
         rel = absolute / absolute.mean(axis=0, keepdims=True)
     elif normalise == "green":
@@ -143,11 +161,30 @@ def spectralon_intensities(images, directions=None, reflectance=(0.99, 0.99, 0.9
     return SpectralonResult(rel, absolute, nonuni)
 
 
-def _poly_basis(h, w, degree):
-    yy, xx = np.mgrid[0:h, 0:w]
-    u = (xx - (w - 1) / 2) / (w / 2)
-    v = (yy - (h - 1) / 2) / (h / 2)
-    return np.stack([u ** i * v ** j for i in range(degree + 1) for j in range(degree + 1 - i)], -1)
+def _poly_terms(degree):
+    return [(i, j) for i in range(degree + 1) for j in range(degree + 1 - i)]
+
+
+def _poly_uv(h, w):
+    """Normalised coordinates: u (W,) across, v (H,) down, both in about [−1, 1]."""
+    return (np.arange(w) - (w - 1) / 2) / (w / 2), (np.arange(h) - (h - 1) / 2) / (h / 2)
+
+
+def _poly_fit(values, mask, degree, max_samples=200_000):
+    """Least-squares polynomial surface Σ c_ij u^i v^j through values[mask] (H, W), evaluated
+    everywhere. Fitted on at most `max_samples` pixels (a regular subsample)."""
+    h, w = values.shape
+    u, v = _poly_uv(h, w)
+    rr, cc = np.nonzero(mask)
+    step = max(1, int(np.ceil(len(rr) / max_samples)))
+    rr, cc = rr[::step], cc[::step]
+    terms = _poly_terms(degree)
+    A = np.stack([u[cc] ** i * v[rr] ** j for i, j in terms], -1)
+    coef, *_ = np.linalg.lstsq(A, values[rr, cc], rcond=None)
+    out = np.zeros((h, w))
+    for (i, j), c in zip(terms, coef):
+        out += c * np.outer(v ** j, u ** i)
+    return out
 
 
 def flat_field(images, directions=None, mask=None, positions_mm=None, pixel_pitch_mm=None,
@@ -171,22 +208,20 @@ def flat_field(images, directions=None, mask=None, positions_mm=None, pixel_pitc
     m, h, w, _ = img.shape
     if directions is None and positions_mm is None:
         directions = np.tile([0.0, 0.0, 1.0], (m, 1))
-    geo = _geometry((h, w), directions, positions_mm, pixel_pitch_mm, normal)
+    geo = _Geometry((h, w), directions, positions_mm, pixel_pitch_mm, normal)
     if mask is None:
         mask = target_mask(img)
     mask = np.asarray(mask, bool)
+    ff = np.zeros((h, w, 3))
     with np.errstate(divide="ignore", invalid="ignore"):
-        corr = img / geo[..., None]
-    corr = corr / corr[:, mask, :].mean(axis=1)[:, None, None, :]
-    ff = corr.mean(axis=0)
+        for i in range(m):                               # one LED at a time: full-size stacks
+            g = geo[i]
+            corr = img[i].astype(np.float64) / (g[..., None] if np.ndim(g) else g)
+            ff += corr / corr[mask].mean(axis=0)
+    ff /= m
     if degree is not None or not mask.all():
         deg = 4 if degree is None else int(degree)
-        basis = _poly_basis(h, w, deg)
-        A = basis[mask]
-        fit = np.empty_like(ff)
-        for c in range(3):
-            coef, *_ = np.linalg.lstsq(A, ff[mask, c], rcond=None)
-            fit[..., c] = basis @ coef
+        fit = np.stack([_poly_fit(ff[..., c], mask, deg) for c in range(3)], -1)
         ff = fit if degree is not None else np.where(mask[..., None], ff, fit)
     if not np.all(np.isfinite(ff)) or np.any(ff <= 0):
         raise ValueError("the flat field has non-positive or non-finite pixels: the target "

@@ -105,7 +105,7 @@ def check_exposure(images, longest_us, shortest_us, current_mA, full_scale_dn, w
     at the longest exposure is under `min_signal` of full scale is missing (or the
     LED is off). Returns (level at the longest exposure (m,), saturated fraction (m,)).
     """
-    img = np.asarray(images, float)
+    img = np.asarray(images)
     m = len(img)
     sel = np.ones(img.shape[1:3], bool) if mask is None else np.asarray(mask, bool)
     sat_level = full_scale_dn / (shortest_us * current_mA)
@@ -223,7 +223,7 @@ class RigStation:
                 raise WizardError(f"{name}: a frame is missing ({exc}): check the camera's card and "
                                   "tether, then run the step again") from None
         images, _, _ = load_hdr(d, sensor=self.sensor, merge_missing=False)
-        return np.asarray(images, np.float64), d
+        return np.asarray(images, np.float32), d
 
     def capture_raw(self, name, exposures, light=0):
         """RAW files of one LED at each exposure, in order (paths)."""
