@@ -2,6 +2,7 @@
 
 Each benchmark is a module `facette.bench.<name>` with ``main(argv) -> int``.
 """
+import argparse
 import importlib
 import pkgutil
 
@@ -16,7 +17,7 @@ def available():
 def register(sub):
     p = sub.add_parser("bench", help="benchmarks: error and run time side by side")
     p.add_argument("name", help=f"one of {', '.join(available()) or '(none yet)'}, or 'all'")
-    p.add_argument("rest", nargs="*", help="arguments passed to the benchmark")
+    p.add_argument("rest", nargs=argparse.REMAINDER, help="arguments passed to the benchmark")
     return p
 
 
