@@ -237,6 +237,7 @@ def _param_errors(res, truth):
 def bench_fit(quick, rng, out):
     print("\n# 2. fitting: parameter errors and fit time, genetic algorithm vs least-squares multistart")
     print("  synthetic samples: random (s, o) up to 85°, noise = Gaussian with sd = x % of the value")
+    print("  genetic = the thesis algorithm; genetic+proj = K_d solved in closed form per individual (variable projection)")
     noises = [0.0, 0.3] if quick else [0.0, 0.1, 0.3, 0.6]
     cases = [("cook_torrance", dict(sigma=0.1, n_i=1.3), "vcavity", 400 if not quick else 200),
              ("li", dict(sigma=0.15, n_i=1.4), "smith", 150 if not quick else 60)]
@@ -249,27 +250,31 @@ def bench_fit(quick, rng, out):
         clean = B.get(model)(s, o, kd=kd, masking=masking, **truth)
         for noise in noises:
             vals = clean * (1 + noise * rng.normal(size=clean.shape))
-            for method in ("least_squares", "genetic"):
+            for label in ("least_squares", "genetic", "genetic+proj"):
+                method = label.split("+")[0]
                 if model == "li" and quick and (method == "genetic" or noise > 0):
+                    continue
+                if label == "genetic+proj" and model != "li":
                     continue
                 opts = {"volume_options": {"n_theta": 12, "n_phi": 16}} if model == "li" else {}
                 if method == "genetic":
-                    opts.update(population=30, generations=25 if model == "li" else 60, rng=1)
+                    opts.update(population=30, generations=25 if model == "li" else 60, rng=1,
+                                project_kd=label.endswith("proj"))
                 else:
                     opts.update(n_starts=4 if model == "li" else 6)
                 res, dt = _timed(fit_brdf, s, o, vals, model=model, method=method, masking=masking, select=False, **opts)
                 pe = _param_errors(res, dict(truth, kd=kd))
-                print(f"  {model:<14} {method:<14} {100 * noise:5.0f}% {100 * pe['sigma']:8.2f} {100 * pe['n_i']:9.2f} "
+                print(f"  {model:<14} {label:<14} {100 * noise:5.0f}% {100 * pe['sigma']:8.2f} {100 * pe['n_i']:9.2f} "
                       f"{100 * pe['kd']:9.2f} {100 * res.error.get('relative_rms', np.nan):9.2f} {dt:7.2f}  "
                       f"{res.n_evaluations}{'' if res.success else '  FAILED: ' + res.message}", flush=True)
-                rows.append((model, method, noise, pe, dt))
+                rows.append((model, label, noise, pe, dt))
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 3, figsize=(13, 4))
     for ax, key in zip(axes, ("sigma", "n_i", "kd")):
         for model in sorted({r[0] for r in rows}):
-            for method in ("least_squares", "genetic"):
+            for method in ("least_squares", "genetic", "genetic+proj"):
                 pts = [(r[2], r[3][key]) for r in rows if r[0] == model and r[1] == method]
                 if pts:
                     x, y = zip(*pts)

@@ -263,7 +263,7 @@ def fit_least_squares(s, o, values, model="li", distribution="beckmann", masking
 def fit_genetic(s, o, values, model="li", distribution="beckmann", masking="smith", volume="quadrature",
                 interreflection=False, counts=None, weighting="relative", specular_weight=1.0,
                 specular_cone_deg=10.0, population=40, generations=60, keep=0.2, p_mutation=0.4,
-                error_threshold=0.0, rng=0, volume_options=None, o_spread=None):
+                error_threshold=0.0, rng=0, volume_options=None, o_spread=None, project_kd=False):
     """The thesis's genetic algorithm (§4.2.2, fig 4.18), seeded by ``rng``.
 
     1. ``population`` random parameter sets, uniform in the bounds;
@@ -273,6 +273,10 @@ def fit_genetic(s, o, values, model="li", distribution="beckmann", masking="smit
        ``p_mutation``, by mutation (reset one parameter uniformly, or add random steps of
        log-uniform size 0.1 %–10 % of the ranges);
     4. stop when the best weighted RMS error < ``error_threshold`` or after ``generations``.
+
+    ``project_kd=True`` (not in the thesis) replaces each individual's K_d by its closed-form
+    optimum for the individual's (σ, n_i) before it is ranked (FitModel.project_kd), so the
+    search is over (σ, n_i) only; it removes the K_d–n_i drift the plain algorithm shows on LI.
     """
     t0 = time.perf_counter()
     data = prepare_samples(s, o, values, counts, weighting, specular_weight, specular_cone_deg, o_spread)
@@ -299,6 +303,8 @@ def fit_genetic(s, o, values, model="li", distribution="beckmann", masking="smit
     rank_p /= rank_p.sum()
     gen_done = 0
     for gen in range(int(generations)):
+        if project_kd:
+            pop = np.array([fm.project_kd(p, data.values, data.weights) for p in pop])
         costs = np.array([cost(p) for p in pop])
         order = np.argsort(costs)
         pop, costs = pop[order], costs[order]
@@ -321,11 +327,13 @@ def fit_genetic(s, o, values, model="li", distribution="beckmann", masking="smit
                 child = 0.5 * (pop[a] + pop[b])
             children.append(np.clip(child, lo, hi))
         pop = np.array(children)
+    if project_kd:
+        pop = np.array([fm.project_kd(p, data.values, data.weights) for p in pop])
     costs = np.array([cost(p) for p in pop])
     best = pop[int(np.argmin(costs))]
     ok = bool(np.isfinite(costs.min()))
     res = _finish(fm, data, best, "genetic", t0, ok, "every individual gave a non-finite error", lo, hi)
-    res.selection.append(f"{gen_done} generations of {npop}")
+    res.selection.append(f"{gen_done} generations of {npop}" + (", K_d projected" if project_kd else ""))
     return res
 
 

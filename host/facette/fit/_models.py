@@ -119,6 +119,37 @@ class FitModel:
             out = out + parts["J"][:, None] * kappa[None, :] ** 2
         return out
 
+    def project_kd(self, p, values, weights):
+        """Return p with its K_d replaced by the weighted least-squares optimum for its (σ, n_i).
+
+        The LI and Cook–Torrance models are linear in κ = K_d/(π n_i² (1 − K_d r_i)) (resp. K_d/π)
+        once σ and n_i are fixed (without inter-reflections), so each channel's best K_d has a
+        closed form (variable projection). Lambert likewise; Oren–Nayar (K_d² term) is left as is.
+        """
+        p = np.array(p, dtype=float)
+        if self.name == "oren_nayar" or (self.name == "li" and self.interreflection):
+            return p
+        shared, _ = self.split(p)
+        w2 = weights**2
+        if self.name == "lambert":
+            spec, basis = 0.0, self.up[:, None] / np.pi
+        else:
+            parts = self._parts(shared["sigma"], shared["n_i"])
+            spec = parts["spec"][:, None]
+            basis = (parts["I"] if self.name == "li" else self.up / np.pi)[:, None]
+        num = np.sum(w2 * basis * (values - spec), axis=0)
+        den = np.sum(w2 * basis * basis, axis=0)
+        coef = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+        if self.name == "li":
+            n = shared["n_i"]
+            ri = r_i_simonot2009(n)
+            kappa = np.clip(coef, 0.0, 1.0 / (np.pi * n * n * (1.0 - ri)))  # κ(K_d = 1)
+            kd = kappa * np.pi * n * n / (1.0 + kappa * np.pi * n * n * ri)
+        else:
+            kd = coef
+        p[self.n_shared:] = np.clip(kd, 0.0, 1.0)
+        return p
+
     def describe(self):
         d = {"model": self.name}
         if self.name in ("li", "cook_torrance"):

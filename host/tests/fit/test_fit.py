@@ -148,3 +148,26 @@ def test_cell_averaged_values_are_fitted_without_bias_with_o_spread():
     assert abs(plain.params["sigma"] - 0.05) > 5 * abs(fwd.params["sigma"] - 0.05)
     with pytest.raises(ValueError, match="o_spread"):
         fit_brdf(s, centres, vals, model="cook_torrance", o_spread=spread[:, :, :2])
+
+
+def test_projected_kd_is_the_closed_form_optimum():
+    from facette.fit import FitModel
+    from facette.fit._fit import prepare_samples
+    v = B.brdf_li(S, O, KD, 0.15, 1.4, n_theta=16, n_phi=24)
+    data = prepare_samples(S, O, v, weighting="absolute")
+    fm = FitModel("li", data.s, data.o, 3, volume_options={"n_theta": 16, "n_phi": 24})
+    p = fm.project_kd([0.15, 1.4, 0.9, 0.1, 0.2], data.values, data.weights)
+    np.testing.assert_allclose(p[2:], KD, rtol=1e-9)
+    ct = FitModel("cook_torrance", data.s, data.o, 3, masking="vcavity")
+    vc = B.cook_torrance1982(S, O, KD, 0.1, 1.3)
+    np.testing.assert_allclose(ct.project_kd([0.1, 1.3, 0, 0, 0], vc, np.ones_like(vc))[2:], KD, rtol=1e-9)
+
+
+def test_genetic_algorithm_with_projection_recovers_li():
+    s, o = S[:120], O[:120]
+    v = B.brdf_li(s, o, KD, 0.15, 1.4, n_theta=12, n_phi=16)
+    r = fit_genetic(s, o, v, model="li", population=24, generations=20, project_kd=True, rng=3,
+                    volume_options={"n_theta": 12, "n_phi": 16})
+    assert r.params["sigma"] == pytest.approx(0.15, rel=0.05)
+    assert r.params["n_i"] == pytest.approx(1.4, rel=0.05)
+    np.testing.assert_allclose(r.params["kd"], KD, rtol=0.05)
