@@ -105,6 +105,10 @@ def test_near_leds_positions_and_parallax(sim_rig_factory, tmp_path):
     assert angle_deg(prof.lights.directions, P / np.linalg.norm(P, axis=1, keepdims=True)).max() < 0.5
     truth = rig.sim.leds.intensities / rig.sim.leds.intensities.mean(axis=0)
     assert np.abs(prof.lights.intensities / truth - 1).max() < 0.02
+    # the drift check of a near-light profile compares directions seen from the same point
+    check, lines = _wizard(rig, tmp_path, base=prof)
+    ok, report = check.check(prof)
+    assert ok and max(report["direction_deg"]) < 0.3, lines
 
 
 def test_gains_survive_a_power_cycle_of_the_simulated_device(sim_rig_factory, tmp_path):

@@ -594,7 +594,14 @@ class Wizard:
         try:
             self._say()
             self.st.place("mirror_sphere", radius_mm=self.mirror["diameter_mm"] / 2)
-            _, dirs, circle, _ = self._mirror_capture("check-mirror")
+            images, dirs, circle, hls = self._mirror_capture("check-mirror")
+            if profile.lights.positions_mm is not None:
+                # the profile's LEDs are near: compare directions seen from the field's origin
+                dist = float(np.mean(np.linalg.norm(profile.lights.positions_mm, axis=1)))
+                pitch = self.pitch or self.mirror["diameter_mm"] / 2 / circle.r
+                o, l = sphere_rays(circle, hls, images.shape[1:3], pitch,
+                                   sphere_radius_mm=self.mirror["diameter_mm"] / 2)
+                dirs = directions_from_origin(o, l, self.led_distance_mm or dist)
             self.directions = dirs
             self.st.place("spectralon")
             _, _, res, _ = self._spectralon("check-spectralon")
