@@ -224,6 +224,7 @@ class _Acquisition:
                       light_current_mA=[plan.light_current_mA[l] for l in lights], mode=plan.mode,
                       retries=plan.retries, **plan.timing)
         boot = rig.device.check_reset()
+        initial = rig.device.state()        # read before anyone can press the button
         self.sd.journal("start", run=run, lights=lights, exposures=exposures, boot=boot, button=button)
         if button in ("wait", "press"):
             # the button arms and starts a configured scan from IDLE/DONE/ABORTED (a press
@@ -231,7 +232,6 @@ class _Acquisition:
             if button == "press":
                 rig.sim.press_button()      # returns once the device started (sent an event)
             else:
-                initial = rig.device.state()
                 print("press the rig's button to start the scan", flush=True)
                 # a finished state counts only if it is not the one left by an earlier scan
                 rig.wait_state({"RUNNING", "PAUSED", "FAULT"} | ({"DONE", "ABORTED"} - {initial}),
