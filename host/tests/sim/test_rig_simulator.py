@@ -25,15 +25,19 @@ class ScriptedDevice:
         self.conn = None
         self.got = []
         self._buf = b""
+        self._accepted = threading.Event()
         threading.Thread(target=self._accept, daemon=True).start()
 
     def _accept(self):
         self.conn, _ = self.srv.accept()
+        self._accepted.set()
+
+    def _wait_connected(self):
+        assert self._accepted.wait(timeout=10), "the simulator never connected"
 
     def event(self, line, expect_ack=True):
         """Send one event; when it needs an ack, read answer lines up to and including it."""
-        while self.conn is None:
-            pass
+        self._wait_connected()
         self.conn.sendall((line + "\n").encode())
         out = []
         if not expect_ack:
@@ -50,6 +54,7 @@ class ScriptedDevice:
                 return out
 
     def read_lines(self, n):
+        self._wait_connected()
         self.conn.settimeout(10)
         out = []
         while len(out) < n:
