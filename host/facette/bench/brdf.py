@@ -62,7 +62,8 @@ def bench_volume(quick, rng, out):
     npairs = 80 if quick else 200
     s, o = _pairs(npairs, rng)
     mc_ns = [16, 64, 256, 1024, 4096]
-    table_steps = [10.0, 5.0] if quick else [10.0, 5.0, 2.5]
+    # (step, grazing_refine): the thesis's uniform grids, and 10°/5° with the last 15° split in 4 ("g4")
+    table_steps = [(10.0, 1), (5.0, 1), (5.0, 4)] if quick else [(10.0, 1), (5.0, 1), (2.5, 1), (10.0, 4), (5.0, 4)]
     results = {}  # key -> list of (rel errors), times
     approx_err = {}  # (dist, sigma, n) -> rel errors per pair (vs V-cavity reference)
     approx_ir = {}  # same for σ ≥ 0.2, against reference + two-bounce inter-reflections (K_d = 0.5)
@@ -96,13 +97,14 @@ def bench_volume(quick, rng, out):
                     est, dt = _timed(B.volume_integral_monte_carlo, *args, n_samples=ns, rng=rng)
                     add(("monte_carlo", f"N={ns}"), est, ref, dt)
                 if (sg, n) in table_points:
-                    for step in table_steps:
+                    for step, refine in table_steps:
                         if step < 5 and ((dist, masking) != fine_table_config or (sg, n) != (sigmas[-1], indices[0])):
                             continue  # a 2.5° table takes ~20 s to build: one of them
-                        tab, tb = _timed(B.build_volume_table, sg, n, dist, masking, step)
+                        tab, tb = _timed(B.build_volume_table, sg, n, dist, masking, step, 24, 32, refine)
                         est, dt = _timed(tab, s, o)
-                        add(("table", f"{step:g} deg"), est, ref, dt)
-                        results[("table", f"{step:g} deg")].setdefault("build", []).append(tb)
+                        label = f"{step:g} deg" + (f" g{refine}" if refine > 1 else "")
+                        add(("table", label), est, ref, dt)
+                        results[("table", label)].setdefault("build", []).append(tb)
                 if dist in ("beckmann", "gaussian") and masking == "vcavity":
                     est, dt = _timed(B.volume_integral_approx, s, o, sg, n, dist)
                     add(("approx", dist), est, ref, dt)
@@ -132,7 +134,9 @@ def bench_volume(quick, rng, out):
             ns = int(setting.split("=")[1])
             fn = lambda: B.volume_integral_monte_carlo(st_, ot_, 0.3, 1.3, tdist, tmask, n_samples=ns, rng=0)
         elif name == "table":
-            tab = B.build_volume_table(sigmas[-1], indices[0], configs[0][0], configs[0][1], float(setting.split()[0]))
+            refine = int(setting.split(" g")[1]) if " g" in setting else 1
+            tab = B.build_volume_table(sigmas[-1], indices[0], configs[0][0], configs[0][1], float(setting.split()[0]),
+                                       24, 32, refine)
             fn = lambda: tab(st_, ot_)
         else:
             fn = lambda: B.volume_integral_approx(st_, ot_, 0.3, 1.3, setting)

@@ -131,24 +131,30 @@ class VolumeTable:
     values go to 0 linearly at 90°, where linear interpolation is right. Isotropic only.
     """
 
-    def __init__(self, step_deg, values, key):
+    def __init__(self, step_deg, values, key, theta_deg=None):
         self.step_deg = float(step_deg)
         self.values = values
         self.key = key
-        self._cos = np.cos(np.radians(np.arange(values.shape[0]) * self.step_deg))
+        nt = values.shape[0]
+        th = np.arange(nt) * self.step_deg if theta_deg is None else np.asarray(theta_deg, dtype=float)
+        self.theta = np.radians(th)  # θ nodes (both θ_s and θ_o), last one 90°
+        self._cos = np.cos(self.theta)
         self._cos[-1] = 0.0
 
     def __call__(self, s, o):
         s = np.asarray(s, dtype=float)
         o = np.asarray(o, dtype=float)
         ts, to, dphi, _ = _angles(s, o)
-        st = np.radians(self.step_deg)
         v = self.values
+        th = self.theta
         coords = []
-        for x, n in ((ts, v.shape[0]), (to, v.shape[1]), (dphi, v.shape[2])):
-            u = np.clip(x / st, 0.0, n - 1.0)
-            i0 = np.minimum(np.floor(u).astype(int), n - 2)
-            coords.append((i0, u - i0))
+        for x in (ts, to):
+            i0 = np.clip(np.searchsorted(th, x, side="right") - 1, 0, len(th) - 2)
+            coords.append((i0, np.clip((x - th[i0]) / (th[i0 + 1] - th[i0]), 0.0, 1.0)))
+        st = np.radians(self.step_deg)
+        u = np.clip(dphi / st, 0.0, v.shape[2] - 1.0)
+        k0 = np.minimum(np.floor(u).astype(int), v.shape[2] - 2)
+        coords.append((k0, u - k0))
         (i, fi), (j, fj), (k, fk) = coords
         num = np.zeros(np.broadcast(ts, to).shape)
         den = np.zeros_like(num)
@@ -170,12 +176,31 @@ def check_table_step(step_deg):
     return step
 
 
-def tabulate_isotropic(fn, step_deg, key=None):
-    """VolumeTable of fn(s, o) (K_d-free, isotropic) on the grid θ_s, θ_o ∈ [0, 90°], Δφ ∈ [0, 180°]."""
+def table_theta_nodes(step_deg, grazing_refine=1):
+    """θ nodes (deg) of a table: every step_deg up to 90° − 3 step, then step/grazing_refine to 90°.
+
+    The volume part changes fastest near grazing (Fresnel transmission and masking go to 0 there),
+    where a uniform 5° grid leaves errors of 10–20 %; refining the last three cells costs little.
+    """
     step = check_table_step(step_deg)
-    nt = int(round(90 / step)) + 1
+    r = int(grazing_refine)
+    if r < 1:
+        raise ValueError(f"grazing_refine = {grazing_refine}: use an integer ≥ 1 (1 = the uniform grid)")
+    nt = int(round(90 / step))
+    if r == 1 or nt < 4:
+        return np.arange(nt + 1) * step
+    knee = (nt - 3) * step
+    return np.concatenate([np.arange(nt - 3) * step, knee + np.arange(3 * r + 1) * step / r])
+
+
+def tabulate_isotropic(fn, step_deg, key=None, grazing_refine=1):
+    """VolumeTable of fn(s, o) (K_d-free, isotropic) on θ_s, θ_o ∈ [0, 90°] (``table_theta_nodes``)
+    × Δφ ∈ [0, 180°] every step_deg."""
+    step = check_table_step(step_deg)
+    th_deg = table_theta_nodes(step, grazing_refine)
+    nt = len(th_deg)
     nphi = int(round(180 / step)) + 1
-    th = np.radians(np.minimum(np.arange(nt) * step, 90.0 - 0.01))
+    th = np.radians(np.minimum(th_deg, 90.0 - 0.01))
     ph = np.radians(np.arange(nphi) * step)
     s = np.stack([np.sin(th), np.zeros(nt), np.cos(th)], axis=-1)[:, None, None, :]
     o = np.stack([np.sin(th)[:, None] * np.cos(ph)[None, :], np.sin(th)[:, None] * np.sin(ph)[None, :],
@@ -185,13 +210,17 @@ def tabulate_isotropic(fn, step_deg, key=None):
     values[-1, :, :] = 0.0  # the limit at θ = 90° (cos θ · I → 0)
     values[:, -1, :] = 0.0
     values.setflags(write=False)
-    return VolumeTable(step, values, key)
+    return VolumeTable(step, values, key, th_deg)
 
 
 @functools.lru_cache(maxsize=32)
 def build_volume_table(sigma, n_i, distribution="beckmann", masking="smith", step_deg=5.0,
-                       n_theta=24, n_phi=32):
+                       n_theta=24, n_phi=32, grazing_refine=4):
     """Tabulate I every ``step_deg`` degrees by quadrature (cached per arguments).
+
+    grazing_refine : the last three θ cells (75–90° at 5°) are split in this many (1 = the
+    thesis's uniform grid). At 5° it takes the worst error from ~10–20 % to ~1.5–3 % for
+    twice the build time (``facette bench brdf``).
 
     Cost: (90/step + 1)² (180/step + 1) quadratures with n_theta × n_phi nodes; reciprocity
     (I(s, o) = I(o, s)) is not exploited.
@@ -202,13 +231,15 @@ def build_volume_table(sigma, n_i, distribution="beckmann", masking="smith", ste
                          "φ_o); use volume='quadrature' or 'monte_carlo' for an anisotropic sigma pair")
     return tabulate_isotropic(
         lambda s, o: volume_integral_quadrature(s, o, sx, n, distribution, masking, n_theta, n_phi),
-        step_deg, (sx, n, distribution, masking))
+        step_deg, (sx, n, distribution, masking), grazing_refine)
 
 
-def volume_integral_table(s, o, sigma, n_i, distribution="beckmann", masking="smith", step_deg=5.0):
-    """I(s, o) from a cached table (built on first use for these σ, n_i, D, G, step)."""
+def volume_integral_table(s, o, sigma, n_i, distribution="beckmann", masking="smith", step_deg=5.0,
+                          grazing_refine=4):
+    """I(s, o) from a cached table (built on first use for these σ, n_i, D, G, step, refinement)."""
     sx, sy, iso, n = check_volume_config(sigma, n_i, distribution, masking)
-    return build_volume_table(sx if iso else (sx, sy), n, distribution, masking, float(step_deg))(s, o)
+    return build_volume_table(sx if iso else (sx, sy), n, distribution, masking, float(step_deg), 24, 32,
+                              int(grazing_refine))(s, o)
 
 
 # Tables 3.3 (Beckmann) and 3.4 (Gaussian): rational fractions in σ and n_i (eq 3.53–3.55).

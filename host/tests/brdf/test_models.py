@@ -166,3 +166,17 @@ def test_interreflections_return_lost_energy_without_creating_any():
         assert a2 <= 1.0 + 2e-3
         if n == 1.0:  # no absorption anywhere: the exact albedo is 1
             assert (a2 - a1) > gain * (1.0 - a1)
+
+
+def test_grazing_refined_table_is_more_accurate_near_grazing():
+    rng = np.random.default_rng(5)
+    th = rng.uniform(np.radians(76), np.radians(88), (2, 150))
+    ph = rng.uniform(0, 2 * np.pi, 150)
+    s = np.stack([np.sin(th[0]), 0 * ph, np.cos(th[0])], -1)
+    o = np.stack([np.sin(th[1]) * np.cos(ph), np.sin(th[1]) * np.sin(ph), np.cos(th[1])], -1)
+    ref = B.volume_integral_quadrature(s, o, 0.4, 1.5, "beckmann", "smith", n_theta=64, n_phi=64)
+    errs = [np.max(np.abs(B.build_volume_table(0.4, 1.5, "beckmann", "smith", 10.0, 24, 32, r)(s, o) - ref) / ref)
+            for r in (1, 4)]
+    assert errs[1] < errs[0] / 3
+    theta = B.build_volume_table(0.4, 1.5, "beckmann", "smith", 10.0, 24, 32, 4).theta
+    np.testing.assert_allclose(np.degrees(theta[-4:]), [82.5, 85.0, 87.5, 90.0])
