@@ -96,3 +96,18 @@ def test_over_temperature_stops_the_scan_then_resumes_when_cool(sim_rig_factory,
     scan = rig.scan(tmp_path / "s", exposures=SHORT, progress=False)
     assert len(scan.manifest["frames"]) == N
     _nothing_lost(rig, tmp_path / "s")
+
+
+def test_power_cut_mid_scan_reopens_the_port_and_completes(sim_rig_factory, tmp_path):
+    # the device process stops and starts again (flash kept): a new pseudo-terminal appears
+    # behind the same port name, as a USB rig re-enumerates after a power cut
+    rig = sim_rig_factory(faults="power_cut_at_shot=10")
+    old_pid = rig.sim.device.proc.pid
+    scan = rig.scan(tmp_path / "s", exposures=SHORT, progress=False)
+    assert len(scan.manifest["frames"]) == N
+    assert rig.sim.power_cycles == 1 and rig.device.stats.get("reopens", 0) >= 1
+    assert rig.sim.simulator.boots == [1, 2]                  # the boot count survived in flash
+    resets = [e for e in _journal(tmp_path / "s") if e["step"] == "device_reset"]
+    assert len(resets) == 1
+    assert rig.sim.device.proc.pid != old_pid                 # a new process serves the port
+    _nothing_lost(rig, tmp_path / "s")

@@ -69,18 +69,20 @@ class DeviceClient:
     retries : int, repeats of a request without a valid answer (timeouts, CRC errors)
     check_hash : bool, refuse a device whose definition hash differs from this host's
     expected_hash : int or None, the hash to expect (default: the generated module's)
+    reconnect_timeout_s : float, how long to keep reopening a port that disappeared
 
     Attributes: ``stats`` (requests, retries, timeouts), ``boot_count``, ``identity``.
     """
 
     def __init__(self, url, unit=1, baudrate=115200, timeout_s=0.3, retries=5, check_hash=True,
-                 expected_hash=None):
+                 expected_hash=None, reconnect_timeout_s=10.0):
         from pymodbus.client import ModbusSerialClient
 
         # pymodbus logs every lost frame at error level; our retries handle them.
         logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
         self.url = url
         self.unit = unit
+        self.reconnect_timeout_s = float(reconnect_timeout_s)
         self.retries = int(retries)
         self.map = load_map()
         self.expected_hash = self.map.definition_hash if expected_hash is None else int(expected_hash)
@@ -121,6 +123,18 @@ class DeviceClient:
         if not self._client.connect():
             raise DeviceError(f"cannot reopen {self.url!r}")
 
+    def _wait_for_port(self):
+        """Reopen the port until it is back (a USB device re-enumerates in ~1-2 s)."""
+        deadline = time.monotonic() + self.reconnect_timeout_s
+        self.stats["reopens"] = self.stats.get("reopens", 0) + 1
+        while True:
+            self._client.close()
+            if self._client.connect():
+                return True
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.02)   # poll the port name while the device comes back
+
     # -- raw requests with retries -----------------------------------------------
     def _request(self, what, fn, *args, **kw):
         from pymodbus.exceptions import ConnectionException, ModbusIOException
@@ -136,12 +150,10 @@ class DeviceClient:
                 self.stats["timeouts"] += 1
                 last = exc
                 continue
-            except ConnectionException as exc:
+            except ConnectionException as exc:   # the port went away (USB replug, power cycle)
                 last = exc
                 self.stats["timeouts"] += 1
-                time.sleep(0.05)
-                self._client.close()
-                self._client.connect()
+                self._wait_for_port()
                 continue
             if rsp.isError():
                 code = getattr(rsp, "exception_code", None)

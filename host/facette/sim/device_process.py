@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import os
-import selectors
 import subprocess
 import tempfile
 import time
@@ -67,7 +66,7 @@ class SimulatedDevice:
     """
 
     def __init__(self, speed=50.0, side=True, state_dir=None, workdir=None, startup_timeout_s=20.0,
-                 extra_args=()):
+                 extra_args=(), link=False):
         if not speed > 0:
             raise ValueError(f"speed must be > 0 (a multiple of real time), got {speed}")
         self._tmp = None
@@ -79,58 +78,74 @@ class SimulatedDevice:
         self.state_dir = Path(state_dir) if state_dir else self.workdir / "flash"
         self.state_dir.mkdir(parents=True, exist_ok=True)
         self.side_socket = self.workdir / "side.sock" if side else None
+        self.link = self.workdir / "tty" if link else None
         self.speed = float(speed)
-        args = [str(device_binary()), "--speed", f"{speed:g}", "--state", str(self.state_dir)]
+        self.startup_timeout_s = startup_timeout_s
+        self.args = [str(device_binary()), "--speed", f"{speed:g}", "--state", str(self.state_dir)]
         if side:
-            args += ["--side", str(self.side_socket)]
-        args += list(extra_args)
-        self.proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     stdin=subprocess.DEVNULL, text=True, bufsize=1,
-                                     preexec_fn=_die_with_parent)
-        self.port = self._read_port(startup_timeout_s)
-        if side:
-            deadline = time.monotonic() + startup_timeout_s
-            while not self.side_socket.exists():
-                if self.proc.poll() is not None or time.monotonic() > deadline:
-                    self.close()
-                    raise RuntimeError(f"the simulated device did not open its side channel "
-                                       f"{self.side_socket}")
-                time.sleep(0.005)
+            self.args += ["--side", str(self.side_socket)]
+        if link:
+            self.args += ["--link", str(self.link)]
+        self.args += list(extra_args)
+        self.proc = None
+        self.pty = None
+        self._start()
+        # with a link, the port name survives restarts (as a udev name survives a replug)
+        self.port = str(self.link) if link else self.pty
 
-    def _read_port(self, timeout_s):
-        sel = selectors.DefaultSelector()
-        sel.register(self.proc.stdout, selectors.EVENT_READ)
-        deadline = time.monotonic() + timeout_s
-        try:
-            while time.monotonic() < deadline:
-                if sel.select(timeout=0.1):
-                    line = self.proc.stdout.readline()
-                    if line.startswith("port:"):
-                        return line.split(":", 1)[1].strip()
-                    if not line and self.proc.poll() is not None:
-                        break
-            err = self.proc.stderr.read() if self.proc.poll() is not None else ""
-            self.close()
-            raise RuntimeError(f"the simulated device did not print 'port: <path>' within {timeout_s} s"
-                               + (f"; it said: {err.strip()[-400:]}" if err else ""))
-        finally:
-            sel.close()
+    def _start(self):
+        # stdout and stderr go to files: a pipe nobody reads could fill up and block the device
+        self._out = open(self.workdir / "device.out", "w+")
+        self._err = open(self.workdir / "device.log", "a")
+        self.proc = subprocess.Popen(self.args, stdout=self._out, stderr=self._err, stdin=subprocess.DEVNULL,
+                                     preexec_fn=_die_with_parent)
+        deadline = time.monotonic() + self.startup_timeout_s
+        while True:
+            self._out.seek(0)
+            first = self._out.readline()
+            if first.startswith("port:") and first.endswith("\n"):
+                self.pty = first.split(":", 1)[1].strip()
+                break
+            if self.proc.poll() is not None or time.monotonic() > deadline:
+                log = (self.workdir / "device.log").read_text()[-400:]
+                self.close()
+                raise RuntimeError(f"the simulated device did not print 'port: <path>' within "
+                                   f"{self.startup_timeout_s} s" + (f"; it said: {log.strip()}" if log else ""))
+            time.sleep(0.002)
+        while self.side_socket is not None and not self.side_socket.exists() or \
+                self.link is not None and not self.link.exists():
+            if self.proc.poll() is not None or time.monotonic() > deadline:
+                self.close()
+                raise RuntimeError(f"the simulated device did not open its side channel {self.side_socket}")
+            time.sleep(0.002)
+
+    def restart(self):
+        """Power-cycle: stop the process and start it again (same flash, same link name)."""
+        self._stop_process()
+        if self.side_socket is not None and self.side_socket.exists():
+            self.side_socket.unlink()
+        self._start()
+        if self.link is None:
+            self.port = self.pty
 
     def alive(self):
         return self.proc.poll() is None
 
-    def close(self):
-        """Terminate the device process (and remove the temporary folder)."""
-        if self.proc.poll() is None:
+    def _stop_process(self):
+        if self.proc is not None and self.proc.poll() is None:
             self.proc.terminate()
             try:
                 self.proc.wait(timeout=5)
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait(timeout=5)
-        for stream in (self.proc.stdout, self.proc.stderr):
-            if stream:
-                stream.close()
+        for fh in (getattr(self, "_out", None), getattr(self, "_err", None)):
+            if fh is not None and not fh.closed:
+                fh.close()
+
+    def close(self):
+        """Terminate the device process (and remove the temporary folder)."""
+        self._stop_process()
         if self._tmp is not None:
             self._tmp.cleanup()
             self._tmp = None

@@ -41,6 +41,9 @@ class Faults:
 
     biterr : float, probability per UART byte of a flipped bit (both directions), from the start
     reset_at_shot : int or None, hard-reset the device when this shutter opens (the shot is lost)
+    power_cut_at_shot : int or None, cut the device's power when this shutter opens: the
+        process stops and starts again (flash kept, a new pseudo-terminal behind the same
+        link name, as a USB device re-enumerates); needs a SimulatedRig
     miss_sync_shots : tuple of int, the camera does not fire at these shots (no sync, no file)
     open_led : int or None, this LED channel is open-circuit from the start (no light, no current)
     overtemp_at_shot : int or None, the LED heat sink reads `overtemp_c` from this shot on
@@ -48,6 +51,7 @@ class Faults:
     """
     biterr: float = 0.0
     reset_at_shot: int | None = None
+    power_cut_at_shot: int | None = None
     miss_sync_shots: tuple = ()
     open_led: int | None = None
     overtemp_at_shot: int | None = None
@@ -136,9 +140,10 @@ class RigSimulator:
     """
 
     def __init__(self, side_socket, camera, faults=None, shutter_lag_us=40, connect_timeout_s=10.0,
-                 max_unclaimed=None):
+                 max_unclaimed=None, continues=None, on_power_cut=None):
         self.camera = camera
         self.max_unclaimed = max_unclaimed
+        self.on_power_cut = on_power_cut
         self.faults = faults or Faults()
         self.shutter_lag_us = int(shutter_lag_us)
         self.m = camera.radiance.shape[0]
@@ -156,7 +161,13 @@ class RigSimulator:
         self._send_lock = threading.Lock()
         self._stop = threading.Event()
         self._reset_done = False
+        self._power_cut_done = False
         self._overtemp = False
+        if continues is not None:   # the same rig after a power cycle: keep its history
+            self.shots, self.frames, self.missed = continues.shots, continues.frames, continues.missed
+            self.boots, self.events = continues.boots, continues.events
+            self._reset_done, self._power_cut_done = continues._reset_done, continues._power_cut_done
+            self._overtemp = continues._overtemp
         deadline = time.monotonic() + connect_timeout_s
         while True:
             try:
@@ -274,9 +285,14 @@ class RigSimulator:
                       for k, v in (p.split("=", 1) for p in parts[3:] if "=" in p)}
             if level == 1:
                 self._backpressure()
-                if self._open(t, params) == "reset":
+                what = self._open(t, params)
+                if what == "reset":
                     self.send("ack")        # release the lockstep first, then pull the plug
                     self.reset_device()
+                    return
+                if what == "power_cut":     # the rig restarts the process from another thread
+                    threading.Thread(target=self.on_power_cut, name="power-cut", daemon=True).start()
+                    self._stop.set()
                     return
             else:
                 w = self._window
@@ -297,6 +313,13 @@ class RigSimulator:
         if f.overtemp_at_shot is not None and shot >= f.overtemp_at_shot and not self._overtemp:
             self._overtemp = True
             self.set_ntc(f.overtemp_c)
+        if f.power_cut_at_shot is not None and shot == f.power_cut_at_shot and not self._power_cut_done \
+                and self.on_power_cut is not None:
+            self._power_cut_done = True
+            with self._lock:
+                self.missed.append({"shot": shot, "why": "power cut", **params})
+            self._window = None
+            return "power_cut"
         if f.reset_at_shot is not None and shot == f.reset_at_shot and not self._reset_done:
             self._reset_done = True
             with self._lock:
@@ -328,8 +351,10 @@ class RigSimulator:
             self.sock.shutdown(socket.SHUT_RDWR)
         except OSError:
             pass
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=5)
+        self._reader.close()
         self.sock.close()
-        self._thread.join(timeout=5)
 
     def summary(self):
         with self._lock:

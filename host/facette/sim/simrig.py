@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -60,16 +61,35 @@ class SimulatedRig:
         self.leds = thesis_leds(direction_error_deg, intensity_error, near=near, seed=seed + 1)
         self.sensor = sensor or DEFAULT_SENSOR
         self.radiance = radiance_per_led(self.scene, self.leds, electrons_per_mA_s, shadows=shadows)
-        self.device = SimulatedDevice(speed=speed, side=True, workdir=self.workdir / "device")
+        self.device = SimulatedDevice(speed=speed, side=True, workdir=self.workdir / "device", link=True)
+        self.max_unclaimed = max_unclaimed
+        self.power_cycles = 0
+        self._closed = threading.Event()
         try:
             self.camera = SimCamera(self.camera_dir, self.radiance, self.sensor, iso=self.sensor.iso,
                                     seed=seed + 2)
             self.simulator = RigSimulator(self.device.side_socket, self.camera, self.faults,
-                                         max_unclaimed=max_unclaimed)
+                                         max_unclaimed=max_unclaimed, on_power_cut=self.power_cycle)
         except Exception:
             self.device.close()
             raise
         self.port = self.device.port
+
+    def power_cycle(self):
+        """Cut the device's power and restore it: the process restarts with its flash
+        (boot count + 1), a new pseudo-terminal appears behind the same `port` link, and
+        the rig simulator reconnects, keeping its history (shots, frames)."""
+        old = self.simulator
+        old.close()
+        self.device.restart()
+        self.simulator = RigSimulator(self.device.side_socket, self.camera, self.faults,
+                                      max_unclaimed=self.max_unclaimed, continues=old,
+                                      on_power_cut=self.power_cycle)
+        self.power_cycles += 1
+        if threading.current_thread() is not threading.main_thread():
+            # the device dies with the thread that started it (PR_SET_PDEATHSIG):
+            # keep this thread until the rig closes
+            self._closed.wait()
 
     # -- controls ---------------------------------------------------------------------
     def press_button(self, wait_for=None, timeout_s=10.0):
@@ -121,6 +141,7 @@ class SimulatedRig:
         return path
 
     def close(self):
+        self._closed.set()
         try:
             self.simulator.close()
         finally:
