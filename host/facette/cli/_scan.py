@@ -66,6 +66,8 @@ def register(sub):
     p.add_argument("--raw-size", type=_shape, default=(96, 128), metavar="WxH",
                    help="simulated RAW size (default 128x96)")
     p.add_argument("--near", action="store_true", help="simulated LEDs as near point sources")
+    p.add_argument("--brdf", default="mask", help="simulated material: mask (thesis: Cook-Torrance "
+                   "sigma 0.05, n_i 1.2), bust (sigma 0.1, n_i 1.3) or lambert")
     p.add_argument("--faults", default="", help="simulated faults, e.g. 'biterr=1e-3,reset_at_shot=5'")
     p.add_argument("--speed", type=float, default=2000.0, help="simulated device clock (× real time)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -77,7 +79,7 @@ def _connect(args):
 
     if args.sim:
         return facette.connect("sim", scene=args.scene, raw_shape=args.raw_size, near=args.near,
-                               faults=args.faults or None, speed=args.speed)
+                               brdf=args.brdf, faults=args.faults or None, speed=args.speed)
     if not args.device:
         raise SystemExit("say which rig: --sim, or --device PORT (e.g. /dev/ttyACM0, socket://host:5020)")
     if args.gphoto2:

@@ -19,6 +19,8 @@ def register(sub):
     p.add_argument("--scene", default="plaque_sphere", help="plaque_sphere, plaque, sphere or plane")
     p.add_argument("--raw-size", type=_shape, default=(96, 128), metavar="WxH", help="RAW size (128x96)")
     p.add_argument("--near", action="store_true", help="LEDs as near point sources at 1.5 m")
+    p.add_argument("--brdf", default="mask",
+                   help="material: mask, bust or lambert (facette.sim.scene.BRDF_PRESETS)")
     p.add_argument("--faults", default="", help="e.g. 'biterr=1e-3,reset_at_shot=5,miss_sync_shots=3'")
     p.add_argument("--speed", type=float, default=1.0, help="device clock, × real time (default 1)")
     p.add_argument("--workdir", help="keep the camera folder and flash here (default: temporary)")
@@ -29,7 +31,7 @@ def register(sub):
 def run(args):
     from facette.sim import SimulatedRig
 
-    sim = SimulatedRig(scene=args.scene, raw_shape=args.raw_size, near=args.near,
+    sim = SimulatedRig(scene=args.scene, raw_shape=args.raw_size, near=args.near, brdf=args.brdf,
                        faults=args.faults or None, speed=args.speed, workdir=args.workdir, seed=args.seed,
                        max_unclaimed=None)
     try:

@@ -14,7 +14,7 @@ import json
 
 import numpy as np
 
-__all__ = ["Scene", "make_scene", "SCENES", "normals_from_height"]
+__all__ = ["Scene", "make_scene", "SCENES", "BRDF_PRESETS", "normals_from_height"]
 
 
 @dataclasses.dataclass
@@ -131,8 +131,9 @@ def make_scene(name="plaque_sphere", shape=(48, 64), pixel_pitch_mm=None, seed=0
     pixel_pitch_mm : float or None, mm per half-size pixel; default so that the
         scene is 120 mm wide.
     seed : int, for the small random parts (sediment grain, albedo mottling).
-    brdf : dict or None, ``{"model": ..., "params": {...}}``; default Cook–Torrance
-        with σ = 0.1 and n_i = 1.3 (the thesis's "bust" material, §4.3.1).
+    brdf : dict, a name of ``BRDF_PRESETS``, or None: ``{"model": ..., "params": {...}}``;
+        default "mask", the thesis's smooth specular validation material (Cook–Torrance
+        σ = 0.05, n_i = 1.2, fig 4.21); "bust" is its glossy one (σ = 0.1, n_i = 1.3).
     """
     if name not in SCENES:
         raise ValueError(f"unknown scene {name!r}; choose one of {sorted(SCENES)}")
@@ -142,10 +143,16 @@ def make_scene(name="plaque_sphere", shape=(48, 64), pixel_pitch_mm=None, seed=0
     pitch = float(pixel_pitch_mm) if pixel_pitch_mm else 120.0 / w
     if not pitch > 0:
         raise ValueError(f"pixel_pitch_mm must be > 0, got {pixel_pitch_mm}")
+    if brdf is None or isinstance(brdf, str):
+        key = brdf or "mask"
+        if key not in BRDF_PRESETS:
+            raise ValueError(f"unknown BRDF preset {key!r}; choose one of {sorted(BRDF_PRESETS)} "
+                             "or give {'model': ..., 'params': {...}}")
+        brdf = BRDF_PRESETS[key]
     rng = np.random.default_rng(seed)
     scene = Scene(np.zeros((h, w)), np.zeros((h, w, 3)), np.zeros((h, w), bool),
                   np.zeros((h, w, 3)), pitch,
-                  brdf or {"model": "cook_torrance", "params": {"sigma": 0.1, "n_i": 1.3}},
+                  {"model": brdf["model"], "params": dict(brdf.get("params", {}))},
                   name=name)
     x, y = scene.coordinates_mm()
     width_mm, height_mm = w * pitch, h * pitch
@@ -186,3 +193,10 @@ def make_scene(name="plaque_sphere", shape=(48, 64), pixel_pitch_mm=None, seed=0
 
 
 SCENES = ("plaque_sphere", "plaque", "sphere", "plane")
+
+# Materials of the thesis's validation scenes (§4.3.1, fig 4.21), and a matte one.
+BRDF_PRESETS = {
+    "mask": {"model": "cook_torrance", "params": {"sigma": 0.05, "n_i": 1.2}},
+    "bust": {"model": "cook_torrance", "params": {"sigma": 0.1, "n_i": 1.3}},
+    "lambert": {"model": "lambert", "params": {}},
+}

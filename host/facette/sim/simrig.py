@@ -29,7 +29,8 @@ class SimulatedRig:
     scene : str, a name of facette.sim.scene.SCENES (default "plaque_sphere")
     raw_shape : (rows, cols) of the RAW images, even (default 96×128; HDR is half)
     pixel_pitch_mm : mm per half-size pixel on the object (default: scene 120 mm wide)
-    brdf : {"model", "params"} or None (Cook–Torrance σ = 0.1, n_i = 1.3)
+    brdf : {"model", "params"}, a preset name ("mask", "bust", "lambert"), or None ("mask":
+        Cook–Torrance σ = 0.05, n_i = 1.2, see facette.sim.scene.BRDF_PRESETS)
     near : bool, point LEDs at 1.5 m with per-pixel directions and 1/r²
     direction_error_deg, intensity_error : LED errors (see facette.sim.lights.thesis_leds)
     sensor : facette.sim.sensor.SensorModel or None (the default D300-like sensor at ISO 400)

@@ -40,6 +40,13 @@ def test_normals_from_height_follow_the_camera_frame():
     np.testing.assert_allclose(n, np.broadcast_to(expect, n.shape), atol=1e-12)
 
 
+def test_brdf_presets_are_the_thesis_validation_materials():
+    assert make_scene(shape=(16, 16)).brdf == {"model": "cook_torrance", "params": {"sigma": 0.05, "n_i": 1.2}}
+    assert make_scene(shape=(16, 16), brdf="bust").brdf["params"] == {"sigma": 0.1, "n_i": 1.3}
+    with pytest.raises(ValueError, match="unknown BRDF preset"):
+        make_scene(shape=(16, 16), brdf="velvet")
+
+
 def test_bad_scene_arguments_are_refused():
     with pytest.raises(ValueError, match="unknown scene"):
         make_scene("teapot")
