@@ -10,7 +10,7 @@ import time
 
 from facette.device.client import DeviceClient, DeviceError
 
-__all__ = ["Rig", "connect", "FrameRecord", "TIMING_MODES", "RigFault"]
+__all__ = ["Rig", "connect", "decode_frame_record", "TIMING_MODES", "RigFault"]
 
 TIMING_MODES = ("camera", "bulb", "led")
 RING_STRIDE = 8
@@ -22,7 +22,7 @@ class RigFault(DeviceError):
         super().__init__(message)
         self.faults = faults
 
-def FrameRecord(words, n):
+def decode_frame_record(words, n):
     """Decode one 8-word frame-ring record (see protocol/registers.toml, ring_*)."""
     return {"n": n, "frame": words[0], "light": words[1], "exposure": words[2],
             "current_set_mA": words[3], "current_meas_mA": words[4],
@@ -172,7 +172,10 @@ class Rig:
         return self.device.read("ring_count")
 
     def frame_records(self, since=0, count=None):
-        """Frame-ring records ``since`` .. ring_count-1 (at most ring_len back): (list, next).
+        """Frame-ring records ``since`` .. ring_count-1: (records, next index, records lost).
+
+        The ring keeps the last `ring_len` records; older ones not read in time are
+        counted as lost.
 
         A record says the device released the camera for (light, exposure) at
         start_us (µs since the scan started) with the set and measured current,
@@ -185,7 +188,7 @@ class Rig:
         base = self.device.map["ring_frame"].address
         for n in range(since + lost, count):
             words = self.device.read_words("input", base + RING_STRIDE * (n % ring_len), RING_STRIDE)
-            out.append(FrameRecord(words, n))
+            out.append(decode_frame_record(words, n))
         return out, count, lost
 
     # -- calibration gains ---------------------------------------------------------------
