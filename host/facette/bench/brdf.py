@@ -112,8 +112,9 @@ def bench_volume(quick, rng, out):
                     if sg >= B.INTERREFLECTION_MIN_SIGMA:
                         # the approx formula includes inter-reflections (§3.2.3): compare it also with
                         # the single-bounce reference plus the simulated two-bounce term, at K_d = 0.5
-                        j = B.interreflection_integral_vcavity(s, o, sg, n, dist, n_paths=512, rng=rng)
-                        ref2 = ref + B.li_kd_factor(0.5, n) * j
+                        j = B.interreflection_integral_vcavity(s, o, sg, n, dist, n_paths=512, rng=1)
+                        j1 = B.interreflection_mixed_integral_vcavity(s, o, sg, n, dist, n_paths=512, rng=1)
+                        ref2 = ref + B.li_kd_factor(0.5, n) * j + j1  # f = κ (I + κ J + J_1)
                         approx_ir[(dist, sg, n)] = np.abs(est - ref2) / np.maximum(ref2, 1e-3)
     print("  reference convergence (96x96 vs 192x192 nodes, median / 95th / max relative):")
     for dist, masking, st in ref_conv:

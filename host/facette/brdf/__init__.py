@@ -5,7 +5,8 @@ the local frame (normal +z); ``get(name)`` returns one by name ("lambert", "oren
 "cook_torrance", "li"). Thesis chapter 3; equation numbers in each docstring.
 """
 from ._fresnel import fresnel_dielectric, r_e_molenaar1999, r_i_simonot2009
-from ._interreflection import build_interreflection_table, interreflection_integral_vcavity, interreflection_vcavity
+from ._interreflection import (build_interreflection_table, interreflection_integral_vcavity,
+                               interreflection_mixed_integral_vcavity, interreflection_vcavity)
 from ._microfacet import (DISTRIBUTIONS, MASKINGS, SIGMA_FLAT, distribution_d, gaussian_norm_exact,
                           gaussian_norm_rational_tsb2014, masking_g, microfacet_quadrature,
                           sample_microfacet_normals, smith_g1)
@@ -24,6 +25,7 @@ __all__ = [
     "li_specular", "li_volume", "oren_nayar1994",
     "VOLUME_METHODS", "VolumeTable", "build_volume_table", "volume_integral", "volume_integral_approx",
     "volume_integral_monte_carlo", "volume_integral_quadrature", "volume_integral_table",
-    "interreflection_integral_vcavity", "interreflection_vcavity", "build_interreflection_table",
+    "interreflection_integral_vcavity", "interreflection_mixed_integral_vcavity", "interreflection_vcavity",
+    "build_interreflection_table",
     "directional_albedo",
 ]

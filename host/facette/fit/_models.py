@@ -10,8 +10,8 @@ columns of the Jacobian for K_d — costs a multiply-add.
 """
 import numpy as np
 
-from facette.brdf import (interreflection_integral_vcavity, li_specular, oren_nayar1994,
-                          r_i_simonot2009, volume_integral)
+from facette.brdf import (interreflection_integral_vcavity, interreflection_mixed_integral_vcavity, li_specular,
+                          oren_nayar1994, r_i_simonot2009, volume_integral)
 
 __all__ = ["FitModel", "MODEL_NAMES", "BOUNDS"]
 
@@ -90,6 +90,9 @@ class FitModel:
             if self.interreflection:
                 parts["J"] = interreflection_integral_vcavity(self.s_c, self.o_c, sigma, n_i, self.distribution,
                                                               n_paths=self.n_paths, rng=12345)
+                parts["J1"] = interreflection_mixed_integral_vcavity(self.s_c, self.o_c, sigma, n_i,
+                                                                     self.distribution, n_paths=self.n_paths,
+                                                                     rng=12345)
         if len(self._cache) > 64:
             self._cache.clear()
         self._cache[key] = parts
@@ -116,7 +119,7 @@ class FitModel:
         kappa = kd / (np.pi * n_i * n_i * (1.0 - kd * r_i_simonot2009(n_i)))
         out = parts["spec"][:, None] + parts["I"][:, None] * kappa[None, :]
         if self.interreflection:
-            out = out + parts["J"][:, None] * kappa[None, :] ** 2
+            out = out + parts["J"][:, None] * kappa[None, :] ** 2 + parts["J1"][:, None] * kappa[None, :]
         return out
 
     def project_kd(self, p, values, weights):
