@@ -171,3 +171,14 @@ def test_genetic_algorithm_with_projection_recovers_li():
     assert r.params["sigma"] == pytest.approx(0.15, rel=0.05)
     assert r.params["n_i"] == pytest.approx(1.4, rel=0.05)
     np.testing.assert_allclose(r.params["kd"], KD, rtol=0.05)
+
+
+def test_interreflection_term_is_kept_when_the_data_needs_it():
+    s, o = S[:120], O[:120]
+    v = B.brdf_li(s, o, [0.4, 0.8], 0.4, 1.4, "beckmann", "vcavity", n_theta=24, n_phi=24)  # σ ≥ 0.2: with IR
+    r = fit_brdf(s, o, v, model="li", masking="vcavity", n_starts=2, volume_options={"n_theta": 16, "n_phi": 24})
+    assert r.interreflection, r.selection
+    assert any("inter-reflection term kept" in note for note in r.selection)
+    assert r.params["sigma"] == pytest.approx(0.4, rel=0.02)
+    np.testing.assert_allclose(r.params["kd"], [0.4, 0.8], rtol=0.02)
+    assert json.loads(r.to_json())["interreflection"] is True
