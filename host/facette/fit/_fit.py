@@ -23,6 +23,8 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
+from facette.brdf import INTERREFLECTION_MIN_SIGMA
+
 from ._models import FitModel
 from ._result import FitResult
 
@@ -30,7 +32,6 @@ __all__ = ["fit_brdf", "fit_least_squares", "fit_genetic", "prepare_samples", "W
 
 WEIGHTINGS = ("relative", "absolute")
 METHODS = ("least_squares", "genetic")
-INTERREFLECTION_MIN_SIGMA = 0.2
 
 
 class _Data:
