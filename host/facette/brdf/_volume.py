@@ -321,7 +321,9 @@ def volume_integral_approx(s, o, sigma, n_i, distribution="beckmann"):
     tbar_o = a * (1.0 - fresnel_dielectric(np.clip(o[..., 2], 0, 1), n)) + b * (1.0 - r_e)
     fpa = r_e * (1.0 - np.clip(s[..., 2], 0, 1)) ** 2 * (1.0 - np.clip(o[..., 2], 0, 1)) ** 2 * np.minimum(0.0, cphi)
     bracket = rough_lambert_terms(ts, to, cphi, sx, distribution)
-    return tbar_s * tbar_o * (1.0 + np.maximum(-1.0, c * fpa)) * bracket
+    # Outside its fit box the formula can go negative (b < 0 for σ ≲ 0.006 makes T̄ < 0 at
+    # grazing; the Gaussian bracket at σ ≈ 2): a BRDF cannot, so it is clipped at 0.
+    return np.maximum(tbar_s * tbar_o * (1.0 + np.maximum(-1.0, c * fpa)) * bracket, 0.0)
 
 
 def volume_integral(s, o, sigma, n_i, distribution="beckmann", masking="smith", method="quadrature", **options):

@@ -194,3 +194,12 @@ def test_mixed_specular_volume_paths():
     k = B.li_kd_factor(0.5, 1.5)
     jvv = B.interreflection_integral_vcavity(s, o, 0.5, 1.5, n_paths=4000, rng=4)
     assert 0.2 < np.mean(k * j1) / np.mean(k * k * jvv) < 5
+
+
+def test_approx_formula_is_clipped_where_it_would_go_negative():
+    # b(σ = 0) = −1.252/57.04 < 0 makes T̄ < 0 at grazing: the raw formula is negative there
+    s, o = direction(np.radians(89.9)), direction(0.5, np.pi)
+    a, b, c = B._volume.approx_coefficients(0.0, 1.5, "beckmann")
+    assert b < 0
+    assert B.volume_integral_approx(s, o, 0.0, 1.5, "beckmann") == 0.0
+    assert B.volume_integral_approx(direction(0.3), direction(0.4, 1.0), 0.0, 1.5, "beckmann") > 0
