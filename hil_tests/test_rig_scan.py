@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from facette.camera.raw import read_exposure_metadata, read_raw
-from facette.scan import THESIS_BRACKET_US, ScanAborted, ScanDirectory, ScanDirectoryError, sha256_file
+from facette.scan import (THESIS_BRACKET_US, ScanAborted, ScanDirectory, ScanDirectoryError, ScanError,
+                          sha256_file)
 
 SHORT = [(200_000, 0), (20_000, 0), (2_000, 0)]
 
@@ -201,3 +202,27 @@ def test_wait_button_scans_only_once_the_rig_button_is_pressed(sim_rig_factory, 
     rig.sim.press_button()
     worker.join(timeout=60)
     assert not worker.is_alive() and len(out["scan"].manifest["frames"]) == 1
+
+
+def test_a_stray_camera_image_is_never_filed_under_a_frame_name(sim_rig_factory, tmp_path):
+    """Someone presses the camera's own release mid-scan: that image has no frame record."""
+    from facette.sim.dng import write_dng
+
+    rig = sim_rig_factory()
+
+    def stray(record):
+        if (record["light"], record["exposure"]) == (1, 0):
+            mosaic = np.full((96, 128), 600, np.uint16)
+            write_dng(rig.camera.folder / "DSC_9999.dng", mosaic, 512, 16383, 1 / 250, 400)
+
+    # (the device may already have taken the next frame: the stray lands on exposure 1 or 2)
+    with pytest.raises(ScanError, match="exposed 0.004 s but the rig took light 1 exposure [12]"):
+        rig.scan(tmp_path / "s", lights=[0, 1, 2], exposures=SHORT, progress=False, on_frame=stray)
+    sd = ScanDirectory(tmp_path / "s")
+    assert (tmp_path / "s" / "raw" / "unmatched" / "DSC_9999.dng").is_file()
+    assert sd.verify() == [] and len(sd.manifest["frames"]) in (4, 5)
+    scan = rig.scan(tmp_path / "s", lights=[0, 1, 2], exposures=SHORT, progress=False)   # resume
+    assert len(scan.manifest["frames"]) == 9 and scan.verify() == []
+    raw = tmp_path / "s" / "raw"
+    kept = len(list(raw.glob("*.dng"))) + len(list(raw.glob("unmatched/*.dng")))
+    assert kept == len(rig.sim.simulator.frames) + 1          # every camera image plus the stray

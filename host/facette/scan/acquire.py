@@ -145,6 +145,17 @@ class _Acquisition:
         self.camera.claimed(src)
         return dst
 
+    def wait_camera_quiet(self, quiet_s=0.3, limit_s=5.0):
+        """After stopping a run, let the camera write out the image it was taking (a
+        stray file arriving after the next run started would be taken for its first frame)."""
+        deadline = time.monotonic() + limit_s
+        last, since = len(self.camera.pending()), time.monotonic()
+        while time.monotonic() < deadline and time.monotonic() - since < quiet_s:
+            time.sleep(0.01)      # watch the folder for new files
+            n = len(self.camera.pending())
+            if n != last:
+                last, since = n, time.monotonic()
+
     def sweep_camera(self, why):
         for p in self.camera.pending():
             self.keep_unmatched(p, why)
@@ -153,17 +164,21 @@ class _Acquisition:
         """Move the camera's next file to raw/L<l>_E<e> and record it."""
         t_us, c = self.plan.exposures[exposure]
 
-        while True:
-            src = self.camera.wait_for_file(self.frame_timeout_s)
-            if self.plan.mode in ("camera", "bulb") and src.suffix.lower() == ".dng":
-                from facette.camera.raw import read_exposure_metadata
+        src = self.camera.wait_for_file(self.frame_timeout_s)
+        if self.plan.mode in ("camera", "bulb"):
+            # the file's own exposure time must be the record's: a mismatch means a frame
+            # without a record (or a camera set otherwise); never file it under the wrong name
+            from facette.camera.raw import read_exposure_metadata
 
-                et, _, _ = read_exposure_metadata(src)
-                if et is not None and abs(et * 1e6 - t_us) > max(0.05 * t_us, 1000):
-                    self.keep_unmatched(src, f"exposure {et:g} s does not match the frame record "
-                                             f"({t_us / 1e6:g} s, light {light} exposure {exposure})")
-                    continue
-            break
+            et, _, _ = read_exposure_metadata(src)
+            if et is not None and abs(et * 1e6 - t_us) > max(0.05 * t_us, 1000):
+                kept = self.keep_unmatched(src, f"exposure {et:g} s, the frame record says {t_us / 1e6:g} s "
+                                                f"(light {light} exposure {exposure})")
+                raise ScanError(
+                    f"the camera's image {src.name} was exposed {et:g} s but the rig took light {light} "
+                    f"exposure {exposure} at {t_us / 1e6:g} s (kept as {kept.relative_to(self.sd.path)}). In "
+                    "camera-timed mode the camera's shutter speed must match the scan's exposures: set it, "
+                    "or scan with --mode bulb or led; then run the same scan again to resume")
         dst_rel = frame_name(light, exposure, src.suffix.lower())
         dst = self.sd.path / dst_rel
         record = {"file": dst_rel, "light": light, "exposure": exposure, "time_us": t_us,
@@ -191,6 +206,17 @@ class _Acquisition:
                         kept=str(keep.relative_to(self.sd.path)))
         os.replace(dst, keep)
 
+    def stop_device(self):
+        """Best effort: abort the device's run when the host stops the scan itself."""
+        try:
+            if self.rig.device.state() in ("ARMED", "RUNNING", "PAUSED"):
+                self.sd.journal("abort", why="the host stopped the scan")
+                self.rig.abort()
+            self.wait_camera_quiet()
+            self.sweep_camera("arrived after the host stopped the scan: no frame record")
+        except Exception:   # the scan is stopping anyway; the journal says why
+            pass
+
     def add_rig_time(self, end_us):
         self.sd.manifest["rig_time_s"] = round(self.sd.manifest.get("rig_time_s", 0.0) + end_us * 1e-6, 6)
         self.sd.save()
@@ -203,6 +229,7 @@ class _Acquisition:
             self.sd.journal("abort_stale", state=state)
             self.rig.abort()
             self.rig.wait_state({"ABORTED", "IDLE"}, timeout_s=30)
+            self.wait_camera_quiet()
         bits = dev.read("fault_bits")
         names = self.rig._fault_names(bits)
         if names:
@@ -265,8 +292,12 @@ class _Acquisition:
                     self.take(rec, light, exposure, run)
                 except CameraTimeout as exc:
                     self.sd.journal("missing_file", light=light, exposure=exposure, ring=rec["n"], error=str(exc))
+                    self.stop_device()
                     raise ScanError(f"the device took light {light} exposure {exposure} (flash sync seen) but "
                                     f"no image arrived: {exc}") from exc
+                except ScanError:
+                    self.stop_device()
+                    raise
             state = st["state"]
             if state == "DONE" and seen >= st["ring_count"]:
                 return end_us, "done"
@@ -274,6 +305,7 @@ class _Acquisition:
                 self.add_rig_time(end_us)      # the time this stopped run took still counts
                 faults = rig.faults()
                 self.sd.journal("stopped", state=state, faults=faults, run=run)
+                self.wait_camera_quiet()
                 self.sweep_camera(f"arrived after the device stopped ({state})")
                 done = len(self.sd.frames_done())
                 total = len(plan.lights) * len(plan.exposures)

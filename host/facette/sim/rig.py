@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import select
 import socket
 import threading
 import time
@@ -180,7 +181,7 @@ class RigSimulator:
                     raise SideChannelError(f"cannot connect to the device's side channel {side_socket}: "
                                            f"{exc}; is build/posix/facette-device running with --side?") from exc
                 time.sleep(0.01)
-        self._reader = self.sock.makefile("r", encoding="ascii", newline="\n")
+        self._rbuf = b""
         self._thread = threading.Thread(target=self._run, name="rig-simulator", daemon=True)
         self._initial_faults()
         self._thread.start()
@@ -217,9 +218,26 @@ class RigSimulator:
             self.led_fault(self.faults.open_led, "open")
 
     # -- event loop ------------------------------------------------------------
+    def _lines(self):
+        while True:
+            while b"\n" not in self._rbuf:
+                chunk = self.sock.recv(65536)
+                if not chunk:
+                    return
+                self._rbuf += chunk
+            line, self._rbuf = self._rbuf.split(b"\n", 1)
+            yield line.decode("ascii", "replace")
+
+    def _more_pending(self):
+        """Whether the device sent more lines than the one being handled."""
+        if b"\n" in self._rbuf:
+            return True
+        ready, _, _ = select.select([self.sock], [], [], 0)
+        return bool(ready)
+
     def _run(self):
         try:
-            for line in self._reader:
+            for line in self._lines():
                 if self._stop.is_set():
                     break
                 line = line.strip()
@@ -341,7 +359,9 @@ class RigSimulator:
     def _backpressure(self):
         if not self.max_unclaimed:
             return
-        while not self._stop.is_set() and self.camera.unclaimed() >= self.max_unclaimed:
+        # a frozen device sends nothing more; if it did (an abort, a fault), stop waiting
+        while not self._stop.is_set() and self.camera.unclaimed() >= self.max_unclaimed \
+                and not self._more_pending():
             time.sleep(0.001)
 
     def close(self):
@@ -353,7 +373,6 @@ class RigSimulator:
             pass
         if self._thread is not threading.current_thread():
             self._thread.join(timeout=5)
-        self._reader.close()
         self.sock.close()
 
     def summary(self):
