@@ -59,3 +59,26 @@ def test_facette_scan_sim_press_button(tmp_path):
     assert again.returncode == 0, again.stderr
     assert json.loads((out_dir / "scan.json").read_text())["frames"] == m["frames"]
     assert Path(out_dir / "raw").is_dir()
+
+
+def test_scan_a_rig_through_its_port_and_camera_folder(tmp_path):
+    """The real-rig path: `facette scan --device PORT --camera-dir DIR` (no simulator object in
+    the host: the rig is a separate `facette sim` process, as a real rig would be)."""
+    with subprocess.Popen(FACETTE + ["sim", "--speed", "200", "--workdir", str(tmp_path / "rig")],
+                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True) as sim:
+        try:
+            port = sim.stdout.readline().split(": ", 1)[1].strip()
+            camera = sim.stdout.readline().split(": ", 1)[1].strip()
+            run = subprocess.run(FACETTE + ["scan", "--device", port, "--camera-dir", camera, "--exposures",
+                                            "1/5,1/50", "--lights", "0,1,2", "--no-process", "--quiet",
+                                            str(tmp_path / "scan")], capture_output=True, text=True, timeout=300)
+        finally:
+            sim.stdin.write("quit\n")
+            sim.stdin.flush()
+            sim.wait(timeout=30)
+    assert run.returncode == 0, run.stderr
+    m = json.loads((tmp_path / "scan" / "scan.json").read_text())
+    assert len(m["frames"]) == 6 and m["truth"] is None and m["complete"]
+    assert sorted(p.name for p in (tmp_path / "scan" / "raw").glob("*.dng")) == \
+        [f"L{l:02d}_E{e:02d}.dng" for l in range(3) for e in range(2)]
