@@ -82,3 +82,29 @@ def test_scan_a_rig_through_its_port_and_camera_folder(tmp_path):
     assert len(m["frames"]) == 6 and m["truth"] is None and m["complete"]
     assert sorted(p.name for p in (tmp_path / "scan" / "raw").glob("*.dng")) == \
         [f"L{l:02d}_E{e:02d}.dng" for l in range(3) for e in range(2)]
+
+
+def test_files_that_predate_the_scan_stay_in_the_camera_folder_across_a_resume(tmp_path):
+    from facette.sim.dng import write_dng
+
+    with subprocess.Popen(FACETTE + ["sim", "--speed", "200", "--workdir", str(tmp_path / "rig")],
+                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True) as sim:
+        try:
+            port = sim.stdout.readline().split(": ", 1)[1].strip()
+            camera = Path(sim.stdout.readline().split(": ", 1)[1].strip())
+            holiday = camera / "HOLIDAY.dng"             # someone's earlier photo on the card
+            write_dng(holiday, np.full((24, 24), 700, np.uint16), 512, 16383, 1 / 100, 200)
+            args = FACETTE + ["scan", "--device", port, "--camera-dir", str(camera), "--exposures", "1/50",
+                              "--lights", "0,1", "--no-process", "--quiet", str(tmp_path / "scan")]
+            first = subprocess.run(args, capture_output=True, text=True, timeout=300)
+            (tmp_path / "scan" / "raw" / "L01_E00.dng").unlink()   # a frame lost: the resume retakes it
+            again = subprocess.run(args, capture_output=True, text=True, timeout=300)
+        finally:
+            sim.stdin.write("quit\n")
+            sim.stdin.flush()
+            sim.wait(timeout=30)
+    assert first.returncode == 0 and again.returncode == 0, first.stderr + again.stderr
+    assert holiday.is_file()                               # not taken, not moved
+    assert not (tmp_path / "scan" / "raw" / "unmatched").exists()
+    assert (tmp_path / "scan" / "raw" / "L01_E00.dng").is_file()

@@ -67,6 +67,10 @@ class FolderWatchCamera:
         self.ignored |= {name for _, name, _ in self._candidates()}
         return sorted(self.ignored)
 
+    def ignore(self, names):
+        """Never take these file names (files that were there before the scan began)."""
+        self.ignored |= set(names)
+
     def poll(self):
         """The oldest complete new file, or None."""
         for _, name, size in self._candidates():

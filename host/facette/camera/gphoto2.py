@@ -110,6 +110,9 @@ class GPhoto2Camera:
         self.known = set(self._listing())
         return self.folder_cam.ignore_existing()
 
+    def ignore(self, names):
+        self.folder_cam.ignore(names)
+
     def poll(self):
         self._collect(10)
         return self.folder_cam.poll()

@@ -386,6 +386,9 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
                                      "resume it with the same settings or choose a new directory")
         sd.journal("resume", rig=rig.identity)
         _recover(sd, rig.camera)
+        begin = next((e for e in sd.read_journal() if e.get("step") == "begin"), {})
+        if hasattr(rig.camera, "ignore"):   # files that predate the scan are not ours
+            rig.camera.ignore(begin.get("camera_ignored", []))
     acq = _Acquisition(rig, sd, plan, None, on_frame, frame_timeout_s, poll_s)
     all_pairs = {(l, e) for l in range(len(plan.lights)) for e in range(len(plan.exposures))}
     bar = None
