@@ -7,6 +7,7 @@ Running the same command again resumes an interrupted scan.
 """
 import argparse
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -117,6 +118,8 @@ def _process(scan_dir):
 
 
 def run(args):
+    from facette.device import DeviceError
+    from facette.scan import ScanError
     from facette.sim.device_process import REPO_ROOT
 
     profile = args.profile
@@ -142,18 +145,25 @@ def run(args):
         if button == "press" and rig.sim is None:
             raise SystemExit("--press-button needs --sim (a real rig's button is pressed by a person: "
                              "use --wait-button)")
-        scan = rig.scan(args.directory, profile=profile, exposures=args.exposures, lights=args.lights,
-                        light_current_mA=args.current, mode=args.mode, button=button,
-                        progress=not args.quiet)
+        try:
+            scan = rig.scan(args.directory, profile=profile, exposures=args.exposures, lights=args.lights,
+                            light_current_mA=args.current, mode=args.mode, button=button,
+                            progress=not args.quiet)
+        except (ScanError, DeviceError) as exc:
+            print(f"scan stopped: {exc}", file=sys.stderr)
+            print(f"link: {rig.device.stats}", file=sys.stderr)
+            return 1
         sim_summary = rig.sim.summary() if rig.sim is not None else None
+        link = dict(rig.device.stats)
     finally:
         rig.close()
     t_acq = time.perf_counter() - t0
     m = scan.manifest
     print(f"scan: {len(m['frames'])} frames in {scan.path} "
           f"(rig time {m['rig_time_s']:.1f} s, wall time {t_acq:.1f} s)", flush=True)
-    if sim_summary and (sim_summary["missed"] or len(sim_summary["boots"]) > 1):
-        print(f"simulated faults: {sim_summary['missed']} boots {sim_summary['boots']}")
+    if sim_summary and (sim_summary["missed"] or len(sim_summary["boots"]) > 1 or args.faults):
+        print(f"simulated faults: {args.faults or '-'}; shots lost {sim_summary['missed']}, "
+              f"boots {sim_summary['boots']}, link {link}")
     if not args.no_process:
         ran = _process(scan.path)
         print("processing: " + ("; ".join(ran) if ran else "no processing stage is installed yet"))
