@@ -108,3 +108,13 @@ def test_files_that_predate_the_scan_stay_in_the_camera_folder_across_a_resume(t
     assert holiday.is_file()                               # not taken, not moved
     assert not (tmp_path / "scan" / "raw" / "unmatched").exists()
     assert (tmp_path / "scan" / "raw" / "L01_E00.dng").is_file()
+
+
+def test_a_scan_stopped_by_a_fault_says_why_and_exits_1(tmp_path):
+    run = subprocess.run(FACETTE + ["scan", "--sim", "--faults", "open_led=1", "--lights", "0,1,2",
+                                    "--exposures", "1/50", "--no-process", "--quiet", str(tmp_path / "s")],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 1
+    assert "LED_OPEN" in run.stderr and "run the same scan again to resume" in run.stderr
+    assert "Traceback" not in run.stderr
+    assert len(json.loads((tmp_path / "s" / "scan.json").read_text())["frames"]) == 1
