@@ -136,7 +136,10 @@ class DeviceClient:
             time.sleep(0.02)   # poll the port name while the device comes back
 
     # -- raw requests with retries -----------------------------------------------
-    def _request(self, what, fn, *args, **kw):
+    def _request(self, what, fn, *args, check=None, **kw):
+        """Call a pymodbus request with retries; `check(rsp)` False marks an answer that
+        does not fit the request (RTU has no transaction id: a late answer to an earlier
+        request must not be taken for this one)."""
         from pymodbus.exceptions import ConnectionException, ModbusIOException
 
         last = None
@@ -159,6 +162,10 @@ class DeviceClient:
                 code = getattr(rsp, "exception_code", None)
                 self.stats["exceptions"] += 1
                 return None, code, attempt
+            if check is not None and not check(rsp):
+                self.stats["mismatched"] = self.stats.get("mismatched", 0) + 1
+                last = f"an answer that does not fit {what}"
+                continue
             return rsp, None, attempt
         raise DeviceTimeout(f"no valid answer from {self.url} to {what} after {self.retries + 1} attempts "
                             f"({last}); check the cable/port and that the device is powered")
@@ -182,7 +189,8 @@ class DeviceClient:
         fn = self._client.read_input_registers if space == "input" else self._client.read_holding_registers
         while count > 0:
             n = min(count, MAX_READ)
-            rsp, code, _ = self._request(f"read {space} {address:#06x}+{n}", fn, address, count=n)
+            rsp, code, _ = self._request(f"read {space} {address:#06x}+{n}", fn, address, count=n,
+                                         check=lambda r, n=n: len(r.registers) == n)
             if rsp is None:
                 self._raise_exception(f"read {space} {address:#06x}+{n}", code)
             out += list(rsp.registers)
