@@ -124,6 +124,8 @@ def _groups(pending, n_lights):
 
 
 class _Acquisition:
+    link_timeout_s = 30.0   # how long a silent link is tolerated while the device scans
+
     def __init__(self, rig, sd, plan, progress, on_frame, frame_timeout_s, poll_s):
         self.rig, self.sd, self.plan = rig, sd, plan
         self.camera = rig.camera
@@ -266,18 +268,29 @@ class _Acquisition:
         else:
             rig.start()
         seen, end_us = 0, 0
-        from facette.device.client import DeviceReset
+        from facette.device.client import DeviceReset, DeviceTimeout
 
+        link_down_since = None
         while True:
             try:
                 rig.device.check_reset()
                 st = rig.status()
+                records, seen, lost = rig.frame_records(seen, st["ring_count"])
+                link_down_since = None
             except DeviceReset as exc:
                 self.add_rig_time(end_us)
                 self.sd.journal("device_reset", run=run, old_boot=exc.old_boot, new_boot=exc.new_boot)
                 self.sweep_camera("arrived during a run interrupted by a device reset: no frame record")
                 return 0, "reset"
-            records, seen, lost = rig.frame_records(seen, st["ring_count"])
+            except DeviceTimeout as exc:
+                # a noisy link: the device keeps scanning and its ring keeps the records;
+                # keep asking until the link has been silent for link_timeout_s
+                now = time.monotonic()
+                link_down_since = link_down_since or now
+                self.sd.journal("link_error", error=str(exc)[:200])
+                if now - link_down_since > self.link_timeout_s:
+                    raise
+                continue
             if lost:
                 self.sd.journal("ring_overflow", lost=lost)
             for rec in records:
