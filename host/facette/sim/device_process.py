@@ -61,8 +61,15 @@ class SimulatedDevice:
     workdir : path or None, default a fresh temporary folder (removed on close)
     startup_timeout_s : float, how long to wait for the ``port:`` line
 
-    Attributes: ``port`` (the pty path to give the Modbus client), ``side_socket``,
+    link : bool, also make ``workdir/tty`` a symlink to the pty and give that as `port`
+        (it survives `restart`, as a udev name survives a USB replug)
+
+    Attributes: ``port`` (the path to give the Modbus client), ``pty``, ``side_socket``,
     ``state_dir``, ``proc``.
+
+    The process gets SIGTERM when the *thread* that started it ends (Linux
+    PR_SET_PDEATHSIG, so that a killed test run leaves nothing behind): start it
+    from a thread that lives as long as you use it (the main thread usually).
     """
 
     def __init__(self, speed=50.0, side=True, state_dir=None, workdir=None, startup_timeout_s=20.0,
