@@ -10,8 +10,9 @@ flash-sync edge (``sync <t>``) and every ``shutter``/``led`` event with ``ack``
 the speed of the machine).
 
 Faults (``Faults``) are injected through the same channel: bit errors on the
-serial link, a device reset at a given shot, a missed flash sync (the camera
-does not fire: no sync, no file), an open LED, and over-temperature.
+serial link, a device reset at a given shot, a power cut (the device process
+restarts; with `SimulatedRig`), a missed flash sync (the camera does not fire:
+no sync, no file), an open LED, and over-temperature.
 """
 from __future__ import annotations
 
