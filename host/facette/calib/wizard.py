@@ -237,24 +237,16 @@ class RigStation:
     def gains(self):
         return list(self.rig.gains())
 
-    def set_gains(self, gains, attempts=4):
-        """Write the gains and store them in flash (Rig.set_gains: unlock, write, SAVE).
-
-        The unlock lasts 30 s of the device's clock; a simulated device running
-        2000× faster gives 15 ms of real time, which a busy host can miss: a refusal
-        for that reason is retried (unlocking again), any other is an error.
-        """
+    def set_gains(self, gains):
+        """Write the gains and store them in flash (Rig.set_gains: unlock, write, SAVE)."""
         from facette.device.client import DeviceException
 
-        for attempt in range(attempts):
-            try:
-                self.rig.set_gains(gains, save=True)
-                return
-            except DeviceException as exc:
-                if "locked" not in str(exc) or attempt == attempts - 1:
-                    raise WizardError(f"LED gains: the device refused them ({exc}); check "
-                                      "`facette device faults`, then run `facette calibrate --only "
-                                      "spectralon,gains`") from exc
+        try:
+            self.rig.set_gains(gains, save=True)
+        except DeviceException as exc:
+            raise WizardError(f"LED gains: the device refused them ({exc}); check "
+                              "`facette device faults`, then run `facette calibrate --only "
+                              "spectralon,gains`") from exc
 
     def reboot(self):
         """Reboot the device and wait until it answers again; returns the new boot count."""
@@ -312,6 +304,7 @@ class Wizard:
         self.positions = None if base is None else base.lights.positions_mm
         self.sensor = None if base is None else base.sensor
         self.flat = None if base is None else base.flat_field
+        self.radiometric_scale = None if base is None else base.radiometric_scale
         self.gains = None if base is None else base.led_gains
         self.pitch = None if base is None else base.pixel_pitch_mm
         self.led_distance_mm = led_distance_mm
@@ -501,6 +494,9 @@ class Wizard:
                                        positions_mm=self.positions,
                                        pixel_pitch_mm=self.pitch if self.positions is not None else None)
         self.intensities, self.flat = res.intensities, ff
+        # image units per unit irradiance of a light of intensity 1: what turns the pipeline's
+        # images into radiance factors, so that K_d and the albedo are reflectances
+        self.radiometric_scale = (res.absolute / res.intensities).mean(axis=0).tolist()
         self.figures["spectralon"] = {"intensities": res.intensities.tolist(),
                                       "nonuniformity": resid.nonuniformity.tolist(),
                                       "reflectance_rgb": rho.tolist()}
@@ -512,6 +508,8 @@ class Wizard:
         for i, I in enumerate(res.intensities):
             self._say(f"    LED {i:2d}: R {I[0]:.4f}  G {I[1]:.4f}  B {I[2]:.4f}   "
                       f"residual {100 * resid.nonuniformity[i]:.2f} %")
+        sc = self.radiometric_scale
+        self._note(f"radiometric scale R,G,B {sc[0]:.4g} {sc[1]:.4g} {sc[2]:.4g} (HDR units per unit irradiance)")
         self._note(f"flat field: {ff.shape[1]}×{ff.shape[0]} px, range {ff.min():.3f}–{ff.max():.3f}")
         worst = float(resid.nonuniformity.max())
         if worst > self.tol.nonuniformity:
@@ -572,6 +570,7 @@ class Wizard:
         now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
         prof = Profile(rig=rig_name, lights=lights, created=now, pixel_pitch_mm=self.pitch,
                        sensor=self.sensor, flat_field=self.flat, led_gains=self.gains,
+                       radiometric_scale=self.radiometric_scale,
                        history=[f"{now} facette calibrate: {', '.join(self.steps)}"] + self.history)
         folder = Path(folder) if folder else PROFILES_DIR / rig_name
         path = save(prof, folder)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 
-from facette.device.client import DeviceClient, DeviceError
+from facette.device.client import DeviceClient, DeviceError, DeviceException
 
 __all__ = ["Rig", "connect", "decode_frame_record", "TIMING_MODES", "RigFault"]
 
@@ -197,14 +197,26 @@ class Rig:
         n = self.device.identity.get("max_leds", 12) or 12
         return [g / 1e4 for g in self.device.read_array("cal_gain")[:n]]
 
-    def set_gains(self, gains, save=True):
-        """Write per-LED gains (0.5..2.0) and, with `save`, store them in the device's flash."""
+    def set_gains(self, gains, save=True, attempts=4):
+        """Write per-LED gains (0.5..2.0) and, with `save`, store them in the device's flash.
+
+        The unlock lasts 30 s of the device's clock; a simulated device running 2000×
+        faster leaves 15 ms of real time, which a busy host can miss. So the store is
+        unlocked right before each step, and a refusal for that reason is retried.
+        """
         words = [int(round(g * 1e4)) for g in gains]
         key = self.device.map.meta.get("unlock_key", 0xCA1B)
-        self.device.write("cal_unlock", key)
-        self.device.write_array("cal_gain", words)
-        if save:
-            self.device.command("SAVE")
+        for attempt in range(attempts):
+            try:
+                self.device.write("cal_unlock", key)
+                self.device.write_array("cal_gain", words)
+                if save:
+                    self.device.write("cal_unlock", key)
+                    self.device.command("SAVE")
+                return
+            except DeviceException as exc:
+                if "locked" not in str(exc) or attempt == attempts - 1:
+                    raise
 
     # -- buttons, scans ------------------------------------------------------------------
     def wait_state(self, states, timeout_s=30.0, poll_s=0.01):
