@@ -15,6 +15,8 @@ Schema 1::
                 "black_level_dn", "white_level_dn"} | null,
      "flat_field": {"file": str, "sha256": str} | null,  # EXR, R,G,B, mean 1
      "led_gains": [float, ...] | null,                   # written to the device store
+     "radiometric_scale": [r, g, b] | null,  # HDR units per unit irradiance (Spectralon);
+                                             # images / (scale · intensity) are radiance factors
      "history": [str, ...],                              # what the wizard did
      "checksum": sha256 of the canonical JSON of everything else}
 """
@@ -94,11 +96,17 @@ class Profile:
     sensor: dict | None = None
     flat_field: np.ndarray | None = None   # (H, W, 3), mean 1, or None
     led_gains: list | None = None
+    radiometric_scale: list | None = None   # (3,) see the module docstring; None: relative only
     history: list = dataclasses.field(default_factory=list)
     sha256: str = ""                        # checksum of the file it was loaded from
     path: Path | None = None
 
     def __post_init__(self):
+        if self.radiometric_scale is not None:
+            sc = np.asarray(self.radiometric_scale, dtype=float)
+            if sc.shape != (3,) or not np.all(np.isfinite(sc) & (sc > 0)):
+                raise ProfileError(f"radiometric_scale must be three positive numbers, got {self.radiometric_scale}")
+            self.radiometric_scale = sc.tolist()
         if self.sensor is not None:
             missing = [k for k in SENSOR_KEYS if k not in self.sensor]
             if missing:
@@ -112,7 +120,7 @@ class Profile:
         return {"schema": SCHEMA_VERSION, "id": self.id, "rig": self.rig, "created": self.created,
                 "pixel_pitch_mm": self.pixel_pitch_mm, "lights": lights, "sensor": self.sensor,
                 "flat_field": flat_field_ref, "led_gains": self.led_gains,
-                "history": list(self.history)}
+                "radiometric_scale": self.radiometric_scale, "history": list(self.history)}
 
 
 def _canonical(data):
@@ -207,4 +215,5 @@ def load(path):
     return Profile(rig=data["rig"], lights=lt, id=data["id"], created=data["created"],
                    pixel_pitch_mm=data.get("pixel_pitch_mm"), sensor=data.get("sensor"),
                    flat_field=flat, led_gains=data.get("led_gains"),
+                   radiometric_scale=data.get("radiometric_scale"),
                    history=list(data.get("history", [])), sha256=data["checksum"], path=file)

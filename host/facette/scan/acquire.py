@@ -88,6 +88,16 @@ def _load_profile(profile):
     return load(profile)
 
 
+def _profile_section(profile):
+    """scan.json's record of the profile: id and checksum, and where it was read from so that
+    processing can apply its flat field (after checking the checksum again)."""
+    if profile is None:
+        return None
+    path = getattr(profile, "path", None)
+    return {"id": profile.id, "sha256": profile.sha256,
+            "path": None if path is None else str(Path(path).resolve())}
+
+
 def _lights_section(plan, profile):
     from facette.calib import nominal_light_directions
 
@@ -390,8 +400,13 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
         ignored = rig.camera.ignore_existing()
         sd.journal("begin", plan=plan.to_dict(), rig=rig.identity, camera=repr(rig.camera),
                    camera_ignored=ignored)
-        sd.create(rig.identity, None if profile is None else {"id": profile.id, "sha256": profile.sha256},
-                  pitch, _lights_section(plan, profile), _exposures_section(plan), plan.to_dict())
+        sd.create(rig.identity, _profile_section(profile), pitch, _lights_section(plan, profile),
+                  _exposures_section(plan), plan.to_dict())
+        if profile is not None:
+            if profile.sensor:
+                sd.manifest["sensor"] = dict(profile.sensor)  # the HDR merge's noise model
+            sd.manifest["radiometric_scale"] = profile.radiometric_scale
+            sd.save()
     else:
         old = sd.manifest.get("plan", {})
         if {k: old.get(k) for k in plan.key()} != plan.key():

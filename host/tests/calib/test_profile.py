@@ -57,3 +57,12 @@ def test_lights_are_validated():
         Lights(nominal_light_directions(), np.zeros((12, 3)))
     with pytest.raises(ProfileError, match="sensor"):
         _profile(sensor={"gain_e_per_dn": 1})
+
+
+def test_radiometric_scale_round_trip_and_validation(tmp_path):
+    save(_profile(radiometric_scale=[2.0, 3.0, 4.0]), tmp_path)
+    assert load(tmp_path).radiometric_scale == [2.0, 3.0, 4.0]
+    save(_profile(), tmp_path)
+    assert load(tmp_path).radiometric_scale is None   # relative-only profiles stay readable
+    with pytest.raises(ProfileError, match="radiometric_scale"):
+        _profile(radiometric_scale=[1.0, -1.0, 1.0])
