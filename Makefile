@@ -10,12 +10,13 @@ FUZZ_SECONDS ?= 300
 SCAN_OUT ?= out/scan-demo
 
 .PHONY: setup deps venv firmware-posix generate check-generated test c-test fuzz fuzz-smoke \
-        pytest firmware qemu-test scan bench clean help
+        pytest firmware qemu-test scan calibrate bench clean help
 
 help:
 	@echo "make scan             one-button scan on the simulated rig, then processing"
 	@echo "make test             every test (installs what it needs)"
 	@echo "make setup            .venv with facette (editable), Debian packages, simulated device"
+	@echo "make calibrate        the calibration wizard, unattended, on the simulated rig"
 	@echo "make firmware         STM32F405 build (size printed)"
 	@echo "make qemu-test        boot the STM32 build in QEMU and talk Modbus to it"
 	@echo "make fuzz             libFuzzer on frame parsing and register writes ($(FUZZ_SECONDS) s)"
@@ -66,6 +67,10 @@ test: check-generated setup c-test fuzz-smoke pytest qemu-test
 
 scan: setup
 	$(FACETTE) scan --sim --press-button $(SCAN_OUT)
+
+# A fresh profile beside the committed one (calibration/profiles/sim-default is replaced only on purpose).
+calibrate: setup
+	$(FACETTE) calibrate --rig sim --yes -o out/calibration/sim
 
 bench: setup
 	$(FACETTE) bench all
