@@ -89,6 +89,9 @@ def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=
     m, h, w, c = images.shape
     pix = np.flatnonzero((ps.valid & mask).ravel())
     flat = images.reshape(m, h * w, c)
+    # each pixel's c floats as one opaque item: gathering pixels is then ~4x faster
+    flat = np.ascontiguousarray(flat)
+    items = flat.view(np.dtype((np.void, flat.itemsize * c))).reshape(m, h * w)
     total = max(pix.size * m, 1)
     shadow = ps.shadow.reshape(-1, m)
     normals = ps.normal.reshape(-1, 3)
@@ -99,7 +102,7 @@ def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=
         rng = np.random.default_rng([seed, a])
         p = pix[a:a + chunk]
         s = light_dirs if light_dirs.ndim == 2 else light_dirs.reshape(h * w, m, 3)[p]
-        e = flat[:, p]
+        e = np.take(items, p, axis=1).view(flat.dtype).reshape(m, -1, c)
         g = sample_grid(e, normals[p], s, shadow[p].T, check_finite=not finite)
         sensor.add_grid(g["cos_s"], g["o_x"], g["o_y"], g["cos_o"], e, g["keep"], g["scale"])
         # a uniform subset of the kept samples: draw grid positions, keep the kept ones
