@@ -46,8 +46,13 @@ def fit_hemisphere_cells(filtered, model="li", min_count=1, spread=4, **options)
     filtered : object with ``flat(min_count)``, ``count`` (B, N), ``edges``, ``counts``.
     spread : k for k × k directions per cell in the forward model; 0 or None = cell centres.
     **options : passed to ``fit_brdf`` (method, distribution, masking, weighting, …).
-    The cell counts weight the residuals (√count).
+    The cell counts weight the residuals (√count). ``specular_weight`` defaults to "balance" here
+    (the cells in the specular cone weigh as much in total as the rest, facette.fit._fit): the
+    diffuse cells far outnumber them and would otherwise drown the lobe under any misfit of the
+    diffuse shape (an LI fit to Cook–Torrance data then returned n_i → 1 and no lobe).
     """
+    options.setdefault("specular_weight", "balance")
+    options.setdefault("specular_cone_deg", 5.0)
     s, o, f, cnt = filtered.flat(min_count)
     extra = {}
     if spread:

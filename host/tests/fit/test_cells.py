@@ -38,3 +38,29 @@ def test_filtered_cells_fit_recovers_a_narrow_lobe():
     assert fwd.params["n_i"] == pytest.approx(1.3, rel=0.03)
     # the bias the forward model removes: the cell centres widen the lobe
     assert centres.params["sigma"] - 0.05 > 2 * abs(fwd.params["sigma"] - 0.05)
+
+
+def test_li_fit_on_cook_torrance_cells_finds_the_lobe():
+    # a scan's cells: many diffuse cells (some at grazing incidence, where the LI volume part's
+    # Fresnel transmissions fall below the data's flat K_d/π) and few specular ones. Unbalanced,
+    # that misfit outweighed the whole lobe and the LI fit went to n_i → 1, σ → 0 (Lambert);
+    # the default "balance" weighting of fit_hemisphere_cells finds the lobe.
+    rng = np.random.default_rng(1)
+    sensor = reflect.HemisphereSensor(3.0, channels=1)
+    _, mid = sensor.centres()
+    zmin = np.cos(np.radians(75))  # the camera sees up to ~75° from the normal
+    for ts in mid[np.searchsorted(mid, np.radians([5, 15, 25, 35, 45, 55, 65, 75, 85]))]:
+        n = 8000
+        s = np.broadcast_to([np.sin(ts), 0.0, np.cos(ts)], (n, 3))
+        z = zmin + (1 - zmin) * rng.random(n)
+        phi = 2 * np.pi * rng.random(n)
+        o = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], axis=1)
+        sensor.add(s, o, B.cook_torrance1982(s, o, 0.5, 0.05, 1.2)[:, None])
+    filt = sensor.result()
+    opts = dict(model="li", volume="approx", select=False, n_starts=3)
+    res = fit_hemisphere_cells(filt, **opts)
+    assert res.success
+    assert res.params["sigma"] == pytest.approx(0.05, rel=0.3)  # LI is not CT: its lobe need not match exactly
+    assert 1.12 < res.params["n_i"] < 1.28
+    unbalanced = fit_hemisphere_cells(filt, specular_weight=1.0, **opts)
+    assert unbalanced.params["n_i"] < 1.05  # the failure the balance removes
