@@ -376,7 +376,7 @@ def _hierarchy_block(e, s, ok, trip, mats, t_ombre, t_spec, t_source):
     good = norm > 1e-12
     tvalid = good if tvalid is None else tvalid & good
     inv_norm = np.where(tvalid, 1.0 / np.where(good, norm, 1.0), 0.0).astype(np.float32)
-    nh = g * inv_norm[:, None, :]                            # unit normals, 0 where invalid
+    nh = np.multiply(g, inv_norm[:, None, :], out=g)         # unit normals, 0 where invalid (in place)
     uses = np.zeros((len(trip), m), np.float32)              # triplet k uses light l
     uses[np.arange(len(trip))[:, None], trip] = 1.0
 
