@@ -247,7 +247,7 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
     if "samples" in stages:
         t0 = time.perf_counter()
         # the images as photometric stereo saw them (near lights: fall-off divided out)
-        res.filtered, res.samples = _samples_stage(images, inp.mask, ps, light_dirs, theta0_deg)
+        res.filtered, res.samples = _samples_stage(images, inp.sample_mask(), ps, light_dirs, theta0_deg)
         res.timings["samples"] = time.perf_counter() - t0
     if "fit" in stages:
         t0 = time.perf_counter()
