@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from modbus_crc import crc16
 
 QEMU_TEST_FILE = "test_qemu_board.py"
 QEMU_BOOT_TIMEOUT_S = 10.0
@@ -81,13 +82,6 @@ def _wait_listening(proc: subprocess.Popen, port: int, timeout_s: float) -> bool
     return False
 
 
-def _crc16(frame: bytes) -> bytes:
-    crc = 0xFFFF
-    for byte in frame:
-        crc ^= byte
-        for _ in range(8):
-            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
-    return bytes([crc & 0xFF, crc >> 8])
 
 
 def _wait_modbus_ready(url: str, timeout_s: float) -> bool:
@@ -98,7 +92,7 @@ def _wait_modbus_ready(url: str, timeout_s: float) -> bool:
     import serial   # pyserial: the same transport the tests use
 
     pdu = bytes([1, 0x08, 0x00, 0x00, 0xA5, 0x5A])
-    request = pdu + _crc16(pdu)
+    request = pdu + crc16(pdu)
     deadline = time.monotonic() + timeout_s
     with serial.serial_for_url(url, timeout=0.05) as port:
         while time.monotonic() < deadline:

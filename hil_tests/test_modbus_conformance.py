@@ -16,19 +16,12 @@ from pymodbus.client import ModbusSerialClient
 from pymodbus.pdu import ExceptionResponse
 
 from facette.device import registers as R
+from modbus_crc import crc16
 
 VECTORS = Path(__file__).resolve().parent.parent / "protocol" / "vectors"
 UNIT = R.UNIT_ID
 
 
-def crc16(data: bytes) -> bytes:
-    """Modbus CRC-16 (poly 0xA001 reflected, init 0xFFFF), low byte first."""
-    crc = 0xFFFF
-    for b in data:
-        crc ^= b
-        for _ in range(8):
-            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
-    return bytes([crc & 0xFF, crc >> 8])
 
 
 def frame(hexstr: str) -> bytes:

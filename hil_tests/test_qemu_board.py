@@ -19,6 +19,7 @@ from pymodbus.client import ModbusSerialClient
 from pymodbus.pdu import ExceptionResponse
 
 from facette.device import registers as R
+from modbus_crc import crc16
 
 UNIT = R.UNIT_ID
 EMULATED_UID = 0x454D5531   # hal_unique_id() when the RCC is absent ("EMU1")
@@ -65,13 +66,6 @@ def _write(client, name, value):
     return client.write_register(reg.address, value & 0xFFFF, device_id=UNIT)
 
 
-def _crc16(frame: bytes) -> bytes:
-    crc = 0xFFFF
-    for byte in frame:
-        crc ^= byte
-        for _ in range(8):
-            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
-    return struct.pack("<H", crc)
 
 
 def _read_frame(port: serial.Serial, expected_len: int, timeout_s: float) -> bytes:
@@ -138,10 +132,10 @@ def test_out_of_range_write_is_exception_03_and_changes_nothing(modbus, name):
 def test_frame_with_bad_crc_gets_no_answer_and_the_next_one_does(qemu_board):
     reg = R.REGISTERS["definition_hash"]
     pdu = struct.pack(">BBHH", UNIT, 0x04, reg.address, 2)
-    good = pdu + _crc16(pdu)
+    good = pdu + crc16(pdu)
     bad = good[:-1] + bytes([good[-1] ^ 0xFF])
     expected = struct.pack(">BBBI", UNIT, 0x04, 4, R.DEFINITION_HASH)
-    expected += _crc16(expected)
+    expected += crc16(expected)
     with serial.serial_for_url(qemu_board.url, baudrate=R.BAUD, timeout=0.05) as port:
         # The device may still be booting: retry the good frame until it answers.
         answer = b""
