@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from facette.io.checksum import sha256_file
+
 __all__ = ["Profile", "Lights", "load", "save", "nominal_light_directions", "SCHEMA_VERSION",
            "ProfileError"]
 
@@ -131,10 +133,6 @@ def _checksum(data):
     return hashlib.sha256(_canonical({k: v for k, v in data.items() if k != "checksum"})).hexdigest()
 
 
-def _file_sha256(path):
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
 def save(profile, folder, keep_previous=True):
     """Write `profile` to ``folder/profile.json`` (and ``flat_field.exr``).
 
@@ -164,7 +162,7 @@ def save(profile, folder, keep_previous=True):
     if profile.flat_field is not None:
         ff_name = f"flat_field-{profile.id}.exr"
         write_exr(folder / ff_name, profile.flat_field, channels=("R", "G", "B"))
-        ref = {"file": ff_name, "sha256": _file_sha256(folder / ff_name)}
+        ref = {"file": ff_name, "sha256": sha256_file(folder / ff_name)}
     data = profile.to_dict(flat_field_ref=ref)
     data["checksum"] = _checksum(data)
     tmp = target.with_suffix(".json.partial")
@@ -209,7 +207,7 @@ def load(path):
     flat = None
     if data.get("flat_field"):
         ff = file.parent / data["flat_field"]["file"]
-        if not ff.is_file() or _file_sha256(ff) != data["flat_field"]["sha256"]:
+        if not ff.is_file() or sha256_file(ff) != data["flat_field"]["sha256"]:
             raise ProfileError(f"flat field {ff} is missing or does not match the profile's checksum")
         flat, _ = read_exr(ff, channels=("R", "G", "B"))
     return Profile(rig=data["rig"], lights=lt, id=data["id"], created=data["created"],

@@ -8,7 +8,6 @@ The merge is recorded in scan.json under ``"hdr"``.
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
 import json
 import os
 import time
@@ -19,6 +18,7 @@ import numpy as np
 
 from facette.camera.raw import read_raw
 from facette.hdr._merge import as_sensor, merge
+from facette.io.checksum import sha256_file
 from facette.io.exr import read_exr, write_exr
 
 __all__ = ["merge_scan", "load_hdr", "read_scan_manifest", "frame_exposure", "MissingFrameWarning",
@@ -83,12 +83,6 @@ def _journal(scan_dir, step, **data):
         fh.write(line + "\n")
 
 
-def _sha256(path):
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measured",
@@ -157,7 +151,7 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
                 missing.append({"exposure": int(fr["exposure"]), "file": fr["file"],
                                 "reason": "file missing"})
                 continue
-            if verify_sha256 and fr.get("sha256") and _sha256(path) != fr["sha256"]:
+            if verify_sha256 and fr.get("sha256") and sha256_file(path) != fr["sha256"]:
                 raise ValueError(f"{path} does not match the sha256 recorded in scan.json: the "
                                  "file changed after capture; re-shoot that frame or restore it")
             frames.append((fr, read_raw(path)))

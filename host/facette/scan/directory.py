@@ -8,10 +8,11 @@ a second run resumes where the first stopped.
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
 import json
 import os
 from pathlib import Path
+
+from facette.io.checksum import sha256_file
 
 __all__ = ["ScanDirectory", "ScanDirectoryError", "sha256_file", "frame_name", "SCHEMA"]
 
@@ -22,12 +23,6 @@ class ScanDirectoryError(ValueError):
     """The directory holds something that is not this scan."""
 
 
-def sha256_file(path):
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def frame_name(light, exposure, suffix=".dng"):
