@@ -82,17 +82,9 @@ def connect_rig(args):
                                direction_error_deg=args.sim_direction_error,
                                intensity_error=args.sim_intensity_error, seed=args.sim_seed,
                                speed=args.sim_speed)
-    if args.gphoto2:
-        from facette.camera import GPhoto2Camera
+    from facette.cli._camera_options import real_rig_camera
 
-        camera = GPhoto2Camera(download_dir=Path(tempfile.mkdtemp(prefix="facette-calib-")))
-    elif args.camera_dir:
-        from facette.camera import FolderWatchCamera
-
-        camera = FolderWatchCamera(args.camera_dir)
-    else:
-        raise SystemExit("a real rig needs a camera: --camera-dir FOLDER (tethering software writes there) "
-                         "or --gphoto2")
+    camera = real_rig_camera(args)
     return facette.connect(args.rig, camera=camera)
 
 

@@ -83,17 +83,9 @@ def _connect(args):
                                brdf=args.brdf, faults=args.faults or None, speed=args.speed)
     if not args.device:
         raise SystemExit("say which rig: --sim, or --device PORT (e.g. /dev/ttyACM0, socket://host:5020)")
-    if args.gphoto2:
-        from facette.camera import GPhoto2Camera
+    from facette.cli._camera_options import real_rig_camera
 
-        camera = GPhoto2Camera(download_dir=Path(args.directory) / ".camera")
-    elif args.camera_dir:
-        from facette.camera import FolderWatchCamera
-
-        camera = FolderWatchCamera(args.camera_dir)
-    else:
-        raise SystemExit("a real rig needs a camera: --camera-dir FOLDER (tethering software writes there) "
-                         "or --gphoto2")
+    camera = real_rig_camera(args, Path(args.directory) / ".camera")
     return facette.connect(args.device, camera=camera)
 
 
