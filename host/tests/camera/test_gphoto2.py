@@ -4,11 +4,10 @@ python-gphoto2's bundled libgphoto2 has the "Directory Browse" camera driver but
 not the "disk:" port library it needs, so no virtual camera can be opened here;
 with no USB camera, opening must fail with a clear message.
 """
+import gphoto2 as gp   # in the dev extra, so `make test` always runs these
 import pytest
 
-gp = pytest.importorskip("gphoto2", reason="optional dependency (pip install 'facette[gphoto2]')")
-
-from facette.camera.gphoto2 import CameraError, GPhoto2Camera  # noqa: E402
+from facette.camera.gphoto2 import CameraError, GPhoto2Camera
 
 
 def test_libgphoto2_knows_the_cameras_we_expect():

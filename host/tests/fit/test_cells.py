@@ -2,9 +2,8 @@ import numpy as np
 import pytest
 
 import facette.brdf as B
+import facette.reflect as reflect
 from facette.fit import cell_spread_directions, fit_hemisphere_cells
-
-reflect = pytest.importorskip("facette.reflect")
 
 
 def test_spread_directions_fall_in_their_own_cells():
