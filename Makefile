@@ -10,7 +10,7 @@ FUZZ_SECONDS ?= 300
 SCAN_OUT ?= out/scan-demo
 
 .PHONY: setup deps venv firmware-posix generate check-generated test c-test fuzz fuzz-smoke \
-        pytest firmware qemu-test scan calibrate bench clean help
+        pytest firmware qemu-test check-fw-layers scan calibrate bench clean help
 
 help:
 	@echo "make scan             one-button scan on the simulated rig, then processing"
@@ -51,6 +51,9 @@ firmware: deps
 c-test: deps
 	$(MAKE) -C firmware test BUILD=$(abspath $(BUILD))
 
+check-fw-layers: deps
+	$(MAKE) -C firmware check-layers BUILD=$(abspath $(BUILD))
+
 fuzz: deps
 	$(MAKE) -C firmware fuzz BUILD=$(abspath $(BUILD)) FUZZ_SECONDS=$(FUZZ_SECONDS)
 
@@ -63,7 +66,7 @@ qemu-test: setup firmware
 pytest: setup
 	$(VENV)/bin/pytest -q
 
-test: check-generated setup c-test fuzz-smoke pytest qemu-test
+test: check-generated setup c-test check-fw-layers fuzz-smoke pytest qemu-test
 
 scan: setup
 	$(FACETTE) scan --sim --press-button $(SCAN_OUT)
