@@ -1,63 +1,107 @@
-/* fw.c - glue: start-up, main-loop poll, register side effects, commands. */
-#include "fw_core.h"
+/* fw.c - glue: start-up, main-loop poll, register side effects, commands.
+ * The top of the core: it alone calls the other modules' functions, fills the
+ * Modbus server's callbacks and registers the fault hook. */
+#include "fw_config.h"
+#include "fw_registers.h"
+#include "hal.h"
+#include "led.h"
+#include "mb.h"
+#include "nvm.h"
+#include "regs.h"
+#include "safe.h"
+#include "seq.h"
+#include "trig.h"
 
 static bool s_reboot;
 static bool s_unlocked;
 static uint64_t s_unlock_until;
 static nvm_cal_t s_cal;
 
-__attribute__((weak)) void fw_assert_failed(const char *file, int line)
-{
-    (void)file;
-    (void)line;
-    hal_critical_enter();
-    hal_led_select(-1);
-    hal_dac_set(0);
-    for (;;) {
-    }
-}
-
-bool fw_reboot_pending(void) { return s_reboot; }
+static bool reboot_pending(void) { return s_reboot; }
 
 static void set_lock(bool unlocked)
 {
     s_unlocked = unlocked;
     s_unlock_until = hal_time_us() + FW_CFG_UNLOCK_TIMEOUT_US;
-    mb_reg_set(FW_SLOT_CAL_UNLOCK, unlocked ? 1u : 0u);
-    mb_reg_set(FW_SLOT_CAL_UNLOCKED, unlocked ? 1u : 0u);
+    regs_set(FW_SLOT_CAL_UNLOCK, unlocked ? 1u : 0u);
+    regs_set(FW_SLOT_CAL_UNLOCKED, unlocked ? 1u : 0u);
 }
 
 static void cal_to_regs(void)
 {
     for (unsigned i = 0; i < FW_CFG_MAX_LEDS; i++)
-        mb_reg_set(FW_SLOT_CAL_GAIN + i, s_cal.gain[i]);
-    mb_reg_set(FW_SLOT_CAL_SERIAL, s_cal.serial);
-    mb_reg_set(FW_SLOT_SERIAL_NUMBER, s_cal.serial ? s_cal.serial : hal_unique_id());
-    mb_reg_set(FW_SLOT_CAL_SEQUENCE, s_cal.seq);
+        regs_set(FW_SLOT_CAL_GAIN + i, s_cal.gain[i]);
+    regs_set(FW_SLOT_CAL_SERIAL, s_cal.serial);
+    regs_set(FW_SLOT_SERIAL_NUMBER, s_cal.serial ? s_cal.serial : hal_unique_id());
+    regs_set(FW_SLOT_CAL_SEQUENCE, s_cal.seq);
 }
+
+/* The one fault hook (safe.h): what a latched fault does to the lights, the
+ * camera lines and the sequencer. */
+static void on_fault(unsigned code, safe_action_t action)
+{
+    (void)code;
+    if (action == SAFE_KEEP_GOING)
+        return;
+    led_off();
+    if (action == SAFE_STOP) {
+        trig_shutter(false);
+        trig_focus(false);
+    }
+    regs_set(FW_SLOT_MANUAL_CHANNEL, (uint32_t)-1);
+    if (action == SAFE_STOP)
+        seq_on_fault();
+}
+
+static const safe_hooks_t k_safe_hooks = {
+    .on_fault = on_fault,
+    .lit_channel = led_channel,
+    .lit_since_us = led_on_since_us,
+    .scan_active = seq_active,
+};
+
+static void refresh_inputs(void);
+static fw_err_t reg_check(unsigned slot, uint32_t value);
+static fw_err_t reg_apply(unsigned slot, uint32_t value);
+
+static void request_failed(fw_err_t e)
+{
+    regs_set(FW_SLOT_LAST_ERROR, (uint32_t)(int32_t)e);
+}
+
+static const mb_callbacks_t k_mb_callbacks = {
+    .refresh = refresh_inputs,
+    .read = regs_get,
+    .check = reg_check,
+    .write = regs_set,
+    .apply = reg_apply,
+    .host_seen = safe_host_seen,
+    .failed = request_failed,
+    .stop = reboot_pending,
+};
 
 void fw_init(void)
 {
     s_reboot = false;
-    mb_reg_init();
-    mb_reg_set(FW_SLOT_FW_VERSION, FW_CFG_FW_VERSION);
-    mb_reg_set(FW_SLOT_PROTOCOL_VERSION, FW_PROTOCOL_VERSION);
-    mb_reg_set(FW_SLOT_DEFINITION_HASH, FW_DEFINITION_HASH);
+    regs_init();
+    regs_set(FW_SLOT_FW_VERSION, FW_CFG_FW_VERSION);
+    regs_set(FW_SLOT_PROTOCOL_VERSION, FW_PROTOCOL_VERSION);
+    regs_set(FW_SLOT_DEFINITION_HASH, FW_DEFINITION_HASH);
     uint32_t boots = hal_boot_count();
-    mb_reg_set(FW_SLOT_BOOT_COUNT, boots > 0xFFFFu ? 0xFFFFu : boots);
-    mb_reg_set(FW_SLOT_RESET_CAUSE, (uint32_t)hal_reset_cause());
-    mb_reg_set(FW_SLOT_MAX_LEDS, FW_CFG_MAX_LEDS);
-    mb_reg_set(FW_SLOT_RING_LEN, FW_CFG_RING_LEN);
-    mb_reg_set(FW_SLOT_LED_CHANNEL, (uint32_t)-1);
+    regs_set(FW_SLOT_BOOT_COUNT, boots > 0xFFFFu ? 0xFFFFu : boots);
+    regs_set(FW_SLOT_RESET_CAUSE, (uint32_t)hal_reset_cause());
+    regs_set(FW_SLOT_MAX_LEDS, FW_CFG_MAX_LEDS);
+    regs_set(FW_SLOT_RING_LEN, FW_CFG_RING_LEN);
+    regs_set(FW_SLOT_LED_CHANNEL, (uint32_t)-1);
     led_init();
     trig_init();
     seq_init();
-    safe_init();
+    safe_init(&k_safe_hooks);
     if (nvm_load(&s_cal) != FW_OK)
         safe_fault(FW_FAULT_CAL_INVALID, 0);
     cal_to_regs();
     set_lock(false);
-    mb_init();
+    mb_init(&k_mb_callbacks);
 }
 
 void fw_on_timer(void)
@@ -65,18 +109,19 @@ void fw_on_timer(void)
     seq_on_timer();
 }
 
-void fw_refresh_inputs(void)
+/* Bring the live input registers up to date (before a Modbus read). */
+static void refresh_inputs(void)
 {
-    mb_reg_set(FW_SLOT_UPTIME_S, (uint32_t)(hal_time_us() / 1000000u));
-    mb_reg_set(FW_SLOT_LED_CHANNEL, (uint32_t)led_channel());
-    mb_reg_set(FW_SLOT_LED_SET_MA, led_sink_mA());
+    regs_set(FW_SLOT_UPTIME_S, (uint32_t)(hal_time_us() / 1000000u));
+    regs_set(FW_SLOT_LED_CHANNEL, (uint32_t)led_channel());
+    regs_set(FW_SLOT_LED_SET_MA, led_sink_mA());
     seq_update_status();
 }
 
 static void manual_apply(void)
 {
-    int ch = mb_reg_get_i(FW_SLOT_MANUAL_CHANNEL);
-    uint16_t mA = (uint16_t)mb_reg_get(FW_SLOT_MANUAL_CURRENT_MA);
+    int ch = regs_get_i(FW_SLOT_MANUAL_CHANNEL);
+    uint16_t mA = (uint16_t)regs_get(FW_SLOT_MANUAL_CURRENT_MA);
     if (ch >= 0 && mA > 0)
         led_on(ch, mA);
     else
@@ -95,7 +140,8 @@ static bool is_scan_config(unsigned slot)
            slot_in(slot, FW_SLOT_MAX_CURRENT_MA, FW_SLOT_MAX_PULSE_US + 1u - FW_SLOT_MAX_CURRENT_MA);
 }
 
-fw_err_t fw_reg_check(unsigned slot, uint32_t value)
+/* May value be written to slot now (state, lock)? */
+static fw_err_t reg_check(unsigned slot, uint32_t value)
 {
     if (slot == FW_SLOT_COMMAND) {
         switch (value) {
@@ -134,8 +180,8 @@ static fw_err_t command(unsigned cmd)
         return FW_OK;
     case FW_COMMAND_SAVE: {
         for (unsigned i = 0; i < FW_CFG_MAX_LEDS; i++)
-            s_cal.gain[i] = (uint16_t)mb_reg_get(FW_SLOT_CAL_GAIN + i);
-        s_cal.serial = mb_reg_get(FW_SLOT_CAL_SERIAL);
+            s_cal.gain[i] = (uint16_t)regs_get(FW_SLOT_CAL_GAIN + i);
+        s_cal.serial = regs_get(FW_SLOT_CAL_SERIAL);
         fw_err_t e = nvm_save(&s_cal);
         set_lock(false);
         cal_to_regs();
@@ -149,10 +195,11 @@ static fw_err_t command(unsigned cmd)
     }
 }
 
-fw_err_t fw_reg_apply(unsigned slot, uint32_t value)
+/* Side effects of a stored write: commands, unlock, manual light. */
+static fw_err_t reg_apply(unsigned slot, uint32_t value)
 {
     if (slot == FW_SLOT_COMMAND) {
-        mb_reg_set(FW_SLOT_COMMAND, 0);
+        regs_set(FW_SLOT_COMMAND, 0);
         return command(value);
     }
     if (slot == FW_SLOT_CAL_UNLOCK) {
@@ -182,7 +229,7 @@ void fw_poll(void)
                 e = seq_command(FW_COMMAND_START);
         }
         if (e != FW_OK)
-            mb_reg_set(FW_SLOT_LAST_ERROR, (uint32_t)(int32_t)e);
+            request_failed(e);
     }
     safe_poll();
     if (s_unlocked && hal_time_us() > s_unlock_until)

@@ -1,6 +1,12 @@
 /* led.c - constant-current LED drive: DAC setpoint with per-channel gain,
  * one switch per channel, current-sense check (open / short). */
-#include "fw_core.h"
+#include "led.h"
+
+#include "fw_config.h"
+#include "fw_registers.h"
+#include "hal.h"
+#include "regs.h"
+#include "safe.h"
 
 static int s_ch = -1;
 static uint16_t s_sink_mA;
@@ -11,23 +17,27 @@ void led_init(void)
     led_off();
 }
 
-uint16_t led_sink_for(int ch, uint16_t set_mA, bool derated)
+uint32_t led_gained_mA(unsigned ch, uint16_t set_mA)
+{
+    uint32_t gain = regs_get(FW_SLOT_CAL_GAIN + ch); /* 1e-4 */
+    return ((uint32_t)set_mA * gain + 5000u) / 10000u;
+}
+
+/* Sink current for ch at set_mA: gain, derating, limit (0: no such channel). */
+static uint16_t sink_for(int ch, uint16_t set_mA, bool derated)
 {
     if (ch < 0 || ch >= (int)FW_CFG_MAX_LEDS)
         return 0;
-    uint32_t gain = mb_reg_get(FW_SLOT_CAL_GAIN + (unsigned)ch); /* 1e-4 */
-    uint32_t mA = ((uint32_t)set_mA * gain + 5000u) / 10000u;
+    uint32_t mA = led_gained_mA((unsigned)ch, set_mA);
     if (derated)
         mA = mA * FW_CFG_DERATE_PCT / 100u;
-    uint32_t lim = mb_reg_get(FW_SLOT_MAX_CURRENT_MA);
-    if (lim > FW_CFG_HARD_MAX_MA)
-        lim = FW_CFG_HARD_MAX_MA;
+    uint32_t lim = safe_max_current_mA();
     return (uint16_t)(mA > lim ? lim : mA);
 }
 
 uint16_t led_on(int ch, uint16_t set_mA)
 {
-    uint16_t mA = led_sink_for(ch, set_mA, safe_derating());
+    uint16_t mA = sink_for(ch, set_mA, safe_derating());
     if (mA == 0) {
         led_off();
         return 0;
@@ -67,7 +77,7 @@ fw_err_t led_check(uint16_t *meas_mA)
     if (m < 0)
         m = 0;
     *meas_mA = (uint16_t)(m > 0xFFFF ? 0xFFFF : m);
-    mb_reg_set(FW_SLOT_LED_CURRENT_MA, *meas_mA);
+    regs_set(FW_SLOT_LED_CURRENT_MA, *meas_mA);
     if (s_ch < 0 || s_sink_mA < FW_CFG_SENSE_MIN_MA)
         return FW_OK;
     if ((uint32_t)m * 100u < (uint32_t)s_sink_mA * FW_CFG_SENSE_OPEN_PCT) {

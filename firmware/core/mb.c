@@ -1,8 +1,13 @@
-/* mb.c - Modbus RTU server: CRC, 3.5-character framing, PDU dispatch.
+/* mb.c - Modbus RTU server: CRC, 3.5-character framing, PDU dispatch,
+ * register reads and writes through the application's callbacks.
  * Exceptions are produced in one place: mb_exception_for(). */
+#include "mb.h"
+
 #include <string.h>
 
-#include "fw_core.h"
+#include "fw_config.h"
+#include "hal.h"
+#include "regmap.h"
 
 enum {
     MB_EX_ILLEGAL_FUNCTION = 0x01,
@@ -32,9 +37,81 @@ uint8_t mb_exception_for(fw_err_t err)
     }
 }
 
+static const mb_callbacks_t *s_cb;
+
 static uint16_t be16(const uint8_t *p)
 {
     return (uint16_t)((uint16_t)p[0] << 8 | p[1]);
+}
+
+/* Every address of a read must exist in that space (else FW_ERR_ADDRESS);
+ * out receives the big-endian register bytes. */
+static fw_err_t read_registers(fw_reg_space_t space, uint16_t addr, uint16_t qty, uint8_t *out)
+{
+    FW_VERIFY((uint32_t)addr + qty <= 0x10000u, FW_ERR_ADDRESS);
+    for (unsigned i = 0; i < qty; i++) {
+        unsigned word;
+        if (!regmap_find(space, (uint16_t)(addr + i), &word))
+            return FW_ERR_ADDRESS;
+    }
+    for (unsigned i = 0; i < qty; i++) {
+        unsigned word;
+        const fw_reg_desc_t *d = regmap_find(space, (uint16_t)(addr + i), &word);
+        uint32_t v = s_cb->read(d->slot);
+        uint16_t w = d->type == FW_REG_U32 ? (uint16_t)(word == 0 ? v >> 16 : v) : (uint16_t)v;
+        out[2 * i] = (uint8_t)(w >> 8);
+        out[2 * i + 1] = (uint8_t)w;
+    }
+    return FW_OK;
+}
+
+/* Holding-register write in the passes described at mb_callbacks_t. */
+static fw_err_t write_registers(uint16_t addr, uint16_t qty, const uint8_t *in)
+{
+    FW_VERIFY((uint32_t)addr + qty <= 0x10000u, FW_ERR_ADDRESS);
+    /* pass 1: addresses exist and every u32 is written whole */
+    for (unsigned i = 0; i < qty;) {
+        unsigned word;
+        const fw_reg_desc_t *d = regmap_find(FW_SPACE_HOLDING, (uint16_t)(addr + i), &word);
+        FW_VERIFY(d != NULL, FW_ERR_ADDRESS);
+        if (d->type == FW_REG_U32) {
+            FW_VERIFY(word == 0 && i + 1u < qty, FW_ERR_ADDRESS);
+            i += 2;
+        } else {
+            i += 1;
+        }
+    }
+    /* pass 2: ranges, then the application's own checks (state, lock), then store */
+    for (int pass = 0; pass < 3; pass++) {
+        for (unsigned i = 0; i < qty;) {
+            unsigned word;
+            const fw_reg_desc_t *d = regmap_find(FW_SPACE_HOLDING, (uint16_t)(addr + i), &word);
+            uint32_t v = (uint32_t)in[2 * i] << 8 | in[2 * i + 1];
+            if (d->type == FW_REG_U32)
+                v = v << 16 | ((uint32_t)in[2 * i + 2] << 8 | in[2 * i + 3]);
+            v = d->type == FW_REG_I16 ? (uint32_t)(int32_t)(int16_t)(uint16_t)v : v;
+            if (pass == 0) {
+                FW_VERIFY(regmap_in_range(d, v), FW_ERR_VALUE);
+            } else if (pass == 1) {
+                fw_err_t e = s_cb->check(d->slot, v);
+                if (e != FW_OK)
+                    return e;
+            } else {
+                s_cb->write(d->slot, v);
+            }
+            i += d->type == FW_REG_U32 ? 2u : 1u;
+        }
+    }
+    /* pass 3: side effects (commands), in address order */
+    for (unsigned i = 0; i < qty;) {
+        unsigned word;
+        const fw_reg_desc_t *d = regmap_find(FW_SPACE_HOLDING, (uint16_t)(addr + i), &word);
+        fw_err_t e = s_cb->apply(d->slot, s_cb->read(d->slot));
+        if (e != FW_OK)
+            return e;
+        i += d->type == FW_REG_U32 ? 2u : 1u;
+    }
+    return FW_OK;
 }
 
 /* 43/14 objects: 0 vendor, 1 product code, 2 revision (all "basic"). */
@@ -87,8 +164,8 @@ static fw_err_t pdu_serve(const uint8_t *pdu, size_t len, uint8_t *resp, size_t 
         uint16_t addr = be16(&pdu[1]), qty = be16(&pdu[3]);
         FW_VERIFY(qty >= 1 && qty <= 125, FW_ERR_VALUE);
         FW_VERIFY((uint32_t)addr + qty <= 0x10000u, FW_ERR_ADDRESS);
-        fw_refresh_inputs();
-        e = mb_reg_read(fc == 0x03 ? FW_SPACE_HOLDING : FW_SPACE_INPUT, addr, qty, &resp[2]);
+        s_cb->refresh();
+        e = read_registers(fc == 0x03 ? FW_SPACE_HOLDING : FW_SPACE_INPUT, addr, qty, &resp[2]);
         if (e != FW_OK)
             return e;
         resp[0] = fc;
@@ -98,7 +175,7 @@ static fw_err_t pdu_serve(const uint8_t *pdu, size_t len, uint8_t *resp, size_t 
     }
     case 0x06: {
         FW_VERIFY(len == 5, FW_ERR_VALUE);
-        e = mb_reg_write(be16(&pdu[1]), 1, &pdu[3]);
+        e = write_registers(be16(&pdu[1]), 1, &pdu[3]);
         if (e != FW_OK)
             return e;
         memcpy(resp, pdu, 5);
@@ -111,7 +188,7 @@ static fw_err_t pdu_serve(const uint8_t *pdu, size_t len, uint8_t *resp, size_t 
         FW_VERIFY(qty >= 1 && qty <= 123 && pdu[5] == 2u * qty && len == 6u + 2u * qty,
                   FW_ERR_VALUE);
         FW_VERIFY((uint32_t)addr + qty <= 0x10000u, FW_ERR_ADDRESS);
-        e = mb_reg_write(addr, qty, &pdu[6]);
+        e = write_registers(addr, qty, &pdu[6]);
         if (e != FW_OK)
             return e;
         memcpy(resp, pdu, 5);
@@ -147,11 +224,11 @@ size_t mb_handle_frame(const uint8_t *req, size_t len, uint8_t *resp)
     size_t plen = len - 3;
     if (broadcast && pdu[0] != 0x06 && pdu[0] != 0x10)
         return 0; /* only writes are broadcast */
-    fw_host_seen();
+    s_cb->host_seen();
     size_t rlen = 0;
     fw_err_t e = pdu_serve(pdu, plen, &resp[1], &rlen);
     if (e != FW_OK)
-        mb_reg_set(FW_SLOT_LAST_ERROR, (uint32_t)(int32_t)e);
+        s_cb->failed(e);
     if (broadcast)
         return 0;
     resp[0] = unit;
@@ -173,8 +250,9 @@ static size_t s_rx_len;
 static bool s_rx_bad; /* overflow or inner gap > 1.5 characters: discard */
 static uint32_t s_t15_us, s_t35_us;
 
-void mb_init(void)
+void mb_init(const mb_callbacks_t *cb)
 {
+    s_cb = cb;
     uint32_t baud = hal_uart_baud();
     s_rx_len = 0;
     s_rx_bad = false;
@@ -211,7 +289,7 @@ void mb_poll(void)
             s_rx[s_rx_len++] = (uint8_t)c;
         else
             s_rx_bad = true;
-        if (fw_reboot_pending())
+        if (s_cb->stop())
             return;
     }
     if (s_rx_len > 0 && hal_uart_idle_us() >= s_t35_us)

@@ -5,9 +5,11 @@
  * either the old record (the other page is untouched) or the new one complete;
  * a torn page fails its CRC and is ignored. The newest valid record wins
  * (sequence numbers compared modulo 2^32). */
+#include "nvm.h"
+
 #include <string.h>
 
-#include "fw_core.h"
+#include "hal.h"
 
 #define NVM_MAGIC 0x43414C31u /* "CAL1" */
 

@@ -14,7 +14,15 @@
  *   LED:     shutter 1, led_pre_us, LED on for exactly exp, LED off, led_post_us, shutter 0
  *   all:     ... sync check (wait up to t_open + sync_timeout_us), record, gap_us
  */
-#include "fw_core.h"
+#include "seq.h"
+
+#include "fw_config.h"
+#include "fw_registers.h"
+#include "hal.h"
+#include "led.h"
+#include "regs.h"
+#include "safe.h"
+#include "trig.h"
 
 typedef enum {
     ST_NONE,
@@ -55,7 +63,7 @@ static struct {
 static void set_state(unsigned st)
 {
     s.state = st;
-    mb_reg_set(FW_SLOT_STATE, st);
+    regs_set(FW_SLOT_STATE, st);
 }
 
 void seq_init(void)
@@ -68,8 +76,6 @@ void seq_init(void)
     set_state(FW_STATE_IDLE);
 }
 
-unsigned seq_state(void) { return s.state; }
-
 bool seq_active(void)
 {
     return s.state == FW_STATE_ARMED || s.state == FW_STATE_RUNNING || s.state == FW_STATE_PAUSED;
@@ -77,24 +83,24 @@ bool seq_active(void)
 
 static void snapshot(seq_cfg_t *c)
 {
-    c->n_lights = (uint16_t)mb_reg_get(FW_SLOT_N_LIGHTS);
-    c->n_exp = (uint16_t)mb_reg_get(FW_SLOT_N_EXPOSURES);
-    c->mode = (uint8_t)mb_reg_get(FW_SLOT_TIMING_MODE);
-    c->retries = (uint8_t)mb_reg_get(FW_SLOT_RETRIES);
-    c->prefocus = mb_reg_get(FW_SLOT_PREFOCUS_US);
-    c->mirror = mb_reg_get(FW_SLOT_MIRROR_UP_US);
-    c->settle = mb_reg_get(FW_SLOT_SETTLE_US);
-    c->gap = mb_reg_get(FW_SLOT_GAP_US);
-    c->pre = mb_reg_get(FW_SLOT_LED_PRE_US);
-    c->post = mb_reg_get(FW_SLOT_LED_POST_US);
-    c->sync_to = mb_reg_get(FW_SLOT_SYNC_TIMEOUT_US);
+    c->n_lights = (uint16_t)regs_get(FW_SLOT_N_LIGHTS);
+    c->n_exp = (uint16_t)regs_get(FW_SLOT_N_EXPOSURES);
+    c->mode = (uint8_t)regs_get(FW_SLOT_TIMING_MODE);
+    c->retries = (uint8_t)regs_get(FW_SLOT_RETRIES);
+    c->prefocus = regs_get(FW_SLOT_PREFOCUS_US);
+    c->mirror = regs_get(FW_SLOT_MIRROR_UP_US);
+    c->settle = regs_get(FW_SLOT_SETTLE_US);
+    c->gap = regs_get(FW_SLOT_GAP_US);
+    c->pre = regs_get(FW_SLOT_LED_PRE_US);
+    c->post = regs_get(FW_SLOT_LED_POST_US);
+    c->sync_to = regs_get(FW_SLOT_SYNC_TIMEOUT_US);
     for (unsigned i = 0; i < FW_CFG_MAX_LEDS; i++) {
-        c->order[i] = (uint8_t)mb_reg_get(FW_SLOT_LIGHT_ORDER + i);
-        c->light_mA[i] = (uint16_t)mb_reg_get(FW_SLOT_LIGHT_CURRENT_MA + i);
+        c->order[i] = (uint8_t)regs_get(FW_SLOT_LIGHT_ORDER + i);
+        c->light_mA[i] = (uint16_t)regs_get(FW_SLOT_LIGHT_CURRENT_MA + i);
     }
     for (unsigned e = 0; e < FW_CFG_MAX_EXPOSURES; e++) {
-        c->exp_us[e] = mb_reg_get(FW_SLOT_EXPOSURE_TIME_US + e);
-        c->exp_mA[e] = (uint16_t)mb_reg_get(FW_SLOT_EXPOSURE_CURRENT_MA + e);
+        c->exp_us[e] = regs_get(FW_SLOT_EXPOSURE_TIME_US + e);
+        c->exp_mA[e] = (uint16_t)regs_get(FW_SLOT_EXPOSURE_CURRENT_MA + e);
     }
 }
 
@@ -122,17 +128,11 @@ fw_err_t seq_validate_config(void)
     snapshot(&c);
     FW_VERIFY(c.n_lights >= 1 && c.n_lights <= FW_CFG_MAX_LEDS, FW_ERR_CONFIG);
     FW_VERIFY(c.n_exp >= 1 && c.n_exp <= FW_CFG_MAX_EXPOSURES, FW_ERR_CONFIG);
-    uint32_t lim = mb_reg_get(FW_SLOT_MAX_CURRENT_MA);
-    if (lim > FW_CFG_HARD_MAX_MA)
-        lim = FW_CFG_HARD_MAX_MA;
-    uint32_t max_pulse = mb_reg_get(FW_SLOT_MAX_PULSE_US);
-    if (max_pulse > FW_CFG_HARD_MAX_PULSE_US)
-        max_pulse = FW_CFG_HARD_MAX_PULSE_US;
+    uint32_t lim = safe_max_current_mA(), max_pulse = safe_max_pulse_us();
     for (unsigned l = 0; l < c.n_lights; l++) {
         FW_VERIFY(c.order[l] < FW_CFG_MAX_LEDS, FW_ERR_CONFIG);
-        uint32_t gain = mb_reg_get(FW_SLOT_CAL_GAIN + c.order[l]);
         for (unsigned e = 0; e < c.n_exp; e++) {
-            uint32_t mA = ((uint32_t)frame_mA(&c, l, e) * gain + 5000u) / 10000u;
+            uint32_t mA = led_gained_mA(c.order[l], frame_mA(&c, l, e));
             FW_VERIFY(mA >= 1 && mA <= lim, FW_ERR_CONFIG); /* refuse rather than clip */
         }
     }
@@ -144,19 +144,19 @@ fw_err_t seq_validate_config(void)
 static void ring_clear(void)
 {
     for (unsigned i = 0; i < FW_CFG_RING_LEN; i++)
-        mb_reg_set(FW_SLOT_RING_FLAGS + i, 0);
+        regs_set(FW_SLOT_RING_FLAGS + i, 0);
 }
 
 static void ring_record(bool synced, bool retry)
 {
     unsigned i = s.ring % FW_CFG_RING_LEN;
-    mb_reg_set(FW_SLOT_RING_FRAME + i, s.setting);
-    mb_reg_set(FW_SLOT_RING_LIGHT + i, s.setting / s.cfg.n_exp);
-    mb_reg_set(FW_SLOT_RING_EXPOSURE + i, s.setting % s.cfg.n_exp);
-    mb_reg_set(FW_SLOT_RING_CURRENT_SET_MA + i, s.set_mA);
-    mb_reg_set(FW_SLOT_RING_CURRENT_MEAS_MA + i, s.meas_mA);
-    mb_reg_set(FW_SLOT_RING_START_US + i, (uint32_t)(s.t_open - s.t_scan0));
-    mb_reg_set(FW_SLOT_RING_FLAGS + i, (synced ? 1u : 0u) | (retry ? 2u : 0u) | 4u);
+    regs_set(FW_SLOT_RING_FRAME + i, s.setting);
+    regs_set(FW_SLOT_RING_LIGHT + i, s.setting / s.cfg.n_exp);
+    regs_set(FW_SLOT_RING_EXPOSURE + i, s.setting % s.cfg.n_exp);
+    regs_set(FW_SLOT_RING_CURRENT_SET_MA + i, s.set_mA);
+    regs_set(FW_SLOT_RING_CURRENT_MEAS_MA + i, s.meas_mA);
+    regs_set(FW_SLOT_RING_START_US + i, (uint32_t)(s.t_open - s.t_scan0));
+    regs_set(FW_SLOT_RING_FLAGS + i, (synced ? 1u : 0u) | (retry ? 2u : 0u) | 4u);
     s.ring++;
 }
 
@@ -348,7 +348,7 @@ fw_err_t seq_command(unsigned cmd)
         s.in_frame = false;
         ring_clear();
         lines_off();
-        mb_reg_set(FW_SLOT_MANUAL_CHANNEL, (uint32_t)-1);
+        regs_set(FW_SLOT_MANUAL_CHANNEL, (uint32_t)-1);
         set_state(FW_STATE_ARMED);
         break;
     case FW_COMMAND_START:
@@ -401,12 +401,12 @@ void seq_update_status(void)
             left = left > el ? left - el : 0;
         }
     }
-    mb_reg_set(FW_SLOT_STATE, s.state);
-    mb_reg_set(FW_SLOT_CURRENT_LIGHT, have && s.setting < total ? s.setting / c->n_exp : 0u);
-    mb_reg_set(FW_SLOT_CURRENT_EXPOSURE, have && s.setting < total ? s.setting % c->n_exp : 0u);
-    mb_reg_set(FW_SLOT_FRAMES_DONE, s.done);
-    mb_reg_set(FW_SLOT_FRAMES_EXPECTED, total);
-    mb_reg_set(FW_SLOT_TIME_LEFT_US, left > UINT32_MAX ? UINT32_MAX : (uint32_t)left);
-    mb_reg_set(FW_SLOT_RING_COUNT, s.ring);
-    mb_reg_set(FW_SLOT_RETRIES_USED, s.retries_used);
+    regs_set(FW_SLOT_STATE, s.state);
+    regs_set(FW_SLOT_CURRENT_LIGHT, have && s.setting < total ? s.setting / c->n_exp : 0u);
+    regs_set(FW_SLOT_CURRENT_EXPOSURE, have && s.setting < total ? s.setting % c->n_exp : 0u);
+    regs_set(FW_SLOT_FRAMES_DONE, s.done);
+    regs_set(FW_SLOT_FRAMES_EXPECTED, total);
+    regs_set(FW_SLOT_TIME_LEFT_US, left > UINT32_MAX ? UINT32_MAX : (uint32_t)left);
+    regs_set(FW_SLOT_RING_COUNT, s.ring);
+    regs_set(FW_SLOT_RETRIES_USED, s.retries_used);
 }

@@ -1,5 +1,8 @@
 /* trig.c - camera lines (shutter, focus), flash-sync capture, button debounce. */
-#include "fw_core.h"
+#include "trig.h"
+
+#include "fw_config.h"
+#include "hal.h"
 
 static bool s_btn_level, s_btn_raw;
 static uint64_t s_btn_change;

@@ -13,7 +13,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "fw_core.h"
+#include "fw_config.h"
+#include "led.h"
+#include "mb.h"
 #include "hal_test.h"
 
 static void invariants(const uint8_t *resp, size_t n)

@@ -5,7 +5,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "fw_core.h"
+#include "fw_config.h"
+#include "fw_registers.h"
+#include "mb.h"
+#include "regs.h"
 
 th_t th;
 
@@ -229,11 +232,11 @@ bool th_run_until_state(unsigned state, uint64_t max_us)
 {
     uint64_t end = th.now + max_us;
     while (th.now < end) {
-        if (mb_reg_get(FW_SLOT_STATE) == state)
+        if (regs_get(FW_SLOT_STATE) == state)
             return true;
         th_advance(1000);
     }
-    return mb_reg_get(FW_SLOT_STATE) == state;
+    return regs_get(FW_SLOT_STATE) == state;
 }
 
 size_t th_transact(const uint8_t *req, size_t len, uint8_t *resp)

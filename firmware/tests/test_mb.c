@@ -2,7 +2,10 @@
 #define FW_REGISTERS_IMPL
 #include <string.h>
 
-#include "fw_core.h"
+#include "fw_config.h"
+#include "fw_registers.h"
+#include "mb.h"
+#include "regs.h"
 #include "test.h"
 
 static void send_bytes(const uint8_t *b, const uint32_t *gaps, size_t n, uint32_t idle)
@@ -24,16 +27,16 @@ static void check_range_of(const fw_reg_desc_t *d)
     long long lo = d->min, hi = d->max == -1 ? 0xFFFFFFFFll : d->max;
     long long tmin = d->type == FW_REG_I16 ? -32768 : 0;
     long long tmax = d->type == FW_REG_I16 ? 32767 : is32 ? 0xFFFFFFFFll : 0xFFFF;
-    uint32_t before = mb_reg_get(d->slot);
+    uint32_t before = regs_get(d->slot);
     if (lo > tmin) {
         int r = is32 ? th_write32(addr, (uint32_t)(lo - 1)) : th_write(addr, (uint16_t)(lo - 1));
         CHECK_EQ(r, 3);
-        CHECK_EQ(mb_reg_get(d->slot), before);
+        CHECK_EQ(regs_get(d->slot), before);
     }
     if (hi < tmax) {
         int r = is32 ? th_write32(addr, (uint32_t)(hi + 1)) : th_write(addr, (uint16_t)(hi + 1));
         CHECK_EQ(r, 3);
-        CHECK_EQ(mb_reg_get(d->slot), before);
+        CHECK_EQ(regs_get(d->slot), before);
     }
 }
 
@@ -124,7 +127,7 @@ void test_mb(void)
         CHECK_EQ(th_transact_crc(req, 19, resp), 8);
         CHECK_EQ(th_reg_hold(FW_REG_N_LIGHTS), 3);
         CHECK_EQ(th_reg_hold(FW_REG_TIMING_MODE), 1);
-        CHECK_EQ(mb_reg_get(FW_SLOT_PREFOCUS_US), 32);
+        CHECK_EQ(regs_get(FW_SLOT_PREFOCUS_US), 32);
     }
     SHOULD("report the definition hash, firmware version and the device identity")
     {
@@ -164,12 +167,12 @@ void test_mb(void)
         uint8_t resp[300];
         CHECK_EQ(th_transact_crc(req, 7 + 160, resp), 8);
         CHECK_EQ(th_reg_hold(FW_REG_LIGHT_ORDER(0)), 15);
-        CHECK_EQ(mb_reg_get(FW_SLOT_EXPOSURE_TIME_US + 15), 50);
+        CHECK_EQ(regs_get(FW_SLOT_EXPOSURE_TIME_US + 15), 50);
         uint8_t big[16] = {1, 16, 0x11, 0x00, 0, 124, 248, 0, 1};
         CHECK_EQ(th_transact_crc(big, 9, resp), 5); /* quantity 124 > 123: exception 03 */
         CHECK_EQ(resp[2], 3);
         CHECK_EQ(th_write(FW_REG_CAL_UNLOCK, FW_UNLOCK_KEY), 0);
         CHECK_EQ(th_write32(FW_REG_CAL_SERIAL, 0xFFFFFFFFu), 0);
-        CHECK_EQ(mb_reg_get(FW_SLOT_CAL_SERIAL), 0xFFFFFFFFu);
+        CHECK_EQ(regs_get(FW_SLOT_CAL_SERIAL), 0xFFFFFFFFu);
     }
 }

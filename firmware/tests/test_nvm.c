@@ -1,7 +1,8 @@
 /* test_nvm.c - the calibration store: unlock, save, two pages, power loss. */
 #include <string.h>
 
-#include "fw_core.h"
+#include "fw_registers.h"
+#include "nvm.h"
 #include "test.h"
 
 static void unlock(void) { CHECK_EQ(th_write(FW_REG_CAL_UNLOCK, FW_UNLOCK_KEY), 0); }

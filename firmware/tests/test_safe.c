@@ -1,5 +1,8 @@
 /* test_safe.c - current limits, gain, derating, faults and their log, watchdogs. */
-#include "fw_core.h"
+#include "fw_err.h"
+#include "fw_registers.h"
+#include "hal.h"
+#include "regs.h"
 #include "test.h"
 
 static void unlock(void) { CHECK_EQ(th_write(FW_REG_CAL_UNLOCK, FW_UNLOCK_KEY), 0); }
@@ -133,7 +136,7 @@ void test_safe(void)
         CHECK_EQ(th_write(FW_REG_COMMAND, FW_COMMAND_START), 0);
         unsigned kicks = th.wdt_kicks;
         CHECK(th_run_until_state(FW_STATE_DONE, 3000000));
-        CHECK_EQ(mb_reg_get(FW_SLOT_FRAMES_DONE), 2);
+        CHECK_EQ(regs_get(FW_SLOT_FRAMES_DONE), 2);
         CHECK(th.wdt_kicks > kicks + 100); /* hardware watchdog fed all along */
     }
     SHOULD("fault SUPPLY_LOW when the LED supply sags while lit")

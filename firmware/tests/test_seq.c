@@ -1,7 +1,10 @@
 /* test_seq.c - sequencer timelines in virtual time, sync accounting, button. */
 #include <string.h>
 
-#include "fw_core.h"
+#include "fw_config.h"
+#include "fw_err.h"
+#include "fw_registers.h"
+#include "hal.h"
 #include "test.h"
 
 static void config(unsigned mode, unsigned nl, unsigned ne, const uint32_t *exp)
