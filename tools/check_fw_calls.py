@@ -10,19 +10,23 @@ module into the second. The check fails (exit 1) when
     through several): every module must sit below the ones that call it;
   - a module defines a global symbol that does not start with its own name and
     an underscore (seq.o defines seq_*, fw_assert.o defines fw_assert_*), so a
-    name says where it lives.
+    name says where it lives;
+  - a module's header (--headers DIR: DIR/seq.h for seq.o) declares a function
+    of another module: each header declares only its own module's functions.
 
 Symbols no core object defines (hal_*, memcpy, ...) are the HAL and the C
 library: not part of the graph. Standard library only.
 
 Usage:
-  check_fw_calls.py [--nm NM] OBJ.o...   check the core objects, print the graph
+  check_fw_calls.py [--nm NM] [--headers DIR] OBJ.o...
+                                         check the core objects, print the graph
   check_fw_calls.py --self-test          check the checker on made-up nm output
 """
 
 from __future__ import annotations
 
 import argparse
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -114,7 +118,16 @@ def misnamed(symbols: dict[str, tuple[set[str], set[str]]]) -> list[tuple[str, s
     return bad
 
 
-def report(symbols: dict[str, tuple[set[str], set[str]]]) -> int:
+# A function declared at the top level of a header: `type name(` at column 0.
+PROTOTYPE = re.compile(r"^(?!typedef|static|#|/|\s)[A-Za-z_][\w \t\*]*?\b(\w+)\s*\(", re.M)
+
+
+def foreign_declarations(module: str, header_text: str) -> list[str]:
+    """Functions a module's header declares that are not named module_*."""
+    return [n for n in PROTOTYPE.findall(header_text) if not n.startswith(module + "_")]
+
+
+def report(symbols: dict[str, tuple[set[str], set[str]]], headers: Path | None = None) -> int:
     graph = build_graph(symbols)
     print(f"modules ({len(graph)}): {' '.join(sorted(graph))}")
     for module in sorted(graph):
@@ -130,15 +143,26 @@ def report(symbols: dict[str, tuple[set[str], set[str]]]) -> int:
     for group in tangles(graph):
         print(f"  modules tangled in those cycles: {' '.join(group)}")
     pairs = sorted({tuple(sorted((a, b))) for a in graph for b in graph[a] if a in graph[b]})
-    print(f"module pairs calling each other: {len(pairs)} {' '.join(a + '<->' + b for a, b in pairs)}")
+    print(f"module pairs calling each other: {len(pairs)}"
+          + "".join(f" {a}<->{b}" for a, b in pairs))
     bad = misnamed(symbols)
     print(f"symbols not named after their module: {len(bad)}")
     for module, name in bad:
         print(f"  {module}.o defines {name}")
-    if loops or bad:
+    foreign = []
+    if headers is not None:
+        for module in sorted(symbols):
+            h = headers / f"{module}.h"
+            if h.is_file():
+                foreign += [(h.name, n) for n in foreign_declarations(module, h.read_text())]
+        print(f"headers declaring another module's functions: {len(foreign)}")
+        for name, fn in foreign:
+            print(f"  {name} declares {fn}")
+    if loops or bad or foreign:
         print(
             "FAIL: a core module may only call modules below it (no cycles), and every "
-            "global symbol starts with its module's name; see firmware/README.md, "
+            "global symbol starts with its module's name and is declared in its module's "
+            "header only; see firmware/README.md, "
             "'Firmware core'.",
             file=sys.stderr,
         )
@@ -167,6 +191,9 @@ def self_test() -> int:
     assert cycles(build_graph(fine)) == [] and misnamed(fine) == []
     pre = {"fw": parse_nm("T fw_assert_failed\n"), "fw_assert": parse_nm("T fw_assert_x\n")}
     assert misnamed(pre) == [("fw", "fw_assert_failed")]
+    header = "typedef struct {\n    void (*hook)(int);\n} seq_t;\nvoid seq_init(void);\n" \
+             "uint16_t led_on(int ch,\n               uint16_t mA);\nstatic inline int x(void);\n"
+    assert foreign_declarations("seq", header) == ["led_on"], foreign_declarations("seq", header)
     print("check_fw_calls self-test: ok")
     return 0
 
@@ -175,6 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("objects", nargs="*", type=Path, help="core object files, one per module")
     ap.add_argument("--nm", default="nm", help="the nm program (default: nm)")
+    ap.add_argument("--headers", type=Path, help="folder of the modules' headers (NAME.h)")
     ap.add_argument("--self-test", action="store_true", help="test the checker itself")
     args = ap.parse_args(argv)
     if args.self_test:
@@ -189,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
         if out.returncode != 0:
             ap.error(f"{args.nm} {obj} failed: {out.stderr.strip()}")
         symbols[obj.stem] = parse_nm(out.stdout)
-    return report(symbols)
+    return report(symbols, args.headers)
 
 
 if __name__ == "__main__":

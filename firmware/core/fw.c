@@ -38,9 +38,8 @@ static void cal_to_regs(void)
 
 /* The one fault hook (safe.h): what a latched fault does to the lights, the
  * camera lines and the sequencer. */
-static void on_fault(unsigned code, safe_action_t action)
+static void on_fault(safe_action_t action)
 {
-    (void)code;
     if (action == SAFE_KEEP_GOING)
         return;
     led_off();
@@ -59,50 +58,6 @@ static const safe_hooks_t k_safe_hooks = {
     .lit_since_us = led_on_since_us,
     .scan_active = seq_active,
 };
-
-static void refresh_inputs(void);
-static fw_err_t reg_check(unsigned slot, uint32_t value);
-static fw_err_t reg_apply(unsigned slot, uint32_t value);
-
-static void request_failed(fw_err_t e)
-{
-    regs_set(FW_SLOT_LAST_ERROR, (uint32_t)(int32_t)e);
-}
-
-static const mb_callbacks_t k_mb_callbacks = {
-    .refresh = refresh_inputs,
-    .read = regs_get,
-    .check = reg_check,
-    .write = regs_set,
-    .apply = reg_apply,
-    .host_seen = safe_host_seen,
-    .failed = request_failed,
-    .stop = reboot_pending,
-};
-
-void fw_init(void)
-{
-    s_reboot = false;
-    regs_init();
-    regs_set(FW_SLOT_FW_VERSION, FW_CFG_FW_VERSION);
-    regs_set(FW_SLOT_PROTOCOL_VERSION, FW_PROTOCOL_VERSION);
-    regs_set(FW_SLOT_DEFINITION_HASH, FW_DEFINITION_HASH);
-    uint32_t boots = hal_boot_count();
-    regs_set(FW_SLOT_BOOT_COUNT, boots > 0xFFFFu ? 0xFFFFu : boots);
-    regs_set(FW_SLOT_RESET_CAUSE, (uint32_t)hal_reset_cause());
-    regs_set(FW_SLOT_MAX_LEDS, FW_CFG_MAX_LEDS);
-    regs_set(FW_SLOT_RING_LEN, FW_CFG_RING_LEN);
-    regs_set(FW_SLOT_LED_CHANNEL, (uint32_t)-1);
-    led_init();
-    trig_init();
-    seq_init();
-    safe_init(&k_safe_hooks);
-    if (nvm_load(&s_cal) != FW_OK)
-        safe_fault(FW_FAULT_CAL_INVALID, 0);
-    cal_to_regs();
-    set_lock(false);
-    mb_init(&k_mb_callbacks);
-}
 
 void fw_on_timer(void)
 {
@@ -210,6 +165,46 @@ static fw_err_t reg_apply(unsigned slot, uint32_t value)
         (slot_in(slot, FW_SLOT_CAL_GAIN, FW_CFG_MAX_LEDS) && led_channel() >= 0 && !seq_active()))
         manual_apply();
     return FW_OK;
+}
+
+static void request_failed(fw_err_t e)
+{
+    regs_set(FW_SLOT_LAST_ERROR, (uint32_t)(int32_t)e);
+}
+
+static const mb_callbacks_t k_mb_callbacks = {
+    .refresh = refresh_inputs,
+    .read = regs_get,
+    .check = reg_check,
+    .write = regs_set,
+    .apply = reg_apply,
+    .host_seen = safe_host_seen,
+    .failed = request_failed,
+    .stop = reboot_pending,
+};
+
+void fw_init(void)
+{
+    s_reboot = false;
+    regs_init();
+    regs_set(FW_SLOT_FW_VERSION, FW_CFG_FW_VERSION);
+    regs_set(FW_SLOT_PROTOCOL_VERSION, FW_PROTOCOL_VERSION);
+    regs_set(FW_SLOT_DEFINITION_HASH, FW_DEFINITION_HASH);
+    uint32_t boots = hal_boot_count();
+    regs_set(FW_SLOT_BOOT_COUNT, boots > 0xFFFFu ? 0xFFFFu : boots);
+    regs_set(FW_SLOT_RESET_CAUSE, (uint32_t)hal_reset_cause());
+    regs_set(FW_SLOT_MAX_LEDS, FW_CFG_MAX_LEDS);
+    regs_set(FW_SLOT_RING_LEN, FW_CFG_RING_LEN);
+    regs_set(FW_SLOT_LED_CHANNEL, (uint32_t)-1);
+    led_init();
+    trig_init();
+    seq_init();
+    safe_init(&k_safe_hooks);
+    if (nvm_load(&s_cal) != FW_OK)
+        safe_fault(FW_FAULT_CAL_INVALID, 0);
+    cal_to_regs();
+    set_lock(false);
+    mb_init(&k_mb_callbacks);
 }
 
 void fw_poll(void)

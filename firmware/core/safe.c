@@ -53,7 +53,7 @@ static void latch(unsigned code, uint16_t detail, safe_action_t action)
     regs_set(FW_SLOT_FAULT_LOG_TIME_MS + i, now_ms());
     s_log_count++;
     regs_set(FW_SLOT_FAULT_LOG_COUNT, s_log_count);
-    s_hooks->on_fault(code, action);
+    s_hooks->on_fault(action);
     hal_critical_exit();
 }
 

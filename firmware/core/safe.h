@@ -18,7 +18,7 @@ typedef enum {
 typedef struct {
     /* The one fault hook: called inside the critical section after a fault is
      * latched and logged, with what it asks for. */
-    void (*on_fault)(unsigned code, safe_action_t action);
+    void (*on_fault)(safe_action_t action);
     /* What the supervisor watches, read afresh at each check. */
     int (*lit_channel)(void);       /* -1: no light on */
     uint64_t (*lit_since_us)(void); /* when that channel was switched on */
