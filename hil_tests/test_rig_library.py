@@ -49,7 +49,7 @@ def test_register_round_trip_and_range_checks(lib_rig):
     assert dev.read_array("exposure_time_us")[2:5] == [1000, 2000, 3000]
     with pytest.raises(ValueError, match="out of range"):          # refused on the host side
         dev.write("n_lights", 17)
-    reg = dev.map["n_lights"]
+    reg = registers.register("n_lights")
     with pytest.raises(DeviceException, match="exception 03") as exc:   # and by the device itself
         dev.write_words(reg.address, [17], what="write n_lights=17")
     assert exc.value.code == 3 and exc.value.fw_error == -3

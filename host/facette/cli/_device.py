@@ -8,6 +8,8 @@
 import argparse
 import json
 
+from facette.device import registers as R
+
 
 def register(sub):
     p = sub.add_parser("device", help="device info, faults and registers", description=__doc__,
@@ -44,13 +46,13 @@ def run(args):
             out = {"gains": rig.gains()}
         elif args.action == "registers":
             out = {}
-            for name, reg in dev.map.registers.items():
+            for name, reg in R.REGISTERS.items():
                 out[name] = dev.read_array(name) if reg.count > 1 else dev.read(name)
         elif args.action == "read":
             if not args.args:
                 raise SystemExit("read NAME [INDEX]")
             idx = int(args.args[1]) if len(args.args) > 1 else None
-            reg = dev.map[args.args[0]]
+            reg = R.register(args.args[0])
             out = {args.args[0]: dev.read_array(reg.name) if reg.count > 1 and idx is None
                    else dev.read(reg.name, idx)}
         else:  # write

@@ -14,7 +14,7 @@ from __future__ import annotations
 import logging
 import time
 
-from facette.device.regmap import load_map
+from facette.device import registers as R
 
 __all__ = ["DeviceClient", "DeviceError", "DeviceTimeout", "DeviceException", "DeviceMismatch",
            "DeviceReset", "EXCEPTION_NAMES", "FW_ERRORS"]
@@ -84,8 +84,7 @@ class DeviceClient:
         self.unit = unit
         self.reconnect_timeout_s = float(reconnect_timeout_s)
         self.retries = int(retries)
-        self.map = load_map()
-        self.expected_hash = self.map.definition_hash if expected_hash is None else int(expected_hash)
+        self.expected_hash = R.DEFINITION_HASH if expected_hash is None else int(expected_hash)
         self.stats = {"requests": 0, "retries": 0, "timeouts": 0, "exceptions": 0, "resets": 0}
         self._client = ModbusSerialClient(url, baudrate=baudrate, timeout=timeout_s, retries=0)
         self._client.set_max_no_responses(1 << 30)
@@ -109,7 +108,7 @@ class DeviceClient:
                 f"this host expects {expected:#010x}: update the firmware or this facette so that both "
                 "come from the same protocol/registers.toml")
         self.boot_count = ident["boot_count"]
-        ident["reset_cause"] = self.map.enum_name("reset_cause", ident["reset_cause"])
+        ident["reset_cause"] = R.enum_name("reset_cause", ident["reset_cause"])
         ident["url"] = self.url
         self.identity = ident
         return ident
@@ -174,9 +173,9 @@ class DeviceClient:
         fw = None
         try:
             rsp, c, _ = self._request("read last_error", self._client.read_input_registers,
-                                      self.map["last_error"].address, count=1)
+                                      R.register("last_error").address, count=1)
             if rsp is not None:
-                fw = self.map["last_error"].decode(rsp.registers)
+                fw = R.register("last_error").decode(rsp.registers)
         except DeviceError:
             pass
         reason = FW_ERRORS.get(fw, f"error {fw}") if fw is not None else "unknown"
@@ -214,31 +213,31 @@ class DeviceClient:
 
     # -- registers by name ------------------------------------------------------
     def read(self, name, index=None):
-        reg = self.map[name]
-        return reg.decode(self.read_words(reg.space, reg.address_of(index), reg.width))
+        reg = R.register(name)
+        return reg.decode(self.read_words(reg.space, reg.address_of(index), reg.words))
 
     def read_array(self, name):
         """All elements of an array register (one request when they are contiguous)."""
-        reg = self.map[name]
-        if reg.stride == reg.width:
-            words = self.read_words(reg.space, reg.address, reg.count * reg.width)
-            return [reg.decode(words[i * reg.width:(i + 1) * reg.width]) for i in range(reg.count)]
+        reg = R.register(name)
+        if reg.stride == reg.words:
+            words = self.read_words(reg.space, reg.address, reg.count * reg.words)
+            return [reg.decode(words[i * reg.words:(i + 1) * reg.words]) for i in range(reg.count)]
         return [self.read(name, i) for i in range(reg.count)]
 
     def read_block(self, names, index=None):
         """Read several registers of one space with as few requests as possible: {name: value}."""
-        regs = [self.map[n] for n in names]
+        regs = [R.register(n) for n in names]
         spaces = {r.space for r in regs}
         if len(spaces) != 1:
             raise ValueError("read_block needs registers of one space")
         addrs = [r.address_of(index if r.count > 1 else None) for r in regs]
         lo = min(addrs)
-        hi = max(a + r.width for a, r in zip(addrs, regs))
+        hi = max(a + r.words for a, r in zip(addrs, regs))
         words = self.read_words(regs[0].space, lo, hi - lo)
-        return {r.name: r.decode(words[a - lo:a - lo + r.width]) for r, a in zip(regs, addrs)}
+        return {r.name: r.decode(words[a - lo:a - lo + r.words]) for r, a in zip(regs, addrs)}
 
     def write(self, name, value, index=None):
-        reg = self.map[name]
+        reg = R.register(name)
         if reg.space != "holding":
             raise ValueError(f"{name} is read-only (input register)")
         try:
@@ -249,14 +248,14 @@ class DeviceClient:
                 self._raise_exception(md.what, md.code)
 
     def write_array(self, name, values, start=0):
-        reg = self.map[name]
+        reg = R.register(name)
         values = list(values)
         if start + len(values) > reg.count:
             raise ValueError(f"{name} has {reg.count} elements, cannot write {len(values)} from {start}")
         words = []
         for v in values:
             words += reg.encode(v)
-        if reg.stride != reg.width:
+        if reg.stride != reg.words:
             for i, v in enumerate(values):
                 self.write(name, v, start + i)
             return
@@ -270,9 +269,9 @@ class DeviceClient:
         """Write a command code by name ("ARM", "START", ...). When the answer to the
         first attempt was lost and the retry is refused, the command counts as done
         if the state is now one of `accept_states`."""
-        code = self.map.enum_value("command", name)
+        code = R.enum_value("command", name)
         try:
-            self.write_words(self.map["command"].address, [code], what=f"command {name}")
+            self.write_words(R.register("command").address, [code], what=f"command {name}")
         except _MaybeDone as md:
             state = self.state()
             if accept_states and state in accept_states:
@@ -280,7 +279,7 @@ class DeviceClient:
             self._raise_exception(md.what, md.code)
 
     def state(self):
-        return self.map.enum_name("state", self.read("state"))
+        return R.enum_name("state", self.read("state"))
 
     def check_reset(self):
         """Raise DeviceReset (once) if the boot count changed since the last check."""

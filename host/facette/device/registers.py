@@ -13,7 +13,8 @@ from typing import NamedTuple
 
 __all__ = ["Register", "REGISTERS", "DEFINITION_HASH", "DEFINITION_SHA256",
            "PROTOCOL_VERSION", "UNIT_ID", "BAUD", "UNLOCK_KEY", "VENDOR", "PRODUCT",
-           "State", "TimingMode", "Command", "Fault", "ResetCause", "address_of"]
+           "State", "TimingMode", "Command", "Fault", "ResetCause",
+           "ENUMS", "address_of", "register", "enum_name", "enum_value"]
 
 DEFINITION_SHA256 = '78a5debebaee698d55badfe3dbfc30a48de6726b9ea2be2b5e33f0fcc118163a'
 DEFINITION_HASH = 0x78A5DEBE
@@ -100,6 +101,35 @@ class Register(NamedTuple):
     stride: int
     enum: str | None
     description: str
+
+    def address_of(self, index: int | None = None) -> int:
+        """Modbus address of element ``index`` (None or 0 for a scalar); IndexError outside."""
+        if self.count == 1:
+            if index not in (None, 0):
+                raise IndexError(f"register {self.name} is not an array")
+            return self.address
+        if index is None or not 0 <= index < self.count:
+            raise IndexError(f"register {self.name} needs an index in [0, {self.count}), got {index}")
+        return self.address + index * self.stride
+
+    def encode(self, value: int) -> list[int]:
+        """Python int -> list of 16-bit words, range-checked against minimum/maximum."""
+        v = int(value)
+        if not self.minimum <= v <= self.maximum:
+            raise ValueError(f"{self.name} = {v} is out of range [{self.minimum}, {self.maximum}]"
+                             + (f" {self.unit}" if self.unit else ""))
+        if self.type == "u32":
+            return [(v >> 16) & 0xFFFF, v & 0xFFFF]
+        return [v & 0xFFFF]
+
+    def decode(self, words) -> int:
+        """List of 16-bit words (``words`` of them) -> Python int."""
+        if self.type == "u32":
+            return (int(words[0]) << 16) | int(words[1])
+        w = int(words[0])
+        if self.type == "i16" and w & 0x8000:
+            return w - 0x10000
+        return w
 
 
 REGISTERS: dict[str, Register] = {
@@ -241,3 +271,34 @@ def address_of(name: str, index: int = 0) -> int:
     if not 0 <= index < reg.count:
         raise ValueError(f"{name} has {reg.count} element(s); index {index} is out of range")
     return reg.address + index * reg.stride
+
+
+ENUMS: dict[str, type[enum.IntEnum]] = {
+    'state': State,
+    'timing_mode': TimingMode,
+    'command': Command,
+    'fault': Fault,
+    'reset_cause': ResetCause,
+}
+
+
+def register(name: str) -> Register:
+    """The register called ``name``; KeyError naming it when there is none."""
+    try:
+        return REGISTERS[name]
+    except KeyError:
+        raise KeyError(f"no register named {name!r} in the protocol definition") from None
+
+
+def enum_value(enum_name_: str, member: str) -> int:
+    """Value of ``member`` of enum ``enum_name_`` (e.g. ``enum_value("command", "ARM")``)."""
+    return int(ENUMS[enum_name_][member])
+
+
+def enum_name(enum_name_: str, value: int) -> str:
+    """Member name of ``value`` in enum ``enum_name_``; ``"<enum>?<value>"`` when unknown."""
+    try:
+        return ENUMS[enum_name_](int(value)).name
+    except (KeyError, ValueError):
+        return f"{enum_name_}?{value}"
+

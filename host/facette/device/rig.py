@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import time
 
+from facette.device import registers as R
 from facette.device.client import DeviceClient, DeviceError, DeviceException
 
 __all__ = ["Rig", "connect", "decode_frame_record", "TIMING_MODES", "RigFault"]
@@ -68,7 +69,7 @@ class Rig:
         st = self.device.read_block(["state", "fault_bits", "current_light", "current_exposure",
                                      "frames_done", "frames_expected", "time_left_us", "ring_count",
                                      "retries_used", "fault_log_count", "last_error"])
-        st["state"] = self.device.map.enum_name("state", st["state"])
+        st["state"] = R.enum_name("state", st["state"])
         st["faults"] = self._fault_names(st["fault_bits"])
         return st
 
@@ -78,7 +79,7 @@ class Rig:
         return st["frames_done"], st["frames_expected"]
 
     def _fault_names(self, bits):
-        return [name for name, bit in self.device.map.enums.get("fault", {}).items() if bits >> bit & 1]
+        return [f.name for f in R.Fault if bits >> f.value & 1]
 
     def faults(self):
         """Latched faults (names) and the fault log: {"latched": [...], "log": [{"code", "detail", "time_ms"}]}."""
@@ -88,7 +89,7 @@ class Rig:
         for n in range(max(0, count - 8), count):
             i = n % 8
             e = self.device.read_block(["fault_log_code", "fault_log_detail", "fault_log_time_ms"], index=i)
-            log.append({"code": self.device.map.enum_name("fault", e["fault_log_code"]),
+            log.append({"code": R.enum_name("fault", e["fault_log_code"]),
                         "detail": e["fault_log_detail"], "time_ms": e["fault_log_time_ms"]})
         return {"latched": self._fault_names(bits), "log": log}
 
@@ -131,7 +132,7 @@ class Rig:
         d = self.device
         d.write("n_lights", len(lights))
         d.write("n_exposures", len(exps))
-        d.write("timing_mode", d.map.enum_value("timing_mode", mode.upper()))
+        d.write("timing_mode", R.enum_value("timing_mode", mode.upper()))
         d.write("retries", retries)
         d.write_array("light_order", lights)
         d.write_array("light_current_mA", currents)
@@ -185,7 +186,7 @@ class Rig:
         ring_len = self.device.identity.get("ring_len", 16) or 16
         lost = max(0, count - since - ring_len)
         out = []
-        base = self.device.map["ring_frame"].address
+        base = R.register("ring_frame").address
         for n in range(since + lost, count):
             words = self.device.read_words("input", base + RING_STRIDE * (n % ring_len), RING_STRIDE)
             out.append(decode_frame_record(words, n))
@@ -205,7 +206,7 @@ class Rig:
         unlocked right before each step, and a refusal for that reason is retried.
         """
         words = [int(round(g * 1e4)) for g in gains]
-        key = self.device.map.meta.get("unlock_key", 0xCA1B)
+        key = R.UNLOCK_KEY
         for attempt in range(attempts):
             try:
                 self.device.write("cal_unlock", key)

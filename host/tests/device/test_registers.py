@@ -171,3 +171,33 @@ def test_golden_default_reads_match_the_register_defaults():
     values = [int.from_bytes(ans[3 + 2 * i: 5 + 2 * i], "big") for i in range(ans[2] // 2)]
     assert values == [R.REGISTERS["n_lights"].default[0], R.REGISTERS["n_exposures"].default[0],
                       R.REGISTERS["timing_mode"].default[0]]
+
+
+def test_generated_module_and_toml_describe_the_same_registers():
+    toml = tomllib.loads((ROOT / "protocol" / "registers.toml").read_text())
+    by_name = {r["name"]: r for r in toml["register"]}
+    assert R.DEFINITION_HASH is not None
+    assert set(R.REGISTERS) == set(by_name)
+    for name, reg in R.REGISTERS.items():
+        t = by_name[name]
+        width = 2 if t["type"] == "u32" else 1
+        assert (reg.space, reg.address, reg.type, reg.count, reg.stride) == \
+            (t["space"], int(t["address"]), t["type"], int(t.get("count", 1)), int(t.get("stride", width)))
+    assert {m.name: int(m) for m in R.ENUMS["state"]} == toml["enums"]["state"]
+    assert R.enum_value("fault", "OVERTEMP") == 0
+
+
+def test_encode_decode_u32_i16_and_ranges():
+    t = R.register("exposure_time_us")
+    assert t.encode(15_000_000) == [15_000_000 >> 16, 15_000_000 & 0xFFFF]
+    assert t.decode(t.encode(15_000_000)) == 15_000_000
+    ch = R.register("manual_channel")
+    assert ch.decode(ch.encode(-1)) == -1 and ch.encode(-1) == [0xFFFF]
+    with pytest.raises(ValueError, match="out of range"):
+        R.register("n_lights").encode(0)
+    assert t.address_of(3) == t.address + 3 * t.stride
+    with pytest.raises(IndexError):
+        t.address_of(16)
+    with pytest.raises(KeyError, match="no register named"):
+        R.register("nope")
+    assert R.enum_name("state", 2) == "RUNNING" and R.enum_name("state", 99) == "state?99"
