@@ -6,6 +6,8 @@ result has shape (...) or (..., C). Values are 0 at and below the horizon.
 """
 import numpy as np
 
+from facette._registry import Registry
+
 from ._fresnel import check_n_i, fresnel_dielectric, r_i_simonot2009
 from ._microfacet import check_masking, check_sigma, distribution_d, masking_g
 from ._volume import rough_lambert_terms, volume_integral, _angles
@@ -168,17 +170,14 @@ def cook_torrance1982(s, o, kd, sigma, n_i, distribution="beckmann", masking="vc
     return spec + diff * kd
 
 
-MODELS = {
-    "lambert": lambert,
-    "oren_nayar": oren_nayar1994,
-    "cook_torrance": cook_torrance1982,
-    "li": brdf_li,
-}
+# The BRDF model names, kept here once (the fit uses them too).
+MODELS = Registry("BRDF model")
+MODELS.add("lambert", lambert)
+MODELS.add("oren_nayar", oren_nayar1994)
+MODELS.add("cook_torrance", cook_torrance1982)
+MODELS.add("li", brdf_li)
 
 
 def get(name):
     """The model callable by name: "lambert", "oren_nayar", "cook_torrance" or "li"."""
-    try:
-        return MODELS[name]
-    except KeyError:
-        raise ValueError(f"unknown BRDF model {name!r}; choose one of {', '.join(MODELS)}") from None
+    return MODELS[name]

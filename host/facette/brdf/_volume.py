@@ -16,6 +16,8 @@ import functools
 
 import numpy as np
 
+from facette._registry import Registry
+
 from ._fresnel import check_n_i, fresnel_dielectric, r_e_molenaar1999
 from ._microfacet import (check_masking, check_sigma, masking_g, microfacet_quadrature,
                           sample_microfacet_normals)
@@ -23,7 +25,6 @@ from ._microfacet import (check_masking, check_sigma, masking_g, microfacet_quad
 __all__ = ["VOLUME_METHODS", "volume_integral", "volume_integral_quadrature", "volume_integral_monte_carlo",
            "volume_integral_table", "volume_integral_approx", "VolumeTable", "build_volume_table"]
 
-VOLUME_METHODS = ("quadrature", "monte_carlo", "table", "approx")
 _CHUNK_ELEMENTS = 400_000  # pairs × nodes per temporary array (keeps memory ~ tens of MB)
 
 
@@ -328,12 +329,16 @@ def volume_integral_approx(s, o, sigma, n_i, distribution="beckmann"):
 
 def volume_integral(s, o, sigma, n_i, distribution="beckmann", masking="smith", method="quadrature", **options):
     """Dispatch to the ``volume_integral_<method>`` evaluations (see VOLUME_METHODS)."""
-    if method == "quadrature":
-        return volume_integral_quadrature(s, o, sigma, n_i, distribution, masking, **options)
-    if method == "monte_carlo":
-        return volume_integral_monte_carlo(s, o, sigma, n_i, distribution, masking, **options)
-    if method == "table":
-        return volume_integral_table(s, o, sigma, n_i, distribution, masking, **options)
-    if method == "approx":
-        return volume_integral_approx(s, o, sigma, n_i, distribution, **options)
-    raise ValueError(f"volume = {method!r}: choose one of {', '.join(VOLUME_METHODS)}")
+    return VOLUME_METHODS[method](s, o, sigma, n_i, distribution, masking, **options)
+
+
+def _volume_integral_approx_any_masking(s, o, sigma, n_i, distribution="beckmann", masking="smith", **options):
+    # The fitted approximation has its masking baked in: the argument is accepted and unused.
+    return volume_integral_approx(s, o, sigma, n_i, distribution, **options)
+
+
+VOLUME_METHODS = Registry("volume-integral method")
+VOLUME_METHODS.add("quadrature", volume_integral_quadrature)
+VOLUME_METHODS.add("monte_carlo", volume_integral_monte_carlo)
+VOLUME_METHODS.add("table", volume_integral_table)
+VOLUME_METHODS.add("approx", _volume_integral_approx_any_masking)

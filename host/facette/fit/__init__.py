@@ -5,9 +5,9 @@
 """
 from ._cells import cell_spread_directions, fit_hemisphere_cells
 from ._fit import METHODS, WEIGHTINGS, fit_brdf, fit_genetic, fit_least_squares, prepare_samples
-from ._models import BOUNDS, MODEL_NAMES, FitModel
+from ._models import BOUNDS, FitModel
 from ._result import FitResult
 
 __all__ = ["fit_brdf", "fit_genetic", "fit_least_squares", "prepare_samples", "fit_hemisphere_cells",
            "cell_spread_directions", "FitResult", "FitModel",
-           "BOUNDS", "MODEL_NAMES", "METHODS", "WEIGHTINGS"]
+           "BOUNDS", "METHODS", "WEIGHTINGS"]

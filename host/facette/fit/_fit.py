@@ -29,7 +29,8 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from facette.brdf import INTERREFLECTION_MIN_SIGMA
+from facette._registry import Registry
+from facette.brdf import INTERREFLECTION_MIN_SIGMA, MODELS
 
 from ._models import FitModel
 from ._result import FitResult
@@ -37,7 +38,6 @@ from ._result import FitResult
 __all__ = ["fit_brdf", "fit_least_squares", "fit_genetic", "prepare_samples", "WEIGHTINGS", "METHODS"]
 
 WEIGHTINGS = ("relative", "absolute")
-METHODS = ("least_squares", "genetic")
 
 
 class _Data:
@@ -357,6 +357,11 @@ def fit_genetic(s, o, values, model="li", distribution="beckmann", masking="smit
     return res
 
 
+METHODS = Registry("fit method")
+METHODS.add("least_squares", fit_least_squares)
+METHODS.add("genetic", fit_genetic)
+
+
 def fit_brdf(s, o, values, model="li", method="least_squares", distribution="beckmann", masking=None,
              volume="quadrature", interreflection="auto", counts=None, weighting="relative", specular_weight=1.0,
              specular_cone_deg=10.0, select=True, n_i_tolerance=0.01, rel_error_tolerance=0.02, o_spread=None,
@@ -385,11 +390,10 @@ def fit_brdf(s, o, values, model="li", method="least_squares", distribution="bec
     -------
     FitResult (``.to_json()`` writes brdf.json). ``selection`` lists the choices made.
     """
-    if method not in METHODS:
-        raise ValueError(f"method = {method!r}: choose one of {', '.join(METHODS)}")
+    fitter = METHODS[method]
+    model = MODELS.canonical(model)
     if masking is None:
         masking = "vcavity" if model == "cook_torrance" else "smith"
-    fitter = fit_least_squares if method == "least_squares" else fit_genetic
     common = dict(counts=counts, weighting=weighting, specular_weight=specular_weight,
                   specular_cone_deg=specular_cone_deg, o_spread=o_spread)
     t0 = time.perf_counter()

@@ -10,12 +10,11 @@ columns of the Jacobian for K_d — costs a multiply-add.
 """
 import numpy as np
 
-from facette.brdf import (interreflection_integral_vcavity, interreflection_mixed_integral_vcavity, li_specular,
+from facette.brdf import (MODELS, interreflection_integral_vcavity, interreflection_mixed_integral_vcavity, li_specular,
                           oren_nayar1994, r_i_simonot2009, volume_integral)
 
-__all__ = ["FitModel", "MODEL_NAMES", "BOUNDS"]
+__all__ = ["FitModel", "BOUNDS"]
 
-MODEL_NAMES = ("li", "cook_torrance", "oren_nayar", "lambert")
 # thesis §4.2.2: ρ ∈ [0, 1], σ ∈ [0, 2], n_i ∈ [1, 2.5]; σ starts at 1e-3 (σ = 0 is a Dirac lobe)
 BOUNDS = {"sigma": (1e-3, 2.0), "n_i": (1.0, 2.5), "kd": (0.0, 1.0)}
 
@@ -25,8 +24,7 @@ class FitModel:
 
     def __init__(self, name, s, o, channels, distribution="beckmann", masking="smith", volume="quadrature",
                  interreflection=False, volume_options=None, n_paths=256, o_spread=None):
-        if name not in MODEL_NAMES:
-            raise ValueError(f"model = {name!r}: choose one of {', '.join(MODEL_NAMES)}")
+        name = MODELS.canonical(name)
         if name == "li" and volume == "table":
             raise ValueError("volume='table' builds a table for every (σ, n_i) the fit visits (seconds each): "
                              "use volume='quadrature' (default, coarse nodes) or 'approx' to fit")

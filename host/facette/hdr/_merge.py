@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from facette._registry import Registry
 from facette.sim.sensor import SensorModel
 
 __all__ = ["HDRResult", "merge", "merge_inverse_variance", "merge_debevec1997", "MERGE_METHODS",
@@ -300,11 +301,11 @@ def merge_debevec1997(frames, exposures, sensor=None, *, times_s=None, peaks=Non
                        saturation_sigma=saturation_sigma, black_sigma=black_sigma)
 
 
-MERGE_METHODS = {"inverse_variance": merge_inverse_variance, "debevec1997": merge_debevec1997}
+MERGE_METHODS = Registry("HDR merge method")
+MERGE_METHODS.add("inverse_variance", merge_inverse_variance)
+MERGE_METHODS.add("debevec1997", merge_debevec1997)
 
 
 def merge(frames, exposures, sensor=None, method="inverse_variance", **kwargs):
     """Merge bracketed frames with the method named `method` (see `MERGE_METHODS`)."""
-    if method not in MERGE_METHODS:
-        raise ValueError(f"unknown HDR merge method {method!r}; choose from {sorted(MERGE_METHODS)}")
     return MERGE_METHODS[method](frames, exposures, sensor, **kwargs)

@@ -11,6 +11,8 @@ import scipy.sparse
 import scipy.sparse.csgraph
 import scipy.sparse.linalg
 
+from facette._registry import Registry
+
 __all__ = ["normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
            "integrate_least_squares", "integrate", "INTEGRATION_METHODS", "mesh_from_height"]
 
@@ -150,16 +152,14 @@ def integrate_least_squares(normals, pixel_pitch_mm=1.0, mask=None):
     return z.astype(np.float32)
 
 
-INTEGRATION_METHODS = {"frankot_chellappa1988": integrate_frankot_chellappa1988,
-                       "simchony1990": integrate_simchony1990,
-                       "least_squares": integrate_least_squares}
+INTEGRATION_METHODS = Registry("integration method")
+INTEGRATION_METHODS.add("frankot_chellappa1988", integrate_frankot_chellappa1988)
+INTEGRATION_METHODS.add("simchony1990", integrate_simchony1990)
+INTEGRATION_METHODS.add("least_squares", integrate_least_squares)
 
 
 def integrate(normals, pixel_pitch_mm=1.0, mask=None, method="frankot_chellappa1988"):
     """Dispatch by name: "frankot_chellappa1988", "simchony1990" or "least_squares"."""
-    if method not in INTEGRATION_METHODS:
-        raise ValueError(f"unknown integration method {method!r}; choose from "
-                         f"{', '.join(INTEGRATION_METHODS)}")
     return INTEGRATION_METHODS[method](normals, pixel_pitch_mm=pixel_pitch_mm, mask=mask)
 
 

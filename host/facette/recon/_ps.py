@@ -11,6 +11,8 @@ from itertools import combinations
 
 import numpy as np
 
+from facette._registry import Registry
+
 __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "photometric_stereo",
            "PS_METHODS", "triplet_inverses", "near_light_directions"]
 
@@ -516,15 +518,13 @@ def ps_hierarchical_tautzia2016(images, light_dirs, mask=None, channel=None, sat
     return res
 
 
-PS_METHODS = {"woodham1980": ps_woodham1980, "least_squares": ps_woodham1980,
-              "hierarchical_tautzia2016": ps_hierarchical_tautzia2016,
-              "hierarchical": ps_hierarchical_tautzia2016}
+# A new method: one line here, `PS_METHODS.add("name_author_year", ps_function, aliases=(...))`.
+PS_METHODS = Registry("photometric-stereo method")
+PS_METHODS.add("woodham1980", ps_woodham1980, aliases=("least_squares",))
+PS_METHODS.add("hierarchical_tautzia2016", ps_hierarchical_tautzia2016, aliases=("hierarchical",))
 
 
 def photometric_stereo(images, light_dirs, method="hierarchical_tautzia2016", **kwargs):
     """Dispatch by name: "woodham1980" (alias "least_squares") or "hierarchical_tautzia2016"
     (alias "hierarchical"). Arguments as the chosen function."""
-    if method not in PS_METHODS:
-        raise ValueError(f"unknown photometric-stereo method {method!r}; choose from "
-                         f"{', '.join(sorted(PS_METHODS))}")
     return PS_METHODS[method](images, light_dirs, **kwargs)
