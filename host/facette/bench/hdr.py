@@ -1,6 +1,6 @@
 """`facette bench hdr`: HDR merge accuracy and speed, adaptive vs fixed bracketing.
 
-Prints, on simulated brackets with known radiance (sensor model of facette.sim.sensor):
+Prints, on simulated brackets with known radiance (sensor model of facette.camera.sensor):
 
 1. SNR (dB) and relative RMSE of the inverse-variance merge, Debevec–Malik hat
    weights and colour-hdri's `image_stack_to_HDRI`, on the same frames, with the
@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from facette.hdr import bracket_fixed, merge, plan_adaptive
-from facette.sim.sensor import SensorModel, bayer_mosaic_rggb
+from facette.camera.sensor import SensorModel, bayer_mosaic_rggb
 
 CURRENT_MA = 500  # the fixed bracket's LED current (register default light_current_mA)
 

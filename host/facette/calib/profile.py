@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from facette.camera.sensor import SENSOR_KEYS
 from facette.io.checksum import sha256_file
 
 __all__ = ["Profile", "Lights", "load", "save", "nominal_light_directions", "SCHEMA_VERSION",
@@ -37,8 +38,6 @@ __all__ = ["Profile", "Lights", "load", "save", "nominal_light_directions", "SCH
 
 SCHEMA_VERSION = 1
 PROFILE_FILE = "profile.json"
-SENSOR_KEYS = ("gain_e_per_dn", "read_noise_e", "dark_current_e_per_s", "black_level_dn",
-               "white_level_dn")
 
 
 class ProfileError(ValueError):

@@ -317,7 +317,7 @@ class Wizard:
     # -- helpers -----------------------------------------------------------------------------
     def _use_sensor(self, sensor):
         """Merge the captures with this noise model (a profile `sensor` dict)."""
-        from facette.sim.sensor import SensorModel
+        from facette.camera.sensor import SensorModel
 
         self.st.sensor = SensorModel.from_profile_dict(sensor)
         self.st.full_scale_dn = float(sensor["white_level_dn"] - sensor["black_level_dn"])

@@ -1,7 +1,7 @@
 """RAW decoding with rawpy to linear per-channel float32 (no gamma, no white balance).
 
 Values are black-subtracted digital numbers (DN): ``raw - black_level`` per photosite,
-so the sensor noise model (``facette.sim.sensor``, eq 2.13) applies to them
+so the sensor noise model (``facette.camera.sensor``, eq 2.13) applies to them
 directly. Half-size (2×2 Bayer binning: R, mean of the two G, B) is the default;
 bilinear demosaicing at full resolution is an option.
 """

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from facette._registry import Registry
-from facette.sim.sensor import SensorModel
+from facette.camera.sensor import SensorModel
 
 __all__ = ["HDRResult", "merge", "merge_inverse_variance", "merge_debevec1997", "MERGE_METHODS",
            "as_sensor"]
@@ -84,7 +84,7 @@ def as_sensor(sensor):
     if isinstance(sensor, dict):
         return SensorModel.from_profile_dict(sensor)
     raise TypeError(f"cannot use {type(sensor).__name__} as a sensor model; pass a "
-                    "facette.sim.sensor.SensorModel, a profile's sensor dict or a Profile")
+                    "facette.camera.sensor.SensorModel, a profile's sensor dict or a Profile")
 
 
 def _prepare(frames, exposures, times_s, peaks, n_photosites, invalid, saturation_dn):

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from facette.sim.sensor import SensorModel
+from facette.camera.sensor import SensorModel
 
 __all__ = ["PTCResult", "estimate_sensor_ptc", "estimate_sensor_ptc_files", "ptc_points"]
 

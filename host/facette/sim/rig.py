@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facette.sim.sensor import DEFAULT_SENSOR, bayer_mosaic_rggb
+from facette.camera.sensor import DEFAULT_SENSOR, bayer_mosaic_rggb
 
 __all__ = ["RigSimulator", "SimCamera", "Faults", "SideChannelError"]
 

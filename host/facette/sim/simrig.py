@@ -14,7 +14,7 @@ from facette.sim.lights import thesis_leds
 from facette.sim.render import radiance_per_led
 from facette.sim.rig import Faults, RigSimulator, SimCamera
 from facette.sim.scene import make_scene
-from facette.sim.sensor import DEFAULT_SENSOR
+from facette.camera.sensor import DEFAULT_SENSOR
 
 __all__ = ["SimulatedRig", "DEFAULT_RAW_SHAPE"]
 
@@ -33,7 +33,7 @@ class SimulatedRig:
         Cook–Torrance σ = 0.05, n_i = 1.2, see facette.sim.scene.BRDF_PRESETS)
     near : bool, point LEDs at 1.5 m with per-pixel directions and 1/r²
     direction_error_deg, intensity_error : LED errors (see facette.sim.lights.thesis_leds)
-    sensor : facette.sim.sensor.SensorModel or None (the default D300-like sensor at ISO 400)
+    sensor : facette.camera.sensor.SensorModel or None (the default D300-like sensor at ISO 400)
     electrons_per_mA_s : exposure scale (see facette.sim.render.radiance_per_led)
     faults : Faults, or a string for Faults.parse ("biterr=1e-3,reset_at_shot=5")
     speed : virtual clock rate of the device (× real time)

@@ -4,7 +4,7 @@ import pytest
 
 from facette.camera.raw import RawDecodeError, bin_half_size, demosaic_bilinear, read_raw
 from facette.sim.dng import write_dng
-from facette.sim.sensor import SensorModel, bayer_mosaic_rggb
+from facette.camera.sensor import SensorModel, bayer_mosaic_rggb
 
 
 def _write(tmp_path, mosaic, name="f.dng", black=512, white=16383, t=0.25, iso=400):

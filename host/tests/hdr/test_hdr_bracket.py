@@ -4,7 +4,7 @@ import pytest
 
 from facette.hdr import bracket_fixed, merge, plan_adaptive, predicted_snr
 from facette.hdr._bracket import frame_overhead_s
-from facette.sim.sensor import SensorModel, bayer_mosaic_rggb
+from facette.camera.sensor import SensorModel, bayer_mosaic_rggb
 
 SENSOR = SensorModel()
 SAT = SENSOR.saturation_dn - SENSOR.black_level_dn

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from facette.hdr import MERGE_METHODS, merge, merge_debevec1997, merge_inverse_variance
-from facette.sim.sensor import SensorModel, bayer_mosaic_rggb
+from facette.camera.sensor import SensorModel, bayer_mosaic_rggb
 
 SENSOR = SensorModel()
 SAT = SENSOR.saturation_dn - SENSOR.black_level_dn

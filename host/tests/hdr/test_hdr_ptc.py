@@ -4,7 +4,7 @@ import pytest
 
 from facette.hdr import estimate_sensor_ptc, estimate_sensor_ptc_files
 from facette.sim.dng import write_dng
-from facette.sim.sensor import SensorModel
+from facette.camera.sensor import SensorModel
 
 COLOUR = np.array([0.5, 1.0, 0.3])
 

@@ -8,7 +8,7 @@ import pytest
 from facette.hdr import MissingFrameWarning, load_hdr, merge_scan
 from facette.io.exr import read_exr
 from facette.sim.dng import write_dng
-from facette.sim.sensor import SensorModel, bayer_mosaic_rggb
+from facette.camera.sensor import SensorModel, bayer_mosaic_rggb
 
 SENSOR = SensorModel()
 EXPOSURES = [(200_000, 500), (20_000, 500), (2_000, 800)]  # (time_us, mA)

@@ -5,7 +5,7 @@ import rawpy
 import tifffile
 
 from facette.sim.dng import write_dng
-from facette.sim.sensor import SensorModel
+from facette.camera.sensor import SensorModel
 
 
 @pytest.mark.parametrize("t_s", [1 / 30, 15.0, 0.000125])

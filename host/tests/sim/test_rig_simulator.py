@@ -12,7 +12,7 @@ import pytest
 
 from facette.camera.raw import read_exposure_metadata, read_raw_mosaic
 from facette.sim.rig import Faults, RigSimulator, SimCamera
-from facette.sim.sensor import SensorModel
+from facette.camera.sensor import SensorModel
 
 
 class ScriptedDevice:

@@ -1,4 +1,5 @@
-"""Bayer sensor model of the simulated camera (thesis eq 2.12–2.13).
+"""Bayer sensor model of the camera (thesis eq 2.12–2.13): the HDR merge weighs frames with it,
+the simulated camera renders with it.
 
 Units used throughout:
 
@@ -26,10 +27,10 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-__all__ = ["SensorModel", "DEFAULT_SENSOR", "bayer_mosaic_rggb", "PROFILE_KEYS"]
+__all__ = ["SensorModel", "DEFAULT_SENSOR", "bayer_mosaic_rggb", "SENSOR_KEYS"]
 
 # Keys of the calibration profile's `sensor` section (contract 5).
-PROFILE_KEYS = ("gain_e_per_dn", "read_noise_e", "dark_current_e_per_s", "black_level_dn",
+SENSOR_KEYS = ("gain_e_per_dn", "read_noise_e", "dark_current_e_per_s", "black_level_dn",
                 "white_level_dn")
 
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from facette.sim.sensor import SensorModel, bayer_mosaic_rggb
+from facette.camera.sensor import SensorModel, bayer_mosaic_rggb
 
 
 def _stats(sensor, e_per_s, t_s, n=400_000, seed=1):
