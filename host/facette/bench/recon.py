@@ -11,7 +11,6 @@
    ratios to least squares, all measured in one run.
 """
 import argparse
-import json
 import os
 import tempfile
 import time
@@ -25,6 +24,7 @@ from facette.pipeline._process import _samples_stage
 from facette.recon import (INTEGRATION_METHODS, integrate, integrate_frankot_chellappa1988,
                            ps_hierarchical_tautzia2016, ps_woodham1980)
 from facette.recon.synthetic import angular_error_deg, render, sphere_on_plane, thesis_light_directions
+from facette.scan import ScanDirectory
 
 L = thesis_light_directions()
 SCENES = [("matte", "matte", 1.0), ("satin", "satin", 1.0), ("glossy", "glossy", 1.0),
@@ -97,13 +97,15 @@ def _write_scan(folder, imgs, normals, height, pitch):
         write_exr(folder / "hdr" / f"light_{i:02d}_var.exr", np.full_like(imgs[i], 1e-6))
     np.savez(folder / "truth.npz", normals=normals, height_mm=height * pitch,
              mask=np.ones(height.shape, bool))
-    (folder / "scan.json").write_text(json.dumps({
+    sd = ScanDirectory(folder)
+    sd.manifest = {
         "schema": 1, "rig": {"id": "bench"}, "profile": None, "pixel_pitch_mm": pitch,
         "lights": [{"index": i, "direction": L[i].tolist(), "position_mm": None,
                     "intensity": [1.0, 1.0, 1.0]} for i in range(m)],
         "exposures": [], "frames": [{"file": f"raw/L{i:02d}_E00.dng", "light": i, "exposure": 0}
                                     for i in range(m)],
-        "rig_time_s": 0.0, "truth": "truth.npz"}))
+        "rig_time_s": 0.0, "truth": "truth.npz"}
+    sd.save()
 
 
 def speed(h, w):

@@ -211,7 +211,7 @@ class RigStation:
         """HDR images (m, H, W, 3) in DN/(µs·mA) of every LED, merged with the station's
         sensor model; `current` "measured" (the LED's own efficiency) or "set" (what
         the host asked for: shows the effect of the calibration gains)."""
-        from facette.hdr import MissingFrameWarning, load_hdr, merge_scan
+        from facette.scan import MissingFrameWarning, load_hdr, merge_scan
 
         d = self._scan(name, exposures, range(self.n_leds))
         with warnings.catch_warnings():
@@ -228,7 +228,7 @@ class RigStation:
     def capture_raw(self, name, exposures, light=0):
         """RAW files of one LED at each exposure, in order (paths)."""
         d = self._scan(name, exposures, [light])
-        from facette.hdr import read_scan_manifest
+        from facette.scan import read_scan_manifest
 
         frames = sorted(read_scan_manifest(d)["frames"], key=lambda f: int(f["exposure"]))
         return [d / f["file"] for f in frames]

@@ -100,12 +100,6 @@ def _process(scan_dir):
         out = Path(scan_dir) / "results"
         status = cli_main(["process", str(scan_dir), "-o", str(out)])
         ran.append(f"facette process → {out} (exit {status})")
-    elif importlib.util.find_spec("facette.hdr") is not None:
-        import facette.hdr as hdr
-
-        if hasattr(hdr, "merge_scan"):
-            hdr.merge_scan(scan_dir)
-            ran.append(f"HDR merge → {Path(scan_dir) / 'hdr'}")
     return ran
 
 

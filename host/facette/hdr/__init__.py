@@ -1,7 +1,6 @@
 """facette.hdr: from bracketed RAW frames to linear HDR radiance with a known variance.
 
 - `merge`, `merge_inverse_variance`, `merge_debevec1997`: merge arrays (thesis eq 2.14).
-- `merge_scan`, `load_hdr`: a scan directory's raw/ frames to hdr/light_XX.exr (contract 3).
 - `estimate_sensor_ptc`: gain, read noise, dark current, saturation from dark and flat
   frames (photon transfer curve) for the calibration profile's `sensor` section.
 - `plan_adaptive`, `bracket_fixed`: which exposures to take.
@@ -11,11 +10,8 @@ from facette.hdr._bracket import (BRACKETS, BracketPlan, bracket_fixed, frame_ov
 from facette.hdr._merge import (MERGE_METHODS, HDRResult, as_sensor, merge, merge_debevec1997,
                                 merge_inverse_variance)
 from facette.hdr._ptc import PTCResult, estimate_sensor_ptc, estimate_sensor_ptc_files, ptc_points
-from facette.hdr._scan import (HDR_UNIT, MissingFrameWarning, frame_exposure, load_hdr,
-                               merge_scan, read_scan_manifest)
 
 __all__ = ["HDRResult", "MERGE_METHODS", "merge", "merge_inverse_variance", "merge_debevec1997",
-           "as_sensor", "merge_scan", "load_hdr", "read_scan_manifest", "frame_exposure",
-           "MissingFrameWarning", "HDR_UNIT", "PTCResult", "estimate_sensor_ptc",
+           "as_sensor", "PTCResult", "estimate_sensor_ptc",
            "estimate_sensor_ptc_files", "ptc_points", "BracketPlan", "BRACKETS", "bracket_fixed",
            "plan_adaptive", "predicted_snr", "frame_overhead_s"]

@@ -1,5 +1,4 @@
 """Inputs of `process`: a facette scan directory or a DiLiGenT-style folder."""
-import json
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -9,6 +8,7 @@ import numpy as np
 
 from facette.io.diligent import is_diligent_dir, read_diligent
 from facette.io.png import read_mask
+from facette.scan import ScanDirectory, load_hdr
 
 __all__ = ["PSInput", "load_input", "source_path"]
 
@@ -150,14 +150,13 @@ def _load_hdr_images(scan_dir, data):
     have = all((scan_dir / "hdr" / f"light_{i:02d}.exr").is_file() for i in ids)
     if have and all(i in by_index for i in ids):
         return _read_hdr_fast(scan_dir, ids), [by_index[i] for i in ids]
-    from facette.hdr import load_hdr            # merges the RAW frames first when hdr/ is missing
     images, variances, lights = load_hdr(scan_dir)
     images = np.where(np.isfinite(variances), images, np.nan).astype(np.float32)
     return images, lights
 
 
 def _load_scan(scan_dir, pixel_pitch_mm):
-    data = json.loads((scan_dir / "scan.json").read_text())
+    data = ScanDirectory(scan_dir).manifest
     images, lights = _load_hdr_images(scan_dir, data)
     dirs = np.array([l["direction"] for l in lights], dtype=np.float64)
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)

@@ -1,7 +1,11 @@
-"""facette.scan: acquisition into a resumable scan directory (DESIGN §7, contract 3)."""
+"""facette.scan: acquisition into a resumable scan directory (DESIGN §7, contract 3), and
+the scan directory's HDR merge (`merge_scan`, `load_hdr`: raw/ frames to hdr/light_XX.exr)."""
 from facette.scan.acquire import (THESIS_BRACKET_US, ScanAborted, ScanError, ScanPlan, default_plan,
                                   run_scan)
-from facette.scan.directory import ScanDirectory, ScanDirectoryError, frame_name, sha256_file
+from facette.scan.directory import (ScanDirectory, ScanDirectoryError, frame_name, read_scan_manifest,
+                                    sha256_file)
+from facette.scan.hdr import HDR_UNIT, MissingFrameWarning, frame_exposure, load_hdr, merge_scan
 
 __all__ = ["run_scan", "ScanPlan", "default_plan", "ScanError", "ScanAborted", "ScanDirectory",
-           "ScanDirectoryError", "frame_name", "sha256_file", "THESIS_BRACKET_US"]
+           "ScanDirectoryError", "frame_name", "sha256_file", "THESIS_BRACKET_US", "read_scan_manifest",
+           "merge_scan", "load_hdr", "frame_exposure", "MissingFrameWarning", "HDR_UNIT"]

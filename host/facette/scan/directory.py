@@ -14,15 +14,13 @@ from pathlib import Path
 
 from facette.io.checksum import sha256_file
 
-__all__ = ["ScanDirectory", "ScanDirectoryError", "sha256_file", "frame_name", "SCHEMA"]
+__all__ = ["ScanDirectory", "ScanDirectoryError", "sha256_file", "frame_name", "read_scan_manifest", "SCHEMA"]
 
 SCHEMA = 1
 
 
 class ScanDirectoryError(ValueError):
     """The directory holds something that is not this scan."""
-
-
 
 
 def frame_name(light, exposure, suffix=".dng"):
@@ -49,6 +47,19 @@ class ScanDirectory:
             except ValueError as exc:
                 raise ScanDirectoryError(f"{self.path / 'scan.json'} is damaged ({exc}); the journal "
                                          f"{self.path / 'journal.jsonl'} and raw/ hold what was captured") from exc
+
+    @classmethod
+    def existing(cls, path):
+        """An existing scan: FileNotFoundError without scan.json, ValueError (ScanDirectoryError)
+        when it is damaged or lacks the "lights" and "frames" lists of contract 3."""
+        sd = cls(path)
+        if sd.manifest is None:
+            raise FileNotFoundError(f"{path} is not a scan directory: no scan.json in it")
+        for key in ("lights", "frames"):
+            if key not in sd.manifest:
+                raise ScanDirectoryError(f"{sd.path / 'scan.json'} has no {key!r} list (contract 3); "
+                                         "is it a facette scan?")
+        return sd
 
     def __fspath__(self):
         return str(self.path)
@@ -100,6 +111,14 @@ class ScanDirectory:
             os.fsync(fh.fileno())
         os.replace(tmp, self.path / "scan.json")
 
+    def update(self, **fields):
+        """Set top-level fields of scan.json, re-read first so that what another writer saved
+        meanwhile is kept (the HDR merge records itself this way)."""
+        fresh = ScanDirectory.existing(self.path).manifest
+        fresh.update(fields)
+        self.manifest = fresh
+        self.save()
+
     def frames_done(self):
         """{(light, exposure): frame record} of frames whose file is present."""
         out = {}
@@ -127,6 +146,11 @@ class ScanDirectory:
             elif sha256_file(p) != f["sha256"]:
                 problems.append(f"{f['file']}: sha256 differs from scan.json")
         return problems
+
+
+def read_scan_manifest(scan_dir):
+    """scan.json of an existing scan as a dict (errors as `ScanDirectory.existing`)."""
+    return ScanDirectory.existing(scan_dir).manifest
 
 
 def _jsonable(obj):

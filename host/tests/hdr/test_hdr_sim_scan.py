@@ -7,7 +7,8 @@ import numpy as np
 
 import facette
 from facette.camera.raw import read_raw
-from facette.hdr import load_hdr, merge_scan, plan_adaptive
+from facette.hdr import plan_adaptive
+from facette.scan import load_hdr, merge_scan
 
 LIGHTS = [0, 3, 7]
 

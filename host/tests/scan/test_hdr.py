@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from facette.hdr import MissingFrameWarning, load_hdr, merge_scan
+from facette.scan import MissingFrameWarning, load_hdr, merge_scan
 from facette.io.exr import read_exr
 from facette.sim.dng import write_dng
 from facette.camera.sensor import SensorModel, bayer_mosaic_rggb

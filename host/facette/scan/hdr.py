@@ -1,5 +1,8 @@
 """Scan-directory HDR: raw/*.dng listed in scan.json -> hdr/light_XX.exr (+ _var.exr).
 
+The merge itself is `facette.hdr.merge` on arrays; this module reads and writes the scan
+directory around it, through `ScanDirectory` (the one reader and writer of scan.json).
+
 Contract 3 (DESIGN §7): ``hdr/light_XX.exr`` holds R, G, B linear radiance per unit
 exposure, per µs·mA (black-subtracted DN / (exposure time µs × LED current mA)),
 float32, at RAW half-size; ``hdr/light_XX_var.exr`` the variances (DN / (µs·mA))².
@@ -8,8 +11,6 @@ The merge is recorded in scan.json under ``"hdr"``.
 from __future__ import annotations
 
 import datetime as _dt
-import json
-import os
 import time
 import warnings
 from pathlib import Path
@@ -17,9 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from facette.camera.raw import read_raw
-from facette.hdr._merge import as_sensor, merge
+from facette.hdr import as_sensor, merge
 from facette.io.checksum import sha256_file
 from facette.io.exr import read_exr, write_exr
+from facette.scan.directory import ScanDirectory, read_scan_manifest
 
 __all__ = ["merge_scan", "load_hdr", "read_scan_manifest", "frame_exposure", "MissingFrameWarning",
            "HDR_UNIT"]
@@ -29,29 +31,6 @@ HDR_UNIT = "DN/(us*mA)"
 
 class MissingFrameWarning(UserWarning):
     """A frame listed in scan.json (or an exposure of the plan) is not on disk."""
-
-
-def read_scan_manifest(scan_dir):
-    """Load scan.json of `scan_dir` as a dict, with a clear error if absent or malformed."""
-    path = Path(scan_dir) / "scan.json"
-    if not path.is_file():
-        raise FileNotFoundError(f"{scan_dir} is not a scan directory: no scan.json in it")
-    try:
-        data = json.loads(path.read_text())
-    except ValueError as exc:
-        raise ValueError(f"{path} is not valid JSON ({exc}); restore it from journal.jsonl or "
-                         "re-run the scan") from exc
-    for key in ("lights", "frames"):
-        if key not in data:
-            raise ValueError(f"{path} has no {key!r} list (contract 3); is it a facette scan?")
-    return data
-
-
-def _write_manifest(scan_dir, data):
-    path = Path(scan_dir) / "scan.json"
-    tmp = path.with_name(f".scan.json.{os.getpid()}.partial")
-    tmp.write_text(json.dumps(data, indent=2))
-    os.replace(tmp, path)
 
 
 def frame_exposure(frame, current="measured"):
@@ -73,16 +52,6 @@ def frame_exposure(frame, current="measured"):
     if not t_us > 0:
         raise ValueError(f"frame {frame.get('file')} has exposure time {t_us} µs; must be > 0")
     return t_us * i_ma, i_ma
-
-
-def _journal(scan_dir, step, **data):
-    """Append a line to the scan's journal.jsonl (same format as facette.scan)."""
-    line = json.dumps({"t": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds"),
-                       "step": step, **data}, sort_keys=True)
-    with open(Path(scan_dir) / "journal.jsonl", "a", encoding="utf-8") as fh:
-        fh.write(line + "\n")
-
-
 
 
 def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measured",
@@ -119,7 +88,8 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     if per not in ("us*mA", "us"):
         raise ValueError(f"per must be 'us*mA' or 'us', got {per!r}")
     scan_dir = Path(scan_dir)
-    data = read_scan_manifest(scan_dir)
+    sd = ScanDirectory.existing(scan_dir)
+    data = sd.manifest
     source = "given"
     if sensor is None and isinstance(data.get("sensor"), dict):
         sensor, source = data["sensor"], "scan.json sensor"
@@ -132,7 +102,7 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     wanted = sorted(by_light) if lights is None else sorted(int(i) for i in lights)
     n_exposures = len(data.get("exposures") or [])
     (scan_dir / "hdr").mkdir(exist_ok=True)
-    _journal(scan_dir, "hdr_begin", method=method, lights=wanted)
+    sd.journal("hdr_begin", method=method, lights=wanted)
     unit = HDR_UNIT if per == "us*mA" else "DN/us"
     t0 = time.perf_counter()
     records = []
@@ -185,10 +155,8 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
               "sensor_source": source,
               "lights": records, "merge_time_s": round(time.perf_counter() - t0, 3),
               "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
-    data = read_scan_manifest(scan_dir)  # re-read: keep anything written meanwhile
-    data["hdr"] = record
-    _write_manifest(scan_dir, data)
-    _journal(scan_dir, "hdr_done", lights=wanted, merge_time_s=record["merge_time_s"])
+    sd.update(hdr=record)
+    sd.journal("hdr_done", lights=wanted, merge_time_s=record["merge_time_s"])
     return record
 
 
@@ -215,7 +183,7 @@ def load_hdr(scan_dir, sensor=None, merge_missing=True, method="inverse_variance
     if absent:
         if not merge_missing:
             raise FileNotFoundError(f"{scan_dir / 'hdr'} lacks lights {absent}; run "
-                                    "facette.hdr.merge_scan(scan_dir) first")
+                                    "facette.scan.merge_scan(scan_dir) first")
         merge_scan(scan_dir, sensor=sensor, method=method, lights=absent)
     by_index = {int(l["index"]): l for l in lights}
     unknown = [li for li in light_ids if li not in by_index]
