@@ -66,7 +66,7 @@ def main(argv=None):
 
     import facette
     from facette.calib import Lights, Profile, nominal_light_directions, save
-    from facette.calib.wizard import RigStation, Wizard, WizardError, angle_deg
+    from facette.wizard import RigStation, Wizard, WizardError, angle_deg
 
     work = Path(tempfile.mkdtemp(prefix="facette-bench-calib-"))
     rig = facette.connect("sim", direction_error_deg=args.direction_error, intensity_error=args.intensity_error,

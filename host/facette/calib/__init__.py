@@ -5,8 +5,10 @@
 - mirror sphere: `mirror_sphere_directions`, `light_positions_from_rays`; matte sphere:
   `matte_sphere_directions` (cross-check);
 - RTI interop: `read_lp`, `write_lp`;
-- the wizard (`facette calibrate`): `facette.calib.wizard`; targets shown on the
-  simulated rig: `facette.calib.targets`.
+- target specifications and their analytic renderings: `facette.calib.targets`; the
+  checks of a capture: `facette.calib.checks`. The wizard that drives a rig
+  (`facette calibrate`) is `facette.wizard`; the targets shown on the simulated rig
+  are `facette.sim.targets`.
 """
 from facette.calib.lp import lights_from_lp, read_lp, write_lp, write_profile_lp
 from facette.calib.matte_sphere import matte_sphere_directions

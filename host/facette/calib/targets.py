@@ -1,9 +1,11 @@
 """Calibration targets: their specifications and synthetic renderings.
 
 The specifications (the Spectralon certificate, the mirror and matte spheres) are
-JSON files in ``calibration/targets/``. The renderings are orthographic images of
-the three targets under one LED (distant or near), linear radiance per unit
-exposure, shape (H, W, 3): the tests and the simulated rig use them.
+JSON files in ``calibration/targets/`` (shipped with the package, found by
+`facette._data.targets_dir`). The renderings are orthographic images of the three
+targets under one LED (distant or near), linear radiance per unit exposure, shape
+(H, W, 3): the tests use them. The targets as the simulated rig shows them are
+`facette.sim.targets`.
 
 Geometry (DESIGN §8): camera frame x right, y up, z towards the camera; the object
 plane is z = 0; pixel (row, col) has its centre at
@@ -20,11 +22,13 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from facette._data import targets_dir
+
 __all__ = ["TARGETS_DIR", "load_target", "channel_reflectance", "pixel_grid_mm",
            "light_vectors", "render_spectralon", "render_mirror_sphere", "render_matte_sphere",
-           "CHANNEL_CENTRES_NM"]
+           "CHANNEL_CENTRES_NM", "rgb_triplet"]
 
-TARGETS_DIR = Path(__file__).resolve().parents[3] / "calibration" / "targets"
+TARGETS_DIR = targets_dir()
 # Camera channel responses, approximated as Gaussians (centre, σ) in nm: enough to
 # average a certificate that varies by 1 % over the visible.
 CHANNEL_CENTRES_NM = ((600.0, 35.0), (535.0, 35.0), (460.0, 30.0))
@@ -94,7 +98,8 @@ def light_vectors(points_mm, direction=None, position_mm=None):
     return v / np.sqrt(r2)[..., None], float(p @ p) / r2
 
 
-def _rgb(x):
+def rgb_triplet(x):
+    """A scalar or (3,) value as a (3,) float array (one value per R, G, B channel)."""
     x = np.asarray(x, float)
     return np.broadcast_to(x, (3,)).copy() if x.ndim == 0 or x.size == 1 else x.reshape(3)
 
@@ -114,7 +119,7 @@ def render_spectralon(shape, pixel_pitch_mm, direction=None, position_mm=None, i
     z = -(n[0] * x + n[1] * y) / n[2]
     s, k = light_vectors(np.stack([x, y, z], -1), direction, position_mm)
     cos = np.clip(s @ n, 0.0, None)
-    img = (_rgb(reflectance) / np.pi * _rgb(intensity))[None, None, :] * (cos * k)[..., None]
+    img = (rgb_triplet(reflectance) / np.pi * rgb_triplet(intensity))[None, None, :] * (cos * k)[..., None]
     if vignetting is not None:
         v = np.asarray(vignetting, float)
         img = img * (v if v.ndim == 3 else v[..., None])
@@ -183,7 +188,7 @@ def render_mirror_sphere(shape, center_px, radius_px, pixel_pitch_mm, direction=
         fine = ndimage.gaussian_filter(fine.reshape(h * supersample, w * supersample),
                                        psf_px * supersample, mode="nearest")
         lum = fine.reshape(h, supersample, w, supersample).transpose(0, 2, 1, 3).reshape(h, w, -1)
-    return lum.mean(-1)[..., None] * _rgb(intensity)
+    return lum.mean(-1)[..., None] * rgb_triplet(intensity)
 
 
 def render_matte_sphere(shape, center_px, radius_px, pixel_pitch_mm, direction=None,
@@ -201,118 +206,4 @@ def render_matte_sphere(shape, center_px, radius_px, pixel_pitch_mm, direction=N
     sp, kp = light_vectors(pts_p, direction, position_mm)
     lum_card = np.where(inside, 0.0, backdrop_albedo / np.pi * np.clip(sp[..., 2], 0, None) * kp)
     lum = (lum_sphere + lum_card).mean(-1)
-    return lum[..., None] * _rgb(intensity)
-
-
-# -- the simulated rig shows the targets ------------------------------------------------
-# facette.sim renders a `Scene` (height field, normals, mask, albedo map, one BRDF) under
-# its LEDs (`facette.sim.render.radiance_per_led`), and its camera integrates
-# `SimCamera.radiance` (m, H, W, 3) e-/(mA·µs). A target is shown by building its
-# Scene on a finer grid (anti-aliasing), rendering it with the simulator's own
-# renderer and true LEDs, blurring by the lens PSF and binning to the camera grid,
-# then handing that to the camera: no facette.sim file is touched.
-
-SIM_TARGETS = ("spectralon", "mirror_sphere", "matte_sphere", "none", "lens_cap")
-
-
-def target_scene(kind, shape, pixel_pitch_mm, center_mm=(0.0, 0.0), radius_mm=None,
-                 reflectance=None, supersample=1):
-    """The Scene of a calibration target on the simulated rig's table.
-
-    kind : "spectralon" (flat certified white filling the field, Lambert),
-        "mirror_sphere" (chrome ball: Cook–Torrance, K_d = 0, σ = 0.02, n_i = 2.5, on a
-        grey card), "matte_sphere" (Lambert sphere on a dark card), "none" (the empty
-        table), "lens_cap" (nothing reaches the sensor).
-    shape, pixel_pitch_mm : the camera's (half-size) grid; the scene is `supersample`
-        times finer. center_mm, radius_mm : the sphere (default radius 40 % of the
-        field's height). reflectance : (3,) override of the target's reflectance.
-    """
-    from facette.sim.scene import Scene
-
-    if kind not in SIM_TARGETS:
-        raise ValueError(f"unknown target {kind!r}; choose one of {SIM_TARGETS}")
-    ss = int(supersample)
-    h, w = int(shape[0]) * ss, int(shape[1]) * ss
-    pitch = pixel_pitch_mm / ss
-    x, y = pixel_grid_mm((h, w), pitch)
-    height = np.zeros((h, w))
-    normals = np.zeros((h, w, 3))
-    normals[..., 2] = 1.0
-    mask = np.zeros((h, w), bool)
-    lambert = {"model": "lambert", "params": {}}
-    if kind in ("spectralon", "lens_cap"):
-        rho = channel_reflectance() if reflectance is None else _rgb(reflectance)
-        albedo = np.broadcast_to(rho * (kind == "spectralon"), (h, w, 3)).copy()
-        mask[:] = kind == "spectralon"
-        return Scene(height, normals, mask, albedo, pitch, lambert, name=f"target:{kind}")
-    if kind == "none":
-        albedo = np.broadcast_to([0.04, 0.04, 0.045], (h, w, 3)).copy()
-        return Scene(height, normals, mask, albedo, pitch, lambert, name="target:none")
-    r = (0.4 * shape[0] * pixel_pitch_mm) if radius_mm is None else float(radius_mm)
-    cx, cy = center_mm
-    d2 = (x - cx) ** 2 + (y - cy) ** 2
-    mask = d2 < r * r
-    # the sphere sits on the table: its centre is r above it
-    height = np.where(mask, r + np.sqrt(np.clip(r * r - d2, 0, None)), 0.0)
-    # analytic normals: the table stays flat up to the silhouette (a finite-difference
-    # gradient would tilt the ring of table pixels next to the sphere's equator)
-    nz = np.sqrt(np.clip(1 - d2 / (r * r), 0, None))
-    normals[mask] = np.stack([(x - cx) / r, (y - cy) / r, nz], -1)[mask]
-    if kind == "mirror_sphere":
-        albedo = np.where(mask[..., None], 0.0, 0.5)
-        albedo = np.broadcast_to(albedo, (h, w, 3)).copy()
-        brdf = {"model": "cook_torrance", "params": {"sigma": 0.02, "n_i": 2.5}}
-        return Scene(height, normals, mask, albedo, pitch, brdf, name="target:mirror_sphere")
-    rho = np.array([0.9, 0.9, 0.9]) if reflectance is None else _rgb(reflectance)
-    albedo = np.where(mask[..., None], rho, 0.05)
-    return Scene(height, normals, mask, np.broadcast_to(albedo, (h, w, 3)).copy(), pitch, lambert,
-                 name="target:matte_sphere")
-
-
-def _sim_scale(sim):
-    """The simulator's electrons per mA·s, recovered from the radiance it rendered."""
-    from facette.sim.render import radiance_per_led
-
-    base = radiance_per_led(sim.scene, sim.leds, 1.0, shadows=False)
-    ok = base > 1e-12 * max(base.max(), 1e-300)
-    if not ok.any():
-        return 20.0
-    return float(np.median(sim.camera.radiance[ok] / base[ok]))
-
-
-def render_target(sim, kind, supersample=4, psf_px=0.7, **scene_kw):
-    """Electron maps (m, H, W, 3) e-/(mA·µs) of a target under the simulator's true LEDs."""
-    from facette.sim.render import radiance_per_led
-
-    h, w = sim.camera.radiance.shape[1:3]
-    ss = int(supersample) if kind in ("mirror_sphere", "matte_sphere") else 1
-    scene = target_scene(kind, (h, w), sim.scene.pixel_pitch_mm, supersample=ss, **scene_kw)
-    if not hasattr(sim, "_calib_scale"):
-        sim._calib_scale = _sim_scale(sim)
-    # no cast shadows: a sphere would shadow its own rim on the coarse height field
-    fine = radiance_per_led(scene, sim.leds, sim._calib_scale, shadows=False)
-    if ss > 1 or psf_px:
-        sigma = (0, psf_px * ss, psf_px * ss, 0) if psf_px else 0
-        if psf_px:
-            fine = ndimage.gaussian_filter(fine, sigma, mode="nearest")
-        fine = fine.reshape(len(fine), h, ss, w, ss, 3).mean(axis=(2, 4))
-    return fine, scene
-
-
-def show_target(sim, kind, **kw):
-    """Put a target under the simulated camera: its next frames see it.
-
-    `sim` is a facette.sim.SimulatedRig (``rig.sim``). Returns the target's Scene
-    (fine grid). Scene keywords (center_mm, radius_mm, reflectance) pass through.
-    """
-    radiance, scene = render_target(sim, kind, **kw)
-    if not hasattr(sim, "_calib_original"):
-        sim._calib_original = sim.camera.radiance
-    sim.camera.radiance = radiance
-    return scene
-
-
-def restore_scene(sim):
-    """Give the simulated camera back the rig's own object."""
-    if hasattr(sim, "_calib_original"):
-        sim.camera.radiance = sim._calib_original
+    return lum[..., None] * rgb_triplet(intensity)

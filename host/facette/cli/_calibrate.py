@@ -90,7 +90,7 @@ def connect_rig(args):
 
 def run(args):
     from facette.calib import ProfileError, load
-    from facette.calib.wizard import STEPS, RigStation, Wizard, WizardError
+    from facette.wizard import STEPS, RigStation, Wizard, WizardError
 
     steps = None
     if args.only:

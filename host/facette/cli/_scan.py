@@ -106,11 +106,11 @@ def _process(scan_dir):
 def run(args):
     from facette.device import DeviceError
     from facette.scan import ScanError
-    from facette.sim.device_process import REPO_ROOT
+    from facette._data import sim_profile_dir
 
     profile = args.profile
     if profile is None and args.sim:
-        for candidate in (Path(DEFAULT_SIM_PROFILE), REPO_ROOT / DEFAULT_SIM_PROFILE):
+        for candidate in (Path(DEFAULT_SIM_PROFILE), sim_profile_dir()):
             if candidate.is_dir():
                 profile = str(candidate)
                 break

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from facette.calib import nominal_light_directions
-from facette.calib.lp import read_lp, write_lp
+from facette.calib import Lights, Profile, nominal_light_directions
+from facette.calib.lp import lights_from_lp, read_lp, write_lp, write_profile_lp
 
 
 def test_round_trip(tmp_path):
@@ -45,3 +45,11 @@ def test_malformed_files_name_the_problem(tmp_path, text, match):
 def test_write_refuses_mismatched_lengths(tmp_path):
     with pytest.raises(ValueError, match="one \\(x, y, z\\) per file name"):
         write_lp(tmp_path / "x.lp", ["a", "b"], np.zeros((3, 3)))
+
+
+def test_profile_directions_round_trip_through_lp(tmp_path):
+    p = Profile(rig="x", lights=Lights(nominal_light_directions(), np.ones((12, 3))))
+    path = write_profile_lp(p, tmp_path / "lights.lp")
+    lights, names = lights_from_lp(path)
+    assert names[3] == "hdr/light_03.exr"
+    np.testing.assert_allclose(lights.directions, p.lights.directions, atol=1e-9)

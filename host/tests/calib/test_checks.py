@@ -1,12 +1,13 @@
+"""facette.calib.checks: a capture's exposure check and the angle between directions."""
 import numpy as np
 import pytest
 
-from facette.calib import Lights, Profile, nominal_light_directions
-from facette.calib.lp import lights_from_lp, write_profile_lp
-from facette.calib.wizard import STEPS, Wizard, WizardError, angle_deg, check_exposure
+from facette.calib import nominal_light_directions
+from facette.calib.checks import WizardError, angle_deg, check_exposure
 
 FULL = 15871.0          # white − black, DN
 LONG, SHORT, MA = 1_000_000, 60_000, 500
+
 
 
 def _images(level_of_full_scale_at_long, m=12, shape=(20, 30)):
@@ -15,10 +16,12 @@ def _images(level_of_full_scale_at_long, m=12, shape=(20, 30)):
     return np.full((m,) + shape + (3,), v)
 
 
+
 def test_a_usable_capture_passes_and_reports_its_level():
     level, sat = check_exposure(_images(0.35), LONG, SHORT, MA, FULL, "spectralon")
     np.testing.assert_allclose(level, 0.35)
     assert np.all(sat == 0)
+
 
 
 def test_missing_target_dark_led_and_overexposure_are_named():
@@ -40,27 +43,8 @@ def test_missing_target_dark_led_and_overexposure_are_named():
     check_exposure(img, LONG, SHORT, MA, FULL, "spectralon", mask=mask)
 
 
+
 def test_angle_deg():
     d = nominal_light_directions()
     np.testing.assert_allclose(angle_deg(d, d), 0, atol=1e-6)
     assert angle_deg([0, 0, 1.0], [np.sin(0.1), 0, np.cos(0.1)]) == pytest.approx(np.degrees(0.1))
-
-
-def test_wizard_refuses_unknown_steps_and_mismatched_base():
-    class _St:
-        n_leds = 12
-
-    with pytest.raises(ValueError, match="unknown steps"):
-        Wizard(_St(), steps=["mirror", "flatfield"])
-    base = Profile(rig="x", lights=Lights(nominal_light_directions()[:6], np.ones((6, 3))))
-    with pytest.raises(ValueError, match="6 lights, the rig 12"):
-        Wizard(_St(), base=base)
-    assert STEPS[0] == "noise" and STEPS[-1] == "gains"
-
-
-def test_profile_directions_round_trip_through_lp(tmp_path):
-    p = Profile(rig="x", lights=Lights(nominal_light_directions(), np.ones((12, 3))))
-    path = write_profile_lp(p, tmp_path / "lights.lp")
-    lights, names = lights_from_lp(path)
-    assert names[3] == "hdr/light_03.exr"
-    np.testing.assert_allclose(lights.directions, p.lights.directions, atol=1e-9)

@@ -6,12 +6,12 @@ import pytest
 
 from facette.calib.mirror_sphere import mirror_sphere_directions
 from facette.calib.spectralon import spectralon_intensities
-from facette.calib.targets import (SIM_TARGETS, channel_reflectance, render_target, restore_scene,
-                                   show_target, target_scene)
-from facette.calib.wizard import angle_deg
+from facette.calib.checks import angle_deg
+from facette.calib.targets import channel_reflectance
 from facette.sim.lights import thesis_leds
 from facette.sim.render import radiance_per_led
 from facette.sim.scene import make_scene
+from facette.sim.targets import SIM_TARGETS, render_target, restore_scene, show_target, target_scene
 
 
 def _sim(shape=(48, 64), scale=20.0, **led_kw):
@@ -57,3 +57,16 @@ def test_show_and_restore_swap_what_the_camera_sees():
     with pytest.raises(ValueError, match="unknown target"):
         target_scene("grey_card", (8, 8), 1.0)
     assert "spectralon" in SIM_TARGETS
+
+
+def test_target_faults_show_the_empty_table_or_an_overexposed_target():
+    sim = _sim()
+    empty = show_target(sim, "none")
+    empty_radiance = sim.camera.radiance
+    assert show_target(sim, "spectralon", fault="missing").name == empty.name
+    np.testing.assert_array_equal(sim.camera.radiance, empty_radiance)
+    bright, _ = render_target(sim, "spectralon")
+    show_target(sim, "spectralon", fault="overexposed")
+    np.testing.assert_allclose(sim.camera.radiance, 300.0 * bright)
+    with pytest.raises(ValueError, match="unknown target fault"):
+        show_target(sim, "spectralon", fault="smudged")

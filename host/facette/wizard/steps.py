@@ -1,4 +1,4 @@
-"""The calibration wizard (`facette calibrate`): steps, checks, profile.
+"""The calibration wizard's step sequence (`facette calibrate`): steps, checks, profile.
 
 Steps, in order (each guided: place the target, press the button / Enter):
 
@@ -17,7 +17,7 @@ The result is a versioned, checksummed profile (`facette.calib.save`), the
 previous one kept. `check_profile` re-measures directions and intensities and
 reports the drift against an existing profile.
 
-The station (`RigStation`) is what captures: a `facette.device.Rig` (a real rig,
+The station (`facette.wizard.station.RigStation`) is what captures: a `facette.device.Rig` (a real rig,
 or ``facette.connect("sim")`` whose simulator shows each target by itself).
 """
 from __future__ import annotations
@@ -25,22 +25,24 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
 
+from facette._data import profiles_dir
+from facette.calib.checks import Tolerances, WizardError, angle_deg, check_exposure
+from facette.calib.lp import write_profile_lp
 from facette.calib.matte_sphere import matte_sphere_directions
 from facette.calib.mirror_sphere import (directions_from_origin, light_positions_from_rays,
                                          mirror_sphere_directions, sphere_rays)
-from facette.calib.profile import SENSOR_KEYS, Lights, Profile, nominal_light_directions, save
+from facette.calib.profile import Lights, Profile, nominal_light_directions, save
 from facette.calib.spectralon import flat_field, led_current_gains, spectralon_intensities, target_mask
-from facette.calib.targets import TARGETS_DIR, channel_reflectance, load_target
+from facette.calib.targets import channel_reflectance, load_target
+from facette.camera.sensor import SENSOR_KEYS, SensorModel
+from facette.hdr import estimate_sensor_ptc_files
 
-__all__ = ["Wizard", "WizardError", "RigStation", "Tolerances", "STEPS", "BRACKETS_US",
-           "check_exposure", "angle_deg"]
+__all__ = ["Wizard", "STEPS", "BRACKETS_US", "DARK_US", "FLAT_US"]
 
-PROFILES_DIR = TARGETS_DIR.parent / "profiles"     # calibration/profiles/ of the repository
 STEPS = ("noise", "mirror", "positions", "matte", "spectralon", "gains")
 # Exposure brackets per target (µs), at the wizard's LED current: the sphere's
 # highlight is ~100× brighter than the Spectralon, hence its short end.
@@ -52,225 +54,6 @@ BRACKETS_US = {
 DARK_US = (100_000, 100_000, 2_000_000, 2_000_000)
 FLAT_US = (10_000, 30_000, 100_000, 300_000, 600_000, 1_200_000, 2_400_000, 4_000_000)
 
-INSTRUCTIONS = {
-    "lens_cap": "Put the lens cap on (dark frames for the camera's noise).",
-    "spectralon": "Lens cap off. Lay the Spectralon flat under the camera, filling the field "
-                  "(nothing else in view).",
-    "mirror_sphere": "Lens cap off. Place the chrome sphere on its black collar at the centre of the field, "
-                     "on the grey card (nothing else in view).",
-    "mirror_sphere_2": "Move the chrome sphere to {dx:+.0f} mm from the centre, sideways (keep it on the card, "
-                       "fully in view).",
-    "matte_sphere": "Lens cap off. Place the matte sphere at the centre of the field (nothing else in view).",
-}
-
-
-class WizardError(RuntimeError):
-    """A calibration step failed its check; the message says what was wrong and what to do."""
-
-
-@dataclasses.dataclass
-class Tolerances:
-    """Acceptance limits of the wizard's checks."""
-    saturated_fraction: float = 0.002     # of the target, saturated in every exposure
-    min_signal: float = 0.08              # target level at the longest exposure, of full scale
-    min_coverage: float = 0.8             # Spectralon: fraction of the frame it must fill
-    nonuniformity: float = 0.05           # Spectralon: residual after flat field (rel. std)
-    outline_rms_px: float = 0.5           # sphere outline fit
-    nominal_deg: float = 10.0             # a direction this far from nominal: miswired LED
-    matte_vs_mirror_deg: float = 1.5      # cross-check (a near LED shades a 76 mm sphere unevenly: ~1°)
-    gain_spread: float = 0.01             # after equalisation: max/min − 1 of the LEDs
-    ptc_fit: float = 0.10                 # relative rms of the photon transfer fit
-    drift_intensity: float = 0.02         # --check: relative intensity change
-    drift_deg: float = 0.5                # --check: direction change
-
-
-def angle_deg(a, b):
-    """Angle in degrees between unit vectors a and b (..., 3)."""
-    return np.degrees(np.arccos(np.clip(np.sum(np.asarray(a) * np.asarray(b), axis=-1), -1, 1)))
-
-
-def _pct(x):
-    """A fraction as a percentage with two significant digits, never in e-notation."""
-    p = 100.0 * float(x)
-    return f"{p:.0f} %" if p >= 10 else f"{p:.2g} %"
-
-
-def check_exposure(images, longest_us, shortest_us, current_mA, full_scale_dn, what, mask=None,
-                   tol=Tolerances()):
-    """Is a target's HDR capture usable? Raises WizardError saying why not.
-
-    images : (m, H, W, 3) radiance, DN/(µs·mA) (facette.hdr.HDR_UNIT).
-    A pixel brighter than the shortest exposure's saturation level is saturated in
-    every exposure (its value is a lower bound): overexposed. A target whose level
-    at the longest exposure is under `min_signal` of full scale is missing (or the
-    LED is off). Returns (level at the longest exposure (m,), saturated fraction (m,)).
-    """
-    img = np.asarray(images)
-    m = len(img)
-    sel = np.ones(img.shape[1:3], bool) if mask is None else np.asarray(mask, bool)
-    sat_level = full_scale_dn / (shortest_us * current_mA)
-    lum = img.max(axis=3)
-    sat = np.array([(lum[i][sel] >= 0.95 * sat_level).mean() for i in range(m)])
-    level = np.array([np.percentile(lum[i][sel], 99) for i in range(m)]) * longest_us * current_mA / full_scale_dn
-    over = np.flatnonzero(sat > tol.saturated_fraction)
-    if over.size:
-        i = int(over[np.argmax(sat[over])])
-        raise WizardError(
-            f"{what}: overexposed — {_pct(sat[i])} of the image is saturated even at the shortest "
-            f"exposure ({shortest_us / 1e6:g} s at {current_mA} mA) under LED(s) {over.tolist()}. "
-            "Shorten the exposures (--exposures) or lower the LED current (--current), then run the "
-            "step again.")
-    dark = np.flatnonzero(level < tol.min_signal)
-    if dark.size == m:
-        raise WizardError(
-            f"{what}: not found — the image is dark ({100 * level.max():.1f} % of full scale at "
-            f"{longest_us / 1e6:g} s, {current_mA} mA, under every LED). Place the target under the "
-            "camera (see the instruction above), check that the LEDs light and the lens cap is off, "
-            "then run the step again.")
-    if dark.size:
-        raise WizardError(
-            f"{what}: LED(s) {dark.tolist()} gave almost no light ({np.round(100 * level[dark], 1).tolist()} % "
-            "of full scale): check those LEDs and their wiring (`facette device faults`), then run "
-            "the step again.")
-    return level, sat
-
-
-class RigStation:
-    """Captures for the wizard through a `facette.device.Rig`.
-
-    rig : a connected Rig (``facette.connect("sim")`` or a real device with a camera)
-    workdir : folder for the captures (one scan directory per capture)
-    attended : ask the person to confirm each placement (Enter); False for --yes
-    out : print-like callable; ask : input-like callable
-    sim_faults : {target: "missing" | "overexposed"}: the simulated rig shows the
-        empty table, or a target 300× too bright, instead of that target (demonstrations)
-    """
-
-    def __init__(self, rig, workdir, attended=True, out=print, ask=input, sim_faults=None,
-                 n_leds=12, light_current_mA=500, button=False):
-        self.rig = rig
-        self.workdir = Path(workdir)
-        self.workdir.mkdir(parents=True, exist_ok=True)
-        self.attended = attended
-        self.out = out
-        self.ask = ask
-        self.sim_faults = dict(sim_faults or {})
-        self.n_leds = int(n_leds)
-        self.current_mA = int(light_current_mA)
-        self.n = 0
-        self.button = bool(button)  # the person starts each capture with the rig's button
-        self._wait_button = False
-        self.sensor = None          # set by the noise step (a SensorModel)
-        ident = rig.identity
-        self.rig_name = "sim-default" if rig.sim is not None else f"rig-{ident.get('serial_number', 0)}"
-        self.full_scale_dn = 16383 - 512
-
-    # -- targets -------------------------------------------------------------------------
-    def place(self, kind, instruction=None, **sim_kw):
-        self.out(f"  → {instruction or INSTRUCTIONS.get(kind, kind)}")
-        if self.rig.sim is not None:
-            from facette.calib.targets import show_target
-
-            fault = self.sim_faults.get(kind.split("#")[0])
-            shown = "none" if fault == "missing" else kind.split("#")[0]
-            show_target(self.rig.sim, shown, **sim_kw)
-            if fault == "overexposed":
-                self.rig.sim.camera.radiance = self.rig.sim.camera.radiance * 300.0
-        if self.button:
-            self._wait_button = True
-            self.out("    then press the rig's button to take the pictures")
-        elif self.attended:
-            self.ask("    press Enter when it is in place (Ctrl-C stops; nothing is written) ")
-
-    def restore(self):
-        if self.rig.sim is not None:
-            from facette.calib.targets import restore_scene
-
-            restore_scene(self.rig.sim)
-
-    # -- captures ------------------------------------------------------------------------
-    def _scan(self, name, exposures, lights):
-        from facette.scan.acquire import run_scan
-
-        self.n += 1
-        d = self.workdir / f"{self.n:02d}-{name}"
-        while d.exists():             # a capture folder is never reused: each is one scan
-            self.n += 1
-            d = self.workdir / f"{self.n:02d}-{name}"
-        button = None
-        if self._wait_button:
-            # the simulated rig presses its own button; a person presses a real one
-            button = "press" if self.rig.sim is not None else "wait"
-            self._wait_button = False
-        run_scan(self.rig, d, exposures=list(exposures), lights=list(lights),
-                 light_current_mA=self.current_mA, mode="camera", progress=False, save_truth=False,
-                 button=button)
-        return d
-
-    def capture(self, name, exposures, current="measured"):
-        """HDR images (m, H, W, 3) in DN/(µs·mA) of every LED, merged with the station's
-        sensor model; `current` "measured" (the LED's own efficiency) or "set" (what
-        the host asked for: shows the effect of the calibration gains)."""
-        from facette.scan import MissingFrameWarning, load_hdr, merge_scan
-
-        d = self._scan(name, exposures, range(self.n_leds))
-        with warnings.catch_warnings():
-            # a calibration capture is merged only when complete
-            warnings.simplefilter("error", MissingFrameWarning)
-            try:
-                merge_scan(d, sensor=self.sensor, current=current)
-            except MissingFrameWarning as exc:
-                raise WizardError(f"{name}: a frame is missing ({exc}): check the camera's card and "
-                                  "tether, then run the step again") from None
-        images, _, _ = load_hdr(d, sensor=self.sensor, merge_missing=False)
-        return np.asarray(images, np.float32), d
-
-    def capture_raw(self, name, exposures, light=0):
-        """RAW files of one LED at each exposure, in order (paths)."""
-        d = self._scan(name, exposures, [light])
-        from facette.scan import read_scan_manifest
-
-        frames = sorted(read_scan_manifest(d)["frames"], key=lambda f: int(f["exposure"]))
-        return [d / f["file"] for f in frames]
-
-    # -- device calibration store --------------------------------------------------------
-    def gains(self):
-        return list(self.rig.gains())
-
-    def set_gains(self, gains):
-        """Write the gains and store them in flash (Rig.set_gains: unlock, write, SAVE)."""
-        from facette.device.client import DeviceException
-
-        try:
-            self.rig.set_gains(gains, save=True)
-        except DeviceException as exc:
-            raise WizardError(f"LED gains: the device refused them ({exc}); check "
-                              "`facette device faults`, then run `facette calibrate --only "
-                              "spectralon,gains`") from exc
-
-    def reboot(self):
-        """Reboot the device and wait until it answers again; returns the new boot count."""
-        from facette.device.client import DeviceError, DeviceReset
-
-        dev = self.rig.device
-        before = dev.check_reset()
-        try:
-            self.rig.reboot()
-        except (DeviceError, OSError):
-            pass                      # the answer may be lost in the reboot
-        deadline = time.monotonic() + 20.0
-        while True:
-            try:
-                if dev.check_reset() != before:
-                    return dev.boot_count
-            except DeviceReset as exc:
-                return exc.new_boot
-            except (DeviceError, OSError):
-                pass
-            if time.monotonic() > deadline:
-                raise WizardError("the device did not come back within 20 s after its reboot: check "
-                                  "its power and cable, then run `facette calibrate --only gains`")
-            time.sleep(0.02)
 
 
 class Wizard:
@@ -317,8 +100,6 @@ class Wizard:
     # -- helpers -----------------------------------------------------------------------------
     def _use_sensor(self, sensor):
         """Merge the captures with this noise model (a profile `sensor` dict)."""
-        from facette.camera.sensor import SensorModel
-
         self.st.sensor = SensorModel.from_profile_dict(sensor)
         self.st.full_scale_dn = float(sensor["white_level_dn"] - sensor["black_level_dn"])
 
@@ -343,8 +124,6 @@ class Wizard:
 
     # -- steps -----------------------------------------------------------------------------
     def step_noise(self):
-        from facette.hdr import estimate_sensor_ptc_files
-
         self._say("Step: camera noise (photon transfer curve, thesis eq 2.12–2.13)")
         self.st.place("lens_cap")
         darks = self.st.capture_raw("dark", DARK_US)
@@ -572,10 +351,8 @@ class Wizard:
                        sensor=self.sensor, flat_field=self.flat, led_gains=self.gains,
                        radiometric_scale=self.radiometric_scale,
                        history=[f"{now} facette calibrate: {', '.join(self.steps)}"] + self.history)
-        folder = Path(folder) if folder else PROFILES_DIR / rig_name
+        folder = Path(folder) if folder else profiles_dir() / rig_name
         path = save(prof, folder)
-        from facette.calib.lp import write_profile_lp
-
         # the same directions for the RTI world (RTIBuilder, relight): one .lp per profile
         write_profile_lp(prof, folder / f"lights-{prof.id}.lp")
         self._say()
