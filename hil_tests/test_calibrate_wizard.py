@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from facette.calib import load
-from facette.calib.wizard import RigStation, Wizard, WizardError, angle_deg
+from facette.wizard import RigStation, Wizard, WizardError, angle_deg
 from facette.cli.main import main
 from facette.device.client import DeviceClient
-from facette.device.rig import Rig
+from facette.scan.rig import Rig
 from facette.sim.device_process import SimulatedDevice
 
 

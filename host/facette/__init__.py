@@ -11,10 +11,11 @@ import importlib
 
 __version__ = "0.1.0"
 
-_SUBPACKAGES = ("device", "sim", "camera", "hdr", "calib", "recon", "reflect", "brdf", "fit",
-                "pipeline", "io", "cli", "bench")
+# Lowest layer first (docs/ARCHITECTURE.md).
+_SUBPACKAGES = ("device", "camera", "io", "hdr", "recon", "reflect", "brdf", "fit", "calib", "sim",
+                "scan", "pipeline", "wizard", "cli", "bench")
 # Top-level conveniences, resolved on first use so `import facette` stays fast.
-_SHORTCUTS = {"connect": ("facette.device", "connect"), "process": ("facette.pipeline", "process")}
+_SHORTCUTS = {"connect": ("facette.scan", "connect"), "process": ("facette.pipeline", "process")}
 
 __all__ = list(_SUBPACKAGES) + list(_SHORTCUTS)
 

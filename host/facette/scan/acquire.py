@@ -21,7 +21,11 @@ import os
 import time
 from pathlib import Path
 
+from facette.calib import load as load_profile
+from facette.calib import nominal_light_directions
 from facette.camera.folder import CameraTimeout
+from facette.camera.raw import read_exposure_metadata
+from facette.device.client import DeviceReset, DeviceTimeout
 from facette.scan.directory import ScanDirectory, ScanDirectoryError, frame_name, sha256_file
 
 __all__ = ["run_scan", "ScanPlan", "ScanError", "ScanAborted", "THESIS_BRACKET_US", "default_plan"]
@@ -83,9 +87,7 @@ def default_plan(n_leds=12, exposures=None, lights=None, light_current_mA=500, m
 def _load_profile(profile):
     if profile is None or hasattr(profile, "lights"):
         return profile
-    from facette.calib import load
-
-    return load(profile)
+    return load_profile(profile)
 
 
 def _profile_section(profile):
@@ -99,8 +101,6 @@ def _profile_section(profile):
 
 
 def _lights_section(plan, profile):
-    from facette.calib import nominal_light_directions
-
     nominal = nominal_light_directions()
     out = []
     for i, ch in enumerate(plan.lights):
@@ -180,8 +180,6 @@ class _Acquisition:
         if self.plan.mode in ("camera", "bulb"):
             # the file's own exposure time must be the record's: a mismatch means a frame
             # without a record (or a camera set otherwise); never file it under the wrong name
-            from facette.camera.raw import read_exposure_metadata
-
             et, _, _ = read_exposure_metadata(src)
             if et is not None and abs(et * 1e6 - t_us) > max(0.05 * t_us, 1000):
                 kept = self.keep_unmatched(src, f"exposure {et:g} s, the frame record says {t_us / 1e6:g} s "
@@ -278,8 +276,6 @@ class _Acquisition:
         else:
             rig.start()
         seen, end_us = 0, 0
-        from facette.device.client import DeviceReset, DeviceTimeout
-
         link_down_since = None
         while True:
             try:
@@ -368,7 +364,7 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
 
     Parameters
     ----------
-    rig : facette.device.Rig with a camera backend (`rig.camera`)
+    rig : facette.scan.Rig with a camera backend (`rig.camera`)
     directory : path of the scan directory (created; an existing one with the same
         plan is resumed, one with another plan is refused)
     profile : facette.calib.Profile, its folder, or None (nominal light directions)

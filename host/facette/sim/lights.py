@@ -12,6 +12,8 @@ import dataclasses
 
 import numpy as np
 
+from facette.calib import nominal_light_directions
+
 __all__ = ["LedArray", "thesis_leds", "THESIS_DISTANCE_MM"]
 
 THESIS_DISTANCE_MM = 1500.0
@@ -67,8 +69,6 @@ def thesis_leds(direction_error_deg=0.5, intensity_error=0.05, near=False,
     distance_mm : float > 0, LED distance from the object centre, mm (thesis: ~1.5 m)
     seed : int
     """
-    from facette.calib import nominal_light_directions
-
     if direction_error_deg < 0 or intensity_error < 0 or not distance_mm > 0:
         raise ValueError("direction_error_deg and intensity_error must be >= 0 and distance_mm > 0")
     rng = np.random.default_rng(seed)

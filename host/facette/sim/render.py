@@ -17,56 +17,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["radiance_per_led", "brdf_function", "cook_torrance_shim", "cast_shadow_visibility",
-           "to_local"]
+from facette.brdf import get as brdf_get
 
-
-def cook_torrance_shim(s, o, kd=0.5, sigma=0.1, n_i=1.3):
-    """Cook–Torrance (thesis §2.x, [CT82]): K_d/π + F D G / (4 cosθs cosθo).
-
-    Beckmann D with roughness `sigma` (RMS slope), Torrance–Sparrow V-cavity G,
-    unpolarised dielectric Fresnel of relative index `n_i` (thesis eq 3.7–3.9).
-    `s`, `o` : (..., 3) unit vectors in the local frame (normal +z). `kd` : scalar
-    or length-C sequence. Returns (...) or (..., C), 1/sr, 0 below the horizon.
-    Private stand-in used only until facette.brdf provides "cook_torrance".
-    """
-    s, o = np.asarray(s, float), np.asarray(o, float)
-    kd = np.asarray(kd, float)
-    cs, co = s[..., 2], o[..., 2]
-    h = s + o
-    h = h / np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-12)
-    ch = np.clip(h[..., 2], 1e-6, 1.0)
-    c = np.clip(np.sum(s * h, axis=-1), 0.0, 1.0)
-    g = np.sqrt(np.maximum(n_i ** 2 + c ** 2 - 1.0, 0.0))
-    f_num = (g - c) ** 2 / np.maximum((g + c) ** 2, 1e-12)
-    fres = 0.5 * f_num * (1.0 + ((c * (g + c) - 1.0) / (c * (g - c) + 1.0)) ** 2)
-    sigma = max(float(sigma), 1e-4)
-    tan2 = (1.0 - ch ** 2) / ch ** 2
-    d = np.exp(-tan2 / sigma ** 2) / (np.pi * sigma ** 2 * ch ** 4)
-    oh = np.maximum(np.sum(o * h, axis=-1), 1e-12)
-    geo = np.minimum(1.0, np.minimum(2 * ch * np.maximum(co, 0) / oh, 2 * ch * np.maximum(cs, 0) / oh))
-    above = (cs > 0) & (co > 0)
-    spec = np.where(above, fres * d * geo / np.maximum(4 * cs * co, 1e-12), 0.0)
-    if kd.ndim:
-        return np.where(above[..., None], kd / np.pi, 0.0) + spec[..., None]
-    return np.where(above, kd / np.pi, 0.0) + spec
+__all__ = ["radiance_per_led", "brdf_function", "cast_shadow_visibility", "to_local"]
 
 
 def brdf_function(name):
-    """The BRDF callable for `name`: facette.brdf.get(name) when that package exists,
-    else the private Cook–Torrance shim (only for "cook_torrance" and "lambert")."""
-    try:
-        from facette.brdf import get
-    except ImportError:
-        get = None
-    if get is not None:
-        return get(name)
-    if name == "cook_torrance":
-        return cook_torrance_shim
-    if name == "lambert":
-        return lambda s, o, kd=0.5: cook_torrance_shim(s, o, kd=kd, sigma=1.0, n_i=1.0)
-    raise ValueError(f"BRDF {name!r} needs facette.brdf, which is not installed yet; "
-                     "use 'cook_torrance' or 'lambert'")
+    """The BRDF callable for `name` (a `facette.brdf.MODELS` name)."""
+    return brdf_get(name)
 
 
 def to_local(v, n):

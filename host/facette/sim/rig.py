@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from facette.camera.sensor import DEFAULT_SENSOR, bayer_mosaic_rggb
+from facette.sim.dng import write_dng
 
 __all__ = ["RigSimulator", "SimCamera", "Faults", "SideChannelError"]
 
@@ -107,8 +108,6 @@ class SimCamera:
     def expose(self, charges_mA_us, t_s, extra=None):
         """Take one frame; `charges_mA_us` : (m,) LED current × time inside the window.
         Returns the path written."""
-        from facette.sim.dng import write_dng
-
         q = np.asarray(charges_mA_us, dtype=np.float64)
         electrons = np.tensordot(q, self.radiance, axes=(0, 0))          # (H, W, 3)
         mosaic = self.sensor.expose_charge(bayer_mosaic_rggb(electrons), max(t_s, 1e-6), self.rng)

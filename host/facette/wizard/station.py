@@ -36,7 +36,7 @@ INSTRUCTIONS = {
 
 
 class RigStation:
-    """Captures for the wizard through a `facette.device.Rig`.
+    """Captures for the wizard through a `facette.scan.Rig`.
 
     rig : a connected Rig (``facette.connect("sim")`` or a real device with a camera)
     workdir : folder for the captures (one scan directory per capture)

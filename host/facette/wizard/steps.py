@@ -17,7 +17,7 @@ The result is a versioned, checksummed profile (`facette.calib.save`), the
 previous one kept. `check_profile` re-measures directions and intensities and
 reports the drift against an existing profile.
 
-The station (`facette.wizard.station.RigStation`) is what captures: a `facette.device.Rig` (a real rig,
+The station (`facette.wizard.station.RigStation`) is what captures: a `facette.scan.Rig` (a real rig,
 or ``facette.connect("sim")`` whose simulator shows each target by itself).
 """
 from __future__ import annotations

@@ -1,4 +1,7 @@
-"""`Rig`: the instrument as a user scripts it (DESIGN §6).
+"""`Rig`: the instrument as a user scripts it (DESIGN §6): the device's registers, a
+camera backend and, for "sim", the simulated rig; `Rig.scan` acquires a scan directory.
+It sits in the scan layer because it brings these together (the device layer below
+knows only the Modbus client and the register map).
 
     rig = facette.connect("sim")              # or "/dev/ttyACM0", "socket://127.0.0.1:5020"
     rig.configure(exposures=[(1_000_000, 500)], lights=range(12))
@@ -8,8 +11,11 @@ from __future__ import annotations
 
 import time
 
+from facette.camera import FolderWatchCamera
 from facette.device import registers as R
 from facette.device.client import DeviceClient, DeviceError, DeviceException
+from facette.scan.acquire import run_scan
+from facette.sim import SimulatedRig
 
 __all__ = ["Rig", "connect", "decode_frame_record", "TIMING_MODES", "RigFault"]
 
@@ -233,8 +239,6 @@ class Rig:
 
     def scan(self, directory, profile=None, **kw):
         """Acquire a scan into `directory` (resumable); see facette.scan.run_scan."""
-        from facette.scan import run_scan
-
         return run_scan(self, directory, profile=profile, **kw)
 
     def close(self):
@@ -267,9 +271,6 @@ def connect(target="sim", camera=None, **kw):
         otherwise options of DeviceClient (timeout_s, retries, check_hash, baudrate)
     """
     if target == "sim":
-        from facette.camera import FolderWatchCamera
-        from facette.sim import SimulatedRig
-
         client_kw = {k: kw.pop(k) for k in ("timeout_s", "retries", "check_hash") if k in kw}
         sim = SimulatedRig(**kw)
         try:
