@@ -21,6 +21,7 @@ import numpy as np
 
 import facette.brdf as B
 from facette.fit import fit_brdf, fit_hemisphere_cells
+from facette.reflect import HemisphereSensor
 
 __all__ = ["main"]
 
@@ -296,7 +297,6 @@ def bench_fit(quick, rng, out):
 
 def bench_thesis(quick, rng, out):
     print("\n# 3. thesis test: Cook–Torrance K_d = 0.5, n_i = 1.3, noisy, filtered at θ0 = 3°, then fitted")
-    from facette.reflect import HemisphereSensor
     sensor0 = HemisphereSensor(3.0, channels=1)
     _, mid = sensor0.centres()
     # incidences: 12 ring centres between 10° and 70° (12 lights, as the rig)

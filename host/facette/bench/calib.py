@@ -17,10 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
+import facette
+from facette.calib import Lights, Profile, nominal_light_directions, save
+from facette.pipeline import process
+from facette.wizard import RigStation, Wizard, WizardError, angle_deg
+
 
 def _pipeline_errors(scan_dir, methods=("hierarchical_tautzia2016", "woodham1980")):
-    from facette.pipeline import process
-
     out = {}
     for meth in methods:
         t0 = time.perf_counter()
@@ -32,8 +35,6 @@ def _pipeline_errors(scan_dir, methods=("hierarchical_tautzia2016", "woodham1980
 
 def _compare_pipeline(args, work, profiles):
     """Scan each scene on a rig with the same LED errors, with each profile, and process."""
-    import facette
-
     rows = []
     for scene_label, brdf in (("Lambertian plaque+sphere", {"model": "lambert", "params": {}}),
                               ("glossy plaque+sphere (Cook–Torrance σ 0.1, n_i 1.3)", None)):
@@ -63,10 +64,6 @@ def main(argv=None):
     ap.add_argument("--transcript", action="store_true", help="print the wizard's whole transcript")
     ap.add_argument("--quick", action="store_true", help="skip the pipeline comparison and the fault demos")
     args = ap.parse_args(argv)
-
-    import facette
-    from facette.calib import Lights, Profile, nominal_light_directions, save
-    from facette.wizard import RigStation, Wizard, WizardError, angle_deg
 
     work = Path(tempfile.mkdtemp(prefix="facette-bench-calib-"))
     rig = facette.connect("sim", direction_error_deg=args.direction_error, intensity_error=args.intensity_error,

@@ -21,8 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-from facette.hdr import bracket_fixed, merge, plan_adaptive
+from facette.camera.raw import read_raw
 from facette.camera.sensor import SensorModel, bayer_mosaic_rggb
+from facette.hdr import bracket_fixed, merge, plan_adaptive, predicted_snr
+from facette.sim.dng import write_dng
+from facette.sim.lights import thesis_leds
+from facette.sim.render import radiance_per_led
+from facette.sim.scene import make_scene
 
 CURRENT_MA = 500  # the fixed bracket's LED current (register default light_current_mA)
 
@@ -155,9 +160,6 @@ def bench_methods(sensor, h, w, seed):
 def rig_default_scene(h, w, sensor, seed=0):
     """The simulated rig's default scene (facette.sim: plaque_sphere, thesis LEDs, its exposure
     scale), as radiance per µs·mA in black-subtracted DN, (12, h, w, 3), and its object mask."""
-    from facette.sim.lights import thesis_leds
-    from facette.sim.render import radiance_per_led
-    from facette.sim.scene import make_scene
     scene = make_scene("plaque_sphere", (h, w), seed=seed)
     leds = thesis_leds(0.5, 0.05, seed=seed + 1)
     return radiance_per_led(scene, leds) / sensor.gain_e_per_dn, np.asarray(scene.mask, bool)
@@ -187,7 +189,6 @@ def bench_bracketing(sensor, h, w, seed, target_db, scene="synthetic"):
                       mode="led", shared=True), meter_time)
 
     # Adaptive matched to the fixed bracket's predicted SNR at every radiance (+0.5 dB).
-    from facette.hdr import predicted_snr
     ks_fixed = [t * i for t, i in fixed.exposures[0]]
 
     def match(x):
@@ -228,8 +229,6 @@ def bench_bracketing(sensor, h, w, seed, target_db, scene="synthetic"):
 
 
 def bench_12mp(sensor, seed):
-    from facette.camera.raw import read_raw
-    from facette.sim.dng import write_dng
     rng = np.random.default_rng(seed)
     h, w = 2848 // 2, 4288 // 2
     rad = np.exp(rng.uniform(np.log(1e-7), np.log(2e-3), size=(h, w, 3)))

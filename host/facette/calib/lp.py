@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from facette.calib.profile import Lights
+
 __all__ = ["read_lp", "write_lp", "lights_from_lp", "write_profile_lp"]
 
 
@@ -68,8 +70,6 @@ def write_lp(path, filenames, vectors):
 def lights_from_lp(path):
     """`facette.calib.Lights` from an .lp file: its unit directions, unit intensities
     (an .lp file carries no intensity). Returns (Lights, filenames)."""
-    from facette.calib.profile import Lights
-
     names, dirs = read_lp(path)
     return Lights(dirs, np.ones((len(dirs), 3))), names
 

@@ -32,6 +32,7 @@ import numpy as np
 
 from facette.camera.sensor import SENSOR_KEYS
 from facette.io.checksum import sha256_file
+from facette.io.exr import read_exr, write_exr
 
 __all__ = ["Profile", "Lights", "load", "save", "nominal_light_directions", "SCHEMA_VERSION",
            "ProfileError"]
@@ -138,8 +139,6 @@ def save(profile, folder, keep_previous=True):
     An existing profile is renamed ``profile-<its id>.json`` first, so the wizard
     never loses the previous calibration. Returns the path written.
     """
-    from facette.io.exr import write_exr
-
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     if not profile.created:
@@ -177,8 +176,6 @@ def load(path):
     Raises ProfileError saying what is wrong when the file is missing, not JSON,
     of another schema version, or does not match its checksum.
     """
-    from facette.io.exr import read_exr
-
     path = Path(path)
     file = path / PROFILE_FILE if path.is_dir() else path
     if not file.is_file():

@@ -24,7 +24,10 @@ __all__ = ["BracketPlan", "BRACKETS", "bracket_fixed", "plan_adaptive", "predict
            "frame_overhead_s", "DEFAULT_TIMING"]
 
 # Named fixed brackets, exposure times in seconds.
-BRACKETS = {"thesis2016": (15.0, 10.0, 2.0, 1.0, 1 / 5, 1 / 15, 1 / 30)}
+# The thesis's fixed bracket (§4.3.2), the one source of it: 15, 10, 2, 1, 1/5, 1/15, 1/30 s.
+THESIS_BRACKET_S = (15.0, 10.0, 2.0, 1.0, 1 / 5, 1 / 15, 1 / 30)
+THESIS_BRACKET_US = tuple(int(round(t * 1e6)) for t in THESIS_BRACKET_S)
+BRACKETS = {"thesis2016": THESIS_BRACKET_S}
 
 # Per-frame overheads of the device's scan (register defaults, protocol/registers.toml), s.
 DEFAULT_TIMING = {"settle_s": 0.1, "gap_s": 0.2, "led_pre_s": 0.1, "led_post_s": 0.05}

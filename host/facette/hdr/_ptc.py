@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from facette.camera.raw import read_exposure_metadata, read_raw_mosaic
 from facette.camera.sensor import SensorModel
 
 __all__ = ["PTCResult", "estimate_sensor_ptc", "estimate_sensor_ptc_files", "ptc_points"]
@@ -202,8 +203,6 @@ def estimate_sensor_ptc_files(dark_files, flat_files, **kwargs):
 
     dark_files, flat_files : sequences of paths, in capture order.
     """
-    from facette.camera.raw import read_exposure_metadata, read_raw_mosaic
-
     def pairs(files, what):
         out, pending = [], None
         white = None

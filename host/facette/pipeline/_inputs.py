@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from facette.calib import ProfileError, apply_flat_field, load
 from facette.io.diligent import is_diligent_dir, read_diligent
 from facette.io.png import read_mask
 from facette.scan import ScanDirectory, load_hdr
@@ -194,8 +195,6 @@ def _apply_profile_flat_field(images, profile_ref):
     taken with (scan.json "profile": id, sha256, path). Returns a note for the report."""
     if not profile_ref or not profile_ref.get("path"):
         return "no calibration profile recorded: no flat-field correction"
-    from facette.calib import ProfileError, apply_flat_field, load
-
     try:
         profile = load(profile_ref["path"])
     except ProfileError as exc:

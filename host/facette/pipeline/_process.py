@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from facette.fit import fit_hemisphere_cells
 from facette.io.exr import write_exr
 from facette.io.ply import write_ply
 from facette.io.png import write_mask
@@ -142,8 +143,6 @@ def _fit_stage(filtered, fit_options):
     simulated scan it gave the same parameters as quadrature within 3 % in 2.9 s instead of
     44 s; pass fit_options={"volume": "quadrature"} for the reference.
     Returns (FitResult or None, note)."""
-    from facette.fit import fit_hemisphere_cells
-
     if int((filtered.count >= 1).sum()) < 3:
         return None, "brdf: fewer than 3 filled sensor cells; nothing to fit"
     options = dict(fit_options)

@@ -26,12 +26,11 @@ from facette.calib import nominal_light_directions
 from facette.camera.folder import CameraTimeout
 from facette.camera.raw import read_exposure_metadata
 from facette.device.client import DeviceReset, DeviceTimeout
+from facette.hdr import THESIS_BRACKET_US
 from facette.scan.directory import ScanDirectory, ScanDirectoryError, frame_name, sha256_file
 
 __all__ = ["run_scan", "ScanPlan", "ScanError", "ScanAborted", "THESIS_BRACKET_US", "default_plan"]
 
-# Thesis §4.3.2 exposure bracket: 15, 10, 2, 1, 1/5, 1/15, 1/30 s.
-THESIS_BRACKET_US = (15_000_000, 10_000_000, 2_000_000, 1_000_000, 200_000, 66_667, 33_333)
 # Faults that report a past event and do not make the next scan unsafe.
 _BENIGN_FAULTS = {"HOST_SILENT", "CAL_INVALID", "WATCHDOG_RESET"}
 

@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from facette.hdr import bracket_fixed, merge, plan_adaptive, predicted_snr
+from facette.device.registers import REGISTERS
+from facette.hdr import THESIS_BRACKET_US, bracket_fixed, merge, plan_adaptive, predicted_snr
 from facette.hdr._bracket import frame_overhead_s
 from facette.camera.sensor import SensorModel, bayer_mosaic_rggb
 
@@ -126,3 +127,8 @@ def test_shared_plan_covers_every_light_and_feeds_run_scan():
     assert kw["mode"] == "led" and kw["exposures"] == shared.exposures[0] == shared.exposures[1]
     assert shared.n_frames() >= own.n_frames()
     assert all(p["target_met"] for p in shared.predicted)
+
+
+def test_the_thesis_bracket_in_us_is_the_protocol_default():
+    assert THESIS_BRACKET_US == (15_000_000, 10_000_000, 2_000_000, 1_000_000, 200_000, 66_667, 33_333)
+    assert REGISTERS["exposure_time_us"].default[:7] == THESIS_BRACKET_US

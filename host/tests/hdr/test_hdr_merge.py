@@ -2,12 +2,12 @@
 import numpy as np
 import pytest
 
-from facette.hdr import MERGE_METHODS, merge, merge_debevec1997, merge_inverse_variance
+from facette.hdr import MERGE_METHODS, THESIS_BRACKET_S, merge, merge_debevec1997, merge_inverse_variance
 from facette.camera.sensor import SensorModel, bayer_mosaic_rggb
 
 SENSOR = SensorModel()
 SAT = SENSOR.saturation_dn - SENSOR.black_level_dn
-TIMES = np.array([15, 10, 2, 1, 1 / 5, 1 / 15, 1 / 30])  # thesis bracket, s
+TIMES = np.array(THESIS_BRACKET_S)  # thesis bracket, s
 
 
 def _frames(x_dn_per_s, times, seed=0, sensor=SENSOR):
