@@ -9,7 +9,7 @@ SIM_DEVICE := $(BUILD)/posix/facette-device
 FUZZ_SECONDS ?= 300
 SCAN_OUT ?= out/scan-demo
 
-.PHONY: setup deps venv firmware-posix generate check-generated test c-test fuzz fuzz-smoke \
+.PHONY: setup deps venv firmware-posix generate check-generated check-layers test c-test fuzz fuzz-smoke \
         pytest firmware qemu-test check-fw-layers scan calibrate bench clean help
 
 help:
@@ -22,6 +22,7 @@ help:
 	@echo "make fuzz             libFuzzer on frame parsing and register writes ($(FUZZ_SECONDS) s)"
 	@echo "make bench            benchmarks: error and run time side by side"
 	@echo "make generate         regenerate protocol files from protocol/registers.toml"
+	@echo "make check-layers     host imports only go down the layers of docs/ARCHITECTURE.md"
 
 setup: deps venv firmware-posix
 
@@ -41,6 +42,11 @@ generate:
 
 check-generated:
 	python3 tools/gen_protocol.py --check
+
+# import-linter's layers contract in pyproject.toml (docs/ARCHITECTURE.md); the figures of the
+# import graph (modules per layer, cycles, imports inside functions): python3 tools/import_graph.py
+check-layers: venv
+	$(VENV)/bin/lint-imports --no-cache
 
 firmware-posix: deps
 	$(MAKE) -C firmware posix BUILD=$(abspath $(BUILD))
@@ -66,7 +72,7 @@ qemu-test: setup firmware
 pytest: setup
 	$(VENV)/bin/pytest -q
 
-test: check-generated setup c-test check-fw-layers fuzz-smoke pytest qemu-test
+test: check-generated check-layers setup c-test check-fw-layers fuzz-smoke pytest qemu-test
 
 scan: setup
 	$(FACETTE) scan --sim --press-button $(SCAN_OUT)
