@@ -1,12 +1,10 @@
-"""16-bit PNG codec, PLY meshes and DiLiGenT-style folders."""
+"""facette.io.png: 8- and 16-bit PNG read/write, masks and errors."""
 import struct
 import zlib
 
 import numpy as np
 import pytest
 
-from facette.io.diligent import is_diligent_dir, read_diligent, write_diligent
-from facette.io.ply import read_ply, write_ply
 from facette.io.png import read_mask, read_png, write_mask, write_png
 
 
@@ -54,37 +52,3 @@ def test_png_8bit_grey_mask_and_errors(tmp_path):
         read_png(tmp_path / "bad.png")
     with pytest.raises(FileNotFoundError):
         read_png(tmp_path / "missing.png")
-
-
-@pytest.mark.parametrize("binary", [True, False])
-def test_ply_roundtrip(tmp_path, binary):
-    v = np.array([[0, 0, 0], [1, 0, 0.5], [0, 1, 0.25], [1, 1, 1]], np.float32)
-    f = np.array([[0, 2, 1], [1, 2, 3]], np.int32)
-    write_ply(tmp_path / "m.ply", v, f, binary=binary)
-    v2, f2 = read_ply(tmp_path / "m.ply")
-    np.testing.assert_allclose(v2, v)
-    assert np.array_equal(f2, f)
-    with pytest.raises(ValueError, match="face indices"):
-        write_ply(tmp_path / "bad.ply", v, f + 3)
-
-
-def test_diligent_folder_roundtrip_divides_by_intensities(tmp_path):
-    rng = np.random.default_rng(3)
-    imgs = (rng.random((5, 6, 8, 3)) * 60000).astype(np.uint16)
-    imgs[2, 3, 4, 1] = 65535                       # a saturated value
-    dirs = rng.normal(size=(5, 3))
-    dirs[:, 2] = np.abs(dirs[:, 2]) + 1
-    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    inten = rng.random((5, 3)) + 0.5
-    mask = rng.random((6, 8)) > 0.3
-    write_diligent(tmp_path, imgs, dirs, inten, mask)
-    assert is_diligent_dir(tmp_path)
-    d = read_diligent(tmp_path)
-    expected = imgs / 65535.0 / inten[:, None, None, :]
-    expected[2, 3, 4, 1] = np.nan
-    np.testing.assert_allclose(d.images, expected, rtol=1e-6)
-    np.testing.assert_allclose(d.light_dirs, dirs, atol=1e-7)
-    assert np.array_equal(d.mask, mask)
-    (tmp_path / "light_intensities.txt").write_text("1 1 1\n")
-    with pytest.raises(ValueError, match="light_intensities.txt must hold 5 lines"):
-        read_diligent(tmp_path)

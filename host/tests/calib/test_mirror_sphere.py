@@ -1,12 +1,12 @@
+"""facette.calib.mirror_sphere: outline, highlight, light directions and positions."""
 import numpy as np
 import pytest
 
 from facette.calib import nominal_light_directions
-from facette.calib.matte_sphere import matte_sphere_directions
 from facette.calib.mirror_sphere import (Circle, fit_circle, fit_sphere_outline, highlight_centroid,
                                          light_positions_from_rays, mirror_direction,
                                          mirror_sphere_directions, sphere_mask, sphere_rays)
-from facette.calib.targets import render_matte_sphere, render_mirror_sphere
+from facette.calib.targets import render_mirror_sphere
 
 SHAPE, PITCH = (150, 180), 0.2
 CENTER, R = (88.3, 71.6), 50.4
@@ -128,18 +128,6 @@ def test_rays_intersect_exactly_when_noise_free():
         light_positions_from_rays(o[:2], np.broadcast_to([0, 0, 1.0], o[:2].shape))
 
 
-def test_matte_sphere_cross_check():
-    d = nominal_light_directions()
-    I = np.random.default_rng(3).uniform(0.85, 1.15, 12)
-    imgs = np.stack([render_matte_sphere(SHAPE, CENTER, R, PITCH, direction=l, intensity=i)
-                     for l, i in zip(d, I)])
-    dirs, inten, resid, circle = matte_sphere_directions(imgs)
-    assert _angle_deg(dirs, d).max() < 0.3
-    np.testing.assert_allclose(inten[:, 1], I / I.mean(), rtol=5e-3)
-    assert resid.max() < 0.01
-    assert abs(circle.r - R) < 0.3
-
-
 def test_directions_from_origin_remove_the_sphere_parallax():
     from facette.calib.mirror_sphere import directions_from_origin
 
@@ -162,14 +150,3 @@ def test_sphere_cut_by_the_frame_or_too_small_is_refused():
         fit_sphere_outline(sphere_mask(small), small)
     with pytest.raises(ValueError, match="finite"):
         sphere_mask(np.full(SHAPE, np.nan))
-
-
-def test_matte_sphere_edges_no_light_and_bad_shapes():
-    with pytest.raises(ValueError, match=r"\(m, H, W\)"):
-        matte_sphere_directions(np.zeros((4, 4)))
-    imgs = np.stack([render_matte_sphere(SHAPE, CENTER, R, PITCH, direction=l)
-                     for l in nominal_light_directions()[:3]])
-    dark = imgs.copy()
-    dark[1] = 0.0
-    with pytest.raises(ValueError, match="too few lit pixels"):
-        matte_sphere_directions(dark, circle=Circle(*CENTER, R))

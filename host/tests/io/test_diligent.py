@@ -1,0 +1,27 @@
+"""facette.io.diligent: DiLiGenT-style folders."""
+import numpy as np
+import pytest
+
+from facette.io.diligent import is_diligent_dir, read_diligent, write_diligent
+
+
+def test_diligent_folder_roundtrip_divides_by_intensities(tmp_path):
+    rng = np.random.default_rng(3)
+    imgs = (rng.random((5, 6, 8, 3)) * 60000).astype(np.uint16)
+    imgs[2, 3, 4, 1] = 65535                       # a saturated value
+    dirs = rng.normal(size=(5, 3))
+    dirs[:, 2] = np.abs(dirs[:, 2]) + 1
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    inten = rng.random((5, 3)) + 0.5
+    mask = rng.random((6, 8)) > 0.3
+    write_diligent(tmp_path, imgs, dirs, inten, mask)
+    assert is_diligent_dir(tmp_path)
+    d = read_diligent(tmp_path)
+    expected = imgs / 65535.0 / inten[:, None, None, :]
+    expected[2, 3, 4, 1] = np.nan
+    np.testing.assert_allclose(d.images, expected, rtol=1e-6)
+    np.testing.assert_allclose(d.light_dirs, dirs, atol=1e-7)
+    assert np.array_equal(d.mask, mask)
+    (tmp_path / "light_intensities.txt").write_text("1 1 1\n")
+    with pytest.raises(ValueError, match="light_intensities.txt must hold 5 lines"):
+        read_diligent(tmp_path)
