@@ -5,7 +5,8 @@
   frames (photon transfer curve) for the calibration profile's `sensor` section.
 - `plan_adaptive`, `bracket_fixed`: which exposures to take.
 """
-from facette.hdr._bracket import (BRACKETS, THESIS_BRACKET_S, THESIS_BRACKET_US, BracketPlan, bracket_fixed, frame_overhead_s,
+from facette.hdr._bracket import (BRACKETS, THESIS_BRACKET_S, THESIS_BRACKET_US, TIMING_MODES, BracketPlan,
+                                  bracket_fixed, frame_overhead_s,
                                   plan_adaptive, predicted_snr)
 from facette.hdr._merge import (MERGE_METHODS, HDRResult, as_sensor, merge, merge_debevec1997,
                                 merge_inverse_variance)
@@ -13,5 +14,5 @@ from facette.hdr._ptc import PTCResult, estimate_sensor_ptc, estimate_sensor_ptc
 
 __all__ = ["HDRResult", "MERGE_METHODS", "merge", "merge_inverse_variance", "merge_debevec1997",
            "as_sensor", "PTCResult", "estimate_sensor_ptc",
-           "estimate_sensor_ptc_files", "ptc_points", "BracketPlan", "BRACKETS", "THESIS_BRACKET_S", "THESIS_BRACKET_US", "bracket_fixed",
+           "estimate_sensor_ptc_files", "ptc_points", "BracketPlan", "BRACKETS", "THESIS_BRACKET_S", "THESIS_BRACKET_US", "TIMING_MODES", "bracket_fixed",
            "plan_adaptive", "predicted_snr", "frame_overhead_s"]

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from facette.device.registers import TimingMode
 from facette.hdr._merge import as_sensor
 
 __all__ = ["BracketPlan", "BRACKETS", "bracket_fixed", "plan_adaptive", "predicted_snr",
@@ -32,7 +33,8 @@ BRACKETS = {"thesis2016": THESIS_BRACKET_S}
 # Per-frame overheads of the device's scan (register defaults, protocol/registers.toml), s.
 DEFAULT_TIMING = {"settle_s": 0.1, "gap_s": 0.2, "led_pre_s": 0.1, "led_post_s": 0.05}
 
-_MODES = ("camera", "bulb", "led")
+# The rig's timing modes, from the protocol definition (enum timing_mode): camera, bulb, led.
+TIMING_MODES = tuple(m.name.lower() for m in TimingMode)
 
 
 def frame_overhead_s(mode, timing=None):
@@ -42,7 +44,7 @@ def frame_overhead_s(mode, timing=None):
         return t["led_pre_s"] + t["led_post_s"] + t["gap_s"]
     if mode in ("camera", "bulb"):
         return t["settle_s"] + t["gap_s"]
-    raise ValueError(f"unknown timing mode {mode!r}; choose from {_MODES}")
+    raise ValueError(f"unknown timing mode {mode!r}; choose from {TIMING_MODES}")
 
 
 @dataclass
@@ -134,8 +136,8 @@ def bracket_fixed(name="thesis2016", n_lights=12, current_mA=500, mode="bulb"):
     """
     if name not in BRACKETS:
         raise ValueError(f"unknown fixed bracket {name!r}; choose from {sorted(BRACKETS)}")
-    if mode not in _MODES:
-        raise ValueError(f"unknown timing mode {mode!r}; choose from {_MODES}")
+    if mode not in TIMING_MODES:
+        raise ValueError(f"unknown timing mode {mode!r}; choose from {TIMING_MODES}")
     light = [(int(round(t * 1e6)), int(current_mA)) for t in BRACKETS[name]]
     return BracketPlan(exposures=[list(light) for _ in range(int(n_lights))], mode=mode, name=name)
 
@@ -226,8 +228,8 @@ def plan_adaptive(meterings, metering_exposures, sensor=None, masks=None, *, tar
     BracketPlan (name "adaptive"), with per-light predictions.
     """
     sensor = as_sensor(sensor)
-    if mode not in _MODES:
-        raise ValueError(f"unknown timing mode {mode!r}; choose from {_MODES}")
+    if mode not in TIMING_MODES:
+        raise ValueError(f"unknown timing mode {mode!r}; choose from {TIMING_MODES}")
     meterings = [m.image if hasattr(m, "image") else np.asarray(m, dtype=np.float64)
                  for m in meterings]
     if len(meterings) != len(metering_exposures):

@@ -14,12 +14,12 @@ import time
 from facette.camera import FolderWatchCamera
 from facette.device import registers as R
 from facette.device.client import DeviceClient, DeviceError, DeviceException
+from facette.hdr import TIMING_MODES
 from facette.scan.acquire import run_scan
 from facette.sim import SimulatedRig
 
 __all__ = ["Rig", "connect", "decode_frame_record", "TIMING_MODES", "RigFault"]
 
-TIMING_MODES = ("camera", "bulb", "led")
 RING_STRIDE = 8
 
 class RigFault(DeviceError):

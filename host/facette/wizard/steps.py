@@ -40,6 +40,7 @@ from facette.calib.spectralon import flat_field, led_current_gains, spectralon_i
 from facette.calib.targets import channel_reflectance, load_target
 from facette.camera.sensor import SENSOR_KEYS, SensorModel
 from facette.hdr import estimate_sensor_ptc_files
+from facette.wizard.station import INSTRUCTIONS
 
 __all__ = ["Wizard", "STEPS", "BRACKETS_US", "DARK_US", "FLAT_US"]
 
