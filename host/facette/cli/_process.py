@@ -5,6 +5,7 @@ import sys
 
 def register(sub):
     from facette.pipeline import OUTPUTS
+    from facette.recon import PS_METHODS
     from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
     from facette.reflect import THETA0_DEG
     p = sub.add_parser("process", help="process a scan or a DiLiGenT-style folder",
@@ -15,7 +16,7 @@ def register(sub):
                    help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all); only the "
                         "stages they need run")
     p.add_argument("--method", default="hierarchical_tautzia2016",
-                   choices=["hierarchical_tautzia2016", "woodham1980"], help="photometric stereo")
+                   choices=list(PS_METHODS), help="photometric stereo")
     p.add_argument("--integration", default="frankot_chellappa1988",
                    choices=["frankot_chellappa1988", "simchony1990", "least_squares"])
     p.add_argument("--t-ombre", type=float, default=T_OMBRE, help="shadow angle threshold, rad (1.5)")

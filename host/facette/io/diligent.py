@@ -18,13 +18,14 @@ __all__ = ["DiligentData", "is_diligent_dir", "read_diligent", "write_diligent"]
 class DiligentData:
     """images (m, H, W, 3) float32 in [0, 1] divided by the light intensities, NaN where the
     PNG value was saturated; light_dirs (m, 3);
-    light_intensities (m, 3); mask (H, W) bool; normals (H, W, 3) or None (Normal_gt.txt/.png
-    is not read here); names (m,) file names."""
+    light_intensities (m, 3); mask (H, W) bool; names (m,) file names; bit_depth 8 or 16, of
+    the PNG files (truth normals are not read here)."""
     images: np.ndarray
     light_dirs: np.ndarray
     light_intensities: np.ndarray
     mask: np.ndarray
     names: list
+    bit_depth: int = 16
 
 
 def is_diligent_dir(path):
@@ -42,10 +43,13 @@ def _table(path, m=None, what=""):
     return arr
 
 
-def read_diligent(folder, dtype=np.float32):
+def read_diligent(folder, dtype=np.float32, select=None):
     """Read a DiLiGenT-style folder. Returns `DiligentData` (images divided by intensities,
     scaled so that 65535 -> 1 before the division; values at the top of the range (saturated)
-    become NaN, which photometric stereo treats as missing)."""
+    become NaN, which photometric stereo treats as missing).
+
+    select : optional indices (0-based, into filenames.txt) of the images to read, in that
+    order; the light tables are cut to match (default: every image)."""
     folder = Path(folder)
     names = [l.strip() for l in (folder / "filenames.txt").read_text().splitlines() if l.strip()]
     if not names:
@@ -60,6 +64,13 @@ def read_diligent(folder, dtype=np.float32):
     inten = _table(inten_path, m, "R G B intensity per light") if inten_path.is_file() else np.ones((m, 3))
     if np.any(inten <= 0):
         raise ValueError(f"{inten_path} has a non-positive intensity; every light must be > 0")
+    if select is not None:
+        select = np.asarray(select, dtype=int).ravel()
+        if select.size == 0 or select.min() < 0 or select.max() >= m:
+            raise ValueError(f"select must hold image indices in 0..{m - 1} for the {m} images of "
+                             f"{folder}; got {select.tolist()}")
+        names, dirs, inten = [names[i] for i in select], dirs[select], inten[select]
+        m = len(names)
     first = read_png(folder / names[0])
     h, w = first.shape[:2]
     images = np.empty((m, h, w, 3), dtype)
@@ -77,7 +88,7 @@ def read_diligent(folder, dtype=np.float32):
     mask = read_mask(mask_path) if mask_path.is_file() else np.ones((h, w), bool)
     if mask.shape != (h, w):
         raise ValueError(f"mask.png is {mask.shape[1]}x{mask.shape[0]}, images are {w}x{h}")
-    return DiligentData(images, dirs, inten, mask, names)
+    return DiligentData(images, dirs, inten, mask, names, 16 if first.dtype == np.uint16 else 8)
 
 
 def write_diligent(folder, images_uint16, light_dirs, light_intensities=None, mask=None):

@@ -1,16 +1,19 @@
 """Shape from the HDR images: photometric stereo and integration of the gradient field.
 
-Photometric stereo (thesis §4.2.1): `ps_woodham1980`, `ps_hierarchical_tautzia2016`,
-dispatched by `photometric_stereo(..., method=)`. Integration: `integrate_frankot_chellappa1988`,
+Photometric stereo (thesis §4.2.1): `ps_woodham1980`, `ps_hierarchical_tautzia2016`; robust
+methods for real photographs: `ps_rpca_wu2010` (low-rank recovery), `ps_rank_trimmed` (per-pixel
+trimmed least squares); all dispatched by `photometric_stereo(..., method=)`. Integration: `integrate_frankot_chellappa1988`,
 `integrate_simchony1990`, `integrate_least_squares`, dispatched by `integrate(..., method=)`.
 """
 from ._ps import (PSResult, ps_woodham1980, ps_hierarchical_tautzia2016, photometric_stereo,
                   PS_METHODS, triplet_inverses, near_light_directions)
+from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed      # registers both in PS_METHODS
 from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
                          integrate_simchony1990, integrate_least_squares, integrate,
                          INTEGRATION_METHODS, mesh_from_height)
 
-__all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "photometric_stereo",
+__all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
+           "ps_rank_trimmed", "photometric_stereo",
            "PS_METHODS", "triplet_inverses", "near_light_directions",
            "normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
            "integrate_least_squares", "integrate", "INTEGRATION_METHODS", "mesh_from_height"]
