@@ -12,7 +12,7 @@
     value seen under light i: shadows push it down, a specular lobe up, the diffuse part sits
     in the middle). The low-frequency part of the reflectance is what the Lambertian fit can
     explain (Shi et al., TPAMI 2014, fit their bi-polynomial model on the same kind of
-    selection); the ratio pass repeats until the kept set stops changing or `rounds` is reached.
+    selection); one ratio pass by default (more drift rather than converge, see `rounds`).
 
 Same conventions and result type as `facette.recon._ps` (camera frame x right, y up, z
 towards the camera; images linear, divided by each light's intensity; `PSResult`).
@@ -67,7 +67,7 @@ def _rel_residual(e, s, g, keep):
 
 
 def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None, trim=TRIM,
-                    rounds=3, min_lit=MIN_LIT):
+                    rounds=1, min_lit=MIN_LIT):
     """Per-pixel trimmed least squares: middle intensity ranks, then middle reflectance ratios.
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
@@ -78,7 +78,9 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         is never used.
     trim : share of each pixel's usable observations dropped at each end, in [0, 0.5);
         default 0.3 (the middle 40 % kept). At least 3 are kept where 3 are usable.
-    rounds : ratio passes after the intensity pass (0: intensity ranks only).
+    rounds : ratio passes after the intensity pass (0: intensity ranks only). Default 1: on
+        DiLiGenT (96 lights) the mean error is 8.95 deg with 0, 8.44 with 1, 8.48 with 3 and
+        8.75 with 6 passes: the ratio window does not converge to a better set, it drifts.
     min_lit : lights with s.n below this are left out of the ratio pass (grazing, unlit).
     Returns a `PSResult`: normal, albedo (rho per channel on the kept lights), valid (False for
     black pixels, fewer than 3 usable values, or a degenerate kept set), shadow / specular =
