@@ -22,11 +22,12 @@ import numpy as np
 from ._ps import (PS_METHODS, PSResult, _albedo, _check_inputs, _empty_result, _gather, _ls_normals,
                   _pixel_dirs, _run_blocks, _scatter, _shading, _usable)
 
-__all__ = ["ps_rpca_wu2010", "ps_rank_trimmed", "TRIM", "T_SHADOW_RPCA"]
+__all__ = ["ps_rpca_wu2010", "ps_rank_trimmed", "TRIM", "MIN_KEEP", "T_SHADOW_RPCA"]
 
 TRIM = 0.3           # share of each pixel's observations dropped at each end (0.3: the middle 40 %
                      # kept); chosen by leave-one-object-out on five DiLiGenT objects, every fold
                      # picks 0.3 or 0.35 (see `facette bench diligent`)
+MIN_KEEP = 6         # never fewer lights than twice the 3 unknowns of g (12 lights: the middle 6)
 MIN_LIT = 0.1        # s.n below this (84 deg from the normal) counts as unlit in the ratio pass:
                      # grazing light, attached shadow
 T_SHADOW_RPCA = 0.02  # values below this share of the pixel's brightest usable value are shadows
@@ -34,22 +35,53 @@ T_SHADOW_RPCA = 0.02  # values below this share of the pixel's brightest usable 
 _CHUNK = 131072      # pixels per block (the rank passes hold a few (m, chunk) arrays)
 
 
-def _trim_window(key, usable, trim):
-    """(m, N) bool: usable entries whose rank in `key` (ascending, per pixel, among the
-    usable ones) lies in the middle [trim, 1 - trim] of the ranks; at least the middle 3 when
-    the window would hold fewer and 3 are usable."""
-    m = key.shape[0]
+def _trim_window(key, usable, trim, min_keep=3):
+    """(m, N) bool: usable entries whose value of `key` lies between the order statistics of
+    ranks ceil(trim (u - 1)) and floor((1 - trim) (u - 1)) of the pixel's u usable values
+    (ties with a bound are kept too); the middle `min_keep` ranks (or every usable value, if
+    fewer) when that window would hold fewer."""
     k = np.where(usable, key, np.inf)            # unusable entries rank above every usable one
-    order = np.argsort(k, axis=0, kind="stable")
-    rank = np.empty_like(order)
-    np.put_along_axis(rank, order, np.arange(m)[:, None], axis=0)
+    srt = np.sort(k.T, axis=1)                   # (N, m), pixel-major: short contiguous rows
     u = usable.sum(0)
-    lo = np.ceil(trim * (u - 1) - 1e-9)
-    hi = np.floor((1 - trim) * (u - 1) + 1e-9)
-    few = (hi - lo + 1 < 3) & (u >= 3)
-    lo = np.where(few, (u - 3) // 2, lo)
-    hi = np.where(few, lo + 2, hi)
-    return usable & (rank >= lo) & (rank <= hi)
+    lo = np.ceil(trim * (u - 1) - 1e-9).astype(np.intp)
+    hi = np.floor((1 - trim) * (u - 1) + 1e-9).astype(np.intp)
+    want = np.minimum(u, min_keep)
+    few = hi - lo + 1 < want
+    lo = np.where(few, (u - want) // 2, lo)
+    hi = np.where(few, lo + want - 1, hi)
+    rows = np.arange(k.shape[1])
+    v_lo = srt[rows, np.clip(lo, 0, k.shape[0] - 1)]
+    v_hi = srt[rows, np.clip(hi, 0, k.shape[0] - 1)]
+    return usable & (u > 0) & (hi >= lo) & (k >= v_lo) & (k <= v_hi)
+
+
+_PAIRS = ([0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2])   # upper triangle of a symmetric 3x3
+
+
+def _wls(e, s, keep):
+    """g = argmin sum_kept (E_i - s_i . g)^2 per pixel: (3, N) float32, NaN where fewer than 3
+    lights are kept or they are (nearly) coplanar.
+
+    e : (m, N) float32 with missing values set to 0; s : (m, 3) shared directions (matrix
+    products and a closed-form 3x3 inverse) or (N, m, 3) per pixel (`_ls_normals`)."""
+    if s.ndim != 2:
+        return _ls_normals(e, s, keep)
+    w = keep.astype(np.float32)
+    s32 = s.astype(np.float32)
+    a = ((s32[:, _PAIRS[0]] * s32[:, _PAIRS[1]]).T @ w).astype(np.float64)   # (6, N)
+    b = (s32.T @ (w * e)).astype(np.float64)                                 # (3, N)
+    xx, xy, xz, yy, yz, zz = a
+    c00, c01, c02 = yy * zz - yz * yz, xz * yz - xy * zz, xy * yz - xz * yy
+    c11, c12, c22 = xx * zz - xz * xz, xy * xz - xx * yz, xx * yy - xy * xy
+    det = xx * c00 + xy * c01 + xz * c02
+    # singular (fewer than 3 lights, or coplanar ones): relative to the scale of the matrix
+    good = (w.sum(0) >= 3) & (np.abs(det) > 1e-9 * np.maximum(xx + yy + zz, 1e-30) ** 3)
+    inv_det = np.where(good, 1.0 / np.where(good, det, 1.0), np.nan)
+    g = np.empty((3,) + det.shape, np.float32)
+    g[0] = (c00 * b[0] + c01 * b[1] + c02 * b[2]) * inv_det
+    g[1] = (c01 * b[0] + c11 * b[1] + c12 * b[2]) * inv_det
+    g[2] = (c02 * b[0] + c12 * b[1] + c22 * b[2]) * inv_det
+    return g
 
 
 def _unit(g):
@@ -67,7 +99,7 @@ def _rel_residual(e, s, g, keep):
 
 
 def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None, trim=TRIM,
-                    rounds=1, min_lit=MIN_LIT):
+                    rounds=1, min_lit=MIN_LIT, min_keep=MIN_KEEP):
     """Per-pixel trimmed least squares: middle intensity ranks, then middle reflectance ratios.
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
@@ -77,7 +109,10 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         as one of the brightest in the ranking (a clipped value is at least that bright) but
         is never used.
     trim : share of each pixel's usable observations dropped at each end, in [0, 0.5);
-        default 0.3 (the middle 40 % kept). At least 3 are kept where 3 are usable.
+        default 0.3 (the middle 40 % kept).
+    min_keep : when the window holds fewer lights, the middle min_keep are kept (default 6,
+        twice the unknowns; with 12 lights the window is then ranks 3..8), or every usable
+        one when fewer are usable; fewer than 3 usable leave the pixel invalid.
     rounds : ratio passes after the intensity pass (0: intensity ranks only). Default 1: on
         DiLiGenT (96 lights) the mean error is 8.95 deg with 0, 8.44 with 1, 8.48 with 3 and
         8.75 with 6 passes: the ratio window does not converge to a better set, it drifts.
@@ -118,24 +153,27 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         sl = slice(a, a + _CHUNK)
         eb, okb = e[:, sl], ok[:, sl]
         sb = s if s.ndim == 2 else s[sl]
-        kb = _trim_window(np.where(okb, eb, np.inf), okb, trim)
-        nb, fb = _unit(_ls_normals(eb, sb, kb))
+        kb = _trim_window(np.where(okb, eb, np.inf), okb, trim, min_keep)
+        gb = _wls(eb, sb, kb)
+        nb, fb = _unit(gb)
         for r in range(int(rounds)):
             sn = _shading(sb, nb)
             lit = okb & (sn > min_lit) & fb
             with np.errstate(divide="ignore", invalid="ignore"):
                 q = eb / np.where(lit, sn, np.float32(1))
-            kr = _trim_window(q, lit, trim)
+            kr = _trim_window(q, lit, trim, min_keep)
             enough = kr.sum(0) >= 3
-            nr, fr = _unit(_ls_normals(eb, sb, kr))
+            gr = _wls(eb, sb, kr)
+            nr, fr = _unit(gr)
             take = enough & fr
             dots = np.clip(np.sum(nr * nb, axis=0), -1, 1)
             changes[r, sl] = np.where(take, np.degrees(np.arccos(dots)), 0)
             nb = np.where(take, nr, nb)
             kb = np.where(take, kr, kb)
+            gb = np.where(take, gr, gb)
         # an all-black pixel gives g = 0: not found
         normal[:, sl], found[sl], keep[:, sl] = nb, fb, kb
-        resid[sl] = _rel_residual(eb, sb, _ls_normals(eb, sb, kb), kb)
+        resid[sl] = _rel_residual(eb, sb, gb, kb)
 
     _run_blocks(block, range(0, n_pix, _CHUNK))
     rho = _albedo(e_all, s, normal, keep & ok, idx=sub)
