@@ -201,13 +201,15 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
 def _svt(x, tau):
     """Singular-value thresholding of a short, wide x (m, N), m << N, through its Gram matrix:
     x = U S V^T, returns U max(S - tau, 0) V^T = U diag(max(S - tau, 0) / S) U^T x, and the
-    number of singular values kept."""
+    number of singular values kept (and above 1e-3 of the largest)."""
     gram = (x @ x.T).astype(np.float64)
     ev, u = np.linalg.eigh(gram)
     sv = np.sqrt(np.maximum(ev, 0))
     shrink = np.where(sv > tau, (sv - tau) / np.where(sv > 0, sv, 1), 0.0)
     proj = (u * shrink) @ u.T
-    return proj.astype(x.dtype) @ x, int(np.sum(sv > tau))
+    # rank counted above 1e-3 of the largest: float32 round-off leaves tiny singular values
+    # above the shrinking threshold 1/mu late in the iterations
+    return proj.astype(x.dtype) @ x, int(np.sum(sv > max(tau, 1e-3 * sv.max())))
 
 
 def rpca_inexact_alm(d, observed, lam=None, tol=1e-6, max_iter=500, rho=1.5):
@@ -223,17 +225,27 @@ def rpca_inexact_alm(d, observed, lam=None, tol=1e-6, max_iter=500, rho=1.5):
     if d_norm == 0:
         return np.zeros_like(d), {"iterations": 0, "rank": 0, "error": 0.0}
     two_norm = float(np.sqrt(np.linalg.eigvalsh((d @ d.T).astype(np.float64))[-1]))
-    y = d / max(two_norm, np.abs(d).max() / lam)     # dual start (Lin et al.'s J(D) scaling)
+    y = d / np.float32(max(two_norm, np.abs(d).max() / lam))   # dual start (Lin et al.'s J(D))
     mu = 1.25 / two_norm
     mu_max = mu * 1e7
     e = np.zeros_like(d)
+    buf, tmp, z = np.empty_like(d), np.empty_like(d), np.empty_like(d)
+    missing = ~observed
     err, it, rank = np.inf, 0, 0
-    for it in range(1, max_iter + 1):
-        a, rank = _svt(d - e + y / mu, 1.0 / mu)
-        t = d - a + y / mu
-        e = np.where(observed, np.sign(t) * np.maximum(np.abs(t) - lam / mu, 0), t)
-        z = d - a - e
-        y += mu * z
+    for it in range(1, max_iter + 1):       # in place: a dozen passes over (m, N) per iteration
+        np.subtract(d, e, out=buf)
+        buf += y * np.float32(1.0 / mu)              # D - E + Y / mu
+        a, rank = _svt(buf, 1.0 / mu)
+        buf += e
+        buf -= a                                     # T = D - A + Y / mu
+        th = np.float32(lam / mu)
+        np.clip(buf, -th, th, out=tmp)
+        np.subtract(buf, tmp, out=e)                 # soft threshold on the observed entries
+        np.copyto(e, buf, where=missing)             # free where missing
+        np.subtract(d, a, out=z)
+        z -= e
+        np.multiply(z, np.float32(mu), out=tmp)
+        y += tmp
         mu = min(mu * rho, mu_max)
         err = float(np.linalg.norm(z)) / d_norm
         if err < tol:
