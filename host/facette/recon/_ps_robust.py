@@ -32,6 +32,8 @@ MIN_LIT = 0.1        # s.n below this (84 deg from the normal) counts as unlit i
                      # grazing light, attached shadow
 T_SHADOW_RPCA = 0.02  # values below this share of the pixel's brightest usable value are shadows
                       # (missing entries of the low-rank matrix), as Wu et al.'s shadow mask
+SHADOW_BELOW = 0.5     # result maps only: a value below half the diffuse fit is a shadow,
+SPECULAR_ABOVE = 1.5   # one left out above 1.5 x the fit a highlight
 _CHUNK = 131072      # pixels per block (the rank passes hold a few (m, chunk) arrays)
 
 
@@ -118,8 +120,9 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         8.75 with 6 passes: the ratio window does not converge to a better set, it drifts.
     min_lit : lights with s.n below this are left out of the ratio pass (grazing, unlit).
     Returns a `PSResult`: normal, albedo (rho per channel on the kept lights), valid (False for
-    black pixels, fewer than 3 usable values, or a degenerate kept set), shadow / specular =
-    usable lights trimmed below / above the final window, residual = relative least-squares
+    black pixels, fewer than 3 usable values, or a degenerate kept set), shadow = usable lights
+    with s.n <= 0 or a value below 0.5 x the diffuse fit s.g, specular = lights left out with a
+    value above 1.5 x s.g (maps for the later stages; the normal does not use them), residual = relative least-squares
     residual on the kept lights; info holds the rounds run and the median normal change (deg)
     of each round.
 
@@ -147,6 +150,7 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
     found = np.zeros(n_pix, bool)
     keep = np.zeros((m, n_pix), bool)
     resid = np.zeros(n_pix, np.float32)
+    g_fit = np.zeros((3, n_pix), np.float32)
     changes = np.zeros((int(rounds), n_pix), np.float32)
 
     def block(a):
@@ -174,17 +178,16 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         # an all-black pixel gives g = 0: not found
         normal[:, sl], found[sl], keep[:, sl] = nb, fb, kb
         resid[sl] = _rel_residual(eb, sb, gb, kb)
+        g_fit[:, sl] = gb
 
     _run_blocks(block, range(0, n_pix, _CHUNK))
     rho = _albedo(e_all, s, normal, keep & ok, idx=sub)
-    # usable lights below / above the final window, by the final reflectance ratio
+    # maps for what follows (the reflectance samples leave `shadow` out); they do not steer
+    # the normal: attached (s.n <= 0) or far below the diffuse fit = shadow, far above = specular
     sn = _shading(s, normal)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        q = np.where(ok & (sn > 0), e / np.where(sn > 0, sn, 1), -np.inf)
-    q_lo = np.min(np.where(keep, q, np.inf), axis=0)
-    q_hi = np.max(np.where(keep, q, -np.inf), axis=0)
-    below = ok & ~keep & (q < q_lo)
-    above = ok & ~keep & (q > q_hi)
+    pred = _shading(s, np.nan_to_num(g_fit))
+    below = ok & ((sn <= 0) | (e < SHADOW_BELOW * pred))
+    above = ok & ~keep & (e > SPECULAR_ABOVE * pred) & (sn > 0)
     _scatter(res, idx, "normal", normal.T)
     _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
     _scatter(res, idx, "valid", found)
