@@ -25,3 +25,20 @@ def test_diligent_folder_roundtrip_divides_by_intensities(tmp_path):
     (tmp_path / "light_intensities.txt").write_text("1 1 1\n")
     with pytest.raises(ValueError, match="light_intensities.txt must hold 5 lines"):
         read_diligent(tmp_path)
+
+
+def test_read_diligent_selects_images_and_reports_bit_depth(tmp_path):
+    rng = np.random.default_rng(4)
+    dirs = rng.normal(size=(4, 3))
+    dirs[:, 2] = np.abs(dirs[:, 2]) + 1
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    imgs = (rng.random((4, 3, 5, 3)) * 200).astype(np.uint16)
+    write_diligent(tmp_path / "a", imgs, dirs)
+    d = read_diligent(tmp_path / "a", select=[3, 1])
+    assert d.images.shape == (2, 3, 5, 3) and d.bit_depth == 16 and d.names == ["004.png", "002.png"]
+    np.testing.assert_allclose(d.light_dirs, dirs[[3, 1]], atol=1e-7)
+    np.testing.assert_allclose(d.images[0], imgs[3] / 65535.0, rtol=1e-6)
+    write_diligent(tmp_path / "b", imgs.astype(np.uint8), dirs)
+    assert read_diligent(tmp_path / "b").bit_depth == 8
+    with pytest.raises(ValueError, match="select"):
+        read_diligent(tmp_path / "a", select=[4])
