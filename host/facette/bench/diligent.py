@@ -16,6 +16,7 @@ sphere on a plane), in seconds and seconds per megapixel. --trim-study sweeps th
 `ps_rank_trimmed` and chooses it leaving one object out at a time.
 """
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -153,14 +154,19 @@ def speed(methods, size=SPEED_SIZE):
     imgs = render(sc, lights, "glossy", noise=0.01, rng=np.random.default_rng(1))
     mp = h * w / 1e6
     print(f"\n-- speed: {w}x{h} x {len(lights)} lights ({mp:.2f} MP), glossy sphere on a plane")
-    print(f"{'method':26s} {'s':>8s} {'s/MP':>8s} {'mean err':>9s}")
+    print(f"{'method':26s} {'wall s':>8s} {'CPU s':>8s} {'wall s/MP':>10s} {'CPU s/MP':>9s} "
+          f"{'mean err':>9s}")
     for name in methods:
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         res = photometric_stereo(imgs, lights, method=name, mask=sc.mask)
-        dt = time.perf_counter() - t
+        dt, dc = time.perf_counter() - t, time.process_time() - c
         good = sc.mask
         err = np.degrees(np.arccos(np.clip(np.sum(res.normal[good] * sc.normals[good], -1), -1, 1)))
-        print(f"{name:26s} {dt:8.2f} {dt / mp:8.2f} {err.mean():8.2f}°", flush=True)
+        print(f"{name:26s} {dt:8.2f} {dc:8.2f} {dt / mp:10.2f} {dc / mp:9.2f} {err.mean():8.2f}°",
+              flush=True)
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"(CPU s counts every thread of this process; 1-minute load average {load:.1f} on "
+          f"{os.cpu_count()} cores: on a busy machine wall time overstates the cost)")
 
 
 def trim_study(objects, trims=(0.2, 0.25, 0.3, 0.35, 0.4)):
