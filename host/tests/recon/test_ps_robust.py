@@ -173,3 +173,29 @@ def test_rank_trimmed_argument_errors_and_empty_mask():
     for method in ROBUST:
         r = photometric_stereo(imgs, L12, method=method, mask=np.zeros((5, 6), bool))
         assert not r.valid.any() and np.all(r.normal == 0)
+
+
+def test_flat_satin_plate_under_the_symmetric_rig_is_not_tilted_by_noise():
+    """Both rings of the rig see a plate facing the camera at one angle each; a broad lobe makes
+    the inner ring brighter. Widening the windows by 3 x noise keeps a ring together."""
+    h_dirs = L12 + [0, 0, 1]
+    h_dirs /= np.linalg.norm(h_dirs, axis=1, keepdims=True)
+    lobe = 0.3 * h_dirs[:, 2] ** 40                     # n = +z: n.h per light
+    clean = 0.5 / np.pi * L12[:, 2] + lobe
+    rng = np.random.default_rng(2)
+    imgs = (clean[:, None, None] * (1 + 0.01 * rng.standard_normal((12, 20, 20)))).astype(np.float32)
+    n = np.array([0.0, 0.0, 1.0])
+    e_ls = np.median(angular_error_deg(ps_woodham1980(imgs, L12).normal, n))
+    e_tied = np.median(angular_error_deg(ps_rank_trimmed(imgs, L12).normal, n))
+    e_split = np.median(angular_error_deg(ps_rank_trimmed(imgs, L12, noise=0).normal, n))
+    assert e_tied < 2 * e_ls + 0.2 and e_tied < 0.5 * e_split, (e_ls, e_tied, e_split)
+
+
+def test_trim_window_tolerance_keeps_values_tied_with_a_bound():
+    key = np.array([[1.0], [2.0], [3.0], [3.02], [5.0], [6.0]])
+    ok = np.ones_like(key, bool)
+    assert _trim_window(key, ok, 0.2, 3)[:, 0].tolist() == [False, True, True, True, True, False]
+    kept = _trim_window(key, ok, 0.4, 2)[:, 0]            # ranks 2..3: 3.0 and 3.02
+    assert kept.tolist() == [False, False, True, True, False, False]
+    kept = _trim_window(key[:3], ok[:3], 0.4, 1, tol=0.5)[:, 0]   # bound 2.0 widened to 1..3
+    assert kept.all()
