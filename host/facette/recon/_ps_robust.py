@@ -105,7 +105,7 @@ def _rel_residual(e, s, g, keep):
 
 
 def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None, trim=TRIM,
-                    rounds=1, min_lit=MIN_LIT, min_keep=MIN_KEEP, noise=NOISE):
+                    rounds=1, min_lit=MIN_LIT, min_keep=MIN_KEEP, noise=NOISE, t_dark=None):
     """Per-pixel trimmed least squares: middle intensity ranks, then middle reflectance ratios.
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
@@ -121,6 +121,12 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         with a bound within the noise stay together: a flat surface under a symmetric ring of
         lights would otherwise have the ring split by noise, and its normal tilted (simulated
         satin plate, 12 rig lights: median 11.6 deg with no widening, 0.6 deg with it).
+    t_dark : optional; values at or below t_dark x the pixel's brightest usable value still take
+        their ranks but are never kept (cast shadows: a pixel with more shadowed lights than
+        the trimmed share). None (default): no such test. 0.03 (3 x noise) makes the
+        simulated rig scenes (sphere on a plane, 12 lights) as good as the hierarchical method
+        (matte 0.63 deg against 0.68) but costs 0.2 deg on DiLiGenT (96 lights: 8.77 against 8.57;
+        12 lights: 10.02 against 10.10).
     min_keep : when the window holds fewer lights, the middle min_keep are kept (default 6,
         twice the unknowns; with 12 lights the window is then ranks 3..8), or every usable
         one when fewer are usable; fewer than 3 usable leave the pixel invalid.
@@ -143,6 +149,9 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         raise ValueError(f"trim must be in [0, 0.5) (share dropped at each end), got {trim}")
     if not 0 <= noise < 0.2:
         raise ValueError(f"noise is the relative noise of the values, in [0, 0.2); got {noise}")
+    if t_dark is not None and not 0 <= t_dark < 1:
+        raise ValueError(f"t_dark must be None or in [0, 1) (share of the pixel's brightest value), "
+                         f"got {t_dark}")
     if rounds < 0 or int(rounds) != rounds:
         raise ValueError(f"rounds must be a whole number >= 0, got {rounds}")
     images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
@@ -150,7 +159,7 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
     res = _empty_result(h, w, m, c, "rank_trimmed")
     idx, e_all, e, sub = _gather(images, mask, channel)
     res.info = {"pixels": int(idx.size), "rounds": int(rounds), "trim": float(trim),
-                "noise": float(noise)}
+                "noise": float(noise), "t_dark": t_dark}
     if idx.size == 0:
         res.info["median_change_deg"] = []
         return res
@@ -168,8 +177,11 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
     def block(a):
         sl = slice(a, a + _CHUNK)
         eb, okb = e[:, sl], ok[:, sl]
+        # ranks count every usable value; a dark one (cast shadow) is never kept
+        bright = okb if t_dark is None else okb & (eb > t_dark * eb.max(axis=0))
         sb = s if s.ndim == 2 else s[sl]
-        kb = _trim_window(np.where(okb, eb, np.inf), okb, trim, min_keep, 3 * noise)
+        kb = _trim_window(np.where(okb, eb, np.inf), okb, trim, min_keep, 3 * noise) & bright
+        kb = np.where(kb.sum(0) >= 3, kb, bright)   # too few left: every bright value
         gb = _wls(eb, sb, kb)
         nb, fb = _unit(gb)
         for r in range(int(rounds)):
@@ -177,7 +189,7 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
             lit = okb & (sn > min_lit) & fb
             with np.errstate(divide="ignore", invalid="ignore"):
                 q = eb / np.where(lit, sn, np.float32(1))
-            kr = _trim_window(q, lit, trim, min_keep, 3 * noise)
+            kr = _trim_window(q, lit, trim, min_keep, 3 * noise) & bright
             enough = kr.sum(0) >= 3
             gr = _wls(eb, sb, kr)
             nr, fr = _unit(gr)

@@ -199,3 +199,15 @@ def test_trim_window_tolerance_keeps_values_tied_with_a_bound():
     assert kept.tolist() == [False, False, True, True, False, False]
     kept = _trim_window(key[:3], ok[:3], 0.4, 1, tol=0.5)[:, 0]   # bound 2.0 widened to 1..3
     assert kept.all()
+
+
+def test_t_dark_keeps_a_pixel_with_many_cast_shadows_right():
+    imgs, n = plane_images([0.1, -0.1, 1.0], L12, h=1, w=1)
+    imgs[[0, 1, 2, 3, 4]] = 0                      # five of twelve lights in cast shadow
+    plain = ps_rank_trimmed(imgs, L12)
+    dark = ps_rank_trimmed(imgs, L12, t_dark=0.03)
+    assert dark.valid.all() and angular_error_deg(dark.normal, n).max() < 0.05
+    assert angular_error_deg(plain.normal, n).max() > 1.0    # the window holds shadows
+    assert dark.shadow[0, 0, :5].all()
+    with pytest.raises(ValueError, match="t_dark"):
+        ps_rank_trimmed(imgs, L12, t_dark=1.0)
