@@ -10,9 +10,10 @@
     shadows or inter-reflection, the brightest highlights), then, with that normal, the middle
     ranks of its reflectance ratios E_i / (s_i . n) among the lit lights (a ratio is the BRDF
     value seen under light i: shadows push it down, a specular lobe up, the diffuse part sits
-    in the middle). The low-frequency part of the reflectance is what the Lambertian fit can
-    explain (Shi et al., TPAMI 2014, fit their bi-polynomial model on the same kind of
-    selection); one ratio pass by default (more drift rather than converge, see `rounds`).
+    in the middle). The idea of fitting only the low-frequency observations is that of Shi
+    et al. (bi-polynomial reflectance, TPAMI 2014); here the fit is Lambertian. One ratio pass
+    by default (more drift rather than converge, see `rounds`). Not a published method: its
+    parameters were chosen on DiLiGenT leaving one object out (see `facette bench diligent`).
 
 Same conventions and result type as `facette.recon._ps` (camera frame x right, y up, z
 towards the camera; images linear, divided by each light's intensity; `PSResult`).
