@@ -7,9 +7,11 @@ Prints, on simulated brackets with known radiance (sensor model of facette.camer
    time of each (one light, the thesis's fixed bracket);
 2. adaptive vs the thesis's fixed bracket over 12 lights: rig time and the SNR
    reached in shadows, midtones and highlights;
-3. merge time for one 12 MP frame set (4288×2848 RAW -> half-size), decode included.
+3. merge time for one 12 MP frame set (4288×2848 RAW -> half-size), decode included;
+4. (``--perlight``) per-light adaptive plans against one shared exposure list, on every
+   simulated scene × material × far/near LEDs × timing mode: rig time of each.
 
-Usage: facette bench hdr [--size H W] [--seed N] [--skip-12mp] [--target-db DB]
+Usage: facette bench hdr [--size H W] [--seed N] [--skip-12mp] [--target-db DB] [--perlight]
 """
 from __future__ import annotations
 
@@ -251,6 +253,52 @@ def bench_12mp(sensor, seed):
     return t1 - t0, t2 - t1
 
 
+def bench_perlight(sensor, h, w, seed, target_db):
+    """Rig time of per-light plans vs one shared list (the device's registers) per scene."""
+    from facette.sim.lights import thesis_leds
+    from facette.sim.render import radiance_per_led
+    from facette.sim.scene import SCENES, make_scene
+    sat = sensor.saturation_dn - sensor.black_level_dn
+    print(f"\n[4] per-light vs shared adaptive plans ({target_db:g} dB), {h}x{w} half-size; "
+          "rig s include one metering frame per light")
+    print(f"{'scene':14s} {'brdf':8s} {'leds':4s} {'mode':6s} {'frames':>6s} {'per-light s':>11s} "
+          f"{'frames':>6s} {'shared s':>9s} {'saving':>7s}")
+    rows = []
+    for name in sorted(SCENES):
+        for brdf in ("mask", "bust", "lambert"):
+            for near in (False, True):
+                scene = make_scene(name, (h, w), seed=seed, brdf=brdf)
+                rad = radiance_per_led(scene, thesis_leds(0.5, 0.05, near=near, seed=seed + 1))
+                rad = rad / sensor.gain_e_per_dn
+                mask = np.asarray(scene.mask, bool)
+                mask = mask if mask.any() else np.ones(mask.shape, bool)
+                rng = np.random.default_rng(seed + 2)
+                meters, mexp = [], []
+                for li in range(len(rad)):
+                    t = 33333  # meter at 1/30 s, shorter until the object's highlight holds
+                    while rad[li][mask].max() * t * CURRENT_MA > 0.9 * sat and t > 200:
+                        t //= 2
+                    mexp.append((t, CURRENT_MA))
+                    meters.append(simulate_frames(rad[li], [mexp[-1]], sensor, rng)[0][0])
+                meter_s = sum(t * 1e-6 + 0.35 for t, _ in mexp)
+                for mode in ("led", "bulb", "camera"):
+                    own = plan_adaptive(meters, mexp, sensor, mask, target_snr_db=target_db, mode=mode)
+                    one = plan_adaptive(meters, mexp, sensor, mask, target_snr_db=target_db, mode=mode,
+                                        shared=True)
+                    a, b = own.rig_time_s() + meter_s, one.rig_time_s() + meter_s
+                    rows.append((name, brdf, near, mode, a, b))
+                    print(f"{name:14s} {brdf:8s} {'near' if near else 'far':4s} {mode:6s} "
+                          f"{own.n_frames():6d} {a:11.1f} {one.n_frames():6d} {b:9.1f} "
+                          f"{100 * (1 - a / b):6.1f}%", flush=True)
+    saving = np.array([1 - r[4] / r[5] for r in rows])
+    print(f"  saving of per-light lists: median {100 * np.median(saving):.1f} % "
+          f"(min {100 * saving.min():.1f}, max {100 * saving.max():.1f}) over {len(rows)} cases")
+    for name in sorted(SCENES):
+        v = [1 - r[4] / r[5] for r in rows if r[0] == name]
+        print(f"    {name:14s} median {100 * np.median(v):5.1f} %")
+    return rows
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(prog="facette bench hdr", description=__doc__.splitlines()[0])
     p.add_argument("--size", nargs=2, type=int, default=(192, 256), metavar=("H", "W"),
@@ -258,10 +306,15 @@ def main(argv=None):
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--target-db", type=float, default=40.0, help="adaptive plan's target SNR")
     p.add_argument("--skip-12mp", action="store_true", help="skip part 3 (12 MP timing)")
+    p.add_argument("--perlight", action="store_true",
+                   help="only part 4: per-light vs shared plans on every simulated scene")
     args = p.parse_args(argv)
     sensor = SensorModel()
     print(f"sensor: {sensor}")
     h, w = args.size
+    if args.perlight:
+        bench_perlight(sensor, h // 2, w // 2, args.seed, args.target_db)
+        return 0
     bench_methods(sensor, h, w, args.seed)
     bench_bracketing(sensor, h, w, args.seed, args.target_db)
     bench_bracketing(sensor, h, w, args.seed, args.target_db, scene="rig")

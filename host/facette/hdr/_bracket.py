@@ -316,4 +316,27 @@ def _plan_range(x_lo, x_hi, target_snr_db, sensor, sat, n_g, headroom, k_max_tim
                     chosen = kc
                     break
         ks.append(chosen)
+    ks = _shorten(ks, grid, target_lin, sensor, n_g)
     return ks, grid, predicted_snr(grid, ks, sensor, n_g), target_lin
+
+
+def _shorten(ks, grid, target_lin, sensor, n_g, steps=48):
+    """Shorten each exposure, longest first, as far as the whole range stays at target.
+
+    The greedy choice puts the shortest exposure at the highlight's headroom, which is
+    more than a dim light needs when one or two frames already exceed the target: the
+    rig time is the exposures' sum, so every exposure goes down to the shortest value
+    that keeps every radiance at its target (never below the next shorter exposure).
+    A plan that misses the target somewhere (max_frames reached) is left as it is.
+    """
+    ks = sorted(ks)
+    if not np.all(predicted_snr(grid, ks, sensor, n_g) >= target_lin * 0.999):
+        return ks
+    for i in range(len(ks) - 1, -1, -1):
+        floor = ks[i - 1] if i > 0 else ks[0] * 1e-3
+        for kc in np.geomspace(floor, ks[i], steps)[:-1]:
+            trial = ks[:i] + [float(kc)] + ks[i + 1:]
+            if np.all(predicted_snr(grid, trial, sensor, n_g) >= target_lin * 0.999):
+                ks = trial
+                break
+    return ks
