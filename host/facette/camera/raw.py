@@ -76,19 +76,25 @@ def _fail(path, what):
         "(interrupted copy or capture): copy it again from the camera, or re-shoot that frame.")
 
 
-def read_raw_mosaic(path):
-    """Decode the CFA mosaic of a RAW file.
+def _decode(path, cell_only=False):
+    """(raw uint16 mosaic (H, W), colors int8 (H, W), black per colour (4,) float32, white).
 
-    Returns (mosaic float32 (H, W) in raw DN, colors int (H, W) with 0=R, 1=G, 2=B,
-    3=second G, black_per_channel (4,) DN, white_level DN).
+    cell_only: when the CFA repeats every 2×2 photosites, `colors` is that 2×2 cell
+    only (building the full colour map costs as much as decoding a 12 MP frame).
     """
     path = Path(path)
     if not path.is_file():
         raise RawDecodeError(f"no RAW file at {path}; check the scan's raw/ folder and scan.json")
     try:
         with rawpy.imread(str(path)) as raw:
-            mosaic = raw.raw_image_visible.astype(np.float32)
-            colors = raw.raw_colors_visible.astype(np.int8)
+            mosaic = raw.raw_image_visible.copy()
+            pattern = np.asarray(raw.raw_pattern)
+            if cell_only and pattern.shape == (2, 2):
+                top, left = raw.sizes.top_margin, raw.sizes.left_margin
+                colors = np.array([[pattern[(top + dy) % 2, (left + dx) % 2] for dx in (0, 1)]
+                                   for dy in (0, 1)], dtype=np.int8)
+            else:
+                colors = raw.raw_colors_visible.astype(np.int8)
             black = np.asarray(raw.black_level_per_channel, dtype=np.float32)
             white = float(raw.white_level)
             desc = raw.color_desc
@@ -101,6 +107,16 @@ def read_raw_mosaic(path):
     if desc[:3] != b"RGB":
         raise _fail(path, f"colour filter {desc!r} is not an RGB Bayer pattern")
     return mosaic, colors, black, white
+
+
+def read_raw_mosaic(path):
+    """Decode the CFA mosaic of a RAW file.
+
+    Returns (mosaic float32 (H, W) in raw DN, colors int (H, W) with 0=R, 1=G, 2=B,
+    3=second G, black_per_channel (4,) DN, white_level DN).
+    """
+    mosaic, colors, black, white = _decode(path)
+    return mosaic.astype(np.float32), colors, black, white
 
 
 def read_exposure_metadata(path):
@@ -161,6 +177,39 @@ def bin_half_size(mosaic, colors):
     return img.astype(np.float32), peak.astype(np.float32)
 
 
+def _bin_half_size_raw(mosaic, cell, black):
+    """`bin_half_size` of ``mosaic - black[colors]`` straight from the integer mosaic.
+
+    `cell` is the 2×2 CFA cell repeated over the mosaic. The black level is subtracted
+    per 2×2 position after the slicing and each channel is written as one plane
+    (the arrays returned are (H/2, W/2, 3) views of (3, H/2, W/2) planes, which the
+    merge and the EXR writer use without a copy): 4× faster at 12 MP than the general
+    path, the same values (DN are integers, exact in float32). None when `cell` is
+    not one R, two G and one B.
+    """
+    h, w = (mosaic.shape[0] // 2) * 2, (mosaic.shape[1] // 2) * 2
+    c = np.where(cell == 3, 1, cell)
+    if h == 0 or w == 0 or cell.shape != (2, 2) or sorted(c.ravel().tolist()) != [0, 1, 1, 2]:
+        return None
+    planes = {0: [], 1: [], 2: []}
+    for dy in (0, 1):
+        for dx in (0, 1):
+            planes[int(c[dy, dx])].append((mosaic[dy:h:2, dx:w:2], black[int(cell[dy, dx])]))
+    img = np.empty((3, h // 2, w // 2), np.float32)
+    peak = np.empty_like(img)
+    for ch in (0, 2):
+        (plane, b), = planes[ch]
+        np.subtract(plane, b, out=img[ch], dtype=np.float32)
+        peak[ch] = img[ch]
+    (g1, b1), (g2, b2) = planes[1]
+    np.subtract(g1, b1, out=img[1], dtype=np.float32)
+    np.subtract(g2, b2, out=peak[1], dtype=np.float32)
+    g_sum = img[1] + peak[1]
+    np.maximum(img[1], peak[1], out=peak[1])
+    np.multiply(g_sum, np.float32(0.5), out=img[1])
+    return np.moveaxis(img, 0, -1), np.moveaxis(peak, 0, -1)
+
+
 _BILINEAR = np.array([[1, 2, 1], [2, 4, 2], [1, 2, 1]], dtype=np.float32) / 4.0
 
 
@@ -200,9 +249,16 @@ def read_raw(path, half_size=True, demosaic="bilinear", white_balance=None):
     RawFrame
     """
     path = Path(path)
-    mosaic, colors, black, white = read_raw_mosaic(path)
+    raw, colors, black, white = _decode(path, cell_only=half_size)
+    binned = _bin_half_size_raw(raw, colors, black) if half_size and colors.shape == (2, 2) else None
+    if binned is not None:
+        image, peak = binned
+        n = (1, 2, 1)
+        return _frame(path, image, peak, n, black, white, white_balance)
+    if colors.shape != raw.shape:
+        colors = np.tile(colors, (raw.shape[0] // 2 + 1, raw.shape[1] // 2 + 1))[:raw.shape[0], :raw.shape[1]]
     # Per-photosite black level (LibRaw gives one per colour index 0..3).
-    mosaic = mosaic - black[colors]
+    mosaic = raw.astype(np.float32) - black[colors]
     if half_size:
         image, peak = bin_half_size(mosaic, colors)
         n = (1, 2, 1)
@@ -216,6 +272,10 @@ def read_raw(path, half_size=True, demosaic="bilinear", white_balance=None):
         n = (1, 1, 1)
     else:
         raise ValueError(f"unknown demosaic method {demosaic!r}; choose 'bilinear' or half_size=True")
+    return _frame(path, image, peak, n, black, white, white_balance)
+
+
+def _frame(path, image, peak, n, black, white, white_balance):
     if white_balance is not None:
         wb = np.asarray(white_balance, dtype=np.float32).reshape(3)
         image, peak = image * wb, peak * wb

@@ -31,6 +31,8 @@ Sample exclusion and documented results at the edges (both methods):
 """
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,7 +90,12 @@ def as_sensor(sensor):
 
 
 def _prepare(frames, exposures, times_s, peaks, n_photosites, invalid, saturation_dn):
-    """Validate inputs; returns (stack (n,H,W,C), peaks, k (n,), t (n,), n_ph (C,), sat_signal)."""
+    """Validate inputs without copying them.
+
+    Returns (frames, peaks, bad, k (n,), t (n,), n_ph (C,), saturation_dn): frames and
+    peaks as lists of n float32 arrays (H, W, C) (peaks[u] is frames[u] when none were
+    given), bad the list of frame indices holding NaN/inf (only with invalid="exclude").
+    """
     frames = list(frames)
     if len(frames) == 0:
         raise ValueError("no frames to merge: at least one exposure is needed")
@@ -105,15 +112,19 @@ def _prepare(frames, exposures, times_s, peaks, n_photosites, invalid, saturatio
         detail = ", ".join(f"frame {i}: {s}" for i, s in enumerate(shapes))
         raise ValueError(f"frames have different sizes ({detail}); every exposure of a light must "
                          "come from the same camera at the same resolution")
-    if len(shapes[0]) == 2:
-        frames = [np.asarray(f)[..., None] for f in frames]
-        peaks = None if peaks is None else [np.asarray(p)[..., None] for p in peaks]
-    stack = np.stack([np.asarray(f, dtype=np.float32) for f in frames])
-    if stack.ndim != 4:
+    if len(shapes[0]) not in (2, 3):
         raise ValueError(f"frames must be (H, W) or (H, W, C) arrays, got {shapes[0]}")
-    pk = stack if peaks is None else np.stack([np.asarray(p, dtype=np.float32) for p in peaks])
-    if pk.shape != stack.shape:
-        raise ValueError(f"peaks shape {pk.shape} differs from frames shape {stack.shape}")
+    frames = [np.asarray(f, dtype=np.float32) for f in frames]
+    if len(shapes[0]) == 2:
+        frames = [f[..., None] for f in frames]
+    if peaks is None:
+        pk = frames
+    else:
+        pk = [np.asarray(p, dtype=np.float32) for p in peaks]
+        pk = [p[..., None] if p.ndim == 2 else p for p in pk]
+        if len(pk) != len(frames) or any(p.shape != frames[0].shape for p in pk):
+            raise ValueError(f"peaks shape {(len(pk),) + pk[0].shape} differs from frames shape "
+                             f"{(len(frames),) + frames[0].shape}")
     k = np.asarray(exposures, dtype=np.float64).reshape(-1)
     if k.size != len(frames):
         raise ValueError(f"{k.size} exposures given for {len(frames)} frames: give one exposure "
@@ -123,21 +134,21 @@ def _prepare(frames, exposures, times_s, peaks, n_photosites, invalid, saturatio
     t = np.zeros_like(k) if times_s is None else np.asarray(times_s, dtype=np.float64).reshape(-1)
     if t.size != k.size:
         raise ValueError(f"{t.size} exposure times for {k.size} frames")
-    bad = ~np.isfinite(stack)
-    if bad.any():
-        if invalid == "raise":
-            which = sorted(set(np.nonzero(bad)[0].tolist()))
-            raise ValueError(f"frame(s) {which} contain {int(bad.sum())} NaN/inf values; fix the "
-                             "input or pass invalid='exclude' to treat them as missing samples")
-        if invalid != "exclude":
-            raise ValueError(f"invalid must be 'raise' or 'exclude', got {invalid!r}")
-    c = stack.shape[-1]
+    if invalid not in ("raise", "exclude"):
+        raise ValueError(f"invalid must be 'raise' or 'exclude', got {invalid!r}")
+    # np.isfinite(x.sum()) is a fast all-finite test (a float32 sum of DN cannot overflow).
+    bad = [u for u, f in enumerate(frames) if not np.isfinite(f.sum(dtype=np.float64))]
+    if bad and invalid == "raise":
+        count = sum(int((~np.isfinite(frames[u])).sum()) for u in bad)
+        raise ValueError(f"frame(s) {bad} contain {count} NaN/inf values; fix the "
+                         "input or pass invalid='exclude' to treat them as missing samples")
+    c = frames[0].shape[-1]
     n_ph = np.ones(c) if n_photosites is None else np.asarray(n_photosites, dtype=np.float64)
     if n_ph.size != c:
         n_ph = np.broadcast_to(n_ph.reshape(-1)[:1], (c,)).copy() if n_ph.size == 1 else None
         if n_ph is None:
             raise ValueError(f"n_photosites must have one entry per channel ({c})")
-    return stack, pk, bad, k, t, n_ph, saturation_dn
+    return frames, pk, bad, k, t, n_ph, saturation_dn
 
 
 def _variance_dn2(sensor, signal_dn, n_ph):
@@ -148,100 +159,166 @@ def _variance_dn2(sensor, signal_dn, n_ph):
     return (np.maximum(signal_dn, np.float32(0)) / g + floor) / n_ph
 
 
-def _masks(sensor, stack, pk, bad, k, t, n_ph, sat_signal, saturation_sigma, black_sigma):
-    """Valid-sample mask (n,H,W,C) and saturation-everywhere mask (H,W,C)."""
-    sat_thr = sat_signal - saturation_sigma * np.sqrt(_variance_dn2(sensor, sat_signal, 1.0))
-    saturated = (pk >= sat_thr) & ~bad
-    usable = ~saturated & ~bad
-    # float32 throughout the per-pixel work: half the memory traffic of float64.
-    dark_dn = (sensor.dark_current_e_per_s * t / sensor.gain_e_per_dn).astype(np.float32)
-    dark_dn = dark_dn[:, None, None, None]
-    black_thr = dark_dn + black_sigma * np.sqrt(_variance_dn2(sensor, 0.0, n_ph))
-    near_black = stack < black_thr
-    # Keep near-black samples unless a longer exposure of the pixel is usable.
-    order = np.argsort(k)
-    longer_usable = np.zeros_like(usable)
-    acc = np.zeros(stack.shape[1:], dtype=bool)
-    for u in order[::-1]:
-        longer_usable[u] = acc
-        acc = acc | usable[u]
-    valid = usable & ~(near_black & longer_usable)
-    all_sat = saturated.all(axis=0)
-    return valid, all_sat, dark_dn
+class _Samples:
+    """The per-frame quantities of one row block, visited longest exposure first.
+
+    For each frame u (in order of decreasing exposure) `valid` gives the samples the
+    merge uses: not saturated (peak photosite below `sat_thr`), finite, and not near
+    black unless no longer exposure of the pixel is usable. Also gathers the
+    saturated-everywhere mask. One frame at a time: no (n, rows, W, C) temporaries.
+    """
+
+    def __init__(self, sensor, frames, peaks, bad, k, t, n_ph, sat_signal, saturation_sigma,
+                 black_sigma, sl):
+        self.order = np.argsort(k, kind="stable")[::-1]
+        self.k = k.astype(np.float32)
+        self.dark = (sensor.dark_current_e_per_s * t / sensor.gain_e_per_dn).astype(np.float32)
+        self.z = [frames[u][sl] for u in range(len(frames))]
+        sat_thr = np.float32(sat_signal - saturation_sigma
+                             * np.sqrt(_variance_dn2(sensor, sat_signal, 1.0)))
+        noise0 = black_sigma * np.sqrt(_variance_dn2(sensor, 0.0, n_ph))      # (C,)
+        shape = self.z[0].shape
+        longer_usable = np.zeros(shape, bool)
+        self.all_sat = np.ones(shape, bool)
+        self.valid = [None] * len(frames)
+        for u in self.order:
+            z = self.z[u]
+            sat = peaks[u][sl] >= sat_thr
+            usable = ~sat
+            if u in bad:
+                finite = np.isfinite(z)
+                usable &= finite
+                sat &= finite
+                # zero the invalid samples: 0 × NaN would poison the sums
+                z = self.z[u] = np.where(finite, z, np.float32(0))
+            self.all_sat &= sat
+            near_black = z < (self.dark[u] + noise0).astype(np.float32)
+            self.valid[u] = usable & ~(near_black & longer_usable)
+            longer_usable |= usable
+
+    def any_valid(self):
+        out = np.zeros(self.z[0].shape, bool)
+        for v in self.valid:
+            out |= v
+        return out
+
+    def n_used(self):
+        out = np.zeros(self.z[0].shape, np.uint8)
+        for v in self.valid:
+            out += v
+        return out
 
 
-def _finish(rad, var, valid, all_sat, k, sat_signal):
+def _finish(rad, var, s, k, sat_signal):
     """Apply the documented edge results to a block; returns (rad, var, n_used, all_sat)."""
-    none = ~valid.any(axis=0)
-    rad = np.where(none, np.nan, rad)
-    var = np.where(none | ~np.isfinite(var), np.inf, var)
+    none = ~s.any_valid()
+    rad[none] = np.nan
+    var[none | ~np.isfinite(var)] = np.inf
     # Saturated everywhere: the shortest exposure gives a lower bound.
-    rad = np.where(all_sat, sat_signal / k.min(), rad)
-    return rad, var, valid.sum(axis=0), all_sat
+    rad[s.all_sat] = np.float32(sat_signal / k.min())
+    return rad, var, s.n_used(), s.all_sat
 
 
-def _block_inverse_variance(sensor, stack, pk, bad, k, t, n_ph, sat_signal, saturation_sigma,
-                            black_sigma, iterations):
-    valid, all_sat, dark_dn = _masks(sensor, stack, pk, bad, k, t, n_ph, sat_signal,
-                                     saturation_sigma, black_sigma)
-    kk = k.astype(np.float32)[:, None, None, None]
-    z = np.where(valid, stack - dark_dn, np.float32(0))
-    e_u = z / kk
-    signal = z  # first pass: the measured signal
+def _block_inverse_variance(sensor, frames, peaks, bad, k, t, n_ph, sat_signal, sl,
+                            saturation_sigma, black_sigma, iterations):
+    s = _Samples(sensor, frames, peaks, bad, k, t, n_ph, sat_signal, saturation_sigma,
+                 black_sigma, sl)
+    g = np.float32(sensor.gain_e_per_dn)
+    floor = np.float32((sensor.read_noise_e / sensor.gain_e_per_dn) ** 2 + 1.0 / 12.0)
+    n_ph32 = np.asarray(n_ph, dtype=np.float32)
+    zero = np.float32(0)
+    est = None
     for _ in range(max(1, int(iterations))):
-        w = np.where(valid, kk ** 2 / _variance_dn2(sensor, signal + dark_dn, n_ph), np.float32(0))
-        den = w.sum(axis=0)
+        num = np.zeros(s.z[0].shape, np.float32)
+        den = np.zeros_like(num)
+        for u in s.order:
+            ku, du = s.k[u], s.dark[u]
+            # Eq 2.13 at the sample's expected signal: first the measured value, then
+            # the merged radiance times k (Granados et al. 2010: no self-weight bias).
+            sig = s.z[u] if est is None else est * ku + du
+            w = ku * ku * n_ph32 / (np.maximum(sig, zero) / g + floor)
+            w = np.where(s.valid[u], w, zero)
+            num += w * ((s.z[u] - du) / ku)
+            den += w
         with np.errstate(divide="ignore", invalid="ignore"):
-            est = (w * e_u).sum(axis=0) / den
-        # Next pass: each sample's variance predicted from the merged radiance.
-        signal = np.where(np.isfinite(est), np.maximum(est, np.float32(0)), np.float32(0))[None] * kk
-    with np.errstate(divide="ignore"):
-        var = 1.0 / den
-    return _finish(est, var, valid, all_sat, k, sat_signal)
-
-
-def _block_debevec1997(sensor, stack, pk, bad, k, t, n_ph, sat_signal, saturation_sigma,
-                       black_sigma):
-    valid, all_sat, dark_dn = _masks(sensor, stack, pk, bad, k, t, n_ph, sat_signal,
-                                     saturation_sigma, black_sigma)
-    kk = k.astype(np.float32)[:, None, None, None]
-    z = np.where(valid, stack - dark_dn, np.float32(0))
-    hat = np.clip(np.minimum(z, np.float32(sat_signal) - z), 0, None)
-    # A valid sample keeps a tiny weight so a pixel black everywhere still gets an estimate.
-    w = np.where(valid, np.maximum(hat, np.float32(1e-6)), np.float32(0))
-    var_e = np.where(valid, _variance_dn2(sensor, np.where(valid, stack, np.float32(0)), n_ph)
-                     / kk ** 2, np.float32(0))
-    den = w.sum(axis=0)
+            est = num / den
+        est = np.where(np.isfinite(est), np.maximum(est, zero), zero)
     with np.errstate(divide="ignore", invalid="ignore"):
-        rad = (w * z / kk).sum(axis=0) / den
-        var = (w ** 2 * var_e).sum(axis=0) / den ** 2
-    return _finish(rad, var, valid, all_sat, k, sat_signal)
+        rad = num / den
+        var = np.float32(1) / den
+    return _finish(rad, var, s, k, sat_signal)
+
+
+def _block_debevec1997(sensor, frames, peaks, bad, k, t, n_ph, sat_signal, sl,
+                       saturation_sigma, black_sigma):
+    s = _Samples(sensor, frames, peaks, bad, k, t, n_ph, sat_signal, saturation_sigma,
+                 black_sigma, sl)
+    zero, sat32 = np.float32(0), np.float32(sat_signal)
+    num = np.zeros(s.z[0].shape, np.float32)
+    den = np.zeros_like(num)
+    acc_var = np.zeros_like(num)
+    for u in s.order:
+        ku, valid = s.k[u], s.valid[u]
+        z = s.z[u] - s.dark[u]
+        hat = np.clip(np.minimum(z, sat32 - z), 0, None)
+        # A valid sample keeps a tiny weight so a pixel black everywhere still gets an estimate.
+        w = np.where(valid, np.maximum(hat, np.float32(1e-6)), zero)
+        var_e = np.where(valid, _variance_dn2(sensor, np.where(valid, s.z[u], zero), n_ph)
+                         / (ku * ku), zero)
+        num += w * z / ku
+        den += w
+        acc_var += w * w * var_e
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rad = num / den
+        var = acc_var / (den * den)
+    return _finish(rad, var, s, k, sat_signal)
 
 
 def _run_blocks(block_fn, frames, exposures, sensor, times_s, peaks, n_photosites,
-                saturation_dn, invalid, method, rows_per_block=64, **kw):
+                saturation_dn, invalid, method, workers=None, rows_per_block=None, **kw):
     sensor = as_sensor(sensor)
-    stack, pk, bad, k, t, n_ph, sat_file = _prepare(frames, exposures, times_s, peaks,
-                                                    n_photosites, invalid, saturation_dn)
+    frames, pk, bad, k, t, n_ph, sat_file = _prepare(frames, exposures, times_s, peaks,
+                                                     n_photosites, invalid, saturation_dn)
     sat_signal = sensor.saturation_dn - sensor.black_level_dn
     if sat_file is not None:
         sat_signal = min(sat_signal, float(sat_file))
-    h = stack.shape[1]
-    rad = np.empty(stack.shape[1:], np.float32)
+    shape = frames[0].shape
+    h = shape[0]
+    rad = np.empty(shape, np.float32)
     var = np.empty_like(rad)
-    n_used = np.empty(stack.shape[1:], np.uint8)
-    all_sat = np.empty(stack.shape[1:], bool)
-    # Row blocks keep the float64 temporaries small (a 12 MP set would need GBs at once).
-    for r0 in range(0, h, rows_per_block):
-        sl = slice(r0, min(h, r0 + rows_per_block))
-        out = block_fn(sensor, stack[:, sl], pk[:, sl], bad[:, sl], k, t, n_ph, sat_signal, **kw)
-        rad[sl], var[sl], n_used[sl], all_sat[sl] = out
+    n_used = np.empty(shape, np.uint8)
+    all_sat = np.empty(shape, bool)
+    # Row blocks of ~2^16 values keep each frame's slice and the accumulators in cache;
+    # numpy releases the GIL on whole-block operations, so blocks run on `workers` threads.
+    rows = rows_per_block or max(1, (1 << 16) // max(1, shape[1] * shape[2]))
+    blocks = [slice(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
+
+    def one(sl):
+        rad[sl], var[sl], n_used[sl], all_sat[sl] = block_fn(sensor, frames, pk, bad, k, t, n_ph,
+                                                             sat_signal, sl, **kw)
+
+    n_workers = _workers(workers, len(blocks))
+    if n_workers == 1:
+        for sl in blocks:
+            one(sl)
+    else:
+        with ThreadPoolExecutor(n_workers) as pool:
+            list(pool.map(one, blocks))
     return HDRResult(radiance=rad, variance=var, n_used=n_used, saturated=all_sat, method=method)
+
+
+def _workers(workers, n_tasks):
+    """Threads for `n_tasks` independent tasks: `workers`, or one per core (at most 4)."""
+    if workers is None:
+        workers = min(4, os.cpu_count() or 1)
+    if int(workers) < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    return max(1, min(int(workers), n_tasks))
 
 
 def merge_inverse_variance(frames, exposures, sensor=None, *, times_s=None, peaks=None,
                            n_photosites=None, saturation_dn=None, iterations=2,
-                           saturation_sigma=3.0, black_sigma=3.0, invalid="raise"):
+                           saturation_sigma=3.0, black_sigma=3.0, invalid="raise", workers=None):
     """Noise-optimal HDR merge: inverse-variance weights from the sensor model.
 
     Parameters
@@ -266,6 +343,9 @@ def merge_inverse_variance(frames, exposures, sensor=None, *, times_s=None, peak
         Exclusion margins, in noise standard deviations (see the module notes).
     invalid : {"raise", "exclude"}
         What to do with NaN/inf samples.
+    workers : int or None
+        Threads over row blocks (None: one per core, at most 4); the result does not
+        depend on it.
 
     Returns
     -------
@@ -277,14 +357,14 @@ def merge_inverse_variance(frames, exposures, sensor=None, *, times_s=None, peak
     Thesis eq 2.14 with ω = 1/Var(E_u), and eq 2.13 for Var.
     """
     return _run_blocks(_block_inverse_variance, frames, exposures, sensor, times_s, peaks,
-                       n_photosites, saturation_dn, invalid, "inverse_variance",
+                       n_photosites, saturation_dn, invalid, "inverse_variance", workers=workers,
                        saturation_sigma=saturation_sigma, black_sigma=black_sigma,
                        iterations=iterations)
 
 
 def merge_debevec1997(frames, exposures, sensor=None, *, times_s=None, peaks=None,
                       n_photosites=None, saturation_dn=None, saturation_sigma=3.0,
-                      black_sigma=3.0, invalid="raise"):
+                      black_sigma=3.0, invalid="raise", workers=None):
     """HDR merge with Debevec & Malik's (1997) hat weights on the raw signal.
 
     w(z) = min(z, z_sat − z) for black-subtracted z in [0, z_sat] (linear camera, so
@@ -297,7 +377,7 @@ def merge_debevec1997(frames, exposures, sensor=None, *, times_s=None, peaks=Non
     Thesis eq 2.14 with ω the hat function [DM97].
     """
     return _run_blocks(_block_debevec1997, frames, exposures, sensor, times_s, peaks,
-                       n_photosites, saturation_dn, invalid, "debevec1997",
+                       n_photosites, saturation_dn, invalid, "debevec1997", workers=workers,
                        saturation_sigma=saturation_sigma, black_sigma=black_sigma)
 
 

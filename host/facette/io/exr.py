@@ -20,11 +20,19 @@ def channel_names_for(n_channels):
     return names[n_channels]
 
 
-def write_exr(path, image, channels=None, header=None):
+_COMPRESSION = {"zip": OpenEXR.ZIP_COMPRESSION, "none": OpenEXR.NO_COMPRESSION}
+
+
+def write_exr(path, image, channels=None, header=None, compression="zip"):
     """Write `image` (H, W) or (H, W, C), any real dtype, as float32 EXR.
 
     `header` is an optional dict of extra string attributes (provenance, units).
+    `compression`: "zip" (lossless, default) or "none" — for noisy float data such as
+    merged HDR radiance, which ZIP shrinks by 1 % at 13× the write time (12 MP: 0.66 s
+    against 0.05 s per file).
     """
+    if compression not in _COMPRESSION:
+        raise ValueError(f"unknown EXR compression {compression!r}; choose from {sorted(_COMPRESSION)}")
     image = np.asarray(image)
     if image.ndim == 2:
         image = image[:, :, None]
@@ -35,7 +43,7 @@ def write_exr(path, image, channels=None, header=None):
         raise ValueError(f"{len(channels)} channel names for an image with {image.shape[2]} channels")
     data = {name: np.ascontiguousarray(image[:, :, k], dtype=np.float32)
             for k, name in enumerate(channels)}
-    hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    hdr = {"compression": _COMPRESSION[compression], "type": OpenEXR.scanlineimage}
     for key, value in (header or {}).items():
         hdr[str(key)] = str(value)
     path = Path(path)
