@@ -223,26 +223,39 @@ def _block_inverse_variance(sensor, frames, peaks, bad, k, t, n_ph, sat_signal, 
                             saturation_sigma, black_sigma, iterations):
     s = _Samples(sensor, frames, peaks, bad, k, t, n_ph, sat_signal, saturation_sigma,
                  black_sigma, sl)
-    g = np.float32(sensor.gain_e_per_dn)
+    inv_g = np.float32(1.0 / sensor.gain_e_per_dn)
     floor = np.float32((sensor.read_noise_e / sensor.gain_e_per_dn) ** 2 + 1.0 / 12.0)
     n_ph32 = np.asarray(n_ph, dtype=np.float32)
     zero = np.float32(0)
+    shape = s.z[0].shape
+    # E_u = (z_u − dark_u) / k_u, and k_u²·n_ph (the numerator of w_u = 1/Var(E_u)).
+    e = {u: (s.z[u] - s.dark[u]) / s.k[u] for u in s.order}
+    c = {u: s.k[u] * s.k[u] * n_ph32 for u in s.order}
+    w, num, den = np.empty(shape, np.float32), np.empty(shape, np.float32), np.empty(shape, np.float32)
     est = None
     for _ in range(max(1, int(iterations))):
-        num = np.zeros(s.z[0].shape, np.float32)
-        den = np.zeros_like(num)
+        num.fill(0)
+        den.fill(0)
         for u in s.order:
-            ku, du = s.k[u], s.dark[u]
             # Eq 2.13 at the sample's expected signal: first the measured value, then
             # the merged radiance times k (Granados et al. 2010: no self-weight bias).
-            sig = s.z[u] if est is None else est * ku + du
-            w = ku * ku * n_ph32 / (np.maximum(sig, zero) / g + floor)
-            w = np.where(s.valid[u], w, zero)
-            num += w * ((s.z[u] - du) / ku)
+            if est is None:
+                np.maximum(s.z[u], zero, out=w)
+            else:
+                np.multiply(est, s.k[u], out=w)
+                w += s.dark[u]
+                np.maximum(w, zero, out=w)
+            w *= inv_g
+            w += floor
+            np.divide(c[u], w, out=w)
+            w *= s.valid[u]
             den += w
+            w *= e[u]
+            num += w
         with np.errstate(divide="ignore", invalid="ignore"):
             est = num / den
-        est = np.where(np.isfinite(est), np.maximum(est, zero), zero)
+        est[~np.isfinite(est)] = zero
+        np.maximum(est, zero, out=est)
     with np.errstate(divide="ignore", invalid="ignore"):
         rad = num / den
         var = np.float32(1) / den

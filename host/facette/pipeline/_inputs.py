@@ -9,7 +9,7 @@ import numpy as np
 from facette.calib import ProfileError, apply_flat_field, load
 from facette.io.diligent import is_diligent_dir, read_diligent
 from facette.io.png import read_mask
-from facette.scan import ScanDirectory, load_hdr
+from facette.scan import ScanDirectory, merge_scan
 
 __all__ = ["PSInput", "load_input", "source_path"]
 
@@ -148,12 +148,15 @@ def _load_hdr_images(scan_dir, data):
     lights = sorted(data["lights"], key=lambda l: int(l["index"]))
     ids = sorted({int(f["light"]) for f in data.get("frames", [])}) or [int(l["index"]) for l in lights]
     by_index = {int(l["index"]): l for l in lights}
-    have = all((scan_dir / "hdr" / f"light_{i:02d}.exr").is_file() for i in ids)
-    if have and all(i in by_index for i in ids):
-        return _read_hdr_fast(scan_dir, ids), [by_index[i] for i in ids]
-    images, variances, lights = load_hdr(scan_dir)
-    images = np.where(np.isfinite(variances), images, np.nan).astype(np.float32)
-    return images, lights
+    if data.get("frames"):
+        # merges only the lights whose HDR is missing or no longer matches its RAW frames
+        # (nothing after a scan merged during acquisition)
+        merge_scan(scan_dir)
+    unknown = [i for i in ids if i not in by_index]
+    if unknown:
+        raise ValueError(f"scan.json has frames for lights {unknown} that its 'lights' list "
+                         "does not describe")
+    return _read_hdr_fast(scan_dir, ids), [by_index[i] for i in ids]
 
 
 def _load_scan(scan_dir, pixel_pitch_mm):

@@ -23,7 +23,8 @@ from facette.io.checksum import sha256_file
 from facette.io.exr import read_exr, write_exr
 from facette.scan.directory import ScanDirectory, read_scan_manifest
 
-__all__ = ["merge_scan", "load_hdr", "read_scan_manifest", "frame_exposure", "MissingFrameWarning",
+__all__ = ["merge_scan", "merge_light", "hdr_up_to_date", "hdr_record", "scan_sensor", "light_frames",
+           "load_hdr", "read_scan_manifest", "frame_exposure", "MissingFrameWarning",
            "HDR_UNIT"]
 
 HDR_UNIT = "DN/(us*mA)"
@@ -54,8 +55,157 @@ def frame_exposure(frame, current="measured"):
     return t_us * i_ma, i_ma
 
 
+def _basis(method, current, per, sens):
+    """What, besides the frames, an HDR image depends on: redo it when any of these changes."""
+    return {"method": method, "current": current if per == "us*mA" else None,
+            "unit": HDR_UNIT if per == "us*mA" else "DN/us", "sensor": sens.to_profile_dict()}
+
+
+def _stat(path):
+    st = path.stat()
+    return {"size": st.st_size, "mtime_ns": st.st_mtime_ns}
+
+
+def light_frames(data, light):
+    """scan.json frame records of one light, by exposure index."""
+    return sorted((f for f in data["frames"] if int(f["light"]) == int(light)),
+                  key=lambda f: int(f["exposure"]))
+
+
+def hdr_up_to_date(scan_dir, data, record, basis=None):
+    """True when the HDR files of a light record exist and were made from the frames
+    scan.json lists now (same files, same sha256, unchanged on disk) and, if given, with
+    the same `basis` (method, unit, current, sensor)."""
+    scan_dir = Path(scan_dir)
+    if basis is not None and record.get("basis") != basis:
+        return False
+    if not all((scan_dir / record.get(k, "")).is_file() for k in ("file", "var_file")):
+        return False
+    inputs = record.get("inputs")
+    if not inputs:
+        return False
+    now = {f["file"]: f.get("sha256") for f in light_frames(data, record["index"])
+           if f.get("sync") is not False}
+    if {i["file"]: i["sha256"] for i in inputs} != now:
+        return False   # a frame was re-shot, added or lost since the merge
+    for i in inputs:   # a file touched after the merge: let the sha256 check decide
+        p = scan_dir / i["file"]
+        if not p.is_file() or _stat(p) != {"size": i["size"], "mtime_ns": i["mtime_ns"]}:
+            return False
+    return True
+
+
+def _stale(scan_dir, data, light, record, basis):
+    """Does this light need a merge? Yes unless its HDR is up to date, or its HDR files are
+    all there is (no RAW frame of it on disk: a scan copied without raw/)."""
+    if record is not None and hdr_up_to_date(scan_dir, data, record, basis):
+        return False
+    has_raw = any((scan_dir / f["file"]).is_file() for f in light_frames(data, light))
+    name = scan_dir / "hdr" / f"light_{int(light):02d}"
+    has_hdr = Path(f"{name}.exr").is_file() and Path(f"{name}_var.exr").is_file()
+    return has_raw or not has_hdr
+
+
+def _read_frame(scan_dir, fr, verify_sha256):
+    """Decode one frame (and check its sha256 on the same thread): (frame record, RawFrame, input)."""
+    path = scan_dir / fr["file"]
+    digest = sha256_file(path)
+    if verify_sha256 and fr.get("sha256") and digest != fr["sha256"]:
+        raise ValueError(f"{path} does not match the sha256 recorded in scan.json: the "
+                         "file changed after capture; re-shoot that frame or restore it")
+    return fr, read_raw(path), {"file": fr["file"], "sha256": digest, **_stat(path)}
+
+
+def merge_light(scan_dir, data, light, sensor=None, method="inverse_variance", current="measured",
+                verify_sha256=True, per="us*mA", workers=None):
+    """Merge one light of a scan into hdr/light_XX.exr and _var.exr; returns its record.
+
+    `data` is the scan.json dict (read by the caller, who also stores the record: this
+    function writes only the two EXR files). The record lists the inputs (file, sha256,
+    size, mtime) and the `basis` (method, unit, current, sensor), so that
+    `hdr_up_to_date` can tell whether the files still describe the frames.
+    Frames are decoded and hashed on `workers` threads (None: one per core, at most 4).
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    from facette.hdr._merge import _workers
+
+    scan_dir = Path(scan_dir)
+    sens = as_sensor(sensor)
+    li = int(light)
+    n_exposures = len(data.get("exposures") or [])
+    frames_rec = light_frames(data, li)
+    recorded = {int(f["exposure"]) for f in frames_rec}
+    missing = [{"exposure": e, "file": None, "reason": "not captured"}
+               for e in range(n_exposures) if e not in recorded]
+    todo = []
+    for fr in frames_rec:
+        if fr.get("sync") is False:  # the camera's flash sync never came: not a real frame
+            missing.append({"exposure": int(fr["exposure"]), "file": fr["file"], "reason": "no flash sync"})
+        elif not (scan_dir / fr["file"]).is_file():
+            missing.append({"exposure": int(fr["exposure"]), "file": fr["file"], "reason": "file missing"})
+        else:
+            todo.append(fr)
+    if missing:
+        warnings.warn(f"light {li}: merging without {len(missing)} exposure(s) "
+                      f"{[m['exposure'] for m in missing]} ({missing[0]['reason']})",
+                      MissingFrameWarning, stacklevel=3)
+    if not todo:
+        raise FileNotFoundError(f"light {li} has no RAW frame on disk in {scan_dir / 'raw'}; "
+                                "re-run the scan for that light")
+    t0 = time.perf_counter()
+    n_threads = _workers(workers, len(todo))
+    with ThreadPoolExecutor(n_threads) as pool:
+        frames = list(pool.map(lambda fr: _read_frame(scan_dir, fr, verify_sha256), todo))
+    t_read = time.perf_counter() - t0
+    exposures = [frame_exposure(fr, current)[0] if per == "us*mA" else float(fr["time_us"])
+                 for fr, _, _ in frames]
+    times_s = [float(fr["time_us"]) * 1e-6 for fr, _, _ in frames]
+    try:
+        res = merge([rf for _, rf, _ in frames], exposures, sens, method=method, times_s=times_s,
+                    workers=workers)
+    except ValueError as exc:
+        raise ValueError(f"light {li} of {scan_dir}: {exc} (files "
+                         f"{[fr['file'] for fr, _, _ in frames]})") from exc
+    inputs = [inp for _, _, inp in frames]
+    del frames[:]    # the RawFrames (7 × 2 × 36 MB at 12 MP) are no longer needed
+    t_merge = time.perf_counter() - t0 - t_read
+    basis = _basis(method, current, per, sens)
+    name = f"light_{li:02d}"
+    attrs = {"facette_unit": basis["unit"], "facette_method": method, "facette_light": str(li)}
+    (scan_dir / "hdr").mkdir(exist_ok=True)
+    # Uncompressed: ZIP saves 1 % on noisy float radiance and takes 13× longer.
+    write_exr(scan_dir / "hdr" / f"{name}.exr", res.radiance, ("R", "G", "B"), attrs,
+              compression="none")
+    write_exr(scan_dir / "hdr" / f"{name}_var.exr", res.variance, ("R", "G", "B"),
+              dict(attrs, facette_unit=f"({basis['unit']})^2"), compression="none")
+    return {"index": li, "file": f"hdr/{name}.exr", "var_file": f"hdr/{name}_var.exr",
+            "frames": [fr["file"] for fr in todo], "inputs": inputs, "missing": missing,
+            "basis": basis, "saturated_fraction": float(res.saturated.mean()),
+            "no_sample_fraction": float(np.mean(res.n_used == 0)),
+            "time_s": {"read": round(t_read, 3), "merge": round(t_merge, 3),
+                       "write": round(time.perf_counter() - t0 - t_read - t_merge, 3)}}
+
+
+def hdr_record(records, basis, source, merge_time_s):
+    """scan.json's "hdr" section from per-light records (sorted by light)."""
+    return {"method": basis["method"], "unit": basis["unit"], "current": basis["current"],
+            "resolution": "half-size", "sensor": basis["sensor"], "sensor_source": source,
+            "lights": sorted(records, key=lambda r: r["index"]), "merge_time_s": round(merge_time_s, 3),
+            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+
+
+def scan_sensor(data, sensor=None):
+    """(noise model, where it came from): `sensor`, else scan.json's, else the nominal one."""
+    if sensor is not None:
+        return as_sensor(sensor), "given"
+    if isinstance(data.get("sensor"), dict):
+        return as_sensor(data["sensor"]), "scan.json sensor"
+    return as_sensor(None), "nominal (no profile given)"
+
+
 def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measured",
-               verify_sha256=True, lights=None, per="us*mA"):
+               verify_sha256=True, lights=None, per="us*mA", force=False, workers=None):
     """Merge every light of a scan directory into hdr/light_XX.exr and hdr/light_XX_var.exr.
 
     Parameters
@@ -75,10 +225,17 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     per : {"us*mA", "us"}
         Unit of exposure: µs·mA (contract 3, default) or µs alone (the LED current
         ignored, e.g. for a constant-current rig whose currents are not recorded).
+    force : bool
+        Merge again even the lights whose HDR files are up to date (made from the same
+        frames, unchanged on disk, with the same method, unit and sensor); by default
+        those are kept, so a scan merged during acquisition is not merged twice.
+    workers : int or None
+        Threads for decoding and merging (None: one per core, at most 4).
 
     Returns
     -------
-    dict: the ``"hdr"`` record also written into scan.json.
+    dict: the ``"hdr"`` record also written into scan.json; each light's record says
+    what it was made from (``inputs``, ``basis``).
 
     A frame listed in scan.json whose file is missing, or recorded with
     ``"sync": false``, is skipped with a `MissingFrameWarning` and recorded under
@@ -90,73 +247,23 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     scan_dir = Path(scan_dir)
     sd = ScanDirectory.existing(scan_dir)
     data = sd.manifest
-    source = "given"
-    if sensor is None and isinstance(data.get("sensor"), dict):
-        sensor, source = data["sensor"], "scan.json sensor"
-    elif sensor is None:
-        source = "nominal (no profile given)"
-    sens = as_sensor(sensor)
-    by_light = {}
-    for fr in data["frames"]:
-        by_light.setdefault(int(fr["light"]), []).append(fr)
-    wanted = sorted(by_light) if lights is None else sorted(int(i) for i in lights)
-    n_exposures = len(data.get("exposures") or [])
-    (scan_dir / "hdr").mkdir(exist_ok=True)
-    sd.journal("hdr_begin", method=method, lights=wanted)
-    unit = HDR_UNIT if per == "us*mA" else "DN/us"
+    sens, source = scan_sensor(data, sensor)
+    basis = _basis(method, current, per, sens)
+    ids = sorted({int(fr["light"]) for fr in data["frames"]})
+    wanted = ids if lights is None else sorted(int(i) for i in lights)
+    old = {r["index"]: r for r in (data.get("hdr") or {}).get("lights", [])}
+    todo = [li for li in wanted if force or _stale(scan_dir, data, li, old.get(li), basis)]
+    if not todo:
+        return data.get("hdr") or hdr_record(list(old.values()), basis, source, 0.0)
+    sd.journal("hdr_begin", method=method, lights=todo)
     t0 = time.perf_counter()
-    records = []
-    for li in wanted:
-        frames, missing = [], []
-        recorded = {int(f["exposure"]) for f in by_light.get(li, [])}
-        missing += [{"exposure": e, "file": None, "reason": "not captured"}
-                    for e in range(n_exposures) if e not in recorded]
-        for fr in sorted(by_light.get(li, []), key=lambda f: int(f["exposure"])):
-            path = scan_dir / fr["file"]
-            if fr.get("sync") is False:  # the camera's flash sync never came: not a real frame
-                missing.append({"exposure": int(fr["exposure"]), "file": fr["file"],
-                                "reason": "no flash sync"})
-                continue
-            if not path.is_file():
-                missing.append({"exposure": int(fr["exposure"]), "file": fr["file"],
-                                "reason": "file missing"})
-                continue
-            if verify_sha256 and fr.get("sha256") and sha256_file(path) != fr["sha256"]:
-                raise ValueError(f"{path} does not match the sha256 recorded in scan.json: the "
-                                 "file changed after capture; re-shoot that frame or restore it")
-            frames.append((fr, read_raw(path)))
-        if missing:
-            warnings.warn(f"light {li}: merging without {len(missing)} exposure(s) "
-                          f"{[m['exposure'] for m in missing]} ({missing[0]['reason']})",
-                          MissingFrameWarning, stacklevel=2)
-        if not frames:
-            raise FileNotFoundError(f"light {li} has no RAW frame on disk in {scan_dir / 'raw'}; "
-                                    "re-run the scan for that light")
-        exposures = [frame_exposure(fr, current)[0] if per == "us*mA" else float(fr["time_us"])
-                     for fr, _ in frames]
-        times_s = [float(fr["time_us"]) * 1e-6 for fr, _ in frames]
-        try:
-            res = merge([rf for _, rf in frames], exposures, sens, method=method, times_s=times_s)
-        except ValueError as exc:
-            raise ValueError(f"light {li} of {scan_dir}: {exc} (files "
-                             f"{[fr['file'] for fr, _ in frames]})") from exc
-        name = f"light_{li:02d}"
-        hdr_attrs = {"facette_unit": unit, "facette_method": method,
-                     "facette_light": str(li)}
-        write_exr(scan_dir / "hdr" / f"{name}.exr", res.radiance, ("R", "G", "B"), hdr_attrs)
-        write_exr(scan_dir / "hdr" / f"{name}_var.exr", res.variance, ("R", "G", "B"),
-                  dict(hdr_attrs, facette_unit=f"({unit})^2"))
-        records.append({"index": li, "file": f"hdr/{name}.exr", "var_file": f"hdr/{name}_var.exr",
-                        "frames": [fr["file"] for fr, _ in frames], "missing": missing,
-                        "saturated_fraction": float(res.saturated.mean()),
-                        "no_sample_fraction": float(np.mean(res.n_used == 0))})
-    record = {"method": method, "unit": unit, "current": current if per == "us*mA" else None,
-              "resolution": "half-size", "sensor": sens.to_profile_dict(),
-              "sensor_source": source,
-              "lights": records, "merge_time_s": round(time.perf_counter() - t0, 3),
-              "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+    records = {li: r for li, r in old.items() if li not in todo and r.get("basis") == basis}
+    for li in todo:
+        records[li] = merge_light(scan_dir, data, li, sens, method, current, verify_sha256, per,
+                                  workers)
+    record = hdr_record(list(records.values()), basis, source, time.perf_counter() - t0)
     sd.update(hdr=record)
-    sd.journal("hdr_done", lights=wanted, merge_time_s=record["merge_time_s"])
+    sd.journal("hdr_done", lights=todo, merge_time_s=record["merge_time_s"])
     return record
 
 
@@ -170,8 +277,9 @@ def load_hdr(scan_dir, sensor=None, merge_missing=True, method="inverse_variance
     lights : list of m dicts from scan.json's "lights" (index, direction, position_mm,
         intensity), in the order of `images`.
 
-    If hdr/ is absent (or lacks a light) and `merge_missing`, `merge_scan` runs first
-    with `sensor` and `method`.
+    With `merge_missing`, `merge_scan` runs first with `sensor` and `method`: it merges
+    the lights whose HDR files are absent or no longer describe their RAW frames, and
+    nothing when all are up to date.
     """
     scan_dir = Path(scan_dir)
     data = read_scan_manifest(scan_dir)
@@ -179,12 +287,12 @@ def load_hdr(scan_dir, sensor=None, merge_missing=True, method="inverse_variance
     light_ids = sorted({int(f["light"]) for f in data["frames"]})
     paths = {li: (scan_dir / "hdr" / f"light_{li:02d}.exr",
                   scan_dir / "hdr" / f"light_{li:02d}_var.exr") for li in light_ids}
+    if merge_missing:
+        merge_scan(scan_dir, sensor=sensor, method=method)
     absent = [li for li, (p, v) in paths.items() if not (p.is_file() and v.is_file())]
     if absent:
-        if not merge_missing:
-            raise FileNotFoundError(f"{scan_dir / 'hdr'} lacks lights {absent}; run "
-                                    "facette.scan.merge_scan(scan_dir) first")
-        merge_scan(scan_dir, sensor=sensor, method=method, lights=absent)
+        raise FileNotFoundError(f"{scan_dir / 'hdr'} lacks lights {absent}; run "
+                                "facette.scan.merge_scan(scan_dir) first")
     by_index = {int(l["index"]): l for l in lights}
     unknown = [li for li in light_ids if li not in by_index]
     if unknown:
