@@ -169,3 +169,40 @@ def test_meter_plan_scan_merge_matches_truth(tmp_path):
 def read_scan_frames(scan_dir):
     import json
     return json.loads((scan_dir / "scan.json").read_text())["frames"]
+
+
+def _hdr_steps(folder):
+    lines = (folder / "journal.jsonl").read_text().splitlines()
+    return [json.loads(l)["lights"] for l in lines if json.loads(l)["step"] == "hdr_begin"]
+
+
+def test_merge_scan_redoes_only_what_changed(tmp_path):
+    truth = _make_scan(tmp_path, n_lights=3)
+    rec = merge_scan(tmp_path, sensor=SENSOR)
+    assert [i["file"] for i in rec["lights"][1]["inputs"]] == [f"raw/L01_E{e:02d}.dng" for e in range(3)]
+    before = (tmp_path / "hdr" / "light_00.exr").stat().st_mtime_ns
+    assert merge_scan(tmp_path, sensor=SENSOR) == rec          # up to date: nothing merged
+    assert _hdr_steps(tmp_path) == [[0, 1, 2]]
+    # Light 1's exposure 2 is re-shot (new file, new sha256 in scan.json): only light 1 again.
+    data = json.loads((tmp_path / "scan.json").read_text())
+    rng = np.random.default_rng(9)
+    t_us, i_ma = EXPOSURES[2]
+    mosaic = SENSOR.expose_charge(bayer_mosaic_rggb(truth[1] * SENSOR.gain_e_per_dn * t_us * i_ma),
+                                  t_us * 1e-6, rng)
+    write_dng(tmp_path / "raw" / "L01_E02.dng", mosaic, SENSOR.black_level_dn,
+              SENSOR.white_level_dn, t_us * 1e-6, 400)
+    fr = next(f for f in data["frames"] if f["file"] == "raw/L01_E02.dng")
+    fr["sha256"] = hashlib.sha256((tmp_path / fr["file"]).read_bytes()).hexdigest()
+    (tmp_path / "scan.json").write_text(json.dumps({**data}))
+    rec2 = merge_scan(tmp_path, sensor=SENSOR)
+    assert _hdr_steps(tmp_path)[-1] == [1]
+    assert rec2["lights"][1]["inputs"][2]["sha256"] == fr["sha256"]
+    assert (tmp_path / "hdr" / "light_00.exr").stat().st_mtime_ns == before
+    # Another sensor model is another basis: everything again; a file edited behind the
+    # record's back is caught by its sha256.
+    merge_scan(tmp_path, sensor=SensorModel(gain_e_per_dn=2.0))
+    assert _hdr_steps(tmp_path)[-1] == [0, 1, 2]
+    with open(tmp_path / "raw" / "L02_E00.dng", "ab") as fh:
+        fh.write(b"\0")
+    with pytest.raises(ValueError, match="L02_E00.dng does not match the sha256"):
+        merge_scan(tmp_path, sensor=SensorModel(gain_e_per_dn=2.0))
