@@ -8,6 +8,9 @@ Schema 1::
 
     {"schema": 1, "id": str, "rig": str, "created": ISO-8601 str,
      "pixel_pitch_mm": float | null,          # on the object, at the HDR resolution
+     "image_size_px": [w, h] | null,           # the HDR grid it was measured at (optional:
+                                               # older profiles give it by their flat field)
+     "binning": int | null,                    # RAW photosites per HDR pixel side (2: half-size)
      "lights": [{"index": int, "direction": [x, y, z],   # unit, camera frame (DESIGN §8)
                  "intensity": [r, g, b],                 # relative, mean over LEDs = 1
                  "position_mm": [x, y, z] | null}],      # near-light model, or null
@@ -35,7 +38,7 @@ from facette.io.checksum import sha256_file
 from facette.io.exr import read_exr, write_exr
 
 __all__ = ["Profile", "Lights", "load", "save", "nominal_light_directions", "SCHEMA_VERSION",
-           "ProfileError"]
+           "ProfileError", "ResolutionError", "AtSize", "pitch_at_size"]
 
 SCHEMA_VERSION = 1
 PROFILE_FILE = "profile.json"
@@ -43,6 +46,68 @@ PROFILE_FILE = "profile.json"
 
 class ProfileError(ValueError):
     """A profile file is missing, malformed, or does not match its checksum."""
+
+
+class ResolutionError(ProfileError):
+    """A scan's image size cannot be reconciled with the size a profile was measured at."""
+
+
+# Relative slack on the field of view: the sizes of one sensor differ by a few rows.
+_FIELD_TOLERANCE = 0.01
+
+
+def _scale(size_from, size_to, what):
+    """Profile pixels per scan pixel for a scan of `size_to` (w, h) against a profile measured
+    at `size_from` (w, h): another resolution of the same sensor keeps its width (2×2 or
+    other binning; the simulator's --raw-size), and may show fewer rows of it (a centred
+    crop for another aspect ratio), never more."""
+    (wf, hf), (wt, ht) = (int(v) for v in size_from), (int(v) for v in size_to)
+    if min(wf, hf, wt, ht) <= 0:
+        raise ResolutionError(f"image sizes must be positive, got {wf}×{hf} and {wt}×{ht}")
+    s = wf / wt
+    if ht * s > hf * (1 + _FIELD_TOLERANCE):
+        raise ResolutionError(
+            f"{what} was measured on images of {wf}×{hf} px; this scan's are {wt}×{ht} px, which "
+            f"at the same width would reach {ht * s / hf:.2f}× the calibrated field's height: not "
+            "another resolution of the same camera setting. Recalibrate at this size "
+            f"(facette calibrate with the camera at {wt}×{ht} px half-size) or scan at the "
+            "profile's aspect ratio")
+    return s
+
+
+def pitch_at_size(pixel_pitch_mm, size_from, size_to, what="the profile"):
+    """The pixel pitch (mm) of a scan of `size_to` (w, h) from one measured at `size_from`.
+
+    Raises ResolutionError (naming both sizes) when the sizes cannot be the same sensor."""
+    return float(pixel_pitch_mm) * _scale(size_from, size_to, what)
+
+
+def _resample(field, size_from, size_to):
+    """Bilinear resampling of a (h, w, 3) field measured at `size_from` onto `size_to` (w, h),
+    centred (the rows a crop keeps are the middle ones); values at the borders are held."""
+    s = _scale(size_from, size_to, "the flat field")
+    wt, ht = (int(v) for v in size_to)
+    hf, wf = field.shape[:2]
+    xs = np.clip((np.arange(wt) + 0.5) * s - 0.5, 0, wf - 1)
+    ys = np.clip((np.arange(ht) + 0.5 - ht / 2) * s + hf / 2 - 0.5, 0, hf - 1)
+    x0, y0 = xs.astype(int), ys.astype(int)
+    x1, y1 = np.minimum(x0 + 1, wf - 1), np.minimum(y0 + 1, hf - 1)
+    fx = (xs - x0).astype(np.float32)[None, :, None]
+    fy = (ys - y0).astype(np.float32)[:, None, None]
+    f = np.asarray(field, np.float32)
+    top = f[y0][:, x0] * (1 - fx) + f[y0][:, x1] * fx
+    bottom = f[y1][:, x0] * (1 - fx) + f[y1][:, x1] * fx
+    out = top * (1 - fy) + bottom * fy
+    return out / np.float32(out.mean())   # a flat field has mean 1
+
+
+@dataclasses.dataclass
+class AtSize:
+    """What a profile gives a scan of one image size: pixel_pitch_mm (or None), flat_field
+    (h, w, 3) or None, and a note saying what was scaled or resampled."""
+    pixel_pitch_mm: float | None
+    flat_field: np.ndarray | None
+    note: str
 
 
 def nominal_light_directions():
@@ -99,6 +164,8 @@ class Profile:
     flat_field: np.ndarray | None = None   # (H, W, 3), mean 1, or None
     led_gains: list | None = None
     radiometric_scale: list | None = None   # (3,) see the module docstring; None: relative only
+    image_size_px: tuple | None = None      # (w, h) of the HDR images it was measured at
+    binning: int | None = None              # RAW photosites per HDR pixel side (2: half-size)
     history: list = dataclasses.field(default_factory=list)
     sha256: str = ""                        # checksum of the file it was loaded from
     path: Path | None = None
@@ -113,6 +180,46 @@ class Profile:
             missing = [k for k in SENSOR_KEYS if k not in self.sensor]
             if missing:
                 raise ProfileError(f"sensor section lacks {missing}")
+        if self.image_size_px is not None:
+            size = tuple(int(v) for v in self.image_size_px)
+            if len(size) != 2 or min(size) <= 0:
+                raise ProfileError(f"image_size_px must be [width, height] > 0, got {self.image_size_px}")
+            self.image_size_px = size
+        if self.flat_field is not None and self.measured_size() != self.flat_field.shape[1::-1]:
+            raise ProfileError(f"the flat field is {self.flat_field.shape[1]}×{self.flat_field.shape[0]} px "
+                               f"but the profile says it was measured at {self.image_size_px[0]}×"
+                               f"{self.image_size_px[1]} px")
+
+    def measured_size(self):
+        """(w, h) of the HDR images the profile was measured at (its flat field's size when the
+        profile predates the image_size_px field), or None when unknown."""
+        if self.image_size_px is not None:
+            return tuple(self.image_size_px)
+        if self.flat_field is not None:
+            return (int(self.flat_field.shape[1]), int(self.flat_field.shape[0]))
+        return None
+
+    def at_size(self, size):
+        """The pixel pitch and flat field for HDR images of `size` (w, h): scaled and resampled
+        when the scan reads the same sensor at another resolution (see `pitch_at_size`).
+
+        Raises ResolutionError naming both sizes when they cannot be reconciled. A profile
+        that records no size gives its values unchanged, with a note saying so."""
+        size = (int(size[0]), int(size[1]))
+        base = self.measured_size()
+        if base is None:
+            return AtSize(self.pixel_pitch_mm, None, f"profile {self.id} records no image size: "
+                          "its pixel pitch is used as measured (recalibrate to record it)")
+        if base == size:
+            return AtSize(self.pixel_pitch_mm, self.flat_field, f"profile {self.id} measured at this size")
+        what = f"profile {self.id}"
+        pitch = None if self.pixel_pitch_mm is None else pitch_at_size(self.pixel_pitch_mm, base, size, what)
+        flat = None if self.flat_field is None else _resample(self.flat_field, base, size)
+        if pitch is None:
+            _scale(base, size, what)   # the same check without a pitch
+        return AtSize(pitch, flat, f"profile {self.id} measured at {base[0]}×{base[1]} px, scan at "
+                      f"{size[0]}×{size[1]} px: pixel pitch ×{base[0] / size[0]:.4g}"
+                      + (", flat field resampled" if flat is not None else ""))
 
     def to_dict(self, flat_field_ref=None):
         lights = [{"index": i, "direction": self.lights.directions[i].tolist(),
@@ -122,7 +229,9 @@ class Profile:
         return {"schema": SCHEMA_VERSION, "id": self.id, "rig": self.rig, "created": self.created,
                 "pixel_pitch_mm": self.pixel_pitch_mm, "lights": lights, "sensor": self.sensor,
                 "flat_field": flat_field_ref, "led_gains": self.led_gains,
-                "radiometric_scale": self.radiometric_scale, "history": list(self.history)}
+                "radiometric_scale": self.radiometric_scale,
+                "image_size_px": None if self.measured_size() is None else list(self.measured_size()),
+                "binning": self.binning, "history": list(self.history)}
 
 
 def _canonical(data):
@@ -210,4 +319,5 @@ def load(path):
                    pixel_pitch_mm=data.get("pixel_pitch_mm"), sensor=data.get("sensor"),
                    flat_field=flat, led_gains=data.get("led_gains"),
                    radiometric_scale=data.get("radiometric_scale"),
+                   image_size_px=data.get("image_size_px"), binning=data.get("binning"),
                    history=list(data.get("history", [])), sha256=data["checksum"], path=file)

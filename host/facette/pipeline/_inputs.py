@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facette.calib import ProfileError, apply_flat_field, load
+from facette.calib import ProfileError, ResolutionError, apply_flat_field, load, pitch_at_size
 from facette.io.diligent import is_diligent_dir, read_diligent
 from facette.io.png import read_mask
 from facette.scan import ScanDirectory, merge_scan
@@ -172,10 +172,10 @@ def _load_scan(scan_dir, pixel_pitch_mm):
     if scale is not None:   # the Spectralon's absolute scale: images become radiance factors
         inten = inten * np.asarray(scale, dtype=np.float64)[None, :]
     images /= inten[:, None, None, :].astype(np.float32)
-    flat_note = _apply_profile_flat_field(images, data.get("profile"))
+    profile_pitch, profile_notes = _apply_profile(images, data, scan_dir)
     pos = [l.get("position_mm") for l in lights]
     positions = np.array(pos, dtype=np.float64) if all(p is not None for p in pos) else None
-    pitch = pixel_pitch_mm or data.get("pixel_pitch_mm")
+    pitch = pixel_pitch_mm or profile_pitch
     if not pitch:
         raise ValueError(f"{scan_dir / 'scan.json'} gives no pixel_pitch_mm; pass pixel_pitch_mm=")
     truth = None
@@ -185,33 +185,61 @@ def _load_scan(scan_dir, pixel_pitch_mm):
     mask, material = _auto_mask(images)
     inp = PSInput(images, dirs, positions, mask, float(pitch), "scan", scan_dir, truth,
                   material_mask=material)
-    if flat_note:
-        inp.notes.append(flat_note)
+    inp.notes.extend(profile_notes)
     if scale is None:
         inp.notes.append("no radiometric scale in scan.json (profile without a Spectralon step): "
                          "albedo and BRDF values are relative, K_d is not a reflectance")
     return inp
 
 
-def _apply_profile_flat_field(images, profile_ref):
-    """Divide `images` (m, H, W, 3), in place, by the flat field of the profile the scan was
-    taken with (scan.json "profile": id, sha256, path). Returns a note for the report."""
-    if not profile_ref or not profile_ref.get("path"):
-        return "no calibration profile recorded: no flat-field correction"
-    try:
-        profile = load(profile_ref["path"])
-    except ProfileError as exc:
-        return f"flat field not applied: the scan's profile could not be read ({exc})"
-    if profile.sha256 != profile_ref.get("sha256"):
-        return (f"flat field not applied: {profile_ref['path']} changed since the scan "
-                f"(checksum {profile.sha256[:12]} != {str(profile_ref.get('sha256'))[:12]})")
+def _apply_profile(images, data, scan_dir):
+    """Apply the calibration profile the scan was taken with (scan.json "profile": id, sha256,
+    path, and the image size it was measured at) at the images' size: divide `images`
+    (m, H, W, 3) in place by its flat field, resampled if the scan reads the sensor at
+    another resolution, and give the pixel pitch at this size.
+
+    Returns (pixel_pitch_mm or None, notes). Raises ResolutionError (naming both sizes)
+    when the scan's size cannot be another resolution of the profile's camera setting."""
+    ref = data.get("profile")
+    pitch = data.get("pixel_pitch_mm")
+    size = (images.shape[2], images.shape[1])
+    if not ref:
+        return pitch, ["no calibration profile recorded: no flat-field correction"]
+    profile, why = None, None
+    if ref.get("path"):
+        try:
+            profile = load(ref["path"])
+        except ProfileError as exc:
+            why = f"the scan's profile could not be read ({exc})"
+        else:
+            if profile.sha256 != ref.get("sha256"):
+                why = (f"{ref['path']} changed since the scan (checksum {profile.sha256[:12]} != "
+                       f"{str(ref.get('sha256'))[:12]})")
+                profile = None
+    measured = ref.get("image_size_px") or (profile.measured_size() if profile else None)
+    notes = []
+    if pitch and measured and tuple(measured) != size:
+        try:
+            pitch = pitch_at_size(pitch, measured, size, f"profile {ref.get('id')}")
+        except ResolutionError as exc:
+            raise ResolutionError(f"{scan_dir}: {exc}") from None
+        notes.append(f"pixel pitch scaled from the profile's {measured[0]}×{measured[1]} px to "
+                     f"{size[0]}×{size[1]} px: {pitch:.5g} mm")
+    elif pitch and not measured:
+        notes.append(f"profile {ref.get('id')} records no image size: its pixel pitch is used "
+                     "as measured")
+    if profile is None:
+        notes.append(f"flat field not applied: {why or 'no profile path recorded'}")
+        return pitch, notes
     if profile.flat_field is None:
-        return f"profile {profile.id} has no flat field: no flat-field correction"
-    if profile.flat_field.shape != images.shape[1:]:
-        return (f"flat field not applied: profile {profile.id} has it at {profile.flat_field.shape[:2]}, "
-                f"the scan's images are {images.shape[1:3]}; recalibrate at this resolution")
-    images[...] = apply_flat_field(images, profile.flat_field)
-    return f"flat field of profile {profile.id} applied"
+        notes.append(f"profile {profile.id} has no flat field: no flat-field correction")
+        return pitch, notes
+    at = profile.at_size(size)
+    images[...] = apply_flat_field(images, at.flat_field)
+    notes.append(f"flat field of profile {profile.id} applied"
+                 + ("" if at.flat_field is profile.flat_field else
+                    f" (resampled from {measured[0]}×{measured[1]} px)"))
+    return pitch, notes
 
 
 def load_input(source, mask=None, pixel_pitch_mm=None):

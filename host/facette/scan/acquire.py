@@ -95,8 +95,11 @@ def _profile_section(profile):
     if profile is None:
         return None
     path = getattr(profile, "path", None)
+    size = profile.measured_size() if hasattr(profile, "measured_size") else None
     return {"id": profile.id, "sha256": profile.sha256,
-            "path": None if path is None else str(Path(path).resolve())}
+            "path": None if path is None else str(Path(path).resolve()),
+            # the size its pixel pitch and flat field were measured at (processing scales them)
+            "image_size_px": None if size is None else list(size)}
 
 
 def _lights_section(plan, profile):

@@ -91,6 +91,8 @@ class Wizard:
         self.radiometric_scale = None if base is None else base.radiometric_scale
         self.gains = None if base is None else base.led_gains
         self.pitch = None if base is None else base.pixel_pitch_mm
+        self.base = base
+        self.size = None   # (w, h) of the HDR images of this calibration's captures
         self.led_distance_mm = led_distance_mm
         if self.sensor is not None:
             self._use_sensor(self.sensor)
@@ -117,6 +119,12 @@ class Wizard:
     def _hdr(self, kind, name, current="measured", mask=None):
         ex = self._bracket(kind)
         images, d = self.st.capture(name, ex, current=current)
+        size = (images.shape[2], images.shape[1])
+        if self.size is not None and size != self.size:
+            raise WizardError(f"{name}: images of {size[0]}×{size[1]} px, the calibration so far was "
+                              f"measured at {self.size[0]}×{self.size[1]} px: keep the camera at one "
+                              "resolution for the whole calibration")
+        self.size = size
         # a clipped highlight biases its centroid: on the mirror sphere no pixel may saturate
         tol = dataclasses.replace(self.tol, saturated_fraction=0.0) if kind == "mirror_sphere" else self.tol
         level, sat = check_exposure(images, max(ex), min(ex), self.st.current_mA, self.st.full_scale_dn,
@@ -346,11 +354,13 @@ class Wizard:
                 order[name]()
         finally:
             self.st.restore()
+        self._base_at_size()
         lights = Lights(self.directions, self.intensities, self.positions)
         now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
         prof = Profile(rig=rig_name, lights=lights, created=now, pixel_pitch_mm=self.pitch,
                        sensor=self.sensor, flat_field=self.flat, led_gains=self.gains,
                        radiometric_scale=self.radiometric_scale,
+                       image_size_px=self.size, binning=2 if self.size is not None else None,
                        history=[f"{now} facette calibrate: {', '.join(self.steps)}"] + self.history)
         folder = Path(folder) if folder else profiles_dir() / rig_name
         path = save(prof, folder)
@@ -360,6 +370,21 @@ class Wizard:
         self._say(f"profile {prof.id} written to {path} (sha256 {prof.sha256[:12]}…; previous kept "
                   f"beside it) in {time.perf_counter() - t0:.1f} s")
         return prof, path
+
+    def _base_at_size(self):
+        """Values kept from a base profile measured at another image size: scaled to this one."""
+        base = self.base
+        if base is None:
+            return
+        if self.size is None or base.measured_size() in (None, self.size):
+            self.size = self.size or base.measured_size()
+            return
+        at = base.at_size(self.size)
+        if self.flat is base.flat_field:
+            self.flat = at.flat_field
+        if self.pitch == base.pixel_pitch_mm:
+            self.pitch = at.pixel_pitch_mm
+        self._note(at.note)
 
     def check(self, profile):
         """Re-measure directions (mirror sphere) and intensities (Spectralon) and report the

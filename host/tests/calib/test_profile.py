@@ -66,3 +66,57 @@ def test_radiometric_scale_round_trip_and_validation(tmp_path):
     assert load(tmp_path).radiometric_scale is None   # relative-only profiles stay readable
     with pytest.raises(ProfileError, match="radiometric_scale"):
         _profile(radiometric_scale=[1.0, -1.0, 1.0])
+
+
+def _smooth_flat(w, h):
+    """A smooth flat field sampled at pixel centres of a (w, h) grid of one 120-unit-wide field."""
+    x = (np.arange(w) + 0.5) / w - 0.5
+    y = (np.arange(h) + 0.5 - h / 2) / w
+    f = 1 + 0.05 * x[None, :] + 0.03 * y[:, None] ** 2 * 4
+    f = np.repeat(f[..., None], 3, axis=-1).astype(np.float32)
+    return f / f.mean()
+
+
+def test_another_binning_scales_the_pitch_and_resamples_the_flat_field(tmp_path):
+    p = _profile(flat_field=_smooth_flat(64, 48), pixel_pitch_mm=1.875, binning=2)
+    assert p.measured_size() == (64, 48)
+    save(p, tmp_path)
+    q = load(tmp_path)
+    assert q.image_size_px == (64, 48) and q.binning == 2
+    same = q.at_size((64, 48))
+    assert same.pixel_pitch_mm == 1.875 and same.flat_field is q.flat_field
+    # 4x finer, and the camera's 3:2 frame (fewer rows of the same width): pitch /4 and /33.5,
+    # the flat field follows the same smooth function on the new grid.
+    for w, h in ((256, 192), (2144, 1424)):
+        at = q.at_size((w, h))
+        assert at.pixel_pitch_mm == pytest.approx(1.875 * 64 / w)
+        assert at.flat_field.shape == (h, w, 3)
+        ref = _smooth_flat(w, h)
+        inner = (slice(h // 16, -h // 16), slice(w // 16, -w // 16))
+        np.testing.assert_allclose(at.flat_field[inner], ref[inner] * at.flat_field[inner].mean()
+                                   / ref[inner].mean(), rtol=2e-3)
+        assert "64×48" in at.note and f"{w}×{h}" in at.note
+
+
+def test_a_size_that_is_not_the_same_sensor_is_a_clear_error():
+    from facette.calib import ResolutionError
+
+    p = _profile(flat_field=_smooth_flat(64, 48), pixel_pitch_mm=1.875)
+    with pytest.raises(ResolutionError, match=r"64×48 px.*128×128 px"):
+        p.at_size((128, 128))          # a taller field than the one calibrated
+    with pytest.raises(ProfileError, match="flat field is 64×48 px but the profile says"):
+        _profile(flat_field=_smooth_flat(64, 48), image_size_px=(32, 24))
+    # no size known at all: the values as they are, and a note saying so
+    at = _profile(pixel_pitch_mm=2.0).at_size((640, 480))
+    assert at.pixel_pitch_mm == 2.0 and "records no image size" in at.note
+
+
+def test_the_committed_sim_profile_serves_every_simulated_size():
+    from facette.sim.device_process import REPO_ROOT
+
+    p = load(REPO_ROOT / "calibration" / "profiles" / "sim-default")
+    assert p.measured_size() == (64, 48)
+    for raw_w, raw_h in ((128, 96), (1072, 712), (4288, 2848)):
+        w = raw_w // 2
+        # the simulator keeps a 120 mm wide field: the calibrated pitch follows it (0.2 %)
+        assert p.at_size((w, raw_h // 2)).pixel_pitch_mm == pytest.approx(120 / w, rel=2e-3)
