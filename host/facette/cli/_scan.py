@@ -15,7 +15,10 @@ DEFAULT_SIM_PROFILE = "calibration/profiles/sim-default"
 
 
 def _exposures(text):
-    """'15,10,2,1,1/5,1/15,1/30' seconds (or with 'us' suffix: µs), optional '@mA'."""
+    """'adaptive', 'thesis', or '15,10,2,1,1/5,1/15,1/30' seconds (or with 'us' suffix: µs),
+    optional '@mA'."""
+    if text.strip().lower() in ("adaptive", "thesis"):
+        return text.strip().lower()
     out = []
     for item in text.split(","):
         item = item.strip()
@@ -53,8 +56,11 @@ def register(sub):
     p.add_argument("--camera-dir", help="folder the camera writes its RAW files to (real rigs)")
     p.add_argument("--gphoto2", action="store_true", help="tethered camera over gphoto2 (real rigs)")
     p.add_argument("--profile", help=f"calibration profile folder (default with --sim: {DEFAULT_SIM_PROFILE})")
-    p.add_argument("--exposures", type=_exposures, help="e.g. '15,10,2,1,1/5,1/15,1/30' (s; 'NNNus' for µs; "
-                   "'@mA' per exposure). Default: the thesis bracket")
+    p.add_argument("--exposures", type=_exposures, default="adaptive",
+                   help="'adaptive' (default: meter each light, then the fewest exposures giving "
+                   "40 dB on the object without clipping it), 'thesis' (the thesis's fixed bracket "
+                   "15,10,2,1,1/5,1/15,1/30 s) or a list, e.g. '1,1/8,1/30' (s; 'NNNus' for µs; "
+                   "'@mA' per exposure)")
     p.add_argument("--lights", type=_ints, help="LED channels in scan order, e.g. 0,1,2 (default: all)")
     p.add_argument("--current", type=int, default=500, help="LED current, mA (default 500)")
     p.add_argument("--mode", choices=("camera", "bulb", "led"), default="camera", help="timing mode")

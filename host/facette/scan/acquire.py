@@ -359,6 +359,38 @@ def _recover(sd, camera):
             done.add(rec["file"])
 
 
+def _is_meter_dir(path):
+    from facette.scan.adaptive import METER_DIR
+
+    return path.is_dir() and (path.name == METER_DIR or path.name.startswith(METER_DIR + "-"))
+
+
+def _adaptive(rig, directory, profile, lights, light_current_mA, mode, retries, timing, button,
+              frame_timeout_s, poll_s, max_runs):
+    """(exposures, light currents, bracketing record) of an adaptive scan: the plan a started
+    scan recorded (a resume never re-plans), else meter each light and plan."""
+    from facette.scan.adaptive import meter_and_plan
+
+    sd = ScanDirectory(directory)
+    if sd.manifest is not None:
+        old = sd.manifest.get("plan", {})
+        return ([tuple(e) for e in old.get("exposures", [])], old.get("light_current_mA", light_current_mA),
+                sd.manifest.get("bracketing") or {"name": "adaptive"})
+
+    def scan(path, exposures, btn):
+        return run_scan(rig, path, profile, exposures, lights, light_current_mA, mode, retries, timing,
+                        button=btn, progress=False, frame_timeout_s=frame_timeout_s, poll_s=poll_s,
+                        max_runs=max_runs, save_truth=False)
+
+    sensor = profile.sensor if profile is not None and profile.sensor else (
+        rig.sim.sensor if rig.sim is not None else None)
+    n = len(lights) if lights is not None else (len(profile.lights) if profile is not None else rig.n_lights)
+    currents = list(light_current_mA) if hasattr(light_current_mA, "__len__") else [light_current_mA] * n
+    plan, record = meter_and_plan(scan, Path(directory), currents, mode, sensor, button=button)
+    kw = plan.scan_kwargs()
+    return kw["exposures"], kw.get("light_current_mA", light_current_mA), record
+
+
 def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_current_mA=500,
              mode="camera", retries=1, timing=None, button=None, progress=True, on_frame=None,
              frame_timeout_s=60.0, poll_s=0.003, max_runs=8, save_truth=True):
@@ -370,7 +402,10 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
     directory : path of the scan directory (created; an existing one with the same
         plan is resumed, one with another plan is refused)
     profile : facette.calib.Profile, its folder, or None (nominal light directions)
-    exposures : times in µs or (time_us, current_mA) pairs (default: the thesis bracket)
+    exposures : times in µs or (time_us, current_mA) pairs; "thesis" or None: the thesis
+        bracket; "adaptive": meter each light once (into ``directory/meter``), plan the
+        fewest exposures reaching 40 dB on the object without clipping it
+        (`facette.scan.adaptive`), then scan them (a resume keeps the recorded plan)
     lights : LED channels in scan order (default every LED)
     light_current_mA : int or one per light
     mode : "camera" | "bulb" | "led"
@@ -386,6 +421,16 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
                          "or GPhoto2Camera()")
     profile = _load_profile(profile)
     n_leds = len(profile.lights) if profile is not None else rig.n_lights
+    bracketing = {"name": "thesis2016" if exposures in (None, "thesis") else "explicit"}
+    if exposures == "thesis":
+        exposures = None
+    elif exposures == "adaptive":
+        exposures, light_current_mA, bracketing = _adaptive(
+            rig, directory, profile, lights, light_current_mA, mode, retries, timing, button,
+            frame_timeout_s, poll_s, max_runs)
+        button = None   # the button started the metering
+    elif isinstance(exposures, str):
+        raise ValueError(f"exposures must be 'adaptive', 'thesis' or a list of exposures, got {exposures!r}")
     plan = default_plan(n_leds, exposures, lights, light_current_mA, mode, retries, timing)
     sd = ScanDirectory(directory)
     pitch = getattr(profile, "pixel_pitch_mm", None)
@@ -393,7 +438,7 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
         pitch = rig.sim.scene.pixel_pitch_mm
     if sd.manifest is None:
         if (sd.path / "journal.jsonl").exists() or (sd.path.exists() and any(
-                p.name not in (".DS_Store",) for p in sd.path.iterdir())):
+                p.name != ".DS_Store" and not _is_meter_dir(p) for p in sd.path.iterdir())):
             raise ScanDirectoryError(f"{sd.path} is not empty and holds no scan.json: choose a new directory")
         ignored = rig.camera.ignore_existing()
         sd.journal("begin", plan=plan.to_dict(), rig=rig.identity, camera=repr(rig.camera),
@@ -404,7 +449,10 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
             if profile.sensor:
                 sd.manifest["sensor"] = dict(profile.sensor)  # the HDR merge's noise model
             sd.manifest["radiometric_scale"] = profile.radiometric_scale
-            sd.save()
+        sd.manifest["bracketing"] = bracketing
+        # the metering runs are rig time of this scan too
+        sd.manifest["rig_time_s"] = round(float(bracketing.get("meter_rig_time_s", 0.0)), 6)
+        sd.save()
     else:
         old = sd.manifest.get("plan", {})
         if {k: old.get(k) for k in plan.key()} != plan.key():
