@@ -140,7 +140,7 @@ def run(args):
         try:
             scan = rig.scan(args.directory, profile=profile, exposures=args.exposures, lights=args.lights,
                             light_current_mA=args.current, mode=args.mode, button=button,
-                            progress=not args.quiet)
+                            progress=not args.quiet, merge_hdr=not args.no_process)
         except (ScanError, DeviceError) as exc:
             print(f"scan stopped: {exc}", file=sys.stderr)
             print(f"link: {rig.device.stats}", file=sys.stderr)

@@ -41,7 +41,7 @@ from facette._registry import Registry
 from facette.camera.sensor import SensorModel
 
 __all__ = ["HDRResult", "merge", "merge_inverse_variance", "merge_debevec1997", "MERGE_METHODS",
-           "as_sensor"]
+           "as_sensor", "n_workers"]
 
 
 @dataclass
@@ -310,17 +310,17 @@ def _run_blocks(block_fn, frames, exposures, sensor, times_s, peaks, n_photosite
         rad[sl], var[sl], n_used[sl], all_sat[sl] = block_fn(sensor, frames, pk, bad, k, t, n_ph,
                                                              sat_signal, sl, **kw)
 
-    n_workers = _workers(workers, len(blocks))
-    if n_workers == 1:
+    threads = n_workers(workers, len(blocks))
+    if threads == 1:
         for sl in blocks:
             one(sl)
     else:
-        with ThreadPoolExecutor(n_workers) as pool:
+        with ThreadPoolExecutor(threads) as pool:
             list(pool.map(one, blocks))
     return HDRResult(radiance=rad, variance=var, n_used=n_used, saturated=all_sat, method=method)
 
 
-def _workers(workers, n_tasks):
+def n_workers(workers, n_tasks):
     """Threads for `n_tasks` independent tasks: `workers`, or one per core (at most 4)."""
     if workers is None:
         workers = min(4, os.cpu_count() or 1)

@@ -5,9 +5,10 @@ from facette.scan.acquire import (THESIS_BRACKET_US, ScanAborted, ScanError, Sca
 from facette.scan.directory import (ScanDirectory, ScanDirectoryError, frame_name, read_scan_manifest,
                                     sha256_file)
 from facette.scan.rig import TIMING_MODES, Rig, RigFault, connect, decode_frame_record
-from facette.scan.hdr import HDR_UNIT, MissingFrameWarning, frame_exposure, load_hdr, merge_scan
+from facette.scan.hdr import (HDR_UNIT, LightMerger, MissingFrameWarning, frame_exposure, load_hdr,
+                              merge_scan)
 
 __all__ = ["run_scan", "ScanPlan", "default_plan", "ScanError", "ScanAborted", "ScanDirectory",
            "ScanDirectoryError", "frame_name", "sha256_file", "THESIS_BRACKET_US", "read_scan_manifest",
-           "merge_scan", "load_hdr", "frame_exposure", "MissingFrameWarning", "HDR_UNIT",
+           "merge_scan", "LightMerger", "load_hdr", "frame_exposure", "MissingFrameWarning", "HDR_UNIT",
            "Rig", "RigFault", "connect", "decode_frame_record", "TIMING_MODES"]

@@ -27,7 +27,9 @@ from facette.camera.folder import CameraTimeout
 from facette.camera.raw import read_exposure_metadata
 from facette.device.client import DeviceReset, DeviceTimeout
 from facette.hdr import THESIS_BRACKET_US
+from facette.scan.adaptive import METER_DIR, meter_and_plan
 from facette.scan.directory import ScanDirectory, ScanDirectoryError, frame_name, sha256_file
+from facette.scan.hdr import LightMerger, scan_sensor, store_light_records
 
 __all__ = ["run_scan", "ScanPlan", "ScanError", "ScanAborted", "THESIS_BRACKET_US", "default_plan"]
 
@@ -146,6 +148,7 @@ class _Acquisition:
         self.frame_timeout_s = frame_timeout_s
         self.poll_s = poll_s
         self.unmatched_dir = sd.path / "raw" / "unmatched"
+        self.merger = None   # a LightMerger when merging during acquisition
 
     # -- files ------------------------------------------------------------------------
     def keep_unmatched(self, src, why):
@@ -205,11 +208,37 @@ class _Acquisition:
         record["sha256"] = sha256_file(dst)
         self.sd.add_frame(record)
         self.sd.journal("captured", file=dst_rel, sha256=record["sha256"])
+        if self.merger is not None:
+            self.merge_if_complete(light)
         if self.progress is not None:
             self.progress.update(1)
         if self.on_frame is not None:
             self.on_frame(record)
         return record
+
+    # -- merge during acquisition ----------------------------------------------------
+    def merge_if_complete(self, light):
+        """Queue a light's HDR merge once all its exposures have landed (and been hashed);
+        store the merges that finished meanwhile."""
+        done = self.sd.frames_done()
+        if all((light, e) in done for e in range(len(self.plan.exposures))):
+            self.merger.submit(self.sd.manifest, light)
+        self.store_merged()
+
+    def store_merged(self, wait=False):
+        finished = self.merger.collect(wait=wait)
+        records = []
+        for light, rec in finished:
+            if isinstance(rec, Exception):
+                self.sd.journal("hdr_error", light=light, error=f"{type(rec).__name__}: {rec}"[:300])
+            else:
+                records.append(rec)
+                self.sd.journal("hdr_light", light=light, time_s=rec["time_s"])
+        if records:
+            _, source = scan_sensor(self.sd.manifest, self.merger.sensor)
+            self.sd.manifest["hdr"] = store_light_records(self.sd.manifest, records,
+                                                          self.merger.basis(self.sd.manifest), source)
+            self.sd.save()
 
     def keep_unmatched_existing(self, dst):
         self.unmatched_dir.mkdir(parents=True, exist_ok=True)
@@ -360,8 +389,6 @@ def _recover(sd, camera):
 
 
 def _is_meter_dir(path):
-    from facette.scan.adaptive import METER_DIR
-
     return path.is_dir() and (path.name == METER_DIR or path.name.startswith(METER_DIR + "-"))
 
 
@@ -369,8 +396,6 @@ def _adaptive(rig, directory, profile, lights, light_current_mA, mode, retries, 
               frame_timeout_s, poll_s, max_runs):
     """(exposures, light currents, bracketing record) of an adaptive scan: the plan a started
     scan recorded (a resume never re-plans), else meter each light and plan."""
-    from facette.scan.adaptive import meter_and_plan
-
     sd = ScanDirectory(directory)
     if sd.manifest is not None:
         old = sd.manifest.get("plan", {})
@@ -393,7 +418,7 @@ def _adaptive(rig, directory, profile, lights, light_current_mA, mode, retries, 
 
 def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_current_mA=500,
              mode="camera", retries=1, timing=None, button=None, progress=True, on_frame=None,
-             frame_timeout_s=60.0, poll_s=0.003, max_runs=8, save_truth=True):
+             frame_timeout_s=60.0, poll_s=0.003, max_runs=8, save_truth=True, merge_hdr=False):
     """Acquire (or resume) a scan into `directory`; returns the ScanDirectory.
 
     Parameters
@@ -415,6 +440,11 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
     on_frame : callable(record) after each frame is stored (tests use it to abort/pause)
     frame_timeout_s : how long to wait for the camera's file after its record
     max_runs : device runs allowed (resets re-run the missing frames)
+    merge_hdr : merge each light into hdr/ on a worker as soon as its frames have landed
+        (`facette.scan.LightMerger`, with the scan's sensor model), so that after the last
+        frame only that light's merge remains; recorded in scan.json "hdr" with what each
+        image was made from. A resumed scan merges only the lights not merged yet (or whose
+        frames changed); `merge_scan` and `facette process` then find nothing to do.
     """
     if rig.camera is None:
         raise ValueError("this rig has no camera backend: connect with camera=FolderWatchCamera(folder) "
@@ -465,6 +495,13 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
             rig.camera.ignore(begin.get("camera_ignored", []))
     acq = _Acquisition(rig, sd, plan, None, on_frame, frame_timeout_s, poll_s)
     all_pairs = {(l, e) for l in range(len(plan.lights)) for e in range(len(plan.exposures))}
+    if merge_hdr:
+        acq.merger = LightMerger(sd.path)
+        done = sd.frames_done()
+        for light in range(len(plan.lights)):   # a resumed scan: lights complete, not merged yet
+            if all((light, e) in done for e in range(len(plan.exposures))) and \
+                    acq.merger.stale(sd.manifest, light):
+                acq.merger.submit(sd.manifest, light)
     bar = None
     if progress:
         from tqdm import tqdm
@@ -496,6 +533,9 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
     finally:
         if bar is not None:
             bar.close()
+        if acq.merger is not None:
+            acq.store_merged(wait=True)   # the last light's merge (an interrupted scan keeps the rest)
+            acq.merger.close()
     if save_truth and rig.sim is not None:
         rig.sim.save_truth(sd.path, channels=plan.lights)
         sd.manifest["truth"] = "truth.npz"

@@ -11,19 +11,22 @@ The merge is recorded in scan.json under ``"hdr"``.
 from __future__ import annotations
 
 import datetime as _dt
+import json
 import time
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from facette.camera.raw import read_raw
-from facette.hdr import as_sensor, merge
+from facette.hdr import as_sensor, merge, n_workers
 from facette.io.checksum import sha256_file
 from facette.io.exr import read_exr, write_exr
 from facette.scan.directory import ScanDirectory, read_scan_manifest
 
-__all__ = ["merge_scan", "merge_light", "hdr_up_to_date", "hdr_record", "scan_sensor", "light_frames",
+__all__ = ["merge_scan", "merge_light", "LightMerger", "store_light_records", "hdr_up_to_date",
+           "hdr_record", "scan_sensor", "light_frames",
            "load_hdr", "read_scan_manifest", "frame_exposure", "MissingFrameWarning",
            "HDR_UNIT"]
 
@@ -126,10 +129,6 @@ def merge_light(scan_dir, data, light, sensor=None, method="inverse_variance", c
     `hdr_up_to_date` can tell whether the files still describe the frames.
     Frames are decoded and hashed on `workers` threads (None: one per core, at most 4).
     """
-    from concurrent.futures import ThreadPoolExecutor
-
-    from facette.hdr._merge import _workers
-
     scan_dir = Path(scan_dir)
     sens = as_sensor(sensor)
     li = int(light)
@@ -154,7 +153,7 @@ def merge_light(scan_dir, data, light, sensor=None, method="inverse_variance", c
         raise FileNotFoundError(f"light {li} has no RAW frame on disk in {scan_dir / 'raw'}; "
                                 "re-run the scan for that light")
     t0 = time.perf_counter()
-    n_threads = _workers(workers, len(todo))
+    n_threads = n_workers(workers, len(todo))
     with ThreadPoolExecutor(n_threads) as pool:
         frames = list(pool.map(lambda fr: _read_frame(scan_dir, fr, verify_sha256), todo))
     t_read = time.perf_counter() - t0
@@ -202,6 +201,75 @@ def scan_sensor(data, sensor=None):
     if isinstance(data.get("sensor"), dict):
         return as_sensor(data["sensor"]), "scan.json sensor"
     return as_sensor(None), "nominal (no profile given)"
+
+
+class LightMerger:
+    """Merge lights on a worker thread while a scan goes on (merge during acquisition).
+
+    `submit(data, light)` queues a light whose frames have all landed (`data`: the scan.json
+    dict at that moment, frames hashed); `collect()` returns the finished lights' records
+    (or the exception a merge raised) for the caller to store in scan.json: the worker
+    writes only hdr/light_XX*.exr, never scan.json, so the scan directory keeps one writer.
+    """
+
+    def __init__(self, scan_dir, sensor=None, method="inverse_variance", current="measured",
+                 workers=None):
+        self.scan_dir = Path(scan_dir)
+        self.sensor, self.method, self.current, self.workers = sensor, method, current, workers
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="hdr-merge")
+        self._futures = {}
+        self.submitted = []
+
+    def basis(self, data):
+        """The basis (method, unit, current, sensor) a merge of this scan gets."""
+        sens, _ = scan_sensor(data, self.sensor)
+        return _basis(self.method, self.current, "us*mA", sens)
+
+    def stale(self, data, light):
+        """True when `light` has no HDR that describes its frames now (see `hdr_up_to_date`)."""
+        old = {r["index"]: r for r in (data.get("hdr") or {}).get("lights", [])}
+        return _stale(self.scan_dir, data, light, old.get(int(light)), self.basis(data))
+
+    def submit(self, data, light):
+        light = int(light)
+        if light in self._futures:
+            return
+        data = json.loads(json.dumps(data))   # a snapshot: the scan goes on writing its dict
+        sens, _ = scan_sensor(data, self.sensor)
+
+        def work():
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", MissingFrameWarning)   # recorded in "missing"
+                return merge_light(self.scan_dir, data, light, sens, self.method, self.current,
+                                   workers=self.workers)
+
+        self._futures[light] = self._pool.submit(work)
+        self.submitted.append(light)
+
+    def collect(self, wait=False):
+        """[(light, record or Exception)] of the merges finished (all of them with `wait`)."""
+        out = []
+        for light, fut in list(self._futures.items()):
+            if wait or fut.done():
+                try:
+                    out.append((light, fut.result()))
+                except Exception as exc:   # the scan goes on; `facette process` merges it again
+                    out.append((light, exc))
+                del self._futures[light]
+        return out
+
+    def close(self):
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+def store_light_records(data, records, basis, source):
+    """scan.json's "hdr" with `records` (per-light, from `merge_light`) added or replaced;
+    records of another basis are dropped (they no longer describe a merge of this kind)."""
+    old = {r["index"]: r for r in (data.get("hdr") or {}).get("lights", [])
+           if r.get("basis") == basis}
+    old.update({r["index"]: r for r in records})
+    total = sum(sum(r.get("time_s", {}).values()) for r in old.values())
+    return hdr_record(list(old.values()), basis, source, total)
 
 
 def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measured",
@@ -257,11 +325,10 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
         return data.get("hdr") or hdr_record(list(old.values()), basis, source, 0.0)
     sd.journal("hdr_begin", method=method, lights=todo)
     t0 = time.perf_counter()
-    records = {li: r for li, r in old.items() if li not in todo and r.get("basis") == basis}
-    for li in todo:
-        records[li] = merge_light(scan_dir, data, li, sens, method, current, verify_sha256, per,
-                                  workers)
-    record = hdr_record(list(records.values()), basis, source, time.perf_counter() - t0)
+    records = [merge_light(scan_dir, data, li, sens, method, current, verify_sha256, per, workers)
+               for li in todo]
+    record = store_light_records(data, records, basis, source)
+    record["merge_time_s"] = round(time.perf_counter() - t0, 3)
     sd.update(hdr=record)
     sd.journal("hdr_done", lights=todo, merge_time_s=record["merge_time_s"])
     return record
