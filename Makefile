@@ -8,6 +8,8 @@ BUILD    := build
 SIM_DEVICE := $(BUILD)/posix/facette-device
 FUZZ_SECONDS ?= 300
 SCAN_OUT ?= out/scan-demo
+# RAW size of the demo: 512x384 px normal maps (the fossil's ribs visible), about half a minute
+SCAN_SIZE ?= 1024x768
 
 .PHONY: setup deps venv firmware-posix generate check-generated check-layers test c-test fuzz fuzz-smoke \
         pytest firmware qemu-test check-fw-layers scan calibrate bench clean help
@@ -75,7 +77,7 @@ pytest: setup
 test: check-generated check-layers setup c-test check-fw-layers fuzz-smoke pytest qemu-test
 
 scan: setup
-	$(FACETTE) scan --sim --press-button $(SCAN_OUT)
+	$(FACETTE) scan --sim --press-button --raw-size $(SCAN_SIZE) $(SCAN_OUT)
 
 # A fresh profile beside the committed one (calibration/profiles/sim-default is replaced only on purpose).
 calibrate: setup

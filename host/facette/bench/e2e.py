@@ -1,0 +1,186 @@
+"""`facette bench e2e`: the one-button scan end to end on the simulated rig, per RAW size.
+
+For each size, `facette scan --sim --press-button --raw-size WxH` runs as a user runs it
+(adaptive bracket, lights merged during acquisition, then every default processing stage)
+in a process of its own, and the bench reports:
+
+- rig time (device timeline, metering included) and the whole command's wall time;
+- the merge (sum over lights of decode + merge + EXR write, on the worker during the scan),
+  and the merge alone of the finished scan again in a fresh process (all lights, forced);
+- reconstruction (photometric stereo + integration) and BRDF fit, from `facette process`;
+- "results ready after the last frame": from the last frame's capture (journal) to the
+  end of the command (results written);
+- peak memory (max RSS) of the scan command (simulator included) and of `facette process`
+  alone on the finished scan;
+- SNR of the merged radiance on the object (truth mask), shadows (2–10 % of its values)
+  and midtones (45–55 %), from the variance the merge reports; clipped object pixels;
+- height RMS error against the simulator's truth.
+
+At the first size the fixed thesis bracket (`--exposures thesis`) runs too, for its rig
+time and shadow SNR beside the adaptive plan's. Medians over `--runs` runs.
+
+Usage: facette bench e2e [--sizes 128x96,1024x768,1072x712] [--full] [--runs N] [--keep DIR]
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from facette.io.exr import read_exr
+
+DEFAULT_SIZES = "128x96,1024x768,1072x712"
+FULL = "4288x2848"
+
+
+def _run_rss(cmd):
+    """(stdout, wall s, max RSS GB, end time UTC, CPU s) of a command in a process of its own
+    (max RSS and CPU time of that child alone, from wait4)."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out = proc.stdout.read()
+    err = proc.stderr.read()
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    end = _dt.datetime.now(_dt.timezone.utc)
+    if proc.returncode:
+        raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{err[-2000:]}")
+    return out, time.perf_counter() - t0, usage.ru_maxrss / 1e6, end, usage.ru_utime + usage.ru_stime
+
+
+def _times(stdout):
+    """The stage times `facette process` prints ("times: load 0.53 s, ps 2.35 s, ...")."""
+    m = re.search(r"times: (.*)", stdout)
+    return {k: float(v) for k, v in re.findall(r"(\w+) ([\d.]+) s", m.group(1))} if m else {}
+
+
+def _snr(scan_dir):
+    """Median over lights of the merged SNR (dB) in the object's shadows and midtones, and the
+    fraction of object pixels clipped (no finite variance), green channel."""
+    mask = np.load(scan_dir / "truth.npz")["mask"].astype(bool)
+    data = json.loads((scan_dir / "scan.json").read_text())
+    shadow, mid, clipped = [], [], []
+    for rec in data["hdr"]["lights"]:
+        rad = read_exr(scan_dir / rec["file"])[0][..., 1][mask]
+        var = read_exr(scan_dir / rec["var_file"])[0][..., 1][mask]
+        ok = np.isfinite(var) & (var > 0) & (rad > 0)
+        clipped.append(float(np.mean(~np.isfinite(var))))
+        snr = 20 * np.log10(rad[ok] / np.sqrt(var[ok]))
+        q = np.percentile(rad[ok], [2, 10, 45, 55])
+        shadow.append(np.median(snr[(rad[ok] >= q[0]) & (rad[ok] < q[1])]))
+        mid.append(np.median(snr[(rad[ok] >= q[2]) & (rad[ok] < q[3])]))
+    return float(np.median(shadow)), float(np.median(mid)), float(np.max(clipped))
+
+
+def _journal_last_frame(scan_dir):
+    last = None
+    for line in (scan_dir / "journal.jsonl").read_text().splitlines():
+        e = json.loads(line)
+        if e.get("step") == "captured":
+            last = e["t"]
+    return _dt.datetime.fromisoformat(last)
+
+
+def one_run(size, work, exposures=None):
+    """Figures of one scan at `size` ("WxH") in a new folder under `work`."""
+    facette = [sys.executable, "-m", "facette.cli.main"]
+    d = Path(tempfile.mkdtemp(prefix=f"e2e-{size}-", dir=work)) / "scan"
+    cmd = facette + ["scan", "--sim", "--press-button", "--quiet", "--raw-size", size, str(d)]
+    if exposures:
+        cmd[-1:-1] = ["--exposures", exposures]
+    out, wall, rss, end, _ = _run_rss(cmd)
+    data = json.loads((d / "scan.json").read_text())
+    hdr = data.get("hdr") or {}
+    merge_s = sum(sum(r.get("time_s", {}).values()) for r in hdr.get("lights", []))
+    times = _times(out)
+    err = re.search(r"height_rms_mm = ([\d.]+)", out)
+    shadow, mid, clipped = _snr(d)
+    # The merge alone, all lights, in a fresh process; then `facette process` alone.
+    code = ("import sys, time; from facette.hdr import merge_scan; t = time.perf_counter(); "
+            "merge_scan(sys.argv[1], force=True); print(f'merge {time.perf_counter() - t:.3f}')")
+    m_out, _, m_rss, _, m_cpu = _run_rss([sys.executable, "-c", code, str(d)])
+    p_out, p_wall, p_rss, _, p_cpu = _run_rss(facette + ["process", str(d), "-o", str(d / "results2")])
+    return {"size": size, "bracket": data.get("bracketing", {}).get("name"),
+            "frames": len(data["frames"]), "rig_s": float(data["rig_time_s"]), "wall_s": wall,
+            "merge_s": merge_s, "merge_alone_s": float(m_out.split()[-1]), "merge_alone_cpu_s": m_cpu,
+            "merge_alone_gb": m_rss, "process_cpu_s": p_cpu,
+            "recon_s": times.get("ps", np.nan) + times.get("integrate", np.nan),
+            "fit_s": times.get("fit", np.nan), "process_s": p_wall, "process_gb": p_rss,
+            "ready_s": (end - _journal_last_frame(d)).total_seconds(), "peak_gb": rss,
+            "shadow_db": shadow, "mid_db": mid, "clipped": clipped,
+            "height_rms_mm": float(err.group(1)) if err else np.nan}
+
+
+COLUMNS = [("size", "size", "s"), ("bracket", "bracket", "s"), ("frames", "frames", "d"),
+           ("rig_s", "rig s", ".1f"), ("wall_s", "wall s", ".1f"), ("merge_s", "merge s", ".2f"),
+           ("merge_alone_s", "merge alone s", ".2f"), ("merge_alone_cpu_s", "(CPU s)", ".2f"),
+           ("recon_s", "recon s", ".2f"),
+           ("fit_s", "fit s", ".2f"), ("ready_s", "ready after last frame s", ".2f"),
+           ("process_s", "process alone s", ".2f"), ("process_cpu_s", "(CPU s)", ".2f"),
+           ("peak_gb", "peak GB (scan+sim)", ".2f"), ("process_gb", "peak GB process", ".2f"),
+           ("shadow_db", "shadow dB", ".1f"), ("mid_db", "mid dB", ".1f"),
+           ("clipped", "clipped", ".4f"), ("height_rms_mm", "height RMS mm", ".3f")]
+
+
+def _median(rows):
+    out = dict(rows[0])
+    for k, _, f in COLUMNS:
+        if f != "s":
+            out[k] = float(np.median([r[k] for r in rows]))
+    return out
+
+
+def _print(rows):
+    print("| " + " | ".join(h for _, h, _ in COLUMNS) + " |")
+    print("|" + "---|" * len(COLUMNS))
+    for r in rows:
+        print("| " + " | ".join(format(int(r[k]) if f == "d" else r[k], f) for k, _, f in COLUMNS)
+              + " |", flush=True)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(prog="facette bench e2e", description=__doc__.splitlines()[0])
+    p.add_argument("--sizes", default=DEFAULT_SIZES, help=f"RAW sizes WxH (default {DEFAULT_SIZES})")
+    p.add_argument("--full", action="store_true", help=f"also {FULL}, the thesis camera (minutes)")
+    p.add_argument("--runs", type=int, default=1, help="runs per size; medians are printed")
+    p.add_argument("--no-fixed", action="store_true", help="skip the thesis bracket comparison")
+    p.add_argument("--keep", help="keep the scans in this folder (default: a temporary one)")
+    args = p.parse_args(argv)
+    sizes = [s.strip() for s in args.sizes.split(",") if s.strip()] + ([FULL] if args.full else [])
+    for s in sizes:
+        if not re.fullmatch(r"\d+x\d+", s):
+            raise SystemExit(f"--sizes: {s!r} is not WxH (e.g. 1024x768)")
+    work = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="facette-e2e-"))
+    work.mkdir(parents=True, exist_ok=True)
+    print(f"one-button scan on the simulated rig, {args.runs} run(s) per size, medians; "
+          f"{os.cpu_count()} cores; scans in {work}")
+    rows = []
+    jobs = [(s, None) for s in sizes] + ([] if args.no_fixed else [(sizes[0], "thesis")])
+    for size, exposures in jobs:
+        runs = [one_run(size, work, exposures) for _ in range(max(1, args.runs))]
+        rows.append(_median(runs))
+        _print(rows[-1:])
+    print()
+    _print(rows)
+    print("  rig s: device timeline (metering included); merge s: decode + merge + EXR write summed "
+          "over lights on the worker during the scan; merge alone: the same scan merged again in "
+          "a fresh process; recon: photometric stereo + integration; ready: last frame captured -> "
+          "results written; process alone: `facette process` on the finished scan (HDR up to date); "
+          "CPU s: of that process (wall > CPU/cores means it waited for a core); SNR from the merge's variance on the object, green, median over lights")
+    if not args.keep:
+        import shutil
+        shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
