@@ -42,6 +42,7 @@ def test_unattended_run_recovers_perturbed_leds_and_equalises_them(sim_rig_facto
     # the profile: checksummed, with its flat field; the transcript says what was found
     again = load(path.parent)
     assert again.sha256 == prof.sha256 and again.flat_field.shape == (48, 64, 3)
+    assert again.image_size_px == (64, 48) and again.binning == 2   # the size it was measured at
     np.testing.assert_allclose(again.flat_field.mean(axis=(0, 1)), 1, rtol=1e-4)
     text = "\n".join(lines)
     for needle in ("[1/5] noise", "sensor: gain", "from nominal", "matte vs mirror", "flat field",
