@@ -105,7 +105,7 @@ def one_run(size, work, exposures=None):
     err = re.search(r"height_rms_mm = ([\d.]+)", out)
     shadow, mid, clipped = _snr(d)
     # The merge alone, all lights, in a fresh process; then `facette process` alone.
-    code = ("import sys, time; from facette.hdr import merge_scan; t = time.perf_counter(); "
+    code = ("import sys, time; from facette.scan import merge_scan; t = time.perf_counter(); "
             "merge_scan(sys.argv[1], force=True); print(f'merge {time.perf_counter() - t:.3f}')")
     m_out, _, m_rss, _, m_cpu = _run_rss([sys.executable, "-c", code, str(d)])
     p_out, p_wall, p_rss, _, p_cpu = _run_rss(facette + ["process", str(d), "-o", str(d / "results2")])
