@@ -38,7 +38,7 @@ import numpy as np
 
 from facette.io.exr import read_exr
 
-DEFAULT_SIZES = "128x96,1024x768,1072x712"
+DEFAULT_SIZES = "1024x768,128x96,1072x712"
 FULL = "4288x2848"
 
 
@@ -166,7 +166,12 @@ def main(argv=None):
     rows = []
     jobs = [(s, None) for s in sizes] + ([] if args.no_fixed else [(sizes[0], "thesis")])
     for size, exposures in jobs:
-        runs = [one_run(size, work, exposures) for _ in range(max(1, args.runs))]
+        runs = []
+        for k in range(max(1, args.runs)):
+            runs.append(one_run(size, work, exposures))
+            if args.runs > 1:
+                print(f"  run {k + 1}:", flush=True)
+                _print(runs[-1:])
         rows.append(_median(runs))
         _print(rows[-1:])
     print()
