@@ -10,9 +10,10 @@ FUZZ_SECONDS ?= 300
 SCAN_OUT ?= out/scan-demo
 # RAW size of the demo: 512x384 px normal maps (the fossil's ribs visible), about half a minute
 SCAN_SIZE ?= 1024x768
+GLTF_VALIDATOR := tools/gltf-validator
 
 .PHONY: setup deps venv firmware-posix generate check-generated check-layers test c-test fuzz fuzz-smoke \
-        pytest firmware qemu-test check-fw-layers scan calibrate bench clean help
+        pytest firmware qemu-test check-fw-layers scan calibrate bench clean help node-deps
 
 help:
 	@echo "make scan             one-button scan on the simulated rig, then processing"
@@ -26,7 +27,7 @@ help:
 	@echo "make generate         regenerate protocol files from protocol/registers.toml"
 	@echo "make check-layers     host imports only go down the layers of docs/ARCHITECTURE.md"
 
-setup: deps venv firmware-posix
+setup: deps venv node-deps firmware-posix
 
 deps:
 	@tools/install-debian-deps.sh
@@ -38,6 +39,13 @@ $(VENV)/.installed: pyproject.toml
 	touch $@
 
 venv: $(VENV)/.installed
+
+# the Khronos glTF validator (npm), pinned by its lock file, for the .glb export's tests
+$(GLTF_VALIDATOR)/node_modules/.installed: $(GLTF_VALIDATOR)/package-lock.json | deps
+	npm ci --prefix $(GLTF_VALIDATOR) --no-audit --no-fund --loglevel=error
+	touch $@
+
+node-deps: $(GLTF_VALIDATOR)/node_modules/.installed
 
 generate:
 	python3 tools/gen_protocol.py

@@ -35,6 +35,8 @@ def register(sub):
     p.add_argument("--brdf-model", default="li",
                    help="model fitted for brdf.json: li, cook_torrance, oren_nayar, lambert")
     p.add_argument("--fit-method", default="least_squares", help="least_squares or genetic")
+    p.add_argument("--hsh-order", type=int, default=3, choices=(2, 3),
+                   help="hemispherical-harmonics order of relight.rti (2: 4 terms, 3: 9 terms)")
     return p
 
 
@@ -47,7 +49,8 @@ def run(args):
                       t_source=args.t_source, t_residual=args.t_residual, theta0_deg=args.theta0,
                       mask=args.mask, pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light,
                       mesh_step=args.mesh_step, ascii_ply=args.ascii_ply,
-                      fit_options={"model": args.brdf_model, "method": args.fit_method})
+                      fit_options={"model": args.brdf_model, "method": args.fit_method},
+                      hsh_order=args.hsh_order)
     except (ValueError, FileNotFoundError, TypeError) as exc:
         print(f"facette process: {exc}", file=sys.stderr)
         return 2
@@ -60,6 +63,8 @@ def run(args):
               "(hierarchy skipped there)")
     for k, v in res.errors.items():
         print(f"  against truth: {k} = {v:.3f}")
+    for k, v in res.fit_errors.items():
+        print(f"  relighting against the HDR images: {k} = {v:.4f}")
     print("  times: " + ", ".join(f"{k} {v:.2f} s" for k, v in res.timings.items()))
     if res.brdf is not None:
         print(f"  brdf: {res.brdf}")

@@ -10,6 +10,9 @@ Stages run only when a requested output needs them (DESIGN §2):
     mesh      load, ps, integrate, mesh      (mesh.ply)
     samples   load, ps, samples              (samples.npz)
     brdf      load, ps, samples, fit         (brdf.json; needs facette.fit)
+    ptm       load, ps, ptm                  (relight.ptm: PTM LRGB for RTIViewer)
+    rti       load, ps, hsh                  (relight.rti: HSH order 3 for RTIViewer)
+    gltf      load, ps, integrate, mesh, samples, fit   (model.glb: mesh + PBR maps)
     report    load, ps (+ whatever else ran) (report.html)
 """
 import json
@@ -24,23 +27,32 @@ import numpy as np
 from facette.fit import fit_hemisphere_cells
 from facette.io.exr import write_exr
 from facette.io.ply import write_ply
+from facette.io.gltf import write_glb
 from facette.io.png import write_mask
-from facette.recon import (integrate, mesh_from_height, near_light_directions, photometric_stereo)
+from facette.io.ptm import write_ptm_lrgb
+from facette.io.rti import write_hsh_rti
+from facette.recon import (integrate, mesh_from_height, near_light_directions, photometric_stereo,
+                           fit_hsh, fit_ptm_lrgb, relight_error, relight_hsh, relight_ptm)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
+from facette.pipeline._exports import gltf_inputs
 from facette.pipeline._inputs import load_input
 
 __all__ = ["OUTPUTS", "STAGES_FOR", "ProcessResult", "process", "stages_needed"]
 
-OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "report")
+OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf",
+           "report")
 STAGES_FOR = {
     "normals": ("load", "ps"), "albedo": ("load", "ps"), "mask": ("load", "ps"),
     "height": ("load", "ps", "integrate"), "mesh": ("load", "ps", "integrate", "mesh"),
     "samples": ("load", "ps", "samples"), "brdf": ("load", "ps", "samples", "fit"),
+    "ptm": ("load", "ps", "ptm"), "rti": ("load", "ps", "hsh"),
+    "gltf": ("load", "ps", "integrate", "mesh", "samples", "fit"),
     "report": ("load", "ps"),
 }
 FILES = {"normals": "normal.exr", "albedo": "albedo.exr", "mask": "mask.png", "height": "height.exr",
-         "mesh": "mesh.ply", "samples": "samples.npz", "brdf": "brdf.json", "report": "report.html"}
+         "mesh": "mesh.ply", "samples": "samples.npz", "brdf": "brdf.json", "ptm": "relight.ptm",
+         "rti": "relight.rti", "gltf": "model.glb", "report": "report.html"}
 RAW_SAMPLES_KEPT = 200_000   # raw samples stored next to the filtered ones (a uniform subset)
 
 
@@ -49,7 +61,7 @@ def stages_needed(outputs):
     bad = [o for o in outputs if o not in STAGES_FOR]
     if bad:
         raise ValueError(f"unknown output(s) {bad}; choose from {', '.join(OUTPUTS)}")
-    order = ("load", "ps", "integrate", "mesh", "samples", "fit")
+    order = ("load", "ps", "integrate", "mesh", "samples", "fit", "ptm", "hsh")
     want = {s for o in outputs for s in STAGES_FOR[o]}
     return [s for s in order if s in want]
 
@@ -63,7 +75,9 @@ class ProcessResult:
     mesh (vertices, faces) or None; filtered `FilteredReflectance` or None; samples raw
     `ReflectanceSamples` subset or None; brdf a facette.fit FitResult or None; ps the full `PSResult`;
     timings {stage: seconds}; files {output: path}; errors {name: value} against the
-    scan's truth.npz when present (angular error in degrees, height RMS in mm).
+    scan's truth.npz when present (angular error in degrees, height RMS in mm); ptm a
+    facette.recon PTMFit, hsh an HSHFit, or None; fit_errors {name: value}: relative RMS of
+    the PTM / HSH relighting against the (fall-off corrected) HDR images on the mask.
     """
     normals: np.ndarray = None
     albedo: np.ndarray = None
@@ -80,6 +94,9 @@ class ProcessResult:
     errors: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     options: dict = field(default_factory=dict)
+    ptm: object = None
+    hsh: object = None
+    fit_errors: dict = field(default_factory=dict)
 
 
 def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=RAW_SAMPLES_KEPT,
@@ -184,7 +201,7 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
             integration="frankot_chellappa1988", t_ombre=T_OMBRE, t_spec=T_SPEC,
             t_source=T_SOURCE, t_residual=T_RESIDUAL, theta0_deg=THETA0_DEG, mask=None,
             pixel_pitch_mm=None, near_light=True, mesh_step=None, ascii_ply=False,
-            saturation=None, fit_options=None):
+            saturation=None, fit_options=None, hsh_order=3):
     """Run the processing chain on a scan directory or a DiLiGenT-style folder.
 
     source : path (or Scan object) of a facette scan (scan.json + hdr/) or a DiLiGenT folder.
@@ -198,6 +215,7 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
     mesh_step : pixel step of the mesh (default: so that it has at most ~1e6 vertices).
     saturation : image values >= this are treated as missing.
     fit_options : keyword arguments of facette.fit.fit_brdf (model, method, volume, ...).
+    hsh_order : order of the hemispherical harmonics of relight.rti (2: 4 terms, 3: 9 terms).
     Returns a `ProcessResult`.
     """
     outputs = list(OUTPUTS if outputs is None else outputs)
@@ -242,6 +260,7 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
         t0 = time.perf_counter()
         step = mesh_step or max(1, int(np.ceil(np.sqrt(res.mask.sum() / 1e6))))
         res.mesh = mesh_from_height(res.height, res.mask, inp.pixel_pitch_mm, step=step)
+        res.options["mesh_step"] = step
         res.timings["mesh"] = time.perf_counter() - t0
     if "samples" in stages:
         t0 = time.perf_counter()
@@ -254,6 +273,18 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
         if note:
             res.notes.append(note)
         res.timings["fit"] = time.perf_counter() - t0
+    if "ptm" in stages:
+        t0 = time.perf_counter()
+        res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.mask)
+        res.fit_errors["ptm_relative_rms"] = relight_error(lambda d: relight_ptm(res.ptm, d), images,
+                                                           light_dirs, res.mask)
+        res.timings["ptm"] = time.perf_counter() - t0
+    if "hsh" in stages:
+        t0 = time.perf_counter()
+        res.hsh = fit_hsh(images, light_dirs, order=hsh_order, mask=res.mask)
+        res.fit_errors["hsh_relative_rms"] = relight_error(lambda d: relight_hsh(res.hsh, d), images,
+                                                           light_dirs, res.mask)
+        res.timings["hsh"] = time.perf_counter() - t0
     res.errors = _truth_errors(inp, res)
     res.timings["total_compute"] = time.perf_counter() - t_all
     if out_dir is not None:
@@ -292,6 +323,17 @@ def _write(res, out, outputs, ascii_ply, images, light_dirs):
     if "brdf" in outputs and res.brdf is not None:
         text = res.brdf.to_json() if hasattr(res.brdf, "to_json") else json.dumps(res.brdf, indent=2)
         jobs.append(lambda: (out / FILES["brdf"]).write_text(text))
+    if "ptm" in outputs:
+        jobs.append(lambda: write_ptm_lrgb(out / FILES["ptm"], res.ptm.coeffs, res.ptm.rgb))
+    if "rti" in outputs:
+        jobs.append(lambda: write_hsh_rti(out / FILES["rti"], res.hsh.coeffs))
+    if "gltf" in outputs:
+        if res.mesh is not None and len(res.mesh[1]):
+            kwargs, notes = gltf_inputs(res, res.options.get("mesh_step", 1))
+            res.notes.extend(notes)
+            jobs.append(lambda: write_glb(out / FILES["gltf"], **kwargs))
+        else:
+            res.notes.append("gltf: the mesh has no triangles (empty mask); model.glb not written")
     with ThreadPoolExecutor(2) as pool:
         futures = [pool.submit(job) for job in jobs]
         if "report" in outputs:

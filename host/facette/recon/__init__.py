@@ -4,6 +4,8 @@ Photometric stereo (thesis §4.2.1): `ps_woodham1980`, `ps_hierarchical_tautzia2
 methods for real photographs: `ps_rpca_wu2010` (low-rank recovery), `ps_rank_trimmed` (per-pixel
 trimmed least squares); all dispatched by `photometric_stereo(..., method=)`. Integration: `integrate_frankot_chellappa1988`,
 `integrate_simchony1990`, `integrate_least_squares`, dispatched by `integrate(..., method=)`.
+Relighting functions for RTI (PTM, Malzbender 2001; hemispherical harmonics, Gautron 2004):
+`fit_ptm_lrgb`, `fit_hsh`.
 """
 from ._ps import (PSResult, ps_woodham1980, ps_hierarchical_tautzia2016, photometric_stereo,
                   PS_METHODS, triplet_inverses, near_light_directions)
@@ -11,9 +13,13 @@ from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed      # registers both in
 from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
                          integrate_simchony1990, integrate_least_squares, integrate,
                          INTEGRATION_METHODS, mesh_from_height)
+from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, relight_ptm,
+                   relight_hsh, relight_error, HSH_ORDERS)
 
 __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
            "ps_rank_trimmed", "photometric_stereo",
            "PS_METHODS", "triplet_inverses", "near_light_directions",
            "normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
-           "integrate_least_squares", "integrate", "INTEGRATION_METHODS", "mesh_from_height"]
+           "integrate_least_squares", "integrate", "INTEGRATION_METHODS", "mesh_from_height",
+           "ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh", "relight_ptm",
+           "relight_hsh", "relight_error", "HSH_ORDERS"]

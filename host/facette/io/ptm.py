@@ -1,0 +1,62 @@
+"""Polynomial texture maps, PTM_FORMAT_LRGB (Malzbender & Gelb, "Polynomial Texture Map (.ptm)
+File Format", HP Labs, version 1.2, 2001), the format RTIViewer and the HP PTM viewer open.
+
+Layout (§2 of that document): the ASCII lines ``PTM_1.2``, ``PTM_FORMAT_LRGB``, the width,
+the height, six scale floats, six bias integers, then the binary data: the six luminance
+coefficients a0..a5 of every pixel as bytes, then the R, G, B bytes of every pixel, both in
+"simple reversed scanline order" (the bottom row first, left to right). A coefficient is
+recovered as a = (byte - bias) · scale; the pixel's colour is L(lu, lv) · RGB / 255.
+"""
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["write_ptm_lrgb", "quantize_scale_bias"]
+
+
+def quantize_scale_bias(coeffs):
+    """Per-coefficient scale (float) and integer bias in [0, 255] so that every value of
+    coeffs (N, 6) is within half a step of some byte: a = (byte - bias) · scale.
+    Returns (scale (6,), bias (6,) int)."""
+    lo = np.minimum(coeffs.min(axis=0), 0.0)
+    hi = np.maximum(coeffs.max(axis=0), 0.0)
+    span = np.where(hi - lo > 0, hi - lo, 1.0)
+    bias = np.clip(np.round(-lo / span * 255.0), 0, 255).astype(int)
+    # the scale that fits both ends once the zero is on an integer byte
+    up = np.where(bias < 255, hi / np.maximum(255 - bias, 1), 0.0)
+    down = np.where(bias > 0, -lo / np.maximum(bias, 1), 0.0)
+    scale = np.maximum(np.maximum(up, down), 1e-12)
+    return scale, bias
+
+
+def write_ptm_lrgb(path, coeffs, rgb):
+    """Write a PTM_FORMAT_LRGB file.
+
+    coeffs : (H, W, 6) float, the luminance polynomial a0..a5 per pixel (image row 0 = top),
+        in the order of `facette.recon.ptm_basis`; rgb : (H, W, 3) floats in [0, 1] (clipped).
+    Returns {"scale": [6], "bias": [6]} as written.
+    """
+    coeffs = np.asarray(coeffs, dtype=np.float64)
+    rgb = np.asarray(rgb, dtype=np.float64)
+    if coeffs.ndim != 3 or coeffs.shape[2] != 6 or 0 in coeffs.shape:
+        raise ValueError(f"PTM coefficients must have shape (H, W, 6), got {coeffs.shape}")
+    if rgb.shape != coeffs.shape[:2] + (3,):
+        raise ValueError(f"rgb must have shape {coeffs.shape[:2] + (3,)}, got {rgb.shape}")
+    if not (np.isfinite(coeffs).all() and np.isfinite(rgb).all()):
+        raise ValueError("PTM coefficients and colours must be finite (set unfitted pixels to 0)")
+    h, w, _ = coeffs.shape
+    scale, bias = quantize_scale_bias(coeffs.reshape(-1, 6))
+    q = np.clip(np.round(coeffs / scale + bias), 0, 255).astype(np.uint8)
+    c = np.clip(np.round(rgb * 255.0), 0, 255).astype(np.uint8)
+    header = ("PTM_1.2\nPTM_FORMAT_LRGB\n"
+              f"{w}\n{h}\n"          # separate lines: legal (§2.3) and what every reader takes
+              + " ".join(f"{s:.9g}" for s in scale) + "\n"
+              + " ".join(str(int(b)) for b in bias) + "\n")
+    path = Path(path)
+    tmp = path.with_name(path.name + ".partial")
+    with open(tmp, "wb") as out:
+        out.write(header.encode("ascii"))
+        out.write(q[::-1].tobytes())           # bottom row first
+        out.write(c[::-1].tobytes())
+    tmp.replace(path)
+    return {"scale": [float(s) for s in scale], "bias": [int(b) for b in bias]}

@@ -1,0 +1,48 @@
+"""Hemispherical-harmonics RTI files (.rti, "#HSH1.2"), as written by Cultural Heritage
+Imaging's RTIBuilder (its HSH fitter) and read by RTIViewer.
+
+Layout: the ASCII lines ``#HSH1.2`` (comment lines start with '#'), the file type ``3``
+(HSH), ``width height bands`` (bands = 3, RGB), ``terms basis_type element_size``
+(order² terms, basis type 2, 1 byte per element); then `terms` little-endian float32
+scales, `terms` float32 biases, and the pixels, the bottom row first, left to right, each
+as terms bytes for red, then green, then blue. A coefficient is
+byte / 255 · scale[k] + bias[k]. The basis is `facette.recon.hsh_basis`.
+"""
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["write_hsh_rti"]
+
+HSH_FILE_TYPE = 3          # RTIViewer's file types: 1 PTM, 2 spherical harmonics, 3 HSH
+HSH_BASIS_TYPE = 2
+
+
+def write_hsh_rti(path, coeffs):
+    """Write an HSH .rti file.
+
+    coeffs : (H, W, 3, T) float, T = 4 or 9 (order 2 or 3) HSH coefficients per colour
+        channel (image row 0 = top), values that relight to [0, 1] for display.
+    Returns {"scale": [T], "bias": [T]} as written (scale = max - min, bias = min per term).
+    """
+    coeffs = np.asarray(coeffs, dtype=np.float64)
+    if coeffs.ndim != 4 or coeffs.shape[2] != 3 or coeffs.shape[3] not in (4, 9) or 0 in coeffs.shape:
+        raise ValueError(f"HSH coefficients must have shape (H, W, 3, 4 or 9), got {coeffs.shape}")
+    if not np.isfinite(coeffs).all():
+        raise ValueError("HSH coefficients must be finite (set unfitted pixels to 0)")
+    h, w, _, t = coeffs.shape
+    lo = coeffs.min(axis=(0, 1, 2))
+    hi = coeffs.max(axis=(0, 1, 2))
+    scale = np.where(hi > lo, hi - lo, 1.0).astype("<f4")
+    bias = lo.astype("<f4")
+    q = np.clip(np.round((coeffs - bias) / scale * 255.0), 0, 255).astype(np.uint8)
+    header = f"#HSH1.2\n{HSH_FILE_TYPE}\n{w} {h} 3\n{t} {HSH_BASIS_TYPE} 1\n"
+    path = Path(path)
+    tmp = path.with_name(path.name + ".partial")
+    with open(tmp, "wb") as out:
+        out.write(header.encode("ascii"))
+        out.write(scale.tobytes())
+        out.write(bias.tobytes())
+        out.write(q[::-1].tobytes())           # bottom row first; per pixel R terms, G, B
+    tmp.replace(path)
+    return {"scale": [float(s) for s in scale], "bias": [float(b) for b in bias]}

@@ -1,0 +1,130 @@
+"""Exports for the tools people already use: RTIViewer (PTM LRGB, HSH .rti) and glTF 2.0 viewers.
+
+The fits live in `facette.recon` (fit_ptm_lrgb, fit_hsh), the file layouts in `facette.io`
+(ptm, rti, gltf); this module prepares what the glTF material needs from a process result:
+sRGB base colour, a tangent-space normal map and the roughness that stands for the LI σ.
+"""
+import numpy as np
+from scipy.ndimage import uniform_filter
+
+__all__ = ["gltf_roughness", "srgb_encode", "vertex_normals", "vertex_tangents",
+           "tangent_space_normal_map", "gltf_inputs"]
+
+
+def gltf_roughness(sigma, distribution="beckmann"):
+    """glTF metallic-roughness `roughness` in [0, 1] for a microfacet roughness σ.
+
+    glTF evaluates GGX with α = roughness² (glTF 2.0 spec, Appendix B). The LI fit's
+    Beckmann σ is an RMS slope; Beckmann and GGX of the same α have the same peak
+    D(n) = 1 / (π α²) and the same mean-square slope to first order (Walter et al. 2007
+    compare them at equal α), so α_GGX = σ and roughness = √σ. A Gaussian σ is an angle
+    (rad): exp(-θ²/2σ²) ≈ Beckmann with slope √2 σ, so roughness = (√2 σ)^½. GGX: √σ.
+    Clipped to [0, 1] (σ > 1 is rougher than glTF can say).
+    """
+    s = np.asarray(sigma, dtype=float)
+    if np.any(~np.isfinite(s)) or np.any(s < 0):
+        raise ValueError(f"sigma must be finite and >= 0, got {sigma}")
+    if distribution == "gaussian":
+        s = np.sqrt(2.0) * s
+    elif distribution not in ("beckmann", "ggx"):
+        raise ValueError(f"unknown microfacet distribution {distribution!r}: beckmann, ggx or gaussian")
+    return np.clip(np.sqrt(s), 0.0, 1.0)
+
+
+def srgb_encode(linear):
+    """Linear values in [0, 1] (clipped) -> sRGB-encoded uint8 (IEC 61966-2-1)."""
+    x = np.clip(np.nan_to_num(np.asarray(linear, float)), 0.0, 1.0)
+    y = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return np.round(y * 255.0).astype(np.uint8)
+
+
+def vertex_normals(vertices, faces):
+    """Area-weighted vertex normals (V, 3) of a triangle mesh (faces counter-clockwise)."""
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces)
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])   # |fn| = 2 · area
+    n = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(n, f[:, k], fn)
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.where(norm > 0, n / np.where(norm > 0, norm, 1), [0.0, 0.0, 1.0])
+
+
+def vertex_tangents(normals):
+    """Tangents (V, 4) along +x (the texture's +u) made orthogonal to each normal, w = +1, so
+    that glTF's bitangent cross(n, t) points along +y (image up)."""
+    n = np.asarray(normals, np.float64)
+    t = np.array([[1.0, 0.0, 0.0]]) - n * n[:, :1]          # e_x - (e_x · n) n
+    norm = np.linalg.norm(t, axis=1, keepdims=True)
+    t = np.where(norm > 1e-9, t / np.where(norm > 1e-9, norm, 1), [1.0, 0.0, 0.0])
+    return np.concatenate([t, np.ones((len(n), 1))], axis=1)
+
+
+def tangent_space_normal_map(normals, height_mm, mask, pixel_pitch_mm, step=1):
+    """Normal-map texture (H, W, 3) uint8 of the photometric-stereo normals relative to the
+    mesh they will be draped on.
+
+    normals (H, W, 3) camera frame; height_mm (H, W); mask (H, W) bool; step: the mesh's
+    vertex step (px). The mesh surface at each pixel is that of the height smoothed over
+    `step` px: N = (-h_x, -h_y, 1)/|.|, T = (1, 0, h_x)/|.|, B = N × T; the texel is
+    (n·T, n·B, n·N) mapped to (x + 1)/2 · 255, and (0, 0, 1) outside the mask.
+    """
+    hgt = np.where(mask, np.asarray(height_mm, np.float64), 0.0)
+    if step > 1:
+        hgt = uniform_filter(hgt, size=step, mode="nearest")
+    gy, gx = np.gradient(hgt, pixel_pitch_mm)
+    hx, hy = gx, -gy                                  # image rows go down, y goes up
+    nm = np.stack([-hx, -hy, np.ones_like(hx)], -1)
+    nm /= np.linalg.norm(nm, axis=-1, keepdims=True)
+    tm = np.stack([np.ones_like(hx), np.zeros_like(hx), hx], -1)
+    tm /= np.linalg.norm(tm, axis=-1, keepdims=True)
+    bm = np.cross(nm, tm)
+    n = np.asarray(normals, np.float64)
+    ts = np.stack([(n * tm).sum(-1), (n * bm).sum(-1), (n * nm).sum(-1)], -1)
+    ok = mask & (np.linalg.norm(n, axis=-1) > 0.5)
+    ts = np.where(ok[..., None], ts, [0.0, 0.0, 1.0])
+    ts /= np.maximum(np.linalg.norm(ts, axis=-1, keepdims=True), 1e-12)
+    return np.round((ts + 1.0) * 0.5 * 255.0).clip(0, 255).astype(np.uint8)
+
+
+def gltf_inputs(res, step):
+    """Keyword arguments of `facette.io.gltf.write_glb` for a `ProcessResult` with a mesh,
+    and notes for the report. The roughness texture carries √σ on the material the BRDF was
+    fitted to and 1 elsewhere; metallic is 0 (a dielectric); the LI n_i becomes the IOR."""
+    notes = []
+    verts, faces = res.mesh
+    if len(faces) == 0:
+        raise ValueError("the mesh has no triangles (is the mask empty?); nothing to export as glTF")
+    h, w = res.mask.shape
+    pitch = res.inputs.pixel_pitch_mm
+    uv = np.stack([(verts[:, 0] / pitch + 0.5) / w, (-verts[:, 1] / pitch + 0.5) / h], axis=1)
+    normals = vertex_normals(verts, faces)
+
+    albedo = np.nan_to_num(np.asarray(res.albedo, float))
+    top = float(np.percentile(albedo[res.mask], 99.5)) if res.mask.any() else 1.0
+    if top > 1.0:
+        albedo = albedo / top
+        notes.append(f"glTF base colour: albedo divided by {top:.3g} (its 99.5th percentile) to fit [0, 1]")
+
+    rough = np.ones((h, w))
+    ior = None
+    fit = res.brdf
+    params = getattr(fit, "params", None) or {}
+    if fit is not None and getattr(fit, "success", False) and "sigma" in params and \
+            getattr(fit, "model", "") in ("li", "cook_torrance"):
+        dist = getattr(fit, "distribution", None) or "beckmann"
+        r = float(gltf_roughness(float(np.mean(params["sigma"])), dist))
+        material = res.inputs.sample_mask() & res.mask
+        rough[material] = r
+        ior = params.get("n_i")
+        notes.append(f"glTF roughness = sqrt(sigma) = {r:.3g} (sigma = {float(np.mean(params['sigma'])):.3g}, "
+                     f"{dist}); metallic 0" + (f"; IOR = n_i = {ior:.3g}" if ior else ""))
+    else:
+        notes.append("glTF roughness 1 (no successful microfacet BRDF fit to take sigma from)")
+    mr = np.zeros((h, w, 3), np.uint8)
+    mr[..., 0] = 255                                        # unused (occlusion lives elsewhere)
+    mr[..., 1] = np.round(rough * 255).astype(np.uint8)     # roughness
+    return dict(vertices_mm=verts, faces=faces, normals=normals, tangents=vertex_tangents(normals),
+                uv=uv, base_color=srgb_encode(albedo),
+                normal_map=tangent_space_normal_map(res.normals, res.height, res.mask, pitch, step),
+                metallic_roughness=mr, ior=None if ior is None else float(ior)), notes

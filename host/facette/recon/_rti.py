@@ -1,0 +1,247 @@
+"""Reflectance transformation imaging: per-pixel relighting functions fitted to the HDR images.
+
+Two bases, the two that RTIViewer reads:
+
+- `ptm_basis`: the biquadratic polynomial of Malzbender, Gelb & Wolters 2001 (eq. 2),
+  L(lu, lv) = a0 lu² + a1 lv² + a2 lu lv + a3 lu + a4 lv + a5, where (lu, lv) is the unit
+  light vector projected on the image plane (camera x right, y up).
+- `hsh_basis`: hemispherical harmonics (Gautron, Krivanek, Pattanaik & Bouatouch 2004), in
+  the order and sign convention RTIViewer evaluates them (see the function).
+
+`fit_ptm_lrgb` and `fit_hsh` solve one weighted least-squares problem per pixel, all pixels
+of a block at once (batched normal equations), with far lights (m, 3) or per-pixel near-light
+directions (H, W, m, 3). Missing values (NaN) and lights at or below the horizon are left out.
+"""
+from dataclasses import dataclass
+from math import factorial, pi, sqrt
+
+import numpy as np
+from scipy.special import lpmv
+
+__all__ = ["ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh",
+           "relight_ptm", "relight_hsh", "relight_error", "HSH_ORDERS"]
+
+HSH_ORDERS = (2, 3)     # 4 and 9 terms: the orders whose RTIViewer convention is pinned by a test
+_RIDGE = 1e-9           # relative Tikhonov term: keeps near-singular pixels finite
+_BLOCK = 32768          # pixels per batched solve (memory ~ block * m * terms * 8 bytes)
+
+
+def ptm_basis(light_dirs):
+    """PTM basis (Malzbender et al. 2001, eq. 2) of unit light vectors (..., 3) -> (..., 6):
+    [lu², lv², lu·lv, lu, lv, 1] with lu = x, lv = y of the light direction (camera frame)."""
+    d = np.asarray(light_dirs, dtype=np.float64)
+    if d.shape[-1] != 3:
+        raise ValueError(f"light directions must have shape (..., 3), got {d.shape}")
+    u, v = d[..., 0], d[..., 1]
+    return np.stack([u * u, v * v, u * v, u, v, np.ones_like(u)], axis=-1)
+
+
+def hsh_basis(light_dirs, order=3):
+    """Hemispherical harmonics of unit light vectors (..., 3) -> (..., order²).
+
+    H_l^m(θ, φ) = K_l^m P_l^|m|(2 cos θ - 1) · {cos(|m| φ) for m < 0, 1 for m = 0, sin(m φ)
+    for m > 0} · √2 (m ≠ 0), K_l^m = √((2l + 1)(l - |m|)! / (2π (l + |m|)!)) (Gautron et al.
+    2004, eq. 6), l = 0..order-1 and m = -l..l in that order, θ = acos z, φ = atan2(y, x).
+    Signs as RTIViewer's (no Condon-Shortley phase, |m| = 2 terms negated). cos θ is clamped
+    to [0, 1]: below the horizon the basis is the one at grazing light.
+    """
+    if order not in HSH_ORDERS:
+        raise ValueError(f"HSH order must be one of {HSH_ORDERS} (4 or 9 terms), got {order}")
+    d = np.asarray(light_dirs, dtype=np.float64)
+    if d.shape[-1] != 3:
+        raise ValueError(f"light directions must have shape (..., 3), got {d.shape}")
+    cos_t = np.clip(d[..., 2] / np.maximum(np.linalg.norm(d, axis=-1), 1e-300), 0.0, 1.0)
+    phi = np.arctan2(d[..., 1], d[..., 0])
+    x = 2.0 * cos_t - 1.0
+    out = []
+    for l in range(order):
+        for m in range(-l, l + 1):
+            a = abs(m)
+            k = sqrt((2 * l + 1) * factorial(l - a) / (2 * pi * factorial(l + a)))
+            p = lpmv(a, l, x) * (-1.0) ** a           # scipy includes the Condon-Shortley phase
+            if a == 0:
+                out.append(k * p)
+                continue
+            sign = -1.0 if a == 2 else 1.0
+            ang = np.cos(a * phi) if m < 0 else np.sin(a * phi)
+            out.append(sign * sqrt(2.0) * k * p * ang)
+    return np.stack(out, axis=-1)
+
+
+@dataclass
+class PTMFit:
+    """A luminance PTM (LRGB): colour (H, W, 3) = white · L(l) · rgb.
+
+    coeffs (H, W, 6) float64, the L polynomial's a0..a5 (`ptm_basis` order), L ~ [0, 1];
+    rgb (H, W, 3) in [0, 1], the per-pixel colour (max channel 1 where lit);
+    white : the image value that L = 1 stands for (same unit as the fitted images);
+    valid (H, W) bool: pixels with at least 6 usable lights (others are zero).
+    """
+    coeffs: np.ndarray
+    rgb: np.ndarray
+    white: float
+    valid: np.ndarray
+
+
+@dataclass
+class HSHFit:
+    """RGB hemispherical harmonics: colour (H, W, 3) = white · Σ_k coeffs[..., c, k] H_k(l).
+
+    coeffs (H, W, 3, order²) float64 (values ~ [0, 1]); order; white as in `PTMFit`; valid."""
+    coeffs: np.ndarray
+    order: int
+    white: float
+    valid: np.ndarray
+
+
+def _check(images, light_dirs):
+    images = np.asarray(images)
+    if images.ndim != 4 or images.shape[-1] != 3 or 0 in images.shape:
+        raise ValueError(f"images must have shape (m, H, W, 3), got {images.shape}")
+    m, h, w, _ = images.shape
+    d = np.asarray(light_dirs, dtype=np.float64)
+    if d.shape not in ((m, 3), (h, w, m, 3)):
+        raise ValueError(f"light directions must have shape ({m}, 3) or ({h}, {w}, {m}, 3) for "
+                         f"{m} images of {w}x{h}, got {d.shape}")
+    return images, d
+
+
+def _solve_blocks(images, dirs, basis, n_terms, values):
+    """Per-pixel weighted least squares. values(e (n, m, 3)) -> (y (n, m, k), w (n, m)).
+    Returns (coeffs (H*W, k, n_terms), valid (H*W,))."""
+    m, h, w, _ = images.shape
+    flat = images.reshape(m, h * w, images.shape[-1])
+    far = dirs.ndim == 2
+    if far:
+        b_far = basis(dirs)                                  # (m, T)
+        above = dirs[:, 2] > 0
+    coeffs = None
+    valid = np.zeros(h * w, bool)
+    for a in range(0, h * w, _BLOCK):
+        e = np.moveaxis(flat[:, a:a + _BLOCK], 0, 1).astype(np.float64)      # (n, m, c)
+        y, wt = values(e)
+        if far:   # one design matrix: the normal equations are two matrix products
+            wt = wt * above
+            y = np.where(wt[..., None] > 0, y, 0.0)
+            outer = (b_far[:, :, None] * b_far[:, None, :]).reshape(m, -1)
+            ata = (wt @ outer).reshape(-1, n_terms, n_terms)
+            atb = np.einsum("nmk,mi->nki", y * wt[..., None], b_far, optimize=True)
+        else:
+            d = dirs.reshape(h * w, m, 3)[a:a + _BLOCK]
+            b = basis(d)
+            wt = wt * (d[..., 2] > 0)
+            y = np.where(wt[..., None] > 0, y, 0.0)
+            ata = np.einsum("nm,nmi,nmj->nij", wt, b, b, optimize=True)
+            atb = np.einsum("nm,nmi,nmk->nki", wt, b, y, optimize=True)
+        ok = wt.sum(axis=1) >= n_terms
+        ridge = _RIDGE * np.maximum(np.trace(ata, axis1=1, axis2=2), 1e-300)
+        ata += ridge[:, None, None] * np.eye(n_terms)
+        sol = np.linalg.solve(ata, np.swapaxes(atb, 1, 2)).swapaxes(1, 2)   # (n, k, T)
+        sol[~ok] = 0.0
+        if coeffs is None:
+            coeffs = np.zeros((h * w,) + sol.shape[1:])
+        coeffs[a:a + _BLOCK] = sol
+        valid[a:a + _BLOCK] = ok
+    return coeffs, valid
+
+
+def _white_level(values, weights, percentile):
+    v = values[weights > 0]
+    v = v[np.isfinite(v) & (v > 0)]
+    return float(np.percentile(v, percentile)) if v.size else 1.0
+
+
+def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.0):
+    """Fit a luminance PTM (LRGB, Malzbender et al. 2001 §3.2) to every pixel.
+
+    images : (m, H, W, 3) linear values (NaN = unknown); light_dirs : (m, 3) or (H, W, m, 3)
+    unit vectors towards the lights; mask : (H, W) bool, the pixels that set the white level
+    (default: all). white : the value mapped to L = 1 (default: the `white_percentile` of the
+    luminance over the masked pixels and all lights).
+    Per pixel, rgb is the colour of the summed samples scaled to max channel 1, and each
+    sample's L is its projection on rgb (least squares), divided by `white`.
+    Returns a `PTMFit`.
+    """
+    images, dirs = _check(images, light_dirs)
+    m, h, w, _ = images.shape
+    flat = np.moveaxis(images.reshape(m, h * w, 3), 0, 1)
+    finite = np.isfinite(flat).all(axis=-1)
+    total = np.where(finite[..., None], flat, 0.0).sum(axis=1, dtype=np.float64)
+    peak = total.max(axis=1)
+    rgb = np.where(peak[:, None] > 0, np.clip(total, 0, None) / np.where(peak > 0, peak, 1)[:, None], 0)
+    rgb_sq = np.maximum((rgb ** 2).sum(axis=1), 1e-300)
+    lum = np.einsum("nmc,nc->nm", np.where(finite[..., None], flat, 0.0), rgb) / rgb_sq[:, None]
+    if white is None:
+        sel = finite if mask is None else finite & np.asarray(mask, bool).reshape(-1, 1)
+        white = _white_level(lum, sel, white_percentile)
+    if not white > 0:
+        raise ValueError(f"white level must be > 0, got {white}")
+    lum_img = np.moveaxis(lum.reshape(h, w, m), -1, 0)[..., None] / white
+    lum_img = np.where(finite.T.reshape(m, h, w, 1), lum_img, np.nan)
+
+    def values(e):
+        ok = np.isfinite(e[..., 0])
+        return np.nan_to_num(e), ok.astype(np.float64)
+
+    coeffs, valid = _solve_blocks(lum_img, dirs, ptm_basis, 6, values)
+    valid &= peak > 0
+    return PTMFit(coeffs[:, 0].reshape(h, w, 6), rgb.reshape(h, w, 3), float(white),
+                  valid.reshape(h, w))
+
+
+def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile=99.0):
+    """Fit RGB hemispherical harmonics of `order` (2: 4 terms, 3: 9 terms) to every pixel.
+
+    Same inputs as `fit_ptm_lrgb`; each colour channel gets its own coefficients, fitted to
+    images / white (white: the `white_percentile` of the masked values by default).
+    Returns an `HSHFit`.
+    """
+    images, dirs = _check(images, light_dirs)
+    m, h, w, _ = images.shape
+    n_terms = order * order
+    hsh_basis(np.array([0.0, 0.0, 1.0]), order)                 # validates `order`
+    if white is None:
+        sel = np.isfinite(images).all(axis=-1)
+        if mask is not None:
+            sel &= np.asarray(mask, bool)[None]
+        white = _white_level(images.max(axis=-1), sel, white_percentile)
+    if not white > 0:
+        raise ValueError(f"white level must be > 0, got {white}")
+
+    def values(e):
+        ok = np.isfinite(e).all(axis=-1)
+        return np.nan_to_num(e) / white, ok.astype(np.float64)
+
+    coeffs, valid = _solve_blocks(images, dirs, lambda d: hsh_basis(d, order), n_terms, values)
+    return HSHFit(coeffs.reshape(h, w, 3, n_terms), order, float(white), valid.reshape(h, w))
+
+
+def relight_ptm(fit, light_dir):
+    """Colour (H, W, 3) of a `PTMFit` under one light: a far light (3,) or per-pixel
+    directions (H, W, 3); in the fitted images' unit."""
+    lum = (fit.coeffs * ptm_basis(np.asarray(light_dir, float))).sum(axis=-1)
+    return fit.white * np.clip(lum, 0, None)[..., None] * fit.rgb
+
+
+def relight_hsh(fit, light_dir):
+    """Colour (H, W, 3) of an `HSHFit` under one light (3,) or (H, W, 3), as `relight_ptm`."""
+    b = hsh_basis(np.asarray(light_dir, float), fit.order)
+    return fit.white * np.clip((fit.coeffs * b[..., None, :]).sum(axis=-1), 0, None)
+
+
+def relight_error(render, images, light_dirs, mask):
+    """Relative RMS error of a relighting function against the images it was fitted to.
+
+    render(light_dir (3,) or (H, W, 3)) -> (H, W, 3); images (m, H, W, 3); light_dirs (m, 3)
+    or (H, W, m, 3); mask (H, W) bool. Returns sqrt(Σ |render - image|² / Σ |image|²) over
+    the masked pixels and finite values of every light, a fraction (0 = exact).
+    """
+    d_all = np.asarray(light_dirs, float)
+    d_all = d_all if d_all.ndim == 2 else np.moveaxis(d_all, 2, 0)
+    num = den = 0.0
+    for img, d in zip(images, d_all):
+        sel = mask & np.isfinite(img).all(axis=-1)
+        r = render(d)[sel]
+        num += float(((r - img[sel]) ** 2).sum())
+        den += float((img[sel].astype(np.float64) ** 2).sum())
+    return float(np.sqrt(num / den)) if den > 0 else float("nan")
