@@ -1,0 +1,26 @@
+"""Fixtures shared by several test folders."""
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+GLTF_VALIDATOR = Path(__file__).resolve().parents[2] / "tools" / "gltf-validator"
+
+
+@pytest.fixture(scope="session")
+def khronos_validate():
+    """validate(path) -> the Khronos glTF validator's report (dict) of a .glb/.gltf file.
+    Needs node and `make setup` (npm ci in tools/gltf-validator, from its lock file)."""
+    node = shutil.which("node")
+    assert node, "node is not installed: run `make setup` (tools/install-debian-deps.sh installs it)"
+    assert (GLTF_VALIDATOR / "node_modules" / "gltf-validator").is_dir(), \
+        "the glTF validator is not installed: run `make setup` (npm ci in tools/gltf-validator)"
+
+    def validate(path):
+        run = subprocess.run([node, str(GLTF_VALIDATOR / "validate.js"), str(path)],
+                             capture_output=True, text=True, timeout=120)
+        assert run.returncode in (0, 1), run.stderr
+        return json.loads(run.stdout)
+    return validate

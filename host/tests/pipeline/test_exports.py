@@ -1,0 +1,47 @@
+"""RTI and glTF exports as outputs of `facette process`: on by default, left out on request."""
+import numpy as np
+
+from facette.cli.main import main
+from facette.pipeline import OUTPUTS, process, stages_needed
+from facette.recon.synthetic import render, sphere_on_plane
+from test_pipeline_process import L, _write_scan
+
+
+def test_exports_are_default_outputs_and_validate(tmp_path, capsys, khronos_validate):
+    sc = sphere_on_plane(32, 40)
+    _write_scan(tmp_path / "scan", sc, render(sc, L, "matte"), pitch=0.1)
+    assert {"ptm", "rti", "gltf"} <= set(OUTPUTS)
+    status = main(["process", str(tmp_path / "scan"), "-o", str(tmp_path / "o"), "--brdf-model",
+                   "lambert"])
+    assert status == 0
+    text = capsys.readouterr().out
+    assert "ptm_relative_rms" in text and "hsh_relative_rms" in text
+    for name in ("relight.ptm", "relight.rti", "model.glb"):
+        assert (tmp_path / "o" / name).stat().st_size > 0
+    assert (tmp_path / "o" / "relight.ptm").read_bytes().startswith(b"PTM_1.2\nPTM_FORMAT_LRGB\n40\n32\n")
+    assert khronos_validate(tmp_path / "o" / "model.glb")["issues"]["numErrors"] == 0
+    assert "glTF roughness 1 (no successful microfacet BRDF fit" in text
+
+
+def test_outputs_can_leave_the_exports_out(tmp_path):
+    sc = sphere_on_plane(24, 24)
+    _write_scan(tmp_path / "scan", sc, render(sc, L, "matte"), pitch=0.1)
+    assert stages_needed(["ptm"]) == ["load", "ps", "ptm"]
+    assert stages_needed(["rti"]) == ["load", "ps", "hsh"]
+    assert stages_needed(["gltf"]) == ["load", "ps", "integrate", "mesh", "samples", "fit"]
+    res = process(tmp_path / "scan", outputs=["normals", "ptm"], out_dir=tmp_path / "o")
+    assert res.ptm is not None and res.hsh is None and "hsh" not in res.timings
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["normal.exr", "relight.ptm"]
+    assert 0 < res.fit_errors["ptm_relative_rms"] < 0.1
+    res = process(tmp_path / "scan", outputs=["normals"], out_dir=tmp_path / "p")
+    assert res.ptm is None and not res.fit_errors
+    assert sorted(p.name for p in (tmp_path / "p").iterdir()) == ["normal.exr"]
+
+
+def test_gltf_with_an_empty_mask_is_skipped_with_a_note(tmp_path):
+    sc = sphere_on_plane(24, 24)
+    _write_scan(tmp_path / "scan", sc, render(sc, L, "matte"), pitch=0.1)
+    res = process(tmp_path / "scan", outputs=["gltf"], out_dir=tmp_path / "o",
+                  mask=np.zeros((24, 24), bool), fit_options={"model": "lambert"})
+    assert any("model.glb not written" in n for n in res.notes)
+    assert not (tmp_path / "o" / "model.glb").exists()

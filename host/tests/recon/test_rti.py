@@ -1,0 +1,103 @@
+"""recon._rti: PTM and HSH relighting functions fitted per pixel."""
+import numpy as np
+import pytest
+
+from facette.recon import (fit_hsh, fit_ptm_lrgb, hsh_basis, near_light_directions, ptm_basis,
+                           relight_error, relight_hsh, relight_ptm)
+from facette.recon.synthetic import thesis_light_directions
+
+L = thesis_light_directions()
+
+
+def _random_lights(m, seed=0):
+    rng = np.random.default_rng(seed)
+    th, ph = rng.uniform(0.1, 1.3, m), rng.uniform(0, 2 * np.pi, m)
+    return np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)
+
+
+def test_ptm_basis_values():
+    np.testing.assert_allclose(ptm_basis([0.6, -0.8, 0.0]), [0.36, 0.64, -0.48, 0.6, -0.8, 1.0])
+    assert ptm_basis(np.zeros((4, 5, 3))).shape == (4, 5, 6)
+    with pytest.raises(ValueError, match="shape"):
+        ptm_basis([1.0, 0.0])
+
+
+def test_hsh_basis_is_orthonormal_on_the_hemisphere():
+    """Gautron et al. 2004: the HSH are orthonormal over the upper hemisphere."""
+    n = 400
+    t = (np.arange(n) + 0.5) / n * (np.pi / 2)
+    p = (np.arange(2 * n) + 0.5) / (2 * n) * 2 * np.pi
+    tt, pp = np.meshgrid(t, p, indexing="ij")
+    d = np.stack([np.sin(tt) * np.cos(pp), np.sin(tt) * np.sin(pp), np.cos(tt)], -1)
+    b = hsh_basis(d, 3).reshape(-1, 9)
+    dw = (np.sin(tt) * (np.pi / 2 / n) * (np.pi / n)).ravel()
+    gram = (b * dw[:, None]).T @ b
+    np.testing.assert_allclose(gram, np.eye(9), atol=2e-3)
+    with pytest.raises(ValueError, match="order"):
+        hsh_basis([0, 0, 1.0], 4)
+
+
+def test_ptm_fit_recovers_a_polynomial_and_its_colour():
+    rng = np.random.default_rng(3)
+    lights = _random_lights(20)
+    h, w = 6, 7
+    a = rng.normal(0, 0.1, (h, w, 6))
+    a[..., 5] += 0.5
+    rgb = rng.uniform(0.2, 1, (h, w, 3))
+    rgb /= rgb.max(-1, keepdims=True)
+    lum = np.einsum("hwk,mk->mhw", a, ptm_basis(lights))
+    imgs = lum[..., None] * rgb * 4.0
+    fit = fit_ptm_lrgb(imgs, lights, white=4.0)
+    np.testing.assert_allclose(fit.coeffs, a, atol=1e-6)
+    np.testing.assert_allclose(fit.rgb, rgb, atol=1e-12)
+    assert fit.valid.all() and fit.white == 4.0
+    np.testing.assert_allclose(relight_ptm(fit, lights[3]), np.maximum(imgs[3], 0), atol=1e-6)
+
+
+def test_hsh_fit_recovers_coefficients_per_channel():
+    rng = np.random.default_rng(4)
+    lights = _random_lights(25, seed=1)
+    c = rng.normal(0, 0.1, (5, 4, 3, 9))
+    c[..., 0] += 1.0
+    imgs = np.einsum("hwck,mk->mhwc", c, hsh_basis(lights, 3)) * 2.0
+    fit = fit_hsh(imgs, lights, order=3, white=2.0)
+    np.testing.assert_allclose(fit.coeffs, c, atol=1e-6)
+    assert relight_error(lambda d: relight_hsh(fit, d), imgs, lights, np.ones((5, 4), bool)) < 1e-6
+
+
+def test_near_lights_per_pixel_directions_and_missing_values():
+    """Per-pixel light directions (H, W, m, 3); NaN samples and lights below the horizon are
+    left out of each pixel's fit; a pixel with fewer usable lights than terms is invalid."""
+    h, w = 8, 9
+    lights = _random_lights(16, seed=2)
+    dirs, _ = near_light_directions(lights * 60.0, (h, w), 1.0)
+    a = np.zeros((h, w, 6))
+    a[..., 5], a[..., 3] = 0.5, 0.2
+    lum = np.einsum("hwk,hwmk->mhw", a, ptm_basis(dirs))
+    imgs = np.repeat(lum[..., None], 3, axis=-1)
+    imgs[:5, 0, 0] = np.nan                    # 11 usable lights left: still fitted exactly
+    imgs[:12, 1, 1] = np.nan                   # 4 left: fewer than 6 terms
+    dirs = dirs.copy()
+    dirs[2, 2, :3] = [0.0, 0.6, -0.8]          # three lights below pixel (2, 2)'s horizon
+    fit = fit_ptm_lrgb(imgs, dirs, white=1.0)
+    assert fit.valid[0, 0] and not fit.valid[1, 1] and fit.valid[2, 2]
+    np.testing.assert_allclose(fit.coeffs[0, 0], a[0, 0], atol=1e-6)
+    np.testing.assert_allclose(fit.coeffs[3:, 3:], a[3:, 3:], atol=1e-6)
+    assert np.all(fit.coeffs[1, 1] == 0)
+    assert np.isfinite(relight_ptm(fit, dirs[:, :, 0])).all()
+
+
+def test_black_pixels_and_bad_arguments():
+    imgs = np.zeros((12, 3, 4, 3))
+    imgs[:, 0, 0] = 1.0
+    fit = fit_ptm_lrgb(imgs, L)
+    assert fit.valid[0, 0] and not fit.valid[1, 1] and np.all(fit.coeffs[1, 1] == 0)
+    assert np.isfinite(fit.coeffs).all() and np.isfinite(fit.rgb).all()
+    with pytest.raises(ValueError, match=r"\(m, H, W, 3\)"):
+        fit_ptm_lrgb(np.zeros((12, 3, 4)), L)
+    with pytest.raises(ValueError, match="light directions"):
+        fit_hsh(imgs, L[:5])
+    with pytest.raises(ValueError, match="white"):
+        fit_hsh(imgs, L, white=-1.0)
+    with pytest.raises(ValueError, match="order"):
+        fit_hsh(imgs, L, order=5)
