@@ -13,6 +13,7 @@ import sys
 COMMANDS = {
     "scan": ("facette.cli._scan", "acquire a scan (simulated rig or a real device)"),
     "process": ("facette.cli._process", "process a scan or a DiLiGenT-style folder"),
+    "batch": ("facette.cli._batch", "process many scans on Dask, with one summary table"),
     "calibrate": ("facette.cli._calibrate", "the calibration wizard"),
     "device": ("facette.cli._device", "device info, faults and registers"),
     "sim": ("facette.cli._sim", "start the simulated rig"),

@@ -1,8 +1,10 @@
 """The processing chain: `process(scan_or_dir, outputs=[...])` runs only the stages the
 requested outputs need and writes the files of DESIGN §7 (normal.exr, albedo.exr,
-height.exr, mask.png, mesh.ply, samples.npz, brdf.json, report.html)."""
+height.exr, mask.png, mesh.ply, samples.npz, brdf.json, relight.ptm, relight.rti, model.glb,
+report.html); `batch(scans, out)` runs it over a collection on Dask."""
 from ._inputs import PSInput, load_input
 from ._process import OUTPUTS, STAGES_FOR, ProcessResult, process, stages_needed
+from ._batch import batch, process_scan
 
 __all__ = ["PSInput", "load_input", "OUTPUTS", "STAGES_FOR", "ProcessResult", "process",
-           "stages_needed"]
+           "stages_needed", "batch", "process_scan"]

@@ -115,17 +115,31 @@ def _auto_mask(images, min_contrast=4.0):
     return lit, material
 
 
+def _unreadable(path, exc):
+    return ValueError(f"{path}: cannot read this HDR image ({exc}); delete {path.parent} to "
+                      "merge it again from raw/, or rescan that light")
+
+
 def _read_hdr_fast(scan_dir, light_ids):
     """Read hdr/light_XX.exr (and _var.exr, for unknown values) into one preallocated array,
     two files at a time. NaN where the variance is not finite (saturated in every frame)."""
     import OpenEXR
     paths = [(scan_dir / "hdr" / f"light_{i:02d}.exr", scan_dir / "hdr" / f"light_{i:02d}_var.exr")
              for i in light_ids]
-    with OpenEXR.File(str(paths[0][0]), separate_channels=True) as f:
-        h, w = f.channels()["R"].pixels.shape
+    try:
+        with OpenEXR.File(str(paths[0][0]), separate_channels=True) as f:
+            h, w = f.channels()["R"].pixels.shape
+    except Exception as exc:             # OpenEXR says only "file has 0 parts" and the like
+        raise _unreadable(paths[0][0], exc) from exc
     images = np.empty((len(paths), h, w, 3), np.float32)
 
     def one(k):
+        try:
+            read_pair(k)
+        except Exception as exc:
+            raise _unreadable(paths[k][0], exc) from exc
+
+    def read_pair(k):
         img, var = paths[k]
         with OpenEXR.File(str(img), separate_channels=True) as f:
             chans = f.channels()
