@@ -52,3 +52,35 @@ def test_png_8bit_grey_mask_and_errors(tmp_path):
         read_png(tmp_path / "bad.png")
     with pytest.raises(FileNotFoundError):
         read_png(tmp_path / "missing.png")
+
+
+def test_png_channels_stay_in_rgb_order_at_8_and_16_bits(tmp_path):
+    """OpenCV stores BGR(A): read_png and write_png give and take RGB(A). Pillow, an
+    independent encoder, writes the 8-bit reference files."""
+    from PIL import Image
+    rng = np.random.default_rng(1)
+    rgb8 = rng.integers(0, 256, (9, 13, 3), dtype=np.uint8)
+    rgba8 = rng.integers(0, 256, (9, 13, 4), dtype=np.uint8)
+    Image.fromarray(rgb8).save(tmp_path / "rgb.png")
+    Image.fromarray(rgba8).save(tmp_path / "rgba.png")
+    assert np.array_equal(read_png(tmp_path / "rgb.png"), rgb8)
+    assert np.array_equal(read_png(tmp_path / "rgba.png"), rgba8)
+    write_png(tmp_path / "w.png", rgba8)
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "w.png")), rgba8)
+    grey16 = rng.integers(0, 65536, (9, 13), dtype=np.uint16)
+    rgba16 = rng.integers(0, 65536, (9, 13, 4), dtype=np.uint16)
+    for img in (grey16, rgba16, grey16[:, :, None]):
+        write_png(tmp_path / "x.png", img)
+        back = read_png(tmp_path / "x.png")
+        assert back.dtype == np.uint16 and np.array_equal(back, img.reshape(back.shape))
+
+
+def test_png_truncated_file_and_unsupported_shapes_are_refused(tmp_path):
+    write_png(tmp_path / "a.png", np.zeros((40, 40, 3), np.uint16) + 1000)
+    data = (tmp_path / "a.png").read_bytes()
+    (tmp_path / "cut.png").write_bytes(data[:len(data) // 2])
+    with pytest.raises(ValueError, match="corrupt or truncated"):
+        read_png(tmp_path / "cut.png")
+    with pytest.raises(ValueError, match=r"\(H, W\)"):
+        write_png(tmp_path / "b.png", np.zeros((4, 4, 2), np.uint8))
+    assert not (tmp_path / "b.png").exists()
