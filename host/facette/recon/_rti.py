@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from math import factorial, pi, sqrt
 
 import numpy as np
-from scipy.special import lpmv
 
 __all__ = ["ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh",
            "relight_ptm", "relight_hsh", "relight_error", "HSH_ORDERS"]
@@ -36,6 +35,20 @@ def ptm_basis(light_dirs):
     return np.stack([u * u, v * v, u * v, u, v, np.ones_like(u)], axis=-1)
 
 
+def _legendre_no_cs(l_max, x, sq):
+    """Associated Legendre P_l^m(x) without the Condon-Shortley phase, 0 <= m <= l < l_max,
+    by the standard recurrences; sq = √(1 - x²). Returns {(l, m): array}."""
+    p = {(0, 0): np.ones_like(x)}
+    for m in range(l_max):
+        if m > 0:
+            p[(m, m)] = (2 * m - 1) * sq * p[(m - 1, m - 1)]     # P_m^m = (2m-1)!! (1-x²)^(m/2)
+        if m + 1 < l_max:
+            p[(m + 1, m)] = (2 * m + 1) * x * p[(m, m)]
+        for l in range(m + 2, l_max):
+            p[(l, m)] = ((2 * l - 1) * x * p[(l - 1, m)] - (l + m - 1) * p[(l - 2, m)]) / (l - m)
+    return p
+
+
 def hsh_basis(light_dirs, order=3):
     """Hemispherical harmonics of unit light vectors (..., 3) -> (..., order²).
 
@@ -50,22 +63,32 @@ def hsh_basis(light_dirs, order=3):
     d = np.asarray(light_dirs, dtype=np.float64)
     if d.shape[-1] != 3:
         raise ValueError(f"light directions must have shape (..., 3), got {d.shape}")
-    cos_t = np.clip(d[..., 2] / np.maximum(np.linalg.norm(d, axis=-1), 1e-300), 0.0, 1.0)
-    phi = np.arctan2(d[..., 1], d[..., 0])
+    r = np.maximum(np.sqrt((d * d).sum(axis=-1)), 1e-300)
+    cos_t = np.clip(d[..., 2] / r, 0.0, 1.0)
+    rho = np.hypot(d[..., 0], d[..., 1])
+    flat = rho <= 1e-300                                # φ undefined at the pole: take φ = 0
+    cos_p = np.where(flat, 1.0, d[..., 0] / np.where(flat, 1.0, rho))
+    sin_p = np.where(flat, 0.0, d[..., 1] / np.where(flat, 1.0, rho))
     x = 2.0 * cos_t - 1.0
-    out = []
+    p = _legendre_no_cs(order, x, 2.0 * np.sqrt(np.maximum(cos_t - cos_t * cos_t, 0.0)))
+    cos_m, sin_m = [np.ones_like(x)], [np.zeros_like(x)]       # cos(mφ), sin(mφ) by recurrence
+    for _ in range(1, order):
+        c, s_ = cos_m[-1], sin_m[-1]
+        cos_m.append(c * cos_p - s_ * sin_p)
+        sin_m.append(s_ * cos_p + c * sin_p)
+    out = np.empty(d.shape[:-1] + (order * order,))
+    k = 0
     for l in range(order):
         for m in range(-l, l + 1):
             a = abs(m)
-            k = sqrt((2 * l + 1) * factorial(l - a) / (2 * pi * factorial(l + a)))
-            p = lpmv(a, l, x) * (-1.0) ** a           # scipy includes the Condon-Shortley phase
+            norm = sqrt((2 * l + 1) * factorial(l - a) / (2 * pi * factorial(l + a)))
             if a == 0:
-                out.append(k * p)
-                continue
-            sign = -1.0 if a == 2 else 1.0
-            ang = np.cos(a * phi) if m < 0 else np.sin(a * phi)
-            out.append(sign * sqrt(2.0) * k * p * ang)
-    return np.stack(out, axis=-1)
+                out[..., k] = norm * p[(l, 0)]
+            else:
+                sign = -1.0 if a == 2 else 1.0
+                out[..., k] = (sign * sqrt(2.0) * norm) * p[(l, a)] * (cos_m[a] if m < 0 else sin_m[a])
+            k += 1
+    return out
 
 
 @dataclass
