@@ -110,3 +110,8 @@ def test_bad_input_is_refused(tmp_path, change, match):
     with pytest.raises(ValueError, match=match):
         write_glb(tmp_path / "m.glb", **kw)
     assert not (tmp_path / "m.glb").exists()
+
+
+def test_srgb_encoding_values_and_edges():
+    out = srgb_encode([-1.0, 0.0, 0.0031308, 0.5, 1.0, 7.0, np.nan])
+    assert out.tolist() == [0, 0, 10, 188, 255, 255, 0]   # 12.92 x 0.0031308 = 0.0404

@@ -1,4 +1,4 @@
-"""facette.io.png: 8- and 16-bit PNG read/write, masks and errors."""
+"""facette.io.png (OpenCV): 8- and 16-bit PNG read/write, masks and errors."""
 import struct
 import zlib
 
