@@ -88,3 +88,14 @@ def test_cli_exit_status_names_the_failed_scan(collection, tmp_path, capsys):
     assert "no scan.json" in capsys.readouterr().err
     assert main(["batch", str(collection[2]), "-o", str(out), "--outputs", "normal"]) == 2
     assert "unknown output" in capsys.readouterr().err
+
+
+def test_a_running_scheduler_is_used_by_its_address(collection, tmp_path):
+    """--scheduler ADDRESS: the collection runs on a cluster that batch did not start."""
+    from dask.distributed import LocalCluster
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=None) as cluster:
+        rows = batch(collection[2:], tmp_path / "out", scheduler=cluster.scheduler_address,
+                     outputs=["normals"], progress=False)
+        assert [r["status"] for r in rows] == ["ok", "failed"]
+        assert cluster.scheduler.address == cluster.scheduler_address    # still up: not closed by batch
