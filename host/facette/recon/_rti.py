@@ -11,7 +11,7 @@ Two bases, the two that RTIViewer reads:
 `fit_ptm_lrgb` and `fit_hsh` solve one weighted least-squares problem per pixel, all pixels
 of a block at once (batched normal equations), with far lights (m, 3) or per-pixel near-light
 directions (H, W, m, 3). Missing values (NaN) and lights at or below the horizon are left out.
-Terms the lights cannot tell apart get the minimum-norm solution (truncated pseudo-inverse).
+Terms the lights cannot tell apart get (nearly) the minimum-norm solution (Tikhonov, `_RCOND`).
 """
 from dataclasses import dataclass
 from math import factorial, pi, sqrt
@@ -22,8 +22,8 @@ __all__ = ["ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hs
            "relight_ptm", "relight_hsh", "relight_error", "HSH_ORDERS"]
 
 HSH_ORDERS = (2, 3)     # 4 and 9 terms: the orders whose RTIViewer convention is pinned by a test
-# eigenvalues of AᵀA below this fraction of the largest are dropped (a truncated pseudo-inverse):
-# a light set that cannot tell some terms apart (the rig's two rings at 15° and 30° give only
+# Tikhonov term, relative to trace(AᵀA): directions of AᵀA with eigenvalues far below it are
+# damped to zero (close to a truncated pseudo-inverse, at the cost of one solve): a light set that cannot tell some terms apart (the rig's two rings at 15° and 30° give only
 # two elevations for HSH order 3's three zonal terms) gets the minimum-norm fit, not ±500
 # coefficients that cancel on the photographs and explode between them
 _RCOND = 1e-6
@@ -162,11 +162,9 @@ def _solve_blocks(images, dirs, basis, n_terms, values):
             ata = np.einsum("nm,nmi,nmj->nij", wt, b, b, optimize=True)
             atb = np.einsum("nm,nmi,nmk->nki", wt, b, y, optimize=True)
         ok = wt.sum(axis=1) >= n_terms
-        ev, vec = np.linalg.eigh(ata)                                      # ascending
-        keep = ev > _RCOND * np.maximum(ev[:, -1:], 1e-300)
-        inv = np.where(keep, 1.0 / np.where(keep, ev, 1.0), 0.0)
-        proj = np.einsum("nij,nki->nkj", vec, atb)                          # Vᵀ Aᵀy per channel
-        sol = np.einsum("nij,nkj->nki", vec, proj * inv[:, None, :])        # (n, k, T)
+        ridge = _RCOND * np.maximum(np.trace(ata, axis1=1, axis2=2), 1e-300)
+        ata += ridge[:, None, None] * np.eye(n_terms)
+        sol = np.linalg.solve(ata, np.swapaxes(atb, 1, 2)).swapaxes(1, 2)   # (n, k, T)
         sol[~ok] = 0.0
         if coeffs is None:
             coeffs = np.zeros((h * w,) + sol.shape[1:])

@@ -48,10 +48,10 @@ def test_ptm_fit_recovers_a_polynomial_and_its_colour():
     lum = np.einsum("hwk,mk->mhw", a, ptm_basis(lights))
     imgs = lum[..., None] * rgb * 4.0
     fit = fit_ptm_lrgb(imgs, lights, white=4.0)
-    np.testing.assert_allclose(fit.coeffs, a, atol=1e-6)
+    np.testing.assert_allclose(fit.coeffs, a, atol=1e-4)   # Tikhonov bias (_RCOND)
     np.testing.assert_allclose(fit.rgb, rgb, atol=1e-12)
     assert fit.valid.all() and fit.white == 4.0
-    np.testing.assert_allclose(relight_ptm(fit, lights[3]), np.maximum(imgs[3], 0), atol=1e-6)
+    np.testing.assert_allclose(relight_ptm(fit, lights[3]), np.maximum(imgs[3], 0), atol=1e-4)
 
 
 def test_hsh_fit_recovers_coefficients_per_channel():
@@ -61,8 +61,8 @@ def test_hsh_fit_recovers_coefficients_per_channel():
     c[..., 0] += 1.0
     imgs = np.einsum("hwck,mk->mhwc", c, hsh_basis(lights, 3)) * 2.0
     fit = fit_hsh(imgs, lights, order=3, white=2.0)
-    np.testing.assert_allclose(fit.coeffs, c, atol=1e-6)
-    assert relight_error(lambda d: relight_hsh(fit, d), imgs, lights, np.ones((5, 4), bool)) < 1e-6
+    np.testing.assert_allclose(fit.coeffs, c, atol=1e-4)   # Tikhonov bias (_RCOND)
+    assert relight_error(lambda d: relight_hsh(fit, d), imgs, lights, np.ones((5, 4), bool)) < 1e-4
 
 
 def test_near_lights_per_pixel_directions_and_missing_values():
@@ -81,8 +81,8 @@ def test_near_lights_per_pixel_directions_and_missing_values():
     dirs[2, 2, :3] = [0.0, 0.6, -0.8]          # three lights below pixel (2, 2)'s horizon
     fit = fit_ptm_lrgb(imgs, dirs, white=1.0)
     assert fit.valid[0, 0] and not fit.valid[1, 1] and fit.valid[2, 2]
-    np.testing.assert_allclose(fit.coeffs[0, 0], a[0, 0], atol=1e-6)
-    np.testing.assert_allclose(fit.coeffs[3:, 3:], a[3:, 3:], atol=1e-6)
+    np.testing.assert_allclose(fit.coeffs[0, 0], a[0, 0], atol=1e-4)
+    np.testing.assert_allclose(fit.coeffs[3:, 3:], a[3:, 3:], atol=1e-4)
     assert np.all(fit.coeffs[1, 1] == 0)
     assert np.isfinite(relight_ptm(fit, dirs[:, :, 0])).all()
 
