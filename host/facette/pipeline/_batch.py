@@ -18,6 +18,7 @@ from pathlib import Path
 
 import facette
 from facette.io.checksum import sha256_file
+from facette.pipeline._process import process
 
 __all__ = ["batch", "process_scan", "input_fingerprint", "write_summary", "SUMMARY_COLUMNS",
            "RECORD"]
@@ -81,8 +82,6 @@ def process_scan(scan_dir, out_dir, outputs=None, options=None, force=False):
     Returns the summary row (dict with SUMMARY_COLUMNS keys that apply): status "ok",
     "skipped" (already done with the same inputs) or "failed" (error says why).
     """
-    from facette.pipeline._process import process
-
     scan_dir, out_dir = Path(scan_dir), Path(out_dir)
     row = {"scan": out_dir.name, "source": str(scan_dir), "results": str(out_dir)}
     t0 = time.perf_counter()
@@ -186,6 +185,8 @@ def batch(scans, out_dir, workers=2, scheduler=None, outputs=None, options=None,
     force : reprocess scans even when done. progress : a progress bar on stderr.
     Returns the rows (list of dicts, in the order of `scans`).
     """
+    # a deliberate lazy load: dask.distributed takes ~1 s to import, and `facette process`
+    # (which imports this package) never needs it
     from dask.distributed import Client, LocalCluster, as_completed
     from tqdm import tqdm
 

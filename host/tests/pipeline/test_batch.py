@@ -6,9 +6,9 @@ import pytest
 
 import facette
 from facette.cli.main import main
-from facette.hdr import merge_scan
+from facette.scan import merge_scan
 from facette.pipeline import batch
-from facette.sim.device_process import REPO_ROOT
+from facette._data import sim_profile_dir
 
 OUTPUTS = ["normals", "mesh", "brdf", "ptm"]
 OPTIONS = {"fit_options": {"model": "lambert"}}
@@ -18,7 +18,7 @@ OPTIONS = {"fit_options": {"model": "lambert"}}
 def sim_scans(tmp_path_factory):
     """Two small scans on the simulated rig (128x96 RAW, default bracket), HDR merged, made once."""
     root = tmp_path_factory.mktemp("sim_scans")
-    profile = REPO_ROOT / "calibration" / "profiles" / "sim-default"
+    profile = sim_profile_dir()
     dirs = []
     for seed in (1, 2):
         with facette.connect("sim", raw_shape=(96, 128), seed=seed) as rig:

@@ -4,7 +4,7 @@ import numpy as np
 from facette.cli.main import main
 from facette.pipeline import OUTPUTS, process, stages_needed
 from facette.recon.synthetic import render, sphere_on_plane
-from test_pipeline_process import L, _write_scan
+from test_process import L, _write_scan
 
 
 def test_exports_are_default_outputs_and_validate(tmp_path, capsys, khronos_validate):
