@@ -2,7 +2,9 @@
 # Installs the Debian packages the build and tests need, only those missing.
 set -euo pipefail
 need=()
-for pkg in gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm clang libclang-rt-14-dev; do
+# chromium + chromium-driver: the headless browser of the report viewer's test
+for pkg in gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm clang libclang-rt-14-dev \
+           chromium chromium-driver; do
     dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
 done
 # node and npm run the Khronos glTF validator in the tests (any install that provides them)

@@ -1,17 +1,80 @@
-"""report.html: one self-contained page (pictures embedded as PNG) describing a `process` run."""
+"""report.html: one self-contained page describing a `process` run (no server, no network).
+
+Top to bottom: a summary (what was measured, how good, what was left out and why), the
+relighting viewer (facette.pipeline._viewer), the BRDF fit (parameters with uncertainties,
+the filtered reflectance against the fitted model per incidence, residuals per cell), the
+error against the scan's truth as histograms, the maps, then options and timings.
+Pictures are embedded PNGs (matplotlib); numbers are rounded for reading (`fmt`, `fmt_pm`).
+"""
 import base64
 import html
 import io
+import math
 
 import numpy as np
 
-__all__ = ["write_report"]
+__all__ = ["write_report", "fmt", "fmt_pm", "fit_predictions"]
 
+MAX_PANELS = 6   # incidence bins drawn (spread over the filled ones)
+
+
+# ----------------------------------------------------------------------------- numbers
+
+def fmt(x, digits=3):
+    """A number for people: ints with thin-space thousands, floats to `digits` significant
+    digits without exponent between 1e-4 and 1e6, '–' for None or NaN."""
+    if x is None or isinstance(x, str):
+        return "–" if x is None else x
+    if isinstance(x, (bool, np.bool_)):
+        return "yes" if x else "no"
+    if isinstance(x, (int, np.integer)):
+        return f"{int(x):,}".replace(",", "\u2009")
+    x = float(x)
+    if not math.isfinite(x):
+        return "–"
+    if x == 0:
+        return "0"
+    ax = abs(x)
+    if ax >= 1e6 or ax < 1e-4:
+        return f"{x:.{digits - 1}e}"
+    if ax >= 10 ** digits:
+        return f"{round(x):,}".replace(",", "\u2009")
+    dec = max(0, digits - 1 - int(math.floor(math.log10(ax))))
+    return f"{x:.{dec}f}"
+
+
+def fmt_pm(value, sd):
+    """'value ± sd' with sd to 2 significant digits and value to the same decimal place."""
+    if sd is None or not np.isfinite(sd) or sd <= 0:
+        return fmt(value, 4)
+    dec = max(0, 1 - int(math.floor(math.log10(sd))))
+    return f"{value:.{dec}f} ± {sd:.{dec}f}"
+
+
+def _pct(x):
+    return "–" if x is None or not np.isfinite(x) else f"{100 * x:.{0 if abs(x) >= 0.1 else 1}f} %"
+
+
+def _value(k, v):
+    """A table cell: fractions as percent, lists element by element."""
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return ", ".join(_value(k, x) for x in v)
+    if isinstance(v, (float, np.floating)) and "fraction" in str(k):
+        return _pct(v)
+    return fmt(v)
+
+
+def _rows(d, unit=""):
+    return "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(_value(k, v))}{unit}</td></tr>"
+                   for k, v in d.items())
+
+
+# ----------------------------------------------------------------------------- pictures
 
 def _png(fig):
+    import matplotlib.pyplot as plt
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    import matplotlib.pyplot as plt
     plt.close(fig)
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
@@ -34,7 +97,7 @@ def _map(title, img, cmap=None, vmin=None, vmax=None, label=""):
         t = np.clip((img - lo) / (hi - lo if hi > lo else 1.0), 0, 1)
         rgb = colormaps[cmap or "viridis"](np.nan_to_num(t))[..., :3]
         rgb[~finite] = 0
-        title = f"{title}: {lo:.4g} to {hi:.4g} {label}".rstrip()
+        title = f"{title}: {fmt(lo)} to {fmt(hi)} {label}".rstrip()
     else:
         rgb = np.clip(np.nan_to_num(img), 0, 1)
     # small maps are enlarged (nearest) so that they stay readable on the page
@@ -45,57 +108,381 @@ def _map(title, img, cmap=None, vmin=None, vmax=None, label=""):
     return title, "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def _curves(filtered):
-    """In-plane reflectance curves: the mean BRDF (green) of the cells within 15 deg of the
-    incidence plane, averaged per ring (weighted by samples), against the signed theta_o
-    (negative: the mirror side, phi_o = pi), for up to six incidence bins spread over theta_s."""
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+def _figures(figs):
+    return "".join(f'<figure><img src="{src}" alt="{html.escape(t)}"><figcaption>{html.escape(t)}'
+                   "</figcaption></figure>" for t, src in figs)
+
+
+# ----------------------------------------------------------------------------- the fit
+
+def fit_predictions(filtered, fit, min_count=1, spread=4):
+    """The fitted model as the hemispherical sensor sees it: (B, N, C) mean of the model over
+    spread² directions in each filled cell (the forward model the fit used,
+    facette.fit.fit_hemisphere_cells), NaN in cells with fewer than min_count samples."""
+    from facette.fit import cell_spread_directions
+    b, c = np.nonzero(filtered.count >= min_count)
+    pred = np.full(filtered.mean.shape, np.nan)
+    if b.size:
+        o = cell_spread_directions(filtered.edges, filtered.counts, c, spread)
+        vals = np.asarray(fit.predict(filtered.s[b][:, None, :], o), dtype=float)
+        if vals.ndim == 2:
+            vals = vals[..., None]
+        pred[b, c] = vals.mean(axis=1)
+    return pred
+
+
+def _incidence_picks(filtered):
+    """Up to MAX_PANELS incidence bins with data, spread over θ_s."""
+    filled = filtered.count.sum(1)
+    usable = np.flatnonzero(filled >= 0.01 * max(filled.max(), 1))
+    if not len(usable):
+        return []
+    return list(usable[np.unique(np.linspace(0, len(usable) - 1, min(MAX_PANELS, len(usable)))
+                                 .round().astype(int))])
+
+
+def _in_plane(filtered, values, b, ch, tol_deg=15):
+    """Signed θ_o (deg; − on the mirror side) and the count-weighted mean of `values`[b, :, ch]
+    over the cells of each ring within tol_deg of the incidence plane."""
     o = filtered.o
     phi = np.arctan2(o[:, 1], o[:, 0])
     cosz = np.clip(o[:, 2], -1, 1)
     ring = np.clip(np.searchsorted(filtered.edges, np.arccos(cosz), side="right") - 1, 0,
                    len(filtered.counts) - 1)
-    theta_mid = np.degrees(np.arccos(cosz))
-    ch = 1 if filtered.mean.shape[2] > 1 else 0
-    tol = np.radians(15)
-    drawn = 0
-    filled = filtered.count.sum(1)
-    usable = np.flatnonzero(filled >= 0.01 * max(filled.max(), 1))
-    # spread over the incidences: with lights near the camera only small theta_s reach the mirror
-    picks = usable[np.unique(np.linspace(0, len(usable) - 1, min(6, len(usable))).round().astype(int))] \
-        if len(usable) else []
-    for b in picks:
-        xs, ys = [], []
-        for side, sel_side in ((1, np.abs(phi) < tol), (-1, np.abs(np.abs(phi) - np.pi) < tol)):
-            for j in np.unique(ring):
-                sel = sel_side & (ring == j) & (filtered.count[b] > 0)
-                if j == 0:
-                    sel = (ring == 0) & (filtered.count[b] > 0)
-                if not sel.any():
-                    continue
-                wts = filtered.count[b, sel]
-                xs.append(side * float(theta_mid[sel].mean()))
-                ys.append(float(np.sum(filtered.mean[b, sel, ch] * wts) / wts.sum()))
-        if len(xs) < 2:
+    theta = np.degrees(np.arccos(cosz))
+    tol = np.radians(tol_deg)
+    xs, ys = [], []
+    for side, near in ((1, np.abs(phi) < tol), (-1, np.abs(np.abs(phi) - np.pi) < tol)):
+        for j in np.unique(ring):
+            sel = ((ring == 0) if j == 0 else (near & (ring == j))) & (filtered.count[b] > 0)
+            sel &= np.isfinite(values[b, :, ch])
+            if j == 0 and side < 0 or not sel.any():
+                continue
+            w = filtered.count[b, sel]
+            xs.append(side * float(theta[sel].mean()))
+            ys.append(float(np.sum(values[b, sel, ch] * w) / w.sum()))
+    order = np.argsort(xs)
+    return np.array(xs)[order], np.array(ys)[order]
+
+
+def _channel(filtered):
+    return 1 if filtered.mean.shape[2] > 1 else 0
+
+
+def _curves(filtered, pred, picks):
+    """Per incidence: the filtered reflectance (points) and the fitted model seen through the
+    same cells (line), in the incidence plane, on the same axes."""
+    import matplotlib.pyplot as plt
+    ch = _channel(filtered)
+    cols = min(3, max(1, len(picks)))
+    rows = int(np.ceil(len(picks) / cols)) or 1
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.2 * rows), squeeze=False)
+    for ax in axes.ravel()[len(picks):]:
+        ax.axis("off")
+    for ax, b in zip(axes.ravel(), picks):
+        x, y = _in_plane(filtered, filtered.mean, b, ch)
+        ax.plot(x, y, "o", ms=3, color="C0", label="filtered data")
+        if pred is not None:
+            xm, ym = _in_plane(filtered, pred, b, ch)
+            ax.plot(xm, ym, "-", color="C3", lw=1.5, label="fitted model")
+        ax.set_yscale("log")
+        ax.set_title(f"θs ≈ {np.degrees(filtered.theta_s[b]):.0f}°", fontsize=10)
+        ax.set_xlabel("θo in the incidence plane (deg)", fontsize=8)
+        ax.tick_params(labelsize=8)
+    axes[0, 0].set_ylabel("BRDF, green (1/sr)", fontsize=8)
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle("Reflectance in the incidence plane: data and fitted model "
+                 "(− mirror side, + light side)", fontsize=10)
+    fig.tight_layout()
+    return "Filtered reflectance and fitted model per incidence", _png(fig)
+
+
+def _residual_maps(filtered, pred, picks):
+    """Relative residual (data − model) / model of every filled cell, per incidence, on the
+    hemisphere seen from above (equal-area projection; the light comes from +x)."""
+    import matplotlib.pyplot as plt
+    ch = _channel(filtered)
+    cols = min(3, max(1, len(picks)))
+    rows = int(np.ceil(len(picks) / cols)) or 1
+    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.4 * rows), squeeze=False)
+    for ax in axes.ravel()[len(picks):]:
+        ax.axis("off")
+    o = filtered.o
+    r = np.sqrt(2) * np.sin(np.arccos(np.clip(o[:, 2], -1, 1)) / 2)    # equal-area, 1 at the horizon
+    phi = np.arctan2(o[:, 1], o[:, 0])
+    x, y = r * np.cos(phi), r * np.sin(phi)
+    sc = None
+    for ax, b in zip(axes.ravel(), picks):
+        sel = (filtered.count[b] > 0) & np.isfinite(pred[b, :, ch]) & (pred[b, :, ch] > 0)
+        rel = (filtered.mean[b, sel, ch] - pred[b, sel, ch]) / pred[b, sel, ch]
+        sc = ax.scatter(x[sel], y[sel], c=100 * rel, s=9, cmap="RdBu_r", vmin=-50, vmax=50)
+        ax.add_patch(plt.Circle((0, 0), 1, fill=False, lw=0.5, color="0.5"))
+        ax.set_aspect("equal")
+        ax.set_xlim(-1.05, 1.05)
+        ax.set_ylim(-1.05, 1.05)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        rms = float(np.sqrt(np.mean(rel ** 2))) if rel.size else float("nan")
+        ax.set_title(f"θs ≈ {np.degrees(filtered.theta_s[b]):.0f}°: {sel.sum()} cells, "
+                     f"rms {_pct(rms)}", fontsize=9)
+    if sc is not None:
+        fig.colorbar(sc, ax=axes.ravel().tolist(), shrink=0.8, label="(data − model) / model, %")
+    return "Residual per sensor cell (hemisphere from above, light towards +x; clipped at ±50 %)", _png(fig)
+
+
+_PARAM_NAMES = {"kd": "K_d (substrate reflectance)", "sigma": "σ (roughness, RMS slope)",
+                "n_i": "n_i (relative refractive index)"}
+
+
+def _params_table(fit, truth_brdf=None, truth_kd=None):
+    """Rows: parameter, value ± one standard deviation, truth (when simulated)."""
+    params = getattr(fit, "params", {}) or {}
+    unc = getattr(fit, "uncertainties", {}) or {}
+    tparams = (truth_brdf or {}).get("params", {}) if isinstance(truth_brdf, dict) else {}
+    rows = []
+    for k, v in params.items():
+        sd = unc.get(k)
+        if isinstance(v, (list, tuple, np.ndarray)):
+            sds = list(sd) if isinstance(sd, (list, tuple, np.ndarray)) else [None] * len(v)
+            names = "RGB" if len(v) == 3 else [str(i) for i in range(len(v))]
+            tv = truth_kd if k == "kd" else tparams.get(k)
+            for i, (x, s) in enumerate(zip(v, sds)):
+                t = tv[i] if isinstance(tv, (list, tuple, np.ndarray)) and len(tv) == len(v) else None
+                rows.append((f"{_PARAM_NAMES.get(k, k)} {names[i]}", fmt_pm(x, s), fmt(t) if t is not None else ""))
+        else:
+            t = tparams.get(k)
+            rows.append((_PARAM_NAMES.get(k, k), fmt_pm(v, sd),
+                         fmt(t) if isinstance(t, (int, float)) else ""))
+    has_truth = any(r[2] for r in rows)
+    head = "<tr><th>parameter</th><th>fitted ± 1 s.d.</th>" + ("<th>truth</th>" if has_truth else "") + "</tr>"
+    body = "".join(f"<tr><td>{html.escape(a)}</td><td>{html.escape(b)}</td>"
+                   + (f"<td>{html.escape(c)}</td>" if has_truth else "") + "</tr>" for a, b, c in rows)
+    return f"<table>{head}{body}</table>"
+
+
+def _fit_section(res, truth_brdf, truth_kd):
+    fit, filtered = res.brdf, res.filtered
+    if fit is None:
+        why = "not requested" if "brdf" not in res.options.get("outputs", ()) else "no fit (see the notes)"
+        return f"<h2>BRDF fit</h2><p>{why}.</p>", None
+    d = fit.to_dict() if hasattr(fit, "to_dict") else dict(fit)
+    err = d.get("fit_error") or {}
+    lines = [f"Model: {html.escape(str(d.get('model')))}"
+             + (f" ({html.escape(str(d.get('distribution')))} facets, {html.escape(str(d.get('masking')))} masking,"
+                f" volume part by {html.escape(str(d.get('volume')))})" if d.get("model") == "li" else "")
+             + f"; {'converged' if d.get('success') else 'FAILED'}"
+             + f" by {html.escape(str(d.get('method')))} in {fmt(d.get('time_s'), 2)} s.",
+             f"Fitted to {fmt(err.get('n_samples'))} sensor cells × {fmt(err.get('n_channels'))} channels: "
+             f"RMS error {fmt(err.get('rms'))} 1/sr, {_pct(err.get('relative_rms'))} of the data's RMS."]
+    if d.get("message") and d.get("message") != "converged":
+        lines.append("Fit notes: " + html.escape(str(d["message"])))
+    for s in d.get("selection") or []:
+        lines.append("Model choice: " + html.escape(str(s)))
+    note = ("Uncertainties: one standard deviation from the Jacobian at the optimum, "
+            "covariance = s² (JᵀJ)⁻¹ with s² the weighted residual variance (facette.fit); they "
+            "assume the model is right and the residuals independent, so they are lower bounds "
+            "when the model misfits.")
+    truth_note = ""
+    if isinstance(truth_brdf, dict) and truth_brdf.get("model") and truth_brdf.get("model") != d.get("model"):
+        truth_note = (f"<p>The simulated material is a {html.escape(str(truth_brdf['model']))} BRDF, not "
+                      f"{html.escape(str(d.get('model')))}: σ and n_i are comparable in meaning, not equal by "
+                      "construction. Truth K_d is the median of the simulated albedo over the material.</p>")
+    body = (f"<h2>BRDF fit</h2><p>{'<br>'.join(lines)}</p>{_params_table(fit, truth_brdf, truth_kd)}"
+            f"<p class='small'>{note}</p>{truth_note}")
+    figs = []
+    pred = None
+    if filtered is not None and getattr(fit, "success", True) and getattr(fit, "params", None):
+        try:
+            pred = fit_predictions(filtered, fit)
+        except (ValueError, TypeError) as e:          # a model we cannot evaluate: say so
+            body += f"<p>The model could not be evaluated for the plots: {html.escape(str(e))}</p>"
+        picks = _incidence_picks(filtered)
+        if picks:
+            figs.append(_curves(filtered, pred, picks))
+            if pred is not None:
+                figs.append(_residual_maps(filtered, pred, picks))
+                body += _residual_table(filtered, pred)
+    elif filtered is not None:
+        picks = _incidence_picks(filtered)
+        if picks:
+            figs.append(_curves(filtered, None, picks))
+    return body + _figures(figs), pred
+
+
+def _residual_table(filtered, pred):
+    """Relative RMS residual per incidence bin (all filled cells, all channels)."""
+    rows = []
+    for b in range(filtered.mean.shape[0]):
+        sel = (filtered.count[b] > 0) & np.all(np.isfinite(pred[b]), -1) & np.all(pred[b] > 0, -1)
+        if not sel.any():
             continue
-        order = np.argsort(xs)
-        ax.plot(np.array(xs)[order], np.array(ys)[order], "o-", ms=3,
-                label=f"θs ≈ {np.degrees(filtered.theta_s[b]):.1f}°")
-        drawn += 1
-    ax.set_xlabel("θo in the incidence plane (deg; − mirror side, + light side)")
-    ax.set_ylabel("BRDF, green (1/sr with calibrated intensities)")
-    ax.set_yscale("log")
-    ax.set_title("Filtered reflectance (hemispherical sensor)")
-    if drawn:
-        ax.legend(fontsize=8)
-    return "Reflectance curves", _png(fig)
+        rel = (filtered.mean[b, sel] - pred[b, sel]) / pred[b, sel]
+        rows.append(f"<tr><td>{np.degrees(filtered.theta_s[b]):.0f}°</td><td>{fmt(int(sel.sum()))}</td>"
+                    f"<td>{fmt(int(filtered.count[b, sel].sum()))}</td>"
+                    f"<td>{_pct(float(np.sqrt(np.mean(rel ** 2))))}</td>"
+                    f"<td>{_pct(float(np.median(rel)))}</td></tr>")
+    if not rows:
+        return ""
+    return ("<details><summary>Residual per incidence bin</summary><table><tr><th>θs</th><th>cells</th>"
+            "<th>samples</th><th>rms (data − model)/model</th><th>median</th></tr>"
+            + "".join(rows) + "</table></details>")
+
+
+# ----------------------------------------------------------------------------- truth
+
+def _truth_kd(truth, mask):
+    alb = truth.get("albedo") if truth else None
+    if alb is None or alb.shape[:2] != mask.shape or not mask.any() or not np.any(alb[mask]):
+        return None
+    return [float(np.median(alb[..., c][mask])) for c in range(alb.shape[-1])]
+
+
+def _truth_brdf(truth):
+    import json
+    if not truth or "brdf" not in truth:
+        return None
+    try:
+        return json.loads(str(truth["brdf"]))
+    except ValueError:
+        return None
+
+
+def _truth_section(res, kd_map, kd_mask):
+    """Histograms of the error against truth.npz: normals (deg), heights (mm), the K_d map (%)."""
+    import matplotlib.pyplot as plt
+    truth = res.inputs.truth if res.inputs is not None else None
+    if not truth or "normals" not in truth or truth["normals"].shape != res.normals.shape:
+        return "<h2>Error against truth</h2><p>This scan has no truth (truth.npz comes with simulated scans).</p>"
+    sel = res.mask & truth.get("mask", np.ones(res.mask.shape, bool)).astype(bool)
+    panels = []
+    dot = np.clip(np.sum(res.normals[sel] * truth["normals"][sel], -1), -1, 1)
+    err = np.degrees(np.arccos(dot))
+    panels.append(("normal angular error (deg)", err, None))
+    if res.height is not None and "height_mm" in truth:
+        dh = res.height[sel] - truth["height_mm"][sel]
+        panels.append(("height error, mean removed (mm)", dh - dh.mean(), None))
+    alb = truth.get("albedo")
+    if kd_map is not None and alb is not None and alb.shape == kd_map.shape and np.any(alb[kd_mask]):
+        t = alb[kd_mask][:, 1]
+        ok = t > 0
+        panels.append(("K_d map relative error, green (%)", 100 * (kd_map[kd_mask][:, 1][ok] - t[ok]) / t[ok], None))
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3), squeeze=False)
+    rows = []
+    for ax, (name, v, _) in zip(axes[0], panels):
+        v = v[np.isfinite(v)]
+        if not v.size:
+            continue
+        hi = np.percentile(np.abs(v), 99.5)
+        ax.hist(np.clip(v, -hi if v.min() < 0 else 0, hi), bins=50, color="C0")
+        ax.set_xlabel(name, fontsize=8)
+        ax.tick_params(labelsize=8)
+        ax.set_yscale("log")
+        absv = np.abs(v)
+        rows.append(f"<tr><td>{html.escape(name)}</td><td>{fmt(float(np.median(absv)))}</td>"
+                    f"<td>{fmt(float(np.percentile(absv, 95)))}</td><td>{fmt(float(np.sqrt(np.mean(v ** 2))))}</td>"
+                    f"<td>{fmt(int(v.size))}</td></tr>")
+    axes[0, 0].set_ylabel("pixels", fontsize=8)
+    fig.tight_layout()
+    table = ("<table><tr><th>quantity</th><th>median |error|</th><th>95th percentile |error|</th>"
+             "<th>rms</th><th>pixels</th></tr>" + "".join(rows) + "</table>")
+    return ("<h2>Error against truth</h2>" + table
+            + _figures([("Error against the scan's truth (histograms, log counts)", _png(fig))]))
+
+
+# ----------------------------------------------------------------------------- summary
+
+def _summary(res, viewer_note):
+    inp, ps = res.inputs, res.ps
+    h, w = res.normals.shape[:2]
+    m = inp.images.shape[0] if inp is not None and getattr(inp, "images", None) is not None else None
+    valid = int(res.mask.sum())
+    material = int((res.mask & inp.sample_mask()).sum()) if inp is not None else valid
+    measured = (f"{fmt(m)} lights on {fmt(w)} × {fmt(h)} pixels"
+                f" ({html.escape(str(inp.kind)) if inp else ''} {html.escape(str(inp.source)) if inp else ''}); "
+                f"a normal on {fmt(valid)} pixels ({_pct(valid / max(h * w, 1))}), "
+                f"reflectance samples from {fmt(material)} pixels of the material.")
+    if res.filtered is not None:
+        cells = int((res.filtered.count > 0).sum())
+        bins = int((res.filtered.count.sum(1) > 0).sum())
+        measured += (f" The hemispherical sensor ({fmt(res.options.get('theta0_deg'))}° cells) filled "
+                     f"{fmt(cells)} cells in {fmt(bins)} incidence bins.")
+    good = []
+    if res.errors:
+        e = res.errors
+        if "normal_median_deg" in e:
+            good.append(f"normals within {fmt(e['normal_median_deg'], 2)}° of the truth (median), "
+                        f"{fmt(e['normal_p95_deg'], 2)}° at the 95th percentile")
+        if "height_rms_mm" in e:
+            good.append(f"heights within {fmt(e['height_rms_mm'], 2)} mm RMS")
+    if ps is not None and valid:
+        good.append(f"photometric-stereo residual {_pct(float(np.median(ps.residual[res.mask])))} (median; "
+                    "0 is a perfect Lambertian fit)")
+    fit = res.brdf
+    if fit is not None and getattr(fit, "params", None):
+        p, u = fit.params, fit.uncertainties or {}
+        parts = [f"{k} = {fmt_pm(p[k], u.get(k))}" for k in ("sigma", "n_i") if k in p]
+        if "kd" in p:
+            parts.append("K_d = " + ", ".join(fmt(x) for x in p["kd"]))
+        good.append(f"BRDF {fit.model} ({'; '.join(parts)}), fitted to "
+                    f"{_pct((fit.error or {}).get('relative_rms'))} relative RMS"
+                    + ("" if fit.success else " — the fit FAILED"))
+    left = []
+    if inp is not None:
+        lost = int((inp.mask & ~res.mask).sum())
+        if lost:
+            left.append(f"{fmt(lost)} pixels inside the mask got no normal (too few usable lights)")
+        bg = int((res.mask & ~inp.sample_mask()).sum())
+        if bg:
+            left.append(f"{fmt(bg)} pixels outside the material (dark background) are left out of the "
+                        "BRDF fit; they keep their normals and heights")
+    if ps is not None and ps.shadow is not None and ps.shadow.size and valid:
+        sh = float(ps.shadow[res.mask].mean())
+        if sh > 0:
+            left.append(f"{_pct(sh)} of the pixel-light pairs were flagged as shadow and left out of the "
+                        "reflectance samples")
+    if ps is not None and ps.info and "skipped_fraction" in ps.info:
+        left.append(f"least squares already explained {_pct(ps.info['skipped_fraction'])} of the pixels, "
+                    "so the hierarchical search ran on the rest only")
+    if fit is not None and getattr(fit, "message", "converged") not in ("converged", ""):
+        left.append("fit: " + fit.message)
+    if viewer_note:
+        left.append(viewer_note)
+    def li(xs):
+        return "".join(f"<li>{html.escape(x)}</li>" for x in xs)
+    notes = f"<p><b>Notes:</b></p><ul>{li(res.notes)}</ul>" if res.notes else ""
+    return (f"<section class='summary'><h2>Summary</h2><p><b>Measured:</b> {measured}</p>"
+            f"<p><b>How good:</b></p><ul>{li(good) or '<li>no figure of merit (no truth, no fit)</li>'}</ul>"
+            f"<p><b>Left out, and why:</b></p><ul>{li(left) or '<li>nothing</li>'}</ul>{notes}</section>")
+
+
+# ----------------------------------------------------------------------------- the page
+
+def _viewer(res):
+    """(html, kd_map, kd_mask, note): the relighting viewer, or why there is none."""
+    from facette.pipeline._viewer import viewer_data, viewer_section
+    if res.brdf is None:
+        return "", None, None, "relighting viewer: no BRDF was fitted (output brdf not requested or no data)"
+    inp = res.inputs
+    try:
+        data, arrays = viewer_data(
+            res.normals, res.mask, res.brdf, albedo=res.albedo, kd_map=getattr(res, "kd_map", None),
+            height=res.height, pitch_mm=inp.pixel_pitch_mm if inp is not None else 1.0,
+            material_mask=inp.sample_mask() if inp is not None else None)
+    except ValueError as e:
+        return "", None, None, f"relighting viewer: {e}"
+    kd_map = arrays["kd_map"] if data["decimation"] == 1 else None
+    return viewer_section(data), kd_map, arrays["mask"], None
 
 
 def write_report(res, path):
-    """Write report.html for a `ProcessResult` (maps, masks, curves, timings, options)."""
+    """Write report.html for a `ProcessResult`: summary, relighting viewer, BRDF fit with
+    uncertainties and residuals, error against truth, maps, options, timings."""
     import matplotlib
     matplotlib.use("Agg", force=False)
+    viewer_html, kd_map, kd_mask, viewer_note = _viewer(res)
+    truth = res.inputs.truth if res.inputs is not None else None
+    truth_kd = _truth_kd(truth, res.mask & res.inputs.sample_mask()) if res.inputs is not None else None
+    fit_html, _ = _fit_section(res, _truth_brdf(truth), truth_kd)
     figs = []
     st = max(1, int(np.ceil(max(res.normals.shape[:2]) / 800)))   # pictures need no more
     n, mask, ps = res.normals[::st, ::st], res.mask[::st, ::st], res.ps
@@ -119,34 +506,29 @@ def write_report(res, path):
     if res.height is not None:
         figs.append(_map("Height (mm)", np.where(mask, res.height[::st, ::st], np.nan),
                          cmap="terrain", label="mm"))
-    truth = res.inputs.truth if res.inputs is not None else None
     if truth and "normals" in truth and truth["normals"].shape == res.normals.shape:
         tn = truth["normals"][::st, ::st]
         err = np.degrees(np.arccos(np.clip(np.sum(n * tn, -1), -1, 1)))
         figs.append(_map("Angular error against truth (deg)", np.where(mask, err, np.nan),
                          cmap="inferno", vmin=0, vmax=10, label="deg"))
-    if res.filtered is not None:
-        figs.append(_curves(res.filtered))
-    rows = "".join(f"<tr><td>{html.escape(k)}</td><td>{v:.3f} s</td></tr>" for k, v in res.timings.items())
-    opts = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(str(v))}</td></tr>"
-                   for k, v in res.options.items())
-    errs = "".join(f"<tr><td>{html.escape(k)}</td><td>{v:.3f}</td></tr>" for k, v in res.errors.items())
-    info = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(str(v))}</td></tr>"
-                   for k, v in (ps.info or {}).items())
-    notes = "".join(f"<li>{html.escape(x)}</li>" for x in res.notes)
-    brdf = f"<pre>{html.escape(str(res.brdf))}</pre>" if res.brdf is not None else "<p>not fitted</p>"
-    imgs = "".join(f'<figure><img src="{src}" alt="{html.escape(t)}"><figcaption>{html.escape(t)}'
-                   "</figcaption></figure>" for t, src in figs)
+    timings = "".join(f"<tr><td>{html.escape(k)}</td><td>{fmt(v, 2)} s</td></tr>" for k, v in res.timings.items())
+    opts = _rows({k: (", ".join(v) if isinstance(v, list) else v) for k, v in res.options.items()})
+    info = _rows(ps.info or {})
     src = html.escape(str(res.inputs.source)) if res.inputs is not None else ""
-    page = f"""<!DOCTYPE html><html><head><meta charset="utf-8"><title>facette report</title>
-<style>body{{font-family:sans-serif;margin:2em}}figure{{display:inline-block;margin:0.5em}}
-td{{padding:0 1em}}img{{max-width:520px}}</style></head><body>
-<h1>facette process</h1><p>Source: {src} ({res.inputs.kind if res.inputs else ''},
-{res.normals.shape[1]}×{res.normals.shape[0]} px, {int(res.mask.sum())} valid pixels)</p>
-<h2>Options</h2><table>{opts}</table><h2>Photometric stereo</h2><table>{info}</table>
-<h2>Error against the scan's truth</h2>{('<table>' + errs + '</table>') if errs else '<p>no truth.npz</p>'}
-<h2>Timings</h2><table>{rows}</table><h2>BRDF</h2>{brdf}<h2>Notes</h2><ul>{notes}</ul>
-<h2>Pictures</h2>{imgs}</body></html>"""
+    page = f"""<!DOCTYPE html><html><head><meta charset="utf-8"><title>facette report: {src}</title>
+<style>body{{font-family:sans-serif;margin:2em;max-width:1400px}}figure{{display:inline-block;margin:0.5em;vertical-align:top}}
+td,th{{padding:0 1em;text-align:left}}img{{max-width:100%}}.summary{{background:#f3f3f3;padding:0.5em 1.5em;border-radius:6px}}
+.small{{font-size:90%;color:#444}}</style></head><body>
+<h1>facette process: {src}</h1>
+{_summary(res, viewer_note)}
+{viewer_html}
+{fit_html}
+{_truth_section(res, kd_map, kd_mask)}
+<h2>Maps</h2>{_figures(figs)}
+<h2>Photometric stereo</h2><table>{info}</table>
+<h2>Options</h2><table>{opts}</table>
+<h2>Timings</h2><table>{timings}</table>
+</body></html>"""
     tmp = path.with_name(path.name + ".partial")
     tmp.write_text(page, encoding="utf-8")
     tmp.replace(path)
