@@ -84,10 +84,20 @@ def viewer_model(fit):
                        volume=(d.get("volume") or "quadrature") if model == "li" else "lambert")
 
 
-def _volume_integral(m, s, o):
-    """I(s, o) of the model, (...): the LI volume integral, or 1 for a K_d/π diffuse part."""
+# Quadrature nodes for the viewer's table: 24 × 24 instead of 48 × 48 is 6x faster (2 s for the
+# table instead of 13 s) for a table error of 1e-4 of its maximum, below float16's 5e-4.
+TABLE_QUADRATURE = {"n_theta": 24, "n_phi": 24}
+
+
+def _volume_integral(m, s, o, for_table=False):
+    """I(s, o) of the model, (...): the LI volume integral, or 1 for a K_d/π diffuse part.
+    for_table: quadrature with TABLE_QUADRATURE nodes (also in place of Monte Carlo, whose
+    noise a table would keep)."""
     if m.model != "li":
         return np.where((s[..., 2] > 0) & (o[..., 2] > 0), 1.0, 0.0)
+    if for_table and m.volume in ("quadrature", "monte_carlo"):
+        return brdf.volume_integral(s, o, m.sigma, m.n_i, m.distribution, m.masking, "quadrature",
+                                    **TABLE_QUADRATURE)
     return brdf.volume_integral(s, o, m.sigma, m.n_i, m.distribution, m.masking, m.volume)
 
 
@@ -106,7 +116,7 @@ def volume_table(m, n_theta=31, n_phi=13):
     TSc = np.minimum(TS, np.radians(89.95))
     s = np.stack([np.sin(TSc), np.zeros_like(TSc), np.cos(TSc)], axis=-1)
     o = np.stack([np.sin(TO) * np.cos(P), np.sin(TO) * np.sin(P), np.cos(TO)], axis=-1)
-    j = _volume_integral(m, s, o) * np.cos(TS)
+    j = _volume_integral(m, s, o, for_table=True) * np.cos(TS)
     return np.where(np.isfinite(j), j, 0.0).astype(np.float32)
 
 

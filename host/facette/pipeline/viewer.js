@@ -227,6 +227,7 @@ void main() {
   function start() {
     const node = document.getElementById("facette-viewer-data");
     if (!node) return;
+    const tStart = performance.now();
     const d = JSON.parse(node.textContent);
     d.normals = bytes(d.normals);
     d.kd = bytes(d.kd);
@@ -322,6 +323,7 @@ void main() {
       requestAnimationFrame(frame);
     });
     api.size = [d.width, d.height];
+    api.startMs = performance.now() - tStart;      // decode, upload, first frame
     api.ready = true;
   }
 
