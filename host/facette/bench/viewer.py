@@ -4,13 +4,16 @@ Prints, for a synthetic 2144 × 1424 result (a sphere on a textured plane, the L
 glossy material) and for the small simulated scan of the browser test:
 1. the browser-vs-reference pixel difference (8-bit sRGB levels over the object) at three
    light directions, against facette.pipeline._relight.relight (facette.brdf);
-2. the frame time at 2144 × 1424: draw + gl.finish per frame (median over N frames, one per
+2. the frame time at 2144 × 1424: draw + gl.finish + a one-pixel read-back (which, unlike
+   Chromium's gl.finish, waits for the frame) per frame (median over N frames, one per
    requestAnimationFrame) and the start-up time (decode, texture upload, first frame);
+   and the same while the light is dragged (a preview of at most ~1 MP);
 3. screenshots (PNG) of the report and of the viewer at two light directions in --out.
 
 The WebGL here is SwiftShader (CPU, 2 cores shared): a GPU is one to two orders faster.
 
 Usage: facette bench viewer [--out DIR] [--frames N] [--report REPORT.html] [--size H W]
+                            [--skip-large] [--skip-report]
 """
 import argparse
 import tempfile
@@ -77,8 +80,9 @@ def bench_large(out, h, w, frames):
             wait_for_viewer(driver, page, timeout=300)
             t_open = time.perf_counter() - t0
             start_ms = driver.execute_script("return window.facetteViewer.startMs")
-            ft = driver.execute_async_script(
-                "window.facetteViewer.frameTimes(arguments[0]).then(arguments[arguments.length - 1])", frames)
+            timing = "window.facetteViewer.frameTimes(arguments[0], arguments[1]).then(arguments[arguments.length - 1])"
+            ft = driver.execute_async_script(timing, frames, False)
+            ft_preview = driver.execute_async_script(timing, frames, True)
             diffs = pixel_differences(driver, arr)
             errors = console_errors(driver)
     draw = np.array(ft["draw_ms"][3:])          # the first frames include shader warm-up
@@ -86,9 +90,12 @@ def bench_large(out, h, w, frames):
     print(f"1. {w} × {h} px (sphere on a textured plane, LI σ = 0.044, n_i = 1.14, approx volume)")
     print(f"  page {size_mb:.0f} MB, packed in {t_pack:.1f} s; opened in {t_open:.1f} s "
           f"(viewer start-up {start_ms / 1000:.1f} s: decode, upload, first frame)")
-    print(f"  frame time (draw + gl.finish): median {np.median(draw):.0f} ms, "
+    print(f"  frame time (draw, gl.finish, 1-pixel read-back): median {np.median(draw):.0f} ms, "
           f"95th pct {np.percentile(draw, 95):.0f} ms over {len(draw)} frames; "
           f"requestAnimationFrame interval median {np.median(raf):.0f} ms")
+    pv = np.array(ft_preview["draw_ms"][3:])
+    print(f"  while dragging (preview {ft_preview['size'][0]} × {ft_preview['size'][1]}): median {np.median(pv):.0f} ms, "
+          f"95th pct {np.percentile(pv, 95):.0f} ms")
     _print_diffs(diffs)
     print(f"  console errors: {len(errors)}")
     return diffs, draw
@@ -137,11 +144,13 @@ def main(argv=None):
     ap.add_argument("--size", type=int, nargs=2, default=(1424, 2144), metavar=("H", "W"))
     ap.add_argument("--report", type=Path, help="screenshot this report.html instead of a simulated one")
     ap.add_argument("--skip-large", action="store_true", help="no full-size timing")
+    ap.add_argument("--skip-report", action="store_true", help="no report screenshots")
     a = ap.parse_args(argv)
     if a.frames < 5:
         raise SystemExit("--frames: time at least 5 frames (the first 3 are warm-up)")
     a.out.mkdir(parents=True, exist_ok=True)
     if not a.skip_large:
         bench_large(a.out, *a.size, a.frames)
-    bench_report(a.out, a.report)
+    if not a.skip_report:
+        bench_report(a.out, a.report)
     return 0

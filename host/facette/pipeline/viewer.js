@@ -104,10 +104,11 @@ ${SHADE}
 uniform sampler2D uNormal, uKd;
 uniform vec3 uLight;
 uniform float uExposure, uBackground;
-uniform int uRows;
+uniform int uRows, uStep;
 out vec4 outColor;
 void main() {
-  ivec2 p = ivec2(int(gl_FragCoord.x), uRows - 1 - int(gl_FragCoord.y));
+  // uStep > 1: a preview while the light is dragged, every uStep-th pixel of the scan
+  ivec2 p = ivec2(int(gl_FragCoord.x) * uStep, (uRows - 1 - int(gl_FragCoord.y)) * uStep);
   vec4 kd = texelFetch(uKd, p, 0);
   if (kd.a < 0.5) { outColor = vec4(vec3(uBackground), 1.0); return; }
   vec3 n = unpackNormal(texelFetch(uNormal, p, 0).rg);
@@ -257,14 +258,24 @@ void main() {
     }
     function exposure() { return d.exposure * Math.pow(2, state.ev); }
 
+    // while dragging a large picture, draw at most ~1 MP (CPU WebGL: ~280 ms a frame at 3 MP)
+    const previewStep = Math.max(1, Math.ceil(Math.sqrt(d.width * d.height / 1.0e6)));
+    let step = 1;
+    function setStep(k) {
+      if (k === step) return;
+      step = k;
+      canvas.width = Math.ceil(d.width / k);
+      canvas.height = Math.ceil(d.height / k);
+    }
     function draw() {
-      gl.viewport(0, 0, d.width, d.height);
+      gl.viewport(0, 0, canvas.width, canvas.height);
       gl.useProgram(relight);
       gl.bindVertexArray(quadVao);
       gl.uniform3fv(U("uLight"), lightVector());
       gl.uniform1f(U("uExposure"), exposure());
       gl.uniform1f(U("uBackground"), d.background);
-      gl.uniform1i(U("uRows"), d.height);
+      gl.uniform1i(U("uRows"), canvas.height);
+      gl.uniform1i(U("uStep"), step);
       gl.drawArrays(gl.TRIANGLE_STRIP, 0, 4);
     }
 
@@ -288,8 +299,15 @@ void main() {
       state.el = Math.max(Math.acos(rho) * 180 / Math.PI, 2);
       update();
     }
-    canvas.addEventListener("pointerdown", (ev) => { canvas.setPointerCapture(ev.pointerId); lightFromPointer(ev); });
+    canvas.addEventListener("pointerdown", (ev) => {
+      canvas.setPointerCapture(ev.pointerId);
+      setStep(previewStep);
+      lightFromPointer(ev);
+    });
     canvas.addEventListener("pointermove", (ev) => { if (ev.buttons & 1) lightFromPointer(ev); });
+    const release = () => { if (step !== 1) { setStep(1); update(); } };
+    canvas.addEventListener("pointerup", release);
+    canvas.addEventListener("pointercancel", release);
     elSlider.addEventListener("input", () => { state.el = Number(elSlider.value); update(); });
     evSlider.addEventListener("input", () => { state.ev = Number(evSlider.value); update(); });
     update();
@@ -297,7 +315,8 @@ void main() {
     // what the browser test and the benchmark drive
     api.setLight = (az, el) => { state.az = az; state.el = el; update(); };
     api.setExposureEV = (ev) => { state.ev = ev; update(); };
-    api.pixels = () => {            // RGBA rows top to bottom, base64
+    api.pixels = () => {            // RGBA rows top to bottom, base64, full size
+      setStep(1);
       draw();
       const px = new Uint8Array(d.width * d.height * 4);
       gl.readPixels(0, 0, d.width, d.height, gl.RGBA, gl.UNSIGNED_BYTE, px);
@@ -307,9 +326,11 @@ void main() {
       for (let i = 0; i < rows.length; i += 32768) s += String.fromCharCode.apply(null, rows.subarray(i, i + 32768));
       return btoa(s);
     };
-    api.frameTimes = (n) => new Promise((resolve) => {
-      // n frames, each drawn with a new light and waited for (gl.finish), one per animation frame
-      const times = [], stamps = [];
+    api.frameTimes = (n, preview) => new Promise((resolve) => {
+      setStep(preview ? previewStep : 1);
+      // n frames, each drawn with a new light and waited for, one per animation frame.
+      // Chromium's gl.finish() does not wait for the GPU process: reading one pixel back does.
+      const times = [], stamps = [], one = new Uint8Array(4);
       let i = 0;
       function frame(ts) {
         stamps.push(ts);
@@ -317,8 +338,10 @@ void main() {
         const t0 = performance.now();
         draw();
         gl.finish();
+        gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, one);
         times.push(performance.now() - t0);
-        if (++i < n) requestAnimationFrame(frame); else resolve({ draw_ms: times, raf_ms: stamps });
+        if (++i < n) requestAnimationFrame(frame);
+        else { const size = [canvas.width, canvas.height]; setStep(1); draw(); resolve({ draw_ms: times, raf_ms: stamps, size }); }
       }
       requestAnimationFrame(frame);
     });
