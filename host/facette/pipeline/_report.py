@@ -203,10 +203,11 @@ def _curves(filtered, pred, picks):
         ax.tick_params(labelsize=8)
     axes[0, 0].set_ylabel("BRDF, green (1/sr)", fontsize=8)
     axes[0, 0].legend(fontsize=7)
-    fig.suptitle("Reflectance in the incidence plane: data and fitted model "
-                 "(− mirror side, + light side)", fontsize=10)
+    fig.suptitle("Reflectance in the incidence plane" + (": data and fitted model" if pred is not None else "")
+                 + " (− mirror side, + light side)", fontsize=10)
     fig.subplots_adjust(hspace=0.5, wspace=0.3, top=0.9 if rows == 1 else 0.93)
-    return "Filtered reflectance and fitted model per incidence", _png(fig)
+    return ("Filtered reflectance and fitted model per incidence" if pred is not None
+            else "Filtered reflectance per incidence (no fitted model)"), _png(fig)
 
 
 def _residual_maps(filtered, pred, picks):
@@ -275,8 +276,11 @@ def _params_table(fit, truth_brdf=None, truth_kd=None):
 def _fit_section(res, truth_brdf, truth_kd):
     fit, filtered = res.brdf, res.filtered
     if fit is None:
-        why = "not requested" if "brdf" not in res.options.get("outputs", ()) else "no fit (see the notes)"
-        return f"<h2>BRDF fit</h2><p>{why}.</p>", None
+        why = ("not requested (--outputs without brdf)" if "brdf" not in res.options.get("outputs", ())
+               else "no fit (see the notes)")
+        picks = _incidence_picks(filtered) if filtered is not None else []
+        figs = [_curves(filtered, None, picks)] if picks else []
+        return f"<h2>BRDF fit</h2><p>{why}.</p>" + _figures(figs), None
     d = fit.to_dict() if hasattr(fit, "to_dict") else dict(fit)
     err = d.get("fit_error") or {}
     lines = [f"Model: {html.escape(str(d.get('model')))}"
