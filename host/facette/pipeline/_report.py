@@ -177,16 +177,22 @@ def _channel(filtered):
     return 1 if filtered.mean.shape[2] > 1 else 0
 
 
+def _panels(n, size):
+    """A figure of n panels, three a row (size: inches per panel); unused panels hidden."""
+    import matplotlib.pyplot as plt
+    cols = min(3, max(1, n))
+    rows = int(np.ceil(n / cols)) or 1
+    fig, axes = plt.subplots(rows, cols, figsize=(size[0] * cols, size[1] * rows), squeeze=False)
+    for ax in axes.ravel()[n:]:
+        ax.axis("off")
+    return fig, axes, rows
+
+
 def _curves(filtered, pred, picks):
     """Per incidence: the filtered reflectance (points) and the fitted model seen through the
     same cells (line), in the incidence plane, on the same axes."""
-    import matplotlib.pyplot as plt
     ch = _channel(filtered)
-    cols = min(3, max(1, len(picks)))
-    rows = int(np.ceil(len(picks) / cols)) or 1
-    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.2 * rows), squeeze=False)
-    for ax in axes.ravel()[len(picks):]:
-        ax.axis("off")
+    fig, axes, rows = _panels(len(picks), (4.2, 3.2))
     for ax, b in zip(axes.ravel(), picks):
         x, y = _in_plane(filtered, filtered.mean, b, ch)
         ax.plot(x, y, "o", ms=3, color="C0", label="filtered data")
@@ -215,11 +221,7 @@ def _residual_maps(filtered, pred, picks):
     hemisphere seen from above (equal-area projection; the light comes from +x)."""
     import matplotlib.pyplot as plt
     ch = _channel(filtered)
-    cols = min(3, max(1, len(picks)))
-    rows = int(np.ceil(len(picks) / cols)) or 1
-    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.4 * rows), squeeze=False)
-    for ax in axes.ravel()[len(picks):]:
-        ax.axis("off")
+    fig, axes, _ = _panels(len(picks), (3.6, 3.4))
     o = filtered.o
     r = np.sqrt(2) * np.sin(np.arccos(np.clip(o[:, 2], -1, 1)) / 2)    # equal-area, 1 at the horizon
     phi = np.arctan2(o[:, 1], o[:, 0])

@@ -14,7 +14,7 @@ from facette.bench._sim_scan import write_scan
 from facette.pipeline import process
 from facette.pipeline._relight import (ViewerModel, kd_map_from_albedo, light_from_angles, relight, to_srgb8,
                                        viewer_model)
-from facette.pipeline._report import fmt, fmt_pm
+from facette.pipeline._report import fit_predictions, fmt, fmt_pm
 from facette.pipeline._viewer import viewer_data
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
@@ -69,6 +69,11 @@ def test_report_shows_the_fit_its_uncertainties_and_the_truth(result):
                     "Error against the scan's truth (histograms", "normal angular error (deg)"):
         assert caption in text
     assert "<th>truth</th>" in text and "cook_torrance" in text
+    # the model drawn against the data is the one fitted: same RMS over the same cells
+    f = res.filtered
+    sel = f.count >= 1
+    rms = np.sqrt(np.mean((fit_predictions(f, res.brdf)[sel] - f.mean[sel]) ** 2))
+    np.testing.assert_allclose(rms, res.brdf.error["rms"], rtol=1e-3)
     # no number printed with more digits than anyone reads
     assert not re.findall(r"\d\.\d{6,}", text)
 
