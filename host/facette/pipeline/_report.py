@@ -124,18 +124,21 @@ def _figures(figs):
 # ----------------------------------------------------------------------------- the fit
 
 def fit_predictions(filtered, fit, min_count=1, spread=4):
-    """The fitted model as the hemispherical sensor sees it: (B, N, C) mean of the model over
-    spread² directions in each filled cell (the forward model the fit used,
-    facette.fit.fit_hemisphere_cells), NaN in cells with fewer than min_count samples."""
-    from facette.fit import cell_spread_directions
+    """The fitted model as the hemispherical sensor sees it, (B, N, C), NaN in cells with fewer
+    than min_count samples: the fit's own forward model (facette.fit.FitModel, as
+    fit_hemisphere_cells builds it: the lobe averaged over spread² directions per cell)."""
+    from facette.fit import FitModel, cell_spread_directions
     b, c = np.nonzero(filtered.count >= min_count)
     pred = np.full(filtered.mean.shape, np.nan)
     if b.size:
-        o = cell_spread_directions(filtered.edges, filtered.counts, c, spread)
-        vals = np.asarray(fit.predict(filtered.s[b][:, None, :], o), dtype=float)
-        if vals.ndim == 2:
-            vals = vals[..., None]
-        pred[b, c] = vals.mean(axis=1)
+        o_spread = cell_spread_directions(filtered.edges, filtered.counts, c, spread) if spread else None
+        model = FitModel(fit.model, filtered.s[b], filtered.o[c], filtered.mean.shape[2],
+                         distribution=fit.distribution or "beckmann", masking=fit.masking or "smith",
+                         volume=fit.volume or "quadrature", interreflection=bool(fit.interreflection),
+                         o_spread=o_spread)
+        kd = np.broadcast_to(np.asarray(fit.params["kd"], dtype=float), (filtered.mean.shape[2],))
+        p = [fit.params[k] for k in model.names[:model.n_shared]] + list(kd)
+        pred[b, c] = model.predict(np.asarray(p, dtype=float))
     return pred
 
 
@@ -312,7 +315,7 @@ def _fit_section(res, truth_brdf, truth_kd):
     if filtered is not None and getattr(fit, "success", True) and getattr(fit, "params", None):
         try:
             pred = fit_predictions(filtered, fit)
-        except (ValueError, TypeError) as e:          # a model we cannot evaluate: say so
+        except (ValueError, TypeError, KeyError) as e:    # a model we cannot evaluate: say so
             body += f"<p>The model could not be evaluated for the plots: {html.escape(str(e))}</p>"
         picks = _incidence_picks(filtered)
         if picks:
