@@ -71,10 +71,12 @@ def _rows(d, unit=""):
 
 # ----------------------------------------------------------------------------- pictures
 
-def _png(fig):
+def _png(fig, tight=True):
+    """fig as a PNG data URI. tight=False keeps the figure's own margins: bbox_inches="tight"
+    draws the figure twice, which doubles the time of the multi-panel plots."""
     import matplotlib.pyplot as plt
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight" if tight else None)
     plt.close(fig)
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
@@ -214,9 +216,10 @@ def _curves(filtered, pred, picks):
     axes[0, 0].legend(fontsize=7)
     fig.suptitle("Reflectance in the incidence plane" + (": data and fitted model" if pred is not None else "")
                  + " (− mirror side, + light side)", fontsize=10)
-    fig.subplots_adjust(hspace=0.5, wspace=0.3, top=0.9 if rows == 1 else 0.93)
+    fig.subplots_adjust(hspace=0.5, wspace=0.3, left=0.08, right=0.98, bottom=0.18 if rows == 1 else 0.1,
+                        top=0.85 if rows == 1 else 0.91)
     return ("Filtered reflectance and fitted model per incidence" if pred is not None
-            else "Filtered reflectance per incidence (no fitted model)"), _png(fig)
+            else "Filtered reflectance per incidence (no fitted model)"), _png(fig, tight=False)
 
 
 def _residual_maps(filtered, pred, picks):
@@ -245,7 +248,8 @@ def _residual_maps(filtered, pred, picks):
                      f"rms {_pct(rms)}", fontsize=9)
     if sc is not None:
         fig.colorbar(sc, ax=axes.ravel().tolist(), shrink=0.8, label="(data − model) / model, %")
-    return "Residual per sensor cell (hemisphere from above, light towards +x; clipped at ±50 %)", _png(fig)
+    return ("Residual per sensor cell (hemisphere from above, light towards +x; clipped at ±50 %)",
+            _png(fig, tight=False))
 
 
 _PARAM_NAMES = {"kd": "K_d (substrate reflectance)", "sigma": "σ (roughness, RMS slope)",
@@ -403,11 +407,11 @@ def _truth_section(res, kd_map, kd_mask):
                     f"<td>{fmt(float(np.percentile(absv, 95)))}</td><td>{fmt(float(np.sqrt(np.mean(v ** 2))))}</td>"
                     f"<td>{fmt(int(v.size))}</td></tr>")
     axes[0, 0].set_ylabel("pixels", fontsize=8)
-    fig.subplots_adjust(wspace=0.25)
+    fig.subplots_adjust(wspace=0.25, left=0.06, right=0.98, bottom=0.18, top=0.95)
     table = ("<table><tr><th>quantity</th><th>median |error|</th><th>95th percentile |error|</th>"
              "<th>rms</th><th>pixels</th></tr>" + "".join(rows) + "</table>")
     return ("<h2>Error against truth</h2>" + table
-            + _figures([("Error against the scan's truth (histograms, log counts)", _png(fig))]))
+            + _figures([("Error against the scan's truth (histograms, log counts)", _png(fig, tight=False))]))
 
 
 # ----------------------------------------------------------------------------- summary
