@@ -9,7 +9,14 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["chromium", "wait_for_viewer", "viewer_pixels", "console_errors", "CHROMIUM_FLAGS"]
+try:        # selenium is in the dev extra: without it, chromium() says how to install it
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.common.by import By
+except ImportError:
+    webdriver = Service = By = None
+
+__all__ = ["By", "chromium", "wait_for_viewer", "viewer_pixels", "console_errors", "CHROMIUM_FLAGS"]
 
 CHROMIUM_FLAGS = ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
                   "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
@@ -28,11 +35,8 @@ def _find(names, what):
 @contextmanager
 def chromium(width=1280, height=1000):
     """A Selenium WebDriver on headless Chromium, its console kept (get_log('browser'))."""
-    try:
-        from selenium import webdriver
-        from selenium.webdriver.chrome.service import Service
-    except ImportError:
-        raise ImportError("selenium is needed for the browser checks: pip install -e '.[dev]'") from None
+    if webdriver is None:
+        raise ImportError("selenium is needed for the browser checks: pip install -e '.[dev]'")
     opts = webdriver.ChromeOptions()
     for flag in CHROMIUM_FLAGS:
         opts.add_argument(flag)

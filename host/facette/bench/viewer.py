@@ -22,10 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
-from facette.bench._browser import chromium, console_errors, viewer_pixels, wait_for_viewer
+from facette.bench._browser import By, chromium, console_errors, viewer_pixels, wait_for_viewer
+from facette.bench._sim_scan import write_scan
+from facette.pipeline import process
 from facette.pipeline._relight import light_from_angles, relight, to_srgb8
 from facette.pipeline._viewer import viewer_data, viewer_section
-from facette.recon.synthetic import sphere_on_plane
+from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
 LIGHTS = [(135.0, 45.0), (0.0, 20.0), (270.0, 70.0)]
 GLOSSY_LI = {"model": "li", "distribution": "beckmann", "masking": "smith", "volume": "approx",
@@ -106,9 +108,6 @@ def bench_report(out, report=None):
     with tempfile.TemporaryDirectory() as tmp:
         arr = None
         if report is None:
-            from facette.pipeline import process
-            from facette.recon.synthetic import render, thesis_light_directions
-            from facette.bench._sim_scan import write_scan
             sc = sphere_on_plane(48, 64)
             write_scan(Path(tmp) / "scan", sc, render(sc, thesis_light_directions(), "satin", noise=0.002))
             res = process(Path(tmp) / "scan", outputs=["normals", "albedo", "height", "samples", "brdf", "report"],
@@ -116,7 +115,6 @@ def bench_report(out, report=None):
             report = Path(tmp) / "out" / "report.html"
             _, arr = viewer_data(res.normals, res.mask, res.brdf, albedo=res.albedo, height=res.height,
                                  pitch_mm=res.inputs.pixel_pitch_mm, material_mask=res.inputs.sample_mask())
-        from selenium.webdriver.common.by import By
         with chromium(1400, 1000) as driver:
             wait_for_viewer(driver, report)
             height = driver.execute_script("return document.body.scrollHeight")

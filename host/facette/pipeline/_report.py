@@ -9,9 +9,13 @@ Pictures are embedded PNGs (matplotlib); numbers are rounded for reading (`fmt`,
 import base64
 import html
 import io
+import json
 import math
 
 import numpy as np
+
+from facette.fit import FitModel, cell_spread_directions
+from facette.pipeline._viewer import viewer_data, viewer_section
 
 __all__ = ["write_report", "fmt", "fmt_pm", "fit_predictions"]
 
@@ -129,7 +133,6 @@ def fit_predictions(filtered, fit, min_count=1, spread=4):
     """The fitted model as the hemispherical sensor sees it, (B, N, C), NaN in cells with fewer
     than min_count samples: the fit's own forward model (facette.fit.FitModel, as
     fit_hemisphere_cells builds it: the lobe averaged over spread² directions per cell)."""
-    from facette.fit import FitModel, cell_spread_directions
     b, c = np.nonzero(filtered.count >= min_count)
     pred = np.full(filtered.mean.shape, np.nan)
     if b.size:
@@ -363,7 +366,6 @@ def _truth_kd(truth, mask):
 
 
 def _truth_brdf(truth):
-    import json
     if not truth or "brdf" not in truth:
         return None
     try:
@@ -484,7 +486,6 @@ def _summary(res, viewer_note):
 
 def _viewer(res):
     """(html, kd_map, kd_mask, note): the relighting viewer, or why there is none."""
-    from facette.pipeline._viewer import viewer_data, viewer_section
     if res.brdf is None:
         return "", None, None, "relighting viewer: no BRDF was fitted (output brdf not requested or no data)"
     inp = res.inputs
