@@ -497,7 +497,11 @@ def _viewer(res):
     except ValueError as e:
         return "", None, None, f"relighting viewer: {e}"
     kd_map = arrays["kd_map"] if data["decimation"] == 1 else None
-    return viewer_section(data), kd_map, arrays["mask"], None
+    note = None
+    if getattr(res.brdf, "interreflection", False):
+        note = ("relighting viewer: the fit's V-cavity inter-reflection term is left out of the viewer "
+                "(it depends on K_d² per pixel; the single-bounce model is drawn)")
+    return viewer_section(data), kd_map, arrays["mask"], note
 
 
 def write_report(res, path):
