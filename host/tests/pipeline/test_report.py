@@ -45,5 +45,7 @@ def test_report_shows_the_fit_its_uncertainties_and_the_truth(simulated_result):
     sel = f.count >= 1
     rms = np.sqrt(np.mean((fit_predictions(f, res.brdf)[sel] - f.mean[sel]) ** 2))
     np.testing.assert_allclose(rms, res.brdf.error["rms"], rtol=1e-9)
+    # self-contained: nothing fetched from anywhere
+    assert "http://" not in page and "https://" not in page and "<script src" not in page
     # no number printed with more digits than anyone reads
     assert not re.findall(r"\d\.\d{6,}", text)
