@@ -37,6 +37,7 @@ from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
 from facette.pipeline._exports import gltf_inputs
 from facette.pipeline._inputs import load_input
+from facette.pipeline._report import write_report
 
 __all__ = ["OUTPUTS", "STAGES_FOR", "ProcessResult", "process", "stages_needed"]
 
@@ -337,7 +338,6 @@ def _write(res, out, outputs, ascii_ply, images, light_dirs):
     with ThreadPoolExecutor(2) as pool:
         futures = [pool.submit(job) for job in jobs]
         if "report" in outputs:
-            from facette.pipeline._report import write_report
             write_report(res, out / FILES["report"])
             res.files["report"] = str(out / FILES["report"])
         for fut in futures:

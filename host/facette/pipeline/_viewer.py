@@ -8,11 +8,10 @@ rebuilt), the K_d map and the mask as RGBA8, the volume table J(θ_s, θ_o, Δφ
 import base64
 import html
 import json
-from importlib import resources
-
 import numpy as np
 
 import facette.brdf as brdf
+from facette._data import package_text
 from facette.pipeline._relight import (BACKGROUND, DEFAULT_LIGHT, default_exposure, kd_map_from_albedo,
                                        viewer_model, volume_table)
 
@@ -96,7 +95,7 @@ def viewer_data(normals, mask, fit, albedo=None, kd_map=None, height=None, pitch
 
 def viewer_section(data):
     """HTML of the viewer (canvases, controls, the data and the script) for `viewer_data`."""
-    script = resources.files("facette.pipeline").joinpath("viewer.js").read_text(encoding="utf-8")
+    script = package_text("facette.pipeline", "viewer.js")
     payload = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
     mdl = data["model"]
     what = (f"{mdl['name'].upper()} model, σ = {mdl['sigma']:.3g}, n_i = {mdl['n_i']:.3g}"
