@@ -161,8 +161,11 @@ static fw_err_t reg_apply(unsigned slot, uint32_t value)
         set_lock(value == FW_UNLOCK_KEY);
         return FW_OK;
     }
+    /* a manual light follows its setpoint, its channel's gain and the current
+     * limit at once (a lowered max_current_mA must not wait for the next write) */
     if (slot == FW_SLOT_MANUAL_CHANNEL || slot == FW_SLOT_MANUAL_CURRENT_MA ||
-        (slot_in(slot, FW_SLOT_CAL_GAIN, FW_CFG_MAX_LEDS) && led_channel() >= 0 && !seq_active()))
+        ((slot_in(slot, FW_SLOT_CAL_GAIN, FW_CFG_MAX_LEDS) || slot == FW_SLOT_MAX_CURRENT_MA) &&
+         led_channel() >= 0 && !seq_active()))
         manual_apply();
     return FW_OK;
 }

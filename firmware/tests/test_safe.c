@@ -47,6 +47,19 @@ void test_safe(void)
         CHECK_EQ(sink_mA(), 1000);
         CHECK_EQ(th_write(FW_REG_MAX_CURRENT_MA, 1501), 3); /* hard limit 1500 */
     }
+    SHOULD("lower a manual light at once when max_current_mA is lowered below it")
+    {
+        /* found by fuzz_seq (fuzz/corpus-seq/regress_max_current_lowered_under_a_manual_light):
+         * the light stayed at 900 mA under a 300 mA limit until the next manual write */
+        manual(2, 900);
+        CHECK_EQ(sink_mA(), 900);
+        CHECK_EQ(th_write(FW_REG_MAX_CURRENT_MA, 300), 0);
+        CHECK_EQ(th.led_ch, 2);
+        CHECK_EQ(sink_mA(), 300);
+        CHECK_EQ(th_reg_in(FW_REG_LED_SET_MA), 300);
+        CHECK_EQ(th_write(FW_REG_MAX_CURRENT_MA, 1000), 0); /* raising it gives back the setpoint */
+        CHECK_EQ(sink_mA(), 900);
+    }
     SHOULD("halve the current above temp_derate_cC")
     {
         th.ntc_cC = 6500;
