@@ -25,6 +25,10 @@
  * virtual clock until the client's "ack" for it has been read. Without a client,
  * events are dropped, and an ideal camera answers each shutter opening with a
  * flash-sync edge at the same instant (unless miss_sync is pending).
+ * A client that hung up is read to the end before it is let go: `echo
+ * "miss_sync 2" | nc -U SOCKET` works even if it is gone before we accept it. Once
+ * an event cannot be written to it, it counts as no client (no lockstep, the
+ * ideal camera answers) while its last lines are read.
  * Event times are virtual us since the process started (monotonic across
  * resets); hal_time_us() counts from the last reset.
  *
@@ -62,6 +66,7 @@ static struct {
     char pty_name[128];
     /* side channel */
     int listen_fd, client;
+    bool client_deaf; /* writing to the client failed: read its last lines, send nothing */
     char line[512];
     size_t line_len;
     unsigned pending_acks;
@@ -121,14 +126,18 @@ static void side_close(void)
     if (P.client >= 0)
         close(P.client);
     P.client = -1;
+    P.client_deaf = false;
     P.pending_acks = 0;
     P.line_len = 0;
     reanchor();
 }
 
+/* A client that hears the events (and acks them). */
+static bool side_listening(void) { return P.client >= 0 && !P.client_deaf; }
+
 static void side_send(bool needs_ack, const char *fmt, ...)
 {
-    if (P.client < 0)
+    if (!side_listening())
         return;
     char buf[256];
     int n = snprintf(buf, sizeof buf, "%llu ", (unsigned long long)P.v_now);
@@ -150,7 +159,11 @@ static void side_send(bool needs_ack, const char *fmt, ...)
             continue;
         }
         if (w <= 0) {
-            side_close();
+            /* it hung up (EPIPE), maybe with lines not read yet: side_pump reads
+             * them and closes at end of file */
+            P.client_deaf = true;
+            P.pending_acks = 0;
+            reanchor();
             return;
         }
         off += (size_t)w;
@@ -160,7 +173,7 @@ static void side_send(bool needs_ack, const char *fmt, ...)
     }
 }
 
-static bool frozen(void) { return P.client >= 0 && P.pending_acks > 0; }
+static bool frozen(void) { return side_listening() && P.pending_acks > 0; }
 
 static uint8_t maybe_corrupt(uint8_t b)
 {
@@ -294,7 +307,7 @@ void hal_gpio_write(hal_line_t line, bool active)
             side_send(true, "shutter 1 frame=%u light=%u exp=%u exp_us=%lu mode=%s", P.tag.frame,
                       P.tag.light, P.tag.exposure, (unsigned long)P.tag.exp_us,
                       k_mode[P.tag.mode < 3 ? P.tag.mode : 0]);
-            if (P.client < 0 && !P.drop_sync && P.sync_n < SYNC_CAP)
+            if (!side_listening() && !P.drop_sync && P.sync_n < SYNC_CAP)
                 P.sync_q[P.sync_n++] = P.v_now; /* the built-in ideal camera */
         } else {
             side_send(true, "shutter 0 frame=%u light=%u exp=%u exp_us=%lu mode=%s", P.tag.frame,
