@@ -4,8 +4,9 @@
  *   0  one raw frame to mb_handle_frame (CRC as given: mostly rejected)
  *   1  one frame with its CRC appended (reaches the PDU decoder)
  *   2  a session: [len][len bytes] frames to unit 1 with CRC, each followed by
- *      [t] x 4 ms of virtual time, so fuzzed configurations and commands drive
- *      the sequencer, safety and flash code
+ *      [t] x 4 ms of virtual time (one main-loop pass per 4 ms), so fuzzed
+ *      configurations and commands drive the sequencer, safety and flash code
+ *      (fuzz_seq.c drives those more finely and checks more)
  *   3  a byte stream through the UART framer: pairs [byte][gap in 10 us]
  * Invariants checked after every step: answers fit 256 bytes and carry a valid
  * CRC, the sink never exceeds the hard current limit, and no LED stays on
@@ -32,7 +33,8 @@ static void invariants(const uint8_t *resp, size_t n)
     uint32_t mA = (uint32_t)th.dac * FW_CFG_DAC_FULL_SCALE_MA / FW_CFG_DAC_MAX_CODE;
     if (th.led_ch >= 0 && mA > FW_CFG_HARD_MAX_MA + 1u)
         abort();
-    if (th.led_ch >= 0 && th.now - led_on_since_us() > FW_CFG_HARD_MAX_PULSE_US + 1000u)
+    /* the pulse watchdog runs once per main-loop pass */
+    if (th.led_ch >= 0 && th.now - led_on_since_us() > FW_CFG_HARD_MAX_PULSE_US + th.poll_us)
         abort();
 }
 
@@ -57,6 +59,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         invariants(resp, n);
     } else if (mode == 2) {
         size_t i = 0;
+        th.poll_us = 4000;
         while (i < size) {
             size_t len = data[i++];
             if (len > size - i)

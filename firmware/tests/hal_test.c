@@ -31,6 +31,8 @@ static void led_report(void)
     bool on = th.led_ch >= 0 && th.dac > 0;
     int ch = on ? th.led_ch : -1;
     unsigned mA = on ? dac_mA(th.dac) : 0u;
+    if (on && ch != s_rep_ch)
+        th.led_lit_at = th.now;
     if (ch != s_rep_ch || mA != s_rep_mA) {
         log_ev(TH_EV_LED, ch, mA);
         s_rep_ch = ch;
@@ -83,13 +85,19 @@ void hal_gpio_write(hal_line_t line, bool active)
 }
 void hal_led_select(int ch)
 {
+    int prev_ch = th.led_ch;
     th.led_ch = ch;
     led_report();
+    if (th.led_hook)
+        th.led_hook(prev_ch, th.dac);
 }
 void hal_dac_set(uint16_t code)
 {
+    uint16_t prev_dac = th.dac;
     th.dac = code;
     led_report();
+    if (th.led_hook)
+        th.led_hook(th.led_ch, prev_dac);
 }
 bool hal_button_read(void) { return th.button; }
 bool hal_sync_take(uint64_t *t_us)
@@ -198,12 +206,13 @@ void th_boot(hal_reset_cause_t cause)
 
 void th_fresh(void)
 {
-    memset(&th, 0, sizeof th);
+    memset(&th, 0, offsetof(th_t, ev)); /* the event log (128 KiB) is only read up to n_ev */
     memset(th.flash, 0xFF, sizeof th.flash);
     th.ntc_cC = 2500;
     th.supply_mV = 12000;
     th.auto_sync = true;
     th.idle_us = 100000;
+    th.poll_us = 500;
     th_boot(HAL_RESET_POWER_ON);
 }
 
@@ -211,7 +220,7 @@ void th_advance(uint64_t us)
 {
     uint64_t end = th.now + us;
     while (th.now < end) {
-        uint64_t next = th.now + 500u;
+        uint64_t next = th.now + th.poll_us;
         if (next > end)
             next = end;
         if (th.timer_armed && th.timer_at <= next) {
@@ -219,10 +228,14 @@ void th_advance(uint64_t us)
                 th.now = th.timer_at;
             th.timer_armed = false;
             fw_on_timer();
+            if (th.step_hook)
+                th.step_hook();
             continue;
         }
         th.now = next;
         fw_poll();
+        if (th.step_hook)
+            th.step_hook();
         if (th.reboot)
             th_boot(HAL_RESET_SOFTWARE);
     }
@@ -251,6 +264,8 @@ size_t th_transact(const uint8_t *req, size_t len, uint8_t *resp)
     th.tx_len = 0;
     th.idle_us = 4000;
     fw_poll();
+    if (th.step_hook)
+        th.step_hook();
     size_t n = th.tx_len;
     memcpy(resp, th.tx, n);
     th.tx_len = 0;

@@ -38,8 +38,8 @@ typedef struct {
     uint16_t dac;
     bool shutter, focus, status;
     hal_frame_tag_t tag;
-    th_event_t ev[TH_MAX_EVENTS];
-    size_t n_ev;
+    uint64_t led_lit_at;   /* when the LED now lit was switched on (a new channel is a new pulse) */
+    size_t n_ev;           /* events in ev[] (the last member, so a reset need not clear it) */
     /* inputs */
     bool button;
     int32_t ntc_cC, supply_mV;
@@ -57,6 +57,11 @@ typedef struct {
     uint32_t boots;
     bool reboot;
     unsigned wdt_kicks;
+    /* how th_advance runs the main loop, and what it calls after each step */
+    uint32_t poll_us;                         /* fw_poll at least this often (500 by default) */
+    void (*step_hook)(void);                  /* after each fw_poll and fw_on_timer (NULL: none) */
+    void (*led_hook)(int prev_ch, uint16_t prev_dac); /* after each LED select or DAC change */
+    th_event_t ev[TH_MAX_EVENTS];
 } th_t;
 
 extern th_t th;
@@ -66,7 +71,7 @@ void th_fresh(void);
 /* Reset: outputs low, flash and inputs kept, fw_init() with the given cause. */
 void th_boot(hal_reset_cause_t cause);
 /* Move virtual time forward by us, firing the timer exactly at its deadlines
- * and calling fw_poll() at least every 500 us. */
+ * and calling fw_poll() at least every th.poll_us. */
 void th_advance(uint64_t us);
 /* Run until the sequencer state is `state` or max_us passed; true if reached. */
 bool th_run_until_state(unsigned state, uint64_t max_us);
