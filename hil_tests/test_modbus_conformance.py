@@ -251,6 +251,7 @@ def test_small_led_scan_fills_the_frame_ring(client):
 # simulator codes to them). These need the simulated device, not a real rig.
 import os  # noqa: E402
 import re  # noqa: E402
+import signal  # noqa: E402
 import socket  # noqa: E402
 import subprocess  # noqa: E402
 import threading  # noqa: E402
@@ -440,6 +441,26 @@ def test_sim_miss_sync_without_simulator_retries_then_faults(sim):
     wreg(c, "command", int(R.Command.START))
     assert wait_state(c, R.State.FAULT) == R.State.FAULT
     assert rreg(c, "fault_bits") & (1 << R.Fault.SYNC_MISSED)
+    c.close()
+
+
+def test_sim_side_channel_lines_sent_before_hanging_up_are_carried_out(sim):
+    """A client may send its lines and hang up before the device accepts it (the
+    device was busy: under load it often is). Its greeting then fails (EPIPE); the
+    lines it sent must still be read and carried out."""
+    os.kill(sim.process.pid, signal.SIGSTOP)     # the device cannot accept yet
+    try:
+        s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        s.connect(sim.side)
+        s.sendall(b"miss_sync 1\n")
+        s.shutdown(socket.SHUT_RDWR)
+        s.close()
+    finally:
+        os.kill(sim.process.pid, signal.SIGCONT)
+    c = modbus(sim.port)
+    one_frame_scan(c)
+    assert wait_state(c, R.State.DONE, R.State.FAULT) == R.State.DONE
+    assert rreg(c, "retries_used") == 1 and rreg(c, "ring_count") == 2   # the missed sync
     c.close()
 
 
