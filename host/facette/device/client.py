@@ -12,6 +12,8 @@ look like a timeout); a Modbus exception is never retried and raises
 from __future__ import annotations
 
 import logging
+import os
+import stat
 import time
 
 from facette.device import registers as R
@@ -57,6 +59,31 @@ class DeviceReset(DeviceError):
         self.old_boot, self.new_boot = old_boot, new_boot
 
 
+def _pty_identity(url):
+    """(link, pty) identities of a pseudo-terminal path, or None for any other port.
+
+    A pseudo-terminal's number (/dev/pts/N) is given to the next process that asks
+    for one as soon as its device is gone, so a path that named our device may name
+    another one a moment later (a real serial port keeps its name for its device).
+    `pty` is the inode change time of /dev/pts/N (set when that pty was made, new
+    for every pty given that number); `link` the symlink's own inode and change time
+    when `url` is a link (a restarted simulated device makes a new one), else None.
+    Either is None when it cannot be read (gone).
+    """
+    if "://" in url or not os.path.realpath(url).startswith("/dev/pts/"):
+        return None
+    try:
+        st = os.lstat(url)
+        link = (st.st_ino, st.st_ctime_ns) if stat.S_ISLNK(st.st_mode) else None
+    except OSError:
+        link = None
+    try:
+        pty = os.stat(url).st_ctime_ns
+    except OSError:
+        pty = None
+    return link, pty
+
+
 class DeviceClient:
     """Registers of one rig by name.
 
@@ -88,14 +115,45 @@ class DeviceClient:
         self.stats = {"requests": 0, "retries": 0, "timeouts": 0, "exceptions": 0, "resets": 0}
         self._client = ModbusSerialClient(url, baudrate=baudrate, timeout=timeout_s, retries=0)
         self._client.set_max_no_responses(1 << 30)
+        # pymodbus reopens the port by its path before a request whenever it was
+        # closed: guard every open, ours and its own (see _open_port)
+        self._pymodbus_connect = self._client.connect
+        self._client.connect = self._open_port
+        self._opened = None       # _pty_identity at the last open
+        self.refused = None       # why the last open was refused (a pty that is not ours)
         self.boot_count = None
         self.identity = {}
         self.connect(check_hash=check_hash)
 
     # -- connection ------------------------------------------------------------
+    def _open_port(self):
+        """Open the port unless it is a pseudo-terminal that is no longer the one we
+        opened: the same pty still, or a link the restarted device made anew. Without
+        this check a client whose device was gone kept reopening /dev/pts/N and took
+        the next device's pty (with its exclusive lock, so that device's own host
+        could not open it: "cannot open .../device/tty")."""
+        if self._client.connected:
+            return True
+        now = _pty_identity(self.url)
+        self.refused = None
+        if now is not None and self._opened is not None:
+            (link0, pty0), (link, pty) = self._opened, now
+            same_pty = pty is not None and pty == pty0
+            new_link = link is not None and link != link0 and pty is not None
+            if not (same_pty or new_link):
+                self.refused = (f"{self.url} no longer leads to the device this client opened "
+                                "(a pseudo-terminal's number passes to the next device that asks)")
+                return False
+        if not self._pymodbus_connect():
+            return False
+        self._opened = now
+        return True
+
     def connect(self, check_hash=True):
         """Open the port, read the identity, check the definition hash."""
         if not self._client.connect():
+            if self.refused:
+                raise DeviceError(f"cannot open {self.url!r}: {self.refused}")
             raise DeviceError(f"cannot open {self.url!r}: check the port name and that nothing else "
                               "holds it (a running `facette device` or a terminal program)")
         ident = self.read_block(["fw_version", "protocol_version", "definition_hash", "serial_number",
@@ -130,6 +188,10 @@ class DeviceClient:
             self._client.close()
             if self._client.connect():
                 return True
+            if self.refused and _pty_identity(self.url)[0] is None:
+                # a bare /dev/pts/N never comes back for us: only a link is remade
+                raise DeviceError(f"lost the device at {self.url}: {self.refused}; connect through "
+                                  "the device's link name (facette-device --link) to survive restarts")
             if time.monotonic() > deadline:
                 return False
             time.sleep(0.02)   # poll the port name while the device comes back
