@@ -7,6 +7,7 @@ FACETTE  := $(VENV)/bin/facette
 BUILD    := build
 SIM_DEVICE := $(BUILD)/posix/facette-device
 FUZZ_SECONDS ?= 300
+FUZZ_RUNS ?= 0
 SCAN_OUT ?= out/scan-demo
 # RAW size of the demo: 512x384 px normal maps (the fossil's ribs visible), about half a minute
 SCAN_SIZE ?= 1024x768
@@ -22,7 +23,7 @@ help:
 	@echo "make calibrate        the calibration wizard, unattended, on the simulated rig"
 	@echo "make firmware         STM32F405 build (size printed)"
 	@echo "make qemu-test        boot the STM32 build in QEMU and talk Modbus to it"
-	@echo "make fuzz             libFuzzer on frame parsing and register writes ($(FUZZ_SECONDS) s)"
+	@echo "make fuzz             libFuzzer on frames/registers and on the sequencer/safety, both at once ($(FUZZ_SECONDS) s each)"
 	@echo "make bench            benchmarks: error and run time side by side"
 	@echo "make generate         regenerate protocol files from protocol/registers.toml"
 	@echo "make check-layers     host imports only go down the layers of docs/ARCHITECTURE.md"
@@ -71,10 +72,10 @@ check-fw-layers: deps
 	$(MAKE) -C firmware check-layers BUILD=$(abspath $(BUILD))
 
 fuzz: deps
-	$(MAKE) -C firmware fuzz BUILD=$(abspath $(BUILD)) FUZZ_SECONDS=$(FUZZ_SECONDS)
+	$(MAKE) -C firmware fuzz BUILD=$(abspath $(BUILD)) FUZZ_SECONDS=$(FUZZ_SECONDS) FUZZ_RUNS=$(FUZZ_RUNS)
 
 fuzz-smoke: deps
-	$(MAKE) -C firmware fuzz BUILD=$(abspath $(BUILD)) FUZZ_SECONDS=20
+	$(MAKE) -C firmware fuzz-smoke BUILD=$(abspath $(BUILD))
 
 qemu-test: setup firmware
 	$(VENV)/bin/pytest -q hil_tests/test_qemu_board.py --qemu-elf $(abspath $(BUILD))/stm32f4/facette-stm32f4.elf
