@@ -1,0 +1,197 @@
+"""Photometric-stereo scenes rendered by an independent renderer, Mitsuba 3.
+
+The images are not made with facette's BRDF code: `roughplastic` (Beckmann, `nonlinear: true`)
+is a rough dielectric interface over a Lambertian substrate, close to the LI model with
+K_d = `diffuse_reflectance`, σ = α, n_i = `int_ior`; plaster is Mitsuba's `diffuse`.
+Camera: orthographic, looking down −z (camera frame x right, y up, z towards the camera).
+Lights: directional emitters of irradiance 1 (so a Lambertian reflectance ρ gives
+E = (ρ/π) s·n, facette's convention), one image per light, optionally point emitters (near
+light, with their positions). True normals: the `aov` integrator's `nn:sh_normal`.
+
+Shapes (our own): "sphere"; "relief", a bas-relief height field (bumps, ridges and a crater:
+concavities that cast shadows and inter-reflect); "vase", a surface of revolution with a concave
+neck. Materials: "plaster" (matte), the thesis's three paints (σ, n_i = 0.10, 1.30; 0.08, 1.28;
+0.05, 1.26), "satin" (σ 0.2, n_i 1.5). Textures: a K_d pattern (stripes and spots, two colours)
+so that albedo varies over the object.
+
+`render_scene(...)` caches its result as an .npz under a cache folder (renders are never
+committed) and returns a dict: images (m, H, W, 3) float32, light_dirs (m, 3), normals
+(H, W, 3), mask (H, W), kd (H, W, 3) the true K_d, and the material's parameters.
+"""
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["MATERIALS", "SHAPES", "render_scene", "rig_light_directions"]
+
+MATERIALS = {
+    "plaster": {"type": "diffuse"},
+    "paint_0.10": {"sigma": 0.10, "n_i": 1.30},
+    "paint_0.08": {"sigma": 0.08, "n_i": 1.28},
+    "paint_0.05": {"sigma": 0.05, "n_i": 1.26},
+    "satin": {"sigma": 0.20, "n_i": 1.50},
+}
+SHAPES = ("sphere", "relief", "vase")
+
+
+def rig_light_directions():
+    """The thesis rig's 12 directions (§4.3.2): θ 15° at φ 30°, 90°, …; θ 30° at φ 0°, 60°, …"""
+    dirs = []
+    for k in range(6):
+        for th, ph in ((30.0, 60.0 * k), (15.0, 30.0 + 60.0 * k)):
+            t, p = np.radians(th), np.radians(ph)
+            dirs.append([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)])
+    return np.array(dirs)
+
+
+def _heightfield(name, n=160):
+    """Vertices (n*n, 3), faces, uv of a height field over [-1, 1]^2 (z up towards the camera)."""
+    x = np.linspace(-1, 1, n)
+    xx, yy = np.meshgrid(x, x)
+    if name == "relief":
+        z = (0.35 * np.exp(-((xx + 0.4) ** 2 + (yy - 0.35) ** 2) / 0.08)
+             + 0.25 * np.exp(-((xx - 0.45) ** 2 + (yy + 0.3) ** 2) / 0.05)
+             + 0.08 * np.sin(5 * xx + 2 * yy) * np.exp(-(xx ** 2 + yy ** 2) / 0.6)
+             - 0.30 * np.exp(-((xx - 0.35) ** 2 + (yy - 0.45) ** 2) / 0.04)     # a crater
+             - 0.15 * np.exp(-((xx + 0.3) ** 2 + (yy + 0.5) ** 2) / 0.02))
+    else:  # vase: a surface of revolution seen from above, concave neck around a bulge
+        r = np.sqrt(xx ** 2 + yy ** 2)
+        z = 0.5 * np.exp(-r ** 2 / 0.12) - 0.25 * np.exp(-(r - 0.55) ** 2 / 0.02) + 0.1 * np.cos(3 * r)
+    v = np.stack([xx.ravel(), yy.ravel(), z.ravel()], axis=1)
+    i = np.arange(n * n).reshape(n, n)
+    a, b, c, d = i[:-1, :-1].ravel(), i[:-1, 1:].ravel(), i[1:, :-1].ravel(), i[1:, 1:].ravel()
+    faces = np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)])
+    uv = np.stack([(xx.ravel() + 1) / 2, (yy.ravel() + 1) / 2], axis=1)
+    return v, faces, uv
+
+
+def _write_ply(path, v, faces, uv):
+    """Binary PLY with positions and texture coordinates (Mitsuba computes smooth normals)."""
+    head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(v)}\n"
+            "property float x\nproperty float y\nproperty float z\nproperty float u\nproperty float v\n"
+            f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n")
+    vert = np.concatenate([v, uv], axis=1).astype("<f4")
+    fc = np.empty(len(faces), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+    fc["n"], fc["i"] = 3, faces
+    with open(path, "wb") as f:
+        f.write(head.encode())
+        f.write(vert.tobytes())
+        f.write(fc.tobytes())
+
+
+def _kd_texture(textured, kd, res=256):
+    """(res, res, 3) K_d image: constant, or stripes and spots in two colours."""
+    base = np.ones((res, res, 3)) * np.asarray(kd, float)
+    if not textured:
+        return base
+    u = np.linspace(0, 1, res)
+    uu, vv = np.meshgrid(u, u)
+    other = np.array([0.75, 0.45, 0.25])
+    pat = (np.sin(2 * np.pi * 5 * (uu + 0.3 * vv)) > 0.3) | (((uu - 0.6) ** 2 + (vv - 0.4) ** 2) < 0.02)
+    return np.where(pat[..., None], other, base)
+
+
+def _bsdf(mi, material, kd_img):
+    tex = {"type": "bitmap", "bitmap": mi.Bitmap(kd_img[::-1].astype(np.float32)), "raw": True,
+           "filter_type": "bilinear"}
+    spec = MATERIALS[material]
+    if spec.get("type") == "diffuse":
+        return {"type": "diffuse", "reflectance": tex}
+    return {"type": "roughplastic", "distribution": "beckmann", "alpha": spec["sigma"],
+            "int_ior": spec["n_i"], "ext_ior": 1.0, "nonlinear": True, "diffuse_reflectance": tex}
+
+
+def render_scene(shape="sphere", material="paint_0.10", size=128, spp=64, kd=(0.6, 0.5, 0.4),
+                 textured=False, lights=None, near_distance=None, max_depth=4, cache_dir=None,
+                 variant=None, seed=0):
+    """Render (or load from the cache) one scene; see the module doc for what is returned.
+
+    shape : one of SHAPES; material : one of MATERIALS; size : image side (pixels), spp :
+    samples per pixel; kd : the base K_d per channel; textured : vary K_d over the object;
+    lights : (m, 3) directions (default the rig's 12); near_distance : None (directional) or
+    the distance of point lights from the scene centre, in scene units (the object spans
+    [-1, 1]); max_depth : path length (≥ 3 gives inter-reflections in concavities).
+    """
+    if shape not in SHAPES:
+        raise ValueError(f"shape {shape!r}: choose one of {', '.join(SHAPES)}")
+    if material not in MATERIALS:
+        raise ValueError(f"material {material!r}: choose one of {', '.join(MATERIALS)}")
+    lights = rig_light_directions() if lights is None else np.asarray(lights, float)
+    key = json.dumps([shape, material, size, spp, list(kd), textured, np.round(lights, 6).tolist(),
+                      near_distance, max_depth, seed], sort_keys=True)
+    tag = hashlib.sha1(key.encode()).hexdigest()[:12]
+    cache = Path(cache_dir) if cache_dir else None
+    out_file = cache / f"mitsuba_{shape}_{material}_{size}_{tag}.npz" if cache else None
+    if out_file is not None and out_file.is_file():
+        with np.load(out_file, allow_pickle=False) as z:
+            d = {k: z[k] for k in z.files}
+        d["params"] = json.loads(str(d["params"]))
+        return d
+    import mitsuba as mi
+    # scalar_rgb: the llvm variants need an LLVM that matches Dr.Jit (the Debian one aborts in the
+    # code generator here); scalar is slower but renders the same images
+    mi.set_variant(variant or "scalar_rgb")
+    T = mi.ScalarTransform4f
+    kd_img = _kd_texture(textured, kd)
+    bsdf = _bsdf(mi, material, kd_img)
+    tmp = None
+    if shape == "sphere":
+        obj = {"type": "sphere", "radius": 0.9, "bsdf": bsdf}
+    else:
+        import tempfile
+        tmp = tempfile.TemporaryDirectory()
+        ply = Path(tmp.name) / f"{shape}.ply"
+        _write_ply(ply, *_heightfield(shape))
+        obj = {"type": "ply", "filename": str(ply), "bsdf": bsdf, "face_normals": False}
+    sensor = {"type": "orthographic",
+              "to_world": T.look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
+              "film": {"type": "hdrfilm", "width": size, "height": size, "rfilter": {"type": "box"},
+                       "pixel_format": "rgb"},
+              "sampler": {"type": "independent", "sample_count": spp}}
+    images = []
+    for i, s in enumerate(lights):
+        if near_distance is None:
+            emitter = {"type": "directional", "direction": (-s).tolist(), "irradiance": {"type": "rgb", "value": 1.0}}
+        else:
+            # point light of intensity d^2: irradiance 1 at the scene centre, like the directional case
+            emitter = {"type": "point", "position": (s * near_distance).tolist(),
+                       "intensity": {"type": "rgb", "value": float(near_distance) ** 2}}
+        scene = mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": max_depth},
+                              "sensor": sensor, "obj": obj, "light": emitter})
+        img = np.array(mi.render(scene, seed=seed + 7919 * i), dtype=np.float32)
+        images.append(img[..., :3])
+    aov = mi.load_dict({"type": "scene", "integrator": {"type": "aov", "aovs": "nn:sh_normal,pp:position"},
+                        "sensor": {**sensor, "sampler": {"type": "independent", "sample_count": 1}},
+                        "obj": obj})
+    a = np.array(mi.render(aov, spp=1), dtype=np.float32)
+    nrm, pos = a[..., 0:3], a[..., 3:6]
+    if tmp is not None:
+        tmp.cleanup()
+    ln = np.linalg.norm(nrm, axis=-1)
+    mask = ln > 0.5
+    nrm = np.where(mask[..., None], nrm / np.maximum(ln, 1e-9)[..., None], 0).astype(np.float32)
+    # true K_d per pixel: the texture looked up at the surface point's uv
+    res = kd_img.shape[0]
+    if shape == "sphere":
+        # Mitsuba's sphere uv: u = azimuth / 2π about +z, v = polar angle / π (from +z)
+        p = pos / 0.9
+        u = (np.arctan2(p[..., 1], p[..., 0]) / (2 * np.pi)) % 1.0
+        v = np.arccos(np.clip(p[..., 2], -1, 1)) / np.pi
+    else:
+        u, v = (pos[..., 0] + 1) / 2, (pos[..., 1] + 1) / 2
+    iu = np.clip((u * res).astype(int), 0, res - 1)
+    iv = np.clip(((1 - v) * res).astype(int), 0, res - 1) if shape == "sphere" else \
+        np.clip((v * res).astype(int), 0, res - 1)
+    kd_map = np.where(mask[..., None], kd_img[::-1][iv, iu] if shape != "sphere" else kd_img[::-1][iv, iu], 0)
+    params = {"shape": shape, "material": material, **MATERIALS[material], "kd": list(kd),
+              "textured": textured, "size": size, "spp": spp, "near_distance": near_distance}
+    d = {"images": np.stack(images), "light_dirs": lights.astype(np.float64), "normals": nrm, "mask": mask,
+         "kd": kd_map.astype(np.float32), "positions": pos.astype(np.float32),
+         "params": params}
+    if out_file is not None:
+        out_file.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(out_file, **{k: v for k, v in d.items() if k != "params"},
+                            params=json.dumps(params))
+    return d

@@ -1,0 +1,137 @@
+"""The LI model as photometric stereo sees it: image values against normals, for a fixed view.
+
+For a pixel of normal n lit from s and seen from v (orthographic camera, v = +z of the camera
+frame), the image value divided by the light's intensity is (DESIGN §8, thesis eq 4.3 / 4.11)
+
+    E = f(s, v; n) (n·s) = A(n, s) + B(n, s) · κ,    κ = K_d / (π n_i² (1 − K_d r_i)),
+
+with A = (n·s) f_s (the specular lobe, eq 3.10, Beckmann D + Smith G) and B = (n·s) I (the
+volume integral of eq 3.15 by the approximate formula eq 3.49–3.57, the same evaluation the
+pipeline's fit uses). K_d enters only through κ, so for fixed (σ, n_i, n) each channel's K_d
+has a closed form. `li_shading_terms` evaluates A and B for many pixels and lights at once in
+float32 from dot products only (no local frames, no arccos of vectors): ~20× faster than
+`li_specular` + `volume_integral_approx` on local-frame vectors, and equal to them to ~1e-5
+relative (tested).
+"""
+import numpy as np
+from scipy.special import erfc
+
+from ._fresnel import check_n_i, fresnel_dielectric, r_e_molenaar1999, r_i_simonot2009
+from ._microfacet import SIGMA_FLAT
+from ._volume import approx_coefficients, rough_lambert_terms
+
+__all__ = ["li_shading_terms", "li_kappa", "li_kd_from_kappa"]
+
+_SQRT_PI = np.float32(np.sqrt(np.pi))
+
+
+def li_kappa(kd, n_i):
+    """κ = K_d / (π n_i² (1 − K_d r_i)) (eq 3.15), elementwise; K_d in [0, 1]."""
+    n = check_n_i(n_i)
+    return np.asarray(kd) / (np.pi * n * n * (1.0 - np.asarray(kd) * r_i_simonot2009(n)))
+
+
+def li_kd_from_kappa(kappa, n_i):
+    """Inverse of `li_kappa`: K_d = π n² κ / (1 + π n² r_i κ), clipped to [0, 1]."""
+    n = check_n_i(n_i)
+    ri = r_i_simonot2009(n)
+    k = np.maximum(np.asarray(kappa, dtype=np.float32), 0)
+    return np.clip(np.pi * n * n * k / (1.0 + np.pi * n * n * ri * k), 0.0, 1.0).astype(np.float32)
+
+
+def _smith_g1_beckmann(c, sigma):
+    """Smith G_1 for Beckmann (eq 3.20) from the cosine c to the normal; 0 at c ≤ 0."""
+    c = np.clip(c, 0, 1)
+    sin = np.sqrt(np.maximum(1 - c * c, 0))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        a = c / (np.float32(sigma) * sin)
+        lam = np.float32(0.5) * (np.exp(-a * a) / (a * _SQRT_PI) - erfc(a))
+        g = 1.0 / (1.0 + lam)
+    return np.where(c <= 0, np.float32(0), np.where(sin > 0, g, np.float32(1))).astype(np.float32)
+
+
+def _fresnel32(c, n_i):
+    """`fresnel_dielectric` (eq 3.7-3.9) in float32, c in [0, 1] (the same cancellation-free form)."""
+    eta = np.float32((n_i - 1.0) * (n_i + 1.0))
+    if eta == 0:
+        return np.zeros_like(c)
+    g = np.sqrt(eta + c * c)
+    gpc = g + c
+    gmc = eta / gpc
+    a = gmc / gpc
+    return np.float32(0.5) * a * a * (1 + ((c * gpc - 1) / (c * gmc + 1)) ** 2)
+
+
+def li_shading_terms(normals, lights, sigma, n_i, specular=True):
+    """A, B of E = A + B κ for unit normals and light directions, camera frame, view +z.
+
+    normals : (N, 3) float unit vectors (camera frame, z towards the camera).
+    lights : (m, 3) unit vectors towards the lights, or (N, m, 3) per pixel (near lights).
+    sigma : Beckmann roughness (RMS slope) ≥ 0; below 1e-9 the lobe is a Dirac: A = 0.
+    n_i : relative index in [1, 10]; 1 means no interface (A = 0, B the rough-Lambert term).
+    specular : False gives A = 0 (the volume part only).
+    Returns (A, B), each (N, m) float32, 0 where n·s ≤ 0 or n·v ≤ 0 (attached shadow,
+    back-facing). Units: E is the image value over the light's intensity; a Lambertian
+    surface of reflectance ρ has A = 0, B κ = (ρ/π) n·s.
+    Notes: eq 3.10 (specular), eq 3.49–3.57 (volume, Beckmann tables 3.3, 3.5).
+    """
+    n_i = check_n_i(n_i)
+    sigma = float(sigma)
+    if not np.isfinite(sigma) or sigma < 0:
+        raise ValueError(f"sigma = {sigma!r}: the roughness must be a finite number ≥ 0")
+    nrm = np.asarray(normals, dtype=np.float32)
+    s = np.asarray(lights, dtype=np.float32)
+    if nrm.ndim != 2 or nrm.shape[1] != 3:
+        raise ValueError(f"normals must have shape (N, 3), got {nrm.shape}")
+    if s.shape[-1] != 3 or s.ndim not in (2, 3) or (s.ndim == 3 and s.shape[0] != nrm.shape[0]):
+        raise ValueError(f"lights must have shape (m, 3) or ({nrm.shape[0]}, m, 3), got {s.shape}")
+    co = nrm[:, 2:3]                                                   # n·v, (N, 1)
+    if s.ndim == 2:
+        cs = nrm @ s.T                                                 # n·s, (N, m)
+        sv = s[None, :, 2]                                             # s·v
+    else:
+        cs = np.einsum("nj,nmj->nm", nrm, s)
+        sv = s[..., 2]
+    lit = (cs > 0) & (co > 0)
+    cs_c = np.clip(cs, 0, 1)
+    co_c = np.clip(co, 0, 1)
+    sig_v = max(sigma, 1e-6)
+    # volume part, eq 3.49-3.57 (as facette.brdf.volume_integral_approx)
+    sin_s = np.sqrt(np.maximum(1 - cs_c * cs_c, 0))
+    sin_o = np.sqrt(np.maximum(1 - co_c * co_c, 0))
+    both = (sin_s > 1e-6) & (sin_o > 1e-6)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cphi = np.where(both, np.clip((sv - cs_c * co_c) / np.where(both, sin_s * sin_o, 1), -1, 1),
+                        np.float32(1))
+    ts, to = np.arccos(cs_c), np.arccos(co_c)
+    r_e = r_e_molenaar1999(n_i)
+    a, b, c = (np.float32(x) for x in approx_coefficients(sig_v, n_i, "beckmann"))
+    t_s = a * (1 - _fresnel32(cs_c, n_i)) + b * np.float32(1 - r_e)
+    t_o = a * (1 - fresnel_dielectric(co_c, n_i).astype(np.float32)) + b * np.float32(1 - r_e)
+    fpa = np.float32(r_e) * (1 - cs_c) ** 2 * (1 - co_c) ** 2 * np.minimum(0, cphi)
+    bracket = rough_lambert_terms(ts, to, cphi, np.float32(sig_v), "beckmann")
+    vol = np.maximum(t_s * t_o * (1 + np.maximum(-1, c * fpa)) * bracket, 0)
+    B = np.where(lit, cs_c * vol, np.float32(0)).astype(np.float32)
+    if not specular or sigma < SIGMA_FLAT or n_i == 1.0:
+        return np.zeros_like(B), B
+    # specular part, eq 3.10: F(s·h) D(h) G1(s) G1(v) / (4 (n·s)(n·v)), times n·s; evaluated
+    # only where D is above 1e-7 of its peak (tan² θ_h < 16 σ²): a few % of the pairs when glossy
+    sh = np.sqrt(np.maximum((1 + sv) / 2, 1e-12))                      # s·h = v·h, cos of the half angle
+    ch = np.clip((cs + co) / (2 * sh), 0, 1)                           # n·h
+    ch2 = ch * ch
+    near = lit & (1 - ch2 < np.float32(16 * sigma * sigma) * ch2)
+    A = np.zeros_like(B)
+    if not near.any():
+        return A, B
+    rows, cols = np.nonzero(near)
+    chn = ch2[rows, cols]
+    shn = sh[0, cols] if sh.shape[0] == 1 else sh[rows, cols]
+    csn, con = cs_c[rows, cols], co_c[rows, 0]
+    fres = _fresnel32(shn, n_i)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+        tan2 = (1 - chn) / chn
+        d = np.exp(-tan2 / np.float32(sigma * sigma)) / (np.float32(np.pi * sigma * sigma) * chn * chn)
+    d = np.where(np.isfinite(d), d, np.float32(0))
+    g = _smith_g1_beckmann(csn, sigma) * _smith_g1_beckmann(con, sigma)
+    A[rows, cols] = fres * d * g / (4 * con)
+    return A, B

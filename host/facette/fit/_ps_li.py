@@ -1,0 +1,312 @@
+"""BRDF-aware photometric stereo: normals and the LI model estimated in alternation.
+
+Layer: this module calls photometric stereo (facette.recon) and identifies BRDF parameters, so it
+lives in facette.fit, which may import recon and brdf (recon may not import fit). It is offered
+to `facette.recon.photometric_stereo(method="li_alternating")` through the method registry.
+
+    ps_li_alternating(images, light_dirs, ...) -> PSResult
+
+1. Robust initial normals (the thesis's hierarchical elimination by default).
+2. Fit the LI model's shared (σ, n_i) on the pixels whose normals are most trustworthy, with
+   K_d per pixel and channel solved in closed form for every (σ, n_i) (variable projection:
+   E = A + B κ is linear in κ, facette.brdf.li_shading_terms), robust loss (soft-L1 on the
+   relative residual): `fit_li_per_pixel_kd`.
+3. Re-estimate each pixel's normal and K_d against the fitted model, all lights, robust
+   (facette.recon.refine_normals_li). Pixels the Lambertian model already explains (least-squares
+   relative residual below t_residual, every light usable, no light inside the fitted specular
+   lobe) skip this step; a material whose fit finds n_i → 1 (no interface: Lambertian-like)
+   skips it entirely.
+4. Refit and repeat until the median normal change of the re-estimated pixels is below
+   tol_deg, or after `rounds` rounds. Each round's change is in `info["rounds"]`.
+
+Several materials: with materials="auto", the valid pixels are split by k-means (k = 2) on
+their chromaticity and log Lambertian albedo (the initial solution's), each region at least
+min_region_fraction of the pixels; each region gets its own (σ, n_i), and two regions whose fits
+agree (|Δσ| < 15 % and |Δn_i| < 0.03) are merged back. `info["materials"]` lists each region's
+parameters and pixel count.
+"""
+import time
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from facette.brdf import li_kd_from_kappa, li_shading_terms
+from facette.recon import PSResult, photometric_stereo, refine_normals_li
+from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _usable
+
+__all__ = ["ps_li_alternating", "fit_li_per_pixel_kd", "LI_FIT_BOUNDS"]
+
+LI_FIT_BOUNDS = ((1e-3, 1.0), (1.0, 2.5))   # σ, n_i (σ ≤ 1: beyond it no lobe is left to see)
+LAMBERTIAN_N_I = 1.02      # a fitted n_i below this: no interface, the BRDF step is skipped
+LOBE_TAN = 2.5             # a light is inside the lobe when tan θ_h < LOBE_TAN σ (D > 0.2 % of its peak)
+_STARTS = ((0.1, 1.3), (0.3, 1.5), (0.04, 1.2))
+
+
+def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_nfev=60):
+    """(σ, n_i) shared by all pixels, K_d per pixel and channel, from image values.
+
+    e : (N, m, C) values divided by the light intensities; lights : (m, 3) or (N, m, 3);
+    normals : (N, 3) unit (fixed); usable : (N, m) bool.
+    x0 : (σ, n_i) start; otherwise the best of three starts.
+    f_scale : soft-L1 scale on the relative residual (0.05: 5 % misfits count fully,
+        larger ones linearly).
+    Returns dict(sigma, n_i, kd (N, C), kappa (N, C), cost, n_values, seconds, success).
+    Residual per value: (E − A − B κ) / (the pixel's mean value).
+    """
+    t0 = time.perf_counter()
+    e = np.asarray(e, np.float32)
+    ok = np.asarray(usable, bool) & np.all(np.isfinite(e), axis=2)
+    e0 = np.where(ok[..., None], e, np.float32(0))
+    w = ok.astype(np.float32)
+    mean_e = np.sum(w[..., None] * e0, axis=(1, 2)) / np.maximum(w.sum(1) * e.shape[2], 1)
+    # residuals relative to each pixel's mean value: every pixel weighs alike whatever its K_d, and a
+    # highlight's misfit counts in full (relative to the value itself it would count ≤ 1 and
+    # missing the lobe altogether would be cheap)
+    den = np.maximum(mean_e, 1e-12)[:, None, None]
+    lo, hi = np.array([b[0] for b in LI_FIT_BOUNDS]), np.array([b[1] for b in LI_FIT_BOUNDS])
+    sel = np.broadcast_to(ok[..., None], e.shape)
+
+    def solve(p):
+        a, b = li_shading_terms(normals, lights, p[0], p[1])
+        wb = w * b
+        k = np.maximum(np.einsum("nm,nmc->nc", wb, e0 - a[..., None]) / np.maximum(np.sum(wb * b, 1), 1e-20)[:, None], 0)
+        return k, (e0 - a[..., None] - b[..., None] * k[:, None, :]) / den
+
+    def fun(p):
+        return solve(p)[1][sel].astype(np.float64)
+
+    if not sel.any():
+        return dict(success=False, sigma=float("nan"), n_i=float("nan"), message="no usable values to fit")
+    # the previous solution and the fixed starts: at σ near its lower bound the lobe is too narrow
+    # for a finite-difference gradient, so a start there alone would stay there
+    starts = [np.array(x) for x in _STARTS]
+    if x0 is not None:
+        starts.insert(0, np.clip(np.asarray(x0, float), lo, hi))
+    best = None
+    for x in starts:
+        r = least_squares(fun, x, bounds=(lo, hi), loss="soft_l1", f_scale=f_scale, diff_step=1e-3,
+                          max_nfev=max_nfev, x_scale=np.array([0.05, 0.1]))
+        if best is None or r.cost < best.cost:
+            best = r
+    k, _ = solve(best.x)
+    return dict(success=bool(best.success), sigma=float(best.x[0]), n_i=float(best.x[1]), kappa=k,
+                kd=li_kd_from_kappa(k, best.x[1]), cost=float(best.cost), n_values=int(sel.sum()),
+                seconds=time.perf_counter() - t0, message=str(best.message))
+
+
+def _angle_deg(a, b):
+    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1, 1)))
+
+
+def _in_lobe(normals, lights, sigma):
+    """(N,) True where some light is inside the fitted lobe (tan θ_h < LOBE_TAN σ)."""
+    v = np.float32([0, 0, 1])
+    h = lights + v
+    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
+    ch = normals @ h.T if h.ndim == 2 else np.einsum("nj,nmj->nm", normals, h)
+    ch = np.clip(ch, 1e-6, 1)
+    return np.any(np.sqrt(1 - ch * ch) < LOBE_TAN * sigma * ch, axis=1)
+
+
+def _regions(albedo, n_pix, materials, min_fraction, seed):
+    """(N,) region label per pixel: 0 for one material; k-means on chromaticity + log albedo."""
+    if materials in (1, None) or n_pix < 50:
+        return np.zeros(n_pix, np.int64), "one material"
+    from scipy.cluster.vq import kmeans2
+    tot = np.maximum(albedo.sum(1, keepdims=True), 1e-6)
+    feat = np.concatenate([albedo / tot, np.log(tot)], axis=1) if albedo.shape[1] > 1 else np.log(tot)
+    feat = (feat - feat.mean(0)) / np.maximum(feat.std(0), 1e-6)
+    k = 2 if materials == "auto" else int(materials)
+    _, lab = kmeans2(feat.astype(np.float64), k, seed=seed, minit="++")
+    counts = np.bincount(lab, minlength=k)
+    small = counts < min_fraction * n_pix
+    if small.all() or (k - small.sum()) < 2:
+        return np.zeros(n_pix, np.int64), "one material (the clusters were too small)"
+    if small.any():   # small clusters go to the nearest big one
+        big = np.flatnonzero(~small)
+        cent = np.stack([feat[lab == j].mean(0) for j in big])
+        far = np.isin(lab, np.flatnonzero(small))
+        lab[far] = big[np.argmin(((feat[far, None, :] - cent[None]) ** 2).sum(-1), axis=1)]
+    _, lab = np.unique(lab, return_inverse=True)
+    return lab.astype(np.int64), f"{lab.max() + 1} regions by k-means on chromaticity and log albedo"
+
+
+def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=None,
+                      init="hierarchical_tautzia2016", rounds=4, tol_deg=0.1, fit_pixels=1500,
+                      t_residual=T_RESIDUAL, iterations=8, materials=1, min_region_fraction=0.05,
+                      seed=0, init_options=None):
+    """BRDF-aware photometric stereo with the LI model (module doc).
+
+    images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m ≥ 4.
+    light_dirs : (m, 3) unit vectors towards the lights, or (H, W, m, 3) per pixel (near lights,
+        fall-off already divided out of the images).
+    mask, channel, saturation : as `ps_woodham1980`.
+    init : photometric-stereo method for the starting normals ("hierarchical_tautzia2016",
+        "woodham1980", ...); init_options : its keyword arguments.
+    rounds : at most this many fit → re-estimate rounds; tol_deg : stop when the median
+        normal change of the re-estimated pixels is below this (degrees).
+    fit_pixels : pixels (per material) whose values feed the (σ, n_i) fit, drawn among the
+        most trustworthy (round 1: the initial solution's valid pixels not too oblique; later:
+        the half best explained by the model).
+    t_residual : pixels whose least-squares relative residual is below this, with every light
+        usable and none in the fitted lobe, keep their initial normal (Lambertian level).
+    iterations : Gauss–Newton steps per round per pixel.
+    materials : 1 (one material), "auto" (regions found by clustering, see module doc) or an int.
+    Returns a `PSResult` (method "li_alternating"): albedo is K_d (a reflectance, per channel);
+    info holds "rounds" (per round: σ, n_i, pixels fitted and re-estimated, median change,
+    seconds), "materials" (per region: σ, n_i, pixel count, whether the BRDF step ran) and
+    "levels" (pixels handled and seconds of the initial solution, of the Lambertian level and
+    of the BRDF-aware step).
+    """
+    t_start = time.perf_counter()
+    images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
+    m, h, w, c = images.shape
+    if rounds < 1:
+        raise ValueError(f"rounds = {rounds}: give at least 1 fit / re-estimate round")
+    opts = dict(init_options or {})
+    base = photometric_stereo(images, light_dirs, method=init, mask=mask, channel=channel,
+                              saturation=saturation, **opts)
+    t_init = time.perf_counter() - t_start
+    res = PSResult(normal=base.normal.copy(), albedo=base.albedo.copy(), valid=base.valid.copy(),
+                   n_triplets=base.n_triplets, shadow=base.shadow.copy(), specular=base.specular.copy(),
+                   residual=base.residual.copy(), skipped=np.ones((h, w), bool), method="li_alternating")
+    idx = np.flatnonzero(base.valid.ravel())
+    info = {"init": init, "rounds": [], "materials": [], "pixels": int(idx.size)}
+    res.info = info
+    if idx.size == 0:
+        info["levels"] = {"init": {"pixels": 0, "seconds": t_init}}
+        return res
+    flat = images.reshape(m, h * w, c)
+    s_all = _pixel_dirs(light_dirs, idx)                          # (m, 3) or (N, m, 3)
+    nrm = base.normal.reshape(-1, 3)[idx].astype(np.float32)
+    alb = base.albedo.reshape(-1, c)[idx]
+    g_ok = _usable(flat[:, idx, channel], saturation).T            # (N, m)
+    all_ok = np.all(np.isfinite(flat[:, idx, :]), axis=2).T & g_ok
+    resid0 = base.residual.reshape(-1)[idx]
+    rng = np.random.default_rng(seed)
+    labels, how = _regions(alb, idx.size, materials, min_region_fraction, seed)
+    info["regions_found_by"] = how
+    kd = np.zeros((idx.size, c), np.float32)
+    refined = np.zeros(idx.size, bool)
+    shadow_new = base.shadow.reshape(-1, m)[idx].copy()
+    rel = resid0.copy()
+    t_brdf = 0.0
+    mats = []
+
+    def gather(sel):
+        return np.ascontiguousarray(np.transpose(flat[:, idx[sel], :], (1, 0, 2)), dtype=np.float32)
+
+    def lights_of(sel):
+        return s_all if s_all.ndim == 2 else s_all[sel]
+
+    # a second start per pixel: the half-vector of the light that most exceeds the Lambertian
+    # prediction (a highlight says where the normal is; from the initial solution alone)
+    lam_pred = (nrm @ s_all.T if s_all.ndim == 2 else np.einsum("nj,nmj->nm", nrm, s_all)) * \
+        (alb[:, channel] / np.pi)[:, None]
+    e_g = np.where(all_ok, flat[:, idx, channel].T, -np.inf)
+    brightest = np.argmax(e_g - lam_pred, axis=1)
+    half = s_all + np.float32([0, 0, 1])
+    half = (half / np.linalg.norm(half, axis=-1, keepdims=True)).astype(np.float32)
+    hl_start = half[brightest] if half.ndim == 2 else half[np.arange(idx.size), brightest]
+
+    def refine(sel, sigma, n_i):
+        return refine_normals_li(gather(sel), lights_of(sel), nrm[sel], sigma, n_i, usable=all_ok[sel],
+                                 iterations=iterations, extra_starts=[hl_start[sel]])
+
+    for region in range(int(labels.max()) + 1):
+        t_reg = time.perf_counter()
+        pix = np.flatnonzero(labels == region)
+        x0 = None
+        mat = {"region": region, "pixels": int(pix.size), "brdf_step": True}
+        trust = pix[nrm[pix, 2] > 0.3]
+        if trust.size < 10:
+            trust = pix
+        score = None
+        for rnd in range(1, int(rounds) + 1):
+            t_r = time.perf_counter()
+            if score is not None:   # later rounds: all but the worse-explained half of the re-estimated
+                trust = pix[score <= np.median(score[np.isfinite(score)])] if np.isfinite(score).any() else pix
+            fsel = np.sort(rng.choice(trust, min(fit_pixels, trust.size), replace=False))
+            e_f = gather(fsel)
+            fit = fit_li_per_pixel_kd(e_f, lights_of(fsel), nrm[fsel], all_ok[fsel], x0=x0)
+            warm = 0
+            while rnd == 1 and warm < 3 and np.isfinite(fit["sigma"]):
+                # warm-up on the fit pixels alone (cheap): their normals against the model, refit,
+                # until (σ, n_i) settle; the first fit on the initial normals is biased
+                warm += 1
+                rr = refine(fsel, fit["sigma"], fit["n_i"])
+                prev = fit
+                fit = fit_li_per_pixel_kd(e_f, lights_of(fsel), rr.normals, all_ok[fsel],
+                                          x0=(prev["sigma"], prev["n_i"]))
+                if abs(fit["sigma"] - prev["sigma"]) < 0.02 * prev["sigma"] and abs(fit["n_i"] - prev["n_i"]) < 0.005:
+                    break
+            if not np.isfinite(fit["sigma"]):
+                mat.update(brdf_step=False, note=f"fit failed: {fit['message']}")
+                break
+            x0 = (fit["sigma"], fit["n_i"])
+            round_info = {"material": region, "round": rnd, "sigma": fit["sigma"], "n_i": fit["n_i"],
+                          "fit_pixels": int(fsel.size), "warm_up_refits": warm}
+            if rnd == 1 and fit["n_i"] < LAMBERTIAN_N_I:
+                round_info.update(pixels_refined=0, median_change_deg=0.0,
+                                  seconds=time.perf_counter() - t_r)
+                info["rounds"].append(round_info)
+                mat.update(brdf_step=False, note=f"n_i = {fit['n_i']:.3f} ≈ 1: Lambertian-like, BRDF "
+                           "step skipped, initial normals kept")
+                break
+            lam_ok = (resid0[pix] < t_residual) & all_ok[pix].all(1) & \
+                ~_in_lobe(nrm[pix], lights_of(pix), fit["sigma"])
+            todo = pix[~lam_ok]
+            change = np.zeros(0)
+            if todo.size:
+                rr = refine(todo, fit["sigma"], fit["n_i"])
+                change = _angle_deg(rr.normals, nrm[todo])
+                nrm[todo] = rr.normals
+                kd[todo] = rr.kd
+                refined[todo] = True
+                rel[todo] = rr.rel_residual
+                shadow_new[todo] = all_ok[todo] & ~rr.used
+            sc = np.full(pix.size, np.inf, np.float32)     # Lambertian-level pixels: not for the fit
+            sc[~lam_ok] = rel[todo]
+            score = sc
+            med = float(np.median(change)) if change.size else 0.0
+            round_info.update(pixels_refined=int(todo.size), pixels_lambertian=int(lam_ok.sum()),
+                              median_change_deg=med,
+                              mean_change_deg=float(change.mean()) if change.size else 0.0,
+                              seconds=time.perf_counter() - t_r)
+            info["rounds"].append(round_info)
+            if med < tol_deg:
+                break
+        mat.update(sigma=x0[0] if x0 else None, n_i=x0[1] if x0 else None,
+                   pixels_refined=int(refined[pix].sum()), seconds=time.perf_counter() - t_reg)
+        # K_d of the pixels that kept their Lambertian solution: ρ/π = κ × I at normal incidence
+        keep = pix[~refined[pix]]
+        if keep.size and x0 is not None and x0[1] >= 1.0:
+            _, b0 = li_shading_terms(np.float32([[0, 0, 1]]), np.float32([[0, 0, 1]]), x0[0], x0[1])
+            kd[keep] = li_kd_from_kappa(alb[keep] / np.pi / max(float(b0[0, 0]), 1e-6), x0[1])
+        elif keep.size:
+            kd[keep] = np.clip(alb[keep], 0, 1)
+        t_brdf += time.perf_counter() - t_reg
+        mats.append(mat)
+    # regions whose fits agree are one material (reported merged)
+    info["materials"] = mats
+    _scatter_rows(res.normal, idx, nrm)
+    _scatter_rows(res.albedo, idx, kd)
+    _scatter_rows(res.shadow, idx, shadow_new)
+    _scatter_rows(res.residual, idx, rel)
+    sk = res.skipped.reshape(-1)
+    sk[:] = False
+    sk[idx] = ~refined
+    spec = res.specular.reshape(-1, m)
+    spec[idx[refined]] = False     # the model explains the highlights: no light eliminated
+    info["levels"] = {
+        "init": {"method": init, "pixels": int(idx.size), "seconds": t_init},
+        "lambertian": {"pixels": int((~refined).sum())},
+        "brdf_aware": {"pixels": int(refined.sum()), "seconds": t_brdf},
+    }
+    info["seconds"] = time.perf_counter() - t_start
+    return res
+
+
+def _scatter_rows(arr, idx, values):
+    flat = arr.reshape((-1,) + arr.shape[2:])
+    flat[idx] = values

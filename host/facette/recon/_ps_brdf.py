@@ -1,0 +1,182 @@
+"""Per-pixel normals and K_d against a given LI reflectance model (the inner step of BRDF-aware
+photometric stereo; the alternation with the BRDF fit is facette.fit.ps_li_alternating).
+
+Each pixel's values over the m lights, E_ic (light i, channel c, divided by the light's
+intensity), are matched to the LI model E = A(n, s_i) + B(n, s_i) κ_c (facette.brdf.li_shading_terms)
+by a robust Gauss–Newton (Levenberg–Marquardt) on the 2-D tangent-plane parameterisation of the
+normal, with κ_c (hence K_d per channel) solved in closed form at every step (variable projection),
+all pixels at once (arrays (N, m, C); no loop over pixels). Loss: Cauchy,
+ρ(r) = log(1 + (r / c_p)²) with a per-pixel scale c_p (1.4826 × the median absolute residual at
+the start, at least 3 % of the pixel's mean value), so that a light the model cannot explain (an
+inter-reflection, a cast shadow it did not see) weighs little. Left out: values that are not
+usable (NaN, saturated) and cast shadows (observed < 25 % of the model's prediction at the start).
+"""
+import numpy as np
+
+from facette.brdf import li_kd_from_kappa, li_shading_terms
+
+__all__ = ["refine_normals_li", "RefineResult", "CAST_SHADOW_RATIO"]
+
+CAST_SHADOW_RATIO = 0.25   # observed / predicted (green) below this: a cast shadow, left out
+SCALE_FLOOR = 0.03         # Cauchy scale at least this fraction of the pixel's mean value
+STEP_FD = 1e-3             # rad, forward-difference step on the normal
+MAX_STEP = 0.15            # rad, largest normal update per iteration
+
+
+class RefineResult:
+    """normals (N, 3) unit; kappa (N, C) ≥ 0; kd (N, C) in [0, 1]; used (N, m) bool (values
+    kept); cost (N,) robust cost per pixel at the end; rel_residual (N,) RMS of the kept
+    residuals over the RMS of the kept values; iterations run; evaluations of the model."""
+
+    def __init__(self, **kw):
+        self.__dict__.update(kw)
+
+
+def _tangents(n):
+    """Two unit vectors (N, 3) orthogonal to n and to each other."""
+    ref = np.where(np.abs(n[:, 2:3]) < 0.9, np.float32([[0, 0, 1]]), np.float32([[1, 0, 0]]))
+    t1 = np.cross(n, ref)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    return t1, np.cross(n, t1)
+
+
+def _unit(v):
+    """Rows scaled to unit length; zero rows become +z (a defined normal, never NaN)."""
+    ln = np.linalg.norm(v, axis=1, keepdims=True)
+    return np.where(ln > 1e-12, v / np.maximum(ln, 1e-12), np.float32([[0, 0, 1]])).astype(np.float32)
+
+
+def _kappa(e, a, b, w):
+    """Weighted least-squares κ (N, C) for E ≈ a + b κ; w (N, m) or (N, m, C)."""
+    if w.ndim == 2:
+        w = w[..., None]
+    wb = w * b[..., None]
+    den = np.sum(wb * b[..., None], axis=1)
+    num = np.sum(wb * (e - a[..., None]), axis=1)
+    return np.maximum(num / np.maximum(den, 1e-20), 0).astype(np.float32)
+
+
+def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12, kappa=None,
+                      extra_starts=None):
+    """Robust per-pixel normals and K_d against the LI model of given (σ, n_i); see
+    `_refine_one_start` for the arguments. extra_starts : optional (K, N, 3) other starting
+    normals (e.g. the half-vector of a pixel's brightest light: a highlight says where the normal
+    is); every start is refined and the one with the lowest robust cost is kept per pixel.
+    """
+    first = _refine_one_start(e, lights, normals, sigma, n_i, usable, iterations, kappa)
+    if extra_starts is None or len(extra_starts) == 0:
+        return first
+    best = first
+    for start in extra_starts:
+        other = _refine_one_start(e, lights, start, sigma, n_i, usable, iterations, None,
+                                  scale=first.scale)
+        win = other.cost < best.cost
+        for name in ("normals", "kappa", "kd", "used", "cost", "rel_residual"):
+            getattr(best, name)[win] = getattr(other, name)[win]
+        best.evaluations += other.evaluations
+        best.iterations = max(best.iterations, other.iterations)
+    return best
+
+
+def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12, kappa=None, scale=None):
+    """Robust per-pixel normals and K_d against the LI model of given (σ, n_i).
+
+    e : (N, m, C) float image values divided by each light's intensity (NaN: missing).
+    lights : (m, 3) unit vectors towards the lights, or (N, m, 3) per pixel (near lights).
+    normals : (N, 3) unit starting normals (camera frame).
+    sigma, n_i : the material's LI parameters (Beckmann σ ≥ 0, n_i in [1, 10]).
+    usable : (N, m) bool, values allowed in the fit (default: finite values); saturated values
+        should be False here.
+    iterations : Levenberg–Marquardt steps (each: 3 model evaluations over the N pixels).
+    kappa : optional (N, C) starting κ (default: solved at the start).
+    Returns a `RefineResult`. A pixel with fewer than 3 kept values keeps its starting normal.
+    """
+    e = np.asarray(e, dtype=np.float32)
+    if e.ndim == 2:
+        e = e[..., None]
+    n_pix, m, c = e.shape
+    n = _unit(np.asarray(normals, dtype=np.float32).reshape(n_pix, 3))
+    s = np.asarray(lights, dtype=np.float32)
+    finite = np.all(np.isfinite(e), axis=2)
+    ok = finite if usable is None else (np.asarray(usable, bool) & finite)
+    e = np.where(ok[..., None], e, np.float32(0))
+    evals = 0
+    a, b = li_shading_terms(n, s, sigma, n_i)
+    evals += 1
+    w0 = ok.astype(np.float32)
+    k = _kappa(e, a, b, w0) if kappa is None else np.asarray(kappa, np.float32)
+    pred = a[..., None] + b[..., None] * k[:, None, :]
+    g_ch = 1 if c == 3 else 0
+    cast = ok & (e[..., g_ch] < CAST_SHADOW_RATIO * pred[..., g_ch]) & \
+        (pred[..., g_ch] > 0.05 * np.max(pred[..., g_ch], axis=1, keepdims=True))
+    keep = ok & ~cast
+    active = keep.sum(1) >= 3
+    kw = keep.astype(np.float32)
+    mean_e = np.sum(kw[..., None] * e, axis=(1, 2)) / np.maximum(kw.sum(1) * c, 1)
+    k = _kappa(e, a, b, kw)
+    r = (e - a[..., None] - b[..., None] * k[:, None, :]) * kw[..., None]
+    absr = np.where(keep[..., None], np.abs(r), np.nan).reshape(n_pix, -1)
+    absr = np.where(keep.any(1)[:, None], absr, 0)          # pixels with nothing kept: no NaN row
+    med = np.nanmedian(absr, axis=1) if n_pix else np.zeros(0, np.float32)
+    if scale is None:   # fixed per pixel for every start, so that the costs compare
+        scale = np.maximum(np.nan_to_num(1.4826 * med), SCALE_FLOOR * mean_e)
+        scale = np.maximum(scale, 1e-12).astype(np.float32)[:, None, None]
+
+    def cost_of(r_):
+        return np.sum(np.log1p((r_ / scale) ** 2) * kw[..., None], axis=(1, 2))
+
+    cost = cost_of(r)
+    lam = np.full(n_pix, 1e-2, np.float32)
+    it = 0
+    for it in range(1, int(iterations) + 1):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        ni, si = n[idx], (s if s.ndim == 2 else s[idx])
+        t1, t2 = _tangents(ni)
+        ei, kwi, ki = e[idx], kw[idx], k[idx]
+        pred0 = a[idx][..., None] + b[idx][..., None] * ki[:, None, :]
+        r0 = (ei - pred0) * kwi[..., None]
+        # IRLS weights of the Cauchy loss: ρ'(r)/r ∝ 1 / (1 + (r/c)²)
+        wr = kwi[..., None] / (1 + (r0 / scale[idx]) ** 2)
+        jac = []
+        for t in (t1, t2):
+            au, bu = li_shading_terms(_unit(ni + STEP_FD * t), si, sigma, n_i)
+            jac.append(((au - a[idx])[..., None] + (bu - b[idx])[..., None] * ki[:, None, :]) / STEP_FD)
+        evals += 2
+        ju, jv = jac
+        huu = np.sum(wr * ju * ju, axis=(1, 2))
+        hvv = np.sum(wr * jv * jv, axis=(1, 2))
+        huv = np.sum(wr * ju * jv, axis=(1, 2))
+        gu = np.sum(wr * ju * r0, axis=(1, 2))
+        gv = np.sum(wr * jv * r0, axis=(1, 2))
+        li = lam[idx]
+        huu_d, hvv_d = huu * (1 + li) + 1e-20, hvv * (1 + li) + 1e-20
+        det = huu_d * hvv_d - huv * huv
+        det = np.where(np.abs(det) > 1e-30, det, 1e-30)
+        du = (hvv_d * gu - huv * gv) / det
+        dv = (huu_d * gv - huv * gu) / det
+        step = np.sqrt(du * du + dv * dv)
+        shrink = np.minimum(1, MAX_STEP / np.maximum(step, 1e-12))
+        cand = _unit(ni + (du * shrink)[:, None] * t1 + (dv * shrink)[:, None] * t2)
+        ac, bc = li_shading_terms(cand, si, sigma, n_i)
+        evals += 1
+        kc = _kappa(ei, ac, bc, wr)
+        rc = (ei - ac[..., None] - bc[..., None] * kc[:, None, :]) * kwi[..., None]
+        cc = np.sum(np.log1p((rc / scale[idx]) ** 2) * kwi[..., None], axis=(1, 2))
+        better = cc <= cost[idx]
+        acc = idx[better]
+        n[acc], a[acc], b[acc], k[acc], cost[acc] = cand[better], ac[better], bc[better], kc[better], cc[better]
+        lam[acc] = np.maximum(lam[acc] / 3, 1e-4)
+        lam[idx[~better]] *= 10
+        # converged: the accepted step is below 0.01° or the damping says no step helps
+        done = np.zeros(n_pix, bool)
+        done[acc] = (step * shrink)[better] < 2e-4
+        done[idx[~better]] = lam[idx[~better]] > 1e3
+        active &= ~done
+    r = (e - a[..., None] - b[..., None] * k[:, None, :]) * kw[..., None]
+    num = np.sqrt(np.sum(r * r, axis=(1, 2)))
+    den = np.sqrt(np.sum((e * kw[..., None]) ** 2, axis=(1, 2)))
+    rel = np.where(den > 0, num / np.maximum(den, 1e-30), np.inf).astype(np.float32)
+    return RefineResult(normals=n, kappa=k, kd=li_kd_from_kappa(k, n_i), used=keep, cost=cost,
+                        rel_residual=rel, iterations=it, evaluations=evals, scale=scale)
