@@ -16,7 +16,9 @@ def register(sub):
                    help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all); only the "
                         "stages they need run")
     p.add_argument("--method", default="hierarchical_tautzia2016",
-                   choices=list(PS_METHODS), help="photometric stereo")
+                   choices=list(PS_METHODS),
+                   help="photometric stereo (li_alternating: BRDF-aware, the LI model fitted and the "
+                        "normals re-estimated against it in alternation)")
     p.add_argument("--integration", default="frankot_chellappa1988",
                    choices=["frankot_chellappa1988", "simchony1990", "least_squares"])
     p.add_argument("--t-ombre", type=float, default=T_OMBRE, help="shadow angle threshold, rad (1.5)")

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from facette.brdf import li_kd_from_kappa, li_shading_terms
-from facette.recon import PSResult, photometric_stereo, refine_normals_li
+from facette.recon import PS_METHODS, PSResult, photometric_stereo, refine_normals_li
 from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _usable
 
 __all__ = ["ps_li_alternating", "fit_li_per_pixel_kd", "LI_FIT_BOUNDS"]
@@ -42,12 +42,13 @@ LOBE_TAN = 2.5             # a light is inside the lobe when tan θ_h < LOBE_TAN
 _STARTS = ((0.1, 1.3), (0.3, 1.5), (0.04, 1.2))
 
 
-def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_nfev=60):
+def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_nfev=40):
     """(σ, n_i) shared by all pixels, K_d per pixel and channel, from image values.
 
     e : (N, m, C) values divided by the light intensities; lights : (m, 3) or (N, m, 3);
     normals : (N, 3) unit (fixed); usable : (N, m) bool.
-    x0 : (σ, n_i) start; otherwise the best of three starts.
+    x0 : (σ, n_i) start (alone when it has a lobe: σ > 0.01, n_i > 1.02); otherwise the best
+        of three fixed starts and x0.
     f_scale : soft-L1 scale on the relative residual (0.05: 5 % misfits count fully,
         larger ones linearly).
     Returns dict(sigma, n_i, kd (N, C), kappa (N, C), cost, n_values, seconds, success).
@@ -79,9 +80,10 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
         return dict(success=False, sigma=float("nan"), n_i=float("nan"), message="no usable values to fit")
     # the previous solution and the fixed starts: at σ near its lower bound the lobe is too narrow
     # for a finite-difference gradient, so a start there alone would stay there
-    starts = [np.array(x) for x in _STARTS]
-    if x0 is not None:
-        starts.insert(0, np.clip(np.asarray(x0, float), lo, hi))
+    if x0 is not None and x0[0] > 0.01 and x0[1] > LAMBERTIAN_N_I:
+        starts = [np.clip(np.asarray(x0, float), lo, hi)]
+    else:
+        starts = [np.array(x) for x in _STARTS] + ([] if x0 is None else [np.clip(np.asarray(x0, float), lo, hi)])
     best = None
     for x in starts:
         r = least_squares(fun, x, bounds=(lo, hi), loss="soft_l1", f_scale=f_scale, diff_step=1e-3,
@@ -108,6 +110,40 @@ def _in_lobe(normals, lights, sigma):
     return np.any(np.sqrt(1 - ch * ch) < LOBE_TAN * sigma * ch, axis=1)
 
 
+def _lambertian_correction(normals, lights, sigma, n_i, grid=65):
+    """(N, 3) corrected normals for pixels outside the lobe, from least-squares normals.
+
+    Outside the specular lobe the model is E ≈ B(n, s) κ, whose least-squares (Lambertian)
+    normal n_LS(n) differs from n by a smooth bias (the Fresnel transmissions of the volume
+    part, eq 3.15, tilt it by up to a few degrees at oblique normals). That bias depends on the
+    normal alone (κ cancels), so it is tabulated once per (σ, n_i) on a grid of normals and
+    interpolated: n ≈ n_LS + (n_grid − n_LS(n_grid)) at n_grid = n_LS. Cost: grid² pixels, not N.
+    lights : (m, 3), or (N, m, 3) whose mean direction is used (near lights vary little).
+    """
+    s = lights if lights.ndim == 2 else lights.mean(axis=0)
+    s = s / np.linalg.norm(s, axis=1, keepdims=True)
+    u = np.linspace(-1, 1, grid, dtype=np.float32)
+    gx, gy = np.meshgrid(u, u)
+    r2 = gx * gx + gy * gy
+    inside = r2 < 0.995
+    gn = np.stack([gx, gy, np.sqrt(np.maximum(1 - r2, 0))], axis=-1).reshape(-1, 3)
+    gn[~inside.ravel()] = [0, 0, 1]
+    _, b = li_shading_terms(gn, s, sigma, n_i, specular=False)
+    g = b @ np.linalg.pinv(s).T.astype(np.float32)                 # least squares of the model's values
+    n_ls = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-12)
+    delta = (gn - n_ls).reshape(grid, grid, 3)
+    delta[~inside] = 0
+    # bilinear lookup at each pixel's own (least-squares) normal
+    fx = np.clip((normals[:, 0] + 1) / 2 * (grid - 1), 0, grid - 1.001)
+    fy = np.clip((normals[:, 1] + 1) / 2 * (grid - 1), 0, grid - 1.001)
+    ix, iy = fx.astype(int), fy.astype(int)
+    wx, wy = (fx - ix)[:, None], (fy - iy)[:, None]
+    d = ((1 - wx) * (1 - wy) * delta[iy, ix] + wx * (1 - wy) * delta[iy, ix + 1]
+         + (1 - wx) * wy * delta[iy + 1, ix] + wx * wy * delta[iy + 1, ix + 1])
+    out = normals + d
+    return (out / np.linalg.norm(out, axis=1, keepdims=True)).astype(np.float32)
+
+
 def _regions(albedo, n_pix, materials, min_fraction, seed):
     """(N,) region label per pixel: 0 for one material; k-means on chromaticity + log albedo."""
     if materials in (1, None) or n_pix < 50:
@@ -132,7 +168,7 @@ def _regions(albedo, n_pix, materials, min_fraction, seed):
 
 
 def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=None,
-                      init="hierarchical_tautzia2016", rounds=4, tol_deg=0.1, fit_pixels=1500,
+                      init="hierarchical_tautzia2016", rounds=4, tol_deg=0.1, fit_pixels=1000,
                       t_residual=T_RESIDUAL, iterations=8, materials=1, min_region_fraction=0.05,
                       seed=0, init_options=None):
     """BRDF-aware photometric stereo with the LI model (module doc).
@@ -179,6 +215,12 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     flat = images.reshape(m, h * w, c)
     s_all = _pixel_dirs(light_dirs, idx)                          # (m, 3) or (N, m, 3)
     nrm = base.normal.reshape(-1, 3)[idx].astype(np.float32)
+    nrm0 = nrm.copy()
+    # the Lambertian level starts from least squares (the hierarchy's eliminations would bias
+    # the tabulated correction, which models least squares over every light)
+    nrm_ls = nrm0 if init in ("woodham1980", "least_squares") else \
+        photometric_stereo(images, light_dirs, method="woodham1980", mask=mask, channel=channel,
+                           saturation=saturation).normal.reshape(-1, 3)[idx].astype(np.float32)
     alb = base.albedo.reshape(-1, c)[idx]
     g_ok = _usable(flat[:, idx, channel], saturation).T            # (N, m)
     all_ok = np.all(np.isfinite(flat[:, idx, :]), axis=2).T & g_ok
@@ -254,8 +296,12 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                            "step skipped, initial normals kept")
                 break
             lam_ok = (resid0[pix] < t_residual) & all_ok[pix].all(1) & \
-                ~_in_lobe(nrm[pix], lights_of(pix), fit["sigma"])
+                ~_in_lobe(nrm0[pix], lights_of(pix), fit["sigma"])
             todo = pix[~lam_ok]
+            lam_pix = pix[lam_ok]
+            if lam_pix.size:
+                nrm[lam_pix] = _lambertian_correction(nrm_ls[lam_pix], lights_of(lam_pix), fit["sigma"], fit["n_i"])
+                refined[lam_pix] = False
             change = np.zeros(0)
             if todo.size:
                 rr = refine(todo, fit["sigma"], fit["n_i"])
@@ -310,3 +356,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
 def _scatter_rows(arr, idx, values):
     flat = arr.reshape((-1,) + arr.shape[2:])
     flat[idx] = values
+
+
+# offered by recon's dispatch: photometric_stereo(..., method="li_alternating")
+PS_METHODS.add("li_alternating", ps_li_alternating, aliases=("brdf_li",))

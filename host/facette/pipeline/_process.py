@@ -202,13 +202,17 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
             integration="frankot_chellappa1988", t_ombre=T_OMBRE, t_spec=T_SPEC,
             t_source=T_SOURCE, t_residual=T_RESIDUAL, theta0_deg=THETA0_DEG, mask=None,
             pixel_pitch_mm=None, near_light=True, mesh_step=None, ascii_ply=False,
-            saturation=None, fit_options=None, hsh_order=3):
+            saturation=None, fit_options=None, hsh_order=3, ps_options=None):
     """Run the processing chain on a scan directory or a DiLiGenT-style folder.
 
     source : path (or Scan object) of a facette scan (scan.json + hdr/) or a DiLiGenT folder.
     outputs : list from OUTPUTS (default all); only the stages they need run.
     out_dir : where to write the files of DESIGN §7 (None: compute only, write nothing).
-    method : photometric stereo, "hierarchical_tautzia2016" or "woodham1980".
+    method : photometric stereo, "hierarchical_tautzia2016", "woodham1980" or "li_alternating"
+        (BRDF-aware: facette.fit.ps_li_alternating; albedo.exr is then the LI K_d, and brdf.json
+        gains "materials" (σ, n_i, pixel count per region) and "levels" (pixels and seconds of
+        each level)).
+    ps_options : extra keyword arguments of the "li_alternating" method (rounds, materials, ...).
     integration : "frankot_chellappa1988" (thesis), "simchony1990" or "least_squares" (mask only).
     t_ombre (rad), t_spec, t_source, t_residual : see `ps_hierarchical_tautzia2016`.
     theta0_deg : hemisphere-sensor cell size (deg). mask : (H, W) bool or PNG path.
@@ -244,8 +248,14 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
         res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
     kwargs = dict(mask=inp.mask, saturation=saturation)
+    thresholds = dict(t_ombre=t_ombre, t_spec=t_spec, t_source=t_source, t_residual=t_residual)
     if method in ("hierarchical_tautzia2016", "hierarchical"):
-        kwargs.update(t_ombre=t_ombre, t_spec=t_spec, t_source=t_source, t_residual=t_residual)
+        kwargs.update(thresholds)
+    elif method == "li_alternating":
+        extra = dict(ps_options or {})
+        if extra.get("init", "hierarchical_tautzia2016") in ("hierarchical_tautzia2016", "hierarchical"):
+            extra.setdefault("init_options", thresholds)
+        kwargs.update(t_residual=t_residual, **extra)
     ps = photometric_stereo(images, light_dirs, method=method, **kwargs)
     res.ps = ps
     res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
@@ -323,6 +333,12 @@ def _write(res, out, outputs, ascii_ply, images, light_dirs):
             image_shape=np.array(res.normals.shape[:2])))
     if "brdf" in outputs and res.brdf is not None:
         text = res.brdf.to_json() if hasattr(res.brdf, "to_json") else json.dumps(res.brdf, indent=2)
+        ps_info = res.ps.info if res.ps is not None else {}
+        if "materials" in ps_info:   # BRDF-aware photometric stereo: its own per-region fits
+            doc = json.loads(text)
+            doc["photometric_stereo"] = {k: ps_info[k] for k in ("materials", "levels", "rounds",
+                                                                 "regions_found_by") if k in ps_info}
+            text = json.dumps(doc, indent=2)
         jobs.append(lambda: (out / FILES["brdf"]).write_text(text))
     if "ptm" in outputs:
         jobs.append(lambda: write_ptm_lrgb(out / FILES["ptm"], res.ptm.coeffs, res.ptm.rgb))

@@ -526,6 +526,8 @@ PS_METHODS.add("hierarchical_tautzia2016", ps_hierarchical_tautzia2016, aliases=
 
 def photometric_stereo(images, light_dirs, method="hierarchical_tautzia2016", **kwargs):
     """Dispatch by name: "woodham1980" (alias "least_squares"), "hierarchical_tautzia2016"
-    (alias "hierarchical"), "rpca_wu2010" or "rank_trimmed" (facette.recon._ps_robust).
+    (alias "hierarchical"), "rpca_wu2010" or "rank_trimmed" (facette.recon._ps_robust);
+    "li_alternating", the BRDF-aware method, lives in facette.fit (it calls the BRDF fit, a layer
+    above) and is registered here when facette.fit is imported.
     Arguments as the chosen function."""
     return PS_METHODS[method](images, light_dirs, **kwargs)
