@@ -246,14 +246,24 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     lam_pred = (nrm @ s_all.T if s_all.ndim == 2 else np.einsum("nj,nmj->nm", nrm, s_all)) * \
         (alb[:, channel] / np.pi)[:, None]
     e_g = np.where(all_ok, flat[:, idx, channel].T, -np.inf)
-    brightest = np.argmax(e_g - lam_pred, axis=1)
+    excess = e_g - lam_pred
+    brightest = np.argmax(excess, axis=1)
+    mean_g = np.nanmean(np.where(all_ok, flat[:, idx, channel].T, np.nan), axis=1)
+    # the highlight start is tried where one light stands out (≥ 10 % of the pixel's mean value)
+    has_highlight = np.take_along_axis(excess, brightest[:, None], 1)[:, 0] > 0.1 * np.nan_to_num(mean_g)
     half = s_all + np.float32([0, 0, 1])
     half = (half / np.linalg.norm(half, axis=-1, keepdims=True)).astype(np.float32)
     hl_start = half[brightest] if half.ndim == 2 else half[np.arange(idx.size), brightest]
 
-    def refine(sel, sigma, n_i):
+    def refine(sel, sigma, n_i, first_round=True):
+        # first round: the current normal and the highlight start; later rounds start from the
+        # previous round's normals, already near, so one start and fewer steps do
+        if first_round:
+            return refine_normals_li(gather(sel), lights_of(sel), nrm[sel], sigma, n_i, usable=all_ok[sel],
+                                     iterations=iterations, extra_starts=[hl_start[sel]],
+                                     extra_rows=has_highlight[sel])
         return refine_normals_li(gather(sel), lights_of(sel), nrm[sel], sigma, n_i, usable=all_ok[sel],
-                                 iterations=iterations, extra_starts=[hl_start[sel]])
+                                 iterations=max(2, iterations // 2))
 
     for region in range(int(labels.max()) + 1):
         t_reg = time.perf_counter()
@@ -304,7 +314,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                 refined[lam_pix] = False
             change = np.zeros(0)
             if todo.size:
-                rr = refine(todo, fit["sigma"], fit["n_i"])
+                rr = refine(todo, fit["sigma"], fit["n_i"], first_round=not refined[todo].all())
                 change = _angle_deg(rr.normals, nrm[todo])
                 nrm[todo] = rr.normals
                 kd[todo] = rr.kd

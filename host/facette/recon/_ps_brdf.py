@@ -46,6 +46,15 @@ def _unit(v):
     return np.where(ln > 1e-12, v / np.maximum(ln, 1e-12), np.float32([[0, 0, 1]])).astype(np.float32)
 
 
+def _cauchy_scale(r, keep, mean_e):
+    """(N, 1, 1) Cauchy scale: 1.4826 × the median |residual| of the kept values, at least
+    SCALE_FLOOR × the pixel's mean value (and > 0)."""
+    absr = np.where(keep[..., None], np.abs(r), np.nan).reshape(len(r), -1)
+    absr[~keep.any(1)] = 0                                  # no kept value: no all-NaN row
+    med = np.nanmedian(absr, axis=1) if len(r) else np.zeros(0, np.float32)
+    return np.maximum(np.maximum(1.4826 * med, SCALE_FLOOR * mean_e), 1e-12).astype(np.float32)[:, None, None]
+
+
 def _kappa(e, a, b, w):
     """Weighted least-squares κ (N, C) for E ≈ a + b κ; w (N, m) or (N, m, C)."""
     if w.ndim == 2:
@@ -57,22 +66,31 @@ def _kappa(e, a, b, w):
 
 
 def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12, kappa=None,
-                      extra_starts=None):
+                      extra_starts=None, extra_rows=None):
     """Robust per-pixel normals and K_d against the LI model of given (σ, n_i); see
     `_refine_one_start` for the arguments. extra_starts : optional (K, N, 3) other starting
     normals (e.g. the half-vector of a pixel's brightest light: a highlight says where the normal
     is); every start is refined and the one with the lowest robust cost is kept per pixel.
+    extra_rows : optional (N,) bool, the pixels for which the extra starts are tried (default all).
     """
     first = _refine_one_start(e, lights, normals, sigma, n_i, usable, iterations, kappa)
     if extra_starts is None or len(extra_starts) == 0:
         return first
     best = first
+    rows = np.arange(len(normals)) if extra_rows is None else np.flatnonzero(extra_rows)
+    if rows.size == 0:
+        return first
+    s = np.asarray(lights, np.float32)
+    s_rows = s if s.ndim == 2 else s[rows]
+    u = None if usable is None else np.asarray(usable, bool)[rows]
     for start in extra_starts:
-        other = _refine_one_start(e, lights, start, sigma, n_i, usable, iterations, None,
-                                  scale=first.scale)
-        win = other.cost < best.cost
+        other = _refine_one_start(np.asarray(e)[rows], s_rows, np.asarray(start)[rows], sigma, n_i, u,
+                                  iterations, None, scale=first.scale[rows])
+        win = np.zeros(len(normals), bool)
+        win[rows] = other.cost < best.cost[rows]
+        wr = win[rows]
         for name in ("normals", "kappa", "kd", "used", "cost", "rel_residual"):
-            getattr(best, name)[win] = getattr(other, name)[win]
+            getattr(best, name)[win] = getattr(other, name)[wr]
         best.evaluations += other.evaluations
         best.iterations = max(best.iterations, other.iterations)
     return best
@@ -89,12 +107,23 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
         should be False here.
     iterations : Levenberg–Marquardt steps (each: 3 model evaluations over the N pixels).
     kappa : optional (N, C) starting κ (default: solved at the start).
-    Returns a `RefineResult`. A pixel with fewer than 3 kept values keeps its starting normal.
+    Returns a `RefineResult`. A pixel with fewer than 3 kept values (black is fine: 0 values are
+    kept; saturated, missing or shadowed ones are not) keeps its starting normal, K_d from the
+    kept values (0 if none) and rel_residual 1.
     """
+    scale_given = scale
     e = np.asarray(e, dtype=np.float32)
     if e.ndim == 2:
         e = e[..., None]
+    if e.ndim != 3:
+        raise ValueError(f"e must have shape (N, m) or (N, m, C), got {e.shape}")
     n_pix, m, c = e.shape
+    s_shape = np.shape(lights)
+    if s_shape not in ((m, 3), (n_pix, m, 3)):
+        raise ValueError(f"lights must have shape ({m}, 3) or ({n_pix}, {m}, 3) for {n_pix} pixels and "
+                         f"{m} lights, got {s_shape}")
+    if np.shape(normals) != (n_pix, 3):
+        raise ValueError(f"normals must have shape ({n_pix}, 3), got {np.shape(normals)}")
     n = _unit(np.asarray(normals, dtype=np.float32).reshape(n_pix, 3))
     s = np.asarray(lights, dtype=np.float32)
     finite = np.all(np.isfinite(e), axis=2)
@@ -115,20 +144,30 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
     mean_e = np.sum(kw[..., None] * e, axis=(1, 2)) / np.maximum(kw.sum(1) * c, 1)
     k = _kappa(e, a, b, kw)
     r = (e - a[..., None] - b[..., None] * k[:, None, :]) * kw[..., None]
-    absr = np.where(keep[..., None], np.abs(r), np.nan).reshape(n_pix, -1)
-    absr = np.where(keep.any(1)[:, None], absr, 0)          # pixels with nothing kept: no NaN row
-    med = np.nanmedian(absr, axis=1) if n_pix else np.zeros(0, np.float32)
+    # robust κ at the starting normal first (IRLS, no new model evaluation): an outlier absorbed
+    # into κ would spread its residual over every light and pull the normal
+    for _ in range(3):
+        sc = _cauchy_scale(r, keep, mean_e) if scale is None else scale
+        k = _kappa(e, a, b, kw[..., None] / (1 + (r / sc) ** 2))
+        r = (e - a[..., None] - b[..., None] * k[:, None, :]) * kw[..., None]
     if scale is None:   # fixed per pixel for every start, so that the costs compare
-        scale = np.maximum(np.nan_to_num(1.4826 * med), SCALE_FLOOR * mean_e)
-        scale = np.maximum(scale, 1e-12).astype(np.float32)[:, None, None]
+        scale = _cauchy_scale(r, keep, mean_e)
+    rescale = scale_given is None
 
-    def cost_of(r_):
-        return np.sum(np.log1p((r_ / scale) ** 2) * kw[..., None], axis=(1, 2))
+    def cost_of(r_, sc):
+        return np.sum(np.log1p((r_ / sc) ** 2) * kw[..., None], axis=(1, 2))
 
-    cost = cost_of(r)
+    cost = cost_of(r, scale)
     lam = np.full(n_pix, 1e-2, np.float32)
     it = 0
     for it in range(1, int(iterations) + 1):
+        if rescale and it in (3, 6):
+            # the scale from the starting residuals is too wide to reject an outlier once the
+            # normal is near: re-estimate it from the current residuals (and the cost with it)
+            r = (e - a[..., None] - b[..., None] * k[:, None, :]) * kw[..., None]
+            scale = _cauchy_scale(r, keep, mean_e)
+            cost = cost_of(r, scale)
+            lam[active] = np.maximum(lam[active], 1e-2)
         idx = np.flatnonzero(active)
         if idx.size == 0:
             break
@@ -177,6 +216,8 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
     r = (e - a[..., None] - b[..., None] * k[:, None, :]) * kw[..., None]
     num = np.sqrt(np.sum(r * r, axis=(1, 2)))
     den = np.sqrt(np.sum((e * kw[..., None]) ** 2, axis=(1, 2)))
-    rel = np.where(den > 0, num / np.maximum(den, 1e-30), np.inf).astype(np.float32)
+    # 0 for a black pixel (nothing to explain), 1 where fewer than 3 values were kept (nothing explained)
+    rel = np.where(den > 0, num / np.maximum(den, 1e-30), 0).astype(np.float32)
+    rel[keep.sum(1) < 3] = 1
     return RefineResult(normals=n, kappa=k, kd=li_kd_from_kappa(k, n_i), used=keep, cost=cost,
                         rel_residual=rel, iterations=it, evaluations=evals, scale=scale)

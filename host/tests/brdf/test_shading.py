@@ -1,0 +1,74 @@
+"""li_shading_terms: the LI model's image values from dot products, against the reference
+evaluation on local-frame vectors (li_specular, volume_integral_approx)."""
+import numpy as np
+import pytest
+
+from facette.brdf import (li_kappa, li_kd_from_kappa, li_shading_terms, li_specular,
+                          volume_integral_approx)
+
+
+def _random_normals(n, rng):
+    v = rng.normal(size=(n, 3))
+    v[:, 2] = np.abs(v[:, 2]) + 0.2
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def _reference(normals, lights, sigma, n_i):
+    z = normals
+    x = np.cross(z, [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    y = np.cross(z, x)
+    sl = np.stack([lights @ x.T, lights @ y.T, lights @ z.T], -1).transpose(1, 0, 2)
+    v = np.array([0.0, 0.0, 1.0])
+    vl = np.broadcast_to(np.stack([x @ v, y @ v, z @ v], -1)[:, None, :], sl.shape)
+    up = (sl[..., 2] > 0) & (vl[..., 2] > 0)
+    a = np.where(up, li_specular(sl, vl, sigma, n_i) * sl[..., 2], 0)
+    b = np.where(up, volume_integral_approx(sl, vl, sigma, n_i) * sl[..., 2], 0)
+    return a, b, up
+
+
+@pytest.mark.parametrize("sigma,n_i", [(0.1, 1.3), (0.05, 1.26), (0.3, 1.5), (0.2, 1.0)])
+def test_matches_reference_evaluation(sigma, n_i):
+    rng = np.random.default_rng(1)
+    normals = _random_normals(3000, rng)
+    lights = _random_normals(12, rng)
+    a, b = li_shading_terms(normals, lights, sigma, n_i)
+    ar, br, up = _reference(normals, lights, sigma, n_i)
+    assert a.shape == b.shape == (3000, 12) and a.dtype == np.float32
+    assert np.max(np.abs(a - ar)[up]) <= 2e-4 * max(ar.max(), 1e-9) + 1e-6
+    assert np.max(np.abs(b - br)[up]) < 1e-5
+    assert np.all(a[~up] == 0) and np.all(b[~up] == 0)
+
+
+def test_per_pixel_lights_equal_global_ones():
+    rng = np.random.default_rng(2)
+    normals = _random_normals(50, rng)
+    lights = _random_normals(8, rng)
+    a, b = li_shading_terms(normals, lights, 0.1, 1.3)
+    a2, b2 = li_shading_terms(normals, np.broadcast_to(lights, (50, 8, 3)), 0.1, 1.3)
+    np.testing.assert_allclose(a, a2, rtol=1e-5, atol=1e-5 * a.max())   # the lobe's cut-off may flip
+    np.testing.assert_allclose(b, b2, rtol=1e-5, atol=1e-7)
+
+
+def test_edges_flat_facet_and_no_interface():
+    normals = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
+    lights = np.array([[0.0, 0.0, 1.0], [0.5, 0.0, np.sqrt(0.75)]])
+    a, b = li_shading_terms(normals, lights, 0.0, 1.3)          # σ = 0: a Dirac lobe, no value
+    assert np.all(a == 0) and np.all(np.isfinite(b)) and np.all(b > 0)
+    a, b = li_shading_terms(normals, lights, 1e-3, 1.0)         # n_i = 1, σ → 0: Lambert's shape
+    ratio = b / np.clip(normals @ lights.T, 1e-9, None)
+    # (the approximate formula's T̄ factors give 0.963 rather than 1 at this edge of its fit box)
+    np.testing.assert_allclose(ratio, ratio.mean(), rtol=1e-3)
+    assert 0.9 < ratio.mean() <= 1.0
+    assert np.all(a == 0)
+
+
+def test_kappa_round_trip_and_bad_arguments():
+    kd = np.linspace(0, 1, 11)
+    np.testing.assert_allclose(li_kd_from_kappa(li_kappa(kd, 1.4), 1.4), kd, atol=1e-6)
+    with pytest.raises(ValueError, match="roughness"):
+        li_shading_terms(np.array([[0, 0, 1.0]]), np.array([[0, 0, 1.0]]), -0.1, 1.3)
+    with pytest.raises(ValueError, match="n_i"):
+        li_shading_terms(np.array([[0, 0, 1.0]]), np.array([[0, 0, 1.0]]), 0.1, 0.5)
+    with pytest.raises(ValueError, match="lights"):
+        li_shading_terms(np.array([[0, 0, 1.0]]), np.ones((2, 4)), 0.1, 1.3)

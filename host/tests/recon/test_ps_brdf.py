@@ -1,0 +1,87 @@
+"""refine_normals_li: per-pixel normals and K_d against a given LI model, and its edges."""
+import numpy as np
+import pytest
+
+from facette.brdf import li_kappa, li_shading_terms
+from facette.recon import refine_normals_li
+
+RIG = np.array([[np.sin(np.radians(t)) * np.cos(np.radians(p)), np.sin(np.radians(t)) * np.sin(np.radians(p)),
+                 np.cos(np.radians(t))] for k in range(6) for t, p in ((30, 60 * k), (15, 30 + 60 * k))])
+
+
+def _scene(n=400, sigma=0.1, n_i=1.3, seed=0):
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(n, 3)) * [0.5, 0.5, 0]
+    v[:, 2] = 1
+    normals = (v / np.linalg.norm(v, axis=1, keepdims=True)).astype(np.float32)
+    kd = rng.uniform(0.2, 0.8, size=(n, 3))
+    a, b = li_shading_terms(normals, RIG, sigma, n_i)
+    e = a[..., None] + b[..., None] * li_kappa(kd, n_i)[:, None, :]
+    return normals, kd, e.astype(np.float32)
+
+
+def _perturb(normals, deg, seed=1):
+    rng = np.random.default_rng(seed)
+    p = normals + np.radians(deg) * rng.normal(size=normals.shape)
+    return (p / np.linalg.norm(p, axis=1, keepdims=True)).astype(np.float32)
+
+
+def _err(a, b):
+    return np.degrees(np.arccos(np.clip(np.sum(a * b, -1), -1, 1)))
+
+
+def test_recovers_normals_and_kd_of_model_images():
+    normals, kd, e = _scene()
+    r = refine_normals_li(e, RIG, _perturb(normals, 3), 0.1, 1.3)
+    assert np.median(_err(r.normals, normals)) < 0.05
+    assert np.percentile(_err(r.normals, normals), 95) < 0.5
+    np.testing.assert_allclose(np.median(r.kd / kd, axis=0), 1, atol=0.01)
+    assert r.normals.shape == (400, 3) and r.kd.shape == (400, 3) and r.used.shape == (400, 12)
+
+
+def test_a_cast_shadow_and_an_outlier_are_left_out():
+    normals, kd, e = _scene(sigma=0.3, n_i=1.5)
+    e = e.copy()
+    e[:, 3] *= 0.05            # a cast shadow on light 3
+    e[:, 7] *= 3.0             # an inter-reflection or a stray light on light 7
+    r = refine_normals_li(e, RIG, _perturb(normals, 3), 0.3, 1.5)
+    assert not r.used[:, 3].any()
+    assert np.median(_err(r.normals, normals)) < 0.3
+
+
+def test_per_pixel_lights():
+    normals, kd, e = _scene(n=100)
+    lights = np.broadcast_to(RIG, (100, 12, 3)).astype(np.float32)
+    r = refine_normals_li(e, lights, _perturb(normals, 2), 0.1, 1.3)
+    assert np.median(_err(r.normals, normals)) < 0.05
+
+
+def test_stability_black_saturated_and_shadowed_pixels():
+    normals, kd, e = _scene(n=6)
+    e = e.copy()
+    e[0] = 0                                   # black under every light
+    usable = np.ones((6, 12), bool)
+    usable[1] = False                          # saturated under every light
+    usable[2, 1:] = False                      # a single light left after elimination
+    e[3] = np.nan                              # missing values
+    start = _perturb(normals, 2)
+    r = refine_normals_li(e, RIG, start, 0.1, 1.3, usable=usable)
+    for name in ("normals", "kappa", "kd", "cost", "rel_residual"):
+        assert np.all(np.isfinite(getattr(r, name)[[0, 1, 2, 3, 4, 5]] if name != "rel_residual"
+                                  else getattr(r, name)[[0, 4, 5]])), name
+    # pixels with fewer than 3 kept values keep their starting normal (documented)
+    np.testing.assert_allclose(r.normals[1:4], start[1:4], atol=1e-6)
+    assert np.all(r.kd[0] == 0)
+    assert np.median(_err(r.normals[4:], normals[4:])) < 0.2
+
+
+def test_sigma_to_zero_and_no_interface_give_finite_normals():
+    normals, kd, e = _scene(n=50, sigma=0.1, n_i=1.3)
+    for sigma, n_i in ((0.0, 1.3), (1e-4, 1.3), (0.1, 1.0)):
+        r = refine_normals_li(e, RIG, _perturb(normals, 2), sigma, n_i)
+        assert np.all(np.isfinite(r.normals)) and np.allclose(np.linalg.norm(r.normals, axis=1), 1, atol=1e-5)
+
+
+def test_bad_shapes_raise():
+    with pytest.raises(ValueError, match="lights"):
+        refine_normals_li(np.zeros((5, 12, 3)), np.ones((4, 3)), np.tile([0, 0, 1.0], (5, 1)), 0.1, 1.3)
