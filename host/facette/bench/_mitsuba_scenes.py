@@ -119,7 +119,7 @@ def render_scene(shape="sphere", material="paint_0.10", size=128, spp=64, kd=(0.
     if material not in MATERIALS:
         raise ValueError(f"material {material!r}: choose one of {', '.join(MATERIALS)}")
     lights = rig_light_directions() if lights is None else np.asarray(lights, float)
-    key = json.dumps([shape, material, size, spp, list(kd), textured, np.round(lights, 6).tolist(),
+    key = json.dumps(["v2", shape, material, size, spp, list(kd), textured, np.round(lights, 6).tolist(),
                       near_distance, max_depth, seed], sort_keys=True)
     tag = hashlib.sha1(key.encode()).hexdigest()[:12]
     cache = Path(cache_dir) if cache_dir else None
@@ -162,7 +162,7 @@ def render_scene(shape="sphere", material="paint_0.10", size=128, spp=64, kd=(0.
                               "sensor": sensor, "obj": obj, "light": emitter})
         img = np.array(mi.render(scene, seed=seed + 7919 * i), dtype=np.float32)
         images.append(img[..., :3])
-    aov = mi.load_dict({"type": "scene", "integrator": {"type": "aov", "aovs": "nn:sh_normal,pp:position"},
+    aov = mi.load_dict({"type": "scene", "integrator": {"type": "aov", "aovs": "nn:sh_normal,pp:position,kd:albedo"},
                         "sensor": {**sensor, "sampler": {"type": "independent", "sample_count": 1}},
                         "obj": obj})
     a = np.array(mi.render(aov, spp=1), dtype=np.float32)
@@ -172,19 +172,8 @@ def render_scene(shape="sphere", material="paint_0.10", size=128, spp=64, kd=(0.
     ln = np.linalg.norm(nrm, axis=-1)
     mask = ln > 0.5
     nrm = np.where(mask[..., None], nrm / np.maximum(ln, 1e-9)[..., None], 0).astype(np.float32)
-    # true K_d per pixel: the texture looked up at the surface point's uv
-    res = kd_img.shape[0]
-    if shape == "sphere":
-        # Mitsuba's sphere uv: u = azimuth / 2π about +z, v = polar angle / π (from +z)
-        p = pos / 0.9
-        u = (np.arctan2(p[..., 1], p[..., 0]) / (2 * np.pi)) % 1.0
-        v = np.arccos(np.clip(p[..., 2], -1, 1)) / np.pi
-    else:
-        u, v = (pos[..., 0] + 1) / 2, (pos[..., 1] + 1) / 2
-    iu = np.clip((u * res).astype(int), 0, res - 1)
-    iv = np.clip(((1 - v) * res).astype(int), 0, res - 1) if shape == "sphere" else \
-        np.clip((v * res).astype(int), 0, res - 1)
-    kd_map = np.where(mask[..., None], kd_img[::-1][iv, iu] if shape != "sphere" else kd_img[::-1][iv, iu], 0)
+    # true K_d per pixel: the renderer's own diffuse reflectance at the surface point (albedo AOV)
+    kd_map = np.where(mask[..., None], a[..., 6:9], 0)
     params = {"shape": shape, "material": material, **MATERIALS[material], "kd": list(kd),
               "textured": textured, "size": size, "spp": spp, "near_distance": near_distance}
     d = {"images": np.stack(images), "light_dirs": lights.astype(np.float64), "normals": nrm, "mask": mask,

@@ -62,7 +62,7 @@ def _fresnel32(c, n_i):
     return np.float32(0.5) * a * a * (1 + ((c * gpc - 1) / (c * gmc + 1)) ** 2)
 
 
-def li_shading_terms(normals, lights, sigma, n_i, specular=True):
+def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True):
     """A, B of E = A + B κ for unit normals and light directions, camera frame, view +z.
 
     normals : (N, 3) float unit vectors (camera frame, z towards the camera).
@@ -70,6 +70,8 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True):
     sigma : Beckmann roughness (RMS slope) ≥ 0; below 1e-9 the lobe is a Dirac: A = 0.
     n_i : relative index in [1, 10]; 1 means no interface (A = 0, B the rough-Lambert term).
     specular : False gives A = 0 (the volume part only).
+    volume : False skips the volume part and returns B = None (the specular lobe only, the cheap
+        part: it is evaluated on the pairs near the lobe alone).
     Returns (A, B), each (N, m) float32, 0 where n·s ≤ 0 or n·v ≤ 0 (attached shadow,
     back-facing). Units: E is the image value over the light's intensity; a Lambertian
     surface of reflectance ρ has A = 0, B κ = (ρ/π) n·s.
@@ -96,6 +98,12 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True):
     cs_c = np.clip(cs, 0, 1)
     co_c = np.clip(co, 0, 1)
     sig_v = max(sigma, 1e-6)
+    if not volume:
+        B = None
+        A = np.zeros(cs.shape, np.float32)
+        if specular and sigma >= SIGMA_FLAT and n_i != 1.0:
+            _specular_into(A, cs, cs_c, co_c, sv, lit, sigma, n_i)
+        return A, None
     # volume part, eq 3.49-3.57 (as facette.brdf.volume_integral_approx)
     sin_s = np.sqrt(np.maximum(1 - cs_c * cs_c, 0))
     sin_o = np.sqrt(np.maximum(1 - co_c * co_c, 0))
@@ -114,15 +122,22 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True):
     B = np.where(lit, cs_c * vol, np.float32(0)).astype(np.float32)
     if not specular or sigma < SIGMA_FLAT or n_i == 1.0:
         return np.zeros_like(B), B
+    A = np.zeros_like(B)
+    _specular_into(A, cs, cs_c, co_c, sv, lit, sigma, n_i)
+    return A, B
+
+
+def _specular_into(A, cs, cs_c, co_c, sv, lit, sigma, n_i):
+    """Write the lobe (N, m) into A where it is not negligible; co_c (N, 1) = clipped n·v."""
+    co = co_c
     # specular part, eq 3.10: F(s·h) D(h) G1(s) G1(v) / (4 (n·s)(n·v)), times n·s; evaluated
     # only where D is above 1e-7 of its peak (tan² θ_h < 16 σ²): a few % of the pairs when glossy
     sh = np.sqrt(np.maximum((1 + sv) / 2, 1e-12))                      # s·h = v·h, cos of the half angle
     ch = np.clip((cs + co) / (2 * sh), 0, 1)                           # n·h
     ch2 = ch * ch
     near = lit & (1 - ch2 < np.float32(16 * sigma * sigma) * ch2)
-    A = np.zeros_like(B)
     if not near.any():
-        return A, B
+        return
     rows, cols = np.nonzero(near)
     chn = ch2[rows, cols]
     shn = sh[0, cols] if sh.shape[0] == 1 else sh[rows, cols]
@@ -134,4 +149,3 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True):
     d = np.where(np.isfinite(d), d, np.float32(0))
     g = _smith_g1_beckmann(csn, sigma) * _smith_g1_beckmann(con, sigma)
     A[rows, cols] = fres * d * g / (4 * con)
-    return A, B

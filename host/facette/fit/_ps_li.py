@@ -32,7 +32,8 @@ from scipy.optimize import least_squares
 
 from facette.brdf import li_kd_from_kappa, li_shading_terms
 from facette.recon import PS_METHODS, PSResult, photometric_stereo, refine_normals_li
-from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _usable
+from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _run_blocks, _usable
+from facette.recon._ps_brdf import RefineResult
 
 __all__ = ["ps_li_alternating", "fit_li_per_pixel_kd", "LI_FIT_BOUNDS"]
 
@@ -40,6 +41,7 @@ LI_FIT_BOUNDS = ((1e-3, 1.0), (1.0, 2.5))   # σ, n_i (σ ≤ 1: beyond it no lo
 LAMBERTIAN_N_I = 1.02      # a fitted n_i below this: no interface, the BRDF step is skipped
 LOBE_TAN = 2.5             # a light is inside the lobe when tan θ_h < LOBE_TAN σ (D > 0.2 % of its peak)
 _STARTS = ((0.1, 1.3), (0.3, 1.5), (0.04, 1.2))
+_BLOCK = 32768             # pixels per block of the per-pixel solve
 
 
 def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_nfev=40):
@@ -257,13 +259,24 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
 
     def refine(sel, sigma, n_i, first_round=True):
         # first round: the current normal and the highlight start; later rounds start from the
-        # previous round's normals, already near, so one start and fewer steps do
-        if first_round:
-            return refine_normals_li(gather(sel), lights_of(sel), nrm[sel], sigma, n_i, usable=all_ok[sel],
-                                     iterations=iterations, extra_starts=[hl_start[sel]],
-                                     extra_rows=has_highlight[sel])
-        return refine_normals_li(gather(sel), lights_of(sel), nrm[sel], sigma, n_i, usable=all_ok[sel],
-                                 iterations=max(2, iterations // 2))
+        # previous round's normals, already near, so one start and fewer steps do. Pixel blocks
+        # on WORKERS threads (numpy releases the GIL in its loops).
+        out = {}
+
+        def block(a):
+            sub = sel[a:a + _BLOCK]
+            if first_round:
+                out[a] = refine_normals_li(gather(sub), lights_of(sub), nrm[sub], sigma, n_i,
+                                           usable=all_ok[sub], iterations=iterations,
+                                           extra_starts=[hl_start[sub]], extra_rows=has_highlight[sub])
+            else:
+                out[a] = refine_normals_li(gather(sub), lights_of(sub), nrm[sub], sigma, n_i,
+                                           usable=all_ok[sub], iterations=max(2, iterations // 2))
+
+        _run_blocks(block, range(0, sel.size, _BLOCK))
+        parts = [out[a] for a in sorted(out)]
+        return RefineResult(**{k: np.concatenate([getattr(p, k) for p in parts])
+                               for k in ("normals", "kd", "used", "rel_residual")})
 
     for region in range(int(labels.max()) + 1):
         t_reg = time.perf_counter()
@@ -305,9 +318,11 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                 mat.update(brdf_step=False, note=f"n_i = {fit['n_i']:.3f} ≈ 1: Lambertian-like, BRDF "
                            "step skipped, initial normals kept")
                 break
-            lam_ok = (resid0[pix] < t_residual) & all_ok[pix].all(1) & \
-                ~_in_lobe(nrm0[pix], lights_of(pix), fit["sigma"])
-            todo = pix[~lam_ok]
+            lobe = _in_lobe(nrm0[pix], lights_of(pix), fit["sigma"]) | has_highlight[pix]
+            lam_ok = (resid0[pix] < t_residual) & all_ok[pix].all(1) & ~lobe
+            # the BRDF-aware step where the lobe matters; the rest keeps the initial solution
+            # (its shadow test) unless least squares already explained it (corrected below)
+            todo = pix[~lam_ok & lobe]
             lam_pix = pix[lam_ok]
             if lam_pix.size:
                 nrm[lam_pix] = _lambertian_correction(nrm_ls[lam_pix], lights_of(lam_pix), fit["sigma"], fit["n_i"])
@@ -322,10 +337,11 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                 rel[todo] = rr.rel_residual
                 shadow_new[todo] = all_ok[todo] & ~rr.used
             sc = np.full(pix.size, np.inf, np.float32)     # Lambertian-level pixels: not for the fit
-            sc[~lam_ok] = rel[todo]
+            sc[~lam_ok & lobe] = rel[todo]
             score = sc
             med = float(np.median(change)) if change.size else 0.0
             round_info.update(pixels_refined=int(todo.size), pixels_lambertian=int(lam_ok.sum()),
+                              pixels_initial_kept=int((~lam_ok & ~lobe).sum()),
                               median_change_deg=med,
                               mean_change_deg=float(change.mean()) if change.size else 0.0,
                               seconds=time.perf_counter() - t_r)

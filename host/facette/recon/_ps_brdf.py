@@ -105,7 +105,8 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
     sigma, n_i : the material's LI parameters (Beckmann σ ≥ 0, n_i in [1, 10]).
     usable : (N, m) bool, values allowed in the fit (default: finite values); saturated values
         should be False here.
-    iterations : Levenberg–Marquardt steps (each: 3 model evaluations over the N pixels).
+    iterations : Levenberg–Marquardt steps (each: one model evaluation over the N pixels and two of
+        the specular lobe alone).
     kappa : optional (N, C) starting κ (default: solved at the start).
     Returns a `RefineResult`. A pixel with fewer than 3 kept values (black is fine: 0 values are
     kept; saturated, missing or shadowed ones are not) keeps its starting normal, K_d from the
@@ -178,10 +179,17 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
         r0 = (ei - pred0) * kwi[..., None]
         # IRLS weights of the Cauchy loss: ρ'(r)/r ∝ 1 / (1 + (r/c)²)
         wr = kwi[..., None] / (1 + (r0 / scale[idx]) ** 2)
+        # Jacobian: the lobe A by forward differences (it varies fast, and is cheap: only the pairs
+        # near the lobe are evaluated); the volume part B = (n·s) I with I taken as locally
+        # constant, dB/dt ≈ (B / n·s)(s·t). The cost and κ are always evaluated exactly, so this
+        # changes the path, not the minimum.
+        cs_i = ni @ si.T if si.ndim == 2 else np.einsum("nj,nmj->nm", ni, si)
+        b_over = np.where(cs_i > 1e-4, b[idx] / np.maximum(cs_i, 1e-4), 0)
         jac = []
         for t in (t1, t2):
-            au, bu = li_shading_terms(_unit(ni + STEP_FD * t), si, sigma, n_i)
-            jac.append(((au - a[idx])[..., None] + (bu - b[idx])[..., None] * ki[:, None, :]) / STEP_FD)
+            au, _ = li_shading_terms(_unit(ni + STEP_FD * t), si, sigma, n_i, volume=False)
+            st = t @ si.T if si.ndim == 2 else np.einsum("nj,nmj->nm", t, si)
+            jac.append(((au - a[idx]) / STEP_FD)[..., None] + (b_over * st)[..., None] * ki[:, None, :])
         evals += 2
         ju, jv = jac
         huu = np.sum(wr * ju * ju, axis=(1, 2))

@@ -1,0 +1,65 @@
+"""ps_li_alternating (BRDF-aware photometric stereo) on scenes from an independent renderer
+(Mitsuba 3, small and few samples per pixel), and its edges."""
+import numpy as np
+import pytest
+from scipy.ndimage import binary_erosion
+
+from facette.bench._mitsuba_scenes import render_scene
+from facette.fit import fit_li_per_pixel_kd, ps_li_alternating
+from facette.recon import photometric_stereo
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("mitsuba")
+
+
+def _err(n, truth, mask):
+    return np.degrees(np.arccos(np.clip(np.sum(n * truth, -1), -1, 1)))[mask]
+
+
+def test_glossy_sphere_beats_least_squares_by_a_clear_margin(cache):
+    d = render_scene("sphere", "paint_0.10", size=64, spp=16, cache_dir=cache)
+    sel = binary_erosion(d["mask"])
+    ls = photometric_stereo(d["images"], d["light_dirs"], method="woodham1980", mask=d["mask"])
+    r = photometric_stereo(d["images"], d["light_dirs"], method="li_alternating", mask=d["mask"])
+    e_ls, e_li = _err(ls.normal, d["normals"], sel).mean(), _err(r.normal, d["normals"], sel).mean()
+    assert e_li < 0.5 * e_ls, (e_li, e_ls)
+    last = r.info["rounds"][-1]
+    assert abs(last["sigma"] - 0.10) < 0.03 and abs(last["n_i"] - 1.30) < 0.06
+    # albedo is K_d, a reflectance: the renderer's diffuse_reflectance
+    np.testing.assert_allclose(np.median(r.albedo[sel], axis=0), d["params"]["kd"], rtol=0.08)
+    lv = r.info["levels"]
+    assert lv["lambertian"]["pixels"] + lv["brdf_aware"]["pixels"] == int(r.valid.sum())
+    assert all("median_change_deg" in q for q in r.info["rounds"])
+
+
+def test_matte_material_skips_the_brdf_step(cache):
+    d = render_scene("sphere", "plaster", size=48, spp=8, cache_dir=cache)
+    r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"])
+    h = photometric_stereo(d["images"], d["light_dirs"], method="hierarchical", mask=d["mask"])
+    mat = r.info["materials"][0]
+    assert mat["brdf_step"] is False and "Lambertian" in mat["note"]
+    np.testing.assert_allclose(r.normal, h.normal)
+    assert r.info["levels"]["brdf_aware"]["pixels"] == 0
+
+
+def test_fit_with_true_normals_per_pixel_kd(cache):
+    d = render_scene("sphere", "paint_0.10", size=64, spp=16, textured=True, cache_dir=cache)
+    sel = binary_erosion(d["mask"]) & (d["normals"][..., 2] > 0.3)
+    e = np.transpose(d["images"][:, sel], (1, 0, 2))
+    f = fit_li_per_pixel_kd(e, d["light_dirs"], d["normals"][sel], np.ones(e.shape[:2], bool))
+    assert abs(f["sigma"] - 0.10) < 0.02 and abs(f["n_i"] - 1.30) < 0.04
+    ratio = f["kd"] / d["kd"][sel]
+    assert np.median(np.abs(ratio - 1)) < 0.05          # K_d per pixel follows the texture
+
+
+def test_arguments_and_degenerate_inputs():
+    L = np.array([[np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)]
+                  for t, p in [(0.5, 0), (0.5, 2), (0.5, 4), (0.3, 1), (0.3, 3), (0.3, 5)]])
+    with pytest.raises(ValueError, match="rounds"):
+        ps_li_alternating(np.ones((6, 4, 4)), L, rounds=0)
+    black = ps_li_alternating(np.zeros((6, 8, 8, 3)), L)       # nothing lit: no valid pixel, no crash
+    assert not black.valid.any() and np.all(np.isfinite(black.normal))
+    f = fit_li_per_pixel_kd(np.zeros((3, 6, 3)), L, np.tile([0, 0, 1.0], (3, 1)), np.zeros((3, 6), bool))
+    assert f["success"] is False and "no usable" in f["message"]
