@@ -62,8 +62,9 @@ def _images_and_dirs(d):
 def run_ps(d, method):
     from facette.recon import photometric_stereo
     im, L = _images_and_dirs(d)
+    extra = {"materials": "auto"} if d["params"].get("two_materials") else {}
     t = time.perf_counter()
-    r = photometric_stereo(im, L, method=method, mask=d["mask"])
+    r = photometric_stereo(im, L, method=method, mask=d["mask"], **(extra if method == "li_alternating" else {}))
     return r, time.perf_counter() - t
 
 
@@ -81,6 +82,21 @@ def whole_pipeline(d, method, workdir):
     return res, time.perf_counter() - t
 
 
+def two_materials(args):
+    """The relief, its left half in the glossy paint (reddish K_d), its right half in satin (bluish
+    K_d): one (σ, n_i) per region is what photometric stereo has to find (materials="auto")."""
+    a = render_scene("relief", "paint_0.05", size=args.size, spp=args.spp, kd=(0.7, 0.3, 0.2), cache_dir=args.cache)
+    b = render_scene("relief", "satin", size=args.size, spp=args.spp, kd=(0.3, 0.5, 0.7), cache_dir=args.cache)
+    half = args.size // 2
+    d = dict(a)
+    d["images"] = a["images"].copy()
+    d["images"][:, :, half:] = b["images"][:, :, half:]
+    d["kd"] = a["kd"].copy()
+    d["kd"][:, half:] = b["kd"][:, half:]
+    d["params"] = {**a["params"], "two_materials": True}
+    return d
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="facette bench mitsuba", description=__doc__.splitlines()[0])
     ap.add_argument("--cache", default="out/mitsuba-cache", help="folder for the cached renders")
@@ -93,10 +109,13 @@ def main(argv=None):
           f"(cached in {args.cache}); error on the mask eroded by 1 px")
     print(f"{'scene':34s} {'method':26s} {'mean°':>6s} {'median°':>7s} {'p95°':>6s} {'s':>6s}  BRDF-aware rounds")
     normals = {}
-    for shape, mat, tex, near in scenes:
+    for shape, mat, tex, near in scenes + ([] if args.quick else [("relief", "two_materials", False, None)]):
         t = time.perf_counter()
-        d = render_scene(shape, mat, size=args.size, spp=args.spp, textured=tex, near_distance=near,
-                         cache_dir=args.cache)
+        if mat == "two_materials":
+            d = two_materials(args)
+        else:
+            d = render_scene(shape, mat, size=args.size, spp=args.spp, textured=tex, near_distance=near,
+                             cache_dir=args.cache)
         label = f"{shape}/{mat}{' textured' if tex else ''}{f' near {near:g}' if near else ''}"
         if time.perf_counter() - t > 1:
             print(f"  (rendered {label} in {time.perf_counter() - t:.0f} s)")
@@ -109,6 +128,10 @@ def main(argv=None):
             extra = ""
             if method == "li_alternating":
                 rounds = r.info.get("rounds", [])
+                if len(r.info.get("materials", [])) > 1:
+                    extra = "materials: " + ", ".join(
+                        f"(σ {q['sigma']:.3f}, n_i {q['n_i']:.3f}, {q['pixels']} px)" for q in r.info["materials"]) + " "
+                    rounds = []
                 extra = " ".join(f"[σ {q['sigma']:.3f} n_i {q['n_i']:.3f} Δ{q['median_change_deg']:.2f}°]"
                                  for q in rounds)
                 kd_true = d["kd"][sel]

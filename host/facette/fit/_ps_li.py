@@ -359,8 +359,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
             kd[keep] = np.clip(alb[keep], 0, 1)
         t_brdf += time.perf_counter() - t_reg
         mats.append(mat)
-    # regions whose fits agree are one material (reported merged)
-    info["materials"] = mats
+    info["materials"] = _merge_agreeing(mats)
     _scatter_rows(res.normal, idx, nrm)
     _scatter_rows(res.albedo, idx, kd)
     _scatter_rows(res.shadow, idx, shadow_new)
@@ -377,6 +376,29 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     }
     info["seconds"] = time.perf_counter() - t_start
     return res
+
+
+def _merge_agreeing(mats):
+    """Regions whose fitted (σ, n_i) agree (|Δσ| < 15 %, |Δn_i| < 0.03) are one material: one
+    entry with the summed pixel counts and the pixel-weighted parameters."""
+    out = []
+    for mat in mats:
+        for other in out:
+            if (mat.get("sigma") is not None and other.get("sigma") is not None
+                    and mat["brdf_step"] == other["brdf_step"]
+                    and abs(mat["sigma"] - other["sigma"]) < 0.15 * max(other["sigma"], 1e-3)
+                    and abs(mat["n_i"] - other["n_i"]) < 0.03):
+                n1, n2 = other["pixels"], mat["pixels"]
+                for k in ("sigma", "n_i"):
+                    other[k] = (other[k] * n1 + mat[k] * n2) / (n1 + n2)
+                other["pixels"] = n1 + n2
+                other["pixels_refined"] += mat["pixels_refined"]
+                other["seconds"] += mat["seconds"]
+                other["regions"] = other.get("regions", [other["region"]]) + [mat["region"]]
+                break
+        else:
+            out.append(dict(mat))
+    return out
 
 
 def _scatter_rows(arr, idx, values):

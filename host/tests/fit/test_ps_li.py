@@ -63,3 +63,22 @@ def test_arguments_and_degenerate_inputs():
     assert not black.valid.any() and np.all(np.isfinite(black.normal))
     f = fit_li_per_pixel_kd(np.zeros((3, 6, 3)), L, np.tile([0, 0, 1.0], (3, 1)), np.zeros((3, 6), bool))
     assert f["success"] is False and "no usable" in f["message"]
+
+
+def test_stability_black_saturated_shadowed_and_single_light_pixels(cache):
+    d = render_scene("sphere", "paint_0.10", size=48, spp=8, cache_dir=cache)
+    im = d["images"].copy()
+    c = 24
+    im[:, c, c - 4:c - 2] = 0                       # black under every light (shadowed everywhere)
+    im[:, c, c:c + 2] = 10.0                        # saturated under every light
+    im[1:, c + 2, c:c + 2] = np.nan                 # a single light left
+    im[3:5, c - 2, c:c + 2] = 10.0                  # two saturated lights: still solvable
+    r = ps_li_alternating(im, d["light_dirs"], mask=d["mask"], saturation=5.0)
+    for name in ("normal", "albedo", "residual"):
+        assert np.all(np.isfinite(getattr(r, name))), name
+    assert not r.valid[c, c - 4:c - 2].any() and not r.valid[c, c:c + 2].any()
+    assert not r.valid[c + 2, c:c + 2].any()        # too few lights: marked not valid, normal 0
+    assert np.all(r.normal[c + 2, c:c + 2] == 0)
+    assert r.valid[c - 2, c:c + 2].all()
+    err = np.degrees(np.arccos(np.clip(np.sum(r.normal[c - 2, c:c + 2] * d["normals"][c - 2, c:c + 2], -1), -1, 1)))
+    assert np.all(err < 5)
