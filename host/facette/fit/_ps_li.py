@@ -12,7 +12,7 @@ to `facette.recon.photometric_stereo(method="li_alternating")` through the metho
    E = A + B κ is linear in κ, facette.brdf.li_shading_terms), robust loss (soft-L1 on the
    relative residual): `fit_li_per_pixel_kd`.
 3. Re-estimate each pixel's normal and K_d against the fitted model, all lights, robust
-   (facette.recon.refine_normals_li). Pixels the Lambertian model already explains (least-squares
+   (facette.fit.refine_normals_li). Pixels the Lambertian model already explains (least-squares
    relative residual below t_residual, every light usable, no light inside the fitted specular
    lobe) skip this step; a material whose fit finds n_i → 1 (no interface: Lambertian-like)
    skips it entirely.
@@ -31,9 +31,9 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from facette.brdf import li_kd_from_kappa, li_shading_terms
-from facette.recon import PS_METHODS, PSResult, photometric_stereo, refine_normals_li
+from facette.recon import PS_METHODS, PSResult, photometric_stereo
 from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _run_blocks, _usable
-from facette.recon._ps_brdf import RefineResult
+from ._normals_li import RefineResult, refine_normals_li
 
 __all__ = ["ps_li_alternating", "fit_li_per_pixel_kd", "LI_FIT_BOUNDS"]
 

@@ -10,7 +10,6 @@ Relighting functions for RTI (PTM, Malzbender 2001; hemispherical harmonics, Gau
 from ._ps import (PSResult, ps_woodham1980, ps_hierarchical_tautzia2016, photometric_stereo,
                   PS_METHODS, triplet_inverses, near_light_directions)
 from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed      # registers both in PS_METHODS
-from ._ps_brdf import RefineResult, refine_normals_li
 from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
                          integrate_simchony1990, integrate_least_squares, integrate,
                          INTEGRATION_METHODS, mesh_from_height)
@@ -19,7 +18,7 @@ from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, 
 
 __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
            "ps_rank_trimmed", "photometric_stereo",
-           "PS_METHODS", "triplet_inverses", "near_light_directions", "RefineResult", "refine_normals_li",
+           "PS_METHODS", "triplet_inverses", "near_light_directions",
            "normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
            "integrate_least_squares", "integrate", "INTEGRATION_METHODS", "mesh_from_height",
            "ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh", "relight_ptm",

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from facette.brdf import li_kappa, li_shading_terms
-from facette.recon import refine_normals_li
+from facette.fit import refine_normals_li
 
 RIG = np.array([[np.sin(np.radians(t)) * np.cos(np.radians(p)), np.sin(np.radians(t)) * np.sin(np.radians(p)),
                  np.cos(np.radians(t))] for k in range(6) for t, p in ((30, 60 * k), (15, 30 + 60 * k))])
