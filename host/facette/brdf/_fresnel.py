@@ -33,6 +33,7 @@ def fresnel_dielectric(c, n_i):
     Returns
     -------
     ndarray like c, in [0, 1]: 0 for n_i = 1, 1 at grazing incidence (c = 0) when n_i > 1.
+    float32 input stays float32 (the per-pixel photometric-stereo terms); anything else is float64.
 
     Notes
     -----
@@ -40,18 +41,19 @@ def fresnel_dielectric(c, n_i):
     textbook form subtracts two nearly equal numbers.
     """
     n = check_n_i(n_i)
-    c = np.abs(np.asarray(c, dtype=float))
-    c = np.minimum(c, 1.0)
-    eta = (n - 1.0) * (n + 1.0)  # n² − 1 without cancellation
+    c = np.asarray(c)
+    c = np.abs(c if c.dtype == np.float32 else c.astype(float))
+    c = np.minimum(c, c.dtype.type(1))
+    eta = c.dtype.type((n - 1.0) * (n + 1.0))  # n² − 1 without cancellation
     if eta == 0.0:
         return np.zeros_like(c)
     g = np.sqrt(eta + c * c)
     gpc = g + c
     gmc = eta / gpc
     a = gmc / gpc
-    num = c * gpc - 1.0
-    den = c * gmc + 1.0
-    return 0.5 * a * a * (1.0 + (num / den) ** 2)
+    num = c * gpc - 1
+    den = c * gmc + 1
+    return c.dtype.type(0.5) * a * a * (1 + (num / den) ** 2)
 
 
 def _r_e_integral(n):

@@ -50,18 +50,6 @@ def _smith_g1_beckmann(c, sigma):
     return np.where(c <= 0, np.float32(0), np.where(sin > 0, g, np.float32(1))).astype(np.float32)
 
 
-def _fresnel32(c, n_i):
-    """`fresnel_dielectric` (eq 3.7-3.9) in float32, c in [0, 1] (the same cancellation-free form)."""
-    eta = np.float32((n_i - 1.0) * (n_i + 1.0))
-    if eta == 0:
-        return np.zeros_like(c)
-    g = np.sqrt(eta + c * c)
-    gpc = g + c
-    gmc = eta / gpc
-    a = gmc / gpc
-    return np.float32(0.5) * a * a * (1 + ((c * gpc - 1) / (c * gmc + 1)) ** 2)
-
-
 def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True):
     """A, B of E = A + B κ for unit normals and light directions, camera frame, view +z.
 
@@ -114,8 +102,8 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True):
     ts, to = np.arccos(cs_c), np.arccos(co_c)
     r_e = r_e_molenaar1999(n_i)
     a, b, c = (np.float32(x) for x in approx_coefficients(sig_v, n_i, "beckmann"))
-    t_s = a * (1 - _fresnel32(cs_c, n_i)) + b * np.float32(1 - r_e)
-    t_o = a * (1 - fresnel_dielectric(co_c, n_i).astype(np.float32)) + b * np.float32(1 - r_e)
+    t_s = a * (1 - fresnel_dielectric(cs_c, n_i)) + b * np.float32(1 - r_e)
+    t_o = a * (1 - fresnel_dielectric(co_c, n_i)) + b * np.float32(1 - r_e)
     fpa = np.float32(r_e) * (1 - cs_c) ** 2 * (1 - co_c) ** 2 * np.minimum(0, cphi)
     bracket = rough_lambert_terms(ts, to, cphi, np.float32(sig_v), "beckmann")
     vol = np.maximum(t_s * t_o * (1 + np.maximum(-1, c * fpa)) * bracket, 0)
@@ -142,7 +130,7 @@ def _specular_into(A, cs, cs_c, co_c, sv, lit, sigma, n_i):
     chn = ch2[rows, cols]
     shn = sh[0, cols] if sh.shape[0] == 1 else sh[rows, cols]
     csn, con = cs_c[rows, cols], co_c[rows, 0]
-    fres = _fresnel32(shn, n_i)
+    fres = fresnel_dielectric(shn, n_i)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         tan2 = (1 - chn) / chn
         d = np.exp(-tan2 / np.float32(sigma * sigma)) / (np.float32(np.pi * sigma * sigma) * chn * chn)
