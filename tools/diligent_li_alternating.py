@@ -37,6 +37,8 @@ def main():
     ap.add_argument("--root", default=str(here.parent / "shared" / "data" / "diligent_crop8"))
     ap.add_argument("--lights", default="all", choices=("all", "12"))
     ap.add_argument("--methods", default=",".join(METHODS))
+    ap.add_argument("--init", default="hierarchical_tautzia2016",
+                    help="initial normals of li_alternating (any registered method, e.g. rpca_wu2010)")
     args = ap.parse_args()
     root = Path(args.root)
     if not root.is_dir():
@@ -58,7 +60,8 @@ def main():
         cells = []
         for m in methods:
             t = time.perf_counter()
-            r = photometric_stereo(images, dirs, method=m, mask=d.mask)
+            extra = {"init": args.init} if m == "li_alternating" else {}
+            r = photometric_stereo(images, dirs, method=m, mask=d.mask, **extra)
             dt = time.perf_counter() - t
             err = np.degrees(np.arccos(np.clip(np.sum(r.normal * truth, -1), -1, 1)))[sel]
             means[m].append(err.mean())

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+import facette.fit  # noqa: F401  (registers the BRDF-aware li_alternating, for --methods)
 from facette.io.diligent import is_diligent_dir, read_diligent
 from facette.recon import PS_METHODS, photometric_stereo
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
