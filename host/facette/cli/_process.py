@@ -19,6 +19,10 @@ def register(sub):
                    choices=list(PS_METHODS),
                    help="photometric stereo (li_alternating: BRDF-aware, the LI model fitted and the "
                         "normals re-estimated against it in alternation)")
+    p.add_argument("--init", default="hierarchical_tautzia2016",
+                   choices=[m for m in PS_METHODS if m != "li_alternating"],
+                   help="initial normals of --method li_alternating (rpca_wu2010 is better on "
+                        "photographs of shiny objects, the hierarchy on matte ones)")
     p.add_argument("--integration", default="frankot_chellappa1988",
                    choices=["frankot_chellappa1988", "simchony1990", "least_squares"])
     p.add_argument("--t-ombre", type=float, default=T_OMBRE, help="shadow angle threshold, rad (1.5)")
@@ -52,7 +56,8 @@ def run(args):
                       mask=args.mask, pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light,
                       mesh_step=args.mesh_step, ascii_ply=args.ascii_ply,
                       fit_options={"model": args.brdf_model, "method": args.fit_method},
-                      hsh_order=args.hsh_order)
+                      hsh_order=args.hsh_order,
+                      ps_options={"init": args.init} if args.method == "li_alternating" else None)
     except (ValueError, FileNotFoundError, TypeError) as exc:
         print(f"facette process: {exc}", file=sys.stderr)
         return 2

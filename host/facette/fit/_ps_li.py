@@ -201,6 +201,9 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     m, h, w, c = images.shape
     if rounds < 1:
         raise ValueError(f"rounds = {rounds}: give at least 1 fit / re-estimate round")
+    if PS_METHODS.canonical(init) == "li_alternating":
+        raise ValueError("init = 'li_alternating': the initial normals must come from another method "
+                         "(hierarchical_tautzia2016, woodham1980, rpca_wu2010, ...)")
     opts = dict(init_options or {})
     base = photometric_stereo(images, light_dirs, method=init, mask=mask, channel=channel,
                               saturation=saturation, **opts)
