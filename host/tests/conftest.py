@@ -24,3 +24,14 @@ def khronos_validate():
         assert run.returncode in (0, 1), run.stderr
         return json.loads(run.stdout)
     return validate
+
+
+@pytest.fixture(scope="module")
+def sim_device():
+    """The real firmware core over a pty (build/posix/facette-device, no rig simulator), one per
+    test module: ``.port`` is what a DeviceClient or `facette device --port` opens."""
+    from facette.sim.device_process import SimulatedDevice
+
+    dev = SimulatedDevice(speed=50, side=False)
+    yield dev
+    dev.close()

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from facette.camera.sensor import SENSOR_KEYS
+from facette.errors import BadInputError
 from facette.io.checksum import sha256_file
 from facette.io.exr import read_exr, write_exr
 
@@ -44,7 +45,7 @@ SCHEMA_VERSION = 1
 PROFILE_FILE = "profile.json"
 
 
-class ProfileError(ValueError):
+class ProfileError(BadInputError):
     """A profile file is missing, malformed, or does not match its checksum."""
 
 
@@ -140,9 +141,13 @@ class Lights:
             raise ProfileError("light directions must be finite unit vectors; "
                                f"norms are {np.round(norms, 6).tolist()}")
         self.intensities = np.asarray(self.intensities, dtype=np.float64)
-        if self.intensities.shape != (m, 3) or not np.all(self.intensities > 0):
-            raise ProfileError(f"light intensities must be positive, shape ({m}, 3); "
+        if self.intensities.shape != (m, 3):
+            raise ProfileError(f"light intensities must have shape ({m}, 3) for {m} lights; "
                                f"got shape {self.intensities.shape}")
+        if not np.all(self.intensities > 0):
+            bad = sorted({int(i) for i in np.argwhere(~(self.intensities > 0))[:, 0]})
+            raise ProfileError(f"light intensities must be positive; light(s) {bad} have "
+                               f"{self.intensities[bad[0]].tolist()}")
         if self.positions_mm is not None:
             self.positions_mm = np.asarray(self.positions_mm, dtype=np.float64)
             if self.positions_mm.shape != (m, 3):
@@ -301,6 +306,10 @@ def load(path):
     if data.get("checksum") != _checksum(data):
         raise ProfileError(f"{file} does not match its checksum: it was edited or damaged; "
                            "recalibrate, or restore the previous profile beside it")
+    missing = [k for k in ("rig", "id", "created", "lights") if k not in data]
+    if missing:
+        raise ProfileError(f"{file} lacks {', '.join(missing)}: it is not a complete profile; "
+                           "recalibrate, or restore the previous profile beside it")
     try:
         lights = data["lights"]
         positions = [l["position_mm"] for l in lights]
@@ -308,7 +317,9 @@ def load(path):
                     intensities=[l["intensity"] for l in lights],
                     positions_mm=None if any(p is None for p in positions) else positions)
     except (KeyError, TypeError) as exc:
-        raise ProfileError(f"{file}: malformed lights section ({exc!r})") from exc
+        raise ProfileError(f"{file}: malformed lights section (no {exc} in a light)") from exc
+    except ProfileError as exc:
+        raise ProfileError(f"{file}: {exc}") from exc
     flat = None
     if data.get("flat_field"):
         ff = file.parent / data["flat_field"]["file"]

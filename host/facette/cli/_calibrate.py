@@ -14,10 +14,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-
-def _shape(text):
-    w, _, h = text.lower().partition("x")
-    return int(h), int(w)
+from facette.cli._scan import _positive, _shape
 
 
 def _exposures(text):
@@ -68,7 +65,7 @@ def register(sub):
     sim.add_argument("--sim-raw-size", type=_shape, default=(96, 128), metavar="WxH", help="RAW size (128x96)")
     sim.add_argument("--sim-near", action="store_true", help="LEDs as near point sources at 1.5 m")
     sim.add_argument("--sim-seed", type=int, default=0)
-    sim.add_argument("--sim-speed", type=float, default=2000.0, help="device clock, × real time")
+    sim.add_argument("--sim-speed", type=_positive(float), default=2000.0, help="device clock, × real time")
     sim.add_argument("--sim-target-fault", type=_faults, default={},
                      help="show a target wrongly, e.g. 'spectralon=missing' or 'mirror_sphere=overexposed'")
     return p

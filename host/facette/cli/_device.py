@@ -23,9 +23,84 @@ def register(sub):
     return p
 
 
+def _register(dev, name):
+    """The register called `name`, or a BadInputError listing the closest names."""
+    import difflib
+
+    from facette.errors import BadInputError
+
+    if name in R.REGISTERS:
+        return R.REGISTERS[name]
+    names = sorted(R.REGISTERS)
+    close = difflib.get_close_matches(name, names, n=5, cutoff=0.5) or \
+        [n for n in names if name.lower() in n.lower()][:5]
+    raise BadInputError(f"no register named {name!r}"
+                        + (f"; did you mean {', '.join(close)}?" if close else ""),
+                        hint="facette device --port PORT registers lists them all with their values")
+
+
+def _number(text, what):
+    from facette.errors import BadInputError
+
+    try:
+        return int(text, 0)
+    except ValueError:
+        raise BadInputError(f"{what} {text!r} is not a whole number",
+                            hint="write it in decimal (1000) or hex (0x3e8)") from None
+
+
+def _index(dev, reg, args, at):
+    """The optional INDEX argument at position `at` (checked against the register's count)."""
+    from facette.errors import BadInputError
+
+    if len(args) <= at:
+        return None
+    idx = _number(args[at], f"index of {reg.name}")
+    if reg.count == 1:
+        raise BadInputError(f"{reg.name} is not an array: give no index")
+    if not 0 <= idx < reg.count:
+        raise BadInputError(f"{reg.name} has elements 0..{reg.count - 1}; index {idx} is not one of them")
+    return idx
+
+
+def _check_write(reg, value):
+    from facette.errors import BadInputError
+
+    if reg.space != "holding":
+        raise BadInputError(f"{reg.name} is read-only (a measurement or status the device reports)")
+    try:
+        reg.encode(value)
+    except ValueError as exc:
+        raise BadInputError(str(exc), hint=f"{reg.name} takes {reg.min}..{reg.max}"
+                            + (f" {reg.unit}" if reg.unit else "")) from None
+
+
+def _command(rig, action):
+    """clear / abort, refused in words when the device's state does not allow it."""
+    from facette.errors import BadInputError
+
+    if action == "abort":
+        state = rig.device.state()
+        if state not in ("ARMED", "RUNNING", "PAUSED"):
+            raise BadInputError(f"nothing to abort: the device is {state} (no scan is armed or running)",
+                                exit_code=1)
+        rig.abort()
+    else:
+        rig.clear_faults()
+
+
 def run(args):
     import facette
 
+    if args.action == "read" and not args.args:
+        raise SystemExit("read NAME [INDEX]: say which register (facette device --port PORT registers "
+                         "lists them)")
+    if args.action == "write" and len(args.args) < 2:
+        raise SystemExit("write NAME VALUE [INDEX]")
+    if args.action not in ("read", "write") and args.args:
+        raise SystemExit(f"{args.action} takes no arguments; got {' '.join(args.args)}")
+    if args.action == "write":
+        _number(args.args[1], f"value for {args.args[0]}")   # before the port is opened
     kw = {} if args.port == "sim" else {"check_hash": not args.no_hash_check}
     rig = facette.connect(args.port, **kw)
     try:
@@ -34,14 +109,12 @@ def run(args):
             out = {**rig.identity, "identification": dev.device_identification()}
         elif args.action == "status":
             out = {**rig.status(), **rig.measurements()}
+            out["last_error"] = f"{out['last_error']} ({rig.last_error()})"
         elif args.action == "faults":
             out = rig.faults()
-        elif args.action == "clear":
-            rig.clear_faults()
-            out = rig.faults()
-        elif args.action == "abort":
-            rig.abort()
-            out = rig.status()
+        elif args.action in ("clear", "abort"):
+            _command(rig, args.action)
+            out = rig.faults() if args.action == "clear" else rig.status()
         elif args.action == "gains":
             out = {"gains": rig.gains()}
         elif args.action == "registers":
@@ -49,18 +122,19 @@ def run(args):
             for name, reg in R.REGISTERS.items():
                 out[name] = dev.read_array(name) if reg.count > 1 else dev.read(name)
         elif args.action == "read":
-            if not args.args:
-                raise SystemExit("read NAME [INDEX]")
-            idx = int(args.args[1]) if len(args.args) > 1 else None
-            reg = R.register(args.args[0])
-            out = {args.args[0]: dev.read_array(reg.name) if reg.count > 1 and idx is None
+            reg = _register(dev, args.args[0])
+            idx = _index(dev, reg, args.args, 1)
+            out = {reg.name: dev.read_array(reg.name) if reg.count > 1 and idx is None
                    else dev.read(reg.name, idx)}
         else:  # write
-            if len(args.args) < 2:
-                raise SystemExit("write NAME VALUE [INDEX]")
-            idx = int(args.args[2]) if len(args.args) > 2 else None
-            dev.write(args.args[0], int(args.args[1], 0), idx)
-            out = {args.args[0]: dev.read(args.args[0], idx)}
+            reg = _register(dev, args.args[0])
+            value = _number(args.args[1], f"value for {reg.name}")
+            idx = _index(dev, reg, args.args, 2)
+            if reg.count > 1 and idx is None:
+                raise SystemExit(f"{reg.name} is an array of {reg.count}: write {reg.name} VALUE INDEX")
+            _check_write(reg, value)
+            dev.write(reg.name, value, idx)
+            out = {reg.name: dev.read(reg.name, idx)}
         print(json.dumps(out, indent=1, default=str))
     finally:
         rig.close()

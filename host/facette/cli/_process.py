@@ -1,18 +1,51 @@
 """`facette process DIR -o OUT`: shape, reflectance samples and report from a scan or a
-DiLiGenT-style folder."""
-import sys
+DiLiGenT-style folder.
+
+Exit codes: 0 done, 2 a bad argument or input folder, 3 data that cannot give the result
+asked for (too dark, saturated, an empty mask, too few filled cells for a BRDF fit).
+"""
+import argparse
+import math
+
+
+def _number(kind, lo=None, hi=None, lo_open=False, what="value"):
+    """An argparse type: a `kind` number within [lo, hi] (lo excluded when lo_open)."""
+    def parse(text):
+        try:
+            v = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a {'whole ' if kind is int else ''}number") from None
+        if not math.isfinite(v) or (lo is not None and (v <= lo if lo_open else v < lo)) \
+                or (hi is not None and v > hi):
+            rng = f"{'>' if lo_open else '>='} {lo:g}" if hi is None else \
+                f"in {'(' if lo_open else '['}{lo:g}, {hi:g}]"
+            raise argparse.ArgumentTypeError(f"{what} must be {rng}, got {text}")
+        return v
+    return parse
+
+
+def _outputs(text):
+    from facette.pipeline import OUTPUTS
+
+    out = [o.strip() for o in text.split(",") if o.strip()]
+    bad = [o for o in out if o not in OUTPUTS]
+    if bad or not out:
+        raise argparse.ArgumentTypeError(f"unknown output(s) {', '.join(bad) or '(none given)'}; "
+                                         f"choose from {','.join(OUTPUTS)}")
+    return out
 
 
 def register(sub):
     from facette.pipeline import OUTPUTS
     from facette.recon import PS_METHODS
     from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
+    from facette.fit import METHODS, MODEL_NAMES
     from facette.reflect import THETA0_DEG
     p = sub.add_parser("process", help="process a scan or a DiLiGenT-style folder",
                        description=__doc__.splitlines()[0])
     p.add_argument("source", help="scan directory (scan.json, hdr/) or DiLiGenT-style folder")
     p.add_argument("-o", "--out", required=True, help="output directory (created)")
-    p.add_argument("--outputs", default=",".join(OUTPUTS),
+    p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
                    help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all); only the "
                         "stages they need run")
     p.add_argument("--method", default="hierarchical_tautzia2016",
@@ -25,42 +58,64 @@ def register(sub):
                         "photographs of shiny objects, the hierarchy on matte ones)")
     p.add_argument("--integration", default="frankot_chellappa1988",
                    choices=["frankot_chellappa1988", "simchony1990", "least_squares"])
-    p.add_argument("--t-ombre", type=float, default=T_OMBRE, help="shadow angle threshold, rad (1.5)")
-    p.add_argument("--t-spec", type=float, default=T_SPEC, help="specular variance threshold (0.25)")
-    p.add_argument("--t-source", type=float, default=T_SOURCE,
+    p.add_argument("--t-ombre", type=_number(float, 0, math.pi / 2, True, "--t-ombre"), default=T_OMBRE,
+                   help="shadow angle threshold, rad, in (0, pi/2] (1.5)")
+    p.add_argument("--t-spec", type=_number(float, 0, None, True, "--t-spec"), default=T_SPEC,
+                   help="specular variance threshold (0.25)")
+    p.add_argument("--t-source", type=_number(float, 0, None, True, "--t-source"), default=T_SOURCE,
                    help="max |entry| of a triplet's inverse (10)")
-    p.add_argument("--t-residual", type=float, default=T_RESIDUAL,
+    p.add_argument("--t-residual", type=_number(float, 0, None, False, "--t-residual"), default=T_RESIDUAL,
                    help="LS residual under which a pixel skips the hierarchy (0.03; 0 = never)")
-    p.add_argument("--theta0", type=float, default=THETA0_DEG, help="hemisphere cell size, deg (3)")
+    p.add_argument("--theta0", type=_number(float, 0, 90, True, "--theta0"), default=THETA0_DEG,
+                   help="hemisphere cell size, deg (3)")
     p.add_argument("--mask", help="mask PNG (non-zero = object)")
-    p.add_argument("--pixel-pitch", type=float, help="object-side pixel size in mm (overrides the scan)")
+    p.add_argument("--pixel-pitch", type=_number(float, 0, None, True, "--pixel-pitch"),
+                   help="object-side pixel size in mm, > 0 (overrides the scan)")
     p.add_argument("--far-light", action="store_true",
                    help="ignore light positions: one direction per light for every pixel")
-    p.add_argument("--mesh-step", type=int, help="mesh vertex every N pixels (default: <= ~1e6 vertices)")
+    p.add_argument("--mesh-step", type=_number(int, 1, None, False, "--mesh-step"),
+                   help="mesh vertex every N pixels, >= 1 (default: <= ~1e6 vertices)")
     p.add_argument("--ascii-ply", action="store_true", help="write mesh.ply as ASCII")
-    p.add_argument("--brdf-model", default="li",
-                   help="model fitted for brdf.json: li, cook_torrance, oren_nayar, lambert")
-    p.add_argument("--fit-method", default="least_squares", help="least_squares or genetic")
+    p.add_argument("--brdf-model", default="li", choices=MODEL_NAMES, help="model fitted for brdf.json")
+    p.add_argument("--fit-method", default="least_squares", choices=METHODS, help="fit method")
+    p.add_argument("--allow-incomplete", action="store_true",
+                   help="process a scan that is not complete (every output then says so)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the results of an earlier run with other options in OUT")
     p.add_argument("--hsh-order", type=int, default=3, choices=(2, 3),
                    help="hemispherical-harmonics order of relight.rti (2: 4 terms, 3: 9 terms)")
     return p
 
 
+def _check_out(out):
+    """The output folder: a folder (or absent) under one we can write in, checked before any work."""
+    import os
+    from pathlib import Path
+
+    from facette.errors import BadInputError
+
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise BadInputError(f"-o {out} is a file, not a folder", hint="give a new folder for the results")
+    parent = out if out.is_dir() else next((p for p in out.parents if p.exists()), Path("."))
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise BadInputError(f"cannot write the results to {out}: {parent} is not writable",
+                            hint="choose a folder you can write to (-o)")
+
+
 def run(args):
     from facette.pipeline import process
-    outputs = [o.strip() for o in args.outputs.split(",") if o.strip()]
-    try:
-        res = process(args.source, outputs=outputs, out_dir=args.out, method=args.method,
-                      integration=args.integration, t_ombre=args.t_ombre, t_spec=args.t_spec,
-                      t_source=args.t_source, t_residual=args.t_residual, theta0_deg=args.theta0,
-                      mask=args.mask, pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light,
-                      mesh_step=args.mesh_step, ascii_ply=args.ascii_ply,
-                      fit_options={"model": args.brdf_model, "method": args.fit_method},
-                      hsh_order=args.hsh_order,
-                      ps_options={"init": args.init} if args.method == "li_alternating" else None)
-    except (ValueError, FileNotFoundError, TypeError) as exc:
-        print(f"facette process: {exc}", file=sys.stderr)
-        return 2
+
+    _check_out(args.out)
+    res = process(args.source, outputs=args.outputs, out_dir=args.out, method=args.method,
+                  integration=args.integration, t_ombre=args.t_ombre, t_spec=args.t_spec,
+                  t_source=args.t_source, t_residual=args.t_residual, theta0_deg=args.theta0,
+                  mask=args.mask, pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light,
+                  mesh_step=args.mesh_step, ascii_ply=args.ascii_ply,
+                  fit_options={"model": args.brdf_model, "method": args.fit_method},
+                  hsh_order=args.hsh_order,
+                  ps_options={"init": args.init} if args.method == "li_alternating" else None,
+                  allow_incomplete=args.allow_incomplete, overwrite=args.overwrite)
     h, w = res.normals.shape[:2]
     print(f"{res.inputs.kind} {res.inputs.source}: {len(res.inputs.light_dirs)} lights, {w}x{h} px, "
           f"{int(res.mask.sum())} valid pixels ({res.options['method']})")

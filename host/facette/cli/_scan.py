@@ -14,36 +14,108 @@ from pathlib import Path
 DEFAULT_SIM_PROFILE = "calibration/profiles/sim-default"
 
 
+def _limits(name):
+    """(min, max) of a register in the protocol definition: the hard limits the device enforces."""
+    from facette.device import registers as R
+
+    reg = R.register(name)
+    return reg.min, reg.max
+
+
 def _exposures(text):
     """'adaptive', 'thesis', or '15,10,2,1,1/5,1/15,1/30' seconds (or with 'us' suffix: µs),
     optional '@mA'."""
     if text.strip().lower() in ("adaptive", "thesis"):
         return text.strip().lower()
+    lo_us, hi_us = _limits("exposure_time_us")
+    _, hi_ma = _limits("exposure_current_mA")
     out = []
-    for item in text.split(","):
-        item = item.strip()
-        cur = 0
-        if "@" in item:
-            item, c = item.split("@", 1)
-            cur = int(c)
-        if item.endswith("us"):
-            t = float(item[:-2])
-        else:
-            num, _, den = item.partition("/")
-            t = float(num) / (float(den) if den else 1.0) * 1e6
-        if not t >= 1:
+    items = [i.strip() for i in text.split(",")]
+    if not text.strip() or any(not i for i in items):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a list of exposures: give times in seconds "
+                                         "separated by commas, e.g. '1/5,1/50' or '250us@800'")
+    for item in items:
+        t_text, _, c_text = item.partition("@")
+        try:
+            cur = int(c_text) if c_text else 0
+            if t_text.endswith("us"):
+                t = float(t_text[:-2])
+            else:
+                num, _, den = t_text.partition("/")
+                t = float(num) / (float(den) if den else 1.0) * 1e6
+        except (ValueError, ZeroDivisionError):
+            raise argparse.ArgumentTypeError(
+                f"exposure {item!r} is not a time: write seconds ('2', '1/15'), microseconds "
+                "('250us'), optionally '@mA' for its LED current ('1/5@800')") from None
+        if c_text and not 1 <= cur <= hi_ma:
+            raise argparse.ArgumentTypeError(f"exposure {item!r}: the current after '@' must be "
+                                             f"1..{hi_ma} mA, got {cur}")
+        if not t >= lo_us:
             raise argparse.ArgumentTypeError(f"exposure {item!r} is shorter than 1 µs")
+        if t > hi_us:
+            raise argparse.ArgumentTypeError(f"exposure {item!r} is longer than the device's hard "
+                                             f"limit of {hi_us / 1e6:g} s")
         out.append((int(round(t)), cur))
+    if len(out) > 16:
+        raise argparse.ArgumentTypeError(f"{len(out)} exposures; a scan takes 1..16 per light")
     return out
 
 
-def _ints(text):
-    return [int(v) for v in text.split(",") if v.strip()]
+def _lights(text):
+    """'0,1,2': LED channels in scan order, each once, within the device's channels."""
+    _, hi = _limits("light_order")
+    try:
+        out = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a list of LED channels: give numbers "
+                                         f"separated by commas, e.g. 0,1,2 (0..{hi})") from None
+    if not out:
+        raise argparse.ArgumentTypeError("no LED channel given; e.g. --lights 0,1,2")
+    seen = set()
+    for c in out:
+        if c in seen:
+            raise argparse.ArgumentTypeError(f"light {c} is listed twice in {text!r}: give each LED "
+                                             "channel once (a repeat would overwrite its images)")
+        if not 0 <= c <= hi:
+            raise argparse.ArgumentTypeError(f"LED channel {c} does not exist: channels are 0..{hi}")
+        seen.add(c)
+    return out
+
+
+def _current(text):
+    lo, hi = _limits("light_current_mA")
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--current {text!r} is not a whole number of mA") from None
+    if not lo <= v <= hi:
+        raise argparse.ArgumentTypeError(f"--current {v} mA is outside {lo}..{hi} mA (the device's "
+                                         "hard limit; its own max_current_mA may be lower)")
+    return v
+
+
+def _positive(kind):
+    def parse(text):
+        try:
+            v = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not v > 0:
+            raise argparse.ArgumentTypeError(f"{text!r} must be > 0")
+        return v
+    return parse
 
 
 def _shape(text):
+    """'WxH' (e.g. 128x96) -> (H, W), both at least 8 and even (a Bayer RAW)."""
     w, _, h = text.lower().partition("x")
-    return int(h), int(w)
+    try:
+        w, h = int(w), int(h)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a size: write WxH, e.g. 128x96") from None
+    if w < 8 or h < 8 or w % 2 or h % 2:
+        raise argparse.ArgumentTypeError(f"{text!r}: width and height must be even and at least 8")
+    return h, w
 
 
 def register(sub):
@@ -61,8 +133,8 @@ def register(sub):
                    "40 dB on the object without clipping it), 'thesis' (the thesis's fixed bracket "
                    "15,10,2,1,1/5,1/15,1/30 s) or a list, e.g. '1,1/8,1/30' (s; 'NNNus' for µs; "
                    "'@mA' per exposure)")
-    p.add_argument("--lights", type=_ints, help="LED channels in scan order, e.g. 0,1,2 (default: all)")
-    p.add_argument("--current", type=int, default=500, help="LED current, mA (default 500)")
+    p.add_argument("--lights", type=_lights, help="LED channels in scan order, e.g. 0,1,2 (default: all)")
+    p.add_argument("--current", type=_current, default=500, help="LED current, mA (default 500)")
     p.add_argument("--mode", choices=("camera", "bulb", "led"), default="camera", help="timing mode")
     btn = p.add_mutually_exclusive_group()
     btn.add_argument("--wait-button", action="store_true", help="wait for the rig's button to start")
@@ -76,7 +148,7 @@ def register(sub):
     p.add_argument("--brdf", default="mask", help="simulated material: mask (thesis: Cook-Torrance "
                    "sigma 0.05, n_i 1.2), bust (sigma 0.1, n_i 1.3) or lambert")
     p.add_argument("--faults", default="", help="simulated faults, e.g. 'biterr=1e-3,reset_at_shot=5'")
-    p.add_argument("--speed", type=float, default=2000.0, help="simulated device clock (× real time)")
+    p.add_argument("--speed", type=_positive(float), default=2000.0, help="simulated device clock (× real time)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -87,8 +159,6 @@ def _connect(args):
     if args.sim:
         return facette.connect("sim", scene=args.scene, raw_shape=args.raw_size, near=args.near,
                                brdf=args.brdf, faults=args.faults or None, speed=args.speed)
-    if not args.device:
-        raise SystemExit("say which rig: --sim, or --device PORT (e.g. /dev/ttyACM0, socket://host:5020)")
     from facette.cli._camera_options import real_rig_camera
 
     camera = real_rig_camera(args, Path(args.directory) / ".camera")
@@ -96,30 +166,55 @@ def _connect(args):
 
 
 def _process(scan_dir):
-    """Run whatever processing stages exist; returns the list of what ran."""
-    import importlib.util
+    """Run the processing chain on the scan just taken: (what ran, exit status)."""
+    from facette.cli.main import main as cli_main
 
-    ran = []
-    if importlib.util.find_spec("facette.pipeline") is not None:
-        from facette.cli.main import main as cli_main
-
-        out = Path(scan_dir) / "results"
-        status = cli_main(["process", str(scan_dir), "-o", str(out)])
-        ran.append(f"facette process → {out} (exit {status})")
-    return ran
+    out = Path(scan_dir) / "results"
+    status = cli_main(["process", str(scan_dir), "-o", str(out)])
+    return f"facette process → {out} (exit {status})", status
 
 
-def run(args):
-    from facette.device import DeviceError
-    from facette.scan import ScanError
-    from facette._data import sim_profile_dir
+def _check_directory(path):
+    """The scan directory must be a folder (or not exist yet) under a folder we can write in."""
+    from facette.errors import BadInputError
 
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise BadInputError(f"{path} is a file, not a scan directory",
+                            hint="give a new folder name (or an existing scan directory to resume it)")
+    parent = path if path.is_dir() else next((p for p in path.parents if p.exists()), Path("."))
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise BadInputError(f"cannot write the scan directory {path}: {parent} is not writable",
+                            hint="choose a folder you can write to")
+
+
+def _check_arguments(args):
+    """Everything that can be checked before a rig (or its simulator) is started."""
+    if args.press_button and not args.sim:
+        raise SystemExit("--press-button needs --sim (a real rig's button is pressed by a person: "
+                         "use --wait-button)")
+    if not args.sim and not args.device:
+        raise SystemExit("say which rig: --sim, or --device PORT (e.g. /dev/ttyACM0, socket://host:5020)")
+    _check_directory(args.directory)
     profile = args.profile
     if profile is None and args.sim:
+        from facette._data import sim_profile_dir
+
         for candidate in (Path(DEFAULT_SIM_PROFILE), sim_profile_dir()):
             if candidate.is_dir():
                 profile = str(candidate)
                 break
+    if profile is not None:
+        from facette.calib import load
+
+        profile = load(profile)        # a missing or damaged profile is named here (exit 2)
+    return profile
+
+
+def run(args):
+    from facette.scan import ScanError
+
+    profile = _check_arguments(args)
     t0 = time.perf_counter()
     rig = _connect(args)
     try:
@@ -134,17 +229,15 @@ def run(args):
             print("press the USB button to start the scan", flush=True)
             hid_button.wait_press()
             hid_button.close()
-        if button == "press" and rig.sim is None:
-            raise SystemExit("--press-button needs --sim (a real rig's button is pressed by a person: "
-                             "use --wait-button)")
         try:
             scan = rig.scan(args.directory, profile=profile, exposures=args.exposures, lights=args.lights,
                             light_current_mA=args.current, mode=args.mode, button=button,
                             progress=not args.quiet, merge_hdr=not args.no_process)
-        except (ScanError, DeviceError) as exc:
-            print(f"scan stopped: {exc}", file=sys.stderr)
-            print(f"link: {rig.device.stats}", file=sys.stderr)
-            return 1
+        except ScanError as exc:
+            st = rig.device.stats
+            if st["timeouts"]:
+                exc.hint = f"{exc.hint or ''} (link: {st['requests']} requests, {st['timeouts']} timeouts)"
+            raise
         sim_summary = rig.sim.summary() if rig.sim is not None else None
         link = dict(rig.device.stats)
     finally:
@@ -153,11 +246,14 @@ def run(args):
     m = scan.manifest
     print(f"scan: {len(m['frames'])} frames in {scan.path} "
           f"(rig time {m['rig_time_s']:.1f} s, wall time {t_acq:.1f} s)", flush=True)
+    for line in getattr(scan, "notes", []):
+        print(f"  note: {line}", flush=True)
     if sim_summary and (sim_summary["missed"] or len(sim_summary["boots"]) > 1 or args.faults):
         print(f"simulated faults: {args.faults or '-'}; shots lost {sim_summary['missed']}, "
               f"boots {sim_summary['boots']}, link {link}")
+    status = 0
     if not args.no_process:
-        ran = _process(scan.path)
-        print("processing: " + ("; ".join(ran) if ran else "no processing stage is installed yet"))
+        ran, status = _process(scan.path)
+        print("processing: " + ran)
     print(f"results: {os.path.abspath(scan.path)}")
-    return 0
+    return status

@@ -10,7 +10,7 @@ import argparse
 import sys
 import time
 
-from facette.cli._scan import _shape
+from facette.cli._scan import _positive, _shape
 
 
 def register(sub):
@@ -22,7 +22,7 @@ def register(sub):
     p.add_argument("--brdf", default="mask",
                    help="material: mask, bust or lambert (facette.sim.scene.BRDF_PRESETS)")
     p.add_argument("--faults", default="", help="e.g. 'biterr=1e-3,reset_at_shot=5,miss_sync_shots=3'")
-    p.add_argument("--speed", type=float, default=1.0, help="device clock, × real time (default 1)")
+    p.add_argument("--speed", type=_positive(float), default=1.0, help="device clock, × real time (default 1)")
     p.add_argument("--workdir", help="keep the camera folder and flash here (default: temporary)")
     p.add_argument("--seed", type=int, default=0)
     return p

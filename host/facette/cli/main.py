@@ -4,10 +4,21 @@ Each subcommand lives in `facette/cli/_<name>.py` and defines
 ``register(subparsers) -> argparse.ArgumentParser`` and ``run(args) -> int``.
 Modules are imported only when their command runs, so a missing optional
 dependency of one command never breaks another.
+
+Exit codes (facette.errors): 0 done, 1 a stopped scan or a device fault, 2 bad input
+(nothing started), 3 data that cannot give a result, 70 a bug in facette (traceback),
+130 interrupted. An expected failure ends in one or two lines: what was wrong, what to do.
 """
 import argparse
 import importlib
+import os
 import sys
+import traceback
+
+from facette.errors import EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED, FacetteError
+
+REPORT_URL_HINT = ("this is a bug in facette, not in what you did: please report it with the "
+                   "command line and the traceback above")
 
 # name -> (module, one-line help)
 COMMANDS = {
@@ -21,9 +32,17 @@ COMMANDS = {
 }
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a bad argument told in two lines (the error, where to read more)
+    instead of the whole usage."""
+
+    def error(self, message):
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: {message}\n  see: {self.prog} --help\n")
+
+
 def build_parser(command=None):
-    parser = argparse.ArgumentParser(prog="facette", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    parser = _Parser(prog="facette", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name, (module, help_text) in COMMANDS.items():
         if name == command:
             importlib.import_module(module).register(sub)  # full options of the one that runs
@@ -46,7 +65,62 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("interrupted; whatever was captured is kept (the scan resumes with the same command)",
               file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
+    except BaseException as exc:   # noqa: B902 - sorted into expected failures and bugs below
+        code, lines = explain(exc)
+        if code is None:
+            raise
+        for line in lines:
+            print(f"facette {command}: {line}" if line is lines[0] else f"  {line}", file=sys.stderr)
+        return code
+
+
+def _raised_by_facette(exc):
+    """True when the innermost frame that raised `exc` is facette's own code: a ValueError
+    with a sentence for a person (house rule), not one from deep inside numpy."""
+    tb = exc.__traceback__
+    last = None
+    while tb is not None:
+        last = tb
+        tb = tb.tb_next
+    if last is None:
+        return False
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    return os.path.abspath(last.tb_frame.f_code.co_filename).startswith(here + os.sep)
+
+
+def _os_error_lines(exc):
+    what = exc.strerror or str(exc)
+    name = exc.filename
+    if isinstance(exc, (IsADirectoryError, NotADirectoryError, FileExistsError)):
+        todo = "choose another path (an output needs a new or empty folder, an input an existing file)"
+    elif isinstance(exc, PermissionError):
+        todo = "choose a folder you can write to, or fix its permissions"
+    elif isinstance(exc, FileNotFoundError):
+        todo = "check the path"
+    else:
+        todo = "check the path, the disk and its free space"
+    return [f"{name}: {what}" if name else what, todo]
+
+
+def explain(exc):
+    """(exit code, lines) for an expected failure; (None, None) for a bug.
+
+    A bug keeps its traceback and gets a line asking to report it (exit 70)."""
+    if isinstance(exc, SystemExit):
+        if isinstance(exc.code, str):                # a message for the user
+            return EXIT_BAD_INPUT, [exc.code]
+        return None, None
+    if isinstance(exc, FacetteError):
+        return exc.exit_code, exc.user_lines()
+    if isinstance(exc, OSError) and getattr(exc, "filename", None):
+        return EXIT_BAD_INPUT, _os_error_lines(exc)
+    if isinstance(exc, (ValueError, FileNotFoundError)) and _raised_by_facette(exc):
+        return EXIT_BAD_INPUT, [str(exc)]
+    if isinstance(exc, Exception):
+        traceback.print_exception(exc, file=sys.stderr)
+        return EXIT_BUG, [REPORT_URL_HINT]
+    return None, None
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ import stat
 import time
 
 from facette.device import registers as R
+from facette.errors import StoppedError
 
 __all__ = ["DeviceClient", "DeviceError", "DeviceTimeout", "DeviceException", "DeviceMismatch",
            "DeviceReset", "EXCEPTION_NAMES", "FW_ERRORS"]
@@ -30,8 +31,8 @@ FW_ERRORS = {0: "none", -1: "function", -2: "address", -3: "value out of range",
 MAX_READ = 125   # registers per Modbus read (spec limit)
 
 
-class DeviceError(RuntimeError):
-    """Something went wrong talking to the rig."""
+class DeviceError(StoppedError):
+    """Something went wrong talking to the rig (exit code 1; a port that cannot be opened: 2)."""
 
 
 class DeviceTimeout(DeviceError):
@@ -153,9 +154,10 @@ class DeviceClient:
         """Open the port, read the identity, check the definition hash."""
         if not self._client.connect():
             if self.refused:
-                raise DeviceError(f"cannot open {self.url!r}: {self.refused}")
-            raise DeviceError(f"cannot open {self.url!r}: check the port name and that nothing else "
-                              "holds it (a running `facette device` or a terminal program)")
+                raise DeviceError(f"cannot open the port {self.url!r}: {self.refused}", exit_code=2)
+            raise DeviceError(f"cannot open the port {self.url!r}",
+                              hint="check the port name (ls /dev/ttyACM* /dev/ttyUSB*) and that nothing "
+                                   "else holds it (another facette, a terminal program)", exit_code=2)
         ident = self.read_block(["fw_version", "protocol_version", "definition_hash", "serial_number",
                                  "uptime_s", "boot_count", "reset_cause", "max_leds", "ring_len"])
         expected = self.expected_hash

@@ -36,11 +36,21 @@ def is_diligent_dir(path):
 def _table(path, m=None, what=""):
     if not path.is_file():
         raise FileNotFoundError(f"{path} is missing; a DiLiGenT folder needs {path.name} ({what})")
-    arr = np.loadtxt(path, ndmin=2, dtype=np.float64)
-    if arr.shape[1] != 3 or (m is not None and arr.shape[0] != m):
-        raise ValueError(f"{path} must hold {m or 'm'} lines of 3 numbers ({what}); "
-                         f"found shape {arr.shape}")
-    return arr
+    rows = []
+    for n, line in enumerate(path.read_text().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            row = [float(v) for v in line.split()]
+        except ValueError:
+            row = None
+        if row is None or len(row) != 3 or not all(np.isfinite(row)):
+            raise ValueError(f"{path}, line {n}: {line.strip()!r} is not 3 finite numbers ({what})")
+        rows.append(row)
+    if m is not None and len(rows) != m:
+        raise ValueError(f"{path} holds {len(rows)} lines of 3 numbers; filenames.txt lists {m} "
+                         f"images ({what}: one line per image)")
+    return np.array(rows, dtype=np.float64).reshape(-1, 3)
 
 
 def read_diligent(folder, dtype=np.float32, select=None):
@@ -58,12 +68,14 @@ def read_diligent(folder, dtype=np.float32, select=None):
     dirs = _table(folder / "light_directions.txt", m, "unit light directions")
     norms = np.linalg.norm(dirs, axis=1)
     if np.any(norms <= 0):
-        raise ValueError(f"{folder / 'light_directions.txt'} has a zero direction")
+        raise ValueError(f"{folder / 'light_directions.txt'}, line {int(np.argmin(norms)) + 1}: a zero "
+                         "direction (every light needs a direction)")
     dirs = dirs / norms[:, None]
     inten_path = folder / "light_intensities.txt"
     inten = _table(inten_path, m, "R G B intensity per light") if inten_path.is_file() else np.ones((m, 3))
     if np.any(inten <= 0):
-        raise ValueError(f"{inten_path} has a non-positive intensity; every light must be > 0")
+        raise ValueError(f"{inten_path}, line {int(np.argmin(inten.min(axis=1))) + 1}: a non-positive "
+                         "intensity; every light must be > 0")
     if select is not None:
         select = np.asarray(select, dtype=int).ravel()
         if select.size == 0 or select.min() < 0 or select.max() >= m:

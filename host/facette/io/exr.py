@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import OpenEXR
 
-__all__ = ["write_exr", "read_exr", "channel_names_for"]
+__all__ = ["write_exr", "read_exr", "read_exr_header", "channel_names_for"]
 
 
 def channel_names_for(n_channels):
@@ -75,3 +75,13 @@ def read_exr(path, channels=None):
     if missing:
         raise ValueError(f"{path} has no channel(s) {missing}; it holds {sorted(stored)}")
     return np.stack([stored[c] for c in channels], axis=-1), tuple(channels)
+
+
+def read_exr_header(path):
+    """The string attributes of an EXR's header (those `write_exr` was given): {name: str}."""
+    path = Path(path)
+    try:
+        with OpenEXR.File(str(path), header_only=True) as f:   # copied while the file is open
+            return {k: v for k, v in f.header().items() if isinstance(v, str)}
+    except Exception as exc:  # OpenEXR raises plain exceptions on corrupt files
+        raise ValueError(f"{path} is not a readable EXR file ({exc})") from exc

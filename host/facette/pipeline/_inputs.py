@@ -1,5 +1,6 @@
 """Inputs of `process`: a facette scan directory or a DiLiGenT-style folder."""
 import os
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -7,9 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from facette.calib import ProfileError, ResolutionError, apply_flat_field, load, pitch_at_size
+from facette.errors import BadInputError
 from facette.io.diligent import is_diligent_dir, read_diligent
 from facette.io.png import read_mask
-from facette.scan import ScanDirectory, merge_scan
+from facette.pipeline._quality import MIN_LEVELS, usable_from_variance
+from facette.scan import MissingFrameWarning, ScanDirectory, merge_scan, stale_lights
 
 __all__ = ["PSInput", "load_input", "source_path"]
 
@@ -31,6 +34,11 @@ class PSInput:
     truth: object = None
     notes: list = field(default_factory=list)
     material_mask: object = None
+    usable: object = None          # (m, H, W) bool: known and above noise (see _quality)
+    object_mask: object = None     # (H, W) bool: the pixels that should get a result
+    mask_source: str = "the lit pixels"
+    incomplete: str = ""           # scans: "" when complete, else e.g. "5 of 6 frames"
+    digest: str = ""               # what the inputs were: changes when a frame or image changes
 
     def sample_mask(self):
         """Pixels whose reflectance samples are taken: the mask, within the material mask."""
@@ -132,6 +140,7 @@ def _read_hdr_fast(scan_dir, light_ids):
     except Exception as exc:             # OpenEXR says only "file has 0 parts" and the like
         raise _unreadable(paths[0][0], exc) from exc
     images = np.empty((len(paths), h, w, 3), np.float32)
+    usable = np.empty((len(paths), h, w), bool)
 
     def one(k):
         try:
@@ -141,41 +150,71 @@ def _read_hdr_fast(scan_dir, light_ids):
 
     def read_pair(k):
         img, var = paths[k]
-        with OpenEXR.File(str(img), separate_channels=True) as f:
-            chans = f.channels()
-            for c, name in enumerate("RGB"):
-                images[k, :, :, c] = chans[name].pixels
-        if var.is_file():
-            with OpenEXR.File(str(var), separate_channels=True) as f:
+        try:
+            with OpenEXR.File(str(img), separate_channels=True) as f:
                 chans = f.channels()
-                bad = ~np.isfinite(chans["R"].pixels)
-                bad |= ~np.isfinite(chans["G"].pixels)
-                bad |= ~np.isfinite(chans["B"].pixels)
-            images[k][bad] = np.nan
+                for c, name in enumerate("RGB"):
+                    images[k, :, :, c] = chans[name].pixels
+            with OpenEXR.File(str(var), separate_channels=True) as f:
+                v = np.stack([f.channels()[c].pixels for c in "RGB"], axis=-1)
+        except Exception as exc:  # OpenEXR raises plain exceptions on damaged files
+            raise BadInputError(f"{img} or {var.name} is not a readable HDR image ({exc})",
+                                hint="delete it: processing merges it again from raw/") from exc
+        bad = ~np.isfinite(v).all(axis=-1)
+        wild = ~np.isfinite(images[k]).any(axis=-1) & ~bad
+        if wild.any():
+            raise BadInputError(f"{img} has {int(wild.sum())} non-finite values (Inf or NaN) where "
+                                f"its variance {var.name} is finite: the file is damaged",
+                                hint="delete it: processing merges it again from raw/")
+        images[k][bad] = np.nan
+        usable[k] = usable_from_variance(images[k], v)
 
     with ThreadPoolExecutor(2) as pool:
         list(pool.map(one, range(len(paths))))
-    return images
+    return images, usable
 
 
 def _load_hdr_images(scan_dir, data):
+    """(images, usable, lights, notes): hdr/ read, after merging again (under the directory's
+    lock) every light whose files are absent, made from other frames, or changed."""
     lights = sorted(data["lights"], key=lambda l: int(l["index"]))
     ids = sorted({int(f["light"]) for f in data.get("frames", [])}) or [int(l["index"]) for l in lights]
     by_index = {int(l["index"]): l for l in lights}
-    if data.get("frames"):
-        # merges only the lights whose HDR is missing or no longer matches its RAW frames
-        # (nothing after a scan merged during acquisition)
-        merge_scan(scan_dir)
     unknown = [i for i in ids if i not in by_index]
     if unknown:
-        raise ValueError(f"scan.json has frames for lights {unknown} that its 'lights' list "
-                         "does not describe")
-    return _read_hdr_fast(scan_dir, ids), [by_index[i] for i in ids]
+        raise BadInputError(f"{scan_dir / 'scan.json'} has frames for lights {unknown} that its "
+                            "'lights' list does not describe")
+    notes = list(stale_lights(scan_dir, data).values())
+    absent = [i for i in ids if not all((scan_dir / "hdr" / f"light_{i:02d}{x}.exr").is_file()
+                                        for x in ("", "_var"))]
+    if data.get("frames"):
+        # merges only the lights whose HDR is missing or no longer matches its RAW frames or
+        # was changed since (nothing after a scan merged during acquisition); under the
+        # directory's lock when it will write (one writer: not while a scan runs)
+        sd = ScanDirectory(scan_dir)
+        if notes or absent:
+            sd.lock()
+        try:
+            with warnings.catch_warnings():           # an incomplete scan is said once, not per light
+                warnings.simplefilter("ignore", MissingFrameWarning)
+                merge_scan(scan_dir)
+        finally:
+            sd.unlock()
+    images, usable = _read_hdr_fast(scan_dir, ids)
+    return images, usable, [by_index[i] for i in ids], notes
 
 
-def _load_scan(scan_dir, pixel_pitch_mm):
-    data = ScanDirectory(scan_dir).manifest
-    images, lights = _load_hdr_images(scan_dir, data)
+def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False):
+    data = ScanDirectory(scan_dir).manifest      # a damaged scan.json is named (BadInputError)
+    expected = len(data.get("lights", [])) * len(data.get("exposures") or [])
+    # "complete" is written by facette scan; a hand-made scan.json may lack it: count the frames
+    complete = data["complete"] if "complete" in data else len(data["frames"]) >= expected
+    if not complete and not allow_incomplete:
+        raise BadInputError(f"the scan is incomplete ({len(data['frames'])} of {expected} frames in "
+                            f"{scan_dir}): run the same scan command to resume",
+                            hint="or pass --allow-incomplete to process what is there (every output "
+                                 "then says so)")
+    images, usable, lights, hdr_notes = _load_hdr_images(scan_dir, data)
     dirs = np.array([l["direction"] for l in lights], dtype=np.float64)
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     inten = np.array([l.get("intensity") or [1.0, 1.0, 1.0] for l in lights], dtype=np.float64)
@@ -187,6 +226,10 @@ def _load_scan(scan_dir, pixel_pitch_mm):
         inten = inten * np.asarray(scale, dtype=np.float64)[None, :]
     images /= inten[:, None, None, :].astype(np.float32)
     profile_pitch, profile_notes = _apply_profile(images, data, scan_dir)
+    # the merge may have just run: its record (sensor used) is in scan.json as it is now
+    sensor_source = ((ScanDirectory(scan_dir).manifest or {}).get("hdr") or {}).get("sensor_source", "")
+    if sensor_source.startswith("nominal"):
+        hdr_notes.append(f"HDR merged with the {sensor_source}")
     pos = [l.get("position_mm") for l in lights]
     positions = np.array(pos, dtype=np.float64) if all(p is not None for p in pos) else None
     pitch = pixel_pitch_mm or profile_pitch
@@ -197,13 +240,32 @@ def _load_scan(scan_dir, pixel_pitch_mm):
         with np.load(scan_dir / data["truth"], allow_pickle=False) as z:
             truth = {k: z[k] for k in z.files}
     mask, material = _auto_mask(images)
+    # the object: the lit pixels and those saturated under some light (which _auto_mask, blind
+    # to unknown values, leaves out)
+    obj = mask | np.isnan(images[..., 1]).any(axis=0)
     inp = PSInput(images, dirs, positions, mask, float(pitch), "scan", scan_dir, truth,
-                  material_mask=material)
+                  material_mask=material, usable=usable, object_mask=obj)
+    if not complete:
+        inp.incomplete = f"{len(data['frames'])} of {expected or '?'} frames"
+    inp.digest = _digest(sorted((f["file"], f.get("sha256", "")) for f in data["frames"]))
     inp.notes.extend(profile_notes)
+    inp.notes.extend(hdr_notes)
     if scale is None:
         inp.notes.append("no radiometric scale in scan.json (profile without a Spectralon step): "
                          "albedo and BRDF values are relative, K_d is not a reflectance")
     return inp
+
+
+def _digest(items):
+    import hashlib
+
+    return hashlib.sha256(repr(items).encode()).hexdigest()[:16]
+
+
+def _file_stamps(folder):
+    """(name, size, mtime_ns) of every file in a folder: what a DiLiGenT folder's images were."""
+    return sorted((p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in Path(folder).iterdir()
+                  if p.is_file())
 
 
 def _apply_profile(images, data, scan_dir):
@@ -256,22 +318,31 @@ def _apply_profile(images, data, scan_dir):
     return pitch, notes
 
 
-def load_input(source, mask=None, pixel_pitch_mm=None):
+def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False):
     """Read a scan directory (scan.json + hdr/) or a DiLiGenT-style folder into a `PSInput`.
 
     mask : optional (H, W) bool array or path to a PNG; default: scan -> lit pixels,
     DiLiGenT -> its mask.png. pixel_pitch_mm overrides the scan's (DiLiGenT default 1).
+    allow_incomplete : process a scan that is not complete (BadInputError otherwise).
     """
     path = source_path(source)
     if not path.is_dir():
         raise FileNotFoundError(f"{path} is not a directory; give a scan directory (with scan.json) "
                                 "or a DiLiGenT-style folder (with filenames.txt)")
     if (path / "scan.json").is_file():
-        inp = _load_scan(path, pixel_pitch_mm)
+        inp = _load_scan(path, pixel_pitch_mm, allow_incomplete)
+        if inp.incomplete:
+            inp.notes.insert(0, f"the scan is incomplete ({inp.incomplete}): these results come from "
+                                "part of its data; run the same scan command to resume it")
     elif is_diligent_dir(path):
         d = read_diligent(path)
+        with np.errstate(invalid="ignore"):
+            levels = d.images[..., 1] * (d.light_intensities[:, 1] * (2.0 ** d.bit_depth - 1))[:, None, None]
+        usable = np.isfinite(levels) & (levels >= MIN_LEVELS)
         inp = PSInput(d.images, d.light_dirs, None, d.mask, float(pixel_pitch_mm or 1.0),
-                      "diligent", path)
+                      "diligent", path, usable=usable, object_mask=d.mask,
+                      mask_source=f"{path / 'mask.png'}" if (path / "mask.png").is_file() else "the image")
+        inp.digest = _digest(_file_stamps(path))
         if pixel_pitch_mm is None:
             inp.notes.append("DiLiGenT folders carry no pixel pitch: heights are in pixels (pitch 1)")
     else:
@@ -280,6 +351,10 @@ def load_input(source, mask=None, pixel_pitch_mm=None):
     if mask is not None:
         m = read_mask(mask) if isinstance(mask, (str, os.PathLike)) else np.asarray(mask, bool)
         if m.shape != inp.mask.shape:
-            raise ValueError(f"mask is {m.shape}, images are {inp.mask.shape}")
+            raise ValueError(f"the mask {mask if isinstance(mask, (str, os.PathLike)) else ''} is "
+                             f"{m.shape[1]}x{m.shape[0]} px, the images are {inp.mask.shape[1]}x"
+                             f"{inp.mask.shape[0]}: give a mask of the images' size")
         inp.mask, inp.material_mask = m, None     # a given mask is the object: samples follow it
+        inp.object_mask = m
+        inp.mask_source = f"--mask {mask}" if isinstance(mask, (str, os.PathLike)) else "the given mask"
     return inp

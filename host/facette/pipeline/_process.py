@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from facette.fit import fit_hemisphere_cells
+from facette.errors import BadInputError
 from facette.io.exr import write_exr
 from facette.io.ply import write_ply
 from facette.io.gltf import write_glb
@@ -37,6 +38,8 @@ from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
 from facette.pipeline._exports import gltf_inputs
 from facette.pipeline._inputs import load_input
+from facette.pipeline._record import claim_results, write_record
+from facette.pipeline._quality import check_fit_cells, check_samples
 from facette.pipeline._report import write_report
 
 __all__ = ["OUTPUTS", "STAGES_FOR", "ProcessResult", "process", "stages_needed"]
@@ -98,6 +101,7 @@ class ProcessResult:
     ptm: object = None
     hsh: object = None
     fit_errors: dict = field(default_factory=dict)
+    quality: dict = field(default_factory=dict)
 
 
 def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=RAW_SAMPLES_KEPT,
@@ -161,8 +165,7 @@ def _fit_stage(filtered, fit_options):
     simulated scan it gave the same parameters as quadrature within 3 % in 2.9 s instead of
     44 s; pass fit_options={"volume": "quadrature"} for the reference.
     Returns (FitResult or None, note)."""
-    if int((filtered.count >= 1).sum()) < 3:
-        return None, "brdf: fewer than 3 filled sensor cells; nothing to fit"
+    check_fit_cells(filtered)         # too few filled cells: InsufficientData (exit 3)
     options = dict(fit_options)
     if options.get("model", "li") == "li":
         options.setdefault("volume", "approx")
@@ -202,7 +205,8 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
             integration="frankot_chellappa1988", t_ombre=T_OMBRE, t_spec=T_SPEC,
             t_source=T_SOURCE, t_residual=T_RESIDUAL, theta0_deg=THETA0_DEG, mask=None,
             pixel_pitch_mm=None, near_light=True, mesh_step=None, ascii_ply=False,
-            saturation=None, fit_options=None, hsh_order=3, ps_options=None):
+            saturation=None, fit_options=None, hsh_order=3, ps_options=None, allow_incomplete=False,
+            overwrite=False):
     """Run the processing chain on a scan directory or a DiLiGenT-style folder.
 
     source : path (or Scan object) of a facette scan (scan.json + hdr/) or a DiLiGenT folder.
@@ -221,22 +225,40 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
     saturation : image values >= this are treated as missing.
     fit_options : keyword arguments of facette.fit.fit_brdf (model, method, volume, ...).
     hsh_order : order of the hemispherical harmonics of relight.rti (2: 4 terms, 3: 9 terms).
-    Returns a `ProcessResult`.
+    allow_incomplete : process a scan that is not complete (every output then says so).
+    overwrite : replace an earlier run's results in `out_dir` made with other options or inputs
+        (without it, such a folder is refused: one folder holds one run, see process.json).
+    Returns a `ProcessResult`. Raises InsufficientData (facette.errors) when the data cannot
+    carry the result (too dark, saturated, empty mask, too few filled cells for a BRDF fit).
     """
     outputs = list(OUTPUTS if outputs is None else outputs)
     stages = stages_needed(outputs)
     res = ProcessResult(options=dict(method=method, integration=integration, t_ombre=t_ombre,
                                      t_spec=t_spec, t_source=t_source, t_residual=t_residual,
                                      theta0_deg=theta0_deg, outputs=outputs))
+    if pixel_pitch_mm is not None and not pixel_pitch_mm > 0:
+        raise BadInputError(f"pixel_pitch_mm must be > 0 mm, got {pixel_pitch_mm}")
+    if mesh_step is not None and not int(mesh_step) >= 1:
+        raise BadInputError(f"mesh_step must be >= 1 pixel, got {mesh_step}")
+    record_options = dict(res.options, mask=None if mask is None or not isinstance(mask, (str, Path))
+                          else str(mask), pixel_pitch_mm=pixel_pitch_mm, near_light=near_light,
+                          mesh_step=mesh_step, saturation=saturation, fit_options=dict(fit_options or {}),
+                          ps_options=dict(ps_options or {}), hsh_order=hsh_order)
+    record_options.pop("outputs")
     t_all = time.perf_counter()
     if out_dir is not None and "report" in outputs:
         # matplotlib takes ~0.5 s to import: let it load while the numbers are computed
         threading.Thread(target=_import_matplotlib, daemon=True).start()
 
     t0 = time.perf_counter()
-    inp = load_input(source, mask=mask, pixel_pitch_mm=pixel_pitch_mm)
+    inp = load_input(source, mask=mask, pixel_pitch_mm=pixel_pitch_mm, allow_incomplete=allow_incomplete)
+    if out_dir is not None:            # before any work: the folder must take this run's files
+        previous = claim_results(Path(out_dir), record_options, inp, overwrite)
     res.inputs = inp
     res.notes.extend(inp.notes)
+    if inp.usable is not None:       # the data must be able to carry normals (else exit 3)
+        notes, res.quality = check_samples(inp.images, inp.usable, inp.object_mask, inp.mask_source)
+        res.notes.extend(notes)
     res.timings["load"] = time.perf_counter() - t0
     m, h, w, c = inp.images.shape
 
@@ -301,6 +323,7 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
     if out_dir is not None:
         t0 = time.perf_counter()
         _write(res, Path(out_dir), outputs, ascii_ply, images, light_dirs)
+        write_record(Path(out_dir), record_options, inp, res, previous)
         res.timings["write"] = time.perf_counter() - t0
     return res
 
@@ -311,6 +334,8 @@ def _write(res, out, outputs, ascii_ply, images, light_dirs):
     out.mkdir(parents=True, exist_ok=True)
     meta = {"software": "facette", "source": str(res.inputs.source),
             "method": res.options["method"], "frame": "camera: x right, y up, z towards the camera"}
+    if res.inputs.incomplete:
+        meta["scan"] = f"incomplete: {res.inputs.incomplete}"
     jobs = []
     if "normals" in outputs:
         jobs.append(lambda: write_exr(out / FILES["normals"], res.normals, ("X", "Y", "Z"), header=meta))
@@ -322,7 +347,8 @@ def _write(res, out, outputs, ascii_ply, images, light_dirs):
     if "mask" in outputs:
         jobs.append(lambda: write_mask(out / FILES["mask"], res.mask))
     if "mesh" in outputs:
-        jobs.append(lambda: write_ply(out / FILES["mesh"], *res.mesh, binary=not ascii_ply))
+        comment = "facette" + (f" (scan incomplete: {res.inputs.incomplete})" if res.inputs.incomplete else "")
+        jobs.append(lambda: write_ply(out / FILES["mesh"], *res.mesh, binary=not ascii_ply, comment=comment))
     if "samples" in outputs:
         fr, raw = res.filtered, res.samples
         jobs.append(lambda: np.savez_compressed(
@@ -330,7 +356,7 @@ def _write(res, out, outputs, ascii_ply, images, light_dirs):
             filtered_theta_s=fr.theta_s, filtered_s=fr.s, filtered_o=fr.o, partition_edges=fr.edges,
             partition_counts=fr.counts, theta0_deg=res.options["theta0_deg"],
             raw_s=raw.s, raw_o=raw.o, raw_f=raw.f, raw_pixel=raw.pixel, raw_light=raw.light,
-            image_shape=np.array(res.normals.shape[:2])))
+            image_shape=np.array(res.normals.shape[:2]), scan_incomplete=res.inputs.incomplete))
     if "brdf" in outputs and res.brdf is not None:
         text = res.brdf.to_json() if hasattr(res.brdf, "to_json") else json.dumps(res.brdf, indent=2)
         ps_info = res.ps.info if res.ps is not None else {}
@@ -339,6 +365,8 @@ def _write(res, out, outputs, ascii_ply, images, light_dirs):
             doc["photometric_stereo"] = {k: ps_info[k] for k in ("materials", "levels", "rounds",
                                                                  "regions_found_by") if k in ps_info}
             text = json.dumps(doc, indent=2)
+        if res.inputs.incomplete:
+            text = json.dumps({**json.loads(text), "scan_incomplete": res.inputs.incomplete}, indent=2)
         jobs.append(lambda: (out / FILES["brdf"]).write_text(text))
     if "ptm" in outputs:
         jobs.append(lambda: write_ptm_lrgb(out / FILES["ptm"], res.ptm.coeffs, res.ptm.rgb))

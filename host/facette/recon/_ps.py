@@ -12,6 +12,7 @@ from itertools import combinations
 import numpy as np
 
 from facette._registry import Registry
+from facette.errors import InsufficientData
 
 __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "photometric_stereo",
            "PS_METHODS", "triplet_inverses", "near_light_directions"]
@@ -64,8 +65,8 @@ def _check_inputs(images, light_dirs, mask, channel):
         raise ValueError(f"images must have shape (m, H, W) or (m, H, W, C), got {images.shape}")
     m, h, w, c = images.shape
     if m < 4:
-        raise ValueError(f"photometric stereo needs at least 4 lights here (3 to solve, one more to "
-                         f"check the fit); got {m}. Capture with more lights.")
+        raise InsufficientData(f"photometric stereo needs at least 4 lights here (3 to solve, one "
+                               f"more to check the fit); got {m}", hint="capture with more lights")
     light_dirs = np.asarray(light_dirs)
     light_dirs = light_dirs.astype(np.float64 if light_dirs.ndim == 2 else np.float32)
     if light_dirs.shape == (m, 3):

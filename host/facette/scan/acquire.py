@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -26,9 +27,10 @@ from facette.calib import nominal_light_directions
 from facette.camera.folder import CameraTimeout
 from facette.camera.raw import read_exposure_metadata
 from facette.device.client import DeviceReset, DeviceTimeout
+from facette.errors import BadInputError, StoppedError
 from facette.hdr import THESIS_BRACKET_US
 from facette.scan.adaptive import METER_DIR, meter_and_plan
-from facette.scan.directory import ScanDirectory, ScanDirectoryError, frame_name, sha256_file
+from facette.scan.directory import LOCK_NAME, ScanDirectory, ScanDirectoryError, frame_name, sha256_file
 from facette.scan.hdr import LightMerger, scan_sensor, store_light_records
 
 __all__ = ["run_scan", "ScanPlan", "ScanError", "ScanAborted", "THESIS_BRACKET_US", "default_plan"]
@@ -37,7 +39,7 @@ __all__ = ["run_scan", "ScanPlan", "ScanError", "ScanAborted", "THESIS_BRACKET_U
 _BENIGN_FAULTS = {"HOST_SILENT", "CAL_INVALID", "WATCHDOG_RESET"}
 
 
-class ScanError(RuntimeError):
+class ScanError(StoppedError):
     """The scan stopped; the directory holds everything captured so far."""
 
 
@@ -81,7 +83,19 @@ def default_plan(n_leds=12, exposures=None, lights=None, light_current_mA=500, m
     cur = [int(light_current_mA)] * len(lights) if not hasattr(light_current_mA, "__len__") \
         else [int(c) for c in light_current_mA]
     if len(cur) != len(lights):
-        raise ValueError(f"{len(cur)} light currents for {len(lights)} lights")
+        raise BadInputError(f"{len(cur)} light currents for {len(lights)} lights")
+    if not 1 <= len(lights) <= 16 or not 1 <= len(exps) <= 16:
+        raise BadInputError(f"a scan takes 1..16 lights and 1..16 exposures per light, got {len(lights)} "
+                            f"lights and {len(exps)} exposures")
+    twice = sorted({c for c in lights if lights.count(c) > 1})
+    if twice:
+        raise BadInputError(f"light {twice[0]} is listed twice in lights {lights}",
+                            hint="give each LED channel once (a repeat would overwrite its images)")
+    bad = [c for c in lights if c < 0] + [c for c in cur if c < 1] + [c for _, c in exps if c < 0]
+    if bad:
+        raise BadInputError(f"LED channels are >= 0 and currents >= 1 mA; got {bad[0]}")
+    if any(t < 1 for t, _ in exps):
+        raise BadInputError(f"exposure times are >= 1 µs; got {[t for t, _ in exps]}")
     return ScanPlan(lights, exps, cur, mode, int(retries), dict(timing or {}))
 
 
@@ -111,7 +125,9 @@ def _lights_section(plan, profile):
         if profile is not None:
             lt = profile.lights
             if ch >= len(lt):
-                raise ValueError(f"LED channel {ch} is not in profile {profile.id!r} ({len(lt)} lights)")
+                raise BadInputError(f"LED channel {ch} is not in profile {profile.id!r}: it calibrated "
+                                    f"{len(lt)} lights (channels 0..{len(lt) - 1})",
+                                    hint="choose lights among those, or calibrate that LED")
             d, inten = lt.directions[ch].tolist(), lt.intensities[ch].tolist()
             pos = None if lt.positions_mm is None else lt.positions_mm[ch].tolist()
         else:
@@ -138,7 +154,8 @@ def _groups(pending, n_lights):
 
 
 class _Acquisition:
-    link_timeout_s = 30.0   # how long a silent link is tolerated while the device scans
+    link_timeout_s = 20.0   # how long a silent link is tolerated while the device scans
+    link_report_s = 5.0     # how often the wait for a silent link is reported
 
     def __init__(self, rig, sd, plan, progress, on_frame, frame_timeout_s, poll_s):
         self.rig, self.sd, self.plan = rig, sd, plan
@@ -282,6 +299,31 @@ class _Acquisition:
                 raise ScanError(f"the device has latched faults {names}: fix the cause (see `facette device "
                                 "faults`), clear them (`facette device clear`) and run the scan again to resume")
 
+    def wait_button(self, states):
+        """Wait for a person to press the rig's button: until the state is one of `states`,
+        or the device refuses the press (its last_error changes: then say why, in words).
+        The host first makes last_error a known value (a refused PAUSE in IDLE, "not allowed
+        in this state") so that a refusal of the press, even for the same reason, shows."""
+        from facette.device.client import DeviceException
+
+        dev = self.rig.device
+        try:
+            self.rig.pause()
+        except DeviceException:
+            pass
+        marker = dev.read("last_error")
+        while True:
+            state = dev.state()
+            if state in states:
+                return state
+            code = dev.read("last_error")
+            if code != marker:
+                self.sd.journal("button_refused", last_error=code)
+                raise ScanError(f"the rig's button was pressed but the device refused to start the "
+                                f"scan: {self.rig.last_error()} (last_error {code})",
+                                hint="fix that, then run the same scan command again")
+            time.sleep(0.02)   # a person's press lasts far longer
+
     def run_group(self, lights, exposures, run, button):
         rig, plan = self.rig, self.plan
         channels = [plan.lights[l] for l in lights]
@@ -302,18 +344,17 @@ class _Acquisition:
             else:
                 print("press the rig's button to start the scan", flush=True)
                 # a finished state counts only if it is not the one left by an earlier scan
-                rig.wait_state({"RUNNING", "PAUSED", "FAULT"} | ({"DONE", "ABORTED"} - {initial}),
-                               timeout_s=float("inf"))
+                self.wait_button({"RUNNING", "PAUSED", "FAULT"} | ({"DONE", "ABORTED"} - {initial}))
         else:
             rig.start()
         seen, end_us = 0, 0
-        link_down_since = None
+        link_down_since, last_answer = None, time.monotonic()
         while True:
             try:
                 rig.device.check_reset()
                 st = rig.status()
                 records, seen, lost = rig.frame_records(seen, st["ring_count"])
-                link_down_since = None
+                link_down_since, last_answer = None, time.monotonic()
             except DeviceReset as exc:
                 self.add_rig_time(end_us)
                 self.sd.journal("device_reset", run=run, old_boot=exc.old_boot, new_boot=exc.new_boot)
@@ -321,12 +362,23 @@ class _Acquisition:
                 return 0, "reset"
             except DeviceTimeout as exc:
                 # a noisy link: the device keeps scanning and its ring keeps the records;
-                # keep asking until the link has been silent for link_timeout_s
+                # keep asking until the link has been silent for link_timeout_s, saying so
                 now = time.monotonic()
-                link_down_since = link_down_since or now
+                if link_down_since is None:
+                    link_down_since, reported = last_answer, last_answer - self.link_report_s
                 self.sd.journal("link_error", error=str(exc)[:200])
-                if now - link_down_since > self.link_timeout_s:
-                    raise
+                silent = now - link_down_since
+                if silent > self.link_timeout_s:
+                    done, total = len(self.sd.frames_done()), len(plan.lights) * len(plan.exposures)
+                    raise ScanError(f"lost the link to the device at {rig.device.url}: no answer for "
+                                    f"{silent:.0f} s ({done}/{total} frames kept in {self.sd.path})",
+                                    hint="check the cable and the rig's power, then run the same scan "
+                                         "command again to resume") from exc
+                if now - reported >= self.link_report_s:
+                    reported = now
+                    print(f"no answer from the device at {rig.device.url} for {silent:.0f} s; retrying "
+                          f"until {self.link_timeout_s:.0f} s (Ctrl-C stops; the scan resumes with the "
+                          "same command)", file=sys.stderr, flush=True)
                 continue
             if lost:
                 self.sd.journal("ring_overflow", lost=lost)
@@ -360,11 +412,16 @@ class _Acquisition:
                 done = len(self.sd.frames_done())
                 total = len(plan.lights) * len(plan.exposures)
                 if state == "ABORTED":
-                    raise ScanAborted(f"scan aborted with {done}/{total} frames in {self.sd.path}; "
-                                      "run the same scan again to resume")
+                    raise ScanAborted(f"scan aborted with {done}/{total} frames in {self.sd.path}",
+                                      hint="run the same scan again to resume")
+                if not faults["latched"]:     # nothing latched: the device refused to start
+                    raise ScanError(f"the device did not run the scan ({state}): it refused with "
+                                    f"\"{rig.last_error()}\" ({done}/{total} frames kept in {self.sd.path})",
+                                    hint="fix that, then run the same scan again to resume")
                 raise ScanError(f"the device stopped in {state} with faults {faults['latched']} "
-                                f"({done}/{total} frames kept in {self.sd.path}); fix the cause, clear "
-                                "the faults and run the same scan again to resume")
+                                f"({done}/{total} frames kept in {self.sd.path})",
+                                hint="fix the cause (facette device --port PORT faults), clear the "
+                                     "faults and run the same scan again to resume")
             time.sleep(self.poll_s)
 
 
@@ -418,7 +475,8 @@ def _adaptive(rig, directory, profile, lights, light_current_mA, mode, retries, 
 
 def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_current_mA=500,
              mode="camera", retries=1, timing=None, button=None, progress=True, on_frame=None,
-             frame_timeout_s=60.0, poll_s=0.003, max_runs=8, save_truth=True, merge_hdr=False):
+             frame_timeout_s=60.0, poll_s=0.003, max_runs=8, save_truth=True, merge_hdr=False,
+             link_timeout_s=20.0):
     """Acquire (or resume) a scan into `directory`; returns the ScanDirectory.
 
     Parameters
@@ -439,6 +497,8 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
     progress : show a tqdm progress bar
     on_frame : callable(record) after each frame is stored (tests use it to abort/pause)
     frame_timeout_s : how long to wait for the camera's file after its record
+    link_timeout_s : how long the device may stay silent before the scan stops (its wait
+        is reported on standard error every few seconds)
     max_runs : device runs allowed (resets re-run the missing frames)
     merge_hdr : merge each light into hdr/ on a worker as soon as its frames have landed
         (`facette.scan.LightMerger`, with the scan's sensor model), so that after the last
@@ -451,6 +511,12 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
                          "or GPhoto2Camera()")
     profile = _load_profile(profile)
     n_leds = len(profile.lights) if profile is not None else rig.n_lights
+    # everything is checked before the directory is touched (a refused plan leaves nothing
+    # behind): lights and currents before any metering, the whole plan once it is known
+    if exposures == "adaptive":
+        pre = default_plan(n_leds, [(1000, 0)], lights, light_current_mA, mode, retries, timing)
+        _lights_section(pre, profile)
+        rig.check_config(pre.exposures, pre.lights, pre.light_current_mA, pre.mode, pre.timing)
     bracketing = {"name": "thesis2016" if exposures in (None, "thesis") else "explicit"}
     if exposures == "thesis":
         exposures = None
@@ -462,38 +528,69 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
     elif isinstance(exposures, str):
         raise ValueError(f"exposures must be 'adaptive', 'thesis' or a list of exposures, got {exposures!r}")
     plan = default_plan(n_leds, exposures, lights, light_current_mA, mode, retries, timing)
+    lights_section = _lights_section(plan, profile)
+    rig.check_config(plan.exposures, plan.lights, plan.light_current_mA, plan.mode, plan.timing)
     sd = ScanDirectory(directory)
+    _check_resumable(sd, plan)
+    sd.lock()                                # one writer; scan.json is read again under the lock
+    try:
+        _check_resumable(sd, plan)
+        return _run_locked(rig, sd, plan, profile, lights_section, button, progress, on_frame,
+                           frame_timeout_s, poll_s, max_runs, save_truth, link_timeout_s, merge_hdr,
+                           bracketing)
+    finally:
+        sd.unlock()
+
+
+def _check_resumable(sd, plan):
+    """Refuse a directory that holds something else than this scan (nothing is touched)."""
+    if sd.manifest is None:
+        if (sd.path / "journal.jsonl").exists() or (sd.path.exists() and any(
+                p.name not in (LOCK_NAME, ".DS_Store") and not _is_meter_dir(p) for p in sd.path.iterdir())):
+            raise ScanDirectoryError(f"{sd.path} is not empty and holds no scan.json",
+                                     hint="choose a new directory (a scan starts in an empty one)")
+        return
+    old = sd.manifest.get("plan", {})
+    differ = [k for k in plan.key() if old.get(k) != plan.key()[k]]
+    if differ:
+        said = "; ".join(f"{k}: this directory has {old.get(k)}, the command asks for {plan.key()[k]}"
+                         for k in differ)
+        raise ScanDirectoryError(f"{sd.path} holds another scan ({said})",
+                                 hint="resume it with the same settings, or choose a new directory")
+
+
+def _run_locked(rig, sd, plan, profile, lights_section, button, progress, on_frame, frame_timeout_s,
+                poll_s, max_runs, save_truth, link_timeout_s, merge_hdr, bracketing):
     pitch = getattr(profile, "pixel_pitch_mm", None)
     if pitch is None and rig.sim is not None:
         pitch = rig.sim.scene.pixel_pitch_mm
+    sd.notes = []
     if sd.manifest is None:
-        if (sd.path / "journal.jsonl").exists() or (sd.path.exists() and any(
-                p.name != ".DS_Store" and not _is_meter_dir(p) for p in sd.path.iterdir())):
-            raise ScanDirectoryError(f"{sd.path} is not empty and holds no scan.json: choose a new directory")
         ignored = rig.camera.ignore_existing()
         sd.journal("begin", plan=plan.to_dict(), rig=rig.identity, camera=repr(rig.camera),
                    camera_ignored=ignored)
-        sd.create(rig.identity, _profile_section(profile), pitch, _lights_section(plan, profile),
+        sd.create(rig.identity, _profile_section(profile), pitch, lights_section,
                   _exposures_section(plan), plan.to_dict())
         if profile is not None:
             if profile.sensor:
                 sd.manifest["sensor"] = dict(profile.sensor)  # the HDR merge's noise model
+            else:
+                sd.notes.append(f"profile {profile.id} has no sensor section: the HDR merge will use "
+                                "a nominal noise model (calibrate the sensor to get the camera's own)")
             sd.manifest["radiometric_scale"] = profile.radiometric_scale
         sd.manifest["bracketing"] = bracketing
         # the metering runs are rig time of this scan too
         sd.manifest["rig_time_s"] = round(float(bracketing.get("meter_rig_time_s", 0.0)), 6)
         sd.save()
     else:
-        old = sd.manifest.get("plan", {})
-        if {k: old.get(k) for k in plan.key()} != plan.key():
-            raise ScanDirectoryError(f"{sd.path} holds another scan (plan {({k: old.get(k) for k in plan.key()})}); "
-                                     "resume it with the same settings or choose a new directory")
         sd.journal("resume", rig=rig.identity)
         _recover(sd, rig.camera)
+        sd.notes += sd.set_aside_damaged()     # a frame whose sha256 fails is taken again
         begin = next((e for e in sd.read_journal() if e.get("step") == "begin"), {})
         if hasattr(rig.camera, "ignore"):   # files that predate the scan are not ours
             rig.camera.ignore(begin.get("camera_ignored", []))
     acq = _Acquisition(rig, sd, plan, None, on_frame, frame_timeout_s, poll_s)
+    acq.link_timeout_s = float(link_timeout_s)
     all_pairs = {(l, e) for l in range(len(plan.lights)) for e in range(len(plan.exposures))}
     if merge_hdr:
         acq.merger = LightMerger(sd.path)

@@ -8,19 +8,28 @@ a second run resumes where the first stopped.
 from __future__ import annotations
 
 import datetime as _dt
+import fcntl
 import json
 import os
 from pathlib import Path
 
+from facette.errors import BadInputError
 from facette.io.checksum import sha256_file
 
-__all__ = ["ScanDirectory", "ScanDirectoryError", "sha256_file", "frame_name", "read_scan_manifest", "SCHEMA"]
+__all__ = ["ScanDirectory", "ScanDirectoryError", "ScanDirectoryBusy", "sha256_file", "frame_name",
+           "read_scan_manifest", "SCHEMA", "LOCK_NAME"]
 
 SCHEMA = 1
+LOCK_NAME = ".facette.lock"   # flock'ed by the one process writing the directory
 
 
-class ScanDirectoryError(ValueError):
+class ScanDirectoryError(BadInputError):
     """The directory holds something that is not this scan."""
+
+
+class ScanDirectoryBusy(ScanDirectoryError):
+    """Another process is writing the directory."""
+
 
 
 def frame_name(light, exposure, suffix=".dng"):
@@ -41,12 +50,64 @@ class ScanDirectory:
     def __init__(self, path):
         self.path = Path(path)
         self.manifest = None
-        if (self.path / "scan.json").is_file():
-            try:
-                self.manifest = json.loads((self.path / "scan.json").read_text())
-            except ValueError as exc:
-                raise ScanDirectoryError(f"{self.path / 'scan.json'} is damaged ({exc}); the journal "
-                                         f"{self.path / 'journal.jsonl'} and raw/ hold what was captured") from exc
+        self.notes = []          # what the last scan run did that a user should know
+        self._lock_fh = None
+        self.reload()
+
+    def reload(self):
+        """Read scan.json again (None when there is none); a damaged one is named."""
+        p = self.path / "scan.json"
+        self.manifest = None
+        if not p.is_file():
+            return
+        hint = (f"nothing was changed; the journal {self.path / 'journal.jsonl'} and raw/ hold what "
+                "was captured: restore scan.json from a backup, or scan into a new directory")
+        try:
+            data = json.loads(p.read_text())
+        except ValueError as exc:
+            raise ScanDirectoryError(f"{p} is damaged ({exc})", hint=hint) from exc
+        if not isinstance(data, dict) or not isinstance(data.get("frames"), list) \
+                or not isinstance(data.get("lights"), list):
+            raise ScanDirectoryError(f"{p} is damaged: it has no 'frames' and 'lights' lists", hint=hint)
+        self.manifest = data
+
+    # -- one writer at a time --------------------------------------------------------
+    def lock(self):
+        """Take the directory for this process (creating it): an flock on .facette.lock, which
+        the kernel releases when the process ends, however it ends. Raises ScanDirectoryBusy
+        when another process holds it. Re-reads scan.json (it may have changed meanwhile)."""
+        if self._lock_fh is not None:
+            return
+        self.path.mkdir(parents=True, exist_ok=True)
+        fh = open(self.path / LOCK_NAME, "a+", encoding="utf-8")
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            fh.seek(0)
+            holder = fh.read().strip() or "?"
+            fh.close()
+            raise ScanDirectoryBusy(f"{self.path} is being written by another facette process ({holder})",
+                                    hint="wait for it to finish (or stop it), then run this command "
+                                         "again") from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(f"pid {os.getpid()}\n")
+        fh.flush()
+        self._lock_fh = fh
+        self.reload()
+
+    def unlock(self):
+        if self._lock_fh is not None:
+            fcntl.flock(self._lock_fh.fileno(), fcntl.LOCK_UN)
+            self._lock_fh.close()
+            self._lock_fh = None
+
+    def __enter__(self):
+        self.lock()
+        return self
+
+    def __exit__(self, *exc):
+        self.unlock()
 
     @classmethod
     def existing(cls, path):
@@ -118,6 +179,33 @@ class ScanDirectory:
         fresh.update(fields)
         self.manifest = fresh
         self.save()
+
+    def set_aside_damaged(self):
+        """Frames whose file no longer matches its sha256: each file is moved to raw/damaged/
+        (kept, never deleted) and its record dropped, so that the scan takes it again.
+        Returns one line per frame set aside."""
+        lines = []
+        keep = []
+        for f in (self.manifest or {}).get("frames", []):
+            p = self.path / f["file"]
+            if p.is_file() and f.get("sha256") and sha256_file(p) != f["sha256"]:
+                dst = self.path / "raw" / "damaged" / p.name
+                n = 1
+                while dst.exists():
+                    dst, n = dst.with_name(f"{p.stem}-{n}{p.suffix}"), n + 1
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                rel = str(dst.relative_to(self.path))
+                self.journal("damaged", file=f["file"], kept=rel)
+                os.replace(p, dst)
+                lines.append(f"{f['file']}: sha256 differs from scan.json (the file changed after "
+                             f"capture); kept as {rel} and taken again")
+            else:
+                keep.append(f)
+        if lines:
+            self.manifest["frames"] = keep
+            self.manifest["complete"] = False
+            self.save()
+        return lines
 
     def frames_done(self):
         """{(light, exposure): frame record} of frames whose file is present."""

@@ -25,7 +25,7 @@ from facette.io.checksum import sha256_file
 from facette.io.exr import read_exr, write_exr
 from facette.scan.directory import ScanDirectory, read_scan_manifest
 
-__all__ = ["merge_scan", "merge_light", "LightMerger", "store_light_records", "hdr_up_to_date",
+__all__ = ["merge_scan", "merge_light", "LightMerger", "store_light_records", "hdr_up_to_date", "stale_lights",
            "hdr_record", "scan_sensor", "light_frames",
            "load_hdr", "read_scan_manifest", "frame_exposure", "MissingFrameWarning",
            "HDR_UNIT"]
@@ -95,7 +95,30 @@ def hdr_up_to_date(scan_dir, data, record, basis=None):
         p = scan_dir / i["file"]
         if not p.is_file() or _stat(p) != {"size": i["size"], "mtime_ns": i["mtime_ns"]}:
             return False
-    return True
+    # the HDR files themselves, edited or damaged since the merge wrote them
+    return all(_stat(scan_dir / rel) == st for rel, st in (record.get("outputs") or {}).items())
+
+
+def stale_lights(scan_dir, data):
+    """Why each light's HDR files cannot be used as they are: {light: reason}, only for lights
+    whose files exist (a missing one is simply merged) and can be merged again from raw/."""
+    scan_dir = Path(scan_dir)
+    records = {int(r["index"]): r for r in (data.get("hdr") or {}).get("lights", [])}
+    out = {}
+    for li in sorted({int(f["light"]) for f in data["frames"]}):
+        rec, name = records.get(li), f"hdr/light_{li:02d}.exr"
+        if not (scan_dir / name).is_file() or not _stale(scan_dir, data, li, rec, None):
+            continue
+        now = {f["file"]: f.get("sha256") for f in light_frames(data, li) if f.get("sync") is not False}
+        if rec is None or not rec.get("inputs"):
+            out[li] = f"{name} has no record of the frames it was merged from: merged again"
+        elif {i["file"]: i["sha256"] for i in rec["inputs"]} != now:
+            out[li] = (f"{name} was merged from other frames ({len(rec['inputs'])} then, {len(now)} "
+                       "now): merged again")
+        elif any(_stat(scan_dir / r) != st for r, st in (rec.get("outputs") or {}).items()
+                 if (scan_dir / r).is_file()):
+            out[li] = f"{name} changed since it was merged: merged again from raw/"
+    return out
 
 
 def _stale(scan_dir, data, light, record, basis):
@@ -178,8 +201,10 @@ def merge_light(scan_dir, data, light, sensor=None, method="inverse_variance", c
               compression="none")
     write_exr(scan_dir / "hdr" / f"{name}_var.exr", res.variance, ("R", "G", "B"),
               dict(attrs, facette_unit=f"({basis['unit']})^2"), compression="none")
+    outputs = {rel: _stat(scan_dir / rel) for rel in (f"hdr/{name}.exr", f"hdr/{name}_var.exr")}
     return {"index": li, "file": f"hdr/{name}.exr", "var_file": f"hdr/{name}_var.exr",
-            "frames": [fr["file"] for fr in todo], "inputs": inputs, "missing": missing,
+            "frames": [fr["file"] for fr in todo], "inputs": inputs, "outputs": outputs,
+            "missing": missing,
             "basis": basis, "saturated_fraction": float(res.saturated.mean()),
             "no_sample_fraction": float(np.mean(res.n_used == 0)),
             "time_s": {"read": round(t_read, 3), "merge": round(t_merge, 3),
@@ -200,6 +225,9 @@ def scan_sensor(data, sensor=None):
         return as_sensor(sensor), "given"
     if isinstance(data.get("sensor"), dict):
         return as_sensor(data["sensor"]), "scan.json sensor"
+    if isinstance(data.get("profile"), dict):
+        return as_sensor(None), (f"nominal: profile {data['profile'].get('id')} has no sensor section "
+                                 "(its noise model was never calibrated)")
     return as_sensor(None), "nominal (no profile given)"
 
 

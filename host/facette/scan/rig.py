@@ -13,13 +13,16 @@ import time
 
 from facette.camera import FolderWatchCamera
 from facette.device import registers as R
-from facette.device.client import DeviceClient, DeviceError, DeviceException
+from facette.device.client import FW_ERRORS, DeviceClient, DeviceError, DeviceException
+from facette.errors import BadInputError
 from facette.hdr import TIMING_MODES
 from facette.scan.acquire import run_scan
 from facette.sim import SimulatedRig
 
 __all__ = ["Rig", "connect", "decode_frame_record", "TIMING_MODES", "RigFault"]
 
+TIMING_KEYS = ("prefocus_us", "mirror_up_us", "settle_us", "gap_us", "led_pre_us", "led_post_us",
+               "sync_timeout_us")
 RING_STRIDE = 8
 
 class RigFault(DeviceError):
@@ -104,7 +107,61 @@ class Rig:
         m["led_temp_C"] = m.pop("led_temp_cC") / 100.0
         return m
 
+    def last_error(self):
+        """The device's reason for the last request it refused, in words ("none" if none)."""
+        code = self.device.read("last_error")
+        return FW_ERRORS.get(code, f"error {code}")
+
     # -- configuration and commands ------------------------------------------------
+    def limits(self):
+        """The device's own limits that decide whether it arms a scan: max_current_mA, the
+        hard limit, max_pulse_us (µs), settle_us (µs), and the per-channel current gains."""
+        d = self.device
+        hard = R.register("max_current_mA").max
+        return {"max_current_mA": d.read("max_current_mA"), "hard_max_current_mA": hard,
+                "max_pulse_us": d.read("max_pulse_us"), "hard_max_pulse_us": R.register("max_pulse_us").max,
+                "settle_us": d.read("settle_us"), "gains": self.gains()}
+
+    def check_config(self, exposures, lights, light_current_mA, mode="camera", timing=None):
+        """Refuse (BadInputError naming the limit) what the device would refuse at ARM.
+
+        Mirrors the firmware's seq_validate_config: every frame's current, after the
+        channel's gain, within 1..max_current_mA; every LED pulse (the exposure, plus
+        settle_us unless the LED times it) within max_pulse_us. Arguments as `configure`.
+        """
+        lim = self.limits()
+        max_ma = min(lim["max_current_mA"], lim["hard_max_current_mA"])
+        max_pulse = min(lim["max_pulse_us"], lim["hard_max_pulse_us"])
+        settle = int((timing or {}).get("settle_us", lim["settle_us"]))
+        lights = [int(c) for c in lights]
+        currents = [int(light_current_mA)] * len(lights) if not hasattr(light_current_mA, "__len__") \
+            else [int(c) for c in light_current_mA]
+        exps = [(int(e), 0) if not hasattr(e, "__len__") else (int(e[0]), int(e[1])) for e in exposures]
+        for i, ch in enumerate(lights):
+            gain = lim["gains"][ch] if ch < len(lim["gains"]) else 1.0
+            for e, (_, exp_ma) in enumerate(exps):
+                set_ma = exp_ma or currents[i]
+                ma = int((set_ma * round(gain * 1e4) + 5000) // 10000)
+                if not 1 <= ma <= max_ma:
+                    via = f" (× its calibration gain {gain:g} = {ma} mA)" if gain != 1.0 else ""
+                    allowed = int(max_ma / gain)
+                    raise BadInputError(
+                        f"{set_ma} mA for light {i} (LED {ch}) exposure {e}{via} is above the device's "
+                        f"limit max_current_mA = {max_ma} mA" if ma > max_ma else
+                        f"{set_ma} mA for light {i} (LED {ch}) exposure {e} drives no current",
+                        hint=f"use at most {allowed} mA (--current, or '@mA' in --exposures), or raise "
+                             f"the device's limit: facette device --port PORT write max_current_mA N "
+                             f"(hard limit {lim['hard_max_current_mA']} mA)")
+        for e, (t_us, _) in enumerate(exps):
+            pulse = t_us if mode == "led" else settle + t_us
+            if pulse > max_pulse:
+                with_settle = "" if mode == "led" else f" with settle_us {settle / 1e6:g} s"
+                raise BadInputError(
+                    f"exposure {e} ({t_us / 1e6:g} s) keeps the LED on {pulse / 1e6:g} s{with_settle}, "
+                    f"above the device's limit max_pulse_us = {max_pulse / 1e6:g} s",
+                    hint="shorten the exposure, or raise the limit: facette device --port PORT write "
+                         f"max_pulse_us N (hard limit {lim['hard_max_pulse_us'] / 1e6:g} s)")
+
     def configure(self, exposures, lights=None, light_current_mA=500, mode="camera", retries=1,
                   **timing):
         """Write a scan configuration (lights × exposures) to the device.
@@ -131,10 +188,10 @@ class Rig:
             raise ValueError(f"a scan has 1..16 exposures per light, got {len(exps)}")
         currents = [int(light_current_mA)] * len(lights) if not hasattr(light_current_mA, "__len__") \
             else [int(c) for c in light_current_mA]
-        unknown = set(timing) - {"prefocus_us", "mirror_up_us", "settle_us", "gap_us", "led_pre_us",
-                                 "led_post_us", "sync_timeout_us"}
+        unknown = set(timing) - set(TIMING_KEYS)
         if unknown:
             raise ValueError(f"unknown timing settings {sorted(unknown)}")
+        self.check_config(exps, lights, currents, mode, timing)
         d = self.device
         d.write("n_lights", len(lights))
         d.write("n_exposures", len(exps))

@@ -23,7 +23,7 @@ def test_diligent_folder_roundtrip_divides_by_intensities(tmp_path):
     np.testing.assert_allclose(d.light_dirs, dirs, atol=1e-7)
     assert np.array_equal(d.mask, mask)
     (tmp_path / "light_intensities.txt").write_text("1 1 1\n")
-    with pytest.raises(ValueError, match="light_intensities.txt must hold 5 lines"):
+    with pytest.raises(ValueError, match="light_intensities.txt holds 1 lines of 3 numbers; filenames.txt lists 5"):
         read_diligent(tmp_path)
 
 

@@ -67,7 +67,7 @@ def test_outputs_limit_the_stages(diligent_dir, tmp_path):
     res = process(folder, outputs=["normals"], out_dir=tmp_path)
     assert "integrate" not in res.timings and "samples" not in res.timings
     assert res.height is None and res.filtered is None
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["normal.exr"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["normal.exr", "process.json"]
     with pytest.raises(ValueError, match="unknown output"):
         process(folder, outputs=["normal"])
 

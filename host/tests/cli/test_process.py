@@ -1,0 +1,194 @@
+"""`facette process` on DiLiGenT-style folders made here: the happy path, and every bad input
+ends in a clear message with its exit code (2 bad input, 3 data that cannot give a result)."""
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from facette.cli.main import main
+from facette.io.checksum import sha256_file
+from facette.io.diligent import write_diligent
+from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
+
+L = thesis_light_directions()
+
+
+def run_cli(capsys, *argv):
+    try:
+        code = main([str(a) for a in argv])
+    except SystemExit as exc:         # argparse refuses before anything runs
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _folder(root, name, u16=None, mask=None):
+    sc = sphere_on_plane(24, 32)
+    if u16 is None:
+        imgs = render(sc, L, "matte")
+        u16 = np.round(imgs / imgs.max() * 50000).astype(np.uint16)
+    folder = root / name
+    write_diligent(folder, u16, L, None, sc.mask if mask is None else mask)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def folders(tmp_path_factory):
+    root = tmp_path_factory.mktemp("dil")
+    good = _folder(root, "good")
+    return {"good": good,
+            "black": _folder(root, "black", np.zeros((12, 24, 32, 3), np.uint16)),
+            "saturated": _folder(root, "saturated", np.full((12, 24, 32, 3), 65535, np.uint16)),
+            "empty_mask": _folder(root, "empty_mask", mask=np.zeros((24, 32), bool))}
+
+
+def test_happy_path_writes_the_outputs_and_their_record(capsys, folders, tmp_path):
+    code, out, err = run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r", "--outputs",
+                             "normals,mask,height,mesh")
+    assert code == 0, err
+    assert "diligent" in out and "valid pixels" in out
+    rec = json.loads((tmp_path / "r" / "process.json").read_text())
+    assert rec["files"] == ["height.exr", "mask.png", "mesh.ply", "normal.exr"]
+    assert rec["quality"]["pixels_with_enough_lights"] > 0.9 and rec["scan_incomplete"] is None
+
+
+@pytest.mark.parametrize("name, words", [
+    ("black", "below the noise"),
+    ("saturated", "are saturated"),
+    ("empty_mask", "holds no pixel of the object"),
+])
+def test_data_that_cannot_carry_normals_exits_3_with_what_to_change(capsys, folders, tmp_path, name, words):
+    before = {p.name: sha256_file(p) for p in folders[name].iterdir()}
+    code, out, err = run_cli(capsys, "process", folders[name], "-o", tmp_path / "r")
+    assert code == 3, (out, err)
+    assert words in err and "Traceback" not in err and len(err.splitlines()) == 2
+    todo = err.splitlines()[1]
+    assert {"black": "lengthen", "saturated": "shorten", "empty_mask": "mask"}[name] in todo
+    assert not (tmp_path / "r").exists()                      # nothing written
+    assert {p.name: sha256_file(p) for p in folders[name].iterdir()} == before
+
+
+def test_an_empty_mask_file_given_with_mask_is_named(capsys, folders, tmp_path):
+    from facette.io.png import write_mask
+
+    m = tmp_path / "m.png"
+    write_mask(m, np.zeros((24, 32), bool))
+    code, out, err = run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r", "--mask", m)
+    assert code == 3 and f"--mask {m}" in err, err
+
+
+def test_a_mask_of_another_size_says_both_sizes(capsys, folders, tmp_path):
+    from facette.io.png import write_mask
+
+    m = tmp_path / "m.png"
+    write_mask(m, np.ones((10, 10), bool))
+    code, out, err = run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r", "--mask", m)
+    assert code == 2 and "10x10" in err and "32x24" in err, err
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--mesh-step", "0"], "--mesh-step must be >= 1"),
+    (["--pixel-pitch", "0"], "--pixel-pitch must be > 0"),
+    (["--pixel-pitch", "nan"], "--pixel-pitch must be > 0"),
+    (["--t-ombre", "-0.5"], "--t-ombre must be in (0, 1.5708]"),
+    (["--t-spec", "0"], "--t-spec must be > 0"),
+    (["--theta0", "120"], "--theta0 must be in (0, 90]"),
+    (["--outputs", "normals,shape"], "unknown output(s) shape"),
+    (["--brdf-model", "phong"], "invalid choice: 'phong'"),
+    (["--method", "x"], "invalid choice: 'x'"),
+])
+def test_bad_options_are_refused_before_any_work(capsys, folders, tmp_path, args, words):
+    code, out, err = run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r", *args)
+    assert code == 2 and words in err and len(err.splitlines()) == 2, err
+    assert not (tmp_path / "r").exists()
+
+
+def test_the_output_is_a_file(capsys, folders, tmp_path):
+    f = tmp_path / "f"
+    f.write_text("mine")
+    code, out, err = run_cli(capsys, "process", folders["good"], "-o", f)
+    assert code == 2 and f"-o {f} is a file" in err and f.read_text() == "mine", err
+
+
+def test_the_output_is_not_writable(capsys, folders, tmp_path):
+    if os.geteuid() == 0:
+        target = Path("/sys/facette-results")       # root ignores permission bits; sysfs refuses
+    else:
+        ro = tmp_path / "ro"
+        ro.mkdir()
+        ro.chmod(0o500)
+        target = ro / "r"
+    code, out, err = run_cli(capsys, "process", folders["good"], "-o", target)
+    assert code == 2 and str(target) in err and "write" in err and "Traceback" not in err, err
+
+
+def test_a_results_folder_holds_one_run(capsys, folders, tmp_path):
+    out = tmp_path / "r"
+    assert run_cli(capsys, "process", folders["good"], "-o", out, "--outputs", "normals,mesh")[0] == 0
+    first = sha256_file(out / "normal.exr")
+    code, _, err = run_cli(capsys, "process", folders["good"], "-o", out, "--outputs", "normals",
+                           "--t-ombre", "1.2")
+    assert code == 2 and "holds the results of another run (t_ombre: 1.5 then, 1.2 now)" in err, err
+    assert sha256_file(out / "normal.exr") == first            # untouched
+    code, _, err = run_cli(capsys, "process", folders["good"], "-o", out, "--outputs", "normals",
+                           "--t-ombre", "1.2", "--overwrite")
+    assert code == 0, err
+    assert sorted(p.name for p in out.iterdir()) == ["normal.exr", "process.json"]   # mesh.ply was the other run's
+    assert json.loads((out / "process.json").read_text())["options"]["t_ombre"] == 1.2
+    # the same options again, other outputs: both runs' files are one run's
+    assert run_cli(capsys, "process", folders["good"], "-o", out, "--outputs", "mask",
+                   "--t-ombre", "1.2")[0] == 0
+    assert json.loads((out / "process.json").read_text())["files"] == ["mask.png", "normal.exr"]
+
+
+def test_a_folder_of_foreign_files_is_not_written_into(capsys, folders, tmp_path):
+    out = tmp_path / "r"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    code, _, err = run_cli(capsys, "process", folders["good"], "-o", out)
+    assert code == 2 and "no facette process run recorded" in err, err
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+
+
+@pytest.mark.parametrize("table, text, words", [
+    ("light_directions.txt", "0 0 1\n0 x 1\n", "light_directions.txt, line 2: '0 x 1' is not 3 finite numbers"),
+    ("light_directions.txt", "0 0 1\n", "light_directions.txt holds 1 lines of 3 numbers; filenames.txt lists 12"),
+    ("light_directions.txt", "nan 0 1\n" * 12, "line 1: 'nan 0 1' is not 3 finite numbers"),
+    ("light_intensities.txt", "1 1 1\n" * 11 + "1 0 1\n", "light_intensities.txt, line 12: a non-positive"),
+])
+def test_a_bad_line_in_a_diligent_table_is_named(capsys, folders, tmp_path, table, text, words):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(folders["good"], bad)
+    (bad / table).write_text(text)
+    code, out, err = run_cli(capsys, "process", bad, "-o", tmp_path / "r")
+    assert code == 2 and words in err and "calibration profile" not in err, err
+
+
+def test_a_source_that_is_neither_kind_of_folder(capsys, tmp_path):
+    code, _, err = run_cli(capsys, "process", tmp_path, "-o", tmp_path / "r")
+    assert code == 2 and "holds neither scan.json" in err, err
+    code, _, err = run_cli(capsys, "process", tmp_path / "nope", "-o", tmp_path / "r")
+    assert code == 2 and "is not a directory" in err, err
+
+
+def test_a_brdf_fit_needs_enough_filled_cells(capsys, tmp_path):
+    """A flat slab under 4 lights fills a handful of hemisphere cells: no BRDF can be fitted
+    from that, and saying "ok" would be a lie (exit 3, with what to change)."""
+    from facette.recon.synthetic import Scene
+
+    h, w = 24, 32
+    n = np.zeros((h, w, 3))
+    n[..., 2] = 1
+    flat = Scene(n, np.zeros((h, w)), np.ones((h, w), bool), np.zeros((h, w), bool), (12, 16), 1.0)
+    lights = L[[0, 3, 6, 9]]
+    imgs = render(flat, lights, "matte")
+    u16 = np.round(imgs / imgs.max() * 50000).astype(np.uint16)
+    write_diligent(tmp_path / "flat", u16, lights, None, flat.mask)
+    code, out, err = run_cli(capsys, "process", tmp_path / "flat", "-o", tmp_path / "r", "--outputs", "brdf")
+    assert code == 3 and "a BRDF fit needs 10 filled cells" in err and "more lights" in err, err
+    code, out, err = run_cli(capsys, "process", tmp_path / "flat", "-o", tmp_path / "r2", "--outputs", "normals")
+    assert code == 0, err                                   # the normals it can give

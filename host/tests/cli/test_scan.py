@@ -1,0 +1,117 @@
+"""`facette scan`: its arguments and the checks made before any rig (or simulator) starts.
+(Scans on the simulated rig, and the device's own limits: hil_tests/test_bad_input.py.)"""
+import argparse
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+import facette.device
+from facette.cli import _scan
+from facette.cli.main import main
+
+REPO = Path(__file__).resolve().parents[3]
+
+
+def test_exposures_parse_seconds_fractions_microseconds_and_currents():
+    assert _scan._exposures("2,1/5, 250us@800") == [(2_000_000, 0), (200_000, 0), (250, 800)]
+
+
+@pytest.mark.parametrize("text, words", [
+    ("1/0", "is not a time"), ("abc", "is not a time"), ("0.5us", "shorter than 1 µs"),
+    ("31", "longer than the device's hard limit of 30 s"), ("1/5@0", "1..1500 mA"),
+    ("1/5@2000", "1..1500 mA"), ("1/5,,1/50", "not a list of exposures"), (",".join(["1"] * 17), "1..16"),
+])
+def test_bad_exposures(text, words):
+    with pytest.raises(argparse.ArgumentTypeError, match=None) as exc:
+        _scan._exposures(text)
+    assert words in str(exc.value)
+
+
+@pytest.mark.parametrize("text, words", [
+    ("0,0,1", "light 0 is listed twice"), ("0,a", "is not a list of LED channels"),
+    ("16", "LED channel 16 does not exist: channels are 0..15"), ("-1", "does not exist"), (",", "no LED"),
+])
+def test_bad_lights(text, words):
+    with pytest.raises(argparse.ArgumentTypeError) as exc:
+        _scan._lights(text)
+    assert words in str(exc.value)
+
+
+def test_currents_and_sizes():
+    assert _scan._current("1000") == 1000 and _scan._shape("128x96") == (96, 128)
+    for bad in ("0", "1501", "-100", "1.5"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            _scan._current(bad)
+    for bad in ("0x10", "7x8", "128", "axb"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            _scan._shape(bad)
+
+
+@pytest.fixture
+def no_rig(monkeypatch):
+    """Any attempt to connect (which would start the simulated rig) fails the test."""
+    def refuse(*a, **k):
+        raise AssertionError("a rig was started before the arguments were checked")
+    monkeypatch.setattr(facette.device, "connect", refuse)
+
+
+def _cli(capsys, *argv):
+    try:
+        code = main([str(a) for a in argv])
+    except SystemExit as exc:
+        code = exc.code
+    return code, capsys.readouterr().err
+
+
+def test_a_damaged_profile_is_named_before_the_rig_starts(no_rig, capsys, tmp_path):
+    prof = tmp_path / "prof"
+    shutil.copytree(REPO / "calibration" / "profiles" / "sim-default", prof)
+    data = json.loads((prof / "profile.json").read_text())
+    data["lights"][0]["intensity"] = [0, 1, 1]
+    (prof / "profile.json").write_text(json.dumps(data))
+    code, err = _cli(capsys, "scan", "--sim", "--profile", prof, tmp_path / "s")
+    assert code == 2 and f"{prof / 'profile.json'} does not match its checksum" in err, err
+    code, err = _cli(capsys, "scan", "--sim", "--profile", tmp_path / "none", tmp_path / "s")
+    assert code == 2 and "no calibration profile at" in err, err
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_profile_without_an_id_is_named_not_a_key_error(no_rig, capsys, tmp_path):
+    from facette.calib.profile import _checksum
+
+    prof = tmp_path / "prof"
+    shutil.copytree(REPO / "calibration" / "profiles" / "sim-default", prof)
+    data = json.loads((prof / "profile.json").read_text())
+    del data["id"]
+    data["checksum"] = _checksum(data)
+    (prof / "profile.json").write_text(json.dumps(data))
+    code, err = _cli(capsys, "scan", "--sim", "--profile", prof, tmp_path / "s")
+    assert code == 2 and "lacks id" in err and "KeyError" not in err, err
+
+
+def test_a_profile_with_a_non_positive_intensity_says_which_light(tmp_path):
+    from facette.calib import ProfileError
+    from facette.calib.profile import Lights
+
+    with pytest.raises(ProfileError, match=r"light\(s\) \[1\] have \[1.0, 0.0, 1.0\]"):
+        Lights(directions=[[0, 0, 1], [0, 0, 1]], intensities=[[1, 1, 1], [1, 0, 1]])
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--press-button"], "--press-button needs --sim"),
+    ([], "say which rig"),
+    (["--device", "/dev/ttyACM0"], "a real rig needs a camera"),
+])
+def test_which_rig_and_camera_are_asked_for_first(no_rig, capsys, tmp_path, args, words):
+    code, err = _cli(capsys, "scan", *args, tmp_path / "s")
+    assert code == 2 and words in err, err
+    assert not (tmp_path / "s").exists()
+
+
+def test_an_output_path_that_is_a_file_is_refused_before_the_rig_starts(no_rig, capsys, tmp_path):
+    f = tmp_path / "f"
+    f.write_text("x")
+    code, err = _cli(capsys, "scan", "--sim", f)
+    assert code == 2 and f"{f} is a file" in err and f.read_text() == "x", err
