@@ -71,7 +71,7 @@ def _check_write(reg, value):
     try:
         reg.encode(value)
     except ValueError as exc:
-        raise BadInputError(str(exc), hint=f"{reg.name} takes {reg.min}..{reg.max}"
+        raise BadInputError(str(exc), hint=f"{reg.name} takes {reg.minimum}..{reg.maximum}"
                             + (f" {reg.unit}" if reg.unit else "")) from None
 
 

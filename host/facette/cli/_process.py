@@ -39,7 +39,8 @@ def register(sub):
     from facette.pipeline import OUTPUTS
     from facette.recon import PS_METHODS
     from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
-    from facette.fit import METHODS, MODEL_NAMES
+    from facette.brdf import MODELS
+    from facette.fit import METHODS
     from facette.reflect import THETA0_DEG
     p = sub.add_parser("process", help="process a scan or a DiLiGenT-style folder",
                        description=__doc__.splitlines()[0])
@@ -76,8 +77,9 @@ def register(sub):
     p.add_argument("--mesh-step", type=_number(int, 1, None, False, "--mesh-step"),
                    help="mesh vertex every N pixels, >= 1 (default: <= ~1e6 vertices)")
     p.add_argument("--ascii-ply", action="store_true", help="write mesh.ply as ASCII")
-    p.add_argument("--brdf-model", default="li", choices=MODEL_NAMES, help="model fitted for brdf.json")
-    p.add_argument("--fit-method", default="least_squares", choices=METHODS, help="fit method")
+    p.add_argument("--brdf-model", default="li", choices=list(MODELS.names()),
+                   help="model fitted for brdf.json")
+    p.add_argument("--fit-method", default="least_squares", choices=list(METHODS.names()), help="fit method")
     p.add_argument("--allow-incomplete", action="store_true",
                    help="process a scan that is not complete (every output then says so)")
     p.add_argument("--overwrite", action="store_true",

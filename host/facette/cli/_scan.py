@@ -19,7 +19,7 @@ def _limits(name):
     from facette.device import registers as R
 
     reg = R.register(name)
-    return reg.min, reg.max
+    return reg.minimum, reg.maximum
 
 
 def _exposures(text):

@@ -117,9 +117,9 @@ class Rig:
         """The device's own limits that decide whether it arms a scan: max_current_mA, the
         hard limit, max_pulse_us (µs), settle_us (µs), and the per-channel current gains."""
         d = self.device
-        hard = R.register("max_current_mA").max
+        hard = R.register("max_current_mA").maximum
         return {"max_current_mA": d.read("max_current_mA"), "hard_max_current_mA": hard,
-                "max_pulse_us": d.read("max_pulse_us"), "hard_max_pulse_us": R.register("max_pulse_us").max,
+                "max_pulse_us": d.read("max_pulse_us"), "hard_max_pulse_us": R.register("max_pulse_us").maximum,
                 "settle_us": d.read("settle_us"), "gains": self.gains()}
 
     def check_config(self, exposures, lights, light_current_mA, mode="camera", timing=None):

@@ -2,7 +2,7 @@
 the simulated rig: hil_tests/test_calibrate_wizard.py)."""
 import pytest
 
-import facette.device
+import facette.scan
 from facette.cli.main import main
 
 
@@ -10,7 +10,7 @@ from facette.cli.main import main
 def no_rig(monkeypatch):
     def refuse(*a, **k):
         raise AssertionError("a rig was started before the arguments were checked")
-    monkeypatch.setattr(facette.device, "connect", refuse)
+    monkeypatch.setattr(facette.scan, "connect", refuse)
 
 
 @pytest.mark.parametrize("args, words", [

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-import facette.device
+import facette.scan
 from facette.cli import _scan
 from facette.cli.main import main
 
@@ -54,7 +54,7 @@ def no_rig(monkeypatch):
     """Any attempt to connect (which would start the simulated rig) fails the test."""
     def refuse(*a, **k):
         raise AssertionError("a rig was started before the arguments were checked")
-    monkeypatch.setattr(facette.device, "connect", refuse)
+    monkeypatch.setattr(facette.scan, "connect", refuse)
 
 
 def _cli(capsys, *argv):
