@@ -250,6 +250,7 @@ def test_scan_exits_non_zero_when_its_processing_step_fails(capsys, tmp_path):
     code, out, err = run_cli(capsys, "scan", "--sim", "--press-button", "--quiet", "--raw-size", "32x24",
                              "--lights", "0", "--exposures", "1/5", d)
     assert code == 3, (out, err)
+    assert "photometric stereo needs at least 4 lights" in err and "capture with more lights" in err
     assert frames_intact(d) == 1
 
 

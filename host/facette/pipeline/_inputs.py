@@ -155,10 +155,14 @@ def _read_hdr_fast(scan_dir, light_ids):
                 chans = f.channels()
                 for c, name in enumerate("RGB"):
                     images[k, :, :, c] = chans[name].pixels
+        except Exception as exc:  # OpenEXR raises plain exceptions on damaged files
+            raise BadInputError(f"{img} is not a readable HDR image ({exc})",
+                                hint="delete it: processing merges it again from raw/") from exc
+        try:
             with OpenEXR.File(str(var), separate_channels=True) as f:
                 v = np.stack([f.channels()[c].pixels for c in "RGB"], axis=-1)
-        except Exception as exc:  # OpenEXR raises plain exceptions on damaged files
-            raise BadInputError(f"{img} or {var.name} is not a readable HDR image ({exc})",
+        except Exception as exc:
+            raise BadInputError(f"{var} is not a readable HDR image ({exc})",
                                 hint="delete it: processing merges it again from raw/") from exc
         bad = ~np.isfinite(v).all(axis=-1)
         wild = ~np.isfinite(images[k]).any(axis=-1) & ~bad

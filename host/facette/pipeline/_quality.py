@@ -47,6 +47,10 @@ def check_samples(images, usable, object_mask, mask_source, light_names=None):
     ("mask.png", "--mask FILE", "the lit pixels"); light_names : m labels for notes.
     """
     m = images.shape[0]
+    if m <= MIN_LIGHTS:
+        raise InsufficientData(f"photometric stereo needs at least {MIN_LIGHTS + 1} lights ({MIN_LIGHTS} "
+                               f"to solve, one more to check the fit); the data has {m}",
+                               hint="capture with more lights (--lights)")
     names = light_names or [f"light {i}" for i in range(m)]
     n_obj = int(object_mask.sum())
     if n_obj == 0:
