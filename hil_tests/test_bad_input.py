@@ -313,7 +313,8 @@ def test_hdr_made_before_a_frame_was_reshot_is_merged_again(capsys, scan_copy, t
     assert "light_00" not in out and "light_03" not in out          # the others are still good
     hdr = json.loads((scan_copy / "scan.json").read_text())["hdr"]
     frames = json.loads((scan_copy / "scan.json").read_text())["frames"]
-    assert hdr["lights"][2]["inputs"] == sorted([f["file"], f["sha256"]] for f in frames if f["light"] == 2)
+    assert sorted((i["file"], i["sha256"]) for i in hdr["lights"][2]["inputs"]) == \
+        sorted((f["file"], f["sha256"]) for f in frames if f["light"] == 2)
     fresh = tmp_path / "fresh"
     shutil.copytree(scan_copy, fresh, ignore=shutil.ignore_patterns("hdr"))
     assert run_cli(capsys, "process", fresh, "-o", tmp_path / "r3", "--outputs", "normals")[0] == 0
