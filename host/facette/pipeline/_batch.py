@@ -91,7 +91,8 @@ def process_scan(scan_dir, out_dir, outputs=None, options=None, force=False):
         if (not force and record and record.get("row", {}).get("status") == "ok"
                 and record.get("inputs") == fingerprint):
             return {**record["row"], "status": "skipped"}
-        res = process(scan_dir, outputs=outputs, out_dir=out_dir, **(options or {}))
+        # the batch decides itself when a scan's row is redone (its inputs or options changed)
+        res = process(scan_dir, outputs=outputs, out_dir=out_dir, overwrite=True, **(options or {}))
         row.update(_figures(res), status="ok", error="")
     except Exception as exc:   # one bad scan must not stop a collection: report it in its row
         error = f"{type(exc).__name__}: {exc}"

@@ -145,6 +145,8 @@ def _read_hdr_fast(scan_dir, light_ids):
     def one(k):
         try:
             read_pair(k)
+        except BadInputError:             # already names the file and what to do
+            raise
         except Exception as exc:
             raise _unreadable(paths[k][0], exc) from exc
 
@@ -156,13 +158,18 @@ def _read_hdr_fast(scan_dir, light_ids):
                 for c, name in enumerate("RGB"):
                     images[k, :, :, c] = chans[name].pixels
         except Exception as exc:  # OpenEXR raises plain exceptions on damaged files
-            raise BadInputError(f"{img} is not a readable HDR image ({exc})",
+            raise BadInputError(f"{img}: cannot read this HDR image ({exc})",
                                 hint="delete it: processing merges it again from raw/") from exc
+        if not var.is_file():      # radiance without its variance (made elsewhere): no noise
+            v = np.zeros_like(images[k])          # estimate, every known value counts
+            images[k][~np.isfinite(images[k]).all(axis=-1)] = np.nan
+            usable[k] = np.isfinite(images[k][..., 1]) & (images[k][..., 1] > 0)
+            return
         try:
             with OpenEXR.File(str(var), separate_channels=True) as f:
                 v = np.stack([f.channels()[c].pixels for c in "RGB"], axis=-1)
         except Exception as exc:
-            raise BadInputError(f"{var} is not a readable HDR image ({exc})",
+            raise BadInputError(f"{var}: cannot read this HDR image ({exc})",
                                 hint="delete it: processing merges it again from raw/") from exc
         bad = ~np.isfinite(v).all(axis=-1)
         wild = ~np.isfinite(images[k]).any(axis=-1) & ~bad
@@ -211,8 +218,9 @@ def _load_hdr_images(scan_dir, data):
 def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False):
     data = ScanDirectory(scan_dir).manifest      # a damaged scan.json is named (BadInputError)
     expected = len(data.get("lights", [])) * len(data.get("exposures") or [])
-    # "complete" is written by facette scan; a hand-made scan.json may lack it: count the frames
-    complete = data["complete"] if "complete" in data else len(data["frames"]) >= expected
+    # every (light, exposure) of the plan has a frame (scan.json's own "complete" flag is not
+    # set by every writer: a scan.json made by hand or by a tool has frames but no flag)
+    complete = len({(f["light"], f["exposure"]) for f in data["frames"]}) >= expected
     if not complete and not allow_incomplete:
         raise BadInputError(f"the scan is incomplete ({len(data['frames'])} of {expected} frames in "
                             f"{scan_dir}): run the same scan command to resume",

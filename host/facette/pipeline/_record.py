@@ -16,6 +16,7 @@ from facette.errors import BadInputError
 __all__ = ["RECORD", "claim_results", "write_record", "read_record"]
 
 RECORD = "process.json"
+BESIDE = ("batch.json",)      # facette batch's own record of a scan's row, kept beside ours
 
 
 def _plain(obj):
@@ -44,7 +45,7 @@ def claim_results(out, options, inp, overwrite=False):
     if not out.is_dir():
         return None
     rec = read_record(out)
-    others = [p for p in out.iterdir() if p.name != RECORD]
+    others = [p for p in out.iterdir() if p.name != RECORD and p.name not in BESIDE]
     if rec is None:
         if others and not overwrite:
             raise BadInputError(f"{out} already holds files that no facette process run recorded "

@@ -30,12 +30,15 @@ def sim_scans(tmp_path_factory):
 
 @pytest.fixture
 def collection(sim_scans, tmp_path):
-    """Four scans: the two simulated ones, a copy, and a copy with a truncated HDR image."""
+    """Four scans: the two simulated ones, a copy, and a copy with a truncated HDR image whose
+    RAW frames are gone (with them, processing would merge the image again)."""
     scans = [shutil.copytree(s, tmp_path / "scans" / s.name) for s in sim_scans]
     scans.append(shutil.copytree(sim_scans[0], tmp_path / "scans" / "copy"))
     bad = shutil.copytree(sim_scans[1], tmp_path / "scans" / "corrupted")
     exr = bad / "hdr" / "light_03.exr"
     exr.write_bytes(exr.read_bytes()[:3000])
+    for raw in (bad / "raw").glob("L03_E*"):
+        raw.unlink()
     scans.append(bad)
     return scans
 
@@ -69,7 +72,7 @@ def test_a_rerun_skips_what_is_done_and_redoes_what_changed(collection, tmp_path
     shutil.copy(collection[0] / "hdr" / "light_00.exr", collection[1] / "hdr" / "light_00.exr")
     shutil.copy(collection[1] / "hdr" / "light_03.exr", collection[3] / "hdr" / "light_03.exr")
     rows = batch(collection, out, workers=1, outputs=OUTPUTS, options=OPTIONS, progress=False)
-    assert [r["status"] for r in rows] == ["skipped", "ok", "skipped", "ok"]
+    assert [r["status"] for r in rows] == ["skipped", "ok", "skipped", "ok"], rows[3].get("error")
     # other options: not the same results, so not done
     rows = batch(collection[:1], out, workers=1, outputs=OUTPUTS, options={}, progress=False)
     assert rows[0]["status"] == "ok"
@@ -82,7 +85,7 @@ def test_cli_exit_status_names_the_failed_scan(collection, tmp_path, capsys):
     captured = capsys.readouterr()
     assert status == 1
     assert "2 scans: 1 processed, 0 already done, 1 failed" in captured.out
-    assert "failed: corrupted: ValueError:" in captured.err
+    assert "failed: corrupted: BadInputError:" in captured.err
     assert main(["batch", str(tmp_path / "nowhere"), "-o", str(out), "--quiet",
                  "--outputs", "normals"]) == 1
     assert "no scan.json" in capsys.readouterr().err

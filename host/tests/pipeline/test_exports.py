@@ -1,5 +1,6 @@
 """RTI and glTF exports as outputs of `facette process`: on by default, left out on request."""
 import numpy as np
+import pytest
 
 from facette.cli.main import main
 from facette.pipeline import OUTPUTS, process, stages_needed
@@ -31,17 +32,21 @@ def test_outputs_can_leave_the_exports_out(tmp_path):
     assert stages_needed(["gltf"]) == ["load", "ps", "integrate", "mesh", "samples", "fit"]
     res = process(tmp_path / "scan", outputs=["normals", "ptm"], out_dir=tmp_path / "o")
     assert res.ptm is not None and res.hsh is None and "hsh" not in res.timings
-    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["normal.exr", "relight.ptm"]
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["normal.exr", "process.json", "relight.ptm"]
     assert 0 < res.fit_errors["ptm_relative_rms"] < 0.1
     res = process(tmp_path / "scan", outputs=["normals"], out_dir=tmp_path / "p")
     assert res.ptm is None and not res.fit_errors
-    assert sorted(p.name for p in (tmp_path / "p").iterdir()) == ["normal.exr"]
+    assert sorted(p.name for p in (tmp_path / "p").iterdir()) == ["normal.exr", "process.json"]
 
 
-def test_gltf_with_an_empty_mask_is_skipped_with_a_note(tmp_path):
+def test_gltf_with_an_empty_mask_is_not_written(tmp_path):
+    """An empty mask cannot give any result (issue 14: no empty outputs with exit 0): the
+    quality gate stops processing before anything is written."""
+    from facette.errors import InsufficientData
+
     sc = sphere_on_plane(24, 24)
     _write_scan(tmp_path / "scan", sc, render(sc, L, "matte"), pitch=0.1)
-    res = process(tmp_path / "scan", outputs=["gltf"], out_dir=tmp_path / "o",
-                  mask=np.zeros((24, 24), bool), fit_options={"model": "lambert"})
-    assert any("model.glb not written" in n for n in res.notes)
+    with pytest.raises(InsufficientData, match="the given mask holds no pixel of the object"):
+        process(tmp_path / "scan", outputs=["gltf"], out_dir=tmp_path / "o",
+                mask=np.zeros((24, 24), bool), fit_options={"model": "lambert"})
     assert not (tmp_path / "o" / "model.glb").exists()
