@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 from modbus_crc import crc16
+from posix_device import REPO, POSIX_DEVICE, PosixDevice, start_posix_device, stop_posix_device, stop_process  # noqa: F401
 
 QEMU_TEST_FILE = "test_qemu_board.py"
 QEMU_BOOT_TIMEOUT_S = 10.0
@@ -107,15 +108,6 @@ def _wait_modbus_ready(url: str, timeout_s: float) -> bool:
     return False
 
 
-def _stop(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
-        proc.kill()
-    try:
-        proc.wait(timeout=5)
-    except subprocess.TimeoutExpired:  # pragma: no cover - kill is not ignorable
-        pass
-
-
 @pytest.fixture
 def qemu_board(request, tmp_path):
     """Boot the --qemu-elf firmware under QEMU; killed at teardown whatever happens."""
@@ -141,7 +133,7 @@ def qemu_board(request, tmp_path):
         with open(out_path, "wb") as out:
             proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out,
                                     stderr=subprocess.STDOUT)
-        request.addfinalizer(lambda p=proc: _stop(p))
+        request.addfinalizer(lambda p=proc: stop_process(p))
         if _wait_listening(proc, port, QEMU_BOOT_TIMEOUT_S):
             board = QemuBoard(f"socket://127.0.0.1:{port}", port, proc, log_path)
             if not _wait_modbus_ready(board.url, QEMU_BOOT_TIMEOUT_S):
@@ -149,7 +141,7 @@ def qemu_board(request, tmp_path):
                                    f"08/00 echo within {QEMU_BOOT_TIMEOUT_S} s\n"
                                    f"{board.log_tail()}")
             return board
-        _stop(proc)
+        stop_process(proc)
     raise RuntimeError(f"QEMU did not open its serial port: {' '.join(cmd)}\n"
                        f"{out_path.read_text(errors='replace')}")
 
@@ -183,59 +175,6 @@ def sim_rig_factory():
 # `posix_device` starts a fresh build/posix/facette-device per test (its own pty, side-channel
 # socket and flash state directory) and stops it at teardown; `device_port` is the port the
 # Modbus conformance tests talk to: --device when given, else the fresh simulated device's pty.
-REPO = Path(__file__).resolve().parent.parent
-POSIX_DEVICE = REPO / "build" / "posix" / "facette-device"
-
-
-@dataclass
-class PosixDevice:
-    """A running simulated device: ``port`` (pty path), ``side`` (Unix socket path), ``state`` dir."""
-
-    port: str
-    side: str
-    state: Path
-    process: subprocess.Popen
-
-    def side_connect(self) -> socket.socket:
-        """Connect to the side channel (the device then runs in lockstep with this client)."""
-        s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        s.connect(self.side)
-        return s
-
-
-def _posix_binary() -> Path:
-    if not POSIX_DEVICE.is_file():
-        r = subprocess.run(["make", "-s", "-C", os.fspath(REPO / "firmware"), "posix",
-                            f"BUILD={REPO / 'build'}"], capture_output=True, text=True)
-        if r.returncode != 0 or not POSIX_DEVICE.is_file():
-            raise FileNotFoundError(f"{POSIX_DEVICE} is missing and building it failed; run "
-                                    f"`make firmware-posix`:\n{r.stdout}{r.stderr}")
-    return POSIX_DEVICE
-
-
-def start_posix_device(tmp: Path, speed: float = 100.0, state: Path | None = None) -> PosixDevice:
-    """Start facette-device in tmp; returns once its pty path has been printed."""
-    state = state or tmp / "state"
-    side = tmp / "side.sock"
-    proc = subprocess.Popen([os.fspath(_posix_binary()), "--speed", str(speed), "--side",
-                             os.fspath(side), "--state", os.fspath(state)],
-                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True)
-    line = proc.stdout.readline().strip()
-    if not line.startswith("port: "):
-        _stop(proc)
-        raise RuntimeError(f"facette-device printed {line!r} instead of 'port: <path>'")
-    return PosixDevice(line.split(": ", 1)[1], os.fspath(side), state, proc)
-
-
-def stop_posix_device(dev: PosixDevice) -> None:
-    dev.process.terminate()
-    try:
-        dev.process.wait(timeout=5)
-    except subprocess.TimeoutExpired:
-        _stop(dev.process)
-    dev.process.stdout.close()
-
-
 @pytest.fixture
 def posix_device(tmp_path):
     """A fresh simulated device, stopped at teardown."""

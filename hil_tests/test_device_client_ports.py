@@ -7,7 +7,7 @@ import os
 
 import pytest
 
-from conftest import start_posix_device, stop_posix_device
+from posix_device import start_posix_device, stop_posix_device
 from facette.device import DeviceClient, DeviceError
 
 

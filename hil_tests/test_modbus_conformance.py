@@ -256,7 +256,7 @@ import socket  # noqa: E402
 import subprocess  # noqa: E402
 import threading  # noqa: E402
 
-from conftest import POSIX_DEVICE, start_posix_device, stop_posix_device  # noqa: E402
+from posix_device import POSIX_DEVICE, start_posix_device, stop_posix_device  # noqa: E402
 
 EVENT = re.compile(r"^(\d+) (led -?\d+ \d+|shutter [01] frame=\d+ light=\d+ exp=\d+ exp_us=\d+ "
                    r"mode=(camera|bulb|led)|focus [01]|boot \d+)$")
