@@ -13,7 +13,7 @@ SCAN_OUT ?= out/scan-demo
 SCAN_SIZE ?= 1024x768
 GLTF_VALIDATOR := tools/gltf-validator
 
-.PHONY: setup deps venv firmware-posix generate check-generated check-layers test c-test fuzz fuzz-smoke \
+.PHONY: lock setup deps venv firmware-posix generate check-generated check-layers test c-test fuzz fuzz-smoke \
         pytest firmware qemu-test check-fw-layers scan calibrate bench clean help node-deps
 
 help:
@@ -25,6 +25,7 @@ help:
 	@echo "make qemu-test        boot the STM32 build in QEMU and talk Modbus to it"
 	@echo "make fuzz             libFuzzer on frames/registers and on the sequencer/safety, both at once ($(FUZZ_SECONDS) s each)"
 	@echo "make bench            benchmarks: error and run time side by side"
+	@echo "make lock             requirements.lock anew from pyproject.toml (pip-compile)"
 	@echo "make generate         regenerate protocol files from protocol/registers.toml"
 	@echo "make check-layers     host imports only go down the layers of docs/ARCHITECTURE.md"
 
@@ -33,11 +34,20 @@ setup: deps venv node-deps firmware-posix
 deps:
 	@tools/install-debian-deps.sh
 
-$(VENV)/.installed: pyproject.toml
+# Every Python package at the version in requirements.lock (pip-compile's output; `make lock`
+# writes it anew from pyproject.toml), then facette itself, editable, with no other resolution.
+$(VENV)/.installed: pyproject.toml requirements.lock
 	python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[dev]'
+	$(PY) -m pip install -q -r requirements.lock
+	$(PY) -m pip install -q --no-deps -e .
 	touch $@
+
+lock:
+	python3 -m venv $(BUILD)/pip-tools
+	$(BUILD)/pip-tools/bin/pip install -q pip-tools
+	$(BUILD)/pip-tools/bin/pip-compile -q --extra dev --strip-extras -o requirements.lock pyproject.toml
+	sed -i '/^--find-links/d' requirements.lock
 
 venv: $(VENV)/.installed
 
