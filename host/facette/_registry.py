@@ -7,7 +7,7 @@ not there raises a ValueError listing the valid ones (after colour's `CanonicalM
     PS_METHODS = Registry("photometric-stereo method")
     PS_METHODS.add("woodham1980", ps_woodham1980, aliases=("least_squares",))
 
-    def photometric_stereo(images, light_dirs, method="hierarchical_tautzia2016", **kw):
+    def photometric_stereo(images, light_dirs, method="rank_trimmed", **kw):
         return PS_METHODS[method](images, light_dirs, **kw)
 
 Iterating a registry gives its canonical names in the order they were added (aliases are

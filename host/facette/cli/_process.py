@@ -37,7 +37,7 @@ def _outputs(text):
 
 def register(sub):
     from facette.pipeline import OUTPUTS
-    from facette.recon import PS_METHODS
+    from facette.recon import PS_DEFAULT, PS_METHODS
     from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
     from facette.brdf import MODELS
     from facette.fit import METHODS
@@ -49,7 +49,7 @@ def register(sub):
     p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
                    help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all); only the "
                         "stages they need run")
-    p.add_argument("--method", default="hierarchical_tautzia2016",
+    p.add_argument("--method", default=PS_DEFAULT,
                    choices=list(PS_METHODS),
                    help="photometric stereo (li_alternating: BRDF-aware, the LI model fitted and the "
                         "normals re-estimated against it in alternation)")

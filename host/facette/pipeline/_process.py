@@ -32,7 +32,7 @@ from facette.io.gltf import write_glb
 from facette.io.png import write_mask
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
-from facette.recon import (integrate, mesh_from_height, near_light_directions, photometric_stereo,
+from facette.recon import (PS_DEFAULT, integrate, mesh_from_height, near_light_directions, photometric_stereo,
                            fit_hsh, fit_ptm_lrgb, relight_error, relight_hsh, relight_ptm)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
@@ -201,7 +201,7 @@ def _truth_errors(inp, res):
     return out
 
 
-def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016",
+def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
             integration="frankot_chellappa1988", t_ombre=T_OMBRE, t_spec=T_SPEC,
             t_source=T_SOURCE, t_residual=T_RESIDUAL, theta0_deg=THETA0_DEG, mask=None,
             pixel_pitch_mm=None, near_light=True, mesh_step=None, ascii_ply=False,
@@ -212,7 +212,8 @@ def process(source, outputs=None, out_dir=None, method="hierarchical_tautzia2016
     source : path (or Scan object) of a facette scan (scan.json + hdr/) or a DiLiGenT folder.
     outputs : list from OUTPUTS (default all); only the stages they need run.
     out_dir : where to write the files of DESIGN §7 (None: compute only, write nothing).
-    method : photometric stereo, "hierarchical_tautzia2016", "woodham1980" or "li_alternating"
+    method : photometric stereo (a name of recon.PS_METHODS; default PS_DEFAULT, "rank_trimmed"),
+        e.g. "hierarchical_tautzia2016" (the thesis), "woodham1980", "rpca_wu2010" or "li_alternating"
         (BRDF-aware: facette.fit.ps_li_alternating; albedo.exr is then the LI K_d, and brdf.json
         gains "materials" (σ, n_i, pixel count per region) and "levels" (pixels and seconds of
         each level)).

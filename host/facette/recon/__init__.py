@@ -7,7 +7,7 @@ trimmed least squares); all dispatched by `photometric_stereo(..., method=)`. In
 Relighting functions for RTI (PTM, Malzbender 2001; hemispherical harmonics, Gautron 2004):
 `fit_ptm_lrgb`, `fit_hsh`.
 """
-from ._ps import (PSResult, ps_woodham1980, ps_hierarchical_tautzia2016, photometric_stereo,
+from ._ps import (PS_DEFAULT, PSResult, ps_woodham1980, ps_hierarchical_tautzia2016, photometric_stereo,
                   PS_METHODS, triplet_inverses, near_light_directions)
 from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed      # registers both in PS_METHODS
 from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
@@ -16,7 +16,7 @@ from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
 from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, relight_ptm,
                    relight_hsh, relight_error, HSH_ORDERS)
 
-__all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
+__all__ = ["PS_DEFAULT", "PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
            "ps_rank_trimmed", "photometric_stereo",
            "PS_METHODS", "triplet_inverses", "near_light_directions",
            "normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",

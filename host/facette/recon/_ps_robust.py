@@ -105,8 +105,12 @@ def _rel_residual(e, s, g, keep):
     return np.where(np.isfinite(r), r, 0.0).astype(np.float32)
 
 
+# cast-shadow floor of ps_rank_trimmed: 3 x the rig's relative noise (NOISE)
+T_DARK = 0.03
+
+
 def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None, trim=TRIM,
-                    rounds=1, min_lit=MIN_LIT, min_keep=MIN_KEEP, noise=NOISE, t_dark=None):
+                    rounds=1, min_lit=MIN_LIT, min_keep=MIN_KEEP, noise=NOISE, t_dark=T_DARK):
     """Per-pixel trimmed least squares: middle intensity ranks, then middle reflectance ratios.
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
@@ -122,12 +126,12 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         with a bound within the noise stay together: a flat surface under a symmetric ring of
         lights would otherwise have the ring split by noise, and its normal tilted (simulated
         satin plate, 12 rig lights: median 11.6 deg with no widening, 0.6 deg with it).
-    t_dark : optional; values at or below t_dark x the pixel's brightest usable value still take
-        their ranks but are never kept (cast shadows: a pixel with more shadowed lights than
-        the trimmed share). None (default): no such test. 0.03 (3 x noise) makes the
-        simulated rig scenes (sphere on a plane, 12 lights) as good as the hierarchical method
-        (matte 0.63 deg against 0.68) but costs 0.2 deg on DiLiGenT (96 lights: 8.77 against 8.57;
-        12 lights: 10.02 against 10.10).
+    t_dark : values at or below t_dark x the pixel's brightest usable value still take their
+        ranks but are never kept (cast shadows: a pixel with more shadowed lights than the
+        trimmed share). Default 0.03 (3 x noise): on the simulated rig scenes (sphere on a plane,
+        12 lights) it takes the glossy scene's mean error from 0.90 to 0.13 deg (the hierarchy:
+        0.27) and the plane's albedo spread from 7.7 % to 0.1 %, for 0.2 deg on DiLiGenT
+        (96 lights: 8.77 against 8.57; 12 lights: 10.02 against 10.10). None: no such test.
     min_keep : when the window holds fewer lights, the middle min_keep are kept (default 6,
         twice the unknowns; with 12 lights the window is then ranks 3..8), or every usable
         one when fewer are usable; fewer than 3 usable leave the pixel invalid.
