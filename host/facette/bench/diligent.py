@@ -95,7 +95,7 @@ def angular_errors(normal, truth, mask):
     return np.degrees(np.arccos(dot))
 
 
-def run_object(folder, truth_path, methods, lights):
+def run_object(folder, truth_path, methods, lights, init=None):
     select = None
     if lights == "12":
         with open(Path(folder) / "light_directions.txt") as fh:
@@ -111,7 +111,8 @@ def run_object(folder, truth_path, methods, lights):
     rows = []
     for name in methods:
         t = time.perf_counter()
-        res = photometric_stereo(grey, data.light_dirs, method=name, mask=data.mask)
+        extra = {"init": init} if init and PS_METHODS.canonical(name) == "li_alternating" else {}
+        res = photometric_stereo(grey, data.light_dirs, method=name, mask=data.mask, **extra)
         dt = time.perf_counter() - t
         e = angular_errors(res.normal, truth, data.mask)
         rows.append((name, float(e.mean()), float(np.median(e)), dt))
@@ -206,6 +207,8 @@ def main(argv=None):
                    help="all lights, or the 12 nearest the rig (default: both tables)")
     p.add_argument("--methods", default=",".join(DEFAULT_METHODS),
                    help=f"comma-separated, from {', '.join(sorted(PS_METHODS))}")
+    p.add_argument("--init", default=None,
+                   help="initial normals of li_alternating (e.g. rpca_wu2010; default: its own)")
     p.add_argument("--speed", action="store_true", help="also time each method at 2144x1424 x 12")
     p.add_argument("--no-real", action="store_true", help="skip the DiLiGenT tables")
     p.add_argument("--trim-study", action="store_true",
@@ -228,7 +231,7 @@ def main(argv=None):
         for lights in args.lights or ["all", "12"]:
             results = []
             for folder, truth_path in scored:
-                rows, t_read, data = run_object(folder, truth_path, methods, lights)
+                rows, t_read, data = run_object(folder, truth_path, methods, lights, args.init)
                 key = f"{folder.parent.name}/{object_name(folder)} {data.bit_depth}-bit"
                 m = len(data.names)
                 results.append((key, int(data.mask.sum()), m, rows))
