@@ -32,7 +32,7 @@ from facette.io.gltf import write_glb
 from facette.io.png import write_mask
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
-from facette.recon import (PS_DEFAULT, integrate, mesh_from_height, near_light_directions, photometric_stereo,
+from facette.recon import (PS_DEFAULT, PS_METHODS, integrate, mesh_from_height, near_light_directions, photometric_stereo,
                            fit_hsh, fit_ptm_lrgb, relight_error, relight_hsh, relight_ptm)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
@@ -272,11 +272,13 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
         res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
     kwargs = dict(mask=inp.mask, saturation=saturation)
     thresholds = dict(t_ombre=t_ombre, t_spec=t_spec, t_source=t_source, t_residual=t_residual)
-    if method in ("hierarchical_tautzia2016", "hierarchical"):
+    # names through the registry, so that an alias or another case gets the same options
+    method_name = PS_METHODS.canonical(method)
+    if method_name == "hierarchical_tautzia2016":
         kwargs.update(thresholds)
-    elif method == "li_alternating":
+    elif method_name == "li_alternating":
         extra = dict(ps_options or {})
-        if extra.get("init", "hierarchical_tautzia2016") in ("hierarchical_tautzia2016", "hierarchical"):
+        if PS_METHODS.canonical(extra.get("init", "hierarchical_tautzia2016")) == "hierarchical_tautzia2016":
             extra.setdefault("init_options", thresholds)
         kwargs.update(t_residual=t_residual, **extra)
     ps = photometric_stereo(images, light_dirs, method=method, **kwargs)
