@@ -67,27 +67,27 @@ def test_missing_or_overexposed_targets_stop_with_what_to_do(sim_rig_factory, tm
 def test_cli_unattended_keeps_the_previous_profile_and_checks_drift(tmp_path, capsys):
     out = tmp_path / "prof"
     # the rig's button starts each capture (the simulated rig presses it)
-    assert main(["calibrate", "--rig", "sim", "--yes", "--button", "-o", str(out), "--only", "mirror,spectralon"]) == 0
+    assert main(["calibrate", "--rig", "sim", "--yes", "--sim-raw-size", "128x96", "--button", "-o", str(out), "--only", "mirror,spectralon"]) == 0
     assert "press the rig's button" in capsys.readouterr().out
     first = json.loads((out / "profile.json").read_text())["id"]
-    assert main(["calibrate", "--rig", "sim", "--yes", "-o", str(out), "--only", "spectralon",
+    assert main(["calibrate", "--rig", "sim", "--yes", "--sim-raw-size", "128x96", "-o", str(out), "--only", "spectralon",
                  "--base", str(out)]) == 0
     assert (out / f"profile-{first}.json").is_file()
     # an RTI .lp file (written beside each profile) as the base: its directions are kept
     lp = out / f"lights-{first}.lp"
     assert lp.is_file()
-    assert main(["calibrate", "--rig", "sim", "--yes", "-o", str(tmp_path / "from-lp"), "--only", "spectralon",
+    assert main(["calibrate", "--rig", "sim", "--yes", "--sim-raw-size", "128x96", "-o", str(tmp_path / "from-lp"), "--only", "spectralon",
                  "--base", str(lp)]) == 0
     np.testing.assert_allclose(load(tmp_path / "from-lp").lights.directions,
                                load(out / f"profile-{first}.json").lights.directions, atol=1e-8)
     capsys.readouterr()
-    assert main(["calibrate", "--rig", "sim", "--yes", "--check", str(out)]) == 0
+    assert main(["calibrate", "--rig", "sim", "--yes", "--sim-raw-size", "128x96", "--check", str(out)]) == 0
     assert "within tolerance" in capsys.readouterr().out
     # another rig (other LED errors) against this profile: drift, exit status 1
-    assert main(["calibrate", "--rig", "sim", "--yes", "--check", str(out), "--sim-seed", "7",
+    assert main(["calibrate", "--rig", "sim", "--yes", "--sim-raw-size", "128x96", "--check", str(out), "--sim-seed", "7",
                  "--sim-direction-error", "2", "--sim-intensity-error", "0.15"]) == 1
     assert "DRIFTED" in capsys.readouterr().out
-    assert main(["calibrate", "--rig", "sim", "--yes", "-o", str(tmp_path / "x"), "--only", "spectralon",
+    assert main(["calibrate", "--rig", "sim", "--yes", "--sim-raw-size", "128x96", "-o", str(tmp_path / "x"), "--only", "spectralon",
                  "--sim-target-fault", "spectralon=missing"]) == 2
     text = capsys.readouterr().out
     assert "not found" in text and "nothing was written" in text

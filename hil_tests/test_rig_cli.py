@@ -11,7 +11,7 @@ FACETTE = [sys.executable, "-m", "facette.cli.main"]
 
 
 def test_facette_sim_prints_its_port_first_and_facette_device_talks_to_it(tmp_path):
-    with subprocess.Popen(FACETTE + ["sim", "--speed", "100", "--workdir", str(tmp_path / "sim")],
+    with subprocess.Popen(FACETTE + ["sim", "--raw-size", "128x96", "--speed", "100", "--workdir", str(tmp_path / "sim")],
                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                           text=True) as sim:
         _talk(sim)
@@ -43,7 +43,7 @@ def _talk(sim):
 
 def test_facette_scan_sim_press_button(tmp_path):
     out_dir = tmp_path / "demo"
-    run = subprocess.run(FACETTE + ["scan", "--sim", "--press-button", "--no-process", "--quiet",
+    run = subprocess.run(FACETTE + ["scan", "--sim", "--press-button", "--no-process", "--quiet", "--raw-size", "128x96",
                                     "--exposures", "1/5,1/50", "--lights", "0,1,2,3", str(out_dir)],
                          capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert run.returncode == 0, run.stderr
@@ -53,7 +53,7 @@ def test_facette_scan_sim_press_button(tmp_path):
     truth = np.load(out_dir / "truth.npz")
     assert truth["light_dirs"].shape == (4, 3)
     # the same command again resumes: nothing left to take, nothing retaken
-    again = subprocess.run(FACETTE + ["scan", "--sim", "--press-button", "--no-process", "--quiet",
+    again = subprocess.run(FACETTE + ["scan", "--sim", "--press-button", "--no-process", "--quiet", "--raw-size", "128x96",
                                       "--exposures", "1/5,1/50", "--lights", "0,1,2,3", str(out_dir)],
                            capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert again.returncode == 0, again.stderr
@@ -64,7 +64,7 @@ def test_facette_scan_sim_press_button(tmp_path):
 def test_scan_a_rig_through_its_port_and_camera_folder(tmp_path):
     """The real-rig path: `facette scan --device PORT --camera-dir DIR` (no simulator object in
     the host: the rig is a separate `facette sim` process, as a real rig would be)."""
-    with subprocess.Popen(FACETTE + ["sim", "--speed", "200", "--workdir", str(tmp_path / "rig")],
+    with subprocess.Popen(FACETTE + ["sim", "--raw-size", "128x96", "--speed", "200", "--workdir", str(tmp_path / "rig")],
                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                           text=True) as sim:
         try:
@@ -87,7 +87,7 @@ def test_scan_a_rig_through_its_port_and_camera_folder(tmp_path):
 def test_files_that_predate_the_scan_stay_in_the_camera_folder_across_a_resume(tmp_path):
     from facette.sim.dng import write_dng
 
-    with subprocess.Popen(FACETTE + ["sim", "--speed", "200", "--workdir", str(tmp_path / "rig")],
+    with subprocess.Popen(FACETTE + ["sim", "--raw-size", "128x96", "--speed", "200", "--workdir", str(tmp_path / "rig")],
                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                           text=True) as sim:
         try:
@@ -111,7 +111,7 @@ def test_files_that_predate_the_scan_stay_in_the_camera_folder_across_a_resume(t
 
 
 def test_a_scan_stopped_by_a_fault_says_why_and_exits_1(tmp_path):
-    run = subprocess.run(FACETTE + ["scan", "--sim", "--faults", "open_led=1", "--lights", "0,1,2",
+    run = subprocess.run(FACETTE + ["scan", "--sim", "--raw-size", "128x96", "--faults", "open_led=1", "--lights", "0,1,2",
                                     "--exposures", "1/50", "--no-process", "--quiet", str(tmp_path / "s")],
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 1

@@ -14,6 +14,8 @@ FACETTE = [sys.executable, "-m", "facette.cli.main"]
 PROFILE = REPO_ROOT / "calibration" / "profiles" / "sim-default"
 SHORT = [(200_000, 0), (20_000, 0), (2_000, 0)]
 
+SMALL = ["--raw-size", "128x96"]   # the default 1024x768 costs seconds per scan here
+
 
 def _steps(scan_dir, step):
     lines = (scan_dir / "journal.jsonl").read_text().splitlines()
@@ -21,7 +23,7 @@ def _steps(scan_dir, step):
 
 
 def test_facette_scan_is_adaptive_by_default_and_the_thesis_bracket_on_request(tmp_path):
-    run = subprocess.run(FACETTE + ["scan", "--sim", "--press-button", "--quiet", "--no-process",
+    run = subprocess.run(FACETTE + ["scan", "--sim", "--press-button", "--quiet", "--no-process", *SMALL,
                                     str(tmp_path / "a")], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     m = json.loads((tmp_path / "a" / "scan.json").read_text())
@@ -39,7 +41,7 @@ def test_facette_scan_is_adaptive_by_default_and_the_thesis_bracket_on_request(t
     for li in range(12):
         var, _ = read_exr(tmp_path / "a" / "hdr" / f"light_{li:02d}_var.exr")
         assert np.isfinite(var[truth["mask"]]).all()
-    fixed = subprocess.run(FACETTE + ["scan", "--sim", "--press-button", "--quiet", "--no-process",
+    fixed = subprocess.run(FACETTE + ["scan", "--sim", "--press-button", "--quiet", "--no-process", *SMALL,
                                       "--exposures", "thesis", "--lights", "0", str(tmp_path / "t")],
                            capture_output=True, text=True, timeout=300)
     assert fixed.returncode == 0, fixed.stderr

@@ -14,12 +14,16 @@ in a process of its own, and the bench reports:
   alone on the finished scan;
 - SNR of the merged radiance on the object (truth mask), shadows (2–10 % of its values)
   and midtones (45–55 %), from the variance the merge reports; clipped object pixels;
-- height RMS error against the simulator's truth.
+- height RMS error against the simulator's truth (`height_errors`) over the pixels that have
+  a result and are on the object, up to one constant (what `facette process` reports), also
+  in pixel pitches, and with each object (a connected piece of the truth mask) up to its own.
 
-At the first size the fixed thesis bracket (`--exposures thesis`) runs too, for its rig
-time and shadow SNR beside the adaptive plan's. Medians over `--runs` runs.
+The sizes are the command's default (`default`: `facette scan --sim` without --raw-size) and
+a quarter of the thesis camera, 1072x712; `--full` adds the full 4288x2848. At the first size
+the fixed thesis bracket (`--exposures thesis`) runs too, for its rig time and shadow SNR
+beside the adaptive plan's. Medians over `--runs` runs.
 
-Usage: facette bench e2e [--sizes 128x96,1024x768,1072x712] [--full] [--runs N] [--keep DIR]
+Usage: facette bench e2e [--sizes default,1072x712,128x96] [--full] [--runs N] [--keep DIR]
 """
 from __future__ import annotations
 
@@ -37,8 +41,9 @@ from pathlib import Path
 import numpy as np
 
 from facette.io.exr import read_exr
+from facette.io.png import read_mask
 
-DEFAULT_SIZES = "1024x768,128x96,1072x712"
+DEFAULT_SIZES = "default,1072x712"
 FULL = "4288x2848"
 
 
@@ -81,6 +86,40 @@ def _snr(scan_dir):
     return float(np.median(shadow)), float(np.median(mid)), float(np.max(clipped))
 
 
+def height_errors(truth, height_mm, result_mask):
+    """(global, per-object) height RMS error in mm of a height map against the truth.
+
+    truth : dict with "height_mm" (H, W) and "mask" (H, W) bool (truth.npz); height_mm : (H, W)
+    result heights in mm; result_mask : (H, W) bool, the pixels that have a result.
+    Heights from normals are known up to a constant. "global" removes one constant over every
+    compared pixel; "per-object" one per object (8-connected piece of the truth mask), which
+    leaves out how well the step between an object and the table (the sphere's vertical rim)
+    was integrated. NaN when no pixel is compared.
+    """
+    t = np.asarray(truth["height_mm"], np.float64)
+    obj = np.asarray(truth["mask"], bool)
+    h = np.asarray(height_mm, np.float64).reshape(t.shape)
+    sel = obj & np.asarray(result_mask, bool) & np.isfinite(h)
+    if not sel.any():
+        return float("nan"), float("nan")
+    d = h - t
+    glob = float(np.sqrt(np.mean((d[sel] - d[sel].mean()) ** 2)))
+    import scipy.ndimage
+    labels, _ = scipy.ndimage.label(obj, structure=np.ones((3, 3)))
+    lab = labels[sel]
+    count = np.bincount(lab)
+    offset = np.bincount(lab, weights=d[sel]) / np.maximum(count, 1)
+    per = float(np.sqrt(np.mean((d[sel] - offset[lab]) ** 2)))
+    return glob, per
+
+
+def _scan_height_errors(scan_dir, results="results"):
+    with np.load(scan_dir / "truth.npz") as z:
+        truth = {"height_mm": z["height_mm"], "mask": z["mask"]}
+    h = read_exr(scan_dir / results / "height.exr")[0][..., 0]
+    return height_errors(truth, h, read_mask(scan_dir / results / "mask.png"))
+
+
 def _journal_last_frame(scan_dir):
     last = None
     for line in (scan_dir / "journal.jsonl").read_text().splitlines():
@@ -91,10 +130,12 @@ def _journal_last_frame(scan_dir):
 
 
 def one_run(size, work, exposures=None):
-    """Figures of one scan at `size` ("WxH") in a new folder under `work`."""
+    """Figures of one scan at `size` ("WxH", or "default": the command's own) in a new folder
+    under `work`."""
     facette = [sys.executable, "-m", "facette.cli.main"]
     d = Path(tempfile.mkdtemp(prefix=f"e2e-{size}-", dir=work)) / "scan"
-    cmd = facette + ["scan", "--sim", "--press-button", "--quiet", "--raw-size", size, str(d)]
+    cmd = facette + ["scan", "--sim", "--press-button", "--quiet"] \
+        + ([] if size == "default" else ["--raw-size", size]) + [str(d)]
     if exposures:
         cmd[-1:-1] = ["--exposures", exposures]
     out, wall, rss, end, _ = _run_rss(cmd)
@@ -102,7 +143,11 @@ def one_run(size, work, exposures=None):
     hdr = data.get("hdr") or {}
     merge_s = sum(sum(r.get("time_s", {}).values()) for r in hdr.get("lights", []))
     times = _times(out)
-    err = re.search(r"height_rms_mm = ([\d.]+)", out)
+    global_, per_object = _scan_height_errors(d)
+    with np.load(d / "truth.npz") as z:
+        pitch, (h, w) = float(z["pixel_pitch_mm"]), z["mask"].shape
+    if size == "default":                       # the RAW mosaic is twice the HDR grid
+        size = f"{2 * w}x{2 * h} (default)"
     shadow, mid, clipped = _snr(d)
     # The merge alone, all lights, in a fresh process; then `facette process` alone.
     code = ("import sys, time; from facette.scan import merge_scan; t = time.perf_counter(); "
@@ -117,7 +162,8 @@ def one_run(size, work, exposures=None):
             "fit_s": times.get("fit", np.nan), "process_s": p_wall, "process_gb": p_rss,
             "ready_s": (end - _journal_last_frame(d)).total_seconds(), "peak_gb": rss,
             "shadow_db": shadow, "mid_db": mid, "clipped": clipped,
-            "height_rms_mm": float(err.group(1)) if err else np.nan}
+            "height_rms_mm": global_, "height_rms_px": global_ / pitch,
+            "height_rms_object_mm": per_object, "pitch_mm": pitch}
 
 
 COLUMNS = [("size", "size", "s"), ("bracket", "bracket", "s"), ("frames", "frames", "d"),
@@ -128,7 +174,9 @@ COLUMNS = [("size", "size", "s"), ("bracket", "bracket", "s"), ("frames", "frame
            ("process_s", "process alone s", ".2f"), ("process_cpu_s", "(CPU s)", ".2f"),
            ("peak_gb", "peak GB (scan+sim)", ".2f"), ("process_gb", "peak GB process", ".2f"),
            ("shadow_db", "shadow dB", ".1f"), ("mid_db", "mid dB", ".1f"),
-           ("clipped", "clipped", ".4f"), ("height_rms_mm", "height RMS mm", ".3f")]
+           ("clipped", "clipped", ".4f"), ("pitch_mm", "pitch mm", ".4f"),
+           ("height_rms_mm", "height RMS mm", ".3f"), ("height_rms_px", "(pitches)", ".3f"),
+           ("height_rms_object_mm", "(per object) mm", ".3f")]
 
 
 def _median(rows):
@@ -157,8 +205,8 @@ def main(argv=None):
     args = p.parse_args(argv)
     sizes = [s.strip() for s in args.sizes.split(",") if s.strip()] + ([FULL] if args.full else [])
     for s in sizes:
-        if not re.fullmatch(r"\d+x\d+", s):
-            raise SystemExit(f"--sizes: {s!r} is not WxH (e.g. 1024x768)")
+        if not re.fullmatch(r"\d+x\d+", s) and s != "default":
+            raise SystemExit(f"--sizes: {s!r} is neither WxH (e.g. 1024x768) nor 'default'")
     work = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="facette-e2e-"))
     work.mkdir(parents=True, exist_ok=True)
     print(f"one-button scan on the simulated rig, {args.runs} run(s) per size, medians; "
@@ -180,7 +228,9 @@ def main(argv=None):
           "over lights on the worker during the scan; merge alone: the same scan merged again in "
           "a fresh process; recon: photometric stereo + integration; ready: last frame captured -> "
           "results written; process alone: `facette process` on the finished scan (HDR up to date); "
-          "CPU s: of that process (wall > CPU/cores means it waited for a core); SNR from the merge's variance on the object, green, median over lights")
+          "CPU s: of that process (wall > CPU/cores means it waited for a core); SNR from the merge's variance on the object, green, median over lights; "
+          "height RMS: result against the truth on the object up to one constant, also in pixel pitches, "
+          "and up to one constant per object")
     if not args.keep:
         import shutil
         shutil.rmtree(work, ignore_errors=True)

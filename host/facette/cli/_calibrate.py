@@ -14,7 +14,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from facette.cli._scan import _positive, _shape
+from facette.cli._scan import SIM_RAW_SIZE, SIM_RAW_SIZE_TEXT, _positive, _shape
 
 
 def _exposures(text):
@@ -62,7 +62,8 @@ def register(sub):
     sim = p.add_argument_group("simulated rig")
     sim.add_argument("--sim-direction-error", type=float, default=0.5, help="LED direction error, degrees RMS")
     sim.add_argument("--sim-intensity-error", type=float, default=0.05, help="LED intensity error, relative RMS")
-    sim.add_argument("--sim-raw-size", type=_shape, default=(96, 128), metavar="WxH", help="RAW size (128x96)")
+    sim.add_argument("--sim-raw-size", type=_shape, default=SIM_RAW_SIZE, metavar="WxH",
+                     help=f"RAW size (default {SIM_RAW_SIZE_TEXT})")
     sim.add_argument("--sim-near", action="store_true", help="LEDs as near point sources at 1.5 m")
     sim.add_argument("--sim-seed", type=int, default=0)
     sim.add_argument("--sim-speed", type=_positive(float), default=2000.0, help="device clock, × real time")

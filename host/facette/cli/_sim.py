@@ -10,14 +10,15 @@ import argparse
 import sys
 import time
 
-from facette.cli._scan import _positive, _shape
+from facette.cli._scan import SIM_RAW_SIZE, SIM_RAW_SIZE_TEXT, _positive, _shape
 
 
 def register(sub):
     p = sub.add_parser("sim", help="start the simulated rig", description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scene", default="plaque_sphere", help="plaque_sphere, plaque, sphere or plane")
-    p.add_argument("--raw-size", type=_shape, default=(96, 128), metavar="WxH", help="RAW size (128x96)")
+    p.add_argument("--raw-size", type=_shape, default=SIM_RAW_SIZE, metavar="WxH",
+                   help=f"RAW size (default {SIM_RAW_SIZE_TEXT})")
     p.add_argument("--near", action="store_true", help="LEDs as near point sources at 1.5 m")
     p.add_argument("--brdf", default="mask",
                    help="material: mask, bust or lambert (facette.sim.scene.BRDF_PRESETS)")
