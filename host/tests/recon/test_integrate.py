@@ -4,6 +4,7 @@ import pytest
 
 from facette.recon import (integrate, integrate_frankot_chellappa1988, integrate_least_squares,
                            integrate_simchony1990, mesh_from_height, normals_to_gradients)
+from facette.recon._integrate import MAX_SLOPE
 
 
 def surface_normals(z_fn, h=64, w=80, pitch=1.0):
@@ -84,7 +85,20 @@ def test_normals_to_gradients_edges():
     assert p[0, 0] == p[0, 1] == p[0, 2] == 0 and q[0, 0] == 0
     assert p[1, 0] == pytest.approx(0.75)
     p, _ = normals_to_gradients(np.array([[[-0.9999, 0, 0.0001]]]))
-    assert p[0, 0] == 20.0                # clipped slope
+    assert p[0, 0] == MAX_SLOPE           # clipped slope
+
+
+@pytest.mark.parametrize("method", ["frankot_chellappa1988", "simchony1990", "least_squares"])
+def test_a_wall_steeper_than_87_degrees_keeps_its_height(method):
+    # a plateau whose sides rise 30 pitches within one pixel (slope 30, 88.1 deg), as a pixel
+    # over a sphere's rim does at a fine pitch: its height is 30, not the 20 of a clip at 20
+    n = np.zeros((16, 40, 3))
+    n[..., 2] = 1.0
+    for col, slope in ((10, 30.0), (30, -30.0)):
+        n[:, col] = np.array([-slope, 0.0, 1.0]) / np.hypot(slope, 1.0)
+    z = integrate(n, 1.0, method=method)
+    step = z[:, 12:29].mean() - np.r_[z[:, :9].ravel(), z[:, 32:].ravel()].mean()
+    assert step == pytest.approx(30.0, rel=0.05)
 
 
 def test_bad_arguments():
