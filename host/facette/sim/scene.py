@@ -1,7 +1,8 @@
 """Virtual objects for the simulated rig: height fields with normals, mask and albedo.
 
-Everything is sampled on the grid the HDR images will have (the RAW half-size
-grid: one RGB pixel per 2×2 Bayer cell), in the camera frame of DESIGN §8:
+Everything is given on the grid the HDR images will have (the RAW half-size
+grid: one RGB pixel per 2×2 Bayer cell), each pixel the mean of the object over
+its footprint (see `make_scene`), in the camera frame of DESIGN §8:
 x right, y up, z towards the camera; image row 0 is the top. The camera is
 orthographic and looks down −z, so heights are along +z, in mm.
 
