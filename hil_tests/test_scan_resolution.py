@@ -12,7 +12,9 @@ EXPOSURES = [(1_000_000, 0), (125_000, 0), (33_333, 0)]
 
 
 def _scan(tmp_path, raw_shape, name):
-    with facette.connect("sim", raw_shape=raw_shape, seed=1) as rig:
+    # seed 0: the rig the committed profile was calibrated on (another seed moves the LEDs,
+    # which the profile would not know, and the normals come out ~9 deg off)
+    with facette.connect("sim", raw_shape=raw_shape, seed=0) as rig:
         truth_pitch = rig.sim.scene.pixel_pitch_mm
         sd = rig.scan(tmp_path / name, profile=PROFILE, exposures=EXPOSURES, progress=False)
     return getattr(sd, "path", tmp_path / name), truth_pitch
@@ -28,8 +30,9 @@ def test_heights_stay_right_at_another_raw_size(tmp_path):
         if raw_shape != (96, 128):
             assert any("pixel pitch scaled" in n for n in res.notes)
             assert any("flat field" in n and "resampled" in n for n in res.notes)
-    # the same object in millimetres at both sizes (unscaled it would be twice as tall)
-    assert errs[(192, 256)] < 2 * errs[(96, 128)] + 0.5
+    # the same object in millimetres at both sizes: 0.11 and 0.06 mm measured; with the pitch
+    # unscaled the larger scan would be twice as tall (millimetres of error)
+    assert max(errs.values()) < 0.2, errs
 
 
 def test_a_field_the_profile_does_not_cover_is_refused_naming_both_sizes(tmp_path):
