@@ -16,6 +16,7 @@ usable (NaN, saturated) and cast shadows (observed < 25 % of the model's predict
 import numpy as np
 
 from facette.brdf import li_kd_from_kappa, li_shading_terms
+from facette.brdf._fresnel import check_n_i
 
 __all__ = ["refine_normals_li", "RefineResult", "CAST_SHADOW_RATIO"]
 
@@ -23,6 +24,7 @@ CAST_SHADOW_RATIO = 0.25   # observed / predicted (green) below this: a cast sha
 SCALE_FLOOR = 0.03         # Cauchy scale at least this fraction of the pixel's mean value
 STEP_FD = 1e-3             # rad, forward-difference step on the normal
 MAX_STEP = 0.15            # rad, largest normal update per iteration
+STEP_TOL = 2e-4            # rad (0.011°), a pixel has converged once an accepted step is below this
 
 
 class RefineResult:
@@ -67,14 +69,34 @@ def _kappa(e, a, b, w):
     return np.maximum(num / np.maximum(den, 1e-20), 0).astype(np.float32)
 
 
+ENGINES = ("auto", "compiled", "arrays")
+
+
 def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12, kappa=None,
-                      extra_starts=None, extra_rows=None):
+                      extra_starts=None, extra_rows=None, engine="auto", step_tol=STEP_TOL):
     """Robust per-pixel normals and K_d against the LI model of given (σ, n_i); see
     `_refine_one_start` for the arguments. extra_starts : optional (K, N, 3) other starting
     normals (e.g. the half-vector of a pixel's brightest light: a highlight says where the normal
     is); every start is refined and the one with the lowest robust cost is kept per pixel.
     extra_rows : optional (N,) bool, the pixels for which the extra starts are tried (default all).
+    step_tol : rad; the compiled engine stops a pixel once an accepted step is below it (the
+        array engine uses STEP_TOL).
+    engine : "compiled" (the per-pixel loop of facette.fit._normals_li_jit: distant lights, at
+        most one extra start, no kappa given), "arrays" (whole-array numpy passes: any lights),
+        or "auto" (compiled where it applies). Both solve the same problem; the compiled one takes
+        the volume part from a per-light table of normals (≤ ~1e-3 relative), so results agree to
+        a small fraction of a degree, not bit for bit.
     """
+    if engine not in ENGINES:
+        raise ValueError(f"engine = {engine!r}: choose one of {', '.join(ENGINES)}")
+    fits_compiled = (np.ndim(lights) == 2 and kappa is None
+                     and (extra_starts is None or len(extra_starts) <= 1))
+    if engine == "compiled" and not fits_compiled:
+        raise ValueError("engine = 'compiled' takes distant lights (m, 3), at most one extra start "
+                         "and no starting kappa; use engine='arrays' for the others")
+    if engine != "arrays" and fits_compiled:
+        return _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_starts, extra_rows,
+                                step_tol)
     first = _refine_one_start(e, lights, normals, sigma, n_i, usable, iterations, kappa)
     if extra_starts is None or len(extra_starts) == 0:
         return first
@@ -231,3 +253,29 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
     rel[keep.sum(1) < 3] = 1
     return RefineResult(normals=n, kappa=k, kd=li_kd_from_kappa(k, n_i), used=keep, cost=cost,
                         rel_residual=rel, iterations=it, evaluations=evals, scale=scale)
+
+
+def _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_starts, extra_rows, step_tol):
+    from ._normals_li_jit import refine_distant_compiled
+    e = np.asarray(e, np.float32)
+    if e.ndim == 2:
+        e = e[..., None]
+    if e.ndim != 3:
+        raise ValueError(f"e must have shape (N, m) or (N, m, C), got {e.shape}")
+    n_pix, m, _ = e.shape
+    if np.shape(lights) != (m, 3):
+        raise ValueError(f"lights must have shape ({m}, 3) or ({n_pix}, {m}, 3) for {n_pix} pixels and "
+                         f"{m} lights, got {np.shape(lights)}")
+    if np.shape(normals) != (n_pix, 3):
+        raise ValueError(f"normals must have shape ({n_pix}, 3), got {np.shape(normals)}")
+    check_n_i(n_i)
+    ok = np.ones((n_pix, m), bool) if usable is None else np.asarray(usable, bool)
+    extra = None if extra_starts is None or len(extra_starts) == 0 else np.asarray(extra_starts[0])
+    nrm, k, used, cost, rel, its = refine_distant_compiled(
+        e, lights, normals, sigma, n_i, ok, iterations, extra_start=extra, extra_rows=extra_rows,
+        cast_ratio=CAST_SHADOW_RATIO, floor=SCALE_FLOOR, step_fd=STEP_FD, max_step=MAX_STEP,
+        step_tol=step_tol)
+    return RefineResult(normals=nrm, kappa=k, kd=li_kd_from_kappa(k, n_i), used=used, cost=cost,
+                        rel_residual=rel, iterations=int(its.max()) if its.size else 0,
+                        mean_iterations=float(its.mean()) if its.size else 0.0,
+                        evaluations=None, scale=None)

@@ -44,9 +44,56 @@ def test_a_cast_shadow_and_an_outlier_are_left_out():
     e = e.copy()
     e[:, 3] *= 0.05            # a cast shadow on light 3
     e[:, 7] *= 3.0             # an inter-reflection or a stray light on light 7
-    r = refine_normals_li(e, RIG, _perturb(normals, 3), 0.3, 1.5)
-    assert not r.used[:, 3].any()
-    assert np.median(_err(r.normals, normals)) < 0.3
+    for engine in ("arrays", "compiled"):
+        r = refine_normals_li(e, RIG, _perturb(normals, 3), 0.3, 1.5, iterations=30, engine=engine)
+        assert not r.used[:, 3].any(), engine
+        assert np.median(_err(r.normals, normals)) < 0.15, engine
+
+
+def test_compiled_engine_solves_the_same_problem_as_the_array_code():
+    # one channel: the compiled engine's normal from the channels' mean is then the same problem
+    normals, kd, e = _scene(sigma=0.1, n_i=1.3)
+    e = e[..., 1:2].copy()
+    e[:, 5] *= 0.1
+    start = _perturb(normals, 4)
+    ra = refine_normals_li(e, RIG, start, 0.1, 1.3, engine="arrays", extra_starts=[normals])
+    rc = refine_normals_li(e, RIG, start, 0.1, 1.3, engine="compiled", extra_starts=[normals])
+    assert np.median(_err(ra.normals, rc.normals)) < 0.01
+    assert np.percentile(_err(ra.normals, rc.normals), 95) < 0.1
+    np.testing.assert_allclose(np.median(rc.kd / ra.kd), 1, atol=2e-3)
+    np.testing.assert_array_equal(ra.used, rc.used)
+    # three channels: the normal from their mean, K_d per channel still
+    normals, kd, e3 = _scene(sigma=0.1, n_i=1.3)
+    r3 = refine_normals_li(e3, RIG, _perturb(normals, 3), 0.1, 1.3, engine="compiled")
+    assert np.median(_err(r3.normals, normals)) < 0.05
+    np.testing.assert_allclose(np.median(r3.kd / kd, axis=0), 1, atol=0.01)
+
+
+def test_volume_table_matches_the_direct_evaluation():
+    from facette.fit._normals_li_jit import volume_table
+    rng = np.random.default_rng(3)
+    n = rng.normal(size=(5000, 3)) * [1, 1, 0] + [0, 0, 1.2]
+    n = (n / np.linalg.norm(n, axis=1, keepdims=True)).astype(np.float32)
+    _, b = li_shading_terms(n, RIG, 0.1, 1.3, specular=False)
+    tab = volume_table(RIG, 0.1, 1.3)
+    g = tab.shape[0]
+    fx, fy = (n[:, 0] + 1) / 2 * (g - 1), (n[:, 1] + 1) / 2 * (g - 1)
+    ix, iy = fx.astype(int), fy.astype(int)
+    wx, wy = (fx - ix)[:, None], (fy - iy)[:, None]
+    bi = ((1 - wx) * (1 - wy) * tab[iy, ix] + wx * (1 - wy) * tab[iy, ix + 1]
+          + (1 - wx) * wy * tab[iy + 1, ix] + wx * wy * tab[iy + 1, ix + 1])
+    lit = b > 0.05 * b.max()
+    rel = np.abs(bi - b)[lit] / b[lit]
+    assert np.median(rel) < 2e-4 and np.percentile(rel, 99) < 5e-3
+
+
+def test_compiled_engine_refuses_what_it_cannot_do():
+    normals, kd, e = _scene(n=10)
+    lights = np.broadcast_to(RIG, (10, 12, 3)).astype(np.float32)
+    with pytest.raises(ValueError, match="compiled"):
+        refine_normals_li(e, lights, normals, 0.1, 1.3, engine="compiled")
+    with pytest.raises(ValueError, match="engine"):
+        refine_normals_li(e, RIG, normals, 0.1, 1.3, engine="fast")
 
 
 def test_per_pixel_lights():
