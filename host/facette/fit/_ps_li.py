@@ -251,9 +251,22 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     nrm0 = nrm.copy()
     # the Lambertian level starts from least squares (the hierarchy's eliminations would bias
     # the tabulated correction, which models least squares over every light)
-    nrm_ls = nrm0 if init in ("woodham1980", "least_squares") else \
-        photometric_stereo(images, light_dirs, method="woodham1980", mask=mask, channel=channel,
-                           saturation=saturation).normal.reshape(-1, 3)[idx].astype(np.float32)
+    ls_cache = {}
+
+    def ls_normals(sel):
+        # least-squares normals of the Lambertian-level pixels only (a masked solve: those pixels
+        # are typically a third to a half of the image)
+        if init in ("woodham1980", "least_squares"):
+            return nrm0[sel]
+        key = sel.tobytes()
+        if key not in ls_cache:
+            sub = np.zeros(h * w, bool)
+            sub[idx[sel]] = True
+            r = photometric_stereo(images, light_dirs, method="woodham1980", mask=sub.reshape(h, w),
+                                   channel=channel, saturation=saturation)
+            ls_cache.clear()
+            ls_cache[key] = r.normal.reshape(-1, 3)[idx[sel]].astype(np.float32)
+        return ls_cache[key]
     alb = base.albedo.reshape(-1, c)[idx]
     g_ok = _usable(flat[:, idx, channel], saturation).T            # (N, m)
     all_ok = np.all(np.isfinite(flat[:, idx, :]), axis=2).T & g_ok
@@ -325,7 +338,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         todo = pix[~lam_ok & lobe]
         lam_pix = pix[lam_ok]
         if lam_pix.size:
-            nrm[lam_pix] = _lambertian_correction(nrm_ls[lam_pix], lights_of(lam_pix), sigma, n_i)
+            nrm[lam_pix] = _lambertian_correction(ls_normals(lam_pix), lights_of(lam_pix), sigma, n_i)
         change = np.zeros(0)
         if todo.size:
             out = []
@@ -420,7 +433,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
             todo = pix[~lam_ok & lobe]
             lam_pix = pix[lam_ok]
             if lam_pix.size:
-                nrm[lam_pix] = _lambertian_correction(nrm_ls[lam_pix], lights_of(lam_pix), fit["sigma"], fit["n_i"])
+                nrm[lam_pix] = _lambertian_correction(ls_normals(lam_pix), lights_of(lam_pix),
+                                                       fit["sigma"], fit["n_i"])
                 refined[lam_pix] = False
             change = np.zeros(0)
             if todo.size:

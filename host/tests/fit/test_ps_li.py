@@ -34,6 +34,41 @@ def test_glossy_sphere_beats_least_squares_by_a_clear_margin(cache):
     assert all("median_change_deg" in q for q in r.info["rounds"])
 
 
+def test_coarse_to_fine_keeps_the_accuracy_of_the_full_solve(cache):
+    # a 96 px sphere: coarse-to-fine forced by a low threshold (factor 2, a 48 px alternation,
+    # then two steps per pixel at full size); the full-size alternation is the reference
+    d = render_scene("sphere", "paint_0.10", size=96, spp=16, cache_dir=cache)
+    sel = binary_erosion(d["mask"])
+    full = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"], coarse_pixels=0)
+    c2f = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"], coarse_pixels=2000)
+    assert "coarse" not in full.info and c2f.info["coarse"]["factor"] == 2
+    e_full = _err(full.normal, d["normals"], sel).mean()
+    e_c2f = _err(c2f.normal, d["normals"], sel).mean()
+    assert e_c2f < e_full + 0.15, (e_c2f, e_full)
+    last = c2f.info["rounds"][-1]
+    assert last["round"] == "full size" and last["pixels_refined"] > 0
+    assert abs(last["sigma"] - 0.10) < 0.03 and abs(last["n_i"] - 1.30) < 0.06
+    np.testing.assert_allclose(np.median(c2f.albedo[sel], axis=0), d["params"]["kd"], rtol=0.08)
+    assert np.array_equal(c2f.valid, full.valid)
+
+
+def test_binning_averages_the_usable_values_only():
+    from facette.fit._normals_li_jit import bin_images
+    im = np.arange(2 * 4 * 6, dtype=np.float32).reshape(2, 4, 6, 1)
+    im[0, 0, 0, 0] = np.nan                       # missing
+    im[1, 1, 1, 0] = 100.0                        # saturated (level 90 below)
+    mask = np.ones((4, 6), bool)
+    mask[2:, 4:] = False                          # a block with nothing masked in
+    b = bin_images(im, mask, 2, saturation=90.0)
+    assert b.shape == (2, 2, 3, 1)
+    np.testing.assert_allclose(b[0, 0, 0, 0], np.mean([1, 6, 7]))
+    np.testing.assert_allclose(b[1, 0, 0, 0], np.mean([24, 25, 30]))
+    np.testing.assert_allclose(b[0, 0, 1, 0], np.mean([2, 3, 8, 9]))
+    assert np.isnan(b[:, 1, 2]).all()
+    odd = bin_images(im[:, :3, :5], mask[:3, :5], 2)   # sizes not divisible: partial blocks
+    assert odd.shape == (2, 2, 3, 1) and np.isnan(odd[:, 1, 2]).all()   # 1 of 4 pixels: too few
+
+
 def test_matte_material_skips_the_brdf_step(cache):
     d = render_scene("sphere", "plaster", size=48, spp=8, cache_dir=cache)
     r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"])
