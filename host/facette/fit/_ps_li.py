@@ -249,24 +249,14 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     s_all = _pixel_dirs(light_dirs, idx)                          # (m, 3) or (N, m, 3)
     nrm = base.normal.reshape(-1, 3)[idx].astype(np.float32)
     nrm0 = nrm.copy()
-    # the Lambertian level starts from least squares (the hierarchy's eliminations would bias
-    # the tabulated correction, which models least squares over every light)
-    ls_cache = {}
-
-    def ls_normals(sel):
-        # least-squares normals of the Lambertian-level pixels only (a masked solve: those pixels
-        # are typically a third to a half of the image)
-        if init in ("woodham1980", "least_squares"):
-            return nrm0[sel]
-        key = sel.tobytes()
-        if key not in ls_cache:
-            sub = np.zeros(h * w, bool)
-            sub[idx[sel]] = True
-            r = photometric_stereo(images, light_dirs, method="woodham1980", mask=sub.reshape(h, w),
-                                   channel=channel, saturation=saturation)
-            ls_cache.clear()
-            ls_cache[key] = r.normal.reshape(-1, 3)[idx[sel]].astype(np.float32)
-        return ls_cache[key]
+    # the Lambertian level: least squares over every light (its residual decides which pixels it
+    # explains; the init's own residual is on the lights that method kept, and its normal would
+    # bias the tabulated correction, which models least squares over every light)
+    ls = base if PS_METHODS.canonical(init) == "woodham1980" else \
+        photometric_stereo(images, light_dirs, method="woodham1980", mask=mask, channel=channel,
+                           saturation=saturation)
+    nrm_ls = ls.normal.reshape(-1, 3)[idx].astype(np.float32)
+    resid_ls = np.where(ls.valid.reshape(-1)[idx], ls.residual.reshape(-1)[idx], np.inf)
     alb = base.albedo.reshape(-1, c)[idx]
     g_ok = _usable(flat[:, idx, channel], saturation).T            # (N, m)
     all_ok = np.all(np.isfinite(flat[:, idx, :]), axis=2).T & g_ok
@@ -328,17 +318,38 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         return RefineResult(**{k: np.concatenate([getattr(p, k) for p in parts])
                                for k in ("normals", "kd", "used", "rel_residual")})
 
+    def split_levels(pix, sigma, n_i):
+        # the BRDF-aware step where the lobe matters; the rest keeps the initial solution (its
+        # shadow test) unless least squares already explained it (then corrected here)
+        lobe = _in_lobe(nrm0[pix], lights_of(pix), sigma) | has_highlight[pix]
+        lam_ok = (resid_ls[pix] < t_residual) & all_ok[pix].all(1) & ~lobe
+        lam_pix = pix[lam_ok]
+        if lam_pix.size:
+            nrm[lam_pix] = _lambertian_correction(nrm_ls[lam_pix], lights_of(lam_pix), sigma, n_i)
+            refined[lam_pix] = False
+        return lobe, lam_ok, pix[~lam_ok & lobe]
+
+    def lambertian_material(pix):
+        # no interface: least squares over every light is the Lambertian answer where it explains
+        # the pixel (every light usable, residual < t_residual); a robust init's trimming only adds
+        # noise there (Mitsuba plaster relief: least squares 1.41°, rank_trimmed 1.54°)
+        lam = pix[(resid_ls[pix] < t_residual) & all_ok[pix].all(1)]
+        nrm[lam] = nrm_ls[lam]
+        return int(lam.size)
+
+    def store(todo, rr):
+        nrm[todo] = rr.normals
+        kd[todo] = rr.kd
+        refined[todo] = True
+        rel[todo] = rr.rel_residual
+        shadow_new[todo] = all_ok[todo] & ~rr.used
+
     def _fine_round(x0, pix):
         # full size after the coarse pass: (σ, n_i) kept, a few steps from the upsampled normal
         t_r, c_r = time.perf_counter(), time.process_time()
         sigma, n_i = x0
         up = _upsample_normals(coarse.normal, (h, w), coarse.info["factor"]).reshape(-1, 3)[idx]
-        lobe = _in_lobe(nrm0[pix], lights_of(pix), sigma) | has_highlight[pix]
-        lam_ok = (resid0[pix] < t_residual) & all_ok[pix].all(1) & ~lobe
-        todo = pix[~lam_ok & lobe]
-        lam_pix = pix[lam_ok]
-        if lam_pix.size:
-            nrm[lam_pix] = _lambertian_correction(ls_normals(lam_pix), lights_of(lam_pix), sigma, n_i)
+        lobe, lam_ok, todo = split_levels(pix, sigma, n_i)
         change = np.zeros(0)
         if todo.size:
             out = []
@@ -352,11 +363,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
             mean_its = float(np.average([getattr(p, "mean_iterations", p.iterations) for p in out],
                                         weights=[len(p.normals) for p in out]))
             change = _angle_deg(rr.normals, up[todo])
-            nrm[todo] = rr.normals
-            kd[todo] = rr.kd
-            refined[todo] = True
-            rel[todo] = rr.rel_residual
-            shadow_new[todo] = all_ok[todo] & ~rr.used
+            store(todo, rr)
         info["rounds"].append({"material": 0, "round": "full size", "sigma": sigma, "n_i": n_i,
                                "pixels_refined": int(todo.size), "pixels_lambertian": int(lam_ok.sum()),
                                "pixels_initial_kept": int((~lam_ok & ~lobe).sum()),
@@ -383,6 +390,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
             cmat = coarse.info["materials"][0] if coarse.info.get("materials") else {"brdf_step": False}
             if not cmat.get("brdf_step") or cmat.get("sigma") is None:
                 mat.update(brdf_step=False, note="coarse pass: " + cmat.get("note", "no BRDF step"))
+                lambertian_material(pix)
                 if cmat.get("sigma") is not None:
                     x0 = (cmat["sigma"], cmat["n_i"])
             else:
@@ -420,31 +428,20 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
             round_info = {"material": region, "round": rnd, "sigma": fit["sigma"], "n_i": fit["n_i"],
                           "fit_pixels": int(fsel.size), "warm_up_refits": warm}
             if rnd == 1 and fit["n_i"] < LAMBERTIAN_N_I:
-                round_info.update(pixels_refined=0, median_change_deg=0.0,
+                n_ls = lambertian_material(pix)
+                round_info.update(pixels_refined=0, pixels_lambertian=n_ls, median_change_deg=0.0,
                                   seconds=time.perf_counter() - t_r)
                 info["rounds"].append(round_info)
                 mat.update(brdf_step=False, note=f"n_i = {fit['n_i']:.3f} ≈ 1: Lambertian-like, BRDF "
-                           "step skipped, initial normals kept")
+                           "step skipped: least squares where it explains the pixel, the initial "
+                           "normals elsewhere")
                 break
-            lobe = _in_lobe(nrm0[pix], lights_of(pix), fit["sigma"]) | has_highlight[pix]
-            lam_ok = (resid0[pix] < t_residual) & all_ok[pix].all(1) & ~lobe
-            # the BRDF-aware step where the lobe matters; the rest keeps the initial solution
-            # (its shadow test) unless least squares already explained it (corrected below)
-            todo = pix[~lam_ok & lobe]
-            lam_pix = pix[lam_ok]
-            if lam_pix.size:
-                nrm[lam_pix] = _lambertian_correction(ls_normals(lam_pix), lights_of(lam_pix),
-                                                       fit["sigma"], fit["n_i"])
-                refined[lam_pix] = False
+            lobe, lam_ok, todo = split_levels(pix, fit["sigma"], fit["n_i"])
             change = np.zeros(0)
             if todo.size:
                 rr = refine(todo, fit["sigma"], fit["n_i"], first_round=not refined[todo].all())
                 change = _angle_deg(rr.normals, nrm[todo])
-                nrm[todo] = rr.normals
-                kd[todo] = rr.kd
-                refined[todo] = True
-                rel[todo] = rr.rel_residual
-                shadow_new[todo] = all_ok[todo] & ~rr.used
+                store(todo, rr)
             sc = np.full(pix.size, np.inf, np.float32)     # Lambertian-level pixels: not for the fit
             sc[~lam_ok & lobe] = rel[todo]
             score = sc
