@@ -60,7 +60,10 @@ def _pct(x):
 
 
 def _value(k, v):
-    """A table cell: fractions as percent, lists element by element."""
+    """A table cell: fractions as percent, lists element by element, dicts as 'key value; ...'
+    (li_alternating's rounds, materials and levels)."""
+    if isinstance(v, dict):
+        return "; ".join(f"{kk} {_value(kk, vv)}" for kk, vv in v.items())
     if isinstance(v, (list, tuple, np.ndarray)):
         return ", ".join(_value(k, x) for x in v)
     if isinstance(v, (float, np.floating)) and "fraction" in str(k):
