@@ -10,7 +10,8 @@ light, with their positions). True normals: the `aov` integrator's `nn:sh_normal
 
 Shapes (our own): "sphere"; "relief", a bas-relief height field (bumps, ridges and a crater:
 concavities that cast shadows and inter-reflect); "vase", a surface of revolution with a concave
-neck. Materials: "plaster" (matte), the thesis's three paints (σ, n_i = 0.10, 1.30; 0.08, 1.28;
+neck; "shell", a ribbed dome with a pit (a check scene, with the "lacquer" material, for changes
+tuned on the others). Materials: "plaster" (matte), the thesis's three paints (σ, n_i = 0.10, 1.30; 0.08, 1.28;
 0.05, 1.26), "satin" (σ 0.2, n_i 1.5). Textures: a K_d pattern (stripes and spots, two colours)
 so that albedo varies over the object.
 
@@ -32,8 +33,9 @@ MATERIALS = {
     "paint_0.08": {"sigma": 0.08, "n_i": 1.28},
     "paint_0.05": {"sigma": 0.05, "n_i": 1.26},
     "satin": {"sigma": 0.20, "n_i": 1.50},
+    "lacquer": {"sigma": 0.07, "n_i": 1.45},    # a check scene: n_i unlike the thesis's paints
 }
-SHAPES = ("sphere", "relief", "vase")
+SHAPES = ("sphere", "relief", "vase", "shell")
 
 
 def rig_light_directions():
@@ -56,6 +58,11 @@ def _heightfield(name, n=160):
              + 0.08 * np.sin(5 * xx + 2 * yy) * np.exp(-(xx ** 2 + yy ** 2) / 0.6)
              - 0.30 * np.exp(-((xx - 0.35) ** 2 + (yy - 0.45) ** 2) / 0.04)     # a crater
              - 0.15 * np.exp(-((xx + 0.3) ** 2 + (yy + 0.5) ** 2) / 0.02))
+    elif name == "shell":  # a ribbed dome (fossil shell): 14 radial ribs fading towards the apex
+        r = np.sqrt(xx ** 2 + yy ** 2)
+        th = np.arctan2(yy + 0.15, xx)
+        z = 0.45 * np.maximum(1 - r ** 2, 0) + 0.035 * np.cos(14 * th) * np.minimum(r, 0.9) \
+            - 0.1 * np.exp(-((xx - 0.3) ** 2 + (yy + 0.35) ** 2) / 0.01)
     else:  # vase: a surface of revolution seen from above, concave neck around a bulge
         r = np.sqrt(xx ** 2 + yy ** 2)
         z = 0.5 * np.exp(-r ** 2 / 0.12) - 0.25 * np.exp(-(r - 0.55) ** 2 / 0.02) + 0.1 * np.cos(3 * r)

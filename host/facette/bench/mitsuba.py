@@ -33,6 +33,7 @@ SCENES = [  # (shape, material, textured, near_distance)
     ("relief", "paint_0.08", False, None), ("relief", "paint_0.05", False, None),
     ("relief", "satin", True, None), ("vase", "paint_0.08", True, None), ("vase", "plaster", False, None),
     ("sphere", "paint_0.10", False, 12.0),
+    ("shell", "lacquer", True, None), ("shell", "plaster", False, None),   # the check scenes
 ]
 THESIS_SHAPE = "relief"
 
