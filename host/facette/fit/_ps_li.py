@@ -19,6 +19,12 @@ to `facette.recon.photometric_stereo(method="li_alternating")` through the metho
 4. Refit and repeat until the median normal change of the re-estimated pixels is below
    tol_deg, or after `rounds` rounds. Each round's change is in `info["rounds"]`.
 
+Large images (more than `coarse_pixels` valid pixels, one material): steps 1–4 run on the images
+binned f × f; at full size the fitted (σ, n_i) are kept and each pixel of the BRDF-aware level
+gets a few Levenberg–Marquardt steps from the upsampled coarse normal (`info["coarse"]`, and the
+"full size" entry of `info["rounds"]`). At 2144×1424 × 12 this takes the BRDF-aware part from
+~245 to ~20 CPU s for 0.03° of mean error on tiled Mitsuba scenes (128 px objects; no loss at f = 2).
+
 Several materials: with materials="auto", the valid pixels are split by k-means (k = 2) on
 their chromaticity and log Lambertian albedo (the initial solution's), each region at least
 min_region_fraction of the pixels; each region gets its own (σ, n_i), and two regions whose fits
