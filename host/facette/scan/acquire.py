@@ -518,22 +518,26 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
         _lights_section(pre, profile)
         rig.check_config(pre.exposures, pre.lights, pre.light_current_mA, pre.mode, pre.timing)
     bracketing = {"name": "thesis2016" if exposures in (None, "thesis") else "explicit"}
-    if exposures == "thesis":
-        exposures = None
-    elif exposures == "adaptive":
-        exposures, light_current_mA, bracketing = _adaptive(
-            rig, directory, profile, lights, light_current_mA, mode, retries, timing, button,
-            frame_timeout_s, poll_s, max_runs)
-        button = None   # the button started the metering
-    elif isinstance(exposures, str):
+    if isinstance(exposures, str) and exposures not in ("thesis", "adaptive"):
         raise ValueError(f"exposures must be 'adaptive', 'thesis' or a list of exposures, got {exposures!r}")
-    plan = default_plan(n_leds, exposures, lights, light_current_mA, mode, retries, timing)
-    lights_section = _lights_section(plan, profile)
-    rig.check_config(plan.exposures, plan.lights, plan.light_current_mA, plan.mode, plan.timing)
     sd = ScanDirectory(directory)
-    _check_resumable(sd, plan)
-    sd.lock()                                # one writer; scan.json is read again under the lock
+    if exposures == "adaptive":
+        # the metering writes <directory>/meter/: the directory is ours before that (a second
+        # scan into a directory being written touches nothing in it)
+        sd.lock()
     try:
+        if exposures == "thesis":
+            exposures = None
+        elif exposures == "adaptive":
+            exposures, light_current_mA, bracketing = _adaptive(
+                rig, directory, profile, lights, light_current_mA, mode, retries, timing, button,
+                frame_timeout_s, poll_s, max_runs)
+            button = None   # the button started the metering
+        plan = default_plan(n_leds, exposures, lights, light_current_mA, mode, retries, timing)
+        lights_section = _lights_section(plan, profile)
+        rig.check_config(plan.exposures, plan.lights, plan.light_current_mA, plan.mode, plan.timing)
+        _check_resumable(sd, plan)
+        sd.lock()                            # one writer; scan.json is read again under the lock
         _check_resumable(sd, plan)
         return _run_locked(rig, sd, plan, profile, lights_section, button, progress, on_frame,
                            frame_timeout_s, poll_s, max_runs, save_truth, link_timeout_s, merge_hdr,

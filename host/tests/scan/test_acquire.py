@@ -71,6 +71,23 @@ def test_one_writer_at_a_time(rig, tmp_path):
     assert intact(tmp_path / "s") == 2
 
 
+def test_an_adaptive_scan_into_a_busy_directory_meters_nothing(rig, tmp_path):
+    d = tmp_path / "s"
+    holder = ScanDirectory(d)
+    holder.lock()                     # a scan is writing here (e.g. still metering)
+    meter = d / "meter"
+    meter.mkdir()
+    (meter / "frame.dng").write_bytes(b"the first scan's metering frame")
+    before = sorted((p.name, p.stat().st_mtime_ns, p.read_bytes()) for p in meter.iterdir())
+    try:
+        with pytest.raises(ScanDirectoryBusy, match=f"pid {os.getpid()}"):
+            rig.scan(d, lights=[0, 1], exposures="adaptive", progress=False)
+    finally:
+        holder.unlock()
+    assert sorted((p.name, p.stat().st_mtime_ns, p.read_bytes()) for p in meter.iterdir()) == before
+    assert sorted(p.name for p in d.iterdir()) == [".facette.lock", "meter"]
+
+
 def test_a_damaged_frame_is_set_aside_and_taken_again(rig, tmp_path):
     d = tmp_path / "s"
     rig.scan(d, lights=[0, 1], exposures=SHORT, progress=False)
