@@ -13,6 +13,7 @@ of a block at once (batched normal equations), with far lights (m, 3) or per-pix
 directions (H, W, m, 3). Missing values (NaN) and lights at or below the horizon are left out.
 Terms the lights cannot tell apart get (nearly) the minimum-norm solution (Tikhonov, `_RCOND`).
 """
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from math import factorial, pi, sqrt
 
@@ -134,48 +135,78 @@ def _check(images, light_dirs):
     return images, d
 
 
-def _solve_blocks(images, dirs, basis, n_terms, values):
-    """Per-pixel weighted least squares. values(e (n, m, 3)) -> (y (n, m, k), w (n, m)).
-    Returns (coeffs (H*W, k, n_terms), valid (H*W,))."""
-    m, h, w, _ = images.shape
-    flat = images.reshape(m, h * w, images.shape[-1])
+def _ridge_solve(ata, atb, n_terms):
+    """Batched (AᵀA + _RCOND·trace·I) x = Aᵀb: ata (n, T, T), atb (n, k, T) -> (n, k, T)."""
+    ridge = _RCOND * np.maximum(np.trace(ata, axis1=1, axis2=2), 1e-300)
+    ata += ridge[:, None, None] * np.eye(n_terms)
+    return np.linalg.solve(ata, np.swapaxes(atb, 1, 2)).swapaxes(1, 2)
+
+
+def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
+    """Per-pixel weighted least squares. values(e (n, m, c)) -> (y (n, m, c), w (n, m)).
+    Returns (coeffs (H*W, c, n_terms) float64, valid (H*W,)). Blocks of pixels run on
+    `workers` threads (numpy's products and solves release the GIL)."""
+    m, h, w, c = images.shape
+    flat = images.reshape(m, h * w, c)
     far = dirs.ndim == 2
     if far:
         b_far = basis(dirs)                                  # (m, T)
         above = dirs[:, 2] > 0
-    coeffs = None
+        outer = (b_far[:, :, None] * b_far[:, None, :]).reshape(m, -1)
+        # the pixels whose every light is known share one matrix A = Σ_above b bᵀ (+ ridge):
+        # their solution is a matrix product with proj = (above · B) A⁻¹, (m, T)
+        a_full = (above.astype(np.float64) @ outer).reshape(1, n_terms, n_terms)
+        proj = _ridge_solve(a_full, (b_far * above[:, None])[None], n_terms)[0]
+    coeffs = np.zeros((h * w, c, n_terms))
     valid = np.zeros(h * w, bool)
-    for a in range(0, h * w, _BLOCK):
-        e = np.moveaxis(flat[:, a:a + _BLOCK], 0, 1).astype(np.float64)      # (n, m, c)
+
+    def block(a):
+        sl = slice(a, a + _BLOCK)
+        e = np.moveaxis(flat[:, sl], 0, 1).astype(np.float64)      # (n, m, c)
         y, wt = values(e)
-        if far:   # one design matrix: the normal equations are two matrix products
+        if far:   # one design matrix: the normal equations are matrix products
             wt = wt * above
             y = np.where(wt[..., None] > 0, y, 0.0)
-            outer = (b_far[:, :, None] * b_far[:, None, :]).reshape(m, -1)
-            ata = (wt @ outer).reshape(-1, n_terms, n_terms)
-            atb = np.einsum("nmk,mi->nki", y * wt[..., None], b_far, optimize=True)
+            sol = np.empty((e.shape[0], c, n_terms))
+            full = (wt == above).all(axis=1)
+            sol[full] = np.swapaxes(y[full], 1, 2) @ proj
+            part = ~full
+            if part.any():
+                wp, yp = wt[part], y[part]
+                ata = (wp @ outer).reshape(-1, n_terms, n_terms)
+                atb = np.einsum("nmk,mi->nki", yp * wp[..., None], b_far, optimize=True)
+                sol[part] = _ridge_solve(ata, atb, n_terms)
         else:
-            d = dirs.reshape(h * w, m, 3)[a:a + _BLOCK]
+            d = dirs.reshape(h * w, m, 3)[sl]
             b = basis(d)
             wt = wt * (d[..., 2] > 0)
             y = np.where(wt[..., None] > 0, y, 0.0)
             ata = np.einsum("nm,nmi,nmj->nij", wt, b, b, optimize=True)
             atb = np.einsum("nm,nmi,nmk->nki", wt, b, y, optimize=True)
+            sol = _ridge_solve(ata, atb, n_terms)                        # (n, k, T)
         ok = wt.sum(axis=1) >= n_terms
-        ridge = _RCOND * np.maximum(np.trace(ata, axis1=1, axis2=2), 1e-300)
-        ata += ridge[:, None, None] * np.eye(n_terms)
-        sol = np.linalg.solve(ata, np.swapaxes(atb, 1, 2)).swapaxes(1, 2)   # (n, k, T)
         sol[~ok] = 0.0
-        if coeffs is None:
-            coeffs = np.zeros((h * w,) + sol.shape[1:])
-        coeffs[a:a + _BLOCK] = sol
-        valid[a:a + _BLOCK] = ok
+        coeffs[sl] = sol
+        valid[sl] = ok
+
+    starts = range(0, h * w, _BLOCK)
+    if workers > 1 and len(starts) > 1:
+        with ThreadPoolExecutor(workers) as pool:
+            list(pool.map(block, starts))
+    else:
+        for a in starts:
+            block(a)
     return coeffs, valid
 
 
+def _all3(a):
+    """a[..., 0] & a[..., 1] & a[..., 2]: `.all(axis=-1)` over 3 channels, ~5x faster."""
+    return a[..., 0] & a[..., 1] & a[..., 2]
+
+
 def _white_level(values, weights, percentile):
-    v = values[weights > 0]
-    v = v[np.isfinite(v) & (v > 0)]
+    with np.errstate(invalid="ignore"):
+        v = values[(weights > 0) & np.isfinite(values) & (values > 0)]
     return float(np.percentile(v, percentile)) if v.size else 1.0
 
 
@@ -192,20 +223,23 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
     """
     images, dirs = _check(images, light_dirs)
     m, h, w, _ = images.shape
-    flat = np.moveaxis(images.reshape(m, h * w, 3), 0, 1)
-    finite = np.isfinite(flat).all(axis=-1)
-    total = np.where(finite[..., None], flat, 0.0).sum(axis=1, dtype=np.float64)
-    peak = total.max(axis=1)
+    flat = images.reshape(m, h * w, 3)                    # light-major: contiguous passes
+    finite = _all3(np.isfinite(flat))                      # (m, N)
+    known = np.where(finite[..., None], flat, np.float32(0) if flat.dtype == np.float32 else 0.0)
+    total = known.sum(axis=0, dtype=np.float64)            # (N, 3)
+    peak = np.maximum(np.maximum(total[:, 0], total[:, 1]), total[:, 2])
     rgb = np.where(peak[:, None] > 0, np.clip(total, 0, None) / np.where(peak > 0, peak, 1)[:, None], 0)
     rgb_sq = np.maximum((rgb ** 2).sum(axis=1), 1e-300)
-    lum = np.einsum("nmc,nc->nm", np.where(finite[..., None], flat, 0.0), rgb) / rgb_sq[:, None]
+    lum = (known[..., 0] * rgb[:, 0] + known[..., 1] * rgb[:, 1] + known[..., 2] * rgb[:, 2]) / rgb_sq
+    del known
     if white is None:
-        sel = finite if mask is None else finite & np.asarray(mask, bool).reshape(-1, 1)
+        sel = finite if mask is None else finite & np.asarray(mask, bool).reshape(1, -1)
         white = _white_level(lum, sel, white_percentile)
     if not white > 0:
         raise ValueError(f"white level must be > 0, got {white}")
-    lum_img = np.moveaxis(lum.reshape(h, w, m), -1, 0)[..., None] / white
-    lum_img = np.where(finite.T.reshape(m, h, w, 1), lum_img, np.nan)
+    lum /= white
+    lum[~finite] = np.nan
+    lum_img = lum.reshape(m, h, w, 1)
 
     def values(e):
         ok = np.isfinite(e[..., 0])
@@ -229,15 +263,16 @@ def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile
     n_terms = order * order
     hsh_basis(np.array([0.0, 0.0, 1.0]), order)                 # validates `order`
     if white is None:
-        sel = np.isfinite(images).all(axis=-1)
+        sel = _all3(np.isfinite(images))
         if mask is not None:
             sel &= np.asarray(mask, bool)[None]
-        white = _white_level(images.max(axis=-1), sel, white_percentile)
+        brightest = np.maximum(np.maximum(images[..., 0], images[..., 1]), images[..., 2])
+        white = _white_level(brightest, sel, white_percentile)
     if not white > 0:
         raise ValueError(f"white level must be > 0, got {white}")
 
     def values(e):
-        ok = np.isfinite(e).all(axis=-1)
+        ok = _all3(np.isfinite(e))
         return np.nan_to_num(e) / white, ok.astype(np.float64)
 
     coeffs, valid = _solve_blocks(images, dirs, lambda d: hsh_basis(d, order), n_terms, values)
@@ -247,14 +282,16 @@ def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile
 def relight_ptm(fit, light_dir):
     """Colour (H, W, 3) of a `PTMFit` under one light: a far light (3,) or per-pixel
     directions (H, W, 3); in the fitted images' unit."""
-    lum = (fit.coeffs * ptm_basis(np.asarray(light_dir, float))).sum(axis=-1)
+    b = ptm_basis(np.asarray(light_dir, float))
+    lum = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwt,hwt->hw", fit.coeffs, b)
     return fit.white * np.clip(lum, 0, None)[..., None] * fit.rgb
 
 
 def relight_hsh(fit, light_dir):
     """Colour (H, W, 3) of an `HSHFit` under one light (3,) or (H, W, 3), as `relight_ptm`."""
     b = hsh_basis(np.asarray(light_dir, float), fit.order)
-    return fit.white * np.clip((fit.coeffs * b[..., None, :]).sum(axis=-1), 0, None)
+    val = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwct,hwt->hwc", fit.coeffs, b)
+    return fit.white * np.clip(val, 0, None)
 
 
 def relight_error(render, images, light_dirs, mask):
@@ -268,8 +305,9 @@ def relight_error(render, images, light_dirs, mask):
     d_all = d_all if d_all.ndim == 2 else np.moveaxis(d_all, 2, 0)
     num = den = 0.0
     for img, d in zip(images, d_all):
-        sel = mask & np.isfinite(img).all(axis=-1)
-        r = render(d)[sel]
-        num += float(((r - img[sel]) ** 2).sum())
-        den += float((img[sel].astype(np.float64) ** 2).sum())
+        sel = (mask & _all3(np.isfinite(img)))[..., None]
+        diff = render(d) - img
+        num += float(np.sum(diff * diff, where=sel))
+        x = img.astype(np.float64)
+        den += float(np.sum(x * x, where=sel))
     return float(np.sqrt(num / den)) if den > 0 else float("nan")

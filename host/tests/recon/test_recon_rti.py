@@ -116,3 +116,48 @@ def test_two_rings_of_lights_give_a_minimum_norm_hsh_not_cancelling_giants():
     fit = fit_hsh(imgs, dirs, order=3, mask=sc.mask)
     assert np.abs(fit.coeffs).max() < 3                 # 1.2 here; a plain solve gives 76
     assert relight_error(lambda d: relight_hsh(fit, d), imgs, dirs, sc.mask) < 0.05
+
+
+def _ridge_fit(basis_rows, y):
+    """The per-pixel fit of the module notes, one pixel at a time: (BᵀB + 1e-6 tr(BᵀB) I) x = Bᵀy."""
+    a = basis_rows.T @ basis_rows
+    a = a + 1e-6 * np.trace(a) * np.eye(a.shape[0])
+    return np.linalg.solve(a, basis_rows.T @ y)
+
+
+def test_shared_and_per_pixel_solves_equal_a_pixel_by_pixel_fit(monkeypatch):
+    """Far lights: pixels with every light known share one inverse, the others get their own
+    solve; both, over several blocks on two threads, equal the fit done pixel by pixel."""
+    import facette.recon._rti as rti
+
+    monkeypatch.setattr(rti, "_BLOCK", 16)
+    rng = np.random.default_rng(3)
+    d = _random_lights(12, seed=5)
+    d[11] = [0.6, 0.0, -0.8]                       # below the horizon: never used
+    m, h, w = 12, 7, 9
+    images = rng.uniform(0.05, 1.0, (m, h, w, 3)).astype(np.float32)
+    holes = rng.random((m, h, w)) < 0.08           # about half of the pixels miss a light
+    images[holes, rng.integers(0, 3, holes.sum())] = np.nan
+    images[:, 0, 0] = np.nan                       # no light known
+    images[:4, 0, 1] = np.nan                      # 7 of 11 usable lights: fewer than 9 HSH terms
+    assert 0 < np.isnan(images).any(axis=(0, 3)).mean() < 0.9
+    hsh = fit_hsh(images, d, order=3, white=1.0)
+    ptm = fit_ptm_lrgb(images, d, white=1.0)
+    for i in range(h):
+        for j in range(w):
+            e = images[:, i, j].astype(np.float64)
+            use = np.isfinite(e).all(axis=1) & (d[:, 2] > 0)
+            assert hsh.valid[i, j] == (use.sum() >= 9)
+            if use.sum() >= 9:
+                want = _ridge_fit(hsh_basis(d[use], 3), e[use]).T
+                np.testing.assert_allclose(hsh.coeffs[i, j], want, rtol=1e-9, atol=1e-12)
+            else:
+                assert not hsh.coeffs[i, j].any()
+            known = np.isfinite(e).all(axis=1)
+            if use.sum() >= 6 and known.any():
+                total = e[known].sum(axis=0)
+                rgb = total / total.max()
+                lum = e @ rgb / (rgb @ rgb)
+                want = _ridge_fit(ptm_basis(d[use]), lum[use])
+                np.testing.assert_allclose(ptm.rgb[i, j], rgb, rtol=1e-6)
+                np.testing.assert_allclose(ptm.coeffs[i, j], want, rtol=1e-6, atol=1e-9)
