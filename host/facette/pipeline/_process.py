@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from facette.fit import fit_hemisphere_cells
 from facette.errors import BadInputError
@@ -33,7 +34,7 @@ from facette.io.png import write_mask
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
 from facette.recon import (PS_DEFAULT, PS_METHODS, integrate, mesh_from_height, near_light_directions, photometric_stereo,
-                           fit_hsh, fit_ptm_lrgb, relight_error, relight_hsh, relight_ptm)
+                           fit_hsh, fit_ptm_lrgb, fit_relight_error)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
 from facette.pipeline._exports import gltf_inputs
@@ -229,9 +230,21 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
     allow_incomplete : process a scan that is not complete (every output then says so).
     overwrite : replace an earlier run's results in `out_dir` made with other options or inputs
         (without it, such a folder is refused: one folder holds one run, see process.json).
-    Returns a `ProcessResult`. Raises InsufficientData (facette.errors) when the data cannot
-    carry the result (too dark, saturated, empty mask, too few filled cells for a BRDF fit).
+    Returns a `ProcessResult` (timings: wall seconds per stage, "after_ps" the concurrent
+    stages together, "cpu" the CPU seconds of the whole call). Raises InsufficientData
+    (facette.errors) when the data cannot carry the result (too dark, saturated, empty mask,
+    too few filled cells for a BRDF fit).
     """
+    # the stages run on threads of their own: BLAS keeps to one thread per caller (its own
+    # threads on top of ours oversubscribe the cores: a 6x12 by 12x32768 product took 7 ms
+    # instead of 0.2 ms on a busy 2-core machine)
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _process(**locals())
+
+
+def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_source, t_residual,
+             theta0_deg, mask, pixel_pitch_mm, near_light, mesh_step, ascii_ply, saturation,
+             fit_options, hsh_order, ps_options, allow_incomplete, overwrite):
     outputs = list(OUTPUTS if outputs is None else outputs)
     stages = stages_needed(outputs)
     res = ProcessResult(options=dict(method=method, integration=integration, t_ombre=t_ombre,
@@ -247,6 +260,7 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
                           ps_options=dict(ps_options or {}), hsh_order=hsh_order)
     record_options.pop("outputs")
     t_all = time.perf_counter()
+    cpu_all = time.process_time()
     if out_dir is not None and "report" in outputs:
         # matplotlib takes ~0.5 s to import: let it load while the numbers are computed
         threading.Thread(target=_import_matplotlib, daemon=True).start()
@@ -286,81 +300,101 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
     res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
     res.timings["ps"] = time.perf_counter() - t0
 
-    if "integrate" in stages:
-        t0 = time.perf_counter()
-        mk = res.mask if integration == "least_squares" else None
-        hgt = integrate(res.normals, inp.pixel_pitch_mm, mask=mk, method=integration)
-        res.height = np.where(res.mask, hgt, 0.0).astype(np.float32)
-        res.timings["integrate"] = time.perf_counter() - t0
-    if "mesh" in stages:
-        t0 = time.perf_counter()
-        step = mesh_step or max(1, int(np.ceil(np.sqrt(res.mask.sum() / 1e6))))
-        res.mesh = mesh_from_height(res.height, res.mask, inp.pixel_pitch_mm, step=step)
-        res.options["mesh_step"] = step
-        res.timings["mesh"] = time.perf_counter() - t0
-    if "samples" in stages:
-        t0 = time.perf_counter()
-        # the images as photometric stereo saw them (near lights: fall-off divided out)
-        res.filtered, res.samples = _samples_stage(images, inp.sample_mask(), ps, light_dirs, theta0_deg)
-        res.timings["samples"] = time.perf_counter() - t0
-    if "fit" in stages:
-        t0 = time.perf_counter()
-        res.brdf, note = _fit_stage(res.filtered, dict(fit_options or {}))
-        if note:
-            res.notes.append(note)
-        res.timings["fit"] = time.perf_counter() - t0
-    if "ptm" in stages:
-        t0 = time.perf_counter()
-        res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.mask)
-        res.fit_errors["ptm_relative_rms"] = relight_error(lambda d: relight_ptm(res.ptm, d), images,
-                                                           light_dirs, res.mask)
-        res.timings["ptm"] = time.perf_counter() - t0
-    if "hsh" in stages:
-        t0 = time.perf_counter()
-        res.hsh = fit_hsh(images, light_dirs, order=hsh_order, mask=res.mask)
-        res.fit_errors["hsh_relative_rms"] = relight_error(lambda d: relight_hsh(res.hsh, d), images,
-                                                           light_dirs, res.mask)
-        res.timings["hsh"] = time.perf_counter() - t0
+    res.notes.extend(_after_ps(res, inp, stages, outputs, images, light_dirs, integration, mesh_step,
+                               theta0_deg, fit_options, hsh_order, out_dir, ascii_ply))
     res.errors = _truth_errors(inp, res)
     res.timings["total_compute"] = time.perf_counter() - t_all
     if out_dir is not None:
         t0 = time.perf_counter()
-        _write(res, Path(out_dir), outputs, ascii_ply, images, light_dirs)
+        _write_last(res, Path(out_dir), outputs)
         write_record(Path(out_dir), record_options, inp, res, previous)
         res.timings["write"] = time.perf_counter() - t0
+    res.timings["cpu"] = time.process_time() - cpu_all
     return res
 
 
-def _write(res, out, outputs, ascii_ply, images, light_dirs):
-    """Write the requested files; the independent ones on two threads while the report
-    (matplotlib, main thread only) is drawn."""
-    out.mkdir(parents=True, exist_ok=True)
+def _timed(res, name, fn, *args):
+    """fn(*args), its wall time in res.timings[name] (s)."""
+    t0 = time.perf_counter()
+    out = fn(*args)
+    res.timings[name] = time.perf_counter() - t0
+    return out
+
+
+def _after_ps(res, inp, stages, outputs, images, light_dirs, integration, mesh_step, theta0_deg,
+              fit_options, hsh_order, out_dir, ascii_ply, workers=2):
+    """The stages after photometric stereo, which depend on it only and not on each other,
+    concurrently on `workers` threads (numpy, scipy's FFT and the file writers release the
+    GIL): heights -> mesh, samples -> BRDF fit, PTM, HSH; each writes its files as soon as it
+    is done. Returns the notes, in the order of the stages (whatever order they finish in)."""
+    out = None if out_dir is None else Path(out_dir)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+    write = _writers(res, out, outputs, ascii_ply)
+
+    def shape():
+        mk = res.mask if integration == "least_squares" else None
+        hgt = _timed(res, "integrate", integrate, res.normals, inp.pixel_pitch_mm, mk, integration)
+        res.height = np.where(res.mask, hgt, 0.0).astype(np.float32)
+        write("height")
+        if "mesh" in stages:
+            step = mesh_step or max(1, int(np.ceil(np.sqrt(res.mask.sum() / 1e6))))
+            res.mesh = _timed(res, "mesh", mesh_from_height, res.height, res.mask, inp.pixel_pitch_mm, step)
+            res.options["mesh_step"] = step
+            write("mesh")
+        return []
+
+    def reflectance():
+        # the images as photometric stereo saw them (near lights: fall-off divided out)
+        res.filtered, res.samples = _timed(res, "samples", _samples_stage, images, inp.sample_mask(),
+                                           res.ps, light_dirs, theta0_deg)
+        write("samples")
+        if "fit" not in stages:
+            return []
+        res.brdf, note = _timed(res, "fit", _fit_stage, res.filtered, dict(fit_options or {}))
+        write("brdf")
+        return [note] if note else []
+
+    def ptm():
+        t0 = time.perf_counter()
+        res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.mask)
+        res.fit_errors["ptm_relative_rms"] = fit_relight_error(res.ptm, images, light_dirs, res.mask)
+        res.timings["ptm"] = time.perf_counter() - t0
+        write("ptm")
+        return []
+
+    def hsh():
+        t0 = time.perf_counter()
+        res.hsh = fit_hsh(images, light_dirs, order=hsh_order, mask=res.mask)
+        res.fit_errors["hsh_relative_rms"] = fit_relight_error(res.hsh, images, light_dirs, res.mask)
+        res.timings["hsh"] = time.perf_counter() - t0
+        write("rti")
+        return []
+
+    def maps():
+        for o in ("normals", "albedo", "mask"):
+            write(o)
+        return []
+
+    tasks = [(reflectance, "samples" in stages), (hsh, "hsh" in stages), (ptm, "ptm" in stages),
+             (shape, "integrate" in stages), (maps, out is not None)]
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(workers) as pool:
+        futures = [pool.submit(fn) for fn, wanted in tasks if wanted]
+        # in the order of `tasks` whatever finished first; re-raises a stage's error here
+        notes = [n for f in futures for n in f.result()]
+    res.timings["after_ps"] = time.perf_counter() - t0
+    return notes
+
+
+def _writers(res, out, outputs, ascii_ply):
+    """write(output): write that output's file into `out` if it was asked for (None: nothing)."""
     meta = {"software": "facette", "source": str(res.inputs.source),
             "method": res.options["method"], "frame": "camera: x right, y up, z towards the camera"}
     if res.inputs.incomplete:
         meta["scan"] = f"incomplete: {res.inputs.incomplete}"
-    jobs = []
-    if "normals" in outputs:
-        jobs.append(lambda: write_exr(out / FILES["normals"], res.normals, ("X", "Y", "Z"), header=meta))
-    if "albedo" in outputs:
-        jobs.append(lambda: write_exr(out / FILES["albedo"], res.albedo, ("R", "G", "B"), header=meta))
-    if "height" in outputs:
-        jobs.append(lambda: write_exr(out / FILES["height"], res.height, ("Z",),
-                                      header={**meta, "unit": "mm"}))
-    if "mask" in outputs:
-        jobs.append(lambda: write_mask(out / FILES["mask"], res.mask))
-    if "mesh" in outputs:
-        comment = "facette" + (f" (scan incomplete: {res.inputs.incomplete})" if res.inputs.incomplete else "")
-        jobs.append(lambda: write_ply(out / FILES["mesh"], *res.mesh, binary=not ascii_ply, comment=comment))
-    if "samples" in outputs:
-        fr, raw = res.filtered, res.samples
-        jobs.append(lambda: np.savez_compressed(
-            out / FILES["samples"], filtered_mean=fr.mean.astype(np.float32), filtered_count=fr.count,
-            filtered_theta_s=fr.theta_s, filtered_s=fr.s, filtered_o=fr.o, partition_edges=fr.edges,
-            partition_counts=fr.counts, theta0_deg=res.options["theta0_deg"],
-            raw_s=raw.s, raw_o=raw.o, raw_f=raw.f, raw_pixel=raw.pixel, raw_light=raw.light,
-            image_shape=np.array(res.normals.shape[:2]), scan_incomplete=res.inputs.incomplete))
-    if "brdf" in outputs and res.brdf is not None:
+
+    def brdf_text():
         text = res.brdf.to_json() if hasattr(res.brdf, "to_json") else json.dumps(res.brdf, indent=2)
         ps_info = res.ps.info if res.ps is not None else {}
         if "materials" in ps_info:   # BRDF-aware photometric stereo: its own per-region fits
@@ -370,25 +404,54 @@ def _write(res, out, outputs, ascii_ply, images, light_dirs):
             text = json.dumps(doc, indent=2)
         if res.inputs.incomplete:
             text = json.dumps({**json.loads(text), "scan_incomplete": res.inputs.incomplete}, indent=2)
-        jobs.append(lambda: (out / FILES["brdf"]).write_text(text))
-    if "ptm" in outputs:
-        jobs.append(lambda: write_ptm_lrgb(out / FILES["ptm"], res.ptm.coeffs, res.ptm.rgb))
-    if "rti" in outputs:
-        jobs.append(lambda: write_hsh_rti(out / FILES["rti"], res.hsh.coeffs))
-    if "gltf" in outputs:
-        if res.mesh is not None and len(res.mesh[1]):
-            kwargs, notes = gltf_inputs(res, res.options.get("mesh_step", 1))
-            res.notes.extend(notes)
-            jobs.append(lambda: write_glb(out / FILES["gltf"], **kwargs))
-        else:
-            res.notes.append("gltf: the mesh has no triangles (empty mask); model.glb not written")
-    with ThreadPoolExecutor(2) as pool:
-        futures = [pool.submit(job) for job in jobs]
+        return text
+
+    def samples(path):
+        fr, raw = res.filtered, res.samples
+        np.savez_compressed(
+            path, filtered_mean=fr.mean.astype(np.float32), filtered_count=fr.count,
+            filtered_theta_s=fr.theta_s, filtered_s=fr.s, filtered_o=fr.o, partition_edges=fr.edges,
+            partition_counts=fr.counts, theta0_deg=res.options["theta0_deg"],
+            raw_s=raw.s, raw_o=raw.o, raw_f=raw.f, raw_pixel=raw.pixel, raw_light=raw.light,
+            image_shape=np.array(res.normals.shape[:2]), scan_incomplete=res.inputs.incomplete)
+
+    comment = "facette" + (f" (scan incomplete: {res.inputs.incomplete})" if res.inputs.incomplete else "")
+    how = {
+        "normals": lambda p: write_exr(p, res.normals, ("X", "Y", "Z"), header=meta),
+        "albedo": lambda p: write_exr(p, res.albedo, ("R", "G", "B"), header=meta),
+        "height": lambda p: write_exr(p, res.height, ("Z",), header={**meta, "unit": "mm"}),
+        "mask": lambda p: write_mask(p, res.mask),
+        "mesh": lambda p: write_ply(p, *res.mesh, binary=not ascii_ply, comment=comment),
+        "samples": samples,
+        "brdf": lambda p: p.write_text(brdf_text()) if res.brdf is not None else None,
+        "ptm": lambda p: write_ptm_lrgb(p, res.ptm.coeffs, res.ptm.rgb),
+        "rti": lambda p: write_hsh_rti(p, res.hsh.coeffs),
+    }
+
+    def write(output):
+        if out is not None and output in outputs:
+            how[output](out / FILES[output])
+
+    return write
+
+
+def _write_last(res, out, outputs):
+    """What needs every stage: model.glb (mesh and BRDF), written on a thread while the
+    report (matplotlib, main thread only) is drawn; then the list of files written."""
+    with ThreadPoolExecutor(1) as pool:
+        future = None
+        if "gltf" in outputs:
+            if res.mesh is not None and len(res.mesh[1]):
+                kwargs, notes = gltf_inputs(res, res.options.get("mesh_step", 1))
+                res.notes.extend(notes)
+                future = pool.submit(write_glb, out / FILES["gltf"], **kwargs)
+            else:
+                res.notes.append("gltf: the mesh has no triangles (empty mask); model.glb not written")
         if "report" in outputs:
             write_report(res, out / FILES["report"])
             res.files["report"] = str(out / FILES["report"])
-        for fut in futures:
-            fut.result()                      # re-raise any write error here
+        if future is not None:
+            future.result()                      # re-raise a write error here
     for o in outputs:
         if (out / FILES[o]).exists() and o != "report":
             res.files[o] = str(out / FILES[o])

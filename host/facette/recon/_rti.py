@@ -14,13 +14,13 @@ directions (H, W, m, 3). Missing values (NaN) and lights at or below the horizon
 Terms the lights cannot tell apart get (nearly) the minimum-norm solution (Tikhonov, `_RCOND`).
 """
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from math import factorial, pi, sqrt
 
 import numpy as np
 
 __all__ = ["ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh",
-           "relight_ptm", "relight_hsh", "relight_error", "HSH_ORDERS"]
+           "relight_ptm", "relight_hsh", "relight_error", "fit_relight_error", "HSH_ORDERS"]
 
 HSH_ORDERS = (2, 3)     # 4 and 9 terms: the orders whose RTIViewer convention is pinned by a test
 # Tikhonov term, relative to trace(AᵀA): directions of AᵀA with eigenvalues far below it are
@@ -28,7 +28,7 @@ HSH_ORDERS = (2, 3)     # 4 and 9 terms: the orders whose RTIViewer convention i
 # two elevations for HSH order 3's three zonal terms) gets the minimum-norm fit, not ±500
 # coefficients that cancel on the photographs and explode between them
 _RCOND = 1e-6
-_BLOCK = 32768          # pixels per batched solve (memory ~ block * m * terms * 8 bytes)
+_BLOCK = 8192          # pixels per batched solve (memory ~ block * m * terms * 8 bytes)
 
 
 def ptm_basis(light_dirs):
@@ -143,9 +143,9 @@ def _ridge_solve(ata, atb, n_terms):
 
 
 def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
-    """Per-pixel weighted least squares. values(e (n, m, c)) -> (y (n, m, c), w (n, m)).
-    Returns (coeffs (H*W, c, n_terms) float64, valid (H*W,)). Blocks of pixels run on
-    `workers` threads (numpy's products and solves release the GIL)."""
+    """Per-pixel weighted least squares, light-major: values(e (m, n, c) float64) ->
+    (y (m, n, c), w (m, n)). Returns (coeffs (H*W, c, n_terms) float64, valid (H*W,)).
+    Blocks of pixels run on `workers` threads (numpy's products and solves release the GIL)."""
     m, h, w, c = images.shape
     flat = images.reshape(m, h * w, c)
     far = dirs.ndim == 2
@@ -154,49 +154,54 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
         above = dirs[:, 2] > 0
         outer = (b_far[:, :, None] * b_far[:, None, :]).reshape(m, -1)
         # the pixels whose every light is known share one matrix A = Σ_above b bᵀ (+ ridge):
-        # their solution is a matrix product with proj = (above · B) A⁻¹, (m, T)
+        # their solution is one matrix product with proj = (above · B) A⁻¹, (m, T)
         a_full = (above.astype(np.float64) @ outer).reshape(1, n_terms, n_terms)
-        proj = _ridge_solve(a_full, (b_far * above[:, None])[None], n_terms)[0]
+        proj_t = _ridge_solve(a_full, (b_far * above[:, None])[None], n_terms)[0].T.copy()
     coeffs = np.zeros((h * w, c, n_terms))
     valid = np.zeros(h * w, bool)
 
     def block(a):
         sl = slice(a, a + _BLOCK)
-        e = np.moveaxis(flat[:, sl], 0, 1).astype(np.float64)      # (n, m, c)
-        y, wt = values(e)
+        y, wt = values(flat[:, sl].astype(np.float64))           # (m, n, c), (m, n)
+        n = wt.shape[1]
         if far:   # one design matrix: the normal equations are matrix products
-            wt = wt * above
+            wt = wt * above[:, None]
             y = np.where(wt[..., None] > 0, y, 0.0)
-            sol = np.empty((e.shape[0], c, n_terms))
-            full = (wt == above).all(axis=1)
-            sol[full] = np.swapaxes(y[full], 1, 2) @ proj
+            sol = np.empty((n, c, n_terms))
+            full = (wt == above[:, None]).all(axis=0)
+            yf = y if full.all() else y[:, full]
+            sol[full] = (proj_t @ yf.reshape(m, -1)).reshape(n_terms, -1, c).transpose(1, 2, 0)
             part = ~full
             if part.any():
-                wp, yp = wt[part], y[part]
+                wp, yp = wt[:, part].T, y[:, part].transpose(1, 0, 2)   # (np, m), (np, m, c)
                 ata = (wp @ outer).reshape(-1, n_terms, n_terms)
                 atb = np.einsum("nmk,mi->nki", yp * wp[..., None], b_far, optimize=True)
                 sol[part] = _ridge_solve(ata, atb, n_terms)
         else:
             d = dirs.reshape(h * w, m, 3)[sl]
             b = basis(d)
-            wt = wt * (d[..., 2] > 0)
-            y = np.where(wt[..., None] > 0, y, 0.0)
+            wt = wt.T * (d[..., 2] > 0)                                 # (n, m)
+            y = np.where(wt[..., None] > 0, y.transpose(1, 0, 2), 0.0)  # (n, m, c)
             ata = np.einsum("nm,nmi,nmj->nij", wt, b, b, optimize=True)
             atb = np.einsum("nm,nmi,nmk->nki", wt, b, y, optimize=True)
             sol = _ridge_solve(ata, atb, n_terms)                        # (n, k, T)
-        ok = wt.sum(axis=1) >= n_terms
+            wt = wt.T
+        ok = wt.sum(axis=0) >= n_terms
         sol[~ok] = 0.0
         coeffs[sl] = sol
         valid[sl] = ok
 
-    starts = range(0, h * w, _BLOCK)
+    _run(block, range(0, h * w, _BLOCK), workers)
+    return coeffs, valid
+
+
+def _run(fn, starts, workers=2):
+    """[fn(a) for a in starts] on `workers` threads (blocks write disjoint slices)."""
+    starts = list(starts)
     if workers > 1 and len(starts) > 1:
         with ThreadPoolExecutor(workers) as pool:
-            list(pool.map(block, starts))
-    else:
-        for a in starts:
-            block(a)
-    return coeffs, valid
+            return list(pool.map(fn, starts))
+    return [fn(a) for a in starts]
 
 
 def _all3(a):
@@ -223,27 +228,39 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
     """
     images, dirs = _check(images, light_dirs)
     m, h, w, _ = images.shape
-    flat = images.reshape(m, h * w, 3)                    # light-major: contiguous passes
-    finite = _all3(np.isfinite(flat))                      # (m, N)
-    known = np.where(finite[..., None], flat, np.float32(0) if flat.dtype == np.float32 else 0.0)
-    total = known.sum(axis=0, dtype=np.float64)            # (N, 3)
-    peak = np.maximum(np.maximum(total[:, 0], total[:, 1]), total[:, 2])
-    rgb = np.where(peak[:, None] > 0, np.clip(total, 0, None) / np.where(peak > 0, peak, 1)[:, None], 0)
-    rgb_sq = np.maximum((rgb ** 2).sum(axis=1), 1e-300)
-    lum = (known[..., 0] * rgb[:, 0] + known[..., 1] * rgb[:, 1] + known[..., 2] * rgb[:, 2]) / rgb_sq
-    del known
+    flat = images.reshape(m, h * w, 3)                    # light-major
+    zero = np.zeros((), flat.dtype)
+    rgb = np.empty((h * w, 3))
+    peak = np.empty(h * w)
+    lum = np.empty((m, h * w))                            # NaN where the value is unknown
+
+    def colour(a):     # a block of pixels, so that the temporaries stay in the cache
+        sl = slice(a, a + _BLOCK)
+        e = flat[:, sl]
+        finite = _all3(np.isfinite(e))                    # (m, n)
+        known = np.where(finite[..., None], e, zero)
+        total = known.sum(axis=0, dtype=np.float64)       # (n, 3)
+        pk = np.maximum(np.maximum(total[:, 0], total[:, 1]), total[:, 2])
+        c = np.where(pk[:, None] > 0, np.clip(total, 0, None) / np.where(pk > 0, pk, 1)[:, None], 0)
+        c_sq = np.maximum((c ** 2).sum(axis=1), 1e-300)
+        lb = (known[..., 0] * c[:, 0] + known[..., 1] * c[:, 1] + known[..., 2] * c[:, 2]) / c_sq
+        lb[~finite] = np.nan
+        rgb[sl], peak[sl], lum[:, sl] = c, pk, lb
+        if white is None:      # the values that set the white level (finite, > 0, masked)
+            ok = finite if sel is None else finite & sel[None, sl]
+            return lb[ok & (lb > 0)]
+
+    sel = None if mask is None else np.asarray(mask, bool).reshape(-1)
+    top = _run(colour, range(0, h * w, _BLOCK))
     if white is None:
-        sel = finite if mask is None else finite & np.asarray(mask, bool).reshape(1, -1)
-        white = _white_level(lum, sel, white_percentile)
+        white = _white_level(np.concatenate(top), 1, white_percentile)
     if not white > 0:
         raise ValueError(f"white level must be > 0, got {white}")
-    lum /= white
-    lum[~finite] = np.nan
     lum_img = lum.reshape(m, h, w, 1)
 
     def values(e):
         ok = np.isfinite(e[..., 0])
-        return np.nan_to_num(e), ok.astype(np.float64)
+        return np.nan_to_num(e) / white, ok.astype(np.float64)
 
     coeffs, valid = _solve_blocks(lum_img, dirs, ptm_basis, 6, values)
     valid &= peak > 0
@@ -263,11 +280,17 @@ def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile
     n_terms = order * order
     hsh_basis(np.array([0.0, 0.0, 1.0]), order)                 # validates `order`
     if white is None:
-        sel = _all3(np.isfinite(images))
-        if mask is not None:
-            sel &= np.asarray(mask, bool)[None]
-        brightest = np.maximum(np.maximum(images[..., 0], images[..., 1]), images[..., 2])
-        white = _white_level(brightest, sel, white_percentile)
+        flat = images.reshape(m, h * w, 3)
+        sel = None if mask is None else np.asarray(mask, bool).reshape(-1)
+
+        def brightest(a):    # the brightest channel of the finite (masked) values, by blocks
+            sl = slice(a, a + _BLOCK)
+            e = flat[:, sl]
+            ok = _all3(np.isfinite(e)) if sel is None else _all3(np.isfinite(e)) & sel[None, sl]
+            top = np.maximum(np.maximum(e[..., 0], e[..., 1]), e[..., 2])
+            return top[ok & (top > 0)]
+
+        white = _white_level(np.concatenate(_run(brightest, range(0, h * w, _BLOCK))), 1, white_percentile)
     if not white > 0:
         raise ValueError(f"white level must be > 0, got {white}")
 
@@ -294,6 +317,17 @@ def relight_hsh(fit, light_dir):
     return fit.white * np.clip(val, 0, None)
 
 
+def _error_sums(render, images, d_all, mask):
+    num = den = 0.0
+    for img, d in zip(images, d_all):
+        sel = (mask & _all3(np.isfinite(img)))[..., None]
+        diff = render(d) - img
+        num += float(np.sum(diff * diff, where=sel))
+        x = img.astype(np.float64)
+        den += float(np.sum(x * x, where=sel))
+    return num, den
+
+
 def relight_error(render, images, light_dirs, mask):
     """Relative RMS error of a relighting function against the images it was fitted to.
 
@@ -303,11 +337,42 @@ def relight_error(render, images, light_dirs, mask):
     """
     d_all = np.asarray(light_dirs, float)
     d_all = d_all if d_all.ndim == 2 else np.moveaxis(d_all, 2, 0)
-    num = den = 0.0
-    for img, d in zip(images, d_all):
-        sel = (mask & _all3(np.isfinite(img)))[..., None]
-        diff = render(d) - img
-        num += float(np.sum(diff * diff, where=sel))
-        x = img.astype(np.float64)
-        den += float(np.sum(x * x, where=sel))
+    num, den = _error_sums(render, images, d_all, mask)
+    return float(np.sqrt(num / den)) if den > 0 else float("nan")
+
+
+def fit_relight_error(fit, images, light_dirs, mask, rows=2, workers=2):
+    """`relight_error` of a `PTMFit` or `HSHFit` (relight_ptm / relight_hsh), the same sums
+    taken `rows` image rows at a time on `workers` threads: a block's coefficients stay in
+    the cache for every light instead of streaming the whole fit once per light."""
+    relight = relight_ptm if isinstance(fit, PTMFit) else relight_hsh
+    d_all = np.asarray(light_dirs, float)
+    images = np.asarray(images)
+    mask = np.asarray(mask, bool)
+
+    if d_all.ndim == 2:       # far lights: every light of a block in one matrix product
+        ptm = isinstance(fit, PTMFit)
+        basis = ptm_basis(d_all) if ptm else hsh_basis(d_all, fit.order)      # (m, T)
+
+    def part(r):
+        sl = slice(r, r + rows)
+        if d_all.ndim == 2:
+            m, n_terms = basis.shape
+            img = images[:, sl]                                              # (m, r, W, 3)
+            pred = basis @ fit.coeffs[sl].reshape(-1, n_terms).T              # (m, r·W[·3])
+            np.clip(pred, 0, None, out=pred)
+            pred *= fit.white
+            if ptm:
+                pred = pred[..., None] * fit.rgb[sl].reshape(1, -1, 3)
+            pred = pred.reshape(img.shape)
+            sel = (mask[sl] & _all3(np.isfinite(img)))[..., None]
+            diff = pred - img
+            x = img.astype(np.float64)
+            return float(np.sum(diff * diff, where=sel)), float(np.sum(x * x, where=sel))
+        arrays = {k: getattr(fit, k)[sl] for k in ("coeffs", "valid", "rgb") if hasattr(fit, k)}
+        sub = replace(fit, **arrays)
+        return _error_sums(lambda q: relight(sub, q), images[:, sl], np.moveaxis(d_all[sl], 2, 0), mask[sl])
+
+    sums = _run(part, range(0, images.shape[1], rows), workers)
+    num, den = (sum(x) for x in zip(*sums))
     return float(np.sqrt(num / den)) if den > 0 else float("nan")
