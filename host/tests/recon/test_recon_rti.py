@@ -161,3 +161,28 @@ def test_shared_and_per_pixel_solves_equal_a_pixel_by_pixel_fit(monkeypatch):
                 want = _ridge_fit(ptm_basis(d[use]), lum[use])
                 np.testing.assert_allclose(ptm.rgb[i, j], rgb, rtol=1e-6)
                 np.testing.assert_allclose(ptm.coeffs[i, j], want, rtol=1e-6, atol=1e-9)
+
+
+@pytest.mark.parametrize("n, q, dtype", [(0, 99.0, np.float64), (1, 99.0, np.float64), (500, 99.0, np.float32),
+                                         (200_003, 99.0, np.float64), (200_003, 99.0, np.float32),
+                                         (200_003, 50.0, np.float32), (120_000, 100.0, np.float64)])
+def test_white_level_from_the_top_values_is_numpys_percentile(n, q, dtype):
+    from facette.recon._rti import _top_percentile
+
+    rng = np.random.default_rng(n)
+    v = rng.lognormal(0, 1, n).astype(dtype)
+    blocks = np.array_split(v, 7)
+    got = _top_percentile(lambda a: blocks[a], range(7), q)
+    assert got == (float(np.percentile(v, q)) if n else 1.0)
+
+
+def test_white_level_when_the_sample_misses_the_top():
+    """Every 37th value (the sample) is large, the others small: the bound from the sample is
+    too high and the full set is used, still numpy's percentile."""
+    from facette.recon._rti import _top_percentile
+
+    v = np.full(37 * 4000, 0.5)
+    v[::37] = 10.0 + np.arange(4000)
+    v[1::37] = np.linspace(0, 1, 4000)
+    got = _top_percentile(lambda a: v if a == 0 else v[:0], range(2), 99.0)
+    assert got == float(np.percentile(v, 99.0))
