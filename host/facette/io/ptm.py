@@ -13,6 +13,8 @@ import numpy as np
 
 __all__ = ["write_ptm_lrgb", "quantize_scale_bias"]
 
+ROWS = 64                  # image rows quantized at a time
+
 
 def quantize_scale_bias(coeffs):
     """Per-coefficient scale (float) and integer bias in [0, 255] so that every value of
@@ -46,7 +48,9 @@ def write_ptm_lrgb(path, coeffs, rgb):
         raise ValueError("PTM coefficients and colours must be finite (set unfitted pixels to 0)")
     h, w, _ = coeffs.shape
     scale, bias = quantize_scale_bias(coeffs.reshape(-1, 6))
-    q = np.clip(np.round(coeffs / scale + bias), 0, 255).astype(np.uint8)
+    q = np.empty(coeffs.shape, np.uint8)
+    for r in range(0, h, ROWS):          # by rows: no full-size float64 temporaries
+        q[r:r + ROWS] = np.clip(np.round(coeffs[r:r + ROWS] / scale + bias), 0, 255)
     c = np.clip(np.round(rgb * 255.0), 0, 255).astype(np.uint8)
     header = ("PTM_1.2\nPTM_FORMAT_LRGB\n"
               f"{w}\n{h}\n"          # separate lines: legal (§2.3) and what every reader takes

@@ -16,6 +16,7 @@ __all__ = ["write_hsh_rti"]
 
 HSH_FILE_TYPE = 3          # RTIViewer's file types: 1 PTM, 2 spherical harmonics, 3 HSH
 HSH_BASIS_TYPE = 2
+ROWS = 64                  # image rows quantized at a time
 
 
 def write_hsh_rti(path, coeffs):
@@ -35,7 +36,9 @@ def write_hsh_rti(path, coeffs):
     hi = coeffs.max(axis=(0, 1, 2))
     scale = np.where(hi > lo, hi - lo, 1.0).astype("<f4")
     bias = lo.astype("<f4")
-    q = np.clip(np.round((coeffs - bias) / scale * 255.0), 0, 255).astype(np.uint8)
+    q = np.empty(coeffs.shape, np.uint8)
+    for r in range(0, h, ROWS):          # by rows: no full-size float64 temporaries
+        q[r:r + ROWS] = np.clip(np.round((coeffs[r:r + ROWS] - bias) / scale * 255.0), 0, 255)
     header = f"#HSH1.2\n{HSH_FILE_TYPE}\n{w} {h} 3\n{t} {HSH_BASIS_TYPE} 1\n"
     path = Path(path)
     tmp = path.with_name(path.name + ".partial")
