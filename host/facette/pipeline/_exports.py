@@ -8,7 +8,9 @@ import numpy as np
 from scipy.ndimage import uniform_filter
 
 __all__ = ["gltf_roughness", "srgb_encode", "vertex_normals", "vertex_tangents",
-           "tangent_space_normal_map", "gltf_inputs"]
+           "tangent_space_normal_map", "gltf_material", "gltf_inputs"]
+
+ROWS = 64                  # image rows of the normal map made at a time
 
 
 def gltf_roughness(sigma, distribution="beckmann"):
@@ -73,25 +75,57 @@ def tangent_space_normal_map(normals, height_mm, mask, pixel_pitch_mm, step=1):
     if step > 1:
         hgt = uniform_filter(hgt, size=step, mode="nearest")
     gy, gx = np.gradient(hgt, pixel_pitch_mm)
-    hx, hy = gx, -gy                                  # image rows go down, y goes up
-    nm = np.stack([-hx, -hy, np.ones_like(hx)], -1)
-    nm /= np.linalg.norm(nm, axis=-1, keepdims=True)
-    tm = np.stack([np.ones_like(hx), np.zeros_like(hx), hx], -1)
-    tm /= np.linalg.norm(tm, axis=-1, keepdims=True)
-    bm = np.cross(nm, tm)
-    n = np.asarray(normals, np.float64)
-    ts = np.stack([(n * tm).sum(-1), (n * bm).sum(-1), (n * nm).sum(-1)], -1)
-    ok = mask & (np.linalg.norm(n, axis=-1) > 0.5)
-    ts = np.where(ok[..., None], ts, [0.0, 0.0, 1.0])
-    ts /= np.maximum(np.linalg.norm(ts, axis=-1, keepdims=True), 1e-12)
-    return np.round((ts + 1.0) * 0.5 * 255.0).clip(0, 255).astype(np.uint8)
+    out = np.empty(hgt.shape + (3,), np.uint8)
+    for r in range(0, hgt.shape[0], ROWS):          # by rows: the temporaries stay small
+        sl = slice(r, r + ROWS)
+        hx, hy = gx[sl], -gy[sl]                     # image rows go down, y goes up
+        nm = np.stack([-hx, -hy, np.ones_like(hx)], -1)
+        nm /= np.linalg.norm(nm, axis=-1, keepdims=True)
+        tm = np.stack([np.ones_like(hx), np.zeros_like(hx), hx], -1)
+        tm /= np.linalg.norm(tm, axis=-1, keepdims=True)
+        bm = np.cross(nm, tm)
+        n = np.asarray(normals[sl], np.float64)
+        ts = np.stack([(n * tm).sum(-1), (n * bm).sum(-1), (n * nm).sum(-1)], -1)
+        ok = mask[sl] & (np.linalg.norm(n, axis=-1) > 0.5)
+        ts = np.where(ok[..., None], ts, [0.0, 0.0, 1.0])
+        ts /= np.maximum(np.linalg.norm(ts, axis=-1, keepdims=True), 1e-12)
+        out[sl] = np.round((ts + 1.0) * 0.5 * 255.0).clip(0, 255)
+    return out
 
 
-def gltf_inputs(res, step):
+def gltf_material(res):
+    """What the glTF material takes from a `ProcessResult` and the notes that say so (cheap:
+    the report lists the notes while `gltf_inputs` builds the arrays): a dict with the
+    albedo's scale `top`, the roughness `r` (None: 1 everywhere) and the `ior`, and notes."""
+    notes = []
+    albedo = res.albedo
+    top = float(np.percentile(np.nan_to_num(np.asarray(albedo[res.mask], float)), 99.5)) \
+        if res.mask.any() else 1.0
+    if top > 1.0:
+        notes.append(f"glTF base colour: albedo divided by {top:.3g} (its 99.5th percentile) to fit [0, 1]")
+    r, ior = None, None
+    fit = res.brdf
+    params = getattr(fit, "params", None) or {}
+    if fit is not None and getattr(fit, "success", False) and "sigma" in params and \
+            getattr(fit, "model", "") in ("li", "cook_torrance"):
+        dist = getattr(fit, "distribution", None) or "beckmann"
+        r = float(gltf_roughness(float(np.mean(params["sigma"])), dist))
+        ior = params.get("n_i")
+        notes.append(f"glTF roughness = sqrt(sigma) = {r:.3g} (sigma = {float(np.mean(params['sigma'])):.3g}, "
+                     f"{dist}); metallic 0" + (f"; IOR = n_i = {ior:.3g}" if ior else ""))
+    else:
+        notes.append("glTF roughness 1 (no successful microfacet BRDF fit to take sigma from)")
+    return {"top": top, "r": r, "ior": ior}, notes
+
+
+def gltf_inputs(res, step, material=None):
     """Keyword arguments of `facette.io.gltf.write_glb` for a `ProcessResult` with a mesh,
     and notes for the report. The roughness texture carries √σ on the material the BRDF was
-    fitted to and 1 elsewhere; metallic is 0 (a dielectric); the LI n_i becomes the IOR."""
+    fitted to and 1 elsewhere; metallic is 0 (a dielectric); the LI n_i becomes the IOR.
+    material : `gltf_material(res)`'s dict when already made (its notes are then not repeated)."""
     notes = []
+    if material is None:
+        material, notes = gltf_material(res)
     verts, faces = res.mesh
     if len(faces) == 0:
         raise ValueError("the mesh has no triangles (is the mask empty?); nothing to export as glTF")
@@ -99,28 +133,13 @@ def gltf_inputs(res, step):
     pitch = res.inputs.pixel_pitch_mm
     uv = np.stack([(verts[:, 0] / pitch + 0.5) / w, (-verts[:, 1] / pitch + 0.5) / h], axis=1)
     normals = vertex_normals(verts, faces)
-
     albedo = np.nan_to_num(np.asarray(res.albedo, float))
-    top = float(np.percentile(albedo[res.mask], 99.5)) if res.mask.any() else 1.0
-    if top > 1.0:
-        albedo = albedo / top
-        notes.append(f"glTF base colour: albedo divided by {top:.3g} (its 99.5th percentile) to fit [0, 1]")
-
+    if material["top"] > 1.0:
+        albedo = albedo / material["top"]
     rough = np.ones((h, w))
-    ior = None
-    fit = res.brdf
-    params = getattr(fit, "params", None) or {}
-    if fit is not None and getattr(fit, "success", False) and "sigma" in params and \
-            getattr(fit, "model", "") in ("li", "cook_torrance"):
-        dist = getattr(fit, "distribution", None) or "beckmann"
-        r = float(gltf_roughness(float(np.mean(params["sigma"])), dist))
-        material = res.inputs.sample_mask() & res.mask
-        rough[material] = r
-        ior = params.get("n_i")
-        notes.append(f"glTF roughness = sqrt(sigma) = {r:.3g} (sigma = {float(np.mean(params['sigma'])):.3g}, "
-                     f"{dist}); metallic 0" + (f"; IOR = n_i = {ior:.3g}" if ior else ""))
-    else:
-        notes.append("glTF roughness 1 (no successful microfacet BRDF fit to take sigma from)")
+    if material["r"] is not None:
+        rough[res.inputs.sample_mask() & res.mask] = material["r"]
+    ior = material["ior"]
     mr = np.zeros((h, w, 3), np.uint8)
     mr[..., 0] = 255                                        # unused (occlusion lives elsewhere)
     mr[..., 1] = np.round(rough * 255).astype(np.uint8)     # roughness

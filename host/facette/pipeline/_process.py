@@ -37,7 +37,7 @@ from facette.recon import (PS_DEFAULT, PS_METHODS, integrate, mesh_from_height, 
                            fit_hsh, fit_ptm_lrgb, fit_relight_error)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
-from facette.pipeline._exports import gltf_inputs
+from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._inputs import load_input
 from facette.pipeline._record import claim_results, write_record
 from facette.pipeline._quality import check_fit_cells, check_samples
@@ -436,15 +436,20 @@ def _writers(res, out, outputs, ascii_ply):
 
 
 def _write_last(res, out, outputs):
-    """What needs every stage: model.glb (mesh and BRDF), written on a thread while the
-    report (matplotlib, main thread only) is drawn; then the list of files written."""
+    """What needs every stage: model.glb (mesh and BRDF), made and written on a thread while
+    the report (matplotlib, main thread only) is drawn; then the list of files written."""
     with ThreadPoolExecutor(1) as pool:
         future = None
         if "gltf" in outputs:
             if res.mesh is not None and len(res.mesh[1]):
-                kwargs, notes = gltf_inputs(res, res.options.get("mesh_step", 1))
+                material, notes = gltf_material(res)        # the report lists these notes
                 res.notes.extend(notes)
-                future = pool.submit(write_glb, out / FILES["gltf"], **kwargs)
+
+                def glb():
+                    kwargs, _ = gltf_inputs(res, res.options.get("mesh_step", 1), material)
+                    write_glb(out / FILES["gltf"], **kwargs)
+
+                future = pool.submit(glb)
             else:
                 res.notes.append("gltf: the mesh has no triangles (empty mask); model.glb not written")
         if "report" in outputs:

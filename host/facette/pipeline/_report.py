@@ -378,7 +378,10 @@ def _truth_brdf(truth):
 
 
 def _truth_section(res, kd_map, kd_mask):
-    """Histograms of the error against truth.npz: normals (deg), heights (mm), the K_d map (%)."""
+    """Histograms of the error against truth.npz: normals (deg), heights (mm), the K_d map (%).
+    kd_map : (map, step) of the viewer: the map on every step-th pixel (the viewer's preview
+    size), compared with the truth's albedo on the same pixels; or None."""
+    kd_map, kd_step = kd_map if kd_map is not None else (None, 1)
     import matplotlib.pyplot as plt
     truth = res.inputs.truth if res.inputs is not None else None
     if not truth or "normals" not in truth or truth["normals"].shape != res.normals.shape:
@@ -392,10 +395,12 @@ def _truth_section(res, kd_map, kd_mask):
         dh = res.height[sel] - truth["height_mm"][sel]
         panels.append(("height error, mean removed (mm)", dh - dh.mean(), None))
     alb = truth.get("albedo")
+    alb = None if alb is None else alb[::kd_step, ::kd_step]
     if kd_map is not None and alb is not None and alb.shape == kd_map.shape and np.any(alb[kd_mask]):
         t = alb[kd_mask][:, 1]
         ok = t > 0
-        panels.append(("K_d map relative error, green (%)", 100 * (kd_map[kd_mask][:, 1][ok] - t[ok]) / t[ok], None))
+        name = "K_d map relative error, green (%)" + (f", every {kd_step}th pixel" if kd_step > 1 else "")
+        panels.append((name, 100 * (kd_map[kd_mask][:, 1][ok] - t[ok]) / t[ok], None))
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3), squeeze=False)
     rows = []
     for ax, (name, v, _) in zip(axes[0], panels):
@@ -499,12 +504,12 @@ def _viewer(res):
             material_mask=inp.sample_mask() if inp is not None else None)
     except ValueError as e:
         return "", None, None, f"relighting viewer: {e}"
-    kd_map = arrays["kd_map"] if data["decimation"] == 1 else None
+    kd_map = arrays["kd_map"]          # at the viewer's size (every `decimation`-th pixel)
     note = None
     if getattr(res.brdf, "interreflection", False):
         note = ("relighting viewer: the fit's V-cavity inter-reflection term is left out of the viewer "
                 "(it depends on K_d² per pixel; the single-bounce model is drawn)")
-    return viewer_section(data), kd_map, arrays["mask"], note
+    return viewer_section(data), (kd_map, data["decimation"]), arrays["mask"], note
 
 
 def write_report(res, path):

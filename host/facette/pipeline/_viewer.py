@@ -3,7 +3,8 @@
 Everything is embedded (no server, no network): normals as float16 (n_x, n_y; n_z ≥ 0 is
 rebuilt), the K_d map and the mask as RGBA8, the volume table J(θ_s, θ_o, Δφ) as float16
 (facette.pipeline._relight.volume_table), the mesh heights as float32, and viewer.js
-(plain WebGL 2, written for facette; no library). A 2144 × 1424 image makes ~32 MB of page.
+(plain WebGL 2, written for facette; no library). Images wider than MAX_SIDE are decimated
+(a 2144 × 1424 scan: 1072 × 712, ~8 MB of page).
 """
 import base64
 import html
@@ -17,7 +18,9 @@ from facette.pipeline._relight import (BACKGROUND, DEFAULT_LIGHT, default_exposu
 
 __all__ = ["viewer_data", "viewer_section", "MAX_SIDE", "MESH_MAX_SIDE"]
 
-MAX_SIDE = 2200          # larger images are decimated for the viewer (the files keep full size)
+MAX_SIDE = 1100          # larger images are decimated for the viewer (the files keep full
+                         # size): the canvas is drawn at most 900 px wide; 2144 x 1424 made a
+                         # 32 MB page, 8 MB at 1072 x 712
 MESH_MAX_SIDE = 400      # vertices per side of the 3D view's grid
 _DISTRIBUTIONS = {"beckmann": 0, "ggx": 1, "gaussian": 2}
 _MASKINGS = {"smith": 0, "vcavity": 1}
