@@ -19,7 +19,7 @@ import numpy as np
 from facette.errors import InsufficientData
 
 __all__ = ["MIN_SNR", "MIN_LEVELS", "MIN_LIGHTS", "MIN_PIXEL_FRACTION", "MIN_FIT_CELLS",
-           "usable_from_variance", "check_samples", "check_fit_cells"]
+           "usable_from_variance", "usable_from_green", "check_samples", "check_fit_cells"]
 
 MIN_SNR = 3.0              # signal / noise standard deviation of a usable sample
 MIN_LEVELS = 2             # grey levels of a PNG above which a sample is not dark noise
@@ -32,7 +32,11 @@ MIN_FIT_CELLS = 10         # filled hemisphere cells for a BRDF fit (the li mode
 def usable_from_variance(image, variance):
     """(H, W) bool: known (finite) and >= MIN_SNR standard deviations, on the green channel.
     image, variance : (H, W, 3) radiance and its variance (any consistent unit)."""
-    g, v = image[..., 1], variance[..., 1]
+    return usable_from_green(image[..., 1], variance[..., 1])
+
+
+def usable_from_green(g, v):
+    """`usable_from_variance` of the green channel alone: g, v (H, W) radiance and variance."""
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.isfinite(g) & np.isfinite(v) & (g > 0) & (g * g >= MIN_SNR ** 2 * v)
 
