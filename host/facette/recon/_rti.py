@@ -166,11 +166,14 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
         n = wt.shape[1]
         if far:   # one design matrix: the normal equations are matrix products
             wt = wt * above[:, None]
-            y = np.where(wt[..., None] > 0, y, 0.0)
-            sol = np.empty((n, c, n_terms))
             full = (wt == above[:, None]).all(axis=0)
-            yf = y if full.all() else y[:, full]
-            sol[full] = (proj_t @ yf.reshape(m, -1)).reshape(n_terms, -1, c).transpose(1, 2, 0)
+            # every light known: y as it is (proj is 0 for the lights below the horizon)
+            if full.all():
+                sol = (proj_t @ y.reshape(m, -1)).reshape(n_terms, n, c).transpose(1, 2, 0)
+            else:
+                y = np.where(wt[..., None] > 0, y, 0.0)
+                sol = np.empty((n, c, n_terms))
+                sol[full] = (proj_t @ y[:, full].reshape(m, -1)).reshape(n_terms, -1, c).transpose(1, 2, 0)
             part = ~full
             if part.any():
                 wp, yp = wt[:, part].T, y[:, part].transpose(1, 0, 2)   # (np, m), (np, m, c)
@@ -187,8 +190,9 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
             sol = _ridge_solve(ata, atb, n_terms)                        # (n, k, T)
             wt = wt.T
         ok = wt.sum(axis=0) >= n_terms
-        sol[~ok] = 0.0
         coeffs[sl] = sol
+        if not ok.all():
+            coeffs[sl][~ok] = 0.0
         valid[sl] = ok
 
     _run(block, range(0, h * w, _BLOCK), workers)
@@ -282,9 +286,11 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
         raise ValueError(f"white level must be > 0, got {white}")
     lum_img = lum.reshape(m, h, w, 1)
 
-    def values(e):
+    def values(e):                          # e: a copy of its own, changed in place
         ok = np.isfinite(e[..., 0])
-        return np.nan_to_num(e) / white, ok.astype(np.float64)
+        e = np.nan_to_num(e, copy=False)
+        e /= white
+        return e, ok.astype(np.float64)
 
     coeffs, valid = _solve_blocks(lum_img, dirs, ptm_basis, 6, values)
     valid &= peak > 0
@@ -318,9 +324,11 @@ def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile
     if not white > 0:
         raise ValueError(f"white level must be > 0, got {white}")
 
-    def values(e):
+    def values(e):                          # e: a copy of its own, changed in place
         ok = _all3(np.isfinite(e))
-        return np.nan_to_num(e) / white, ok.astype(np.float64)
+        e = np.nan_to_num(e, copy=False)
+        e /= white
+        return e, ok.astype(np.float64)
 
     coeffs, valid = _solve_blocks(images, dirs, lambda d: hsh_basis(d, order), n_terms, values)
     return HSHFit(coeffs.reshape(h, w, 3, n_terms), order, float(white), valid.reshape(h, w))
@@ -390,9 +398,9 @@ def fit_relight_error(fit, images, light_dirs, mask, rows=2, workers=2):
                 pred = pred[..., None] * fit.rgb[sl].reshape(1, -1, 3)
             pred = pred.reshape(img.shape)
             sel = (mask[sl] & _all3(np.isfinite(img)))[..., None]
-            diff = pred - img
-            x = img.astype(np.float64)
-            return float(np.sum(diff * diff, where=sel)), float(np.sum(x * x, where=sel))
+            diff = np.where(sel, pred - img, 0.0).ravel()
+            x = np.where(sel, img, np.zeros((), img.dtype)).astype(np.float64).ravel()
+            return float(diff @ diff), float(x @ x)
         arrays = {k: getattr(fit, k)[sl] for k in ("coeffs", "valid", "rgb") if hasattr(fit, k)}
         sub = replace(fit, **arrays)
         return _error_sums(lambda q: relight(sub, q), images[:, sl], np.moveaxis(d_all[sl], 2, 0), mask[sl])
