@@ -49,8 +49,11 @@ def write_ptm_lrgb(path, coeffs, rgb):
     h, w, _ = coeffs.shape
     scale, bias = quantize_scale_bias(coeffs.reshape(-1, 6))
     q = np.empty(coeffs.shape, np.uint8)
-    for r in range(0, h, ROWS):          # by rows: no full-size float64 temporaries
-        q[r:r + ROWS] = np.clip(np.round(coeffs[r:r + ROWS] / scale + bias), 0, 255)
+    for r in range(0, h, ROWS):          # by rows, in place: no full-size float64 temporaries
+        x = coeffs[r:r + ROWS] / scale
+        x += bias
+        np.round(x, out=x)
+        q[r:r + ROWS] = np.clip(x, 0, 255, out=x)
     c = np.clip(np.round(rgb * 255.0), 0, 255).astype(np.uint8)
     header = ("PTM_1.2\nPTM_FORMAT_LRGB\n"
               f"{w}\n{h}\n"          # separate lines: legal (§2.3) and what every reader takes

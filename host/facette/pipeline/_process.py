@@ -430,7 +430,7 @@ def _writers(res, out, outputs, ascii_ply):
 
     def write(output):
         if out is not None and output in outputs:
-            how[output](out / FILES[output])
+            _timed(res, f"write_{output}", how[output], out / FILES[output])
 
     return write
 
@@ -446,14 +446,16 @@ def _write_last(res, out, outputs):
                 res.notes.extend(notes)
 
                 def glb():
+                    t0 = time.perf_counter()
                     kwargs, _ = gltf_inputs(res, res.options.get("mesh_step", 1), material)
                     write_glb(out / FILES["gltf"], **kwargs)
+                    res.timings["write_gltf"] = time.perf_counter() - t0
 
                 future = pool.submit(glb)
             else:
                 res.notes.append("gltf: the mesh has no triangles (empty mask); model.glb not written")
         if "report" in outputs:
-            write_report(res, out / FILES["report"])
+            _timed(res, "write_report", write_report, res, out / FILES["report"])
             res.files["report"] = str(out / FILES["report"])
         if future is not None:
             future.result()                      # re-raise a write error here
