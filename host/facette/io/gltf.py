@@ -14,12 +14,16 @@ from facette.io.png import encode_png
 
 __all__ = ["write_glb"]
 
+# zlib level of the embedded textures: 1 encodes a 2144 x 1424 normal map in 0.17 s against
+# 1.0 s at level 6; the same pixels, a 12 MP scan's model.glb 61.6 MB instead of 60.5
+PNG_LEVEL = 1
+
 
 def _u8_image(name, img, channels):
     img = np.asarray(img)
     if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != channels or 0 in img.shape:
         raise ValueError(f"{name} must be a (H, W, {channels}) uint8 image, got {img.shape} {img.dtype}")
-    return encode_png(img)
+    return encode_png(img, compression=PNG_LEVEL)
 
 
 def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, normal_map,
