@@ -399,7 +399,7 @@ def _truth_section(res, kd_map, kd_mask):
     if kd_map is not None and alb is not None and alb.shape == kd_map.shape and np.any(alb[kd_mask]):
         t = alb[kd_mask][:, 1]
         ok = t > 0
-        name = "K_d map relative error, green (%)" + (f", every {kd_step}th pixel" if kd_step > 1 else "")
+        name = "K_d map relative error, green (%)" + (f", 1 pixel in {kd_step} per side (the viewer's)" if kd_step > 1 else "")
         panels.append((name, 100 * (kd_map[kd_mask][:, 1][ok] - t[ok]) / t[ok], None))
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3), squeeze=False)
     rows = []
