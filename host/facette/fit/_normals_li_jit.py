@@ -165,7 +165,7 @@ def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, 
                floor, step_fd, max_step, step_tol, ws):
     """One start for one pixel. Returns (nx, ny, nz, cost, scale, rel, n_kept, iterations);
     κ in ws.k, the kept flags in ws.keep."""
-    (a, b, au, av, ac, bc, k, kc, r, rc, wr, ju, jv, keep, buf, w0) = ws
+    (a, b, au, ac, bc, k, kc, r, rc, wr, ju, jv, keep, buf, w0) = ws
     m, c = e.shape
     nl = math.sqrt(n0[0] ** 2 + n0[1] ** 2 + n0[2] ** 2)
     if nl > 1e-12:
@@ -308,7 +308,8 @@ def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, 
 
 @njit(cache=True)
 def _workspace(m, c):
-    return (np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m),
+    # a, b, au, ac, bc, k, kc, r, rc, wr, ju, jv, keep, buf, w0 (the order `_solve_one` unpacks)
+    return (np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m),
             np.empty(c), np.empty(c), np.empty((m, c)), np.empty((m, c)), np.empty((m, c)),
             np.empty((m, c)), np.empty((m, c)), np.empty(m, np.bool_), np.empty(m * c),
             np.empty((m, c)))
@@ -336,20 +337,20 @@ def _refine_all(e, ok, n0, n1, has1, s, sh, fres, btab, sigma, spec, iterations,
             r1 = _solve_one(em, ok[p], n0[p], s, sh, fres, btab, sigma, spec, iterations, -1.0,
                             cast_ratio, floor, step_fd, max_step, step_tol, ws)
             bx, by, bz, bcost, bscale, brel, bkeep, bit = r1
-            keep_best[:] = ws[13]
+            keep_best[:] = ws[12]
             a_best[:] = ws[0]
             b_best[:] = ws[1]
-            k_mean = ws[6][0]
+            k_mean = ws[5][0]
             if has1[p] and bkeep >= 3:
                 r2 = _solve_one(em, ok[p], n1[p], s, sh, fres, btab, sigma, spec, iterations, bscale,
                                 cast_ratio, floor, step_fd, max_step, step_tol, ws)
                 if r2[3] < bcost:
                     bx, by, bz, bcost, _, brel, bkeep, it2 = r2
                     bit = max(bit, it2)
-                    keep_best[:] = ws[13]
+                    keep_best[:] = ws[12]
                     a_best[:] = ws[0]
                     b_best[:] = ws[1]
-                    k_mean = ws[6][0]
+                    k_mean = ws[5][0]
             # κ per channel at the chosen normal, with the mean channel's robust weights
             for ch in range(c):
                 num = 0.0
