@@ -82,7 +82,8 @@ class ProcessResult:
     timings {stage: seconds}; files {output: path}; errors {name: value} against the
     scan's truth.npz when present (angular error in degrees, height RMS in mm); ptm a
     facette.recon PTMFit, hsh an HSHFit, or None; fit_errors {name: value}: relative RMS of
-    the PTM / HSH relighting against the (fall-off corrected) HDR images on the mask.
+    the PTM / HSH relighting against the (fall-off corrected) HDR images on the mask (above
+    0.5 Mpx, on an even sample of rows: `recon.RELIGHT_ERROR_PIXELS`).
     """
     normals: np.ndarray = None
     albedo: np.ndarray = None

@@ -14,7 +14,7 @@ from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
                          integrate_simchony1990, integrate_least_squares, integrate,
                          INTEGRATION_METHODS, mesh_from_height)
 from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, fit_relight_error, relight_ptm,
-                   relight_hsh, relight_error, HSH_ORDERS)
+                   relight_hsh, relight_error, HSH_ORDERS, RELIGHT_ERROR_PIXELS)
 
 __all__ = ["PS_DEFAULT", "PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
            "ps_rank_trimmed", "photometric_stereo",
@@ -22,4 +22,5 @@ __all__ = ["PS_DEFAULT", "PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2
            "normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
            "integrate_least_squares", "integrate", "INTEGRATION_METHODS", "mesh_from_height",
            "ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh", "relight_ptm",
-           "relight_hsh", "relight_error", "fit_relight_error", "HSH_ORDERS"]
+           "relight_hsh", "relight_error", "fit_relight_error", "HSH_ORDERS",
+           "RELIGHT_ERROR_PIXELS"]

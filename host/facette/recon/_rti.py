@@ -373,10 +373,20 @@ def relight_error(render, images, light_dirs, mask):
     return float(np.sqrt(num / den)) if den > 0 else float("nan")
 
 
-def fit_relight_error(fit, images, light_dirs, mask, rows=2, workers=2):
+# Pixels the relighting error is summed over at most (`fit_relight_error`). At 2144×1424 px
+# (simulated fossil, 12 lights) every 6th pair of rows gives PTM 0.1165 against 0.1153 from
+# every row, HSH 0.0921 against 0.0912 (+1 %), for 0.5 CPU s instead of 3.7 each.
+RELIGHT_ERROR_PIXELS = 1 << 19
+
+
+def fit_relight_error(fit, images, light_dirs, mask, rows=2, workers=2, max_pixels=RELIGHT_ERROR_PIXELS):
     """`relight_error` of a `PTMFit` or `HSHFit` (relight_ptm / relight_hsh), the same sums
     taken `rows` image rows at a time on `workers` threads: a block's coefficients stay in
-    the cache for every light instead of streaming the whole fit once per light."""
+    the cache for every light instead of streaming the whole fit once per light.
+
+    Maps of more than `max_pixels` pixels are summed over every k-th block of rows (k the
+    smallest step that keeps ≤ max_pixels), an even sample of the whole map; `None` sums
+    every row."""
     relight = relight_ptm if isinstance(fit, PTMFit) else relight_hsh
     d_all = np.asarray(light_dirs, float)
     images = np.asarray(images)
@@ -405,6 +415,8 @@ def fit_relight_error(fit, images, light_dirs, mask, rows=2, workers=2):
         sub = replace(fit, **arrays)
         return _error_sums(lambda q: relight(sub, q), images[:, sl], np.moveaxis(d_all[sl], 2, 0), mask[sl])
 
-    sums = _run(part, range(0, images.shape[1], rows), workers)
+    h, w = mask.shape
+    step = rows if max_pixels is None else rows * max(1, -(-h * w // max_pixels))
+    sums = _run(part, range(0, h, step), workers)
     num, den = (sum(x) for x in zip(*sums))
     return float(np.sqrt(num / den)) if den > 0 else float("nan")

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from facette.recon import (fit_hsh, fit_ptm_lrgb, hsh_basis, near_light_directions, ptm_basis,
-                           relight_error, relight_hsh, relight_ptm)
+from facette.recon import (fit_hsh, fit_ptm_lrgb, fit_relight_error, hsh_basis, near_light_directions,
+                           ptm_basis, relight_error, relight_hsh, relight_ptm)
 from facette.recon.synthetic import thesis_light_directions
 
 L = thesis_light_directions()
@@ -63,6 +63,28 @@ def test_hsh_fit_recovers_coefficients_per_channel():
     fit = fit_hsh(imgs, lights, order=3, white=2.0)
     np.testing.assert_allclose(fit.coeffs, c, atol=1e-4)   # Tikhonov bias (_RCOND)
     assert relight_error(lambda d: relight_hsh(fit, d), imgs, lights, np.ones((5, 4), bool)) < 1e-4
+
+
+def test_fit_relight_error_is_relight_error_and_samples_rows_of_large_maps():
+    """Every row: the same figure as relight_error. Above max_pixels: the same figure on
+    every k-th pair of rows, k the smallest step that keeps at most max_pixels."""
+    rng = np.random.default_rng(5)
+    lights = _random_lights(14, seed=2)
+    h, w = 24, 5
+    imgs = rng.uniform(0.1, 1.0, (14, h, w, 3))
+    imgs[:, 4::6] *= rng.uniform(0.1, 3.0, (14, 4, w, 3))   # rows the sample leaves out fit worse
+    imgs[2, 3, 1, 0] = np.nan
+    mask = rng.uniform(size=(h, w)) > 0.2
+    for fit, render in ((fit_ptm_lrgb(imgs, lights, mask=mask), relight_ptm),
+                        (fit_hsh(imgs, lights, order=2, mask=mask), relight_hsh)):
+        whole = relight_error(lambda d: render(fit, d), imgs, lights, mask)
+        assert fit_relight_error(fit, imgs, lights, mask, max_pixels=None) == pytest.approx(whole, rel=1e-12)
+        assert fit_relight_error(fit, imgs, lights, mask, max_pixels=h * w) == pytest.approx(whole, rel=1e-12)
+        rows = np.zeros(h, bool)
+        rows[0::6] = rows[1::6] = True             # 24×5 px at ≤ 40 px: every 3rd pair of rows
+        sub = relight_error(lambda d: render(fit, d), imgs, lights, mask & rows[:, None])
+        assert fit_relight_error(fit, imgs, lights, mask, max_pixels=40) == pytest.approx(sub, rel=1e-12)
+        assert sub < 0.9 * whole
 
 
 def test_near_lights_per_pixel_directions_and_missing_values():
