@@ -15,12 +15,9 @@ import os
 import sys
 import traceback
 
-# numpy asks for transparent huge pages on every large array (madvise); with the usual
-# `defrag=madvise` setting the kernel then compacts memory on each first touch. For a short
-# command that allocates gigabytes once, that costs more than the TLB saves: 12 MP
-# `facette process` spent 10 s in the kernel with it, 7 s without.
-# Only the command sets this; a script importing facette keeps its own numpy settings.
-os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
+from facette.cli._memory import keep_freed_memory
+
+keep_freed_memory()         # before numpy is imported or a thread starts (cli/_memory.py)
 
 from facette.errors import EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED, FacetteError
 

@@ -314,24 +314,6 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
     return res
 
 
-def _heap_trimmer():
-    """A function that gives the C heap's free pages back to the system (glibc's malloc_trim),
-    or does nothing where there is none. numpy's arrays of up to ~32 MB come from the heap once
-    larger ones were freed (glibc's adaptive mmap threshold); the pages freed stay counted in
-    the process's memory until trimmed: ~0.3 GB between the stages at 12 MP."""
-    try:
-        import ctypes
-
-        trim = ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError):      # not glibc (macOS, musl): nothing to trim
-        return lambda: None
-    trim.argtypes, trim.restype = [ctypes.c_size_t], ctypes.c_int
-    return lambda: trim(0)
-
-
-_trim_heap = _heap_trimmer()
-
-
 def _timed(res, name, fn, *args):
     """fn(*args), its wall time in res.timings[name] (s)."""
     t0 = time.perf_counter()
@@ -398,16 +380,8 @@ def _after_ps(res, inp, stages, outputs, images, light_dirs, integration, mesh_s
     tasks = [(reflectance, "samples" in stages), (hsh, "hsh" in stages), (ptm, "ptm" in stages),
              (shape, "integrate" in stages), (maps, out is not None)]
     t0 = time.perf_counter()
-    def trimmed(fn):
-        def run():
-            try:
-                return fn()
-            finally:          # its temporaries are freed: their pages go back before the next stage
-                _trim_heap()
-        return run
-
     with ThreadPoolExecutor(workers) as pool:
-        futures = [pool.submit(trimmed(fn)) for fn, wanted in tasks if wanted]
+        futures = [pool.submit(fn) for fn, wanted in tasks if wanted]
         # in the order of `tasks` whatever finished first; re-raises a stage's error here
         notes = [n for f in futures for n in f.result()]
     res.timings["after_ps"] = time.perf_counter() - t0

@@ -101,7 +101,7 @@ def hsh_basis(light_dirs, order=3):
 class PTMFit:
     """A luminance PTM (LRGB): colour (H, W, 3) = white · L(l) · rgb.
 
-    coeffs (H, W, 6) float64, the L polynomial's a0..a5 (`ptm_basis` order), L ~ [0, 1];
+    coeffs (H, W, 6) float32, the L polynomial's a0..a5 (`ptm_basis` order), L ~ [0, 1];
     rgb (H, W, 3) in [0, 1], the per-pixel colour (max channel 1 where lit);
     white : the image value that L = 1 stands for (same unit as the fitted images);
     valid (H, W) bool: pixels with at least 6 usable lights (others are zero).
@@ -116,7 +116,7 @@ class PTMFit:
 class HSHFit:
     """RGB hemispherical harmonics: colour (H, W, 3) = white · Σ_k coeffs[..., c, k] H_k(l).
 
-    coeffs (H, W, 3, order²) float64 (values ~ [0, 1]); order; white as in `PTMFit`; valid."""
+    coeffs (H, W, 3, order²) float32 (values ~ [0, 1]); order; white as in `PTMFit`; valid."""
     coeffs: np.ndarray
     order: int
     white: float
@@ -144,7 +144,7 @@ def _ridge_solve(ata, atb, n_terms):
 
 def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
     """Per-pixel weighted least squares, light-major: values(e (m, n, c) float64) ->
-    (y (m, n, c), w (m, n)). Returns (coeffs (H*W, c, n_terms) float64, valid (H*W,)).
+    (y (m, n, c), w (m, n)). Returns (coeffs (H*W, c, n_terms) float32 (solved in float64), valid (H*W,)).
     Blocks of pixels run on `workers` threads (numpy's products and solves release the GIL)."""
     m, h, w, c = images.shape
     flat = images.reshape(m, h * w, c)
@@ -157,7 +157,10 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
         # their solution is one matrix product with proj = (above · B) A⁻¹, (m, T)
         a_full = (above.astype(np.float64) @ outer).reshape(1, n_terms, n_terms)
         proj_t = _ridge_solve(a_full, (b_far * above[:, None])[None], n_terms)[0].T.copy()
-    coeffs = np.zeros((h * w, c, n_terms))
+    # float32 storage: the fits are solved in float64 block by block; the files quantise to
+    # 8 bits (PTM) and 8 bits per term (RTI), 2^-24 relative is far below either; 12 MP HSH
+    # coefficients take 330 MB instead of 660.
+    coeffs = np.zeros((h * w, c, n_terms), np.float32)
     valid = np.zeros(h * w, bool)
 
     def block(a):

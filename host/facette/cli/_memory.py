@@ -1,0 +1,36 @@
+"""The `facette` command's memory policy: freed memory is kept for reuse, not given back.
+
+A 12 MP `facette process` allocates and frees ~10 GB of numpy temporaries, most of them over
+glibc's mmap threshold (32 MB at most), so each comes as fresh pages from the kernel and is
+handed back when freed: 2.5 million page faults, 9 s of kernel time on this 2-core VM. With
+every allocation from the heap and the heap never trimmed, freed blocks are reused: 0.6 million
+faults, 2.4 s in the kernel, the same peak (2.45–2.51 GB), 9 CPU s less in all.
+
+This is set for the command only (a script importing facette keeps its own allocator
+settings), before numpy or any thread starts, and only where the C library is glibc.
+"""
+import ctypes
+import os
+
+# glibc's mallopt parameters (malloc.h)
+_M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_MAX, _M_ARENA_MAX = -1, -2, -4, -8
+
+
+def keep_freed_memory():
+    """Every allocation from glibc's main heap (no mmap, one arena), the heap never trimmed;
+    and numpy's huge-page advice off. True when glibc took the settings, False elsewhere."""
+    # numpy asks for transparent huge pages on each large array; with the kernel's usual
+    # `defrag=madvise` each first touch then compacts memory: 12 MP process spent 10 s in
+    # the kernel with it, 7 s without (before the heap setting below).
+    os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):      # not glibc (macOS, musl)
+        return False
+    mallopt.argtypes, mallopt.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
+    ok = [mallopt(_M_ARENA_MAX, 1),          # worker threads share the main heap (else their
+                                             # arenas, being mmap'd, cannot grow past 64 MB)
+          mallopt(_M_MMAP_MAX, 0),           # large arrays from the heap too
+          mallopt(_M_TRIM_THRESHOLD, 2**31 - 1),
+          mallopt(_M_TOP_PAD, 64 << 20)]     # the heap grows 64 MB at a time
+    return all(ok)
