@@ -20,8 +20,8 @@ def quantize_scale_bias(coeffs):
     """Per-coefficient scale (float) and integer bias in [0, 255] so that every value of
     coeffs (N, 6) is within half a step of some byte: a = (byte - bias) · scale.
     Returns (scale (6,), bias (6,) int)."""
-    lo = np.minimum(coeffs.min(axis=0), 0.0)
-    hi = np.maximum(coeffs.max(axis=0), 0.0)
+    lo = np.minimum(coeffs.min(axis=0).astype(np.float64), 0.0)
+    hi = np.maximum(coeffs.max(axis=0).astype(np.float64), 0.0)
     span = np.where(hi - lo > 0, hi - lo, 1.0)
     bias = np.clip(np.round(-lo / span * 255.0), 0, 255).astype(int)
     # the scale that fits both ends once the zero is on an integer byte
@@ -38,7 +38,9 @@ def write_ptm_lrgb(path, coeffs, rgb):
         in the order of `facette.recon.ptm_basis`; rgb : (H, W, 3) floats in [0, 1] (clipped).
     Returns {"scale": [6], "bias": [6]} as written.
     """
-    coeffs = np.asarray(coeffs, dtype=np.float64)
+    coeffs = np.asarray(coeffs)            # float32 or float64 as given: no full-size copy
+    if not np.issubdtype(coeffs.dtype, np.floating):
+        coeffs = coeffs.astype(np.float64)
     rgb = np.asarray(rgb, dtype=np.float64)
     if coeffs.ndim != 3 or coeffs.shape[2] != 6 or 0 in coeffs.shape:
         raise ValueError(f"PTM coefficients must have shape (H, W, 6), got {coeffs.shape}")
@@ -50,7 +52,8 @@ def write_ptm_lrgb(path, coeffs, rgb):
     scale, bias = quantize_scale_bias(coeffs.reshape(-1, 6))
     q = np.empty(coeffs.shape, np.uint8)
     for r in range(0, h, ROWS):          # by rows, in place: no full-size float64 temporaries
-        x = coeffs[r:r + ROWS] / scale
+        x = coeffs[r:r + ROWS].astype(np.float64)
+        x /= scale
         x += bias
         np.round(x, out=x)
         q[r:r + ROWS] = np.clip(x, 0, 255, out=x)

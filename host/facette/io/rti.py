@@ -26,7 +26,9 @@ def write_hsh_rti(path, coeffs):
         channel (image row 0 = top), values that relight to [0, 1] for display.
     Returns {"scale": [T], "bias": [T]} as written (scale = max - min, bias = min per term).
     """
-    coeffs = np.asarray(coeffs, dtype=np.float64)
+    coeffs = np.asarray(coeffs)            # float32 or float64 as given: no full-size copy
+    if not np.issubdtype(coeffs.dtype, np.floating):
+        coeffs = coeffs.astype(np.float64)
     if coeffs.ndim != 4 or coeffs.shape[2] != 3 or coeffs.shape[3] not in (4, 9) or 0 in coeffs.shape:
         raise ValueError(f"HSH coefficients must have shape (H, W, 3, 4 or 9), got {coeffs.shape}")
     h, w, _, t = coeffs.shape
@@ -38,7 +40,8 @@ def write_hsh_rti(path, coeffs):
     bias = lo.astype("<f4")
     q = np.empty(coeffs.shape, np.uint8)
     for r in range(0, h, ROWS):          # by rows, in place: no full-size float64 temporaries
-        x = coeffs[r:r + ROWS] - bias
+        x = coeffs[r:r + ROWS].astype(np.float64)
+        x -= bias
         x /= scale
         x *= 255.0
         np.round(x, out=x)
