@@ -3,8 +3,8 @@ requested outputs need and writes the files of DESIGN §7 (normal.exr, albedo.ex
 height.exr, mask.png, mesh.ply, samples.npz, brdf.json, relight.ptm, relight.rti, model.glb,
 report.html); `batch(scans, out)` runs it over a collection on Dask."""
 from ._inputs import PSInput, load_input
-from ._process import OUTPUTS, STAGES_FOR, ProcessResult, process, stages_needed
+from ._process import OUTPUTS, STAGES_FOR, ProcessResult, preload, process, stages_needed
 from ._batch import batch, process_scan
 
-__all__ = ["PSInput", "load_input", "OUTPUTS", "STAGES_FOR", "ProcessResult", "process",
+__all__ = ["PSInput", "load_input", "OUTPUTS", "STAGES_FOR", "ProcessResult", "preload", "process",
            "stages_needed", "batch", "process_scan"]

@@ -176,7 +176,10 @@ def _fit_stage(filtered, fit_options):
     return res, note
 
 
-def _import_matplotlib():
+def preload():
+    """Import what `process` loads on first use (matplotlib for the report, ~0.5 s): a scan
+    that will be processed calls this on a thread while it acquires, so that the time does
+    not come after the last frame."""
     try:
         import matplotlib
         matplotlib.use("Agg", force=False)
@@ -264,7 +267,7 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
     cpu_all = time.process_time()
     if out_dir is not None and "report" in outputs:
         # matplotlib takes ~0.5 s to import: let it load while the numbers are computed
-        threading.Thread(target=_import_matplotlib, daemon=True).start()
+        threading.Thread(target=preload, daemon=True).start()
 
     t0 = time.perf_counter()
     inp = load_input(source, mask=mask, pixel_pitch_mm=pixel_pitch_mm, allow_incomplete=allow_incomplete)
@@ -418,9 +421,12 @@ def _writers(res, out, outputs, ascii_ply):
 
     comment = "facette" + (f" (scan incomplete: {res.inputs.incomplete})" if res.inputs.incomplete else "")
     how = {
-        "normals": lambda p: write_exr(p, res.normals, ("X", "Y", "Z"), header=meta),
-        "albedo": lambda p: write_exr(p, res.albedo, ("R", "G", "B"), header=meta),
-        "height": lambda p: write_exr(p, res.height, ("Z",), header={**meta, "unit": "mm"}),
+        # uncompressed: float32 maps of a real surface are noise to ZIP (12 MP normal, albedo
+        # and height: 80.4 MB zipped against 85.6 MB, 1.1 s against 0.12 s to write)
+        "normals": lambda p: write_exr(p, res.normals, ("X", "Y", "Z"), header=meta, compression="none"),
+        "albedo": lambda p: write_exr(p, res.albedo, ("R", "G", "B"), header=meta, compression="none"),
+        "height": lambda p: write_exr(p, res.height, ("Z",), header={**meta, "unit": "mm"},
+                                      compression="none"),
         "mask": lambda p: write_mask(p, res.mask),
         "mesh": lambda p: write_ply(p, *res.mesh, binary=not ascii_ply, comment=comment),
         "samples": samples,
