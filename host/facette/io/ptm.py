@@ -11,17 +11,32 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["write_ptm_lrgb", "quantize_scale_bias"]
+__all__ = ["write_ptm_lrgb", "quantize_scale_bias", "column_range"]
 
 ROWS = 64                  # image rows quantized at a time
+
+
+def column_range(a, fold=256):
+    """(min, max) over axis 0 of a 2-D array (N, T) with few columns, the same values as
+    a.min(0), a.max(0) ~15x faster: `fold` rows side by side make a long contiguous inner
+    loop (12 MP HSH coefficients, (27 M, 9) float32: 0.04 s instead of 0.6)."""
+    n, t = a.shape
+    full = n // fold * fold
+    if full == 0:
+        return a.min(axis=0), a.max(axis=0)
+    b = a[:full].reshape(-1, fold * t)
+    lo, hi = b.min(axis=0).reshape(fold, t).min(axis=0), b.max(axis=0).reshape(fold, t).max(axis=0)
+    if full < n:
+        lo, hi = np.minimum(lo, a[full:].min(axis=0)), np.maximum(hi, a[full:].max(axis=0))
+    return lo, hi
 
 
 def quantize_scale_bias(coeffs):
     """Per-coefficient scale (float) and integer bias in [0, 255] so that every value of
     coeffs (N, 6) is within half a step of some byte: a = (byte - bias) · scale.
     Returns (scale (6,), bias (6,) int)."""
-    lo = np.minimum(coeffs.min(axis=0).astype(np.float64), 0.0)
-    hi = np.maximum(coeffs.max(axis=0).astype(np.float64), 0.0)
+    lo, hi = column_range(coeffs) if len(coeffs) else (coeffs.min(axis=0), coeffs.max(axis=0))
+    lo, hi = np.minimum(lo.astype(np.float64), 0.0), np.maximum(hi.astype(np.float64), 0.0)
     span = np.where(hi - lo > 0, hi - lo, 1.0)
     bias = np.clip(np.round(-lo / span * 255.0), 0, 255).astype(int)
     # the scale that fits both ends once the zero is on an integer byte

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from facette.io.ptm import column_range
+
 __all__ = ["write_hsh_rti"]
 
 HSH_FILE_TYPE = 3          # RTIViewer's file types: 1 PTM, 2 spherical harmonics, 3 HSH
@@ -32,8 +34,8 @@ def write_hsh_rti(path, coeffs):
     if coeffs.ndim != 4 or coeffs.shape[2] != 3 or coeffs.shape[3] not in (4, 9) or 0 in coeffs.shape:
         raise ValueError(f"HSH coefficients must have shape (H, W, 3, 4 or 9), got {coeffs.shape}")
     h, w, _, t = coeffs.shape
-    terms = coeffs.reshape(-1, t)          # a reduction over the rows: fast, unlike over (0, 1, 2)
-    lo, hi = terms.min(axis=0), terms.max(axis=0)
+    terms = coeffs.reshape(-1, t)
+    lo, hi = column_range(terms)
     if not (np.isfinite(lo).all() and np.isfinite(hi).all()):   # NaN and ±inf reach min or max
         raise ValueError("HSH coefficients must be finite (set unfitted pixels to 0)")
     scale = np.where(hi > lo, hi - lo, 1.0).astype("<f4")

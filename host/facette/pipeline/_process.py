@@ -412,7 +412,8 @@ def _writers(res, out, outputs, ascii_ply):
 
     def samples(path):
         fr, raw = res.filtered, res.samples
-        np.savez_compressed(
+        # stored, not deflated: 12 MP samples.npz 9.4 MB against 6.2 MB, 0.01 s against 0.42 s
+        np.savez(
             path, filtered_mean=fr.mean.astype(np.float32), filtered_count=fr.count,
             filtered_theta_s=fr.theta_s, filtered_s=fr.s, filtered_o=fr.o, partition_edges=fr.edges,
             partition_counts=fr.counts, theta0_deg=res.options["theta0_deg"],

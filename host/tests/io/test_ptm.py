@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from facette.io.ptm import quantize_scale_bias, write_ptm_lrgb
+from facette.io.ptm import column_range, quantize_scale_bias, write_ptm_lrgb
 from facette.recon import fit_ptm_lrgb, ptm_basis
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 from rti_spec_readers import ptm_colour, read_ptm
@@ -72,3 +72,11 @@ def test_fitted_ptm_relights_the_images_it_was_fitted_to(tmp_path):
     err, err_float = np.sqrt(num / den), np.sqrt(num_float / den)
     assert err < 0.08                     # a biquadratic of the light misses shadows, not more
     assert err - err_float < 0.01         # 8-bit storage adds under 1 %
+
+
+@pytest.mark.parametrize("n", [1, 255, 256, 1000, 70_001])
+def test_column_range_is_min_and_max_over_rows(n):
+    a = np.random.default_rng(n).normal(size=(n, 9)).astype(np.float32)
+    lo, hi = column_range(a)
+    np.testing.assert_array_equal(lo, a.min(axis=0))
+    np.testing.assert_array_equal(hi, a.max(axis=0))
