@@ -143,8 +143,10 @@ def _ridge_solve(ata, atb, n_terms):
 
 
 def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
-    """Per-pixel weighted least squares, light-major: values(e (m, n, c) float64) ->
-    (y (m, n, c), w (m, n)). Returns (coeffs (H*W, c, n_terms) float32 (solved in float64), valid (H*W,)).
+    """Per-pixel weighted least squares, light-major: values(e (m, n, c)) -> (y (m, n, c),
+    w (m, n)), e float32 for far lights (the pixels with every light known share one float32
+    product; the others are solved in float64), float64 for per-pixel directions.
+    Returns (coeffs (H*W, c, n_terms) float32, valid (H*W,)).
     Blocks of pixels run on `workers` threads (numpy's products and solves release the GIL)."""
     m, h, w, c = images.shape
     flat = images.reshape(m, h * w, c)
@@ -157,6 +159,9 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
         # their solution is one matrix product with proj = (above · B) A⁻¹, (m, T)
         a_full = (above.astype(np.float64) @ outer).reshape(1, n_terms, n_terms)
         proj_t = _ridge_solve(a_full, (b_far * above[:, None])[None], n_terms)[0].T.copy()
+        # the shared solve in float32, as the coefficients are stored: half the memory
+        # traffic of the largest product (12 MP HSH fit: 3.4 -> 3.0 CPU s)
+        proj_t32 = proj_t.astype(np.float32)
     # float32 storage: the fits are solved in float64 block by block; the files quantise to
     # 8 bits (PTM) and 8 bits per term (RTI), 2^-24 relative is far below either; 12 MP HSH
     # coefficients take 330 MB instead of 660.
@@ -165,18 +170,18 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
 
     def block(a):
         sl = slice(a, a + _BLOCK)
-        y, wt = values(flat[:, sl].astype(np.float64))           # (m, n, c), (m, n)
+        y, wt = values(flat[:, sl].astype(np.float32 if far else np.float64))   # (m, n, c), (m, n)
         n = wt.shape[1]
         if far:   # one design matrix: the normal equations are matrix products
             wt = wt * above[:, None]
             full = (wt == above[:, None]).all(axis=0)
             # every light known: y as it is (proj is 0 for the lights below the horizon)
             if full.all():
-                sol = (proj_t @ y.reshape(m, -1)).reshape(n_terms, n, c).transpose(1, 2, 0)
+                sol = (proj_t32 @ y.reshape(m, -1)).reshape(n_terms, n, c).transpose(1, 2, 0)
             else:
-                y = np.where(wt[..., None] > 0, y, 0.0)
-                sol = np.empty((n, c, n_terms))
-                sol[full] = (proj_t @ y[:, full].reshape(m, -1)).reshape(n_terms, -1, c).transpose(1, 2, 0)
+                y = np.where(wt[..., None] > 0, y, np.float32(0))
+                sol = np.empty((n, c, n_terms), np.float32)
+                sol[full] = (proj_t32 @ y[:, full].reshape(m, -1)).reshape(n_terms, -1, c).transpose(1, 2, 0)
             part = ~full
             if part.any():
                 wp, yp = wt[:, part].T, y[:, part].transpose(1, 0, 2)   # (np, m), (np, m, c)

@@ -172,7 +172,7 @@ def test_shared_and_per_pixel_solves_equal_a_pixel_by_pixel_fit(monkeypatch):
             assert hsh.valid[i, j] == (use.sum() >= 9)
             if use.sum() >= 9:
                 want = _ridge_fit(hsh_basis(d[use], 3), e[use]).T
-                np.testing.assert_allclose(hsh.coeffs[i, j], want, rtol=1e-6, atol=1e-7)   # float32 storage
+                np.testing.assert_allclose(hsh.coeffs[i, j], want, rtol=1e-6, atol=2e-6)   # float32 solve and storage
             else:
                 assert not hsh.coeffs[i, j].any()
             known = np.isfinite(e).all(axis=1)
@@ -182,7 +182,7 @@ def test_shared_and_per_pixel_solves_equal_a_pixel_by_pixel_fit(monkeypatch):
                 lum = e @ rgb / (rgb @ rgb)
                 want = _ridge_fit(ptm_basis(d[use]), lum[use])
                 np.testing.assert_allclose(ptm.rgb[i, j], rgb, rtol=1e-6)
-                np.testing.assert_allclose(ptm.coeffs[i, j], want, rtol=1e-6, atol=1e-7)
+                np.testing.assert_allclose(ptm.coeffs[i, j], want, rtol=1e-6, atol=2e-6)
 
 
 @pytest.mark.parametrize("n, q, dtype", [(0, 99.0, np.float64), (1, 99.0, np.float64), (500, 99.0, np.float32),
