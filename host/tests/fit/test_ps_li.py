@@ -75,6 +75,8 @@ def test_matte_material_skips_the_brdf_step(cache):
     h = photometric_stereo(d["images"], d["light_dirs"], method="hierarchical", mask=d["mask"])
     mat = r.info["materials"][0]
     assert mat["brdf_step"] is False and "Lambertian" in mat["note"]
+    # the lobe refitted with a lobe kept either falls back to n_i = 1 or does not pay its way
+    assert mat["model_choice"]["model"] == "lambertian" and mat["model_choice"].get("gain", 0.0) < 0.1
     # least squares where it explains the pixel under every light, the initial normals elsewhere
     ls = photometric_stereo(d["images"], d["light_dirs"], method="woodham1980", mask=d["mask"])
     lam = ls.valid & (ls.residual < 0.03) & np.all(np.isfinite(d["images"]), axis=(0, 3))
@@ -125,3 +127,39 @@ def test_stability_black_saturated_shadowed_and_single_light_pixels(cache):
     assert r.valid[c - 2, c:c + 2].all()
     err = np.degrees(np.arccos(np.clip(np.sum(r.normal[c - 2, c:c + 2] * d["normals"][c - 2, c:c + 2], -1), -1, 1)))
     assert np.all(err < 5)
+
+
+def test_a_lobe_is_not_ruled_out_by_the_first_fit_alone(cache):
+    # on the satin sphere the first fit on the hierarchy's normals finds no interface (n_i = 1);
+    # refitted with a lobe kept on the robust Lambertian normals and warmed up, the lobe is found
+    d = render_scene("sphere", "satin", size=48, spp=8, cache_dir=cache)
+    r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"], init="hierarchical")
+    mat = r.info["materials"][0]
+    choice = mat["model_choice"]
+    assert choice["lobe_start"] == "refitted with a lobe kept"
+    assert choice["model"] == "lobe" and mat["brdf_step"] is True
+    assert choice["cost_lobe"] < 0.9 * choice["cost_lambertian"]
+    last = r.info["rounds"][-1]
+    assert 0.15 < last["sigma"] < 0.26 and 1.35 < last["n_i"] < 1.65, last
+    assert r.info["levels"]["brdf_aware"]["pixels"] > 0.3 * r.valid.sum()
+
+
+def test_fit_bounds_and_cost():
+    from facette.brdf import li_shading_terms
+    from facette.fit import li_fit_cost
+    from facette.fit._ps_li import LOBE_FIT_BOUNDS
+    rng = np.random.default_rng(1)
+    L = np.array([[np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)]
+                  for t, p in [(0.5, 0), (0.5, 2), (0.5, 4), (0.3, 1), (0.3, 3), (0.3, 5), (0.2, 0.5), (0.4, 2.5)]])
+    n = rng.normal(size=(200, 3)) * [0.3, 0.3, 0] + [0, 0, 1]
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    _, b = li_shading_terms(n, L, 1e-3, 1.0)                     # Lambertian images, K_d varying
+    e = (b[..., None] * rng.uniform(0.2, 0.8, (200, 1, 3))).astype(np.float32)
+    ok = np.ones(e.shape[:2], bool)
+    assert li_fit_cost(e, L, n, ok, 1e-3, 1.0) < 1e-9           # the model that made them
+    assert li_fit_cost(e, L, n, ok, 0.1, 1.4) > 1e-4            # a lobe where there is none
+    lobe = fit_li_per_pixel_kd(e, L, n, ok, bounds=LOBE_FIT_BOUNDS)
+    assert lobe["sigma"] >= LOBE_FIT_BOUNDS[0][0] - 1e-12 and lobe["n_i"] >= LOBE_FIT_BOUNDS[1][0] - 1e-12
+    np.testing.assert_allclose(li_fit_cost(e, L, n, ok, lobe["sigma"], lobe["n_i"]), lobe["cost"], rtol=1e-4)
+    with pytest.raises(ValueError, match="low < high"):
+        fit_li_per_pixel_kd(e, L, n, ok, bounds=((0.1, 0.1), (1.0, 2.0)))
