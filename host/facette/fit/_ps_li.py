@@ -489,6 +489,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         score = None
         if coarse is not None:
             cmat = coarse.info["materials"][0] if coarse.info.get("materials") else {"brdf_step": False}
+            if "model_choice" in cmat:     # made on the coarse images: say so at full size too
+                mat["model_choice"] = dict(cmat["model_choice"], made_on="the coarse pass")
             if not cmat.get("brdf_step") or cmat.get("sigma") is None:
                 mat.update(brdf_step=False, note="coarse pass: " + cmat.get("note", "no BRDF step"))
                 lambertian_material(pix)

@@ -47,6 +47,8 @@ def test_coarse_to_fine_keeps_the_accuracy_of_the_full_solve(cache):
     assert e_c2f < e_full + 0.15, (e_c2f, e_full)
     last = c2f.info["rounds"][-1]
     assert last["round"] == "full size" and last["pixels_refined"] > 0
+    choice = c2f.info["materials"][0]["model_choice"]
+    assert choice["model"] == "lobe" and choice["made_on"] == "the coarse pass"
     assert abs(last["sigma"] - 0.10) < 0.03 and abs(last["n_i"] - 1.30) < 0.06
     np.testing.assert_allclose(np.median(c2f.albedo[sel], axis=0), d["params"]["kd"], rtol=0.08)
     assert np.array_equal(c2f.valid, full.valid)
