@@ -425,8 +425,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                           f"lowers the robust cost by {100 * gain:.1f} % only")
             fit = dict(fit, sigma=LAMBERTIAN_SIGMA, n_i=1.0)
         else:
-            choice.update(model="lambertian", why=f"the fit, warmed up from a lobe, ends at σ {fit['sigma']:.3f}, "
-                          f"n_i {fit['n_i']:.3f}")
+            choice.update(model="lambertian", why=f"the warmed-up fit ends at σ {fit['sigma']:.3f}, "
+                          f"n_i {fit['n_i']:.3f}: no interface")
             fit = dict(fit, sigma=LAMBERTIAN_SIGMA, n_i=1.0)
         return fit, warm, choice
 
