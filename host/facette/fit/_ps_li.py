@@ -48,7 +48,6 @@ from facette.brdf import li_kd_from_kappa, li_shading_terms
 from facette.recon import PS_METHODS, PSResult, photometric_stereo
 from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _run_blocks, _usable
 from ._normals_li import RefineResult, refine_normals_li
-from ._normals_li_jit import bin_images
 
 __all__ = ["ps_li_alternating", "fit_li_per_pixel_kd", "li_fit_cost", "LI_FIT_BOUNDS"]
 
@@ -585,6 +584,8 @@ def _bin_inputs(images, light_dirs, mask, f, saturation):
     the block's pixels masked. Per-pixel directions: the block mean, renormalised."""
     m, h, w, c = images.shape
     hc, wc = -(-h // f), -(-w // f)
+
+    from ._normals_li_jit import bin_images   # numba loads only when li_alternating runs
 
     msk = np.pad(mask, [(0, hc * f - h), (0, wc * f - w)])
     cmask = msk.reshape(hc, f, wc, f).sum((1, 3)) * 2 >= f * f
