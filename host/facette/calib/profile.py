@@ -96,9 +96,8 @@ def _resample(field, size_from, size_to):
     fx = (xs - x0).astype(np.float32)[None, :, None]
     fy = (ys - y0).astype(np.float32)[:, None, None]
     f = np.asarray(field, np.float32)
-    top = f[y0][:, x0] * (1 - fx) + f[y0][:, x1] * fx
-    bottom = f[y1][:, x0] * (1 - fx) + f[y1][:, x1] * fx
-    out = top * (1 - fy) + bottom * fy
+    rows = f[:, x0] * (1 - fx) + f[:, x1] * fx      # along x on the measured rows: (hf, wt, 3)
+    out = rows[y0] * (1 - fy) + rows[y1] * fy       # then along y (the same values as 2-D indexing)
     return out / np.float32(out.mean())   # a flat field has mean 1
 
 

@@ -333,8 +333,8 @@ def _apply_profile(images, data, scan_dir):
     at = profile.at_size(size)
     images[0] = apply_flat_field(images[0], at.flat_field)      # checks the field
     flat = np.asarray(at.flat_field, np.float32)
-    for k in range(1, images.shape[0]):                          # in place: no full-size copy
-        np.divide(images[k], flat, out=images[k])
+    with ThreadPoolExecutor(2) as pool:        # in place (no full-size copy), on both cores
+        list(pool.map(lambda k: np.divide(images[k], flat, out=images[k]), range(1, images.shape[0])))
     notes.append(f"flat field of profile {profile.id} applied"
                  + ("" if at.flat_field is profile.flat_field else
                     f" (resampled from {measured[0]}×{measured[1]} px)"))

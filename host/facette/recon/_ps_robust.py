@@ -176,7 +176,6 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
     found = np.zeros(n_pix, bool)
     keep = np.zeros((m, n_pix), bool)
     resid = np.zeros(n_pix, np.float32)
-    g_fit = np.zeros((3, n_pix), np.float32)
     changes = np.zeros((int(rounds), n_pix), np.float32)
 
     def block(a):
@@ -207,16 +206,17 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         # an all-black pixel gives g = 0: not found
         normal[:, sl], found[sl], keep[:, sl] = nb, fb, kb
         resid[sl] = _rel_residual(eb, sb, gb, kb)
-        g_fit[:, sl] = gb
+        # maps for what follows (the reflectance samples leave `shadow` out); they do not steer
+        # the normal: attached (s.n <= 0) or far below the diffuse fit = shadow, far above = specular
+        sn = _shading(sb, nb)
+        pred = _shading(sb, np.nan_to_num(gb))
+        below[:, sl] = okb & ((sn <= 0) | (eb < SHADOW_BELOW * pred))
+        above[:, sl] = okb & ~kb & (eb > SPECULAR_ABOVE * pred) & (sn > 0)
 
+    below = np.empty((m, n_pix), bool)
+    above = np.empty((m, n_pix), bool)
     _run_blocks(block, range(0, n_pix, _CHUNK))
     rho = _albedo(e_all, s, normal, keep & ok, idx=sub)
-    # maps for what follows (the reflectance samples leave `shadow` out); they do not steer
-    # the normal: attached (s.n <= 0) or far below the diffuse fit = shadow, far above = specular
-    sn = _shading(s, normal)
-    pred = _shading(s, np.nan_to_num(g_fit))
-    below = ok & ((sn <= 0) | (e < SHADOW_BELOW * pred))
-    above = ok & ~keep & (e > SPECULAR_ABOVE * pred) & (sn > 0)
     _scatter(res, idx, "normal", normal.T)
     _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
     _scatter(res, idx, "valid", found)
