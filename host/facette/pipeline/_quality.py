@@ -65,14 +65,15 @@ def check_samples(images, usable, object_mask, mask_source, light_names=None):
         raise InsufficientData(f"{mask_source} holds no pixel of the object (it is all zero)",
                                hint="draw the object in the mask (non-zero = object), or process "
                                     "without --mask")
-    u = usable[:, object_mask]                                       # (m, n_obj)
-    known = np.isfinite(images[:, object_mask, 1]) if images.shape[-1] > 1 else \
-        np.isfinite(images[:, object_mask, 0])
-    saturated = float(np.mean(~known))
-    dark = float(np.mean(known & ~u))
-    per_pixel = u.sum(axis=0)
-    frac = float(np.mean(per_pixel >= MIN_LIGHTS))
-    per_light = u.mean(axis=1)
+    # counts over the object on the whole maps: no (m, n_obj) gathers (12 MP: 0.22 -> 0.14 s)
+    obj = np.asarray(object_mask, bool)
+    u = usable & obj                                                 # (m, H, W)
+    known = np.isfinite(images[..., 1 if images.shape[-1] > 1 else 0]) & obj
+    known_per_light = np.count_nonzero(known, axis=(1, 2))
+    saturated = float(m * n_obj - known_per_light.sum()) / (m * n_obj)
+    dark = float(np.count_nonzero(known & ~u)) / (m * n_obj)
+    frac = float(np.count_nonzero(np.count_nonzero(u, axis=0) >= MIN_LIGHTS)) / n_obj
+    per_light = np.count_nonzero(u, axis=(1, 2)) / n_obj
     summary = {"object_pixels": n_obj, "pixels_with_enough_lights": frac,
                "saturated_samples": saturated, "samples_below_noise": dark,
                "usable_per_light": [round(float(x), 4) for x in per_light],
@@ -94,7 +95,7 @@ def check_samples(images, usable, object_mask, mask_source, light_names=None):
                      f"({100 * saturated:.0f} % of the samples saturated, {100 * dark:.0f} % below "
                      "the noise): the others get no normal")
     for i in np.flatnonzero(per_light < SPARSE_LIGHT):
-        sat_i = float(np.mean(~known[i]))
+        sat_i = float(n_obj - known_per_light[i]) / n_obj
         notes.append(f"{names[i]} gives a usable sample on {100 * per_light[i]:.0f} % of the object "
                      f"({'saturated' if sat_i >= 0.5 else 'too dark'} there)")
     return notes, summary
