@@ -42,7 +42,7 @@ from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._inputs import load_input
 from facette.pipeline._record import claim_results, write_record
 from facette.pipeline._quality import check_fit_cells, check_samples
-from facette.pipeline._report import write_report
+from facette.pipeline._report import report_fit_section, write_report
 
 __all__ = ["OUTPUTS", "STAGES_FOR", "ProcessResult", "process", "stages_needed"]
 
@@ -315,13 +315,14 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
     res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
     res.timings["ps"] = time.perf_counter() - t0
 
+    drawn = {}         # report sections drawn by the concurrent stages
     res.notes.extend(_after_ps(res, inp, stages, outputs, images, light_dirs, integration, mesh_step,
-                               theta0_deg, fit_options, hsh_order, out_dir, ascii_ply))
+                               theta0_deg, fit_options, hsh_order, out_dir, ascii_ply, drawn))
     res.errors = _truth_errors(inp, res)
     res.timings["total_compute"] = time.perf_counter() - t_all
     if out_dir is not None:
         t0 = time.perf_counter()
-        _write_last(res, Path(out_dir), outputs)
+        _write_last(res, Path(out_dir), outputs, drawn)
         write_record(Path(out_dir), record_options, inp, res, previous)
         res.timings["write"] = time.perf_counter() - t0
     res.timings["cpu"] = time.process_time() - cpu_all
@@ -337,11 +338,12 @@ def _timed(res, name, fn, *args):
 
 
 def _after_ps(res, inp, stages, outputs, images, light_dirs, integration, mesh_step, theta0_deg,
-              fit_options, hsh_order, out_dir, ascii_ply, workers=2):
+              fit_options, hsh_order, out_dir, ascii_ply, drawn, workers=2):
     """The stages after photometric stereo, which depend on it only and not on each other,
     concurrently on `workers` threads (numpy, scipy's FFT and the file writers release the
     GIL): heights -> mesh, samples -> BRDF fit, PTM, HSH; each writes its files as soon as it
-    is done. Returns the notes, in the order of the stages (whatever order they finish in)."""
+    is done; `drawn` receives the report sections they draw. Returns the notes, in the order of
+    the stages (whatever order they finish in)."""
     out = None if out_dir is None else Path(out_dir)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
@@ -368,6 +370,9 @@ def _after_ps(res, inp, stages, outputs, images, light_dirs, integration, mesh_s
             return []
         res.brdf, note = _timed(res, "fit", _fit_stage, res.filtered, dict(fit_options or {}))
         write("brdf")
+        if out is not None and "report" in outputs:
+            # matplotlib holds the GIL: drawn here, it runs beside numpy stages that let it go
+            drawn["fit"] = _timed(res, "report_fit", report_fit_section, res)
         return [note] if note else []
 
     def ptm():
@@ -454,7 +459,7 @@ def _writers(res, out, outputs, ascii_ply):
     return write
 
 
-def _write_last(res, out, outputs):
+def _write_last(res, out, outputs, drawn):
     """What needs every stage: model.glb (mesh and BRDF), made and written on a thread while
     the report (matplotlib, main thread only) is drawn; then the list of files written."""
     with ThreadPoolExecutor(1) as pool:
@@ -474,7 +479,7 @@ def _write_last(res, out, outputs):
             else:
                 res.notes.append("gltf: the mesh has no triangles (empty mask); model.glb not written")
         if "report" in outputs:
-            _timed(res, "write_report", write_report, res, out / FILES["report"])
+            _timed(res, "write_report", write_report, res, out / FILES["report"], drawn.get("fit"))
             res.files["report"] = str(out / FILES["report"])
         if future is not None:
             future.result()                      # re-raise a write error here

@@ -513,15 +513,27 @@ def _viewer(res):
     return viewer_section(data), (kd_map, data["decimation"]), arrays["mask"], note
 
 
-def write_report(res, path):
+def report_fit_section(res):
+    """The report's BRDF section (html: parameters, uncertainties, the fit against the data,
+    residuals): it needs only the fit, the filtered reflectance and the truth, so `process`
+    draws it as soon as the fit is done, while the other stages still run."""
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    truth = res.inputs.truth if res.inputs is not None else None
+    truth_kd = _truth_kd(truth, res.mask & res.inputs.sample_mask()) if res.inputs is not None else None
+    return _fit_section(res, _truth_brdf(truth), truth_kd)[0]
+
+
+def write_report(res, path, fit_html=None):
     """Write report.html for a `ProcessResult`: summary, relighting viewer, BRDF fit with
-    uncertainties and residuals, error against truth, maps, options, timings."""
+    uncertainties and residuals, error against truth, maps, options, timings.
+    fit_html : `report_fit_section(res)` when already drawn."""
     import matplotlib
     matplotlib.use("Agg", force=False)
     viewer_html, kd_map, kd_mask, viewer_note = _viewer(res)
     truth = res.inputs.truth if res.inputs is not None else None
-    truth_kd = _truth_kd(truth, res.mask & res.inputs.sample_mask()) if res.inputs is not None else None
-    fit_html, _ = _fit_section(res, _truth_brdf(truth), truth_kd)
+    if fit_html is None:
+        fit_html = report_fit_section(res)
     figs = []
     st = max(1, int(np.ceil(max(res.normals.shape[:2]) / 800)))   # pictures need no more
     n, mask, ps = res.normals[::st, ::st], res.mask[::st, ::st], res.ps
