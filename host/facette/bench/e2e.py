@@ -9,7 +9,8 @@ in a process of its own, and the bench reports:
   and the merge alone of the finished scan again in a fresh process (all lights, forced);
 - reconstruction (photometric stereo + integration) and BRDF fit, from `facette process`;
 - "results ready after the last frame": from the last frame's capture (journal) to the
-  end of the command (results written);
+  last result file written (results/process.json, written last); and to the command's end
+  (the interpreter's exit after that: freeing gigabytes takes a few tenths of a second);
 - peak memory (max RSS) of the scan command (simulator included) and of `facette process`
   alone on the finished scan;
 - SNR of the merged radiance on the object (truth mask), shadows (2–10 % of its values)
@@ -120,6 +121,11 @@ def _scan_height_errors(scan_dir, results="results"):
     return height_errors(truth, h, read_mask(scan_dir / results / "mask.png"))
 
 
+def _results_written(results):
+    """When the last file of a results folder was written (POSIX seconds)."""
+    return max(p.stat().st_mtime for p in results.iterdir() if p.is_file())
+
+
 def _journal_last_frame(scan_dir):
     last = None
     for line in (scan_dir / "journal.jsonl").read_text().splitlines():
@@ -160,7 +166,8 @@ def one_run(size, work, exposures=None):
             "merge_alone_gb": m_rss, "process_cpu_s": p_cpu,
             "recon_s": times.get("ps", np.nan) + times.get("integrate", np.nan),
             "fit_s": times.get("fit", np.nan), "process_s": p_wall, "process_gb": p_rss,
-            "ready_s": (end - _journal_last_frame(d)).total_seconds(), "peak_gb": rss,
+            "ready_s": _results_written(d / "results") - _journal_last_frame(d).timestamp(),
+            "exit_s": (end - _journal_last_frame(d)).total_seconds(), "peak_gb": rss,
             "shadow_db": shadow, "mid_db": mid, "clipped": clipped,
             "height_rms_mm": global_, "height_rms_px": global_ / pitch,
             "height_rms_object_mm": per_object, "pitch_mm": pitch}
@@ -171,6 +178,7 @@ COLUMNS = [("size", "size", "s"), ("bracket", "bracket", "s"), ("frames", "frame
            ("merge_alone_s", "merge alone s", ".2f"), ("merge_alone_cpu_s", "(CPU s)", ".2f"),
            ("recon_s", "recon s", ".2f"),
            ("fit_s", "fit s", ".2f"), ("ready_s", "ready after last frame s", ".2f"),
+           ("exit_s", "command end s", ".2f"),
            ("process_s", "process alone s", ".2f"), ("process_cpu_s", "(CPU s)", ".2f"),
            ("peak_gb", "peak GB (scan+sim)", ".2f"), ("process_gb", "peak GB process", ".2f"),
            ("shadow_db", "shadow dB", ".1f"), ("mid_db", "mid dB", ".1f"),
@@ -227,7 +235,7 @@ def main(argv=None):
     print("  rig s: device timeline (metering included); merge s: decode + merge + EXR write summed "
           "over lights on the worker during the scan; merge alone: the same scan merged again in "
           "a fresh process; recon: photometric stereo + integration; ready: last frame captured -> "
-          "results written; process alone: `facette process` on the finished scan (HDR up to date); "
+          "last result file written; command end: -> the scan command's exit; process alone: `facette process` on the finished scan (HDR up to date); "
           "CPU s: of that process (wall > CPU/cores means it waited for a core); SNR from the merge's variance on the object, green, median over lights; "
           "height RMS: result against the truth on the object up to one constant, also in pixel pitches, "
           "and up to one constant per object")
