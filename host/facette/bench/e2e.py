@@ -6,7 +6,8 @@ in a process of its own, and the bench reports:
 
 - rig time (device timeline, metering included) and the whole command's wall time;
 - the merge (sum over lights of decode + merge + EXR write, on the worker during the scan),
-  and the merge alone of the finished scan again in a fresh process (all lights, forced);
+  and the merge alone of the finished scan again in a fresh process (all lights, forced, with
+  the `facette` command's allocator settings, facette._memory);
 - reconstruction (photometric stereo + integration) and BRDF fit, from `facette process`;
 - "results ready after the last frame": from the last frame's capture (journal) to the
   last result file written (results/process.json, written last); and to the command's end
@@ -156,7 +157,9 @@ def one_run(size, work, exposures=None):
         size = f"{2 * w}x{2 * h} (default)"
     shadow, mid, clipped = _snr(d)
     # The merge alone, all lights, in a fresh process; then `facette process` alone.
-    code = ("import sys, time; from facette.scan import merge_scan; t = time.perf_counter(); "
+    # with the `facette` command's allocator settings, as the merge runs inside the command
+    code = ("from facette._memory import keep_freed_memory; keep_freed_memory(); "
+            "import sys, time; from facette.scan import merge_scan; t = time.perf_counter(); "
             "merge_scan(sys.argv[1], force=True); print(f'merge {time.perf_counter() - t:.3f}')")
     m_out, _, m_rss, _, m_cpu = _run_rss([sys.executable, "-c", code, str(d)])
     p_out, p_wall, p_rss, _, p_cpu = _run_rss(facette + ["process", str(d), "-o", str(d / "results2")])

@@ -15,9 +15,9 @@ import os
 import sys
 import traceback
 
-from facette.cli._memory import keep_freed_memory
+from facette._memory import keep_freed_memory
 
-keep_freed_memory()         # before numpy is imported or a thread starts (cli/_memory.py)
+keep_freed_memory()         # before numpy is imported or a thread starts (facette/_memory.py)
 
 from facette.errors import EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED, FacetteError
 

@@ -6,8 +6,9 @@ handed back when freed: 2.5 million page faults, 9 s of kernel time on this 2-co
 every allocation from the heap and the heap never trimmed, freed blocks are reused: 0.6 million
 faults, 2.4 s in the kernel, the same peak (2.45–2.51 GB), 9 CPU s less in all.
 
-This is set for the command only (a script importing facette keeps its own allocator
-settings), before numpy or any thread starts, and only where the C library is glibc.
+The `facette` command sets this (cli/main.py), before numpy or any thread starts, and so does
+`facette bench e2e` for the merge it times in a process of its own; a script importing facette
+keeps its own allocator settings. Only where the C library is glibc.
 """
 import ctypes
 import os
