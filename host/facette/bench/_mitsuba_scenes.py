@@ -6,7 +6,8 @@ K_d = `diffuse_reflectance`, σ = α, n_i = `int_ior`; plaster is Mitsuba's `dif
 Camera: orthographic, looking down −z (camera frame x right, y up, z towards the camera).
 Lights: directional emitters of irradiance 1 (so a Lambertian reflectance ρ gives
 E = (ρ/π) s·n, facette's convention), one image per light, optionally point emitters (near
-light, with their positions). True normals: the `aov` integrator's `nn:sh_normal`.
+light, with their positions). True normals: the `aov` integrator's `nn:sh_normal`, averaged
+over each pixel like the images (`_render`).
 
 Shapes (our own): "sphere"; "relief", a bas-relief height field (bumps, ridges and a crater:
 concavities that cast shadows and inter-reflect); "vase", a surface of revolution with a concave
@@ -129,13 +130,97 @@ def render_scene(shape="sphere", material="paint_0.10", size=128, spp=64, kd=(0.
     key = json.dumps(["v2", shape, material, size, spp, list(kd), textured, np.round(lights, 6).tolist(),
                       near_distance, max_depth, seed], sort_keys=True)
     tag = hashlib.sha1(key.encode()).hexdigest()[:12]
+    # the truth has a cache entry of its own: the images of an older cache stay valid
+    truth_tag = hashlib.sha1(json.dumps(["truth-pixel-mean-v1", shape, material, size, spp, list(kd),
+                                         textured], sort_keys=True).encode()).hexdigest()[:12]
     cache = Path(cache_dir) if cache_dir else None
     out_file = cache / f"mitsuba_{shape}_{material}_{size}_{tag}.npz" if cache else None
+    truth_file = cache / f"mitsuba_{shape}_{material}_{size}_truth_{truth_tag}.npz" if cache else None
+    params = {"shape": shape, "material": material, **MATERIALS[material], "kd": list(kd),
+              "textured": textured, "size": size, "spp": spp, "near_distance": near_distance}
+    d = truth = None
     if out_file is not None and out_file.is_file():
         with np.load(out_file, allow_pickle=False) as z:
-            d = {k: z[k] for k in z.files}
-        d["params"] = json.loads(str(d["params"]))
-        return d
+            d = {"images": z["images"], "light_dirs": z["light_dirs"], "params": json.loads(str(z["params"]))}
+    if truth_file is not None and truth_file.is_file():
+        with np.load(truth_file, allow_pickle=False) as z:
+            truth = {k: z[k] for k in z.files}
+    if d is None or truth is None:
+        rendered = _render(shape, material, size, spp, kd, textured, lights, near_distance, max_depth,
+                           variant, seed, images=d is None)
+        if d is None:
+            d = {"images": rendered.pop("images"), "light_dirs": lights.astype(np.float64), "params": params}
+            if out_file is not None:
+                out_file.parent.mkdir(parents=True, exist_ok=True)
+                np.savez_compressed(out_file, images=d["images"], light_dirs=d["light_dirs"],
+                                    params=json.dumps(params))
+        truth = rendered
+        if truth_file is not None:
+            truth_file.parent.mkdir(parents=True, exist_ok=True)
+            np.savez_compressed(truth_file, **truth)
+    d.update(truth)
+    return d
+
+
+def _render(shape, material, size, spp, kd, textured, lights, near_distance, max_depth, variant, seed,
+            images=True):
+    """Mitsuba renders of one scene: the images (one per light, when `images`) and the truth.
+
+    The truth is the pixel mean, like the images: the `aov` integrator at `spp` samples
+    through the same box filter, the normal renormalised. One sample per pixel (a random
+    point inside it) scattered 0.53° (sphere) to 0.58° (relief) around that mean, a floor
+    under every error measured against it. Pixels the surface covers for less than about
+    half are outside the mask (|mean normal| ≤ 0.5)."""
+    import mitsuba as mi
+    # scalar_rgb: the llvm variants need an LLVM that matches Dr.Jit (the Debian one aborts in the
+    # code generator here); scalar is slower but renders the same images
+    mi.set_variant(variant or "scalar_rgb")
+    T = mi.ScalarTransform4f
+    kd_img = _kd_texture(textured, kd)
+    bsdf = _bsdf(mi, material, kd_img)
+    tmp = None
+    if shape == "sphere":
+        obj = {"type": "sphere", "radius": 0.9, "bsdf": bsdf}
+    else:
+        import tempfile
+        tmp = tempfile.TemporaryDirectory()
+        ply = Path(tmp.name) / f"{shape}.ply"
+        _write_ply(ply, *_heightfield(shape))
+        obj = {"type": "ply", "filename": str(ply), "bsdf": bsdf, "face_normals": False}
+    sensor = {"type": "orthographic",
+              "to_world": T.look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
+              "film": {"type": "hdrfilm", "width": size, "height": size, "rfilter": {"type": "box"},
+                       "pixel_format": "rgb"},
+              "sampler": {"type": "independent", "sample_count": spp}}
+    out = {}
+    if images:
+        imgs = []
+        for i, s in enumerate(lights):
+            if near_distance is None:
+                emitter = {"type": "directional", "direction": (-s).tolist(),
+                           "irradiance": {"type": "rgb", "value": 1.0}}
+            else:
+                # point light of intensity d^2: irradiance 1 at the scene centre, like the directional case
+                emitter = {"type": "point", "position": (s * near_distance).tolist(),
+                           "intensity": {"type": "rgb", "value": float(near_distance) ** 2}}
+            scene = mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": max_depth},
+                                  "sensor": sensor, "obj": obj, "light": emitter})
+            imgs.append(np.array(mi.render(scene, seed=seed + 7919 * i), dtype=np.float32)[..., :3])
+        out["images"] = np.stack(imgs)
+    aov = mi.load_dict({"type": "scene", "integrator": {"type": "aov", "aovs": "nn:sh_normal,pp:position,kd:albedo"},
+                        "sensor": sensor, "obj": obj})
+    a = np.array(mi.render(aov, seed=seed + 104729), dtype=np.float32)
+    nrm, pos = a[..., 0:3], a[..., 3:6]
+    if tmp is not None:
+        tmp.cleanup()
+    ln = np.linalg.norm(nrm, axis=-1)
+    mask = ln > 0.5
+    nrm = np.where(mask[..., None], nrm / np.maximum(ln, 1e-9)[..., None], 0).astype(np.float32)
+    # true K_d per pixel: the renderer's own diffuse reflectance, its mean over the pixel (the
+    # silhouette's pixels mix in the background's 0: the benches erode the mask by 1 px)
+    kd_map = np.where(mask[..., None], a[..., 6:9], 0)
+    out.update(normals=nrm, mask=mask, kd=kd_map.astype(np.float32), positions=pos.astype(np.float32))
+    return out
     import mitsuba as mi
     # scalar_rgb: the llvm variants need an LLVM that matches Dr.Jit (the Debian one aborts in the
     # code generator here); scalar is slower but renders the same images
