@@ -397,7 +397,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         warm_engine = "arrays" if engine == "auto" else engine
         choice = {}
         fit, n_f = first, nrm[fsel]
-        if not _has_interface(first):
+        first_lobe = _has_interface(first)
+        if not first_lobe:
             n_f = refine(fsel, LAMBERTIAN_SIGMA, 1.0, engine=warm_engine).normals
             choice["cost_lambertian"] = li_fit_cost(e_f, l_f, n_f, ok_f, LAMBERTIAN_SIGMA, 1.0)
             fit = fit_li_per_pixel_kd(e_f, l_f, n_f, ok_f, bounds=LOBE_FIT_BOUNDS)
@@ -412,8 +413,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                 break
         choice.update(cost_lobe=li_fit_cost(e_f, l_f, n_f, ok_f, fit["sigma"], fit["n_i"]),
                       lobe_sigma=fit["sigma"], lobe_n_i=fit["n_i"],
-                      lobe_start="first fit" if _has_interface(first) else "refitted with a lobe kept")
-        gain = None if _has_interface(first) else 1 - choice["cost_lobe"] / max(choice["cost_lambertian"], 1e-30)
+                      lobe_start="first fit" if first_lobe else "refitted with a lobe kept")
+        gain = None if first_lobe else 1 - choice["cost_lobe"] / max(choice["cost_lambertian"], 1e-30)
         if gain is not None:
             choice["gain"] = gain
         if _has_interface(fit) and (gain is None or gain >= LOBE_MIN_GAIN):

@@ -35,7 +35,7 @@ def quantize_scale_bias(coeffs):
     """Per-coefficient scale (float) and integer bias in [0, 255] so that every value of
     coeffs (N, 6) is within half a step of some byte: a = (byte - bias) · scale.
     Returns (scale (6,), bias (6,) int)."""
-    lo, hi = column_range(coeffs) if len(coeffs) else (coeffs.min(axis=0), coeffs.max(axis=0))
+    lo, hi = column_range(coeffs)
     lo, hi = np.minimum(lo.astype(np.float64), 0.0), np.maximum(hi.astype(np.float64), 0.0)
     span = np.where(hi - lo > 0, hi - lo, 1.0)
     bias = np.clip(np.round(-lo / span * 255.0), 0, 255).astype(int)

@@ -177,6 +177,8 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
     keep = np.zeros((m, n_pix), bool)
     resid = np.zeros(n_pix, np.float32)
     changes = np.zeros((int(rounds), n_pix), np.float32)
+    below = np.empty((m, n_pix), bool)            # shadow and specular maps, filled by block
+    above = np.empty((m, n_pix), bool)
 
     def block(a):
         sl = slice(a, a + _CHUNK)
@@ -213,8 +215,6 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         below[:, sl] = okb & ((sn <= 0) | (eb < SHADOW_BELOW * pred))
         above[:, sl] = okb & ~kb & (eb > SPECULAR_ABOVE * pred) & (sn > 0)
 
-    below = np.empty((m, n_pix), bool)
-    above = np.empty((m, n_pix), bool)
     _run_blocks(block, range(0, n_pix, _CHUNK))
     rho = _albedo(e_all, s, normal, keep & ok, idx=sub)
     _scatter(res, idx, "normal", normal.T)

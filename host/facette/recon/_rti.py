@@ -162,9 +162,9 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
         # the shared solve in float32, as the coefficients are stored: half the memory
         # traffic of the largest product (12 MP HSH fit: 3.4 -> 3.0 CPU s)
         proj_t32 = proj_t.astype(np.float32)
-    # float32 storage: the fits are solved in float64 block by block; the files quantise to
-    # 8 bits (PTM) and 8 bits per term (RTI), 2^-24 relative is far below either; 12 MP HSH
-    # coefficients take 330 MB instead of 660.
+    # float32 storage (and the shared far-light product above): the files quantise to 8 bits
+    # (PTM) and 8 bits per term (RTI), 2^-24 relative is far below either; 12 MP HSH
+    # coefficients take 330 MB instead of 660. Pixels with unknown lights are solved in float64.
     coeffs = np.zeros((h * w, c, n_terms), np.float32)
     valid = np.zeros(h * w, bool)
 
