@@ -1,0 +1,179 @@
+"""Lambertian inter-reflections removed from photometric-stereo images (after Nayar, Ikeuchi and
+Kanade 1991, "Shape from interreflections").
+
+A concave matte surface lights itself: each image holds the direct light D, which photometric
+stereo models, plus what the surface gathers from the rest of itself,
+
+    I(x) = D(x) + (ρ(x)/π) Σ_y L(y) cos θ_x cos θ_y A_y / r²_xy        (y seen from x),
+
+with L the radiance leaving y towards x. The images already hold every bounce, so with L taken
+from the images themselves one gather gives D = I − (ρ/π) K I exactly for a Lambertian surface
+of known shape; the shape comes from a first photometric-stereo pass. That pass is biased by the
+same inter-reflections (a crater's walls look turned towards each other), but the correction is
+a small difference of a smooth field and tolerates it: on the Mitsuba relief in plaster (12 rig
+lights) least squares goes from 1.24 to 0.73 deg mean error, 0.70 with the true shape.
+
+What is gathered: the irradiance is smooth, so it is computed on a coarse grid of cells (at
+most `grid` cells along the longer side), each cell one element with the mean normal, albedo and
+radiance of its pixels, its height from integrating the cell normals; it is upsampled bilinearly
+and multiplied by each pixel's own albedo. Visibility: the segment between two cells is tested
+against the cell heights. A highlight leaves in its mirror direction, not towards the
+neighbours, so a cell's radiance is capped at 1.5 × its Lambertian value (+ 5 % of its albedo,
+which keeps the light that lights its shadows); a missing value takes the Lambertian value.
+
+Needs the albedo in reflectance units (ρ, as the rig's Spectralon calibration gives it; else
+`reflectance_scale` converts). Left out: the surroundings (a table, the rig) outside the mask,
+light reaching x through the specular lobe, and depth discontinuities, which integration turns
+into walls: a wrong wall gathers light that is not there, so no value loses more than
+`max_fraction` of itself.
+"""
+import time
+
+import numpy as np
+
+from ._integrate import integrate_frankot_chellappa1988
+
+__all__ = ["remove_interreflections", "IR_GRID", "IR_MAX_FRACTION"]
+
+IR_GRID = 96           # cells along the longer side: 0.3 s at 64x64 cells on 2 cores (relief, 12 lights)
+IR_MAX_FRACTION = 0.5  # no value loses more than this share of itself
+_SOURCE_CAP = 1.5      # a cell's radiance at most this x its Lambertian value (+ _SOURCE_FLOOR x albedo)
+_SOURCE_FLOOR = 0.05
+
+
+def _blocks(a, f, hc, wc):
+    """(..., H, W, k) -> (..., hc, wc, f*f, k) after padding H, W to hc*f, wc*f with NaN."""
+    h, w = a.shape[-3], a.shape[-2]
+    pad = [(0, 0)] * (a.ndim - 3) + [(0, hc * f - h), (0, wc * f - w), (0, 0)]
+    a = np.pad(a.astype(np.float32, copy=False), pad, constant_values=np.nan)
+    a = a.reshape(a.shape[:-3] + (hc, f, wc, f, a.shape[-1]))
+    a = np.moveaxis(a, -4, -3)                 # (..., hc, wc, f, f, k)
+    return a.reshape(a.shape[:-3] + (f * f, a.shape[-1]))
+
+
+def _cell_mean(a, f, hc, wc):
+    with np.errstate(invalid="ignore"):
+        s = np.nansum(_blocks(a, f, hc, wc), axis=-2)
+        n = np.sum(np.isfinite(_blocks(a, f, hc, wc)), axis=-2)
+    return np.where(n > 0, s / np.maximum(n, 1), np.nan).astype(np.float32)
+
+
+def _interp_matrix(n_fine, n_cells, f):
+    """(n_fine, n_cells) linear interpolation from cell centres ((i + 0.5) f - 0.5) to pixels,
+    constant beyond the first and last centres."""
+    x = (np.arange(n_fine) + 0.5) / f - 0.5
+    i0 = np.clip(np.floor(x).astype(int), 0, n_cells - 1)
+    i1 = np.clip(i0 + 1, 0, n_cells - 1)
+    t = np.clip(x - i0, 0, 1).astype(np.float32)
+    m = np.zeros((n_fine, n_cells), np.float32)
+    np.add.at(m, (np.arange(n_fine), i0), 1 - t)
+    np.add.at(m, (np.arange(n_fine), i1), t)
+    return m
+
+
+def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectance_scale=1.0,
+                            grid=IR_GRID, max_fraction=IR_MAX_FRACTION, saturation=None, heights=None):
+    """The images with the light the surface gathers from itself taken out (module doc).
+
+    images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity (as
+        photometric stereo takes them); NaN / inf are missing and stay so.
+    light_dirs : (m, 3) unit vectors towards the lights, or (H, W, m, 3) per pixel.
+    normals : (H, W, 3) and albedo : (H, W) or (H, W, C), a first photometric-stereo pass
+        (`PSResult.normal`, `.albedo`); mask : (H, W) bool, the surface.
+    reflectance_scale : ρ = reflectance_scale x albedo (1: the albedo is a reflectance).
+    grid : cells along the longer side of the gather; max_fraction : see the module doc.
+    saturation : values >= this are missing (as NaN and inf): not corrected, not gathered from.
+    heights : (H, W) surface heights in pixel pitches (z towards the camera), when known; by
+        default the cell normals are integrated (Frankot–Chellappa).
+    Returns (corrected images, same shape, float32; info) with info = grid (cells), cell_px,
+    median_fraction and p95_fraction (share of the lit values on the surface that was gathered
+    light), capped (values limited by max_fraction), seconds.
+    """
+    t0 = time.perf_counter()
+    images = np.asarray(images)
+    grey = images.ndim == 3
+    im = images[..., None] if grey else images
+    if im.ndim != 4:
+        raise ValueError(f"images must be (m, H, W) or (m, H, W, C), got shape {images.shape}")
+    m, h, w, c = im.shape
+    mask = np.asarray(mask, bool)
+    if mask.shape != (h, w) or np.shape(normals) != (h, w, 3):
+        raise ValueError(f"mask {mask.shape} and normals {np.shape(normals)} must match the images' "
+                         f"{(h, w)} (normals with 3 components)")
+    alb = np.asarray(albedo, np.float32)
+    alb = alb[..., None] if alb.ndim == 2 else alb
+    if alb.shape[:2] != (h, w) or alb.shape[2] not in (1, c):
+        raise ValueError(f"albedo {np.shape(albedo)} must be (H, W) or (H, W, {c}) for images {images.shape}")
+    if not (reflectance_scale > 0 and np.isfinite(reflectance_scale)):
+        raise ValueError(f"reflectance_scale must be a positive number, got {reflectance_scale}")
+    if not 0 < max_fraction < 1:
+        raise ValueError(f"max_fraction must be in (0, 1), got {max_fraction}")
+    if heights is not None and np.shape(heights) != (h, w):
+        raise ValueError(f"heights {np.shape(heights)} must be (H, W) = {(h, w)}")
+    if int(grid) < 4:
+        raise ValueError(f"grid must be at least 4 cells, got {grid}")
+    alb = np.broadcast_to(alb, (h, w, c))
+    ok = mask & np.all(np.isfinite(normals), -1) & (np.linalg.norm(normals, axis=-1) > 0.5)
+
+    f = max(1, int(np.ceil(max(h, w) / int(grid))))
+    hc, wc = -(-h // f), -(-w // f)
+    on = lambda a: np.where(ok[..., None], a, np.nan)
+    cover = _cell_mean(ok[..., None].astype(np.float32), f, hc, wc)[..., 0]
+    cells = np.nan_to_num(cover) >= 0.5
+    n_c = np.nan_to_num(_cell_mean(on(normals), f, hc, wc))
+    n_c /= np.maximum(np.linalg.norm(n_c, axis=-1, keepdims=True), 1e-9)
+    cells &= n_c[..., 2] > 0
+    a_c = np.nan_to_num(_cell_mean(on(alb), f, hc, wc))
+    # cell radiance, light by light (no full-size copy of the stack); inf counts as missing
+    sat = np.inf if saturation is None else saturation
+    i_c = np.stack([_cell_mean(np.where(ok[..., None] & np.isfinite(im[k]) & (im[k] < sat), im[k], np.nan),
+                               f, hc, wc) for k in range(m)])                                               # (m, hc, wc, c)
+    ld = np.asarray(light_dirs, np.float32)
+    if ld.ndim == 2:
+        shade = np.einsum("kd,hwd->khw", ld, n_c)
+    else:
+        ld_c = np.nan_to_num(_cell_mean(ld.reshape(h, w, m * 3), f, hc, wc)).reshape(hc, wc, m, 3)
+        shade = np.moveaxis(np.einsum("hwkd,hwd->hwk", ld_c, n_c), -1, 0)
+    model = a_c[None] * np.clip(shade, 0, None)[..., None]
+    src = np.where(np.isfinite(i_c), i_c, model)
+    src = np.minimum(src, _SOURCE_CAP * model + _SOURCE_FLOOR * a_c[None])
+
+    rr, cc = np.nonzero(cells)
+    gathered = np.zeros((m, hc, wc, c), np.float32)
+    if rr.size > 1:
+        from ._interreflect_jit import gather        # numba loads only when this runs
+        if heights is None:
+            z = integrate_frankot_chellappa1988(n_c, 1.0, cells)      # heights in cell units
+        else:
+            z = np.nan_to_num(_cell_mean(on(np.asarray(heights, np.float32)[..., None]), f, hc, wc)[..., 0]) / f
+        zgrid = np.where(cells, z, np.nan).astype(np.float32)
+        rad = np.ascontiguousarray(np.moveaxis(src[:, rr, cc, :], 1, 0).reshape(rr.size, m * c), np.float32)
+        g = gather(rr.astype(np.float32), cc.astype(np.float32), z[rr, cc].astype(np.float32),
+                   np.ascontiguousarray(n_c[rr, cc], np.float32), rad, zgrid, 48)
+        gathered[:, rr, cc, :] = np.moveaxis(g.reshape(rr.size, m, c), 1, 0)
+
+    # upsample each (light, channel) plane: two small matrix products
+    wr, wcm = _interp_matrix(h, hc, f), _interp_matrix(w, wc, f)
+    scale = (alb * np.float32(reflectance_scale / np.pi)).astype(np.float32)
+    out = np.empty((m, h, w, c), np.float32)
+    capped = 0
+    frac_parts = []
+    for k in range(m):
+        ir_k = np.einsum("hi,ijc,wj->hwc", wr, gathered[k], wcm, optimize=True) * scale
+        ir_k = np.where(ok[..., None], ir_k, 0)
+        v = im[k].astype(np.float32)
+        with np.errstate(invalid="ignore"):
+            limit = max_fraction * np.where(np.isfinite(v), np.maximum(v, 0), 0)
+        # a missing value (NaN, inf, clipped) stays as it was, so that it is found missing again
+        usable = np.isfinite(v) & (v < sat)
+        capped += int(np.count_nonzero(usable & (ir_k > limit)))
+        ir_k = np.minimum(ir_k, limit)
+        out[k] = np.where(usable, v - ir_k, v)
+        lit = ok[..., None] & usable & (v > 0)
+        frac_parts.append((ir_k[lit] / v[lit])[:: max(1, lit.sum() // 20000)])
+    fr = np.concatenate(frac_parts) if frac_parts else np.zeros(0)
+    info = {"grid": [int(hc), int(wc)], "cell_px": int(f), "cells": int(rr.size),
+            "median_fraction": float(np.median(fr)) if fr.size else 0.0,
+            "p95_fraction": float(np.percentile(fr, 95)) if fr.size else 0.0,
+            "capped": capped, "seconds": time.perf_counter() - t0}
+    return (out[..., 0] if grey else out), info

@@ -1,0 +1,136 @@
+"""remove_interreflections: what a concave matte surface gathers from itself, taken out."""
+import numpy as np
+import pytest
+from scipy.ndimage import binary_erosion
+
+from facette.bench._mitsuba_scenes import render_scene
+from facette.recon import photometric_stereo, remove_interreflections
+
+UP = np.array([[0.0, 0.0, 1.0], [0.5, 0.0, np.sqrt(0.75)], [0.0, 0.5, np.sqrt(0.75)],
+               [-0.5, 0.0, np.sqrt(0.75)]])
+
+
+def _lambertian(normals, rho, lights):
+    shade = np.clip(np.einsum("kd,hwd->khw", lights, normals), 0, None)
+    return (rho * shade)[..., None].repeat(3, -1).astype(np.float32)
+
+
+def _dome(n=48, radius=20.0):
+    """A convex cap alone (its mask): no two of its points see each other. (On a plane it would
+    not be: the plane's points near the cap see its side.)"""
+    y, x = np.mgrid[:n, :n] - (n - 1) / 2.0
+    r2 = x * x + y * y
+    inside = r2 < radius ** 2
+    z = np.sqrt(np.clip(radius ** 2 - r2, 0, None))
+    nrm = np.dstack([x, -y, z]) / radius            # x right, y up (= -row)
+    nrm[~inside] = (0, 0, 1)
+    return nrm.astype(np.float32), inside
+
+
+def _v_groove(width=64, length=160, slope=0.8):
+    """A long groove along the columns: z = slope |x| (pixel units), its bottom at x = 0."""
+    x = np.arange(width) - (width - 1) / 2.0
+    z = slope * np.abs(x)
+    heights = np.tile(z, (length, 1))
+    nrm = np.zeros((length, width, 3))
+    nrm[..., 0] = -np.sign(x) * slope              # n = (-dz/dx, 0, 1)
+    nrm[..., 2] = 1.0
+    nrm /= np.linalg.norm(nrm, axis=-1, keepdims=True)
+    return nrm.astype(np.float32), heights.astype(np.float32), x, z
+
+
+def test_a_convex_surface_gathers_nothing_and_keeps_its_images():
+    nrm, mask = _dome()
+    im = _lambertian(nrm, 0.7, UP)
+    out, info = remove_interreflections(im, UP, nrm, np.full(mask.shape, 0.7), mask)
+    np.testing.assert_array_equal(out, im)
+    assert info["p95_fraction"] == 0.0 and info["capped"] == 0
+
+
+def test_v_groove_matches_the_analytic_view_factor():
+    # uniform radiance I0 over both faces: a strip of face A at distance u from the apex gathers
+    # E = pi I0 F, F = (sin b2 - sin b1) / 2 (strip to an infinite strip, the angles of face B's
+    # edges from the strip's normal); so I0 - out = rho I0 F
+    nrm, heights, x, z = _v_groove()
+    h, w = heights.shape
+    i0, rho = 0.4, 0.6
+    im = np.full((1, h, w), i0, np.float32)
+    mask = np.ones((h, w), bool)
+    out, info = remove_interreflections(im, UP[:1], nrm, np.full((h, w), rho), mask, grid=max(h, w),
+                                        heights=heights, max_fraction=0.9)
+    assert info["cell_px"] == 1
+    row = h // 2
+    half = w // 2
+    far_b = np.array([x[-1], z[-1]])           # face B: x > 0, from the apex to its far edge
+    for col in (4, 10, 20, 26):                # face A: x < 0
+        p = np.array([x[col], z[col]])
+        n_a = nrm[row, col, [0, 2]]
+        t_a = np.array([n_a[1], -n_a[0]])      # the in-plane direction perpendicular to n_a
+        apex = np.array([(x[half - 1] + x[half]) / 2, 0.0]) - p
+        def sin_angle(v):
+            v = v / np.linalg.norm(v)
+            return float(np.dot(v, t_a))       # signed sine of the angle from n_a
+        f = abs(sin_angle(far_b - p) - sin_angle(apex)) / 2
+        got = (i0 - out[0, row, col]) / (rho * i0)
+        assert got == pytest.approx(f, rel=0.06), (col, got, f)
+
+
+def test_missing_values_stay_missing():
+    nrm, heights, _, _ = _v_groove(32, 48)
+    h, w = heights.shape
+    im = np.full((2, h, w, 3), 0.3, np.float32)
+    im[0, 5, 5] = np.nan
+    im[1, 6, 6] = 2.0                          # at saturation
+    out, _ = remove_interreflections(im, UP[:2], nrm, np.full((h, w, 3), 0.5), np.ones((h, w), bool),
+                                     saturation=2.0, heights=heights)
+    assert np.all(np.isnan(out[0, 5, 5])) and np.all(out[1, 6, 6] == 2.0)
+    assert np.all(out[0, 20, 3] < 0.3)         # a groove's wall lost some light
+
+
+def test_no_value_loses_more_than_the_cap():
+    nrm, heights, _, _ = _v_groove(32, 48, slope=3.0)      # a deep groove: a lot gathered
+    h, w = heights.shape
+    im = np.full((1, h, w), 0.2, np.float32)
+    out, info = remove_interreflections(im, UP[:1], nrm, np.full((h, w), 1.0), np.ones((h, w), bool),
+                                        heights=heights, max_fraction=0.1, reflectance_scale=3.0)
+    assert info["capped"] > 0 and np.all(out >= 0.9 * 0.2 - 1e-7)
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"reflectance_scale": 0.0}, "reflectance_scale"),
+    ({"max_fraction": 1.0}, "max_fraction"),
+    ({"grid": 2}, "grid"),
+    ({"heights": np.zeros((3, 3))}, "heights"),
+])
+def test_bad_options_are_refused_with_what_was_wrong(kwargs, words):
+    nrm, mask = _dome(16, 6)
+    im = _lambertian(nrm, 0.5, UP)
+    with pytest.raises(ValueError, match=words):
+        remove_interreflections(im, UP, nrm, np.full(mask.shape, 0.5), mask, **kwargs)
+
+
+def test_shapes_that_do_not_match_are_refused():
+    nrm, mask = _dome(16, 6)
+    im = _lambertian(nrm, 0.5, UP)
+    with pytest.raises(ValueError, match="must match"):
+        remove_interreflections(im, UP, nrm[:8], np.full(mask.shape, 0.5), mask)
+    with pytest.raises(ValueError, match="albedo"):
+        remove_interreflections(im, UP, nrm, np.full((16, 16, 2), 0.5), mask)
+
+
+def test_an_independent_renderers_concave_plaster_comes_closer_to_the_truth(tmp_path):
+    # Mitsuba's path tracer (4 bounces) on a bas-relief in plaster: least squares after the
+    # removal, with the shape of a first rank_trimmed pass, against least squares on the images
+    d = render_scene("relief", "plaster", size=64, spp=32, cache_dir=tmp_path)
+    sel = binary_erosion(d["mask"])
+    im, lights = d["images"], d["light_dirs"]
+
+    def err(images):
+        n = photometric_stereo(images, lights, method="woodham1980", mask=d["mask"]).normal
+        return np.degrees(np.arccos(np.clip(np.sum(n * d["normals"], -1), -1, 1)))[sel].mean()
+
+    first = photometric_stereo(im, lights, method="rank_trimmed", mask=d["mask"])
+    out, info = remove_interreflections(im, lights, first.normal, first.albedo, first.valid)
+    before, after = err(im), err(out)
+    assert after < 0.85 * before, (before, after)
+    assert 0.005 < info["median_fraction"] < 0.1
