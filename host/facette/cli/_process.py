@@ -57,6 +57,9 @@ def register(sub):
                    choices=[m for m in PS_METHODS if m != "li_alternating"],
                    help="initial normals of --method li_alternating (rpca_wu2010 is better on "
                         "photographs of shiny objects, the hierarchy on matte ones)")
+    p.add_argument("--interreflections", action="store_true",
+                   help="take the light a concave matte surface gathers from itself out of the images "
+                        "first (craters, grooves, a vase's neck; needs a reflectance-calibrated scan)")
     p.add_argument("--integration", default="frankot_chellappa1988",
                    choices=["frankot_chellappa1988", "simchony1990", "least_squares"])
     p.add_argument("--t-ombre", type=_number(float, 0, math.pi / 2, True, "--t-ombre"), default=T_OMBRE,
@@ -117,10 +120,16 @@ def run(args):
                   fit_options={"model": args.brdf_model, "method": args.fit_method},
                   hsh_order=args.hsh_order,
                   ps_options={"init": args.init} if args.method == "li_alternating" else None,
-                  allow_incomplete=args.allow_incomplete, overwrite=args.overwrite)
+                  allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
+                  interreflections=args.interreflections)
     h, w = res.normals.shape[:2]
     print(f"{res.inputs.kind} {res.inputs.source}: {len(res.inputs.light_dirs)} lights, {w}x{h} px, "
           f"{int(res.mask.sum())} valid pixels ({res.options['method']})")
+    ir = res.interreflections
+    if ir is not None:
+        print(f"  inter-reflections: {100 * ir['median_fraction']:.1f} % of the median value, "
+              f"{100 * ir['p95_fraction']:.1f} % at the 95th percentile"
+              + (" (removed)" if ir["applied"] else " (too little: left in)") + f", {ir['seconds']:.1f} s")
     info = res.ps.info
     if "skipped_fraction" in info:
         print(f"  least squares explained {100 * info['skipped_fraction']:.1f} % of the pixels "

@@ -37,6 +37,7 @@ from facette.io.rti import write_hsh_rti
 from facette.recon import (PS_DEFAULT, PS_METHODS, integrate, mesh_from_height, near_light_directions, photometric_stereo,
                            fit_hsh, fit_ptm_lrgb, fit_relight_error)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
+from facette.recon import IR_MAX_FRACTION, remove_interreflections
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._inputs import load_input
@@ -84,7 +85,8 @@ class ProcessResult:
     scan's truth.npz when present (angular error in degrees, height RMS in mm); ptm a
     facette.recon PTMFit, hsh an HSHFit, or None; fit_errors {name: value}: relative RMS of
     the PTM / HSH relighting against the (fall-off corrected) HDR images on the mask (above
-    0.5 Mpx, on an even sample of rows: `recon.RELIGHT_ERROR_PIXELS`).
+    0.5 Mpx, on an even sample of rows: `recon.RELIGHT_ERROR_PIXELS`); interreflections the
+    figures of `remove_interreflections` (and "applied") when it was asked for, else None.
     """
     normals: np.ndarray = None
     albedo: np.ndarray = None
@@ -105,6 +107,7 @@ class ProcessResult:
     hsh: object = None
     fit_errors: dict = field(default_factory=dict)
     quality: dict = field(default_factory=dict)
+    interreflections: dict = None
 
 
 def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=RAW_SAMPLES_KEPT,
@@ -212,7 +215,7 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
             t_source=T_SOURCE, t_residual=T_RESIDUAL, theta0_deg=THETA0_DEG, mask=None,
             pixel_pitch_mm=None, near_light=True, mesh_step=None, ascii_ply=False,
             saturation=None, fit_options=None, hsh_order=3, ps_options=None, allow_incomplete=False,
-            overwrite=False):
+            overwrite=False, interreflections=False):
     """Run the processing chain on a scan directory or a DiLiGenT-style folder.
 
     source : path (or Scan object) of a facette scan (scan.json + hdr/) or a DiLiGenT folder.
@@ -224,6 +227,11 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
         gains "materials" (σ, n_i, pixel count per region) and "levels" (pixels and seconds of
         each level)).
     ps_options : extra keyword arguments of the "li_alternating" method (rounds, materials, ...).
+    interreflections : take the light a concave surface gathers from itself out of the images
+        before photometric stereo (`facette.recon.remove_interreflections`, its shape from a first
+        PS_DEFAULT pass; needs the albedo as a reflectance, as the rig's calibration gives it).
+        The BRDF fit then sees the direct light only; PTM/HSH keep the images as photographed.
+        Skipped, with a note, when gathered light is under 0.5 % of 95 % of the values.
     integration : "frankot_chellappa1988" (thesis), "simchony1990" or "least_squares" (mask only).
     t_ombre (rad), t_spec, t_source, t_residual : see `ps_hierarchical_tautzia2016`.
     theta0_deg : hemisphere-sensor cell size (deg). mask : (H, W) bool or PNG path.
@@ -236,7 +244,8 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
     overwrite : replace an earlier run's results in `out_dir` made with other options or inputs
         (without it, such a folder is refused: one folder holds one run, see process.json).
     Returns a `ProcessResult` (timings: wall seconds per stage, "after_ps" the concurrent
-    stages together, "cpu" the CPU seconds of the whole call). Raises InsufficientData
+    stages together, "cpu" the CPU seconds of the whole call; `interreflections` the removal's
+    figures when it was asked for). Raises InsufficientData
     (facette.errors) when the data cannot carry the result (too dark, saturated, empty mask,
     too few filled cells for a BRDF fit).
     """
@@ -259,7 +268,7 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
 
 def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_source, t_residual,
              theta0_deg, mask, pixel_pitch_mm, near_light, mesh_step, ascii_ply, saturation,
-             fit_options, hsh_order, ps_options, allow_incomplete, overwrite):
+             fit_options, hsh_order, ps_options, allow_incomplete, overwrite, interreflections):
     outputs = list(OUTPUTS if outputs is None else outputs)
     stages = stages_needed(outputs)
     res = ProcessResult(options=dict(method=method, integration=integration, t_ombre=t_ombre,
@@ -272,7 +281,8 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
     record_options = dict(res.options, mask=None if mask is None or not isinstance(mask, (str, Path))
                           else str(mask), pixel_pitch_mm=pixel_pitch_mm, near_light=near_light,
                           mesh_step=mesh_step, saturation=saturation, fit_options=dict(fit_options or {}),
-                          ps_options=dict(ps_options or {}), hsh_order=hsh_order)
+                          ps_options=dict(ps_options or {}), hsh_order=hsh_order,
+                          interreflections=bool(interreflections))
     record_options.pop("outputs")
     t_all = time.perf_counter()
     cpu_all = time.process_time()
@@ -310,13 +320,18 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
         if PS_METHODS.canonical(extra.get("init", "hierarchical_tautzia2016")) == "hierarchical_tautzia2016":
             extra.setdefault("init_options", thresholds)
         kwargs.update(t_residual=t_residual, **extra)
-    ps = photometric_stereo(images, light_dirs, method=method, **kwargs)
+    direct, ps = images, None
+    if interreflections:
+        direct, ps = _without_interreflections(res, images, light_dirs, inp.mask, saturation,
+                                               method_name == PS_DEFAULT)
+    if ps is None:
+        ps = photometric_stereo(direct, light_dirs, method=method, **kwargs)
     res.ps = ps
     res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
     res.timings["ps"] = time.perf_counter() - t0
 
     drawn = {}         # report sections drawn by the concurrent stages
-    res.notes.extend(_after_ps(res, inp, stages, outputs, images, light_dirs, integration, mesh_step,
+    res.notes.extend(_after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration, mesh_step,
                                theta0_deg, fit_options, hsh_order, out_dir, ascii_ply, drawn))
     res.errors = _truth_errors(inp, res)
     res.timings["total_compute"] = time.perf_counter() - t_all
@@ -337,7 +352,32 @@ def _timed(res, name, fn, *args):
     return out
 
 
-def _after_ps(res, inp, stages, outputs, images, light_dirs, integration, mesh_step, theta0_deg,
+# below this share of gathered light at the 95th percentile the second pass changes nothing
+# worth its time (a convex object: 0; the Mitsuba shell, the least concave scene: 5.8 %)
+IR_SKIP_P95 = 0.005
+
+
+def _without_interreflections(res, images, light_dirs, mask, saturation, reuse):
+    """(images with the gathered light removed, or `images` when there is too little to matter;
+    the first pass's PSResult when `reuse` and nothing was removed, else None)."""
+    t0 = time.perf_counter()
+    first = photometric_stereo(images, light_dirs, method=PS_DEFAULT, mask=mask, saturation=saturation)
+    direct, info = remove_interreflections(images, light_dirs, first.normal, first.albedo,
+                                           first.valid & mask, saturation=saturation)
+    info["applied"] = info["p95_fraction"] >= IR_SKIP_P95
+    res.interreflections = info
+    res.timings["interreflections"] = time.perf_counter() - t0
+    how = (f"{info['median_fraction']:.1%} of the median value, {info['p95_fraction']:.1%} at the 95th "
+           f"percentile, on {info['grid'][1]}x{info['grid'][0]} cells")
+    if not info["applied"]:
+        res.notes.append(f"inter-reflections: {how}; too little to matter, the images are used as they are")
+        return images, first if reuse else None
+    res.notes.append(f"inter-reflections removed before photometric stereo: {how}"
+                     + (f"; {info['capped']} values limited to {IR_MAX_FRACTION:.0%} removed" if info["capped"] else ""))
+    return direct, None
+
+
+def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration, mesh_step, theta0_deg,
               fit_options, hsh_order, out_dir, ascii_ply, drawn, workers=2):
     """The stages after photometric stereo, which depend on it only and not on each other,
     concurrently on `workers` threads (numpy, scipy's FFT and the file writers release the
@@ -362,8 +402,9 @@ def _after_ps(res, inp, stages, outputs, images, light_dirs, integration, mesh_s
         return []
 
     def reflectance():
-        # the images as photometric stereo saw them (near lights: fall-off divided out)
-        res.filtered, res.samples = _timed(res, "samples", _samples_stage, images, inp.sample_mask(),
+        # the images as photometric stereo saw them (near lights: fall-off divided out; the
+        # direct light only when inter-reflections were removed: what the BRDF models)
+        res.filtered, res.samples = _timed(res, "samples", _samples_stage, direct, inp.sample_mask(),
                                            res.ps, light_dirs, theta0_deg)
         write("samples")
         if "fit" not in stages:

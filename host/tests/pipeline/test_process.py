@@ -162,3 +162,38 @@ def test_brdf_aware_method_writes_its_materials_into_brdf_json(tmp_path):
     assert ps["levels"]["brdf_aware"]["pixels"] > 0
     albedo, _ = read_exr(tmp_path / "out" / "albedo.exr")
     np.testing.assert_allclose(np.median(albedo[res.mask], axis=0), d["params"]["kd"], rtol=0.1)
+
+
+def _mitsuba_folder(tmp_path, shape, material, size=48, spp=16):
+    from facette.bench._mitsuba_scenes import render_scene
+    d = render_scene(shape, material, size=size, spp=spp, cache_dir=tmp_path / "cache")
+    k = 60000 / float(np.nanmax(d["images"]))
+    folder = tmp_path / f"{shape}_{material}"
+    # intensities k / 65535: the reader's images are the renderer's radiance, the albedo a reflectance
+    write_diligent(folder, np.round(d["images"] * k).astype(np.uint16), d["light_dirs"],
+                   np.full((len(d["light_dirs"]), 3), k / 65535), d["mask"])
+    return folder, d
+
+
+def test_interreflections_removed_on_a_concave_object_and_recorded(tmp_path):
+    folder, d = _mitsuba_folder(tmp_path, "relief", "plaster", size=64, spp=32)
+    plain = process(folder, outputs=["normals", "albedo"], out_dir=None, method="woodham1980")
+    res = process(folder, outputs=["normals", "albedo", "samples", "brdf"], out_dir=tmp_path / "out",
+                  method="woodham1980", interreflections=True)
+    sel = d["mask"] & plain.mask & res.mask
+    err = lambda r: angular_error_deg(r.normals, d["normals"])[sel].mean()
+    assert res.interreflections["applied"] and err(res) < 0.85 * err(plain), (err(res), err(plain))
+    assert any("inter-reflections removed" in n for n in res.notes)
+    record = json.loads((tmp_path / "out" / "process.json").read_text())
+    assert record["options"]["interreflections"] is True
+    # the albedo is no longer brightened by the light the relief sends itself
+    assert np.median(res.albedo[sel]) < np.median(plain.albedo[sel])
+
+
+def test_interreflections_skipped_on_a_convex_object(tmp_path):
+    folder, d = _mitsuba_folder(tmp_path, "sphere", "plaster")
+    plain = process(folder, outputs=["normals"], out_dir=None)
+    res = process(folder, outputs=["normals"], out_dir=None, interreflections=True)
+    assert res.interreflections["p95_fraction"] == 0.0 and not res.interreflections["applied"]
+    assert any("too little to matter" in n for n in res.notes)
+    np.testing.assert_array_equal(res.normals, plain.normals)
