@@ -7,7 +7,9 @@ Every method gets the same input: the grey (mean RGB) images divided by the ligh
 saturated values (any channel at the top of the range) missing, the folder's mask.
 Per object and method: mean and median angular error over the mask (zero-length truth normals
 left out), run time, and the published least-squares figure (Shi et al. 2016/2019, all 96
-lights) beside it; then the mean over each group of objects.
+lights) beside it; then the mean over each group of objects. "rank_trimmed+ir": the same after
+the inter-reflections are removed (facette.recon.remove_interreflections; the albedo's scale
+assumed, see IR_ASSUMED_P99).
 
 --lights 12 picks the 12 DiLiGenT lights nearest the rig's directions (thesis §4.2: theta 15 deg
 at phi 30, 90, ..., 330 and 30 deg at phi 0, 60, ..., 300; one light each, by an optimal
@@ -26,10 +28,15 @@ from scipy.optimize import linear_sum_assignment
 
 import facette.fit  # noqa: F401  (registers the BRDF-aware li_alternating, for --methods)
 from facette.io.diligent import is_diligent_dir, read_diligent
-from facette.recon import PS_METHODS, photometric_stereo
+from facette.recon import PS_METHODS, photometric_stereo, remove_interreflections
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
-DEFAULT_METHODS = ["woodham1980", "hierarchical_tautzia2016", "rpca_wu2010", "rank_trimmed"]
+DEFAULT_METHODS = ["woodham1980", "hierarchical_tautzia2016", "rpca_wu2010", "rank_trimmed", "rank_trimmed+ir"]
+IR_SUFFIX = "+ir"   # a method name with it: inter-reflections removed first (`run_ps`)
+# DiLiGenT's images are divided by the light intensities, but their scale is not a reflectance:
+# for the inter-reflection removal the albedo is scaled so that its 99th percentile is this
+# (an assumption, for the figures only: a reflectance-calibrated scan needs none)
+IR_ASSUMED_P99 = 0.8
 
 # Published mean angular errors (deg), DiLiGenT, all 96 lights (Shi et al. TPAMI 2019, Table 2)
 PUBLISHED_LS = {"ball": 4.10, "cat": 8.41, "pot1": 8.89, "bear": 8.39, "pot2": 14.65,
@@ -95,6 +102,24 @@ def angular_errors(normal, truth, mask):
     return np.degrees(np.arccos(dot))
 
 
+def base_method(name):
+    """'rank_trimmed+ir' -> 'rank_trimmed'."""
+    return name[:-len(IR_SUFFIX)] if name.endswith(IR_SUFFIX) else name
+
+
+def run_ps(images, light_dirs, name, mask, init=None):
+    """photometric_stereo by name; a name ending in IR_SUFFIX first removes the inter-reflections
+    (shape and albedo from a rank_trimmed pass, the albedo scaled as IR_ASSUMED_P99 says)."""
+    method = base_method(name)
+    extra = {"init": init} if init and PS_METHODS.canonical(method) == "li_alternating" else {}
+    if name != method:
+        first = photometric_stereo(images, light_dirs, method="rank_trimmed", mask=mask)
+        p99 = float(np.percentile(first.albedo[first.valid], 99)) if first.valid.any() else 1.0
+        images, _ = remove_interreflections(images, light_dirs, first.normal, first.albedo, first.valid,
+                                            reflectance_scale=IR_ASSUMED_P99 / max(p99, 1e-12))
+    return photometric_stereo(images, light_dirs, method=method, mask=mask, **extra)
+
+
 def run_object(folder, truth_path, methods, lights, init=None):
     select = None
     if lights == "12":
@@ -111,8 +136,7 @@ def run_object(folder, truth_path, methods, lights, init=None):
     rows = []
     for name in methods:
         t = time.perf_counter()
-        extra = {"init": init} if init and PS_METHODS.canonical(name) == "li_alternating" else {}
-        res = photometric_stereo(grey, data.light_dirs, method=name, mask=data.mask, **extra)
+        res = run_ps(grey, data.light_dirs, name, data.mask, init)
         dt = time.perf_counter() - t
         e = angular_errors(res.normal, truth, data.mask)
         rows.append((name, float(e.mean()), float(np.median(e)), dt))
@@ -160,7 +184,7 @@ def speed(methods, size=SPEED_SIZE):
           f"{'mean err':>9s}")
     for name in methods:
         t, c = time.perf_counter(), time.process_time()
-        res = photometric_stereo(imgs, lights, method=name, mask=sc.mask)
+        res = run_ps(imgs, lights, name, sc.mask)
         dt, dc = time.perf_counter() - t, time.process_time() - c
         good = sc.mask
         err = np.degrees(np.arccos(np.clip(np.sum(res.normal[good] * sc.normals[good], -1), -1, 1)))
@@ -206,7 +230,8 @@ def main(argv=None):
     p.add_argument("--lights", choices=["all", "12"], action="append",
                    help="all lights, or the 12 nearest the rig (default: both tables)")
     p.add_argument("--methods", default=",".join(DEFAULT_METHODS),
-                   help=f"comma-separated, from {', '.join(sorted(PS_METHODS))}")
+                   help=f"comma-separated, from {', '.join(sorted(PS_METHODS))}; a name ending in "
+                        f"{IR_SUFFIX} removes the inter-reflections first")
     p.add_argument("--init", default=None,
                    help="initial normals of li_alternating (e.g. rpca_wu2010; default: its own)")
     p.add_argument("--speed", action="store_true", help="also time each method at 2144x1424 x 12")
@@ -215,7 +240,7 @@ def main(argv=None):
                    help="sweep rank_trimmed's trim on the diligent_crop8 objects (leave one out)")
     args = p.parse_args(argv)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    unknown = [m for m in methods if m not in PS_METHODS]
+    unknown = [m for m in methods if base_method(m) not in PS_METHODS]
     if unknown:
         raise SystemExit(f"unknown method {unknown[0]!r}; choose from {', '.join(sorted(PS_METHODS))}")
     root = args.root or default_root()
