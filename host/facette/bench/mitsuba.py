@@ -133,7 +133,7 @@ def main(argv=None):
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--spp", type=int, default=SPP, help=f"samples per pixel (default {SPP}: see SPP)")
     ap.add_argument("--quick", action="store_true", help="three scenes only")
-    ap.add_argument("--init", default=None, help="li_alternating's initial normals (default: its own)")
+    ap.add_argument("--init", default=None, help="li_alternating's initial normals (default: its own, rank_trimmed)")
     ap.add_argument("--methods", default=",".join(METHODS), help="comma-separated (default: all five)")
     ap.add_argument("--interreflections", choices=("off", "on", "both"), default="both",
                     help=f"also run {', '.join(IR_METHODS)} on the images with the inter-reflections "

@@ -53,10 +53,10 @@ def register(sub):
                    choices=list(PS_METHODS),
                    help="photometric stereo (li_alternating: BRDF-aware, the LI model fitted and the "
                         "normals re-estimated against it in alternation)")
-    p.add_argument("--init", default="hierarchical_tautzia2016",
+    p.add_argument("--init", default=PS_DEFAULT,
                    choices=[m for m in PS_METHODS if m != "li_alternating"],
-                   help="initial normals of --method li_alternating (rpca_wu2010 is better on "
-                        "photographs of shiny objects, the hierarchy on matte ones)")
+                   help=f"initial normals of --method li_alternating (default {PS_DEFAULT}; the "
+                        "hierarchy is better on satins)")
     p.add_argument("--interreflections", action="store_true",
                    help="take the light a concave matte surface gathers from itself out of the images "
                         "first (craters, grooves, a vase's neck; needs a reflectance-calibrated scan)")

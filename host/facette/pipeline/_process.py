@@ -317,7 +317,7 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
         kwargs.update(thresholds)
     elif method_name == "li_alternating":
         extra = dict(ps_options or {})
-        if PS_METHODS.canonical(extra.get("init", "hierarchical_tautzia2016")) == "hierarchical_tautzia2016":
+        if PS_METHODS.canonical(extra.get("init", PS_DEFAULT)) == "hierarchical_tautzia2016":
             extra.setdefault("init_options", thresholds)
         kwargs.update(t_residual=t_residual, **extra)
     direct, ps = images, None

@@ -28,6 +28,7 @@ into walls: a wrong wall gathers light that is not there, so no value loses more
 `max_fraction` of itself.
 """
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -41,21 +42,24 @@ _SOURCE_CAP = 1.5      # a cell's radiance at most this x its Lambertian value (
 _SOURCE_FLOOR = 0.05
 
 
-def _blocks(a, f, hc, wc):
-    """(..., H, W, k) -> (..., hc, wc, f*f, k) after padding H, W to hc*f, wc*f with NaN."""
-    h, w = a.shape[-3], a.shape[-2]
-    pad = [(0, 0)] * (a.ndim - 3) + [(0, hc * f - h), (0, wc * f - w), (0, 0)]
-    a = np.pad(a.astype(np.float32, copy=False), pad, constant_values=np.nan)
-    a = a.reshape(a.shape[:-3] + (hc, f, wc, f, a.shape[-1]))
-    a = np.moveaxis(a, -4, -3)                 # (..., hc, wc, f, f, k)
-    return a.reshape(a.shape[:-3] + (f * f, a.shape[-1]))
+def _block_sum(a, f, hc, wc):
+    """(H, W, k) -> (hc, wc, k) float32 sums over f x f blocks (zero-padded at the far edges)."""
+    h, w, k = a.shape
+    if (h, w) != (hc * f, wc * f):
+        a = np.pad(a, [(0, hc * f - h), (0, wc * f - w), (0, 0)])
+    # rows then columns: two reductions over contiguous runs (one over both axes is 3x slower)
+    rows = a.reshape(hc, f, wc * f * k).sum(axis=1, dtype=np.float32)
+    return rows.reshape(hc, wc, f, k).sum(axis=2)
 
 
-def _cell_mean(a, f, hc, wc):
-    with np.errstate(invalid="ignore"):
-        s = np.nansum(_blocks(a, f, hc, wc), axis=-2)
-        n = np.sum(np.isfinite(_blocks(a, f, hc, wc)), axis=-2)
-    return np.where(n > 0, s / np.maximum(n, 1), np.nan).astype(np.float32)
+def _cell_mean(a, keep, f, hc, wc):
+    """(H, W, k) -> (hc, wc, k): the mean of `a` over the pixels of each cell where `keep`
+    ((H, W) or (H, W, k) bool), NaN where a cell has none."""
+    keep = np.broadcast_to(keep if keep.ndim == 3 else keep[..., None], a.shape)
+    s = _block_sum(np.where(keep, a, np.float32(0)).astype(np.float32, copy=False), f, hc, wc)
+    n = _block_sum(keep.astype(np.float32), f, hc, wc)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, s / n, np.nan).astype(np.float32)
 
 
 def _interp_matrix(n_fine, n_cells, f):
@@ -117,22 +121,24 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
 
     f = max(1, int(np.ceil(max(h, w) / int(grid))))
     hc, wc = -(-h // f), -(-w // f)
-    on = lambda a: np.where(ok[..., None], a, np.nan)
-    cover = _cell_mean(ok[..., None].astype(np.float32), f, hc, wc)[..., 0]
-    cells = np.nan_to_num(cover) >= 0.5
-    n_c = np.nan_to_num(_cell_mean(on(normals), f, hc, wc))
+    cells = _block_sum(ok[..., None].astype(np.float32), f, hc, wc)[..., 0] >= 0.5 * f * f
+    n_c = np.nan_to_num(_cell_mean(np.asarray(normals, np.float32), ok, f, hc, wc))
     n_c /= np.maximum(np.linalg.norm(n_c, axis=-1, keepdims=True), 1e-9)
     cells &= n_c[..., 2] > 0
-    a_c = np.nan_to_num(_cell_mean(on(alb), f, hc, wc))
-    # cell radiance, light by light (no full-size copy of the stack); inf counts as missing
-    sat = np.inf if saturation is None else saturation
-    i_c = np.stack([_cell_mean(np.where(ok[..., None] & np.isfinite(im[k]) & (im[k] < sat), im[k], np.nan),
-                               f, hc, wc) for k in range(m)])                                               # (m, hc, wc, c)
+    a_c = np.nan_to_num(_cell_mean(np.ascontiguousarray(alb), ok, f, hc, wc))
+    # cell radiance, light by light (no full-size copy of the stack); NaN, inf and clipped
+    # values are missing
+    sat = np.float32(np.inf if saturation is None else saturation)
+    def cell_radiance(k):
+        with np.errstate(invalid="ignore"):
+            return _cell_mean(im[k], ok[..., None] & (im[k] < sat), f, hc, wc)
+    with ThreadPoolExecutor(2) as pool:                  # numpy lets the GIL go: both cores
+        i_c = np.stack(list(pool.map(cell_radiance, range(m))))                      # (m, hc, wc, c)
     ld = np.asarray(light_dirs, np.float32)
     if ld.ndim == 2:
         shade = np.einsum("kd,hwd->khw", ld, n_c)
     else:
-        ld_c = np.nan_to_num(_cell_mean(ld.reshape(h, w, m * 3), f, hc, wc)).reshape(hc, wc, m, 3)
+        ld_c = np.nan_to_num(_cell_mean(ld.reshape(h, w, m * 3), ok, f, hc, wc)).reshape(hc, wc, m, 3)
         shade = np.moveaxis(np.einsum("hwkd,hwd->hwk", ld_c, n_c), -1, 0)
     model = a_c[None] * np.clip(shade, 0, None)[..., None]
     src = np.where(np.isfinite(i_c), i_c, model)
@@ -145,7 +151,7 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
         if heights is None:
             z = integrate_frankot_chellappa1988(n_c, 1.0, cells)      # heights in cell units
         else:
-            z = np.nan_to_num(_cell_mean(on(np.asarray(heights, np.float32)[..., None]), f, hc, wc)[..., 0]) / f
+            z = np.nan_to_num(_cell_mean(np.asarray(heights, np.float32)[..., None], ok, f, hc, wc)[..., 0]) / f
         zgrid = np.where(cells, z, np.nan).astype(np.float32)
         rad = np.ascontiguousarray(np.moveaxis(src[:, rr, cc, :], 1, 0).reshape(rr.size, m * c), np.float32)
         g = gather(rr.astype(np.float32), cc.astype(np.float32), z[rr, cc].astype(np.float32),
@@ -154,24 +160,32 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
 
     # upsample each (light, channel) plane: two small matrix products
     wr, wcm = _interp_matrix(h, hc, f), _interp_matrix(w, wc, f)
-    scale = (alb * np.float32(reflectance_scale / np.pi)).astype(np.float32)
+    scale = alb * np.float32(reflectance_scale / np.pi)
     out = np.empty((m, h, w, c), np.float32)
-    capped = 0
-    frac_parts = []
-    for k in range(m):
-        ir_k = np.einsum("hi,ijc,wj->hwc", wr, gathered[k], wcm, optimize=True) * scale
-        ir_k = np.where(ok[..., None], ir_k, 0)
-        v = im[k].astype(np.float32)
+    okf = ok[..., None].astype(np.float32)
+    scale = scale * okf                                 # nothing is removed off the surface
+    # the fractions reported are read on an even sample of the surface's pixels
+    sample = np.flatnonzero(ok)[:: max(1, int(ok.sum()) // 20000)]
+
+    def remove(k):
+        v = im[k].astype(np.float32, copy=False)
+        ir_k = np.einsum("hi,ijc,wj->hwc", wr, gathered[k], wcm, optimize=True)
+        ir_k *= scale
         with np.errstate(invalid="ignore"):
-            limit = max_fraction * np.where(np.isfinite(v), np.maximum(v, 0), 0)
-        # a missing value (NaN, inf, clipped) stays as it was, so that it is found missing again
-        usable = np.isfinite(v) & (v < sat)
-        capped += int(np.count_nonzero(usable & (ir_k > limit)))
-        ir_k = np.minimum(ir_k, limit)
-        out[k] = np.where(usable, v - ir_k, v)
-        lit = ok[..., None] & usable & (v > 0)
-        frac_parts.append((ir_k[lit] / v[lit])[:: max(1, lit.sum() // 20000)])
-    fr = np.concatenate(frac_parts) if frac_parts else np.zeros(0)
+            limit = np.float32(max_fraction) * v        # NaN where v is: fmin then keeps ir_k
+            capped = int(np.count_nonzero((ir_k > limit) & (v < sat)))
+            np.fmin(ir_k, np.maximum(limit, 0), out=ir_k)
+            # a missing value (NaN, inf, clipped) stays as it was, so that it is found missing again
+            np.subtract(v, ir_k, out=out[k])
+            np.copyto(out[k], v, where=~(v < sat))
+            vs, rs = v.reshape(-1, c)[sample], ir_k.reshape(-1, c)[sample]
+            lit = (vs > 0) & (vs < sat)
+        return capped, rs[lit] / vs[lit]
+
+    with ThreadPoolExecutor(2) as pool:
+        done = list(pool.map(remove, range(m)))
+    capped = sum(d[0] for d in done)
+    fr = np.concatenate([d[1] for d in done]) if done else np.zeros(0)
     info = {"grid": [int(hc), int(wc)], "cell_px": int(f), "cells": int(rr.size),
             "median_fraction": float(np.median(fr)) if fr.size else 0.0,
             "p95_fraction": float(np.percentile(fr, 95)) if fr.size else 0.0,
