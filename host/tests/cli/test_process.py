@@ -54,6 +54,16 @@ def test_happy_path_writes_the_outputs_and_their_record(capsys, folders, tmp_pat
     assert rec["quality"]["pixels_with_enough_lights"] > 0.9 and rec["scan_incomplete"] is None
 
 
+def test_interreflections_flag_reports_what_was_gathered(capsys, folders, tmp_path):
+    # a sphere on a plane: the plane near the sphere sees its side, so some light is gathered
+    code, out, err = run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r", "--outputs",
+                             "normals", "--interreflections")
+    assert code == 0, err
+    assert "inter-reflections:" in out and "95th percentile" in out
+    rec = json.loads((tmp_path / "r" / "process.json").read_text())
+    assert rec["options"]["interreflections"] is True
+
+
 @pytest.mark.parametrize("name, words", [
     ("black", "below the noise"),
     ("saturated", "are saturated"),
