@@ -37,7 +37,7 @@ from facette.io.rti import write_hsh_rti
 from facette.recon import (PS_DEFAULT, PS_METHODS, integrate, mesh_from_height, near_light_directions, photometric_stereo,
                            fit_hsh, fit_ptm_lrgb, fit_relight_error)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
-from facette.recon import IR_MAX_FRACTION, remove_interreflections
+from facette.recon import IR_MAX_FRACTION, IR_SKIP_P95, remove_interreflections
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._inputs import load_input
@@ -350,11 +350,6 @@ def _timed(res, name, fn, *args):
     out = fn(*args)
     res.timings[name] = time.perf_counter() - t0
     return out
-
-
-# below this share of gathered light at the 95th percentile the second pass changes nothing
-# worth its time (a convex object: 0; the Mitsuba shell, the least concave scene: 5.8 %)
-IR_SKIP_P95 = 0.005
 
 
 def _without_interreflections(res, images, light_dirs, mask, saturation, reuse):

@@ -15,7 +15,7 @@ from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed      # registers both in
 from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
                          integrate_simchony1990, integrate_least_squares, integrate,
                          INTEGRATION_METHODS, mesh_from_height)
-from ._interreflect import remove_interreflections, IR_GRID, IR_MAX_FRACTION
+from ._interreflect import remove_interreflections, IR_GRID, IR_MAX_FRACTION, IR_PASSES, IR_SKIP_P95
 from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, fit_relight_error, relight_ptm,
                    relight_hsh, relight_error, HSH_ORDERS, RELIGHT_ERROR_PIXELS)
 
@@ -26,4 +26,5 @@ __all__ = ["PS_DEFAULT", "PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2
            "integrate_least_squares", "integrate", "INTEGRATION_METHODS", "mesh_from_height",
            "ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh", "relight_ptm",
            "relight_hsh", "relight_error", "fit_relight_error", "HSH_ORDERS",
-           "RELIGHT_ERROR_PIXELS", "remove_interreflections", "IR_GRID", "IR_MAX_FRACTION"]
+           "RELIGHT_ERROR_PIXELS", "remove_interreflections", "IR_GRID", "IR_MAX_FRACTION", "IR_PASSES",
+           "IR_SKIP_P95"]
