@@ -129,7 +129,8 @@ def run(args):
     if ir is not None:
         print(f"  inter-reflections: {100 * ir['median_fraction']:.1f} % of the median value, "
               f"{100 * ir['p95_fraction']:.1f} % at the 95th percentile"
-              + (" (removed)" if ir["applied"] else " (too little: left in)") + f", {ir['seconds']:.1f} s")
+              + (f" (removed in {len(ir['passes'])} pass(es))" if ir["applied"] else " (too little: left in)")
+              + f", {ir['seconds']:.1f} s")
     info = res.ps.info
     if "skipped_fraction" in info:
         print(f"  least squares explained {100 * info['skipped_fraction']:.1f} % of the pixels "

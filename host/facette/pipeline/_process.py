@@ -363,7 +363,7 @@ def _without_interreflections(res, images, light_dirs, mask, saturation, reuse):
     res.interreflections = info
     res.timings["interreflections"] = time.perf_counter() - t0
     how = (f"{info['median_fraction']:.1%} of the median value, {info['p95_fraction']:.1%} at the 95th "
-           f"percentile, on {info['grid'][1]}x{info['grid'][0]} cells")
+           f"percentile, on {info['grid'][1]}x{info['grid'][0]} cells, {len(info['passes'])} pass(es)")
     if not info["applied"]:
         res.notes.append(f"inter-reflections: {how}; too little to matter, the images are used as they are")
         return images, first if reuse else None
