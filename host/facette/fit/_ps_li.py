@@ -229,7 +229,7 @@ def _regions(albedo, n_pix, materials, min_fraction, seed):
 
 def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=None,
                       init="rank_trimmed", rounds=4, tol_deg=0.1, fit_pixels=1000,
-                      t_residual=T_RESIDUAL, iterations=8, materials=1, min_region_fraction=0.05,
+                      t_residual=T_RESIDUAL, iterations=24, materials=1, min_region_fraction=0.05,
                       seed=0, init_options=None, coarse_pixels=COARSE_PIXELS, fine_iterations=2,
                       engine="auto"):
     """BRDF-aware photometric stereo with the LI model (module doc).
@@ -251,7 +251,11 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         the half best explained by the model).
     t_residual : pixels whose least-squares relative residual is below this, with every light
         usable and none in the fitted lobe, keep their initial normal (Lambertian level).
-    iterations : Gauss–Newton steps per round per pixel.
+    iterations : at most this many Gauss–Newton steps per round per pixel (a pixel stops once
+        its step is below the solver's tolerance). 24, not 8: the cap stopped pixels before they
+        converged (Mitsuba sphere paint 0.10, 256 spp: 1.139 / 1.114 / 1.102 deg at 8 / 16 / 24;
+        near lights 1.243 / 1.190 / 1.165; DiLiGenT, 96 lights: 9.50 / 9.31 deg at 8 / 24) at
+        no measurable cost on the 12 MP simulated scan (20.1 / 17.7 s, one run each).
     materials : 1 (one material), "auto" (regions found by clustering, see module doc) or an int.
     coarse_pixels : coarse-to-fine above this many valid pixels (one material only): the whole
         alternation runs on the images binned by the smallest integer factor that brings the
