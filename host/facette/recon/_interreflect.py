@@ -183,8 +183,14 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
     with ThreadPoolExecutor(2) as pool:                  # numpy lets the GIL go: both cores
         i_c = np.stack(list(pool.map(cell_radiance, range(m))))                      # (m, hc, wc, c)
     ld = np.asarray(light_dirs, np.float32)
-    ld_c = ld if ld.ndim == 2 else np.nan_to_num(
-        _cell_mean(ld.reshape(h, w, m * 3), ok, f, hc, wc)).reshape(hc, wc, m, 3)
+    if ld.ndim == 2:
+        ld_c = ld
+    else:   # per-pixel directions: the cell mean, renormalised; cells off the surface take the mean
+        ld_c = np.nan_to_num(_cell_mean(ld.reshape(h, w, m * 3), ok, f, hc, wc)).reshape(hc, wc, m, 3)
+        mean = ld.reshape(-1, m, 3).mean(axis=0)
+        norm = np.linalg.norm(ld_c, axis=-1, keepdims=True)
+        ld_c = np.where(norm > 0.5, ld_c / np.maximum(norm, 1e-9),
+                        mean / np.linalg.norm(mean, axis=-1, keepdims=True)).astype(np.float32)
     if heights is None:
         z = None
     else:

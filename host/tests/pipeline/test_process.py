@@ -141,6 +141,9 @@ def test_scan_with_near_lights_uses_positions(tmp_path):
     # reflectance with the 1/r^2 fall-off divided out: the Lambertian 0.5 / pi everywhere
     _, _, f, count = near.filtered.flat(min_count=5)
     np.testing.assert_allclose(f, 0.5 / np.pi, rtol=0.01)
+    # the inter-reflection removal takes the per-pixel directions (the mask leaves cells empty)
+    ir = process(tmp_path / "scan", outputs=["normals"], interreflections=True)
+    assert ir.interreflections["applied"] and np.isfinite(ir.normals).all()
 
 
 def test_brdf_aware_method_writes_its_materials_into_brdf_json(tmp_path):

@@ -154,3 +154,21 @@ def test_later_passes_reestimate_the_shape_of_a_deep_concavity(tmp_path):
     assert len(info1["passes"]) == 1 and len(info3["passes"]) >= 2
     assert info3["passes"][0]["median_change_deg"] > 0.1
     assert three < 0.9 * one, (one, three)
+
+
+def test_per_pixel_light_directions_give_what_distant_ones_give():
+    # near lights pass (H, W, m, 3); with the same direction everywhere the result must match,
+    # on a bowl whose mask leaves cells empty (their directions are then not averaged from zeros)
+    h = w = 32
+    y, x = np.mgrid[:h, :w] - 15.5
+    nrm = np.dstack([-0.04 * x, 0.04 * y, np.ones((h, w))])
+    nrm /= np.linalg.norm(nrm, axis=-1, keepdims=True)
+    lights = np.concatenate([UP, UP[1:] * [[-1, -1, 1]]])
+    lights /= np.linalg.norm(lights, axis=1, keepdims=True)
+    im = _lambertian(nrm, 0.8, lights)
+    mask = x * x + y * y < 14 ** 2
+    far, info = remove_interreflections(im, lights, nrm, np.full((h, w), 0.8), mask, grid=16)
+    near, _ = remove_interreflections(im, np.broadcast_to(lights, (h, w, len(lights), 3)), nrm,
+                                      np.full((h, w), 0.8), mask, grid=16)
+    assert info["median_fraction"] > 0.01
+    np.testing.assert_allclose(near, far, rtol=1e-5, atol=1e-7)
