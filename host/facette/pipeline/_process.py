@@ -35,9 +35,9 @@ from facette.io.png import write_mask
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
 from facette.recon import (PS_DEFAULT, PS_METHODS, integrate, mesh_from_height, near_light_directions, photometric_stereo,
-                           fit_hsh, fit_ptm_lrgb, fit_relight_error)
+                           fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION, IR_SKIP_P95,
+                           remove_interreflections)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
-from facette.recon import IR_MAX_FRACTION, IR_SKIP_P95, remove_interreflections
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._inputs import load_input
@@ -231,7 +231,8 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
         before photometric stereo (`facette.recon.remove_interreflections`, its shape from a first
         PS_DEFAULT pass; needs the albedo as a reflectance, as the rig's calibration gives it).
         The BRDF fit then sees the direct light only; PTM/HSH keep the images as photographed.
-        Skipped, with a note, when gathered light is under 0.5 % of 95 % of the values.
+        Left out, with a note, when gathered light is under IR_SKIP_P95 (0.5 %) of the values at
+        their 95th percentile (a convex object gathers none).
     integration : "frankot_chellappa1988" (thesis), "simchony1990" or "least_squares" (mask only).
     t_ombre (rad), t_spec, t_source, t_residual : see `ps_hierarchical_tautzia2016`.
     theta0_deg : hemisphere-sensor cell size (deg). mask : (H, W) bool or PNG path.
