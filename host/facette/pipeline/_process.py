@@ -27,7 +27,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from facette.fit import fit_hemisphere_cells
-from facette.errors import BadInputError
+from facette.errors import BadInputError, InsufficientData
 from facette.io.exr import write_exr
 from facette.io.ply import write_ply
 from facette.io.gltf import write_glb
@@ -358,6 +358,17 @@ def _without_interreflections(res, images, light_dirs, mask, saturation, reuse):
     the first pass's PSResult when `reuse` and nothing was removed, else None)."""
     t0 = time.perf_counter()
     first = photometric_stereo(images, light_dirs, method=PS_DEFAULT, mask=mask, saturation=saturation)
+    if first.valid.any():
+        # the gathered light is scaled by the albedo: one that is not a reflectance (a DiLiGenT
+        # folder's relative intensities) would remove the wrong amount without a word
+        p99 = float(np.percentile(first.albedo[first.valid].max(axis=-1), 99))
+        if p99 > 1.0:
+            raise InsufficientData(
+                f"--interreflections needs the albedo as a reflectance, and this source's reaches "
+                f"{p99:.2f} (99th percentile; a reflectance is at most 1): its light intensities are "
+                "relative, not calibrated",
+                hint="process without --interreflections, or call facette.recon.remove_interreflections("
+                     "..., reflectance_scale=) with your calibration's scale")
     direct, info = remove_interreflections(images, light_dirs, first.normal, first.albedo,
                                            first.valid & mask, saturation=saturation)
     info["applied"] = info["p95_fraction"] >= IR_SKIP_P95

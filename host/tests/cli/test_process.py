@@ -55,13 +55,23 @@ def test_happy_path_writes_the_outputs_and_their_record(capsys, folders, tmp_pat
 
 
 def test_interreflections_flag_reports_what_was_gathered(capsys, folders, tmp_path):
-    # a sphere on a plane: the plane near the sphere sees its side, so some light is gathered
-    code, out, err = run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r", "--outputs",
-                             "normals", "--interreflections")
+    # a sphere on a plane (the plane near the sphere sees its side), its intensities calibrated
+    # so that the albedo is a reflectance
+    sc = sphere_on_plane(24, 32)
+    imgs = render(sc, L, "matte")
+    k = 50000 / imgs.max()
+    folder = tmp_path / "calibrated"
+    write_diligent(folder, np.round(imgs * k).astype(np.uint16), L, np.full((12, 3), k / 65535), sc.mask)
+    code, out, err = run_cli(capsys, "process", folder, "-o", tmp_path / "r", "--outputs", "normals",
+                             "--interreflections")
     assert code == 0, err
     assert "inter-reflections:" in out and "95th percentile" in out
     rec = json.loads((tmp_path / "r" / "process.json").read_text())
     assert rec["options"]["interreflections"] is True
+    # the same images with relative intensities: the albedo is no reflectance, exit 3 saying so
+    code, out, err = run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r2", "--outputs",
+                             "normals", "--interreflections")
+    assert code == 3 and "needs the albedo as a reflectance" in err and "without --interreflections" in err
 
 
 @pytest.mark.parametrize("name, words", [

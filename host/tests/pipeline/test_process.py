@@ -9,6 +9,7 @@ from facette.io.diligent import write_diligent
 from facette.io.exr import read_exr, write_exr
 from facette.io.ply import read_ply
 from facette.io.png import read_mask
+from facette.errors import InsufficientData
 from facette.pipeline import process, stages_needed
 from facette.recon.synthetic import angular_error_deg, render, sphere_on_plane, thesis_light_directions
 
@@ -167,14 +168,14 @@ def test_brdf_aware_method_writes_its_materials_into_brdf_json(tmp_path):
     np.testing.assert_allclose(np.median(albedo[res.mask], axis=0), d["params"]["kd"], rtol=0.1)
 
 
-def _mitsuba_folder(tmp_path, shape, material, size=48, spp=16):
+def _mitsuba_folder(tmp_path, shape, material, size=48, spp=16, intensity=1.0):
     from facette.bench._mitsuba_scenes import render_scene
     d = render_scene(shape, material, size=size, spp=spp, cache_dir=tmp_path / "cache")
     k = 60000 / float(np.nanmax(d["images"]))
     folder = tmp_path / f"{shape}_{material}"
     # intensities k / 65535: the reader's images are the renderer's radiance, the albedo a reflectance
     write_diligent(folder, np.round(d["images"] * k).astype(np.uint16), d["light_dirs"],
-                   np.full((len(d["light_dirs"]), 3), k / 65535), d["mask"])
+                   np.full((len(d["light_dirs"]), 3), intensity * k / 65535), d["mask"])
     return folder, d
 
 
@@ -200,3 +201,12 @@ def test_interreflections_skipped_on_a_convex_object(tmp_path):
     assert res.interreflections["p95_fraction"] == 0.0 and not res.interreflections["applied"]
     assert any("too little to matter" in n for n in res.notes)
     np.testing.assert_array_equal(res.normals, plain.normals)
+
+
+def test_interreflections_refuse_an_albedo_that_is_not_a_reflectance(tmp_path):
+    # intensities given at a third of the truth: the albedo comes out at 3 x (0.6 and brighter)
+    folder, _ = _mitsuba_folder(tmp_path, "relief", "plaster", intensity=1 / 3)
+    with pytest.raises(InsufficientData, match="needs the albedo as a reflectance") as exc:
+        process(folder, outputs=["normals"], interreflections=True)
+    assert float(str(exc.value).split("reaches ")[1].split()[0]) > 1.5
+    assert "reflectance_scale" in exc.value.hint
