@@ -72,15 +72,14 @@ def _images_and_dirs(d):
 def run_ps(d, method, init=None, interreflections=False):
     """(PSResult, seconds); with `interreflections`, a first rank_trimmed pass gives the shape
     and remove_interreflections the images the method sees (both inside the seconds)."""
-    from facette.recon import PS_DEFAULT, photometric_stereo, remove_interreflections
+    from facette.recon import photometric_stereo, without_interreflections
     im, L = _images_and_dirs(d)
     extra = {"materials": "auto"} if d["params"].get("two_materials") else {}
     if init:
         extra["init"] = init
     t = time.perf_counter()
     if interreflections:
-        first = photometric_stereo(im, L, method=PS_DEFAULT, mask=d["mask"])
-        im, _ = remove_interreflections(im, L, first.normal, first.albedo, first.valid)
+        im, _, _ = without_interreflections(im, L, d["mask"])
     r = photometric_stereo(im, L, method=method, mask=d["mask"], **(extra if method == "li_alternating" else {}))
     return r, time.perf_counter() - t
 

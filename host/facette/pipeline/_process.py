@@ -27,7 +27,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from facette.fit import fit_hemisphere_cells
-from facette.errors import BadInputError, InsufficientData
+from facette.errors import BadInputError
 from facette.io.exr import write_exr
 from facette.io.ply import write_ply
 from facette.io.gltf import write_glb
@@ -35,8 +35,8 @@ from facette.io.png import write_mask
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
 from facette.recon import (PS_DEFAULT, PS_METHODS, integrate, mesh_from_height, near_light_directions, photometric_stereo,
-                           fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION, IR_SKIP_P95,
-                           remove_interreflections)
+                           fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION,
+                           without_interreflections)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
 from facette.pipeline._exports import gltf_inputs, gltf_material
@@ -86,7 +86,7 @@ class ProcessResult:
     facette.recon PTMFit, hsh an HSHFit, or None; fit_errors {name: value}: relative RMS of
     the PTM / HSH relighting against the (fall-off corrected) HDR images on the mask (above
     0.5 Mpx, on an even sample of rows: `recon.RELIGHT_ERROR_PIXELS`); interreflections the
-    figures of `remove_interreflections` (and "applied") when it was asked for, else None.
+    figures of `without_interreflections` when it was asked for, else None.
     """
     normals: np.ndarray = None
     albedo: np.ndarray = None
@@ -228,8 +228,8 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
         each level)).
     ps_options : extra keyword arguments of the "li_alternating" method (rounds, materials, ...).
     interreflections : take the light a concave surface gathers from itself out of the images
-        before photometric stereo (`facette.recon.remove_interreflections`, its shape from a first
-        PS_DEFAULT pass; needs the albedo as a reflectance, as the rig's calibration gives it).
+        before photometric stereo (`facette.recon.without_interreflections`, its shape from a first
+        rank_trimmed pass; needs the albedo as a reflectance, as the rig's calibration gives it).
         The BRDF fit then sees the direct light only; PTM/HSH keep the images as photographed.
         Left out, with a note, when gathered light is under IR_SKIP_P95 (0.5 %) of the values at
         their 95th percentile (a convex object gathers none).
@@ -324,7 +324,7 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
     direct, ps = images, None
     if interreflections:
         direct, ps = _without_interreflections(res, images, light_dirs, inp.mask, saturation,
-                                               method_name == PS_DEFAULT)
+                                               method_name == "rank_trimmed")
     if ps is None:
         ps = photometric_stereo(direct, light_dirs, method=method, **kwargs)
     res.ps = ps
@@ -357,21 +357,7 @@ def _without_interreflections(res, images, light_dirs, mask, saturation, reuse):
     """(images with the gathered light removed, or `images` when there is too little to matter;
     the first pass's PSResult when `reuse` and nothing was removed, else None)."""
     t0 = time.perf_counter()
-    first = photometric_stereo(images, light_dirs, method=PS_DEFAULT, mask=mask, saturation=saturation)
-    if first.valid.any():
-        # the gathered light is scaled by the albedo: one that is not a reflectance (a DiLiGenT
-        # folder's relative intensities) would remove the wrong amount without a word
-        p99 = float(np.percentile(first.albedo[first.valid].max(axis=-1), 99))
-        if p99 > 1.0:
-            raise InsufficientData(
-                f"--interreflections needs the albedo as a reflectance, and this source's reaches "
-                f"{p99:.2f} (99th percentile; a reflectance is at most 1): its light intensities are "
-                "relative, not calibrated",
-                hint="process without --interreflections, or call facette.recon.remove_interreflections("
-                     "..., reflectance_scale=) with your calibration's scale")
-    direct, info = remove_interreflections(images, light_dirs, first.normal, first.albedo,
-                                           first.valid & mask, saturation=saturation)
-    info["applied"] = info["p95_fraction"] >= IR_SKIP_P95
+    direct, first, info = without_interreflections(images, light_dirs, mask, saturation=saturation)
     res.interreflections = info
     res.timings["interreflections"] = time.perf_counter() - t0
     how = (f"{info['median_fraction']:.1%} of the median value, {info['p95_fraction']:.1%} at the 95th "

@@ -33,10 +33,13 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from facette.errors import InsufficientData
+
 from ._integrate import integrate_frankot_chellappa1988
 from ._ps_robust import ps_rank_trimmed
 
-__all__ = ["remove_interreflections", "IR_GRID", "IR_MAX_FRACTION", "IR_PASSES", "IR_SKIP_P95"]
+__all__ = ["remove_interreflections", "without_interreflections", "IR_GRID", "IR_MAX_FRACTION",
+           "IR_PASSES", "IR_SKIP_P95"]
 
 IR_GRID = 96           # cells along the longer side: 0.3 s at 64x64 cells on 2 cores (relief, 12 lights)
 IR_MAX_FRACTION = 0.5  # no value loses more than this share of itself
@@ -249,3 +252,31 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
             "capped": capped, "seconds": time.perf_counter() - t0}
     return (out[..., 0] if grey else out), info
 
+
+
+def without_interreflections(images, light_dirs, mask, saturation=None, reflectance_scale=1.0, **options):
+    """`remove_interreflections` with its first shape from rank_trimmed on the images.
+
+    images, light_dirs, mask, saturation : as `ps_rank_trimmed`; reflectance_scale and
+    **options : as `remove_interreflections`.
+    Returns (images, first, info): the corrected images, or the given ones when under
+    IR_SKIP_P95 of the values at the 95th percentile is gathered light (info "applied" False);
+    the first pass's PSResult; the removal's info.
+    Raises InsufficientData when reflectance_scale x albedo is no reflectance (its 99th
+    percentile above 1, as with a DiLiGenT folder's relative intensities): the wrong amount of
+    light would be removed without a word.
+    """
+    first = ps_rank_trimmed(images, light_dirs, mask=mask, saturation=saturation)
+    if first.valid.any():
+        p99 = float(np.percentile(first.albedo[first.valid].max(axis=-1), 99)) * reflectance_scale
+        if p99 > 1.0:
+            raise InsufficientData(
+                f"removing inter-reflections needs the albedo as a reflectance, and this one reaches "
+                f"{p99:.2f} (99th percentile; a reflectance is at most 1): the light intensities are "
+                "relative, not calibrated",
+                hint="leave the removal out (no --interreflections), or give the calibration's scale "
+                     "(remove_interreflections(..., reflectance_scale=))")
+    out, info = remove_interreflections(images, light_dirs, first.normal, first.albedo, first.valid & mask,
+                                        reflectance_scale=reflectance_scale, saturation=saturation, **options)
+    info["applied"] = info["p95_fraction"] >= IR_SKIP_P95
+    return (out if info["applied"] else images), first, info

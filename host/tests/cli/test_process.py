@@ -71,7 +71,7 @@ def test_interreflections_flag_reports_what_was_gathered(capsys, folders, tmp_pa
     # the same images with relative intensities: the albedo is no reflectance, exit 3 saying so
     code, out, err = run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r2", "--outputs",
                              "normals", "--interreflections")
-    assert code == 3 and "needs the albedo as a reflectance" in err and "without --interreflections" in err
+    assert code == 3 and "needs the albedo as a reflectance" in err and "no --interreflections" in err
 
 
 @pytest.mark.parametrize("name, words", [
