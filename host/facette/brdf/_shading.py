@@ -5,9 +5,13 @@ frame), the image value divided by the light's intensity is (DESIGN §8, thesis 
 
     E = f(s, v; n) (n·s) = A(n, s) + B(n, s) · κ,    κ = K_d / (π n_i² (1 − K_d r_i)),
 
-with A = (n·s) f_s (the specular lobe, eq 3.10, Beckmann D + Smith G) and B = (n·s) I (the
-volume integral of eq 3.15 by the approximate formula eq 3.49–3.57, the same evaluation the
-pipeline's fit uses). K_d enters only through κ, so for fixed (σ, n_i, n) each channel's K_d
+with A = (n·s) f_s (the specular lobe, eq 3.10, Beckmann D + Smith G) and B = (n·s) I, the
+volume integral of eq 3.15: by the approximate formula eq 3.49–3.57 (volume_model="approx"),
+or from quadrature tables interpolated in (σ, n_i) (volume_model="tables",
+facette.brdf.volume_table_at). The formula is 3–5 % off the integral at the median and
+10–20 % at grazing angles; against Mitsuba's roughplastic (σ 0.1, n_i 1.3) it predicts
+0.98 of the rendered values near the normal and 0.85 at 75–85°, the tables 1.00 and 0.93, and
+per-pixel normals solved from the true ones move by 0.98° (formula) against 0.38° (tables). K_d enters only through κ, so for fixed (σ, n_i, n) each channel's K_d
 has a closed form. `li_shading_terms` evaluates A and B for many pixels and lights at once in
 float32 from dot products only (no local frames, no arccos of vectors): ~20× faster than
 `li_specular` + `volume_integral_approx` on local-frame vectors, and equal to them to ~1e-5
@@ -18,9 +22,11 @@ from scipy.special import erfc
 
 from ._fresnel import check_n_i, fresnel_dielectric, r_e_molenaar1999, r_i_simonot2009
 from ._microfacet import SIGMA_FLAT
-from ._volume import approx_coefficients, rough_lambert_terms
+from ._volume import approx_coefficients, rough_lambert_terms, volume_table_at
 
-__all__ = ["li_shading_terms", "li_kappa", "li_kd_from_kappa"]
+__all__ = ["li_shading_terms", "li_kappa", "li_kd_from_kappa", "VOLUME_MODELS"]
+
+VOLUME_MODELS = ("approx", "tables")
 
 _SQRT_PI = np.float32(np.sqrt(np.pi))
 
@@ -50,7 +56,7 @@ def _smith_g1_beckmann(c, sigma):
     return np.where(c <= 0, np.float32(0), np.where(sin > 0, g, np.float32(1))).astype(np.float32)
 
 
-def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True):
+def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True, volume_model="approx"):
     """A, B of E = A + B κ for unit normals and light directions, camera frame, view +z.
 
     normals : (N, 3) float unit vectors (camera frame, z towards the camera).
@@ -60,6 +66,7 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True):
     specular : False gives A = 0 (the volume part only).
     volume : False skips the volume part and returns B = None (the specular lobe only, the cheap
         part: it is evaluated on the pairs near the lobe alone).
+    volume_model : "approx" (eq 3.49–3.57) or "tables" (eq 3.15 itself, see the module doc).
     Returns (A, B), each (N, m) float32, 0 where n·s ≤ 0 or n·v ≤ 0 (attached shadow,
     back-facing). Units: E is the image value over the light's intensity; a Lambertian
     surface of reflectance ρ has A = 0, B κ = (ρ/π) n·s.
@@ -67,6 +74,8 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True):
     """
     n_i = check_n_i(n_i)
     sigma = float(sigma)
+    if volume_model not in VOLUME_MODELS:
+        raise ValueError(f"volume_model = {volume_model!r}: choose one of {', '.join(VOLUME_MODELS)}")
     if not np.isfinite(sigma) or sigma < 0:
         raise ValueError(f"sigma = {sigma!r}: the roughness must be a finite number ≥ 0")
     nrm = np.asarray(normals, dtype=np.float32)
@@ -92,7 +101,7 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True):
         if specular and sigma >= SIGMA_FLAT and n_i != 1.0:
             _specular_into(A, cs, cs_c, co_c, sv, lit, sigma, n_i)
         return A, None
-    # volume part, eq 3.49-3.57 (as facette.brdf.volume_integral_approx)
+    # volume part: the angles (θ_s, θ_o, Δφ) in the local frame, from dot products
     sin_s = np.sqrt(np.maximum(1 - cs_c * cs_c, 0))
     sin_o = np.sqrt(np.maximum(1 - co_c * co_c, 0))
     both = (sin_s > 1e-6) & (sin_o > 1e-6)
@@ -100,19 +109,27 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True):
         cphi = np.where(both, np.clip((sv - cs_c * co_c) / np.where(both, sin_s * sin_o, 1), -1, 1),
                         np.float32(1))
     ts, to = np.arccos(cs_c), np.arccos(co_c)
-    r_e = r_e_molenaar1999(n_i)
-    a, b, c = (np.float32(x) for x in approx_coefficients(sig_v, n_i, "beckmann"))
-    t_s = a * (1 - fresnel_dielectric(cs_c, n_i)) + b * np.float32(1 - r_e)
-    t_o = a * (1 - fresnel_dielectric(co_c, n_i)) + b * np.float32(1 - r_e)
-    fpa = np.float32(r_e) * (1 - cs_c) ** 2 * (1 - co_c) ** 2 * np.minimum(0, cphi)
-    bracket = rough_lambert_terms(ts, to, cphi, np.float32(sig_v), "beckmann")
-    vol = np.maximum(t_s * t_o * (1 + np.maximum(-1, c * fpa)) * bracket, 0)
+    if volume_model == "tables":
+        vol = volume_table_at(sig_v, n_i).at_angles(ts, to, np.arccos(cphi)).astype(np.float32)
+    else:
+        vol = _volume_approx(ts, to, cs_c, co_c, cphi, sig_v, n_i)
     B = np.where(lit, cs_c * vol, np.float32(0)).astype(np.float32)
     if not specular or sigma < SIGMA_FLAT or n_i == 1.0:
         return np.zeros_like(B), B
     A = np.zeros_like(B)
     _specular_into(A, cs, cs_c, co_c, sv, lit, sigma, n_i)
     return A, B
+
+
+def _volume_approx(ts, to, cs_c, co_c, cphi, sig_v, n_i):
+    """I by eq 3.49-3.57 from the angles (as facette.brdf.volume_integral_approx), float32."""
+    r_e = r_e_molenaar1999(n_i)
+    a, b, c = (np.float32(x) for x in approx_coefficients(sig_v, n_i, "beckmann"))
+    t_s = a * (1 - fresnel_dielectric(cs_c, n_i)) + b * np.float32(1 - r_e)
+    t_o = a * (1 - fresnel_dielectric(co_c, n_i)) + b * np.float32(1 - r_e)
+    fpa = np.float32(r_e) * (1 - cs_c) ** 2 * (1 - co_c) ** 2 * np.minimum(0, cphi)
+    bracket = rough_lambert_terms(ts, to, cphi, np.float32(sig_v), "beckmann")
+    return np.maximum(t_s * t_o * (1 + np.maximum(-1, c * fpa)) * bracket, 0)
 
 
 def _specular_into(A, cs, cs_c, co_c, sv, lit, sigma, n_i):

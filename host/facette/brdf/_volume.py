@@ -9,8 +9,10 @@ sampled, tabulated and approximated here: a table built once per (σ, n_i, D, G)
 K_d and every colour channel at the cost of one multiplication.
 
 Methods: ``quadrature`` (deterministic, the reference), ``monte_carlo`` (importance sampling
-eq 3.27), ``table`` (§3.2.2, trilinear in (θ_s, θ_o, |φ_o − φ_s|)) and ``approx``
-(eq 3.49–3.57, Beckmann or Gaussian constants of tables 3.3–3.5).
+eq 3.27), ``table`` (§3.2.2, trilinear in (θ_s, θ_o, |φ_o − φ_s|)), ``tables`` (node tables
+on a (σ, n_i) grid, interpolated: continuous in both, for fits) and ``approx``
+(eq 3.49–3.57, Beckmann or Gaussian constants of tables 3.3–3.5; 3–5 % off the integral at the
+median, 13–45 % at the 99th percentile, 3.7 % even at σ → 0, n_i = 1, where I = 1).
 """
 import functools
 
@@ -20,10 +22,11 @@ from facette._registry import Registry
 
 from ._fresnel import check_n_i, fresnel_dielectric, r_e_molenaar1999
 from ._microfacet import (check_masking, check_sigma, masking_g, microfacet_quadrature,
-                          sample_microfacet_normals)
+                          sample_microfacet_normals, smith_g1)
 
 __all__ = ["VOLUME_METHODS", "volume_integral", "volume_integral_quadrature", "volume_integral_monte_carlo",
-           "volume_integral_table", "volume_integral_approx", "VolumeTable", "build_volume_table"]
+           "volume_integral_table", "volume_integral_tables", "volume_integral_approx", "VolumeTable",
+           "build_volume_table", "volume_table_at"]
 
 _CHUNK_ELEMENTS = 400_000  # pairs × nodes per temporary array (keeps memory ~ tens of MB)
 
@@ -143,9 +146,11 @@ class VolumeTable:
         self._cos[-1] = 0.0
 
     def __call__(self, s, o):
-        s = np.asarray(s, dtype=float)
-        o = np.asarray(o, dtype=float)
-        ts, to, dphi, _ = _angles(s, o)
+        ts, to, dphi, _ = _angles(np.asarray(s, dtype=float), np.asarray(o, dtype=float))
+        return self.at_angles(ts, to, dphi)
+
+    def at_angles(self, ts, to, dphi):
+        """I at θ_s, θ_o (rad) and Δφ ∈ [0, π] (arrays that broadcast together)."""
         v = self.values
         th = self.theta
         coords = []
@@ -214,7 +219,7 @@ def tabulate_isotropic(fn, step_deg, key=None, grazing_refine=1):
     return VolumeTable(step, values, key, th_deg)
 
 
-@functools.lru_cache(maxsize=32)
+@functools.lru_cache(maxsize=128)
 def build_volume_table(sigma, n_i, distribution="beckmann", masking="smith", step_deg=5.0,
                        n_theta=24, n_phi=32, grazing_refine=4):
     """Tabulate I every ``step_deg`` degrees by quadrature (cached per arguments).
@@ -230,9 +235,32 @@ def build_volume_table(sigma, n_i, distribution="beckmann", masking="smith", ste
     if not iso:
         raise ValueError("volume='table' assumes an isotropic distribution (a table over θ_s, θ_o, "
                          "φ_o); use volume='quadrature' or 'monte_carlo' for an anisotropic sigma pair")
-    return tabulate_isotropic(
-        lambda s, o: volume_integral_quadrature(s, o, sx, n, distribution, masking, n_theta, n_phi),
-        step_deg, (sx, n, distribution, masking), grazing_refine)
+    if masking == "smith":
+        def fn(s, o):   # every (s, o) of the grid: one matrix product (`_quadrature_all_pairs`)
+            return _quadrature_all_pairs(s.reshape(-1, 3), o.reshape(-1, 3), sx, n, distribution,
+                                         n_theta, n_phi).reshape(np.broadcast_shapes(s.shape, o.shape)[:-1])
+    else:
+        def fn(s, o):
+            return volume_integral_quadrature(s, o, sx, n, distribution, masking, n_theta, n_phi)
+    return tabulate_isotropic(fn, step_deg, (sx, n, distribution, masking), grazing_refine)
+
+
+def _quadrature_all_pairs(s, o, sigma, n, distribution, n_theta, n_phi):
+    """(P, Q) I of `volume_integral_quadrature` (Smith masking) for every s (P, 3) with every o (Q, 3).
+
+    Smith's G = G_1(s) G_1(o) χ⁺(s·m) χ⁺(o·m) does not depend on m but through χ⁺, so the
+    integrand factors: I = G_1(s) G_1(o) / (s_z o_z) Σ_k (w_k / m_z) [T(s·m) (s·m)⁺]_k [T(o·m) (o·m)⁺]_k,
+    one matrix product over the nodes (the same sum, ~100× faster for a table)."""
+    m, w = microfacet_quadrature(sigma, distribution, int(n_theta), int(n_phi))
+
+    def side(u):
+        um = np.maximum(u @ m.T, 0.0)
+        return (1.0 - fresnel_dielectric(um, n)) * um
+
+    a, b = side(s), side(o)
+    g_s = np.where(s[:, 2] > 0, smith_g1(s, sigma, distribution) / np.maximum(s[:, 2], 1e-300), 0.0)
+    g_o = np.where(o[:, 2] > 0, smith_g1(o, sigma, distribution) / np.maximum(o[:, 2], 1e-300), 0.0)
+    return g_s[:, None] * ((a * (w / m[:, 2])) @ b.T) * g_o[None, :]
 
 
 def volume_integral_table(s, o, sigma, n_i, distribution="beckmann", masking="smith", step_deg=5.0,
@@ -241,6 +269,58 @@ def volume_integral_table(s, o, sigma, n_i, distribution="beckmann", masking="sm
     sx, sy, iso, n = check_volume_config(sigma, n_i, distribution, masking)
     return build_volume_table(sx if iso else (sx, sy), n, distribution, masking, float(step_deg), 24, 32,
                               int(grazing_refine))(s, o)
+
+
+# Node tables of `volume_table_at`: eq 3.15 by quadrature every NODE_STEP_DEG (the last three
+# θ cells split in two) on a grid of (σ, n_i). Measured on 4000 random pairs above 6° elevation
+# (σ, n_i = 0.05-0.2, 1.26-1.5) against the 48 × 48 quadrature: 5° and 16 × 24 nodes builds in
+# 0.03-0.05 s, 0.05 % off at the median and 1.3-1.7 % at the 99th percentile (10° and 16 × 16:
+# 0.005 s, 0.1 % and 5 %; 5° and 24 × 32, refined by 4: 0.08-0.12 s, 0.03 % and 0.3-0.9 %),
+# against 3-5 % and 13-45 % for the approximate formula eq 3.49-3.57
+NODE_STEP_DEG = 5.0
+NODE_QUADRATURE = (16, 24, 2)   # n_theta, n_phi of the quadrature; grazing refinement of θ
+NODE_SIGMA_MIN = 1e-3           # σ nodes NODE_SIGMA_MIN · NODE_SIGMA_RATIO^k (below: the first node)
+NODE_SIGMA_RATIO = 1.2
+NODE_N_I_STEP = 0.025           # n_i nodes 1 + k · NODE_N_I_STEP
+
+
+def _node_weights(x, step):
+    """(k, w): the grid cell [k, k + 1] of x in units of `step` (x ≥ 0) and the weight of k + 1."""
+    u = max(float(x) / step, 0.0)
+    k = int(np.floor(u))
+    return k, u - k
+
+
+@functools.lru_cache(maxsize=256)
+def volume_table_at(sigma, n_i, distribution="beckmann", masking="smith"):
+    """VolumeTable of eq 3.15 at any (σ, n_i), for fits that move both continuously.
+
+    The node tables around (σ, n_i) (quadrature, `build_volume_table`, cached) are combined
+    linearly in log σ and in n_i: the result is continuous in both, so a finite-difference
+    Jacobian sees the model and not the grid, and it costs one table evaluation (interpolation
+    is linear in the table's values). Isotropic σ only."""
+    sx, sy, iso, n = check_volume_config(sigma, n_i, distribution, masking)
+    if not iso:
+        raise ValueError("volume='tables' assumes an isotropic distribution; use 'quadrature' for a sigma pair")
+    ks, ws = _node_weights(np.log(max(sx, NODE_SIGMA_MIN) / NODE_SIGMA_MIN), np.log(NODE_SIGMA_RATIO))
+    kn, wn = _node_weights(n - 1.0, NODE_N_I_STEP)
+    values, first = 0.0, None
+    for i, wi in ((ks, 1 - ws), (ks + 1, ws)):
+        for j, wj in ((kn, 1 - wn), (kn + 1, wn)):
+            if wi * wj == 0:
+                continue
+            node = build_volume_table(NODE_SIGMA_MIN * NODE_SIGMA_RATIO ** i, 1.0 + j * NODE_N_I_STEP,
+                                      distribution, masking, NODE_STEP_DEG, *NODE_QUADRATURE)
+            first = first or node
+            values = values + (wi * wj) * node.values
+    values = np.asarray(values, dtype=float)
+    values.setflags(write=False)
+    return VolumeTable(NODE_STEP_DEG, values, (sx, n, distribution, masking, "nodes"), np.degrees(first.theta))
+
+
+def volume_integral_tables(s, o, sigma, n_i, distribution="beckmann", masking="smith"):
+    """I(s, o) of eq 3.15 from the node tables around (σ, n_i) (`volume_table_at`)."""
+    return volume_table_at(sigma, n_i, distribution, masking)(s, o)
 
 
 # Tables 3.3 (Beckmann) and 3.4 (Gaussian): rational fractions in σ and n_i (eq 3.53–3.55).
@@ -340,5 +420,6 @@ def _volume_integral_approx_any_masking(s, o, sigma, n_i, distribution="beckmann
 VOLUME_METHODS = Registry("volume-integral method")
 VOLUME_METHODS.add("quadrature", volume_integral_quadrature)
 VOLUME_METHODS.add("monte_carlo", volume_integral_monte_carlo)
+VOLUME_METHODS.add("tables", volume_integral_tables)
 VOLUME_METHODS.add("table", volume_integral_table)
 VOLUME_METHODS.add("approx", _volume_integral_approx_any_masking)

@@ -73,7 +73,8 @@ ENGINES = ("auto", "compiled", "arrays")
 
 
 def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12, kappa=None,
-                      extra_starts=None, extra_rows=None, engine="auto", step_tol=STEP_TOL):
+                      extra_starts=None, extra_rows=None, engine="auto", step_tol=STEP_TOL,
+                      volume_model="approx"):
     """Robust per-pixel normals and K_d against the LI model of given (σ, n_i); see
     `_refine_one_start` for the arguments. extra_starts : optional (K, N, 3) other starting
     normals (e.g. the half-vector of a pixel's brightest light: a highlight says where the normal
@@ -88,6 +89,8 @@ def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12
         the volume part from a per-light table of normals (≤ ~4e-3 relative, p99), so on one
         channel the two agree to a small fraction of a degree, not bit for bit; on RGB the robust
         scale differs (36 residuals against 12).
+    volume_model : the LI volume part, "approx" (eq 3.49–3.57) or "tables" (eq 3.15 by quadrature
+        tables; facette.brdf.li_shading_terms).
     """
     if engine not in ENGINES:
         raise ValueError(f"engine = {engine!r}: choose one of {', '.join(ENGINES)}")
@@ -98,8 +101,9 @@ def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12
                          "and no starting kappa; use engine='arrays' for the others")
     if engine != "arrays" and fits_compiled:
         return _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_starts, extra_rows,
-                                step_tol)
-    first = _refine_one_start(e, lights, normals, sigma, n_i, usable, iterations, kappa)
+                                step_tol, volume_model)
+    first = _refine_one_start(e, lights, normals, sigma, n_i, usable, iterations, kappa,
+                              volume_model=volume_model)
     if extra_starts is None or len(extra_starts) == 0:
         return first
     best = first
@@ -111,7 +115,7 @@ def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12
     u = None if usable is None else np.asarray(usable, bool)[rows]
     for start in extra_starts:
         other = _refine_one_start(np.asarray(e)[rows], s_rows, np.asarray(start)[rows], sigma, n_i, u,
-                                  iterations, None, scale=first.scale[rows])
+                                  iterations, None, scale=first.scale[rows], volume_model=volume_model)
         win = np.zeros(len(normals), bool)
         win[rows] = other.cost < best.cost[rows]
         wr = win[rows]
@@ -122,7 +126,8 @@ def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12
     return best
 
 
-def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12, kappa=None, scale=None):
+def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12, kappa=None, scale=None,
+                      volume_model="approx"):
     """Robust per-pixel normals and K_d against the LI model of given (σ, n_i).
 
     e : (N, m, C) float image values divided by each light's intensity (NaN: missing).
@@ -157,7 +162,7 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
     ok = finite if usable is None else (np.asarray(usable, bool) & finite)
     e = np.where(ok[..., None], e, np.float32(0))
     evals = 0
-    a, b = li_shading_terms(n, s, sigma, n_i)
+    a, b = li_shading_terms(n, s, sigma, n_i, volume_model=volume_model)
     evals += 1
     w0 = ok.astype(np.float32)
     k = _kappa(e, a, b, w0) if kappa is None else np.asarray(kappa, np.float32)
@@ -232,7 +237,7 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
         step = np.sqrt(du * du + dv * dv)
         shrink = np.minimum(1, MAX_STEP / np.maximum(step, 1e-12))
         cand = _unit(ni + (du * shrink)[:, None] * t1 + (dv * shrink)[:, None] * t2)
-        ac, bc = li_shading_terms(cand, si, sigma, n_i)
+        ac, bc = li_shading_terms(cand, si, sigma, n_i, volume_model=volume_model)
         evals += 1
         kc = _kappa(ei, ac, bc, wr)
         rc = (ei - ac[..., None] - bc[..., None] * kc[:, None, :]) * kwi[..., None]
@@ -257,7 +262,8 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
                         rel_residual=rel, iterations=it, evaluations=evals, scale=scale)
 
 
-def _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_starts, extra_rows, step_tol):
+def _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_starts, extra_rows, step_tol,
+                     volume_model):
     from ._normals_li_jit import refine_distant_compiled
     e = np.asarray(e, np.float32)
     if e.ndim == 2:
@@ -276,7 +282,7 @@ def _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_s
     nrm, k, used, cost, rel, its = refine_distant_compiled(
         e, lights, normals, sigma, n_i, ok, iterations, extra_start=extra, extra_rows=extra_rows,
         cast_ratio=CAST_SHADOW_RATIO, floor=SCALE_FLOOR, step_fd=STEP_FD, max_step=MAX_STEP,
-        step_tol=step_tol)
+        step_tol=step_tol, volume_model=volume_model)
     return RefineResult(normals=nrm, kappa=k, kd=li_kd_from_kappa(k, n_i), used=used, cost=cost,
                         rel_residual=rel, iterations=int(its.max()) if its.size else 0,
                         mean_iterations=float(its.mean()) if its.size else 0.0,

@@ -32,21 +32,21 @@ _SQRT_PI = math.sqrt(math.pi)
 _TABLES = {}               # (σ, n_i, grid, lights' bytes) -> table; the last few kept
 
 
-def volume_table(lights, sigma, n_i, grid=TABLE_GRID):
+def volume_table(lights, sigma, n_i, grid=TABLE_GRID, volume_model="approx"):
     """`_volume_table`, remembered for the last 8 (σ, n_i, lights, grid): the alternation asks for
     the same model in its full-size step as in its last round."""
     s = np.ascontiguousarray(lights, np.float64)
-    key = (float(sigma), float(n_i), int(grid), s.tobytes())
+    key = (float(sigma), float(n_i), int(grid), volume_model, s.tobytes())
     tab = _TABLES.get(key)
     if tab is None:
-        tab = _volume_table(s, sigma, n_i, grid)
+        tab = _volume_table(s, sigma, n_i, grid, volume_model)
         if len(_TABLES) >= 8:
             _TABLES.pop(next(iter(_TABLES)))
         _TABLES[key] = tab
     return tab
 
 
-def _volume_table(lights, sigma, n_i, grid):
+def _volume_table(lights, sigma, n_i, grid, volume_model):
     """(grid, grid, m) float32 B(n, s_i) on normals n = (x, y, √(1 − x² − y²)), x and y on
     linspace(−1, 1, grid) (row index: y, column: x); 0 outside the unit disk. Lights last: the
     four corners of a pixel's cell hold every light's value side by side (cache lines)."""
@@ -56,7 +56,7 @@ def _volume_table(lights, sigma, n_i, grid):
     inside = r2 < 1
     nz = np.sqrt(np.maximum(1 - r2, 0))
     gn = np.stack([gx, gy, nz], -1).reshape(-1, 3).astype(np.float32)
-    _, b = li_shading_terms(gn, lights, sigma, n_i, specular=False)
+    _, b = li_shading_terms(gn, lights, sigma, n_i, specular=False, volume_model=volume_model)
     b = b.astype(np.float32).reshape(grid, grid, -1)
     b[~inside] = 0
     return np.ascontiguousarray(b)
@@ -371,7 +371,7 @@ def _refine_all(e, ok, n0, n1, has1, s, sh, fres, btab, sigma, spec, iterations,
 
 def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_start=None,
                             extra_rows=None, cast_ratio=0.25, floor=0.03, step_fd=1e-3, max_step=0.15,
-                            step_tol=2e-4, table=None):
+                            step_tol=2e-4, table=None, volume_model="approx"):
     """Arrays in as `refine_normals_li` (distant lights (m, 3) only, at most one extra start);
     step_tol : rad, a pixel stops once an accepted step is below it.
     Returns (normals (N, 3) f32, kappa (N, C) f32, used (N, m), cost (N,), rel (N,) f32,
@@ -385,7 +385,7 @@ def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, 
     spec = bool(float(sigma) >= 1e-9 and float(n_i) != 1.0)
     sh = np.sqrt(np.maximum((1 + s[:, 2]) / 2, 1e-12))
     fres = fresnel_dielectric(sh, n_i).astype(np.float64)
-    btab = volume_table(lights, sigma, n_i) if table is None else table
+    btab = volume_table(lights, sigma, n_i, volume_model=volume_model) if table is None else table
     n0 = np.ascontiguousarray(normals, np.float64)
     n1 = n0 if extra_start is None else np.ascontiguousarray(extra_start, np.float64)
     has1 = np.zeros(n_pix, bool) if extra_start is None else (

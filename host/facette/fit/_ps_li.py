@@ -49,7 +49,7 @@ from facette.recon import PS_METHODS, PSResult, photometric_stereo
 from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _run_blocks, _usable
 from ._normals_li import RefineResult, refine_normals_li
 
-__all__ = ["ps_li_alternating", "fit_li_per_pixel_kd", "li_fit_cost", "LI_FIT_BOUNDS"]
+__all__ = ["ps_li_alternating", "fit_li_per_pixel_kd", "li_fit_cost", "LI_FIT_BOUNDS", "LI_VOLUME_MODEL"]
 
 LI_FIT_BOUNDS = ((1e-3, 1.0), (1.0, 2.5))   # σ, n_i (σ ≤ 1: beyond it no lobe is left to see)
 LAMBERTIAN_N_I = 1.02      # a fitted n_i below this: no interface, the BRDF step is skipped
@@ -59,6 +59,14 @@ LOBE_FIT_BOUNDS = ((LOBE_SIGMA_MIN, LI_FIT_BOUNDS[0][1]), (1.05, LI_FIT_BOUNDS[1
 LOBE_MIN_GAIN = 0.1        # a lobe refitted after a Lambertian first fit must lower the robust cost this much
 LOBE_TAN = 2.5             # a light is inside the lobe when tan θ_h < LOBE_TAN σ (D > 0.2 % of its peak)
 _STARTS = ((0.1, 1.3), (0.3, 1.5), (0.04, 1.2))
+# The volume part eq 3.15 from quadrature tables (facette.brdf.volume_table_at), not the approximate
+# formula eq 3.49-3.57, which is 3-5 % off the integral at the median and 10-20 % at grazing angles.
+# Mitsuba, 256 spp, mean normal error approx -> tables: sphere paint 0.10 1.10 -> 0.46 deg, 0.05
+# 0.48 -> 0.19, satin 2.93 -> 1.98, near lights 1.17 -> 0.53, shell lacquer 0.91 -> 0.58; the relief
+# paints with inter-reflections removed 0.54-0.74 -> 0.42-0.46; K_d/true 0.97-1.10 -> 0.99-1.03.
+# Worse: the reliefs' raw paints 0.53-0.59 -> 0.56-0.66 and the glossy vase 3.12 -> 3.32 (+ir 1.53
+# -> 1.64), whose error is the inter-reflections'. Costs 0-2 s more at 128² (node tables, 0.04 s each).
+LI_VOLUME_MODEL = "tables"
 COARSE_PIXELS = 250_000    # above this many valid pixels the alternation runs coarse-to-fine
 FINE_STEP_TOL = 1e-3       # rad (0.06°): full-size steps stop below this (errors are ~1°)
 _BLOCK = 32768             # pixels per block of the per-pixel solve (array code, two threads)
@@ -80,9 +88,9 @@ def _relative_fit_values(e, usable):
     return e0, w, np.broadcast_to(ok[..., None], e.shape), den
 
 
-def _kd_and_residuals(e0, w, den, normals, lights, sigma, n_i):
+def _kd_and_residuals(e0, w, den, normals, lights, sigma, n_i, volume_model):
     """κ (N, C) in closed form (E = A + B κ, weights w) and the relative residuals (N, m, C)."""
-    a, b = li_shading_terms(normals, lights, sigma, n_i)
+    a, b = li_shading_terms(normals, lights, sigma, n_i, volume_model=volume_model)
     wb = w * b
     k = np.maximum(np.einsum("nm,nmc->nc", wb, e0 - a[..., None]) / np.maximum(np.sum(wb * b, 1), 1e-20)[:, None], 0)
     return k, (e0 - a[..., None] - b[..., None] * k[:, None, :]) / den
@@ -94,16 +102,18 @@ def _soft_l1_cost(r, f_scale):
     return float(np.sum(f_scale ** 2 * (np.sqrt(1 + z) - 1)))
 
 
-def li_fit_cost(e, lights, normals, usable, sigma, n_i, f_scale=0.05):
+def li_fit_cost(e, lights, normals, usable, sigma, n_i, f_scale=0.05, volume_model=LI_VOLUME_MODEL):
     """The robust cost `fit_li_per_pixel_kd` minimises, at given normals and (σ, n_i): soft-L1
     (scale f_scale) of the relative residuals of every usable value, K_d per pixel and channel in
     closed form. e : (N, m, C); lights : (m, 3) or (N, m, 3); normals : (N, 3); usable : (N, m).
     n_i = 1 is the Lambertian model (no interface: no lobe). Returns a float ≥ 0."""
     e0, w, sel, den = _relative_fit_values(e, usable)
-    return _soft_l1_cost(_kd_and_residuals(e0, w, den, normals, lights, sigma, n_i)[1][sel], f_scale)
+    return _soft_l1_cost(_kd_and_residuals(e0, w, den, normals, lights, sigma, n_i, volume_model)[1][sel],
+                         f_scale)
 
 
-def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_nfev=40, bounds=LI_FIT_BOUNDS):
+def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_nfev=40, bounds=LI_FIT_BOUNDS,
+                        volume_model=LI_VOLUME_MODEL):
     """(σ, n_i) shared by all pixels, K_d per pixel and channel, from image values.
 
     e : (N, m, C) values divided by the light intensities; lights : (m, 3) or (N, m, 3);
@@ -114,6 +124,7 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
         larger ones linearly).
     bounds : ((σ_min, σ_max), (n_i_min, n_i_max)), within LI_FIT_BOUNDS (a narrower n_i range
         above 1 asks for the best solution with a lobe).
+    volume_model : the volume part's evaluation (facette.brdf.li_shading_terms; LI_VOLUME_MODEL).
     Returns dict(sigma, n_i, kd (N, C), kappa (N, C), cost, n_values, seconds, success).
     Residual per value: (E − A − B κ) / (the pixel's mean value).
     """
@@ -124,7 +135,7 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
         raise ValueError(f"bounds = {bounds!r}: each (low, high) pair needs low < high")
 
     def fun(p):
-        return _kd_and_residuals(e0, w, den, normals, lights, p[0], p[1])[1][sel].astype(np.float64)
+        return _kd_and_residuals(e0, w, den, normals, lights, p[0], p[1], volume_model)[1][sel].astype(np.float64)
 
     if not sel.any():
         return dict(success=False, sigma=float("nan"), n_i=float("nan"), message="no usable values to fit")
@@ -141,7 +152,7 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
                           max_nfev=max_nfev, x_scale=np.array([0.05, 0.1]))
         if best is None or r.cost < best.cost:
             best = r
-    k, _ = _kd_and_residuals(e0, w, den, normals, lights, best.x[0], best.x[1])
+    k, _ = _kd_and_residuals(e0, w, den, normals, lights, best.x[0], best.x[1], volume_model)
     return dict(success=bool(best.success), sigma=float(best.x[0]), n_i=float(best.x[1]), kappa=k,
                 kd=li_kd_from_kappa(k, best.x[1]), cost=float(best.cost), n_values=int(sel.sum()),
                 seconds=time.perf_counter() - t0, message=str(best.message))
@@ -170,7 +181,7 @@ def _in_lobe(normals, lights, sigma):
     return np.any(ch > np.float32(np.sqrt(1 / (1 + k2))), axis=1)
 
 
-def _lambertian_correction(normals, lights, sigma, n_i, grid=65):
+def _lambertian_correction(normals, lights, sigma, n_i, volume_model, grid=65):
     """(N, 3) corrected normals for pixels outside the lobe, from least-squares normals.
 
     Outside the specular lobe the model is E ≈ B(n, s) κ, whose least-squares (Lambertian)
@@ -188,7 +199,7 @@ def _lambertian_correction(normals, lights, sigma, n_i, grid=65):
     inside = r2 < 0.995
     gn = np.stack([gx, gy, np.sqrt(np.maximum(1 - r2, 0))], axis=-1).reshape(-1, 3)
     gn[~inside.ravel()] = [0, 0, 1]
-    _, b = li_shading_terms(gn, s, sigma, n_i, specular=False)
+    _, b = li_shading_terms(gn, s, sigma, n_i, specular=False, volume_model=volume_model)
     g = b @ np.linalg.pinv(s).T.astype(np.float32)                 # least squares of the model's values
     n_ls = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-12)
     delta = (gn - n_ls).reshape(grid, grid, 3)
@@ -231,7 +242,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                       init="rank_trimmed", rounds=4, tol_deg=0.1, fit_pixels=1000,
                       t_residual=T_RESIDUAL, iterations=24, materials=1, min_region_fraction=0.05,
                       seed=0, init_options=None, coarse_pixels=COARSE_PIXELS, fine_iterations=2,
-                      engine="auto"):
+                      engine="auto", volume_model=LI_VOLUME_MODEL):
     """BRDF-aware photometric stereo with the LI model (module doc).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m ≥ 4.
@@ -265,6 +276,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         the coarse normals bend by > 4° around the cell, made the tiled Mitsuba test worse:
         1.081° against 1.069° mean). None or 0: never.
     engine : the per-pixel solver of `refine_normals_li` ("auto", "compiled", "arrays").
+    volume_model : the LI volume part, "tables" (eq 3.15, default: LI_VOLUME_MODEL) or "approx"
+        (eq 3.49–3.57); see LI_VOLUME_MODEL for the figures.
     Returns a `PSResult` (method "li_alternating"): albedo is K_d (a reflectance, per channel);
     info holds "rounds" (per round: σ, n_i, pixels fitted and re-estimated, median change,
     seconds), "materials" (per region: σ, n_i, pixel count, whether the BRDF step ran) and
@@ -289,7 +302,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                                    rounds=rounds, tol_deg=tol_deg, fit_pixels=fit_pixels,
                                    t_residual=t_residual, iterations=iterations, materials=1,
                                    seed=seed, init_options=init_options, coarse_pixels=None,
-                                   engine=engine)
+                                   engine=engine, volume_model=volume_model)
         coarse.info["factor"] = f
         coarse.info["seconds"] = time.perf_counter() - t_c
         coarse.info["cpu_seconds"] = time.process_time() - c_c
@@ -364,10 +377,11 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                 out[a] = refine_normals_li(gather(sub), lights_of(sub), nrm[sub], sigma, n_i,
                                            usable=all_ok[sub], iterations=iterations,
                                            extra_starts=[hl_start[sub]], extra_rows=has_highlight[sub],
-                                           engine=engine)
+                                           engine=engine, volume_model=volume_model)
             else:
                 out[a] = refine_normals_li(gather(sub), lights_of(sub), nrm[sub], sigma, n_i,
-                                           usable=all_ok[sub], iterations=max(2, iterations // 2), engine=engine)
+                                           usable=all_ok[sub], iterations=max(2, iterations // 2), engine=engine,
+                                           volume_model=volume_model)
 
         if s_all.ndim == 2:
             # the compiled per-pixel solve runs its own threads: blocks in turn (memory only)
@@ -386,7 +400,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         lam_ok = (resid_ls[pix] < t_residual) & all_ok[pix].all(1) & ~lobe
         lam_pix = pix[lam_ok]
         if lam_pix.size:
-            nrm[lam_pix] = _lambertian_correction(nrm_ls[lam_pix], lights_of(lam_pix), sigma, n_i)
+            nrm[lam_pix] = _lambertian_correction(nrm_ls[lam_pix], lights_of(lam_pix), sigma, n_i, volume_model)
             refined[lam_pix] = False
         return lobe, lam_ok, pix[~lam_ok & lobe]
 
@@ -408,18 +422,18 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         first_lobe = _has_interface(first)
         if not first_lobe:
             n_f = refine(fsel, LAMBERTIAN_SIGMA, 1.0, engine=warm_engine).normals
-            choice["cost_lambertian"] = li_fit_cost(e_f, l_f, n_f, ok_f, LAMBERTIAN_SIGMA, 1.0)
-            fit = fit_li_per_pixel_kd(e_f, l_f, n_f, ok_f, bounds=LOBE_FIT_BOUNDS)
+            choice["cost_lambertian"] = li_fit_cost(e_f, l_f, n_f, ok_f, LAMBERTIAN_SIGMA, 1.0, volume_model=volume_model)
+            fit = fit_li_per_pixel_kd(e_f, l_f, n_f, ok_f, bounds=LOBE_FIT_BOUNDS, volume_model=volume_model)
         warm = 0
         while warm < 3:
             # warm-up: the fit pixels' normals against the model, refit, until (σ, n_i) settle
             warm += 1
             n_f = refine(fsel, fit["sigma"], fit["n_i"], engine=warm_engine).normals
             prev = fit
-            fit = fit_li_per_pixel_kd(e_f, l_f, n_f, ok_f, x0=(prev["sigma"], prev["n_i"]))
+            fit = fit_li_per_pixel_kd(e_f, l_f, n_f, ok_f, x0=(prev["sigma"], prev["n_i"]), volume_model=volume_model)
             if abs(fit["sigma"] - prev["sigma"]) < 0.02 * prev["sigma"] and abs(fit["n_i"] - prev["n_i"]) < 0.005:
                 break
-        choice.update(cost_lobe=li_fit_cost(e_f, l_f, n_f, ok_f, fit["sigma"], fit["n_i"]),
+        choice.update(cost_lobe=li_fit_cost(e_f, l_f, n_f, ok_f, fit["sigma"], fit["n_i"], volume_model=volume_model),
                       lobe_sigma=fit["sigma"], lobe_n_i=fit["n_i"],
                       lobe_start="first fit" if first_lobe else "refitted with a lobe kept")
         gain = None if first_lobe else 1 - choice["cost_lobe"] / max(choice["cost_lambertian"], 1e-30)
@@ -466,7 +480,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                 sub = todo[a:a + (_BLOCK_COMPILED if s_all.ndim == 2 else _BLOCK)]
                 out.append(refine_normals_li(gather(sub), lights_of(sub), up[sub], sigma, n_i,
                                              usable=all_ok[sub], iterations=fine_iterations,
-                                             step_tol=FINE_STEP_TOL, engine=engine))
+                                             step_tol=FINE_STEP_TOL, engine=engine, volume_model=volume_model))
             rr = RefineResult(**{k: np.concatenate([getattr(p, k) for p in out])
                                  for k in ("normals", "kd", "used", "rel_residual")})
             mean_its = float(np.average([getattr(p, "mean_iterations", p.iterations) for p in out],
@@ -516,7 +530,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                 trust = pix[score <= np.median(score[np.isfinite(score)])] if np.isfinite(score).any() else pix
             fsel = np.sort(rng.choice(trust, min(fit_pixels, trust.size), replace=False))
             e_f = gather(fsel)
-            fit = fit_li_per_pixel_kd(e_f, lights_of(fsel), nrm[fsel], all_ok[fsel], x0=x0)
+            fit = fit_li_per_pixel_kd(e_f, lights_of(fsel), nrm[fsel], all_ok[fsel], x0=x0, volume_model=volume_model)
             warm, choice = 0, None
             if rnd == 1 and np.isfinite(fit["sigma"]):
                 fit, warm, choice = choose_model(fsel, e_f, fit)
@@ -560,7 +574,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         # K_d of the pixels that kept their Lambertian solution: ρ/π = κ × I at normal incidence
         keep = pix[~refined[pix]]
         if keep.size and x0 is not None and x0[1] >= 1.0:
-            _, b0 = li_shading_terms(np.float32([[0, 0, 1]]), np.float32([[0, 0, 1]]), x0[0], x0[1])
+            _, b0 = li_shading_terms(np.float32([[0, 0, 1]]), np.float32([[0, 0, 1]]), x0[0], x0[1],
+                                     volume_model=volume_model)
             kd[keep] = li_kd_from_kappa(alb[keep] / np.pi / max(float(b0[0, 0]), 1e-6), x0[1])
         elif keep.size:
             kd[keep] = np.clip(alb[keep], 0, 1)

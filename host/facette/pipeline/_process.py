@@ -164,17 +164,22 @@ def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=
     return total_sensor.result(), raw
 
 
-def _fit_stage(filtered, fit_options):
+def _fit_stage(filtered, fit_options, brdf_aware=False):
     """BRDF identification on the hemisphere sensor's cells (facette.fit.fit_hemisphere_cells:
     the model averaged over each cell, which removes the lobe-widening bias of fitting cell
-    centres). The LI volume part defaults to the approximate formula (eq 3.49-3.57): on a
-    simulated scan it gave the same parameters as quadrature within 3 % in 2.9 s instead of
-    44 s; pass fit_options={"volume": "quadrature"} for the reference.
+    centres). The LI volume part: after BRDF-aware normals (`brdf_aware`, li_alternating, which
+    itself uses them), eq 3.15 from quadrature tables (volume "tables"); otherwise the
+    approximate formula (eq 3.49-3.57, "approx"). Mitsuba spheres and relief at 256 spp, σ / n_i /
+    K_d over the truth, approx → tables: with li_alternating's normals paint 0.10 1.148 / 1.340 /
+    1.00-1.01 → 1.018 / 1.300 / 1.00, satin 1.126 / 1.599 / 1.06-1.09 → 0.979 / 1.483 / 0.99-1.00;
+    with rank_trimmed's, whose normal error dominates, tables are better on two scenes and worse
+    on two (satin 1.157 / 1.443 → 0.824 / 1.277) for 0.4-1.4 s more, so approx stays there.
+    fit_options={"volume": ...} chooses ("quadrature": the reference, ~15× slower).
     Returns (FitResult or None, note)."""
     check_fit_cells(filtered)         # too few filled cells: InsufficientData (exit 3)
     options = dict(fit_options)
     if options.get("model", "li") == "li":
-        options.setdefault("volume", "approx")
+        options.setdefault("volume", "tables" if brdf_aware else "approx")
     res = fit_hemisphere_cells(filtered, **options)
     note = "" if getattr(res, "success", True) else f"brdf: the fit failed ({res.message})"
     return res, note
@@ -402,7 +407,8 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration
         write("samples")
         if "fit" not in stages:
             return []
-        res.brdf, note = _timed(res, "fit", _fit_stage, res.filtered, dict(fit_options or {}))
+        res.brdf, note = _timed(res, "fit", _fit_stage, res.filtered, dict(fit_options or {}),
+                                res.ps.method == "li_alternating")
         write("brdf")
         if out is not None and "report" in outputs:
             # matplotlib holds the GIL: drawn here, it runs beside numpy stages that let it go

@@ -72,3 +72,55 @@ def test_kappa_round_trip_and_bad_arguments():
         li_shading_terms(np.array([[0, 0, 1.0]]), np.array([[0, 0, 1.0]]), 0.1, 0.5)
     with pytest.raises(ValueError, match="lights"):
         li_shading_terms(np.array([[0, 0, 1.0]]), np.ones((2, 4)), 0.1, 1.3)
+
+
+@pytest.mark.parametrize("sigma,n_i", [(0.1, 1.3), (0.2, 1.5), (0.0437, 1.2113)])
+def test_tables_model_follows_the_volume_integral(sigma, n_i):
+    # volume_model="tables": B = (n·s) I with I eq 3.15 itself (quadrature), not the formula,
+    # also between the (σ, n_i) nodes; the formula is several % off the integral
+    from facette.brdf import volume_integral_quadrature
+    rng = np.random.default_rng(3)
+    normals = _random_normals(2000, rng)
+    lights = _random_normals(6, rng)
+    _, b = li_shading_terms(normals, lights, sigma, n_i, volume_model="tables")
+    _, b_approx = li_shading_terms(normals, lights, sigma, n_i)
+    z = normals
+    x = np.cross(z, [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    y = np.cross(z, x)
+    sl = np.stack([lights @ x.T, lights @ y.T, lights @ z.T], -1).transpose(1, 0, 2)
+    vl = np.broadcast_to(np.stack([x[:, 2], y[:, 2], z[:, 2]], -1)[:, None, :], sl.shape)
+    sel = (sl[..., 2] > 0.1) & (vl[..., 2] > 0.1)          # above 6° elevation
+    ref = volume_integral_quadrature(sl[sel], vl[sel], sigma, n_i) * sl[sel][:, 2]
+    err = np.abs(b[sel] / ref - 1)
+    err_approx = np.abs(b_approx[sel] / ref - 1)
+    assert np.median(err) < 2e-3 and np.percentile(err, 99) < 0.03, (np.median(err), np.percentile(err, 99))
+    assert np.median(err_approx) > 10 * np.median(err)
+    assert np.all(b[~((sl[..., 2] > 0) & (vl[..., 2] > 0))] == 0)
+
+
+def test_tables_model_is_continuous_in_sigma_and_n_i():
+    # a fit's finite differences must see the model, not the node grid: tiny parameter steps
+    # give tiny, proportionate changes, and n_i = 1, σ → 0 is Lambert exactly
+    normals = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [0.0, -0.8, 0.6]])
+    lights = np.array([[0.0, 0.0, 1.0], [0.5, 0.0, np.sqrt(0.75)], [-0.3, 0.4, np.sqrt(0.75)]])
+    vals = [li_shading_terms(normals, lights, s, 1.3, volume_model="tables")[1]
+            for s in np.linspace(0.1, 0.1005, 6)]
+    steps = np.abs(np.diff(vals, axis=0))
+    assert np.all(steps < 1e-4) and np.all(np.isfinite(vals))
+    assert steps.max() < 3 * max(steps.mean(), 1e-12)       # no jump where a node is crossed
+    _, b = li_shading_terms(normals, lights, 1e-3, 1.0, volume_model="tables")
+    np.testing.assert_allclose(b / np.clip(normals @ lights.T, 1e-9, None), 1.0, rtol=1e-5)
+    with pytest.raises(ValueError, match="volume_model"):
+        li_shading_terms(normals, lights, 0.1, 1.3, volume_model="exact")
+
+
+def test_factored_table_build_equals_the_quadrature():
+    # build_volume_table with Smith masking sums the same nodes as volume_integral_quadrature
+    from facette.brdf import build_volume_table, volume_integral_quadrature
+    from facette.brdf._volume import tabulate_isotropic
+    for sigma, n_i in ((0.1, 1.3), (0.4, 1.7)):
+        fast = build_volume_table(sigma, n_i, "beckmann", "smith", 10.0, 12, 16, 2)
+        ref = tabulate_isotropic(lambda s, o: volume_integral_quadrature(s, o, sigma, n_i, "beckmann", "smith", 12, 16),
+                                 10.0, None, 2)
+        np.testing.assert_allclose(fast.values, ref.values, rtol=1e-12, atol=1e-12)
