@@ -7,7 +7,8 @@ where its robust cost is lower), written as one loop per pixel instead of whole-
 that a pixel costs a few microseconds and stops as soon as it has converged.
 
 The model values: the specular lobe A (eq 3.10) is evaluated exactly per pixel and light (the
-Fresnel factor F(s·h) is one number per distant light); the volume part B(n, s_i) (eq 3.49–3.57)
+Fresnel factor F(s·h) is one number per distant light); the volume part B(n, s_i) (eq 3.15, by the
+formula eq 3.49–3.57 or the quadrature tables: `volume_model`)
 is smooth in the normal, so for each light it is tabulated once per (σ, n_i) on a grid of normals
 (nx, ny) ∈ [−1, 1]² by `facette.brdf.li_shading_terms` itself and interpolated bilinearly
 (relative difference to the direct evaluation ≤ ~1e-3 on lit pixels, see the tests). Per-pixel
