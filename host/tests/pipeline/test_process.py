@@ -166,6 +166,13 @@ def test_brdf_aware_method_writes_its_materials_into_brdf_json(tmp_path):
     assert ps["levels"]["brdf_aware"]["pixels"] > 0
     albedo, _ = read_exr(tmp_path / "out" / "albedo.exr")
     np.testing.assert_allclose(np.median(albedo[res.mask], axis=0), d["params"]["kd"], rtol=0.1)
+    # after BRDF-aware normals the fit evaluates the volume part as they did (eq 3.15 by tables),
+    # after Lambertian ones by the approximate formula; fit_options chooses
+    assert doc["volume"] == "tables" and res.brdf.volume == "tables"
+    ls = process(folder, outputs=["samples", "brdf"], method="woodham1980")
+    assert ls.brdf.volume == "approx"
+    assert process(folder, outputs=["samples", "brdf"], method="li_alternating",
+                   fit_options={"volume": "approx"}).brdf.volume == "approx"
 
 
 def _mitsuba_folder(tmp_path, shape, material, size=48, spp=16, intensity=1.0):
