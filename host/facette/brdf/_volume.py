@@ -144,35 +144,51 @@ class VolumeTable:
         self.theta = np.radians(th)  # θ nodes (both θ_s and θ_o), last one 90°
         self._cos = np.cos(self.theta)
         self._cos[-1] = 0.0
+        self._cast = {}
 
     def __call__(self, s, o):
         ts, to, dphi, _ = _angles(np.asarray(s, dtype=float), np.asarray(o, dtype=float))
         return self.at_angles(ts, to, dphi)
 
     def at_angles(self, ts, to, dphi):
-        """I at θ_s, θ_o (rad) and Δφ ∈ [0, π] (arrays that broadcast together)."""
-        v = self.values
-        th = self.theta
-        coords = []
-        for x in (ts, to):
-            i0 = np.clip(np.searchsorted(th, x, side="right") - 1, 0, len(th) - 2)
-            coords.append((i0, np.clip((x - th[i0]) / (th[i0 + 1] - th[i0]), 0.0, 1.0)))
-        st = np.radians(self.step_deg)
-        u = np.clip(dphi / st, 0.0, v.shape[2] - 1.0)
-        k0 = np.minimum(np.floor(u).astype(int), v.shape[2] - 2)
-        coords.append((k0, u - k0))
-        (i, fi), (j, fj), (k, fk) = coords
-        num = np.zeros(np.broadcast(ts, to).shape)
-        den = np.zeros_like(num)
-        c = self._cos
-        for di, wi in ((0, 1 - fi), (1, fi)):
-            for dj, wj in ((0, 1 - fj), (1, fj)):
-                w2 = wi * wj
-                den = den + w2 * c[i + di] * c[j + dj]
-                for dk, wk in ((0, 1 - fk), (1, fk)):
-                    num = num + w2 * wk * v[i + di, j + dj, k + dk]
+        """I at θ_s, θ_o (rad) and Δφ ∈ [0, π] (arrays that broadcast together), computed in
+        float32 when the angles are float32 (the per-pixel terms), else float64."""
+        dt = np.float32 if np.asarray(ts).dtype == np.float32 else np.float64
+        flat, th, inv, c = self._arrays(dt)
+        nt, _, nph = self.values.shape
+
+        def axis(x):      # cell index and weight of the upper node along θ; the cell's two cosines
+            x = np.asarray(x, dt)
+            i0 = np.clip(np.searchsorted(th, x, side="right") - 1, 0, nt - 2)
+            f = np.clip((x - th[i0]) * inv[i0], 0, 1)
+            return i0, f, (1 - f) * c[i0] + f * c[i0 + 1]
+
+        i, fi, ci = axis(ts)
+        j, fj, cj = axis(to)
+        u = np.clip(np.asarray(dphi, dt) * dt(1 / np.radians(self.step_deg)), 0, nph - 1)
+        k = np.minimum(u.astype(np.int64), nph - 2)
+        fk = u - k
+        base = (i * nt + j) * nph + k
+
+        def along_phi(off):
+            return flat[base + off] * (1 - fk) + flat[base + off + 1] * fk
+
+        num = ((1 - fi) * ((1 - fj) * along_phi(0) + fj * along_phi(nph))
+               + fi * ((1 - fj) * along_phi(nt * nph) + fj * along_phi(nt * nph + nph)))
+        den = ci * cj     # the cosines' weights are separable: Σ w_i w_j c_i c_j = (Σ w_i c_i)(Σ w_j c_j)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+            return np.where(den > 0, num / np.where(den > 0, den, 1), 0).astype(dt, copy=False)
+
+    def _arrays(self, dt):
+        """(values raveled, θ nodes, 1 / cell widths, cos θ nodes) in dtype dt, made once."""
+        key = np.dtype(dt).name
+        got = self._cast.get(key)
+        if got is None:
+            th = self.theta.astype(dt)
+            got = (np.ascontiguousarray(self.values, dt).ravel(), th,
+                   (1 / np.diff(self.theta)).astype(dt), self._cos.astype(dt))
+            self._cast[key] = got
+        return got
 
 
 def check_table_step(step_deg):
