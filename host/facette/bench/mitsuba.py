@@ -6,7 +6,8 @@ Beckmann α = σ, int_ior = n_i, diffuse_reflectance = K_d) and cached under --c
 angular error of the normals (against Mitsuba's shading normals, on the object mask eroded by
 one pixel: the silhouette's pixels mix object and background), and the time; rows "+ir" run the
 method on the images with the inter-reflections removed (a first rank_trimmed pass gives the
-shape; `facette process --interreflections`). Then:
+shape; for li_alternating also the glossy walls, with its lobe; `facette process
+--interreflections`). Then:
 
 1. the thesis's test (§4.3.2): one shape in plaster and in the three fitted paints; each paint's
    normals against the plaster's (mean angle), per method;
@@ -72,12 +73,16 @@ def _images_and_dirs(d):
 def run_ps(d, method, init=None, interreflections=False):
     """(PSResult, seconds); with `interreflections`, a first rank_trimmed pass gives the shape
     and remove_interreflections the images the method sees (both inside the seconds)."""
+    from facette.fit import ps_li_without_interreflections
     from facette.recon import photometric_stereo, without_interreflections
     im, L = _images_and_dirs(d)
     extra = {"materials": "auto"} if d["params"].get("two_materials") else {}
     if init:
         extra["init"] = init
     t = time.perf_counter()
+    if interreflections and method == "li_alternating":     # as `process`: glossy walls too
+        r = ps_li_without_interreflections(im, L, d["mask"], **extra)[0]
+        return r, time.perf_counter() - t
     if interreflections:
         im, _, _ = without_interreflections(im, L, d["mask"])
     r = photometric_stereo(im, L, method=method, mask=d["mask"], **(extra if method == "li_alternating" else {}))

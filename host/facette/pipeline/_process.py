@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from facette.fit import fit_hemisphere_cells
+from facette.fit import fit_hemisphere_cells, ps_li_without_interreflections
 from facette.errors import BadInputError
 from facette.io.exr import write_exr
 from facette.io.ply import write_ply
@@ -237,7 +237,9 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
         rank_trimmed pass; needs the albedo as a reflectance, as the rig's calibration gives it).
         The BRDF fit then sees the direct light only; PTM/HSH keep the images as photographed.
         Left out, with a note, when gathered light is under IR_SKIP_P95 (0.5 %) of the values at
-        their 95th percentile (a convex object gathers none).
+        their 95th percentile (a convex object gathers none). With li_alternating, the light glossy
+        walls mirror into each other is removed too, with the lobe it finds
+        (facette.fit.ps_li_without_interreflections).
     integration : "frankot_chellappa1988" (thesis), "simchony1990" or "least_squares" (mask only).
     t_ombre (rad), t_spec, t_source, t_residual : see `ps_hierarchical_tautzia2016`.
     theta0_deg : hemisphere-sensor cell size (deg). mask : (H, W) bool or PNG path.
@@ -327,7 +329,12 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
             extra.setdefault("init_options", thresholds)
         kwargs.update(t_residual=t_residual, **extra)
     direct, ps = images, None
-    if interreflections:
+    if interreflections and method_name == "li_alternating":
+        # glossy walls mirror each other: a second removal with li's lobe (facette.fit._ps_li_ir)
+        t_ir = time.perf_counter()
+        ps, direct, info = ps_li_without_interreflections(images, light_dirs, **kwargs)
+        _note_interreflections(res, info, time.perf_counter() - t_ir)
+    elif interreflections:
         direct, ps = _without_interreflections(res, images, light_dirs, inp.mask, saturation,
                                                method_name == "rank_trimmed")
     if ps is None:
@@ -363,16 +370,29 @@ def _without_interreflections(res, images, light_dirs, mask, saturation, reuse):
     the first pass's PSResult when `reuse` and nothing was removed, else None)."""
     t0 = time.perf_counter()
     direct, first, info = without_interreflections(images, light_dirs, mask, saturation=saturation)
+    _note_interreflections(res, info, time.perf_counter() - t0)
+    if not info["applied"]:
+        return images, first if reuse else None
+    return direct, None
+
+
+def _note_interreflections(res, info, seconds):
+    """The removal's info, seconds and note into `res`."""
     res.interreflections = info
-    res.timings["interreflections"] = time.perf_counter() - t0
+    res.timings["interreflections"] = seconds
     how = (f"{info['median_fraction']:.1%} of the median value, {info['p95_fraction']:.1%} at the 95th "
            f"percentile, on {info['grid'][1]}x{info['grid'][0]} cells, {len(info['passes'])} pass(es)")
     if not info["applied"]:
         res.notes.append(f"inter-reflections: {how}; too little to matter, the images are used as they are")
-        return images, first if reuse else None
+        return
     res.notes.append(f"inter-reflections removed before photometric stereo: {how}"
                      + (f"; {info['capped']} values limited to {IR_MAX_FRACTION:.0%} removed" if info["capped"] else ""))
-    return direct, None
+    glossy = info.get("glossy")
+    if glossy:
+        res.notes.append(f"glossy inter-reflections removed with the lobe li_alternating found (σ "
+                         f"{glossy['lobe'][0]:.3f}, n_i {glossy['lobe'][1]:.3f}): {glossy['median_fraction']:.1%} "
+                         f"of the median value, {glossy['p95_fraction']:.1%} at the 95th percentile, "
+                         "then li_alternating again")
 
 
 def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration, mesh_step, theta0_deg,

@@ -87,9 +87,10 @@ def _interp_matrix(n_fine, n_cells, f):
     return m
 
 
-def _gather_cells(i_c, ld_c, n_c, a_c, cells, z=None):
-    """(m, hc, wc, c) radiance each cell gathers from the cells it sees (`gather`), the cells'
-    radiance capped as the module doc says; z : cell heights in cell units (None: integrated)."""
+def _gather_cells(i_c, ld_c, n_c, a_c, cells, z=None, lobe=None):
+    """((m, hc, wc, c) radiance each cell gathers from the cells it sees (`gather`), the same
+    through the specular lobe `lobe` = (σ, n_i) towards the camera or None), the cells' radiance
+    capped as the module doc says; z : cell heights in cell units (None: integrated)."""
     m, hc, wc, c = i_c.shape
     if ld_c.ndim == 2:
         shade = np.einsum("kd,hwd->khw", ld_c, n_c)
@@ -100,16 +101,20 @@ def _gather_cells(i_c, ld_c, n_c, a_c, cells, z=None):
     src = np.minimum(src, _SOURCE_CAP * model + _SOURCE_FLOOR * a_c[None])
     rr, cc = np.nonzero(cells)
     gathered = np.zeros((m, hc, wc, c), np.float32)
+    glossy = np.zeros((m, hc, wc, c), np.float32) if lobe is not None else None
     if rr.size > 1:
         from ._interreflect_jit import gather        # numba loads only when this runs
         if z is None:
             z = integrate_frankot_chellappa1988(n_c, 1.0, cells)
         zgrid = np.where(cells, z, np.nan).astype(np.float32)
         rad = np.ascontiguousarray(np.moveaxis(src[:, rr, cc, :], 1, 0).reshape(rr.size, m * c), np.float32)
-        g = gather(rr.astype(np.float32), cc.astype(np.float32), z[rr, cc].astype(np.float32),
-                   np.ascontiguousarray(n_c[rr, cc], np.float32), rad, zgrid, 48)
+        sigma, n_i = lobe if lobe is not None else (0.0, 1.0)
+        g, gs = gather(rr.astype(np.float32), cc.astype(np.float32), z[rr, cc].astype(np.float32),
+                       np.ascontiguousarray(n_c[rr, cc], np.float32), rad, zgrid, 48, float(sigma), float(n_i))
         gathered[:, rr, cc, :] = np.moveaxis(g.reshape(rr.size, m, c), 1, 0)
-    return gathered
+        if glossy is not None:
+            glossy[:, rr, cc, :] = np.moveaxis(gs.reshape(rr.size, m, c), 1, 0)
+    return gathered, glossy
 
 
 def _p95(ir, i_c, cells):
@@ -120,7 +125,7 @@ def _p95(ir, i_c, cells):
 
 def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectance_scale=1.0,
                             grid=IR_GRID, max_fraction=IR_MAX_FRACTION, saturation=None, heights=None,
-                            passes=IR_PASSES, tol_deg=0.1):
+                            passes=IR_PASSES, tol_deg=0.1, lobe=None):
     """The images with the light the surface gathers from itself taken out (module doc).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity (as
@@ -137,6 +142,9 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
         cells' corrected radiance: the first shape is biased by the light being removed), until
         its median change is below `tol_deg` (degrees). No second pass when under IR_SKIP_P95 of
         the cells' values at the 95th percentile is gathered light, or with fewer than 4 lights.
+    lobe : (σ, n_i) of a glossy surface (a BRDF-aware pass's fit), or None: the light a cell
+        reflects towards the camera through its specular lobe (eq 3.10) is removed too, besides
+        the Lambertian (ρ/π) share.
     Returns (corrected images, same shape, float32; info) with info = grid (cells), cell_px,
     cells, passes (per gather: median change of the shape after it, seconds), median_fraction
     and p95_fraction (share of the lit values on the surface that was gathered light), capped
@@ -202,11 +210,12 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
     rows = []
     for k in range(int(passes)):
         t = time.perf_counter()
-        gathered = _gather_cells(i_c, ld_c, n_c, a_c, cells, z)
+        gathered, glossy = _gather_cells(i_c, ld_c, n_c, a_c, cells, z, lobe)
+        cell_ir = gathered * receive if glossy is None else gathered * receive + glossy
         row = {}
-        if k + 1 < int(passes) and m >= 4 and (k > 0 or _p95(gathered * receive, i_c, cells) >= IR_SKIP_P95):
+        if k + 1 < int(passes) and m >= 4 and (k > 0 or _p95(cell_ir, i_c, cells) >= IR_SKIP_P95):
             # a better shape: rank_trimmed on the cells' corrected radiance, then gather again
-            direct = i_c - np.minimum(gathered * receive, max_fraction * np.maximum(i_c, 0))
+            direct = i_c - np.minimum(cell_ir, max_fraction * np.maximum(i_c, 0))
             ps = ps_rank_trimmed(direct, ld_c, mask=cells)
             both = cells & ps.valid
             dot = np.clip(np.sum(n_c[both] * ps.normal[both], -1), -1, 1)
@@ -231,6 +240,8 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
         v = im[k].astype(np.float32, copy=False)
         ir_k = np.einsum("hi,ijc,wj->hwc", wr, gathered[k], wcm, optimize=True)
         ir_k *= scale
+        if glossy is not None:      # the lobe's share is white: no albedo (masked off the surface)
+            ir_k += np.einsum("hi,ijc,wj->hwc", wr, glossy[k], wcm, optimize=True) * okf
         with np.errstate(invalid="ignore"):
             limit = np.float32(max_fraction) * v        # NaN where v is: fmin then keeps ir_k
             capped = int(np.count_nonzero((ir_k > limit) & (v < sat)))

@@ -201,6 +201,17 @@ def test_interreflections_removed_on_a_concave_object_and_recorded(tmp_path):
     assert np.median(res.albedo[sel]) < np.median(plain.albedo[sel])
 
 
+def test_brdf_aware_method_removes_glossy_interreflections_too(tmp_path):
+    folder, d = _mitsuba_folder(tmp_path, "vase", "paint_0.08", size=64, spp=32)
+    res = process(folder, outputs=["normals", "samples", "brdf"], out_dir=tmp_path / "out",
+                  method="li_alternating", interreflections=True)
+    glossy = res.interreflections["glossy"]
+    assert res.interreflections["applied"] and glossy is not None and 0.06 < glossy["lobe"][0] < 0.11
+    assert any(n.startswith("glossy inter-reflections removed") for n in res.notes)
+    assert res.brdf.volume == "tables" and 0.06 < res.brdf.params["sigma"] < 0.11
+    assert json.loads((tmp_path / "out" / "process.json").read_text())["options"]["interreflections"] is True
+
+
 def test_interreflections_skipped_on_a_convex_object(tmp_path):
     folder, d = _mitsuba_folder(tmp_path, "sphere", "plaster")
     plain = process(folder, outputs=["normals"], out_dir=None)

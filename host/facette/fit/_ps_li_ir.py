@@ -1,0 +1,51 @@
+"""BRDF-aware photometric stereo on images with the inter-reflections removed, glossy ones included.
+
+`facette.recon.without_interreflections` removes the light a surface gathers from itself as a
+Lambertian surface would reflect it (ρ/π of the irradiance). A glossy wall also mirrors the wall
+in front of it through its specular lobe, which that removal leaves in the images: on the Mitsuba
+vase in paint (σ 0.08, 256 spp) li_alternating keeps 1.64° of mean error after it, and 1.56° even
+with the true shape for the gather, against 0.50° for the same vase in plaster. Here, once
+li_alternating has found a lobe on the Lambertian-corrected images, the gather is made again from
+its normals with the lobe's share too (`remove_interreflections(lobe=(σ, n_i))`, one pass: the
+shape passes re-estimate cells by a Lambertian method) and li_alternating runs on the result.
+
+Measured (mean normal error, one Lambertian removal → this): vase paint 1.64 → 1.38°, shell
+lacquer 0.67 → 0.63, the reliefs' paints 0.42-0.46 → 0.45-0.49, the relief satin 1.47 → 1.50;
+convex objects gather nothing and are unchanged. Several materials (materials="auto") keep the
+Lambertian removal alone: the gather takes one lobe.
+"""
+import time
+
+from facette.recon import remove_interreflections, without_interreflections
+
+from ._ps_li import ps_li_alternating
+
+__all__ = ["ps_li_without_interreflections"]
+
+
+def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, reflectance_scale=1.0, **options):
+    """(PSResult of li_alternating, the images it saw, info).
+
+    images, light_dirs, mask, saturation : as `ps_li_alternating`; reflectance_scale : as
+    `remove_interreflections`; **options : of `ps_li_alternating`.
+    info : the Lambertian removal's (`without_interreflections`: "applied", fractions, passes),
+    with "glossy": None when that stage did not run (nothing removed, no lobe found, several
+    materials), else the second removal's fractions, its lobe and seconds.
+    """
+    direct, first, info = without_interreflections(images, light_dirs, mask, saturation=saturation,
+                                                   reflectance_scale=reflectance_scale)
+    ps = ps_li_alternating(direct, light_dirs, mask=mask, saturation=saturation, **options)
+    info["glossy"] = None
+    mats = ps.info.get("materials", [])
+    if not info["applied"] or len(mats) != 1 or not mats[0].get("brdf_step") or mats[0].get("n_i") is None:
+        return ps, direct, info
+    t0 = time.perf_counter()
+    lobe = (float(mats[0]["sigma"]), float(mats[0]["n_i"]))
+    direct, glossy = remove_interreflections(images, light_dirs, ps.normal, first.albedo, ps.valid & mask,
+                                             reflectance_scale=reflectance_scale, saturation=saturation,
+                                             passes=1, lobe=lobe)
+    ps = ps_li_alternating(direct, light_dirs, mask=mask, saturation=saturation, **options)
+    info["glossy"] = {"lobe": lobe, "median_fraction": glossy["median_fraction"],
+                      "p95_fraction": glossy["p95_fraction"], "capped": glossy["capped"],
+                      "seconds": time.perf_counter() - t0}
+    return ps, direct, info
