@@ -59,7 +59,8 @@ def register(sub):
                         "hierarchy is better on satins)")
     p.add_argument("--interreflections", action="store_true",
                    help="take the light a concave matte surface gathers from itself out of the images "
-                        "first (craters, grooves, a vase's neck; needs a reflectance-calibrated scan)")
+                        "first (craters, grooves, a vase's neck; needs a reflectance-calibrated scan); with "
+                        "--method li_alternating also what glossy walls mirror into each other")
     p.add_argument("--integration", default="frankot_chellappa1988",
                    choices=["frankot_chellappa1988", "simchony1990", "least_squares"])
     p.add_argument("--t-ombre", type=_number(float, 0, math.pi / 2, True, "--t-ombre"), default=T_OMBRE,
@@ -131,6 +132,11 @@ def run(args):
               f"{100 * ir['p95_fraction']:.1f} % at the 95th percentile"
               + (f" (removed in {len(ir['passes'])} pass(es))" if ir["applied"] else " (too little: left in)")
               + f", {ir['seconds']:.1f} s")
+        if ir.get("glossy"):
+            g = ir["glossy"]
+            print(f"  glossy inter-reflections (lobe σ {g['lobe'][0]:.3f}, n_i {g['lobe'][1]:.3f}): "
+                  f"{100 * g['median_fraction']:.1f} % of the median value, {100 * g['p95_fraction']:.1f} % "
+                  f"at the 95th percentile, {g['seconds']:.1f} s")
     info = res.ps.info
     if "skipped_fraction" in info:
         print(f"  least squares explained {100 * info['skipped_fraction']:.1f} % of the pixels "
