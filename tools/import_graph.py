@@ -19,7 +19,8 @@ from pathlib import Path
 LAYERS = (
     ("_registry", "_data"),
     ("device", "camera", "io"),
-    ("hdr", "recon", "reflect", "brdf"),
+    ("brdf",),
+    ("hdr", "recon", "reflect"),
     ("fit", "calib"),
     ("sim",),
     ("scan",),

@@ -1,7 +1,7 @@
 """Per-pixel normals and K_d against a given LI reflectance model (the inner step of BRDF-aware
 photometric stereo; the alternation with the BRDF fit is facette.fit.ps_li_alternating).
-It lives in facette.fit, not in facette.recon: it needs the BRDF model (facette.brdf), a sibling
-of recon in the layers (docs/ARCHITECTURE.md), and fit may import both.
+It lives in facette.fit beside the alternation it serves, whose (σ, n_i) fit is BRDF
+identification (docs/ARCHITECTURE.md).
 
 Each pixel's values over the m lights, E_ic (light i, channel c, divided by the light's
 intensity), are matched to the LI model E = A(n, s_i) + B(n, s_i) κ_c (facette.brdf.li_shading_terms)

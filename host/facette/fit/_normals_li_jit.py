@@ -23,11 +23,11 @@ import numpy as np
 from numba import njit, prange
 
 from facette.brdf import fresnel_dielectric, li_shading_terms
+from facette.brdf._lobe_jit import beckmann_d, smith_g1_beckmann as _g1
 
 __all__ = ["volume_table", "refine_distant_compiled", "bin_images", "TABLE_GRID"]
 
 TABLE_GRID = 257           # grid points per axis of the B table over nx, ny ∈ [−1, 1]
-_SQRT_PI = math.sqrt(math.pi)
 
 
 _TABLES = {}               # (σ, n_i, grid, lights' bytes) -> table; the last few kept
@@ -64,20 +64,6 @@ def _volume_table(lights, sigma, n_i, grid, volume_model):
 
 
 @njit(cache=True)
-def _g1(c, sigma):
-    if c <= 0.0:
-        return 0.0
-    if c > 1.0:
-        c = 1.0
-    sn = math.sqrt(max(1.0 - c * c, 0.0))
-    if sn <= 0.0:
-        return 1.0
-    a = c / (sigma * sn)
-    lam = 0.5 * (math.exp(-a * a) / (a * _SQRT_PI) - math.erfc(a))
-    return 1.0 / (1.0 + lam)
-
-
-@njit(cache=True)
 def _model(nx, ny, nz, s, sh, fres, btab, sigma, spec, a_out, b_out, with_b=True):
     """A and B for one normal and every light into a_out, b_out (m,); with_b False: A only."""
     m = s.shape[0]
@@ -109,9 +95,7 @@ def _model(nx, ny, nz, s, sh, fres, btab, sigma, spec, a_out, b_out, with_b=True
             ch = min(max((cs + co) / (2.0 * sh[i]), 0.0), 1.0)
             ch2 = ch * ch
             if 1.0 - ch2 < 16.0 * s2 * ch2 and ch2 > 0.0:
-                tan2 = (1.0 - ch2) / ch2
-                d = math.exp(-tan2 / s2) / (math.pi * s2 * ch2 * ch2)
-                a_out[i] = fres[i] * d * _g1(csc, sigma) * g1o / (4.0 * co)
+                a_out[i] = fres[i] * beckmann_d(ch2, s2) * _g1(csc, sigma) * g1o / (4.0 * co)
 
 
 @njit(cache=True)

@@ -64,8 +64,9 @@ _STARTS = ((0.1, 1.3), (0.3, 1.5), (0.04, 1.2))
 # Mitsuba, 256 spp, mean normal error approx -> tables: sphere paint 0.10 1.10 -> 0.46 deg, 0.05
 # 0.48 -> 0.19, satin 2.93 -> 1.98, near lights 1.17 -> 0.53, shell lacquer 0.91 -> 0.58; the relief
 # paints with inter-reflections removed 0.54-0.74 -> 0.42-0.46; K_d/true 0.97-1.10 -> 0.99-1.03.
-# Worse: the reliefs' raw paints 0.53-0.59 -> 0.56-0.66 and the glossy vase 3.12 -> 3.32 (+ir 1.53
-# -> 1.64), whose error is the inter-reflections'. Costs 0-2 s more at 128² (node tables, 0.04 s each).
+# Worse: the reliefs' raw paints 0.53-0.59 -> 0.56-0.66 and the glossy vase 3.12 -> 3.32, whose error
+# is the inter-reflections' (with them removed, facette.fit.ps_li_without_interreflections: 1.38).
+# Costs 0-2 s more at 128² (node tables, 0.03-0.05 s each, cached in the process).
 LI_VOLUME_MODEL = "tables"
 COARSE_PIXELS = 250_000    # above this many valid pixels the alternation runs coarse-to-fine
 FINE_STEP_TOL = 1e-3       # rad (0.06°): full-size steps stop below this (errors are ~1°)

@@ -331,9 +331,8 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
     direct, ps = images, None
     if interreflections and method_name == "li_alternating":
         # glossy walls mirror each other: a second removal with li's lobe (facette.fit._ps_li_ir)
-        t_ir = time.perf_counter()
         ps, direct, info = ps_li_without_interreflections(images, light_dirs, **kwargs)
-        _note_interreflections(res, info, time.perf_counter() - t_ir)
+        _note_interreflections(res, info, info["removal_seconds"])
     elif interreflections:
         direct, ps = _without_interreflections(res, images, light_dirs, inp.mask, saturation,
                                                method_name == "rank_trimmed")

@@ -9,6 +9,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from facette.brdf._lobe_jit import beckmann_d, fresnel_dielectric_scalar, smith_g1_beckmann
+
 __all__ = ["gather"]
 
 
@@ -34,7 +36,6 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma=0.0, n_i=1.
     out = np.zeros((n, k_out), np.float32)
     spec = np.zeros((n, k_out), np.float32)
     glossy = sigma > 0 and n_i > 1
-    s2 = max(sigma * sigma, 1e-12)
     eta = (n_i - 1.0) * (n_i + 1.0)
     for i in prange(n):
         ri, ci, zi = rows[i], cols[i], z[i]
@@ -67,8 +68,8 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma=0.0, n_i=1.
             g = cos_i * cos_j / (r2 * r2) / max(normals[j, 2], 0.05)
             for k in range(k_out):
                 acc[k] += g * radiance[j, k]
-            if glossy and nzi > 0:
-                fs = _lobe(dx, dy, dz, math.sqrt(r2), nxi, nyi, nzi, s2, n_i, eta)
+            if glossy:
+                fs = _lobe(dx, dy, dz, math.sqrt(r2), nxi, nyi, nzi, sigma, eta)
                 if fs > 0:
                     for k in range(k_out):
                         acc_s[k] += fs * g * radiance[j, k]
@@ -78,9 +79,9 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma=0.0, n_i=1.
 
 
 @njit(fastmath=True, cache=True)
-def _lobe(dx, dy, dz, r, nx, ny, nz, s2, n_i, eta):
+def _lobe(dx, dy, dz, r, nx, ny, nz, sigma, eta):
     """f_s (eq 3.10) for light arriving from direction (dx, dy, dz)/r, seen from +z, at normal n:
-    F(w·h) D(h) G1(w) G1(v) / (4 (n·w)(n·v)), Beckmann D and Smith G1 of variance s2 = σ²."""
+    F(w·h) D(h) G1(w) G1(v) / (4 (n·w)(n·v)), Beckmann D and Smith G1 (facette.brdf._lobe_jit)."""
     wx, wy, wz = dx / r, dy / r, dz / r
     hx, hy, hz = wx, wy, wz + 1.0
     hn = math.sqrt(hx * hx + hy * hy + hz * hz)
@@ -88,32 +89,10 @@ def _lobe(dx, dy, dz, r, nx, ny, nz, s2, n_i, eta):
         return 0.0
     hx, hy, hz = hx / hn, hy / hn, hz / hn
     ch = nx * hx + ny * hy + nz * hz
-    if ch <= 0:
-        return 0.0
-    ch2 = ch * ch
-    tan2 = (1.0 - ch2) / ch2
-    if tan2 > 16.0 * s2:
-        return 0.0
-    d = math.exp(-tan2 / s2) / (math.pi * s2 * ch2 * ch2)
     cw = nx * wx + ny * wy + nz * wz
-    cv = nz
-    if cw <= 0 or cv <= 0:
+    s2 = sigma * sigma
+    if ch <= 0 or cw <= 0 or nz <= 0 or 1.0 - ch * ch > 16.0 * s2 * ch * ch:
         return 0.0
-    c = wx * hx + wy * hy + wz * hz            # w·h = v·h
-    gg = math.sqrt(eta + c * c)
-    gpc = gg + c
-    gmc = eta / gpc
-    a = gmc / gpc
-    f = 0.5 * a * a * (1.0 + ((c * gpc - 1.0) / (c * gmc + 1.0)) ** 2)
-    return f * d * _g1(cw, s2) * _g1(cv, s2) / (4.0 * cw * cv)
-
-
-@njit(fastmath=True, cache=True)
-def _g1(c, s2):
-    """Smith G_1 for Beckmann (eq 3.20) at cosine c to the normal."""
-    if c >= 1.0:
-        return 1.0
-    sn = math.sqrt(max(1.0 - c * c, 0.0))
-    a = c / (math.sqrt(s2) * sn)
-    lam = 0.5 * (math.exp(-a * a) / (a * math.sqrt(math.pi)) - math.erfc(a))
-    return 1.0 / (1.0 + lam)
+    f = fresnel_dielectric_scalar(wx * hx + wy * hy + wz * hz, eta)     # w·h = v·h
+    g = smith_g1_beckmann(cw, sigma) * smith_g1_beckmann(nz, sigma)
+    return f * beckmann_d(ch * ch, s2) * g / (4.0 * cw * nz)

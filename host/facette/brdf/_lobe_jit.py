@@ -1,0 +1,49 @@
+"""The specular lobe's pieces (eq 3.10) as compiled scalar functions (numba), for the per-pixel and
+per-pair kernels that evaluate it inside their loops: facette.fit._normals_li_jit (the per-pixel
+solve) and facette.recon._interreflect_jit (the glossy gather). The array forms are
+facette.brdf._shading (`li_shading_terms`) and facette.brdf._fresnel (`fresnel_dielectric`).
+
+Loaded only with those kernels (numba is imported here). numba's cache keys a kernel on its own
+file: after editing this one, clear the kernels' __pycache__/*.nbc so that they recompile with it.
+"""
+import math
+
+from numba import njit
+
+__all__ = ["smith_g1_beckmann", "beckmann_d", "fresnel_dielectric_scalar"]
+
+_SQRT_PI = math.sqrt(math.pi)
+
+
+@njit(cache=True)
+def smith_g1_beckmann(c, sigma):
+    """Smith G_1 for Beckmann (eq 3.20) at cosine c to the normal: 0 at c ≤ 0, 1 at the normal."""
+    if c <= 0.0:
+        return 0.0
+    if c > 1.0:
+        c = 1.0
+    sn = math.sqrt(max(1.0 - c * c, 0.0))
+    if sn <= 0.0:
+        return 1.0
+    a = c / (sigma * sn)
+    lam = 0.5 * (math.exp(-a * a) / (a * _SQRT_PI) - math.erfc(a))
+    return 1.0 / (1.0 + lam)
+
+
+@njit(cache=True)
+def beckmann_d(ch2, s2):
+    """Beckmann D (table 3.1) from cos² θ_h (> 0) and σ²."""
+    tan2 = (1.0 - ch2) / ch2
+    return math.exp(-tan2 / s2) / (math.pi * s2 * ch2 * ch2)
+
+
+@njit(cache=True)
+def fresnel_dielectric_scalar(c, eta):
+    """`facette.brdf.fresnel_dielectric` for one cosine c ∈ [0, 1], with eta = n_i² − 1."""
+    if eta == 0.0:
+        return 0.0
+    g = math.sqrt(eta + c * c)
+    gpc = g + c
+    gmc = eta / gpc
+    a = gmc / gpc
+    return 0.5 * a * a * (1.0 + ((c * gpc - 1.0) / (c * gmc + 1.0)) ** 2)
