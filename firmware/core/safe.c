@@ -94,9 +94,15 @@ void safe_poll(void)
         if (s_hooks->lit_channel() >= 0 && mv < (int32_t)FW_CFG_SUPPLY_MIN_MV)
             safe_fault(FW_FAULT_SUPPLY_LOW, (uint16_t)(mv < 0 ? 0 : mv));
     }
-    /* maximum on-time per pulse, whoever switched the LED on */
+    /* maximum on-time per pulse, whoever switched the LED on. The channel, its
+     * start and the clock are read together: the timer interrupt may light an
+     * LED after `now` was read, and `now - since` would then wrap to 2^64 us. */
+    hal_critical_enter();
     int lit = s_hooks->lit_channel();
-    if (lit >= 0 && now - s_hooks->lit_since_us() > safe_max_pulse_us())
+    uint64_t since = s_hooks->lit_since_us();
+    uint64_t lit_now = hal_time_us();
+    hal_critical_exit();
+    if (lit >= 0 && lit_now > since && lit_now - since > safe_max_pulse_us())
         safe_fault(FW_FAULT_MAX_PULSE, (uint16_t)lit);
     /* host watchdog: outside a scan, a silent host must not leave a light on */
     uint32_t wd_ms = regs_get(FW_SLOT_HOST_WATCHDOG_MS);

@@ -115,6 +115,8 @@ void hal_frame_annotate(const hal_frame_tag_t *tag) { th.tag = *tag; }
 
 int32_t hal_adc_read(hal_adc_t ch)
 {
+    if (th.adc_hook)
+        th.adc_hook();
     switch (ch) {
     case HAL_ADC_LED_CURRENT_MA: {
         if (th.led_ch < 0 || th.led_ch >= 16)

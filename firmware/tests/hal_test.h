@@ -61,6 +61,7 @@ typedef struct {
     uint32_t poll_us;                         /* fw_poll at least this often (500 by default) */
     void (*step_hook)(void);                  /* after each fw_poll and fw_on_timer (NULL: none) */
     void (*led_hook)(int prev_ch, uint16_t prev_dac); /* after each LED select or DAC change */
+    void (*adc_hook)(void);                   /* before each ADC read: an interrupt mid-poll */
     th_event_t ev[TH_MAX_EVENTS];
 } th_t;
 

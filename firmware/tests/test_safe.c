@@ -2,6 +2,7 @@
 #include "fw_err.h"
 #include "fw_registers.h"
 #include "hal.h"
+#include "led.h"
 #include "regs.h"
 #include "test.h"
 
@@ -16,6 +17,14 @@ static void manual(int ch, uint16_t mA)
 static unsigned sink_mA(void)
 {
     return th.led_ch < 0 ? 0u : (unsigned)((th.dac * 2000u + 2047u) / 4095u);
+}
+
+/* An interrupt that lights an LED while safe_poll samples the ADC (once). */
+static void light_mid_poll(void)
+{
+    th.adc_hook = NULL;
+    th.now += 20;
+    led_on(6, 200);
 }
 
 static void short_scan(void)
@@ -126,6 +135,15 @@ void test_safe(void)
         CHECK(th_reg_in(FW_REG_FAULT_BITS) & (1u << FW_FAULT_MAX_PULSE));
         CHECK_EQ((int16_t)th_reg_hold(FW_REG_MANUAL_CHANNEL), -1);
         CHECK_EQ(th_write(FW_REG_MANUAL_CHANNEL, 4), 4); /* refused while latched */
+    }
+    SHOULD("not take an LED lit by an interrupt during the safety poll for an endless pulse")
+    {
+        th_advance(20000);
+        th.adc_hook = light_mid_poll;
+        th_advance(20000);
+        CHECK(th.adc_hook == NULL);
+        CHECK_EQ(th.led_ch, 6);
+        CHECK_EQ(th_reg_in(FW_REG_FAULT_BITS) & (1u << FW_FAULT_MAX_PULSE), 0);
     }
     SHOULD("switch a manual light off when the host is silent for host_watchdog_ms")
     {
