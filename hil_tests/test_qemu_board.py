@@ -155,22 +155,30 @@ def test_frame_with_bad_crc_gets_no_answer_and_the_next_one_does(qemu_board):
 
 
 def test_uptime_follows_the_host_clock(modbus):
-    """The µs clock (SysTick at the emulated 168 MHz) runs at real-time rate:
-    two successive increments of uptime_s are about a second apart on the host."""
+    """The µs clock (SysTick at the emulated 168 MHz) runs at real-time rate: two
+    increments of uptime_s two counts apart are about two seconds apart on the host.
+    Each increment is bracketed by host times, from the request before the last read
+    that still showed the old count to the reply that showed the new one, so a slow
+    reply on a loaded machine widens the bracket instead of failing the test."""
     def next_increment(after, timeout_s=5.0):
         deadline = time.monotonic() + timeout_s
+        sent_before = time.monotonic()
         while time.monotonic() < deadline:
+            sent = time.monotonic()
             now = _read(modbus, "uptime_s")
             if now > after:
-                return now, time.monotonic()
+                return now, sent_before, time.monotonic()
+            sent_before = sent
             time.sleep(0.01)   # poll interval
         raise AssertionError(f"uptime_s stuck at {after} for {timeout_s} s")
 
-    first, _ = next_increment(_read(modbus, "uptime_s"))
-    second, t1 = next_increment(first)
-    third, t2 = next_increment(second)
-    assert third == second + 1
-    assert 0.5 < t2 - t1 < 2.0, f"uptime_s ticked after {t2 - t1:.2f} s of host time"
+    first, _, _ = next_increment(_read(modbus, "uptime_s"))
+    second, lo_a, hi_a = next_increment(first)
+    later, lo_b, hi_b = next_increment(second + 1)
+    counts = later - second   # 2, or more when a reply came late
+    shortest, longest = lo_b - hi_a, hi_b - lo_a
+    assert shortest < counts * 1.3 and longest > counts / 1.3, \
+        f"{counts} counts of uptime_s took {shortest:.2f}-{longest:.2f} s of host time"
 
 
 def test_scan_runs_on_the_board_timer_and_faults_without_flash_sync(modbus):
@@ -211,9 +219,11 @@ def test_scan_runs_on_the_board_timer_and_faults_without_flash_sync(modbus):
     assert set_mA == R.REGISTERS["light_current_mA"].default[0]
     # The emulated sense reads the DAC setpoint back (within one DAC step, ~0.5 mA).
     assert abs(ring("ring_current_meas_mA", 0) - set_mA) <= 1
-    # The retry's shutter opens once the sync wait and the gap are over.
+    # The retry's shutter opens once the sync wait and the gap are over, not before.
+    # QEMU is not real-time: on a loaded host the SysTick backstop may run a few ms
+    # late, so the upper bound only tells one wait from two (5000 + 3000 twice).
     step = ring("ring_start_us", 1) - ring("ring_start_us", 0)
-    assert 5000 + 3000 <= step < 5000 + 3000 + 2000, step
+    assert 5000 + 3000 <= step < 2 * (5000 + 3000), step
 
 
 def test_calibration_save_reports_the_flash_error_on_the_emulated_rom(modbus):
@@ -239,7 +249,7 @@ def test_reboot_command_resets_the_board(modbus):
         time.sleep(0.01)   # poll interval
         value = _read(modbus, "n_lights")
     assert value == reg.default[0]
-    assert _read(modbus, "uptime_s") <= 1
+    assert _read(modbus, "uptime_s") <= 3   # since the reset, even with slow replies
     assert _read(modbus, "state") == R.State.IDLE
 
 
