@@ -177,10 +177,10 @@ def test_uptime_follows_the_host_clock(modbus):
     later, lo_b, hi_b = next_increment(second + 1)
     counts = later - second   # 2, or more when a reply came late
     shortest, longest = lo_b - hi_a, hi_b - lo_a
-    # Within 2x: a wrong SysTick source or reload is off by 8x (HCLK/8) or 10.5x (HSI),
-    # while a guest starved of the host CPU misses ticks (2.9 s for 2 counts under 3
-    # busy loops on 2 cores).
-    assert shortest < counts * 2.0 and longest > counts / 2.0, \
+    # Within 4x: a wrong SysTick source or reload is off by 8x (HCLK/8) or 10.5x (HSI),
+    # while a guest starved of the host CPU misses ticks (2.9 and 4.2 s for 2 counts
+    # under 3 busy loops on 2 cores).
+    assert shortest < counts * 4.0 and longest > counts / 4.0, \
         f"{counts} counts of uptime_s took {shortest:.2f}-{longest:.2f} s of host time"
 
 
