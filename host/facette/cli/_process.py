@@ -37,7 +37,7 @@ def _outputs(text):
 
 def register(sub):
     from facette.pipeline import OUTPUTS
-    from facette.recon import PS_DEFAULT, PS_METHODS
+    from facette.recon import INTEGRATION_DEFAULT, INTEGRATION_METHODS, PS_DEFAULT, PS_METHODS
     from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
     from facette.brdf import MODELS
     from facette.fit import METHODS
@@ -61,8 +61,10 @@ def register(sub):
                    help="take the light a concave matte surface gathers from itself out of the images "
                         "first (craters, grooves, a vase's neck; needs a reflectance-calibrated scan); with "
                         "--method li_alternating also what glossy walls mirror into each other")
-    p.add_argument("--integration", default="frankot_chellappa1988",
-                   choices=["frankot_chellappa1988", "simchony1990", "least_squares"])
+    p.add_argument("--integration", default=INTEGRATION_DEFAULT, choices=list(INTEGRATION_METHODS),
+                   help=f"normal integration (default {INTEGRATION_DEFAULT}: the object needs a flat "
+                        "margin around it, as for frankot_chellappa1988, the thesis's; least_squares "
+                        "integrates the mask only)")
     p.add_argument("--t-ombre", type=_number(float, 0, math.pi / 2, True, "--t-ombre"), default=T_OMBRE,
                    help="shadow angle threshold, rad, in (0, pi/2] (1.5)")
     p.add_argument("--t-spec", type=_number(float, 0, None, True, "--t-spec"), default=T_SPEC,

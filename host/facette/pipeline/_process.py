@@ -34,7 +34,7 @@ from facette.io.gltf import write_glb
 from facette.io.png import write_mask
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
-from facette.recon import (PS_DEFAULT, PS_METHODS, integrate, mesh_from_height, near_light_directions, photometric_stereo,
+from facette.recon import (INTEGRATION_DEFAULT, PS_DEFAULT, PS_METHODS, integrate, mesh_from_height, near_light_directions, photometric_stereo,
                            fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION,
                            without_interreflections)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
@@ -216,7 +216,7 @@ def _truth_errors(inp, res):
 
 
 def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
-            integration="frankot_chellappa1988", t_ombre=T_OMBRE, t_spec=T_SPEC,
+            integration=INTEGRATION_DEFAULT, t_ombre=T_OMBRE, t_spec=T_SPEC,
             t_source=T_SOURCE, t_residual=T_RESIDUAL, theta0_deg=THETA0_DEG, mask=None,
             pixel_pitch_mm=None, near_light=True, mesh_step=None, ascii_ply=False,
             saturation=None, fit_options=None, hsh_order=3, ps_options=None, allow_incomplete=False,
@@ -240,7 +240,9 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
         their 95th percentile (a convex object gathers none). With li_alternating, the light glossy
         walls mirror into each other is removed too, with the lobe it finds
         (facette.fit.ps_li_without_interreflections).
-    integration : "frankot_chellappa1988" (thesis), "simchony1990" or "least_squares" (mask only).
+    integration : a name of recon.INTEGRATION_METHODS: "poisson_flat_margin" (default; needs a flat
+        margin around the object), "frankot_chellappa1988" (the thesis's, which needs it too),
+        "simchony1990" or "least_squares" (on the mask only).
     t_ombre (rad), t_spec, t_source, t_residual : see `ps_hierarchical_tautzia2016`.
     theta0_deg : hemisphere-sensor cell size (deg). mask : (H, W) bool or PNG path.
     near_light : use the lights' positions (per-pixel directions, 1/r^2) when the scan has them.

@@ -2,8 +2,9 @@
 
 Photometric stereo (thesis §4.2.1): `ps_woodham1980`, `ps_hierarchical_tautzia2016`; robust
 methods for real photographs: `ps_rpca_wu2010` (low-rank recovery), `ps_rank_trimmed` (per-pixel
-trimmed least squares); all dispatched by `photometric_stereo(..., method=)`. Integration: `integrate_frankot_chellappa1988`,
-`integrate_simchony1990`, `integrate_least_squares`, dispatched by `integrate(..., method=)`.
+trimmed least squares); all dispatched by `photometric_stereo(..., method=)`. Integration: `integrate_poisson_flat_margin`
+(the default), `integrate_frankot_chellappa1988` (the thesis's), `integrate_simchony1990`, `integrate_least_squares`,
+dispatched by `integrate(..., method=)`.
 Inter-reflections of concave matte surfaces taken out of the images before photometric stereo:
 `remove_interreflections` (`without_interreflections`: with its first shape).
 Relighting functions for RTI (PTM, Malzbender 2001; hemispherical harmonics, Gautron 2004):
@@ -13,8 +14,8 @@ from ._ps import (PS_DEFAULT, PSResult, ps_woodham1980, ps_hierarchical_tautzia2
                   PS_METHODS, triplet_inverses, near_light_directions)
 from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed      # registers both in PS_METHODS
 from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
-                         integrate_simchony1990, integrate_least_squares, integrate,
-                         INTEGRATION_METHODS, mesh_from_height)
+                         integrate_simchony1990, integrate_poisson_flat_margin, integrate_least_squares,
+                         integrate, INTEGRATION_DEFAULT, INTEGRATION_METHODS, mesh_from_height)
 from ._interreflect import (remove_interreflections, without_interreflections, IR_GRID, IR_MAX_FRACTION,
                             IR_PASSES, IR_SKIP_P95)
 from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, fit_relight_error, relight_ptm,
@@ -24,7 +25,8 @@ __all__ = ["PS_DEFAULT", "PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2
            "ps_rank_trimmed", "photometric_stereo",
            "PS_METHODS", "triplet_inverses", "near_light_directions",
            "normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
-           "integrate_least_squares", "integrate", "INTEGRATION_METHODS", "mesh_from_height",
+           "integrate_poisson_flat_margin", "integrate_least_squares", "integrate", "INTEGRATION_DEFAULT",
+           "INTEGRATION_METHODS", "mesh_from_height",
            "ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh", "relight_ptm",
            "relight_hsh", "relight_error", "fit_relight_error", "HSH_ORDERS",
            "RELIGHT_ERROR_PIXELS", "remove_interreflections", "without_interreflections", "IR_GRID", "IR_MAX_FRACTION", "IR_PASSES",
