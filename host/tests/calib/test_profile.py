@@ -115,7 +115,7 @@ def test_the_committed_sim_profile_serves_every_simulated_size():
     from facette.sim.device_process import REPO_ROOT
 
     p = load(REPO_ROOT / "calibration" / "profiles" / "sim-default")
-    assert p.measured_size() == (64, 48)
+    assert p.measured_size() == (256, 192)       # measured at 512x384 RAW
     for raw_w, raw_h in ((128, 96), (1072, 712), (4288, 2848)):
         w = raw_w // 2
         # the simulator keeps a 120 mm wide field: the calibrated pitch follows it (0.2 %)
