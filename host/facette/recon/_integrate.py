@@ -190,10 +190,11 @@ INTEGRATION_METHODS.add("least_squares", integrate_least_squares)
 
 
 # Measured against Frankot–Chellappa (the thesis's, §4.2.1) on the rank_trimmed normals of simulated
-# scans at 1024x768 / 1072x712 / 4288x2848 RAW: height RMS 0.026 / 0.024 / 0.015 mm against 0.027 /
-# 0.026 / 0.015 (per object 0.011 / 0.013 / 0.014 against 0.015 / 0.017 / 0.014); on nine Mitsuba
-# scenes 1-42 % lower on seven, 0.3 % higher on the two vases. Plain Simchony is best per object
-# but tilts two objects apart through a noisy background (0.038 / 0.043 / 0.030 mm).
+# scans at 1024x768 / 1072x712 / 4288x2848 RAW (committed profile): height RMS 0.015 / 0.017 /
+# 0.014 mm against 0.018 / 0.020 / 0.014 (per object 0.013 / 0.013 / 0.014 against 0.017 / 0.017 /
+# 0.014); on nine Mitsuba scenes 1-42 % lower on seven, 0.3 % higher on the two vases. Plain
+# Simchony is best per object but tilts two objects apart through a noisy background (with the
+# previous profile 0.038 / 0.043 / 0.030 mm, against 0.026 / 0.024 / 0.015 here).
 INTEGRATION_DEFAULT = "poisson_flat_margin"
 
 
