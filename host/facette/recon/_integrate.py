@@ -14,7 +14,8 @@ import scipy.sparse.linalg
 from facette._registry import Registry
 
 __all__ = ["normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
-           "integrate_poisson_flat_margin", "integrate_least_squares", "INTEGRATION_DEFAULT", "integrate", "INTEGRATION_METHODS", "mesh_from_height"]
+           "integrate_poisson_flat_margin", "integrate_least_squares", "INTEGRATION_DEFAULT", "integrate",
+           "INTEGRATION_METHODS", "mesh_from_height"]
 
 # |p|, |q| are clipped here (88.9 deg): n_z -> 0 (silhouettes) would give infinite slopes. Not
 # lower: a pixel over a vertical tangent (a sphere's rim on the table) has a mean slope that grows
