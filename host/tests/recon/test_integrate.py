@@ -60,12 +60,14 @@ def two_domes_on_a_table(h=96, w=160):
     the surface given by its heights at the pixel corners: a pixel's normal is that of its mean
     slope (the difference of its edges' mean heights), its height the mean of its corners (the
     simulator's pixel at 1024x768 RAW and above)."""
+    from facette.sim.scene import _edge_means, _trapezoid_mean    # the simulator's own pixel
+
     x, y = np.meshgrid(np.arange(w + 1) - w / 2, h / 2 - np.arange(h + 1))
     z = np.sqrt(np.clip(30.0 ** 2 - (x + 40) ** 2 - y ** 2, 0, None)) + \
         np.sqrt(np.clip(20.0 ** 2 - (x - 45) ** 2 - y ** 2, 0, None))
-    height = 0.25 * (z[:-1, :-1] + z[1:, :-1] + z[:-1, 1:] + z[1:, 1:])
-    sx = 0.5 * ((z[:-1, 1:] + z[1:, 1:]) - (z[:-1, :-1] + z[1:, :-1]))
-    sy = 0.5 * ((z[:-1, :-1] + z[:-1, 1:]) - (z[1:, :-1] + z[1:, 1:]))
+    height = _trapezoid_mean(z, 1)
+    vertical, horizontal = _edge_means(z, 1)
+    sx, sy = vertical[:, 1:] - vertical[:, :-1], horizontal[:-1] - horizontal[1:]
     n = np.stack([-sx, -sy, np.ones_like(sx)], -1)
     return n / np.linalg.norm(n, axis=-1, keepdims=True), height
 
