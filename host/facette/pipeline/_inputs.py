@@ -14,7 +14,12 @@ from facette.io.png import read_mask
 from facette.pipeline._quality import MIN_LEVELS, usable_from_green
 from facette.scan import MissingFrameWarning, ScanDirectory, merge_scan, stale_lights
 
-__all__ = ["PSInput", "load_input", "source_path"]
+__all__ = ["PSInput", "load_input", "source_path", "auto_masks", "margin_of", "MARGIN_BORDER"]
+
+
+# The dark class is a margin (a table, a cloth) only where it surrounds the object: at least
+# this share of the lit pixels on the image's border.
+MARGIN_BORDER = 0.9
 
 
 @dataclass
@@ -23,7 +28,7 @@ class PSInput:
     light_dirs (m, 3) unit vectors (camera frame); positions_mm (m, 3) or None;
     mask (H, W) bool, where normals and heights are computed; pixel_pitch_mm; kind "scan" or
     "diligent"; truth: dict or None; material_mask (H, W) bool or None (= mask), the pixels
-    whose reflectance samples feed the BRDF fit (see `_auto_mask`)."""
+    whose reflectance samples feed the BRDF fit (see `auto_masks`)."""
     images: np.ndarray
     light_dirs: np.ndarray
     positions_mm: object
@@ -43,6 +48,11 @@ class PSInput:
     def sample_mask(self):
         """Pixels whose reflectance samples are taken: the mask, within the material mask."""
         return self.mask if self.material_mask is None else self.mask & self.material_mask
+
+    def background_mask(self):
+        """The dark table or cloth around the object (`margin_of`), or None (also for a given
+        mask or a DiLiGenT folder, which have no material mask)."""
+        return None if self.material_mask is None else margin_of(self.mask, self.material_mask)
 
 
 def source_path(source):
@@ -72,7 +82,7 @@ def _nanmedian0(a):
     return med
 
 
-def _auto_mask(images, min_contrast=4.0):
+def auto_masks(images, min_contrast=4.0):
     """Two masks, (lit, material), each (H, W) bool.
 
     lit : pixels lit above 2 % of the bright end (99th percentile of the per-pixel maximum
@@ -121,6 +131,22 @@ def _auto_mask(images, min_contrast=4.0):
     material = np.zeros(lum.shape, bool)
     material[ok] = logl > edges[k + 1]
     return lit, material
+
+
+def margin_of(lit, material):
+    """The lit pixels outside the object's material (the dark table or cloth it lies on) when
+    they surround it, else None: no dark class, or a dark class that is part of the object (a
+    slab filling the frame with a dark matrix: less than MARGIN_BORDER of the image's lit border
+    pixels in it). lit, material : (H, W) bool, as `auto_masks` gives them."""
+    lit = np.asarray(lit, bool)
+    bg = lit & ~np.asarray(material, bool)
+
+    def border(a):
+        return np.concatenate([a[0], a[-1], a[1:-1, 0], a[1:-1, -1]])
+
+    if not bg.any() or border(bg).sum() < MARGIN_BORDER * max(1, border(lit).sum()):
+        return None
+    return bg
 
 
 def _unreadable(path, exc):
@@ -259,8 +285,8 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False):
     if data.get("truth") and (scan_dir / data["truth"]).is_file():
         with np.load(scan_dir / data["truth"], allow_pickle=False) as z:
             truth = {k: z[k] for k in z.files}
-    mask, material = _auto_mask(images)
-    # the object: the lit pixels and those saturated under some light (which _auto_mask, blind
+    mask, material = auto_masks(images)
+    # the object: the lit pixels and those saturated under some light (which auto_masks, blind
     # to unknown values, leaves out)
     obj = mask | np.isnan(images[..., 1]).any(axis=0)
     inp = PSInput(images, dirs, positions, mask, float(pitch), "scan", scan_dir, truth,

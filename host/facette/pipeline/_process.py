@@ -34,7 +34,8 @@ from facette.io.gltf import write_glb
 from facette.io.png import write_mask
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
-from facette.recon import (INTEGRATION_DEFAULT, PS_DEFAULT, PS_METHODS, integrate, mesh_from_height, near_light_directions, photometric_stereo,
+from facette.recon import (INTEGRATION_DEFAULT, INTEGRATION_METHODS, PS_DEFAULT, PS_METHODS, flat_margin, integrate,
+                           mesh_from_height, near_light_directions, photometric_stereo,
                            fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION,
                            without_interreflections)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
@@ -241,7 +242,8 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
         walls mirror into each other is removed too, with the lobe it finds
         (facette.fit.ps_li_without_interreflections).
     integration : a name of recon.INTEGRATION_METHODS: "poisson_flat_margin" (default; needs a flat
-        margin around the object), "frankot_chellappa1988" (the thesis's, which needs it too),
+        margin around the object: when the scan has a dark background, the table's lean is taken
+        from it and out of its slopes only), "frankot_chellappa1988" (the thesis's, which needs it too),
         "simchony1990" or "least_squares" (on the mask only).
     t_ombre (rad), t_spec, t_source, t_residual : see `ps_hierarchical_tautzia2016`.
     theta0_deg : hemisphere-sensor cell size (deg). mask : (H, W) bool or PNG path.
@@ -410,15 +412,23 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration
 
     def shape():
         mk = res.mask if integration == "least_squares" else None
-        hgt = _timed(res, "integrate", integrate, res.normals, inp.pixel_pitch_mm, mk, integration)
+        # the margin's pixels, for the flat-margin integration: its mean slope is the table's lean
+        bg = inp.background_mask()
+        bg = None if bg is None else bg & res.mask
+        hgt = _timed(res, "integrate", integrate, res.normals, inp.pixel_pitch_mm, mk, integration, bg)
         res.height = np.where(res.mask, hgt, 0.0).astype(np.float32)
+        notes = []
+        if INTEGRATION_METHODS.canonical(integration) == "poisson_flat_margin" and \
+                flat_margin(bg, res.mask.shape) is not None:
+            notes.append(f"heights: the table's lean (its mean slope over the {int(bg.sum())} background pixels) "
+                         "taken out of the background's slopes only, the object's integrated as measured")
         write("height")
         if "mesh" in stages:
             step = mesh_step or max(1, int(np.ceil(np.sqrt(res.mask.sum() / 1e6))))
             res.mesh = _timed(res, "mesh", mesh_from_height, res.height, res.mask, inp.pixel_pitch_mm, step)
             res.options["mesh_step"] = step
             write("mesh")
-        return []
+        return notes
 
     def reflectance():
         # the images as photometric stereo saw them (near lights: fall-off divided out; the

@@ -126,6 +126,49 @@ def test_scan_directory_with_truth(tmp_path):
     np.testing.assert_allclose(np.ravel(brdf["parameters"]["kd"]), [0.6, 0.5, 0.4], rtol=0.02)
 
 
+def test_heights_keep_an_object_level_on_a_dark_leaning_table(tmp_path):
+    # a bump on a dark table (albedo 0.04 against 0.6) whose normals lean by 0.5 deg, as a black
+    # cloth's do: the table's lean is taken from the table's pixels (the lit pixels darker than
+    # the object) and out of its slopes alone, so the bump keeps its shape; the image's mean slope
+    # taken out of every pixel (no background known) tilts the bump by the table's share of it
+    from facette.recon import integrate
+    from facette.recon.synthetic import Scene
+    h, w, pitch = 64, 96, 0.1
+    yy, xx = np.mgrid[0:h, 0:w].astype(float)
+    x, y = xx - w / 2, -(yy - h / 2)
+    z = 12.0 * np.exp(-(x ** 2 + y ** 2) / (2 * 9.0 ** 2))
+    on = z > 0.05
+    n = np.stack([x / 81 * z, y / 81 * z, np.ones_like(z)], -1)
+    lean = np.deg2rad(0.5)
+    n[~on] = [-np.sin(lean), 0.0, np.cos(lean)]
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    sc = Scene(n, z, np.ones((h, w), bool), on, (h / 2, w / 2), 0.0)
+    imgs = render(sc, L, "matte", cast_shadows=False)
+    imgs[:, ~on] *= 0.04 / 0.6
+    _write_scan(tmp_path / "scan", sc, imgs, pitch)
+    res = process(tmp_path / "scan", outputs=["normals", "height"])
+    assert any("the table's lean" in note for note in res.notes), res.notes
+
+    def tilt_rms(hgt):
+        d = (hgt - z * pitch)[on]
+        return float(np.sqrt(np.mean((d - d.mean()) ** 2)))
+
+    level, tilted = tilt_rms(res.height), tilt_rms(integrate(res.normals, pitch))
+    assert level < 0.2 * tilted, (level, tilted)
+    # a scan with no dark background: the whole image's mean slope, no note
+    plain = process(tmp_path / "scan", outputs=["normals", "height"], mask=np.ones((h, w), bool))
+    assert not any("the table's lean" in note for note in plain.notes)
+    # a dark class that does not surround the object (a slab filling the frame, its left third
+    # a dark matrix) is part of the object, not a margin: no lean is taken from it
+    imgs = render(sc, L, "matte", cast_shadows=False)
+    imgs[:, :, : w // 3] *= 0.04 / 0.6
+    _write_scan(tmp_path / "slab", sc, imgs, pitch)
+    slab = process(tmp_path / "slab", outputs=["normals", "height"])
+    assert (slab.inputs.mask & ~slab.inputs.material_mask).any()       # a dark class was found
+    assert slab.inputs.background_mask() is None
+    assert not any("the table's lean" in note for note in slab.notes)
+
+
 def test_scan_with_near_lights_uses_positions(tmp_path):
     sc = sphere_on_plane(40, 40)
     pitch = 1.0

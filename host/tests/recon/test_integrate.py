@@ -5,7 +5,7 @@ import pytest
 from facette.recon import (INTEGRATION_DEFAULT, integrate, integrate_frankot_chellappa1988,
                            integrate_least_squares, integrate_poisson_flat_margin, integrate_simchony1990,
                            mesh_from_height, normals_to_gradients)
-from facette.recon._integrate import MAX_SLOPE
+from facette.recon._integrate import MAX_SLOPE, MIN_BACKGROUND_PIXELS, flat_margin
 
 
 def surface_normals(z_fn, h=64, w=80, pitch=1.0):
@@ -95,6 +95,24 @@ def test_poisson_flat_margin_does_not_ring_at_the_rims_nor_tilt_with_a_biased_ta
     assert tilted["poisson_flat_margin"] < 0.5 * min(tilted["simchony1990"],
                                                      tilted["frankot_chellappa1988"]), tilted
     assert INTEGRATION_DEFAULT == "poisson_flat_margin"
+    # told which pixels are the table, it takes the lean from them alone and leaves the domes'
+    # slopes as they are: exact again (the whole image's mean slope also tilts the domes)
+    told = rms_error(integrate(biased, 1.0, method="poisson_flat_margin", background=~on), height, on)
+    assert told < 1e-3 < tilted["poisson_flat_margin"], (told, tilted)
+
+
+def test_flat_margin_background_too_small_or_of_another_size():
+    n, height = two_domes_on_a_table()
+    stray = np.zeros(height.shape, bool)
+    stray[:MIN_BACKGROUND_PIXELS // 100, :99] = True          # fewer pixels than a margin needs
+    assert flat_margin(stray, stray.shape) is None
+    np.testing.assert_array_equal(integrate_poisson_flat_margin(n, background=stray),
+                                  integrate_poisson_flat_margin(n))
+    # the methods that assume no margin have no use for one
+    np.testing.assert_array_equal(integrate(n, method="simchony1990", background=height == 0),
+                                  integrate(n, method="simchony1990"))
+    with pytest.raises(ValueError, match="background has shape"):
+        integrate_poisson_flat_margin(n, background=np.ones((4, 4), bool))
 
 
 def test_least_squares_on_a_mask_with_holes_strands_and_isolated_pixels():
