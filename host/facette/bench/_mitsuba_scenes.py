@@ -12,7 +12,8 @@ over each pixel like the images (`_render`).
 Shapes (our own): "sphere"; "relief", a bas-relief height field (bumps, ridges and a crater:
 concavities that cast shadows and inter-reflect); "vase", a surface of revolution with a concave
 neck; "shell", a ribbed dome with a pit (a check scene, with the "lacquer" material, for changes
-tuned on the others). Materials: "plaster" (matte), the thesis's three paints (σ, n_i = 0.10, 1.30; 0.08, 1.28;
+tuned on the others); "table", two domes on a dark table that fills the frame (heights against
+Mitsuba's positions, and the flat margin the integration assumes). Materials: "plaster" (matte), the thesis's three paints (σ, n_i = 0.10, 1.30; 0.08, 1.28;
 0.05, 1.26), "satin" (σ 0.2, n_i 1.5). Textures: a K_d pattern (stripes and spots, two colours)
 so that albedo varies over the object.
 
@@ -36,7 +37,13 @@ MATERIALS = {
     "satin": {"sigma": 0.20, "n_i": 1.50},
     "lacquer": {"sigma": 0.07, "n_i": 1.45},    # a check scene: n_i unlike the thesis's paints
 }
-SHAPES = ("sphere", "relief", "vase", "shell")
+SHAPES = ("sphere", "relief", "vase", "shell", "table")
+# "table": two domes in the scene's material on a dark, slightly glossy table filling the frame (a
+# fossil on black cloth): a hemisphere (radius 0.38, a vertical wall at its foot) and a spherical
+# cap 0.25 high (radius 0.5, meeting the table at 60°). Heights are checked against `positions`.
+TABLE_KD = (0.04, 0.04, 0.045)
+TABLE_MATERIAL = "paint_0.05"
+TABLE_DOMES = (((0.42, 0.05, 0.0), 0.38), ((-0.45, -0.1, -0.25), 0.5))
 
 
 def rig_light_directions():
@@ -179,14 +186,20 @@ def _render(shape, material, size, spp, kd, textured, lights, near_distance, max
     kd_img = _kd_texture(textured, kd)
     bsdf = _bsdf(mi, material, kd_img)
     tmp = None
+    shapes = {}
     if shape == "sphere":
-        obj = {"type": "sphere", "radius": 0.9, "bsdf": bsdf}
+        shapes["obj"] = {"type": "sphere", "radius": 0.9, "bsdf": bsdf}
+    elif shape == "table":
+        for k, (centre, radius) in enumerate(TABLE_DOMES):
+            shapes[f"dome{k}"] = {"type": "sphere", "center": list(centre), "radius": radius, "bsdf": bsdf}
+        shapes["table"] = {"type": "rectangle", "to_world": T.scale([1.5, 1.5, 1.0]),
+                           "bsdf": _bsdf(mi, TABLE_MATERIAL, _kd_texture(False, TABLE_KD))}
     else:
         import tempfile
         tmp = tempfile.TemporaryDirectory()
         ply = Path(tmp.name) / f"{shape}.ply"
         _write_ply(ply, *_heightfield(shape))
-        obj = {"type": "ply", "filename": str(ply), "bsdf": bsdf, "face_normals": False}
+        shapes["obj"] = {"type": "ply", "filename": str(ply), "bsdf": bsdf, "face_normals": False}
     sensor = {"type": "orthographic",
               "to_world": T.look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
               "film": {"type": "hdrfilm", "width": size, "height": size, "rfilter": {"type": "box"},
@@ -204,11 +217,11 @@ def _render(shape, material, size, spp, kd, textured, lights, near_distance, max
                 emitter = {"type": "point", "position": (s * near_distance).tolist(),
                            "intensity": {"type": "rgb", "value": float(near_distance) ** 2}}
             scene = mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": max_depth},
-                                  "sensor": sensor, "obj": obj, "light": emitter})
+                                  "sensor": sensor, **shapes, "light": emitter})
             imgs.append(np.array(mi.render(scene, seed=seed + 7919 * i), dtype=np.float32)[..., :3])
         out["images"] = np.stack(imgs)
     aov = mi.load_dict({"type": "scene", "integrator": {"type": "aov", "aovs": "nn:sh_normal,pp:position,kd:albedo"},
-                        "sensor": sensor, "obj": obj})
+                        "sensor": sensor, **shapes})
     a = np.array(mi.render(aov, seed=seed + 104729), dtype=np.float32)
     nrm, pos = a[..., 0:3], a[..., 3:6]
     if tmp is not None:

@@ -13,7 +13,10 @@ shape; for li_alternating also the glossy walls, with its lobe; `facette process
    normals against the plaster's (mean angle), per method;
 2. the whole pipeline (`facette process` from a DiLiGenT-style folder of the renders: normals →
    reflectance samples → hemisphere filter → LI fit, no true normals anywhere): σ, n_i, K_d
-   against the renderer's, per method.
+   against the renderer's, per method;
+3. heights: two domes on a dark table (rank_trimmed normals), each integration method against
+   Mitsuba's positions, in pixels: one constant over both domes, and one per dome; the flat
+   margin with the table found as `process` finds it (`facette.pipeline.margin_of`) and without.
 """
 import argparse
 import tempfile
@@ -24,7 +27,10 @@ import numpy as np
 from scipy.ndimage import binary_erosion
 
 import facette.fit  # noqa: F401  (registers the BRDF-aware li_alternating with recon's dispatch)
-from facette.bench._mitsuba_scenes import MATERIALS, render_scene
+from facette.bench._mitsuba_scenes import MATERIALS, TABLE_MATERIAL, render_scene
+from facette.bench.e2e import height_errors
+from facette.pipeline import auto_masks, margin_of
+from facette.recon import INTEGRATION_METHODS, PS_DEFAULT, integrate, photometric_stereo
 
 METHODS = ("woodham1980", "hierarchical_tautzia2016", "rank_trimmed", "rpca_wu2010", "li_alternating")
 PIPELINE_METHODS = ("woodham1980", "hierarchical_tautzia2016", "rank_trimmed", "li_alternating")
@@ -118,6 +124,28 @@ def two_materials(args):
     d["kd"][:, half:] = b["kd"][:, half:]
     d["params"] = {**a["params"], "two_materials": True}
     return d
+
+
+def table_heights(args, material="paint_0.10"):
+    """Rows (label, global px, per-dome px, s) of each integration method on the rank_trimmed
+    normals of two domes on a dark table, heights against Mitsuba's positions."""
+    d = render_scene("table", material, size=args.size, spp=args.spp, cache_dir=args.cache)
+    pitch = 2.0 / args.size                         # the orthographic view spans [-1, 1]
+    z = d["positions"][..., 2].astype(np.float64)
+    truth = {"height_mm": z, "mask": z > 0.01}      # the domes (the table is at 0)
+    normals = photometric_stereo(d["images"], d["light_dirs"], method=PS_DEFAULT, mask=d["mask"]).normal
+    table = margin_of(*auto_masks(d["images"]))
+    runs = [(name, name, None) for name in INTEGRATION_METHODS]
+    runs.append(("poisson_flat_margin", "poisson_flat_margin, table found", table))
+    rows = []
+    for method, label, background in runs:
+        t = time.perf_counter()
+        hgt = integrate(normals, pitch, None, method, background=background)
+        dt = time.perf_counter() - t
+        g, per = height_errors(truth, hgt, d["mask"])
+        rows.append((label, g / pitch, per / pitch, dt))
+    found = "none" if table is None else f"{table.sum()} px, {np.mean(table == ~truth['mask']):.3f} agree"
+    return rows, f"table {found}"
 
 
 def _variants(methods, interreflections):
@@ -218,6 +246,12 @@ def main(argv=None):
                 print(f"{shape + '/' + mat:22s} {name:30s} {p.get('sigma', np.nan):7.4f} {truth['sigma']:6.3f} "
                       f"{p.get('n_i', np.nan):6.3f} {truth['n_i']:6.2f} {' '.join(f'{x:5.3f}' for x in kd):>18s} "
                       f"{dt:6.1f}  ({res.brdf.model if res.brdf is not None else 'no fit'})", flush=True)
+    rows, found = table_heights(args)
+    print(f"\nHeights: two domes in paint_0.10 on a dark table (K_d 0.04, {TABLE_MATERIAL}), rank_trimmed "
+          f"normals; RMS against Mitsuba's positions in pixels, one constant over both domes / one per dome; "
+          f"{found}")
+    for label, g, per, dt in rows:
+        print(f"  {label:40s} {g:7.3f} {per:7.3f}  {dt:6.3f} s")
     return 0
 
 
