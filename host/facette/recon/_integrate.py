@@ -226,7 +226,10 @@ INTEGRATION_METHODS.add("least_squares", integrate_least_squares)
 # 0.014 mm against 0.018 / 0.020 / 0.014 (per object 0.013 / 0.013 / 0.014 against 0.017 / 0.017 /
 # 0.014); on nine Mitsuba scenes 1-42 % lower on seven, 0.3 % higher on the two vases. Plain
 # Simchony is best per object but tilts two objects apart through a noisy background (with the
-# previous profile 0.038 / 0.043 / 0.030 mm, against 0.026 / 0.024 / 0.015 here).
+# previous profile 0.038 / 0.043 / 0.030 mm, against 0.026 / 0.024 / 0.015 here). With the table's
+# lean taken from the table alone (`background`, as `process` passes it): 0.012 / 0.015 / 0.009 mm,
+# per object 0.008 / 0.008 / 0.009; Mitsuba's two domes on a dark table 0.490 -> 0.475 px
+# (`facette bench mitsuba`).
 INTEGRATION_DEFAULT = "poisson_flat_margin"
 
 
