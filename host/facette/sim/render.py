@@ -16,6 +16,7 @@ This is the image model of thesis eq 4.3 generalised to any BRDF (eq 2.11 with
 from __future__ import annotations
 
 import numpy as np
+from scipy.ndimage import maximum_filter
 
 from facette.brdf import get as brdf_get
 
@@ -39,9 +40,19 @@ def to_local(v, n):
 def cast_shadow_visibility(height_mm, pixel_pitch_mm, s):
     """1 where the LED is visible from the surface point, 0 where the height field
     occludes it. `s` : (3,) or (H, W, 3) unit direction(s) towards the light.
-    Marches one pixel at a time towards the light in the image plane."""
+
+    A point is shadowed when the height field, read along the ray towards the light one pixel
+    step at a time, rises above the ray. The first NEAR_STEPS steps read the heights between
+    pixels (bilinear) at the ray's own positions: a nearest pixel half a pixel off the ray sits
+    on the surface's own slope, and a dome's rim (slopes up to 26 at 4288x2848 RAW) shadowed
+    itself under 36-56 % of its grazing lights where n.s > 0 says it is lit. Beyond them, for a
+    light at one direction for every pixel, the highest point of the rest of the ray is found
+    by doubling (the maximum over steps 1..2j from those over 1..j, read j steps ahead), in
+    log2(steps) passes instead of one pass per step; per-pixel directions (near LEDs) march on.
+    """
     hgt = np.asarray(height_mm, float)
     hh, ww = hgt.shape
+    shared = np.ndim(s) == 1
     s = np.broadcast_to(np.asarray(s, float), (hh, ww, 3))
     horiz = np.hypot(s[..., 0], s[..., 1])
     vis = np.ones((hh, ww))
@@ -54,17 +65,94 @@ def cast_shadow_visibility(height_mm, pixel_pitch_mm, s):
     relief = hgt.max() - hgt.min()
     n_steps = int(np.ceil(relief / max(pixel_pitch_mm * np.min(s[..., 2][ok] / horiz[ok]), 1e-9))) + 1
     n_steps = min(n_steps, hh + ww)
-    rows, cols = np.mgrid[0:hh, 0:ww].astype(float)
-    eps = 1e-3 * max(relief, 1e-6)
-    for k in range(1, n_steps + 1):
-        r = rows + k * step_r
-        c = cols + k * step_c
-        inside = (r >= 0) & (r <= hh - 1) & (c >= 0) & (c <= ww - 1)
-        ri = np.clip(np.rint(r).astype(int), 0, hh - 1)
-        ci = np.clip(np.rint(c).astype(int), 0, ww - 1)
-        blocked = inside & ok & (hgt[ri, ci] > hgt + k * rise + eps)
-        vis[blocked] = 0.0
+    top = hgt + 1e-3 * max(relief, 1e-6)          # the ray must clear the start by this
+    if shared:
+        # one direction: a step is the same offset for every pixel, read as shifted slices
+        dr, dc, up = float(step_r.flat[0]), float(step_c.flat[0]), float(rise.flat[0])
+        blocked = np.zeros((hh, ww), bool)
+        for k in range(1, min(n_steps, NEAR_STEPS) + 1):
+            blocked |= _shifted(hgt, k * dr, k * dc) - k * up > top
+        if n_steps > NEAR_STEPS:
+            far = _highest_ahead(hgt, dr, dc, up, n_steps - NEAR_STEPS)
+            blocked |= _shifted(far, NEAR_STEPS * dr, NEAR_STEPS * dc) - NEAR_STEPS * up > top
+    else:
+        blocked = _march(hgt, top, step_r, step_c, rise, ok, n_steps)
+    vis[blocked & ok] = 0.0
     return vis
+
+
+def _march(hgt, top, step_r, step_c, rise, ok, n_steps):
+    """Shadowed pixels for per-pixel directions: the near steps read between pixels where
+    something within their reach stands above the first step, the rest the nearest pixel."""
+    hh, ww = hgt.shape
+    rows, cols = np.mgrid[0:hh, 0:ww].astype(float)
+    blocked = np.zeros((hh, ww), bool)
+    reach = maximum_filter(hgt, size=2 * NEAR_STEPS + 3, mode="nearest")
+    near = np.flatnonzero(ok & (reach - np.min(rise[ok]) > top))
+    r0, c0 = rows.flat[near], cols.flat[near]
+    sr, sc, up, start = step_r.flat[near], step_c.flat[near], rise.flat[near], top.flat[near]
+    hit = np.zeros(near.size, bool)
+    for k in range(1, min(n_steps, NEAR_STEPS) + 1):
+        hit |= _read(hgt, r0 + k * sr, c0 + k * sc) - k * up > start
+    blocked.flat[near] = hit
+    for k in range(NEAR_STEPS + 1, n_steps + 1):
+        r = np.clip(np.rint(rows + k * step_r).astype(int), -1, hh)
+        c = np.clip(np.rint(cols + k * step_c).astype(int), -1, ww)
+        inside = (r >= 0) & (r < hh) & (c >= 0) & (c < ww)
+        ahead = np.where(inside, hgt[np.clip(r, 0, hh - 1), np.clip(c, 0, ww - 1)], _OUTSIDE)
+        blocked |= ahead - k * rise > top
+    return blocked
+
+
+NEAR_STEPS = 16
+"""Ray steps read at their own positions (see `cast_shadow_visibility`): by then the ray has
+risen 16 steps, more than a pixel-wide offset on the steepest rim the simulator draws."""
+_OUTSIDE = -1e300      # height of the world beyond the image: never above a ray
+
+
+def _read(field, r, c):
+    """field read at fractional (row, column) positions, bilinear; _OUTSIDE off the grid."""
+    hh, ww = field.shape
+    inside = (r >= 0) & (r <= hh - 1) & (c >= 0) & (c <= ww - 1)
+    r0 = np.clip(np.floor(r).astype(int), 0, max(hh - 2, 0))
+    c0 = np.clip(np.floor(c).astype(int), 0, max(ww - 2, 0))
+    fr = np.clip(r - r0, 0.0, 1.0)
+    fc = np.clip(c - c0, 0.0, 1.0)
+    r1, c1 = np.minimum(r0 + 1, hh - 1), np.minimum(c0 + 1, ww - 1)
+    top = field[r0, c0] * (1 - fc) + field[r0, c1] * fc
+    bottom = field[r1, c0] * (1 - fc) + field[r1, c1] * fc
+    return np.where(inside, top * (1 - fr) + bottom * fr, _OUTSIDE)
+
+
+def _highest_ahead(hgt, dr, dc, rise, steps):
+    """max over k = 1..K (K the power of two >= steps) of hgt(p + k d) - k rise for every
+    pixel p, d = (dr, dc) one pixel step: the same maximum over k = 1..j, read j steps ahead
+    and lowered by j rises, gives the one over j + 1..2j."""
+    best = _shifted(hgt, dr, dc) - rise
+    j = 1
+    while j < steps:
+        best = np.maximum(best, _shifted(best, j * dr, j * dc) - j * rise)
+        j *= 2
+    return best
+
+
+def _shifted(field, dr, dc):
+    """field read at (row + dr, column + dc) for every pixel, bilinear, _OUTSIDE off the grid
+    (far below any ray): four shifted slices weighted, no gather."""
+    hh, ww = field.shape
+    ir, ic = int(np.floor(dr)), int(np.floor(dc))
+    fr, fc = dr - ir, dc - ic
+    out = np.zeros((hh, ww))
+    for a, wa in ((0, 1.0 - fr), (1, fr)):
+        for b, wb in ((0, 1.0 - fc), (1, fc)):
+            if wa * wb == 0.0:
+                continue
+            part = np.full((hh, ww), _OUTSIDE)
+            r, c = ir + a, ic + b
+            src = field[max(r, 0):hh + min(r, 0), max(c, 0):ww + min(c, 0)]
+            part[max(-r, 0):hh - max(r, 0), max(-c, 0):ww - max(c, 0)] = src
+            out += wa * wb * part
+    return out
 
 
 def radiance_per_led(scene, leds, electrons_per_mA_s=20.0, shadows=True):
