@@ -52,8 +52,9 @@ def cast_shadow_visibility(height_mm, pixel_pitch_mm, s):
     """
     hgt = np.asarray(height_mm, float)
     hh, ww = hgt.shape
-    shared = np.ndim(s) == 1
-    s = np.broadcast_to(np.asarray(s, float), (hh, ww, 3))
+    s = np.asarray(s, float)
+    shared = s.ndim == 1 or bool(np.all(s.reshape(-1, 3) == s.reshape(-1, 3)[0]))
+    s = np.broadcast_to(s, (hh, ww, 3))
     horiz = np.hypot(s[..., 0], s[..., 1])
     vis = np.ones((hh, ww))
     ok = horiz > 1e-9
