@@ -110,7 +110,7 @@ def integrate_poisson_flat_margin(normals, pixel_pitch_mm=1.0, mask=None, backgr
     background : optional (H, W) bool, the margin's own pixels (the table or cloth around the
         object: `process` gives the lit pixels darker than the object). Its mean slope is taken
         over them and removed from them only, so the object's slopes are integrated as measured
-        (on the simulated scans: heights per object 0.013 -> 0.008 mm at every size). Without
+        (on the simulated scans: heights per object 0.013-0.015 -> 0.008 mm at every size). Without
         it (or with fewer than MIN_BACKGROUND_PIXELS), the mean slope of the whole image is
         removed from every pixel, the object's included.
     normals, pixel_pitch_mm, mask as `integrate_frankot_chellappa1988`.
@@ -227,9 +227,10 @@ INTEGRATION_METHODS.add("least_squares", integrate_least_squares)
 # 0.014); on nine Mitsuba scenes 1-42 % lower on seven, 0.3 % higher on the two vases. Plain
 # Simchony is best per object but tilts two objects apart through a noisy background (with the
 # previous profile 0.038 / 0.043 / 0.030 mm, against 0.026 / 0.024 / 0.015 here). With the table's
-# lean taken from the table alone (`background`, as `process` passes it): 0.012 / 0.015 / 0.009 mm,
-# per object 0.008 / 0.008 / 0.009; Mitsuba's two domes on a dark table 0.490 -> 0.475 px
-# (`facette bench mitsuba`).
+# lean taken from the table alone (`background`, as `process` passes it), on scans from the
+# simulator whose dome rims no longer shadow themselves: 0.017 / 0.013 / 0.015 -> 0.016 / 0.010 /
+# 0.008 mm, per object 0.014 / 0.013 / 0.015 -> 0.008 / 0.009 / 0.008; Mitsuba's two domes on a
+# dark table 0.490 -> 0.475 px (`facette bench mitsuba`).
 INTEGRATION_DEFAULT = "poisson_flat_margin"
 
 
