@@ -414,14 +414,13 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration
         mk = res.mask if integration == "least_squares" else None
         # the margin's pixels, for the flat-margin integration: its mean slope is the table's lean
         bg = inp.background_mask()
-        bg = None if bg is None else bg & res.mask
-        hgt = _timed(res, "integrate", integrate, res.normals, inp.pixel_pitch_mm, mk, integration, bg)
+        margin = None if bg is None or INTEGRATION_METHODS.canonical(integration) != "poisson_flat_margin" \
+            else flat_margin(bg & res.mask, res.mask.shape)
+        hgt = _timed(res, "integrate", integrate, res.normals, inp.pixel_pitch_mm, mk, integration, margin)
         res.height = np.where(res.mask, hgt, 0.0).astype(np.float32)
-        notes = []
-        if INTEGRATION_METHODS.canonical(integration) == "poisson_flat_margin" and \
-                flat_margin(bg, res.mask.shape) is not None:
-            notes.append(f"heights: the table's lean (its mean slope over the {int(bg.sum())} background pixels) "
-                         "taken out of the background's slopes only, the object's integrated as measured")
+        notes = [] if margin is None else [
+            f"heights: the table's lean (its mean slope over the {int(margin.sum())} background pixels) "
+            "taken out of the background's slopes only, the object's integrated as measured"]
         write("height")
         if "mesh" in stages:
             step = mesh_step or max(1, int(np.ceil(np.sqrt(res.mask.sum() / 1e6))))

@@ -52,9 +52,8 @@ def cast_shadow_visibility(height_mm, pixel_pitch_mm, s):
     """
     hgt = np.asarray(height_mm, float)
     hh, ww = hgt.shape
-    s = np.asarray(s, float)
-    shared = s.ndim == 1 or bool(np.all(s.reshape(-1, 3) == s.reshape(-1, 3)[0]))
-    s = np.broadcast_to(s, (hh, ww, 3))
+    shared = np.ndim(s) == 1
+    s = np.broadcast_to(np.asarray(s, float), (hh, ww, 3))
     horiz = np.hypot(s[..., 0], s[..., 1])
     vis = np.ones((hh, ww))
     ok = horiz > 1e-9
@@ -198,6 +197,8 @@ def radiance_per_led(scene, leds, electrons_per_mA_s=20.0, shadows=True):
         f1 = np.asarray(fn(s_loc, o_loc, kd=[1.0], **params))[..., 0]
         f = f0[..., None] + scene.albedo * (f1 - f0)[..., None]
         cos = np.clip(s_loc[..., 2], 0.0, None)
-        vis = cast_shadow_visibility(scene.height_mm, scene.pixel_pitch_mm, s) if shadows else 1.0
+        # a distant LED's one direction (not its broadcast): the shadows' fast path
+        ray = s if leds.positions_mm is not None else leds.directions[i]
+        vis = cast_shadow_visibility(scene.height_mm, scene.pixel_pitch_mm, ray) if shadows else 1.0
         out[i] = k * leds.intensities[i] * (f * (cos * vis * falloff)[..., None])
     return np.clip(np.nan_to_num(out, nan=0.0, posinf=0.0), 0.0, None)
