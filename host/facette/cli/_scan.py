@@ -187,8 +187,13 @@ def _process(scan_dir):
     """Run the processing chain on the scan just taken: (what ran, exit status)."""
     from facette.cli.main import main as cli_main
 
+    from facette.scan import release_held_lights
+
     out = Path(scan_dir) / "results"
-    status = cli_main(["process", str(scan_dir), "-o", str(out)])
+    try:     # reads the lights merged during the scan from memory (`hold_hdr`)
+        status = cli_main(["process", str(scan_dir), "-o", str(out)])
+    finally:
+        release_held_lights()
     return f"facette process → {out} (exit {status})", status
 
 
@@ -252,7 +257,8 @@ def run(args):
         try:
             scan = rig.scan(args.directory, profile=profile, exposures=args.exposures, lights=args.lights,
                             light_current_mA=args.current, mode=args.mode, button=button,
-                            progress=not args.quiet, merge_hdr=not args.no_process)
+                            progress=not args.quiet, merge_hdr=not args.no_process,
+                            hold_hdr=not args.no_process)
         except ScanError as exc:
             st = rig.device.stats
             if st["timeouts"]:

@@ -12,7 +12,7 @@ from facette.errors import BadInputError
 from facette.io.diligent import is_diligent_dir, read_diligent
 from facette.io.png import read_mask
 from facette.pipeline._quality import MIN_LEVELS, usable_from_green
-from facette.scan import MissingFrameWarning, ScanDirectory, merge_scan, stale_lights
+from facette.scan import MissingFrameWarning, ScanDirectory, merge_scan, stale_lights, take_held_light
 
 __all__ = ["PSInput", "load_input", "source_path", "auto_masks", "margin_of", "MARGIN_BORDER"]
 
@@ -156,15 +156,21 @@ def _unreadable(path, exc):
 
 def _read_hdr_fast(scan_dir, light_ids):
     """Read hdr/light_XX.exr (and _var.exr, for unknown values) into one preallocated array,
-    two files at a time. NaN where the variance is not finite (saturated in every frame)."""
+    two files at a time. NaN where the variance is not finite (saturated in every frame).
+    A light merged in this process during the scan (`facette.scan.take_held_light`) is taken
+    from memory, the same values as its files."""
     import OpenEXR
     paths = [(scan_dir / "hdr" / f"light_{i:02d}.exr", scan_dir / "hdr" / f"light_{i:02d}_var.exr")
              for i in light_ids]
-    try:
-        with OpenEXR.File(str(paths[0][0]), separate_channels=True) as f:
-            h, w = f.channels()["R"].pixels.shape
-    except Exception as exc:             # OpenEXR says only "file has 0 parts" and the like
-        raise _unreadable(paths[0][0], exc) from exc
+    held = [take_held_light(img, var) for img, var in paths]
+    if held[0] is not None:
+        h, w = held[0][1].shape
+    else:
+        try:
+            with OpenEXR.File(str(paths[0][0]), separate_channels=True) as f:
+                h, w = f.channels()["R"].pixels.shape
+        except Exception as exc:             # OpenEXR says only "file has 0 parts" and the like
+            raise _unreadable(paths[0][0], exc) from exc
     images = np.empty((len(paths), h, w, 3), np.float32)
     usable = np.empty((len(paths), h, w), bool)
 
@@ -178,6 +184,12 @@ def _read_hdr_fast(scan_dir, light_ids):
 
     def read_pair(k):
         img, var = paths[k]
+        if held[k] is not None and held[k][0].shape == (h, w, 3):
+            images[k], v_green = held[k]
+            held[k] = None                                   # freed as it is copied
+            images[k][np.isnan(v_green)] = np.nan
+            usable[k] = usable_from_green(images[k][..., 1], v_green)
+            return
         try:
             with OpenEXR.File(str(img), separate_channels=True) as f:
                 chans = f.channels()

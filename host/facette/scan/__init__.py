@@ -6,10 +6,10 @@ from facette.scan.directory import (ScanDirectory, ScanDirectoryBusy, ScanDirect
                                     read_scan_manifest, sha256_file)
 from facette.scan.rig import TIMING_MODES, Rig, RigFault, connect, decode_frame_record
 from facette.scan.hdr import (HDR_UNIT, LightMerger, MissingFrameWarning, frame_exposure, load_hdr,
-                              merge_scan, stale_lights)
+                              merge_scan, release_held_lights, stale_lights, take_held_light)
 
 __all__ = ["run_scan", "ScanPlan", "default_plan", "ScanError", "ScanAborted", "ScanDirectory",
            "ScanDirectoryError", "ScanDirectoryBusy", "frame_name", "sha256_file", "THESIS_BRACKET_US",
            "read_scan_manifest", "merge_scan", "LightMerger", "load_hdr", "stale_lights", "frame_exposure",
-           "MissingFrameWarning", "HDR_UNIT",
+           "MissingFrameWarning", "HDR_UNIT", "take_held_light", "release_held_lights",
            "Rig", "RigFault", "connect", "decode_frame_record", "TIMING_MODES"]

@@ -476,7 +476,7 @@ def _adaptive(rig, directory, profile, lights, light_current_mA, mode, retries, 
 def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_current_mA=500,
              mode="camera", retries=1, timing=None, button=None, progress=True, on_frame=None,
              frame_timeout_s=60.0, poll_s=0.003, max_runs=8, save_truth=True, merge_hdr=False,
-             link_timeout_s=20.0):
+             link_timeout_s=20.0, hold_hdr=False):
     """Acquire (or resume) a scan into `directory`; returns the ScanDirectory.
 
     Parameters
@@ -505,6 +505,10 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
         frame only that light's merge remains; recorded in scan.json "hdr" with what each
         image was made from. A resumed scan merges only the lights not merged yet (or whose
         frames changed); `merge_scan` and `facette process` then find nothing to do.
+    hold_hdr : with merge_hdr, also keep each merged light in memory (`facette.scan.take_held_light`)
+        for processing in this process right after the scan, which then does not read the HDR
+        files back (4288x2848, 12 lights: ~2 CPU s less after the last frame, ~50 MB per light
+        held until processing takes it; `release_held_lights` drops what it did not).
     """
     if rig.camera is None:
         raise ValueError("this rig has no camera backend: connect with camera=FolderWatchCamera(folder) "
@@ -541,7 +545,7 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
         _check_resumable(sd, plan)
         return _run_locked(rig, sd, plan, profile, lights_section, button, progress, on_frame,
                            frame_timeout_s, poll_s, max_runs, save_truth, link_timeout_s, merge_hdr,
-                           bracketing)
+                           bracketing, hold_hdr)
     finally:
         sd.unlock()
 
@@ -564,7 +568,7 @@ def _check_resumable(sd, plan):
 
 
 def _run_locked(rig, sd, plan, profile, lights_section, button, progress, on_frame, frame_timeout_s,
-                poll_s, max_runs, save_truth, link_timeout_s, merge_hdr, bracketing):
+                poll_s, max_runs, save_truth, link_timeout_s, merge_hdr, bracketing, hold_hdr=False):
     pitch = getattr(profile, "pixel_pitch_mm", None)
     if pitch is None and rig.sim is not None:
         pitch = rig.sim.scene.pixel_pitch_mm
@@ -597,7 +601,7 @@ def _run_locked(rig, sd, plan, profile, lights_section, button, progress, on_fra
     acq.link_timeout_s = float(link_timeout_s)
     all_pairs = {(l, e) for l in range(len(plan.lights)) for e in range(len(plan.exposures))}
     if merge_hdr:
-        acq.merger = LightMerger(sd.path)
+        acq.merger = LightMerger(sd.path, hold=hold_hdr)
         done = sd.frames_done()
         for light in range(len(plan.lights)):   # a resumed scan: lights complete, not merged yet
             if all((light, e) in done for e in range(len(plan.exposures))) and \

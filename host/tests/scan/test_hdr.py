@@ -1,6 +1,7 @@
 """Scan directory: raw/ DNGs listed in scan.json -> hdr/light_XX.exr (+ _var), load_hdr."""
 import hashlib
 import json
+import os
 
 import numpy as np
 import pytest
@@ -10,7 +11,8 @@ from facette.camera.raw import read_raw
 from facette.camera.sensor import SensorModel, bayer_mosaic_rggb
 from facette.hdr import plan_adaptive
 from facette.io.exr import read_exr
-from facette.scan import MissingFrameWarning, load_hdr, merge_scan
+from facette.scan import MissingFrameWarning, load_hdr, merge_scan, release_held_lights, take_held_light
+from facette.scan.hdr import merge_light
 from facette.sim.dng import write_dng
 
 SENSOR = SensorModel()
@@ -60,6 +62,30 @@ def test_merge_scan_writes_exr_and_records_it(tmp_path):
     assert data["frames"] and data["rig_time_s"] == 1.0  # the rest of the manifest kept
     steps = [json.loads(l)["step"] for l in (tmp_path / "journal.jsonl").read_text().splitlines()]
     assert steps == ["hdr_begin", "hdr_done"]
+
+
+def test_a_held_light_has_its_files_values_until_a_file_changes(tmp_path):
+    _make_scan(tmp_path, exposures=EXPOSURES[:2])     # the brightest pixels saturate in both frames
+    data = json.loads((tmp_path / "scan.json").read_text())
+    paths = [(tmp_path / "hdr" / f"light_{i:02d}.exr", tmp_path / "hdr" / f"light_{i:02d}_var.exr")
+             for i in range(2)]
+    try:
+        for li in range(2):
+            merge_light(tmp_path, data, li, SENSOR, hold=True)
+        rad, green = take_held_light(*paths[0])
+        file_rad, file_var = read_exr(paths[0][0])[0], read_exr(paths[0][1])[0]
+        assert np.array_equal(rad, file_rad, equal_nan=True)
+        unknown = ~np.isfinite(file_var).all(axis=-1)
+        assert 0 < unknown.sum() < unknown.size
+        assert np.array_equal(np.isnan(green), unknown)
+        assert np.array_equal(green[~unknown], file_var[..., 1][~unknown])
+        assert take_held_light(*paths[0]) is None          # taken once: memory given back
+        st = paths[1][1].stat()                             # the variance file touched since
+        os.utime(paths[1][1], ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000))
+        assert take_held_light(*paths[1]) is None
+        assert take_held_light(*paths[0]) is None and take_held_light(tmp_path / "x.exr", tmp_path / "y.exr") is None
+    finally:
+        release_held_lights()
 
 
 def test_per_microsecond_unit(tmp_path):
