@@ -187,9 +187,18 @@ def _fit_stage(filtered, fit_options, brdf_aware=False):
 
 
 def preload():
-    """Import what `process` loads on first use (matplotlib for the report, ~0.5 s): a scan
-    that will be processed calls this on a thread while it acquires, so that the time does
-    not come after the last frame."""
+    """Import what `process` loads on first use (matplotlib for the report, ~0.5 s; numba and
+    the compiled kernels of the loading and the PTM fit, ~0.5 s): a scan that will be processed
+    calls this on a thread while it acquires, so that the time does not come after the last
+    frame."""
+    from facette.pipeline._pixels_jit import median_over_lights, usable_green
+    from facette.recon._rti_jit import ptm_colour_block
+    # each kernel loaded (or compiled) for the array types `process` hands it
+    img = np.ones((2, 2, 2, 3), np.float32)
+    median_over_lights(img[..., 1], np.empty((2, 2), np.float32), slice(0, 2))
+    usable_green(img[0, ..., 1], np.ones((2, 2), np.float32), 3.0, np.empty((2, 2), bool))
+    flat = img.reshape(2, 4, 3)
+    ptm_colour_block(flat[:, 0:2], np.empty((4, 3)), np.empty(4), np.empty((2, 4)), 0)    # a block: strided
     try:
         import matplotlib
         matplotlib.use("Agg", force=False)

@@ -36,7 +36,12 @@ def usable_from_variance(image, variance):
 
 
 def usable_from_green(g, v):
-    """`usable_from_variance` of the green channel alone: g, v (H, W) radiance and variance."""
+    """`usable_from_variance` of the green channel alone: g, v (H, W) radiance and variance.
+    In one compiled pass for two float32 maps, as the HDR loader has them (12 MP: 0.01 s
+    instead of 0.1 s per light)."""
+    if g.ndim == 2 and g.shape == v.shape and g.dtype == v.dtype == np.float32:
+        from facette.pipeline._pixels_jit import usable_green
+        return usable_green(g, v, MIN_SNR, np.empty(g.shape, bool))
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.isfinite(g) & np.isfinite(v) & (g > 0) & (g * g >= MIN_SNR ** 2 * v)
 

@@ -1,3 +1,5 @@
+import warnings
+
 import numpy as np
 
 from facette.pipeline._inputs import auto_masks
@@ -33,3 +35,26 @@ def test_unknown_pixels_and_black_frames():
     for mask in auto_masks(img):
         assert not mask[:, :2].any() and mask[:, 2:].all()
     assert not any(m.any() for m in auto_masks(np.zeros((4, 8, 8, 3), np.float32)))
+
+
+def test_compiled_median_and_usable_test_give_numpys_values():
+    from facette.pipeline._pixels_jit import median_over_lights
+    from facette.pipeline._quality import MIN_SNR, usable_from_green
+    rng = np.random.default_rng(3)
+    for m in (1, 2, 5, 12):                      # odd and even counts of known values
+        ch = rng.normal(size=(m, 30, 20, 3)).astype(np.float32)[..., 1]     # strided, as in auto_masks
+        ch[rng.random(ch.shape) < 0.3] = np.nan
+        ch[:, 0, 0] = np.nan                                                 # unknown under every light
+        out = np.full(ch.shape[1:], -1.0, np.float32)
+        median_over_lights(ch, out, slice(0, 12))
+        median_over_lights(ch, out, slice(12, None))
+        with warnings.catch_warnings():                  # "All-NaN slice"
+            warnings.simplefilter("ignore", RuntimeWarning)
+            np.testing.assert_array_equal(out, np.nanmedian(ch, axis=0))
+    g = rng.normal(size=(40, 30)).astype(np.float32)
+    v = (np.abs(rng.normal(size=g.shape)) * 0.05).astype(np.float32)
+    g[::7, ::3], v[::5, ::2], g[1, ::4], v[2, ::3] = np.nan, np.inf, np.inf, np.nan
+    with np.errstate(all="ignore"):
+        ref = np.isfinite(g) & np.isfinite(v) & (g > 0) & (g * g >= MIN_SNR ** 2 * v)
+    assert 0 < ref.sum() < ref.size
+    np.testing.assert_array_equal(usable_from_green(g, v), ref)

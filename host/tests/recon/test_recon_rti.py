@@ -208,3 +208,28 @@ def test_white_level_when_the_sample_misses_the_top():
     v[1::37] = np.linspace(0, 1, 4000)
     got = _top_percentile(lambda a: v if a == 0 else v[:0], range(2), 99.0)
     assert got == float(np.percentile(v, 99.0))
+
+
+def test_compiled_ptm_colour_pass_gives_numpys_values():
+    from facette.recon._rti_jit import ptm_colour_block
+    rng = np.random.default_rng(1)
+    for dtype in (np.float32, np.float64):
+        e = rng.lognormal(size=(12, 500, 3)) * rng.choice([1, -1, 0], p=[.9, .05, .05], size=(12, 500, 3))
+        e = e.astype(dtype)
+        e[rng.random(e.shape) < 0.1] = np.nan
+        e[:, 20], e[3, 30, 1] = np.nan, np.inf          # a pixel never known; an infinite channel
+        # the numpy form it replaces (float64 sums over the lights in order)
+        finite = np.isfinite(e).all(-1)
+        known = np.where(finite[..., None], e, np.zeros((), dtype))
+        total = known.sum(axis=0, dtype=np.float64)
+        pk = total.max(axis=1)
+        c = np.where(pk[:, None] > 0, np.clip(total, 0, None) / np.where(pk > 0, pk, 1)[:, None], 0)
+        lum = (known[..., 0] * c[:, 0] + known[..., 1] * c[:, 1] + known[..., 2] * c[:, 2]) \
+            / np.maximum((c ** 2).sum(axis=1), 1e-300)
+        lum[~finite] = np.nan
+        rgb, peak, got = np.zeros((600, 3)), np.zeros(600), np.zeros((12, 600))
+        ptm_colour_block(e, rgb, peak, got, 100)                # pixels 100 .. 599
+        np.testing.assert_array_equal(rgb[100:], c)
+        np.testing.assert_array_equal(peak[100:], pk)
+        np.testing.assert_array_equal(got[:, 100:], lum)
+        assert not rgb[:100].any()
