@@ -169,9 +169,17 @@ def _read_hdr_fast(scan_dir, light_ids):
         if held[k] is not None and held[k][0].shape == (h, w, 3):
             images[k], v_green = held[k]
             held[k] = None                                   # freed as it is copied
-            images[k][np.isnan(v_green)] = np.nan
-            usable[k] = usable_from_green(images[k][..., 1], v_green)
-            return
+            bad = np.isnan(v_green)
+        else:
+            v_green, bad = read_files(k, img, var)
+            if v_green is None:        # radiance without its variance
+                return
+        images[k][bad] = np.nan
+        usable[k] = usable_from_green(images[k][..., 1], v_green)
+
+    def read_files(k, img, var):
+        """Read the pair into images[k]: (green variance, where the variance is not finite);
+        (None, None) for radiance without a variance file (usable[k] then set here)."""
         try:
             with OpenEXR.File(str(img), separate_channels=True) as f:
                 chans = f.channels()
@@ -181,10 +189,9 @@ def _read_hdr_fast(scan_dir, light_ids):
             raise BadInputError(f"{img}: cannot read this HDR image ({exc})",
                                 hint="delete it: processing merges it again from raw/") from exc
         if not var.is_file():      # radiance without its variance (made elsewhere): no noise
-            v = np.zeros_like(images[k])          # estimate, every known value counts
             images[k][~np.isfinite(images[k]).all(axis=-1)] = np.nan
             usable[k] = np.isfinite(images[k][..., 1]) & (images[k][..., 1] > 0)
-            return
+            return None, None
         try:
             with OpenEXR.File(str(var), separate_channels=True) as f:
                 v = [f.channels()[c].pixels for c in "RGB"]
@@ -199,8 +206,7 @@ def _read_hdr_fast(scan_dir, light_ids):
             raise BadInputError(f"{img} has {int(wild.sum())} non-finite values (Inf or NaN) where "
                                 f"its variance {var.name} is finite: the file is damaged",
                                 hint="delete it: processing merges it again from raw/")
-        images[k][bad] = np.nan
-        usable[k] = usable_from_green(images[k][..., 1], v[1])
+        return v[1], bad
 
     with ThreadPoolExecutor(2) as pool:
         list(pool.map(one, range(len(paths))))

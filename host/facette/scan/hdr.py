@@ -26,34 +26,29 @@ from facette.io.checksum import sha256_file
 from facette.io.exr import read_exr, write_exr
 from facette.scan.directory import ScanDirectory, read_scan_manifest
 
-__all__ = ["merge_scan", "merge_light", "LightMerger", "take_held_light", "release_held_lights", "store_light_records", "hdr_up_to_date", "stale_lights",
-           "hdr_record", "scan_sensor", "light_frames",
+__all__ = ["merge_scan", "merge_light", "LightMerger", "take_held_light", "release_held_lights",
+           "store_light_records", "hdr_up_to_date", "stale_lights", "hdr_record", "scan_sensor", "light_frames",
            "load_hdr", "read_scan_manifest", "frame_exposure", "MissingFrameWarning",
            "HDR_UNIT"]
 
 HDR_UNIT = "DN/(us*mA)"
 
 # Lights merged in this process and kept in memory for the processing that follows (`merge_light`
-# hold=True): {radiance file: (identity of both files, radiance, green variance)}. At 4288x2848
+# hold=True): {radiance file: (`_stat` of both files, radiance, green variance)}. At 4288x2848
 # reading the 12 lights' EXR pairs back costs ~2 CPU s after the last frame.
 _HELD = {}
 _HELD_LOCK = threading.Lock()
 
 
-def _identity(path):
-    st = path.stat()
-    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
-
-
-def _hold(img_path, var_path, radiance, variance):
-    """Keep what was just written to img_path / var_path: the radiance as stored (float32) and
-    the green variance, NaN where any channel's variance is not finite."""
+def _hold(img_path, var_path, radiance, variance, written):
+    """Keep what was just written to img_path / var_path (`written`: their `_stat`s, as the
+    light's record has them): the radiance as stored (float32) and the green variance, NaN
+    where any channel's variance is not finite."""
     var = np.asarray(variance, np.float32)
     green = np.array(var[..., 1])
     green[~(np.isfinite(var[..., 0]) & np.isfinite(var[..., 1]) & np.isfinite(var[..., 2]))] = np.nan
-    ident = (_identity(img_path), _identity(var_path))
     with _HELD_LOCK:
-        _HELD[str(img_path)] = (ident, np.asarray(radiance, np.float32), green)
+        _HELD[str(img_path)] = (written, np.asarray(radiance, np.float32), green)
 
 
 def take_held_light(img_path, var_path):
@@ -65,8 +60,8 @@ def take_held_light(img_path, var_path):
         held = _HELD.pop(str(img_path), None)
     if held is None:
         return None
-    try:
-        now = (_identity(Path(img_path)), _identity(Path(var_path)))
+    try:       # unchanged as `hdr_up_to_date` judges the HDR files: size and mtime
+        now = (_stat(Path(img_path)), _stat(Path(var_path)))
     except OSError:
         return None
     return held[1:] if now == held[0] else None
@@ -251,7 +246,7 @@ def merge_light(scan_dir, data, light, sensor=None, method="inverse_variance", c
     outputs = {rel: _stat(scan_dir / rel) for rel in (f"hdr/{name}.exr", f"hdr/{name}_var.exr")}
     if hold:
         _hold(scan_dir / "hdr" / f"{name}.exr", scan_dir / "hdr" / f"{name}_var.exr", res.radiance,
-              res.variance)
+              res.variance, tuple(outputs.values()))
     return {"index": li, "file": f"hdr/{name}.exr", "var_file": f"hdr/{name}_var.exr",
             "frames": [fr["file"] for fr in todo], "inputs": inputs, "outputs": outputs,
             "missing": missing,
