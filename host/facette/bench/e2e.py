@@ -14,6 +14,10 @@ in a process of its own, and the bench reports:
   (the interpreter's exit after that: freeing gigabytes takes a few tenths of a second);
 - peak memory (max RSS) of the scan command (simulator included) and of `facette process`
   alone on the finished scan;
+- "rig apart": the same scan with the simulated rig in a process of its own (`facette sim`)
+  and `facette scan --device PORT --camera-dir DIR`, as a real rig is driven: the scan
+  command's peak memory and ready time without the simulator's renderer in its process (at
+  4288x2848 that renderer holds 3.7 GB of its own);
 - SNR of the merged radiance on the object (truth mask), shadows (2–10 % of its values)
   and midtones (45–55 %), from the variance the merge reports; clipped object pixels;
 - height RMS error against the simulator's truth (`height_errors`) over the pixels that have
@@ -136,7 +140,36 @@ def _journal_last_frame(scan_dir):
     return _dt.datetime.fromisoformat(last)
 
 
-def one_run(size, work, exposures=None):
+def rig_apart_run(size, work):
+    """The scan command's peak memory (GB) and "ready after the last frame" (s) when the
+    simulated rig is a process of its own, as a real rig is: `facette sim`, then `facette scan
+    --device PORT --camera-dir DIR` with the simulator's profile (adaptive, every default stage)."""
+    import threading
+
+    from facette._data import sim_profile_dir
+
+    facette = [sys.executable, "-m", "facette.cli.main"]
+    d = Path(tempfile.mkdtemp(prefix=f"e2e-rig-apart-{size}-", dir=work))
+    size_args = [] if size == "default" else ["--raw-size", size]
+    with subprocess.Popen(facette + ["sim", "--workdir", str(d / "rig")] + size_args, stdin=subprocess.PIPE,
+                          stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True) as sim:
+        try:
+            port = sim.stdout.readline().split(": ", 1)[1].strip()
+            camera = sim.stdout.readline().split(": ", 1)[1].strip()
+            # its later lines are drained, so that a full pipe never stops the rig
+            threading.Thread(target=sim.stdout.read, daemon=True).start()
+            _, _, rss, _, _ = _run_rss(facette + ["scan", "--device", port, "--camera-dir", camera,
+                                                  "--profile", str(sim_profile_dir()), "--quiet",
+                                                  str(d / "scan")])
+        finally:
+            sim.stdin.write("quit\n")
+            sim.stdin.flush()
+            sim.wait(timeout=120)
+    ready = _results_written(d / "scan" / "results") - _journal_last_frame(d / "scan").timestamp()
+    return {"rig_apart_gb": rss, "rig_apart_ready_s": ready}
+
+
+def one_run(size, work, exposures=None, rig_apart=True):
     """Figures of one scan at `size` ("WxH", or "default": the command's own) in a new folder
     under `work`."""
     facette = [sys.executable, "-m", "facette.cli.main"]
@@ -153,6 +186,7 @@ def one_run(size, work, exposures=None):
     global_, per_object = _scan_height_errors(d)
     with np.load(d / "truth.npz") as z:
         pitch, (h, w) = float(z["pixel_pitch_mm"]), z["mask"].shape
+    size_arg = size
     if size == "default":                       # the RAW mosaic is twice the HDR grid
         size = f"{2 * w}x{2 * h} (default)"
     shadow, mid, clipped = _snr(d)
@@ -173,7 +207,9 @@ def one_run(size, work, exposures=None):
             "exit_s": (end - _journal_last_frame(d)).total_seconds(), "peak_gb": rss,
             "shadow_db": shadow, "mid_db": mid, "clipped": clipped,
             "height_rms_mm": global_, "height_rms_px": global_ / pitch,
-            "height_rms_object_mm": per_object, "pitch_mm": pitch}
+            "height_rms_object_mm": per_object, "pitch_mm": pitch,
+            **(rig_apart_run(size_arg, work) if rig_apart and not exposures else
+               {"rig_apart_gb": np.nan, "rig_apart_ready_s": np.nan})}
 
 
 COLUMNS = [("size", "size", "s"), ("bracket", "bracket", "s"), ("frames", "frames", "d"),
@@ -184,6 +220,8 @@ COLUMNS = [("size", "size", "s"), ("bracket", "bracket", "s"), ("frames", "frame
            ("exit_s", "command end s", ".2f"),
            ("process_s", "process alone s", ".2f"), ("process_cpu_s", "(CPU s)", ".2f"),
            ("peak_gb", "peak GB (scan+sim)", ".2f"), ("process_gb", "peak GB process", ".2f"),
+           ("rig_apart_gb", "peak GB scan, rig apart", ".2f"),
+           ("rig_apart_ready_s", "ready, rig apart s", ".2f"),
            ("shadow_db", "shadow dB", ".1f"), ("mid_db", "mid dB", ".1f"),
            ("clipped", "clipped", ".4f"), ("pitch_mm", "pitch mm", ".4f"),
            ("height_rms_mm", "height RMS mm", ".3f"), ("height_rms_px", "(pitches)", ".3f"),
@@ -213,6 +251,8 @@ def main(argv=None):
     p.add_argument("--runs", type=int, default=1, help="runs per size; medians are printed")
     p.add_argument("--no-fixed", action="store_true", help="skip the thesis bracket comparison")
     p.add_argument("--keep", help="keep the scans in this folder (default: a temporary one)")
+    p.add_argument("--no-rig-apart", action="store_true",
+                   help="skip the second scan with the simulated rig in a process of its own")
     args = p.parse_args(argv)
     sizes = [s.strip() for s in args.sizes.split(",") if s.strip()] + ([FULL] if args.full else [])
     for s in sizes:
@@ -227,7 +267,7 @@ def main(argv=None):
     for size, exposures in jobs:
         runs = []
         for k in range(max(1, args.runs)):
-            runs.append(one_run(size, work, exposures))
+            runs.append(one_run(size, work, exposures, rig_apart=not args.no_rig_apart))
             if args.runs > 1:
                 print(f"  run {k + 1}:", flush=True)
                 _print(runs[-1:])
@@ -238,7 +278,7 @@ def main(argv=None):
     print("  rig s: device timeline (metering included); merge s: decode + merge + EXR write summed "
           "over lights on the worker during the scan; merge alone: the same scan merged again in "
           "a fresh process; recon: photometric stereo + integration; ready: last frame captured -> "
-          "last result file written; command end: -> the scan command's exit; process alone: `facette process` on the finished scan (HDR up to date); "
+          "last result file written; command end: -> the scan command's exit; rig apart: the scan command (no simulator in its process) against `facette sim`; process alone: `facette process` on the finished scan (HDR up to date); "
           "CPU s: of that process (wall > CPU/cores means it waited for a core); SNR from the merge's variance on the object, green, median over lights; "
           "height RMS: result against the truth on the object up to one constant, also in pixel pitches, "
           "and up to one constant per object")
