@@ -41,6 +41,7 @@ import re
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -50,6 +51,7 @@ from facette.io.exr import read_exr
 from facette.io.png import read_mask
 
 DEFAULT_SIZES = "default,1072x712"
+FACETTE = [sys.executable, "-m", "facette.cli.main"]
 FULL = "4288x2848"
 
 
@@ -140,42 +142,44 @@ def _journal_last_frame(scan_dir):
     return _dt.datetime.fromisoformat(last)
 
 
+def _ready_s(scan_dir):
+    """Seconds from the scan's last frame to its last result file."""
+    return _results_written(scan_dir / "results") - _journal_last_frame(scan_dir).timestamp()
+
+
+def _size_args(size):
+    return [] if size == "default" else ["--raw-size", size]
+
+
 def rig_apart_run(size, work):
     """The scan command's peak memory (GB) and "ready after the last frame" (s) when the
     simulated rig is a process of its own, as a real rig is: `facette sim`, then `facette scan
     --device PORT --camera-dir DIR` with the simulator's profile (adaptive, every default stage)."""
-    import threading
-
     from facette._data import sim_profile_dir
 
-    facette = [sys.executable, "-m", "facette.cli.main"]
     d = Path(tempfile.mkdtemp(prefix=f"e2e-rig-apart-{size}-", dir=work))
-    size_args = [] if size == "default" else ["--raw-size", size]
-    with subprocess.Popen(facette + ["sim", "--workdir", str(d / "rig")] + size_args, stdin=subprocess.PIPE,
+    with subprocess.Popen(FACETTE + ["sim", "--workdir", str(d / "rig")] + _size_args(size), stdin=subprocess.PIPE,
                           stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True) as sim:
         try:
             port = sim.stdout.readline().split(": ", 1)[1].strip()
             camera = sim.stdout.readline().split(": ", 1)[1].strip()
             # its later lines are drained, so that a full pipe never stops the rig
             threading.Thread(target=sim.stdout.read, daemon=True).start()
-            _, _, rss, _, _ = _run_rss(facette + ["scan", "--device", port, "--camera-dir", camera,
+            _, _, rss, _, _ = _run_rss(FACETTE + ["scan", "--device", port, "--camera-dir", camera,
                                                   "--profile", str(sim_profile_dir()), "--quiet",
                                                   str(d / "scan")])
         finally:
             sim.stdin.write("quit\n")
             sim.stdin.flush()
             sim.wait(timeout=120)
-    ready = _results_written(d / "scan" / "results") - _journal_last_frame(d / "scan").timestamp()
-    return {"rig_apart_gb": rss, "rig_apart_ready_s": ready}
+    return {"rig_apart_gb": rss, "rig_apart_ready_s": _ready_s(d / "scan")}
 
 
 def one_run(size, work, exposures=None, rig_apart=True):
     """Figures of one scan at `size` ("WxH", or "default": the command's own) in a new folder
     under `work`."""
-    facette = [sys.executable, "-m", "facette.cli.main"]
     d = Path(tempfile.mkdtemp(prefix=f"e2e-{size}-", dir=work)) / "scan"
-    cmd = facette + ["scan", "--sim", "--press-button", "--quiet"] \
-        + ([] if size == "default" else ["--raw-size", size]) + [str(d)]
+    cmd = FACETTE + ["scan", "--sim", "--press-button", "--quiet"] + _size_args(size) + [str(d)]
     if exposures:
         cmd[-1:-1] = ["--exposures", exposures]
     out, wall, rss, end, _ = _run_rss(cmd)
@@ -186,9 +190,8 @@ def one_run(size, work, exposures=None, rig_apart=True):
     global_, per_object = _scan_height_errors(d)
     with np.load(d / "truth.npz") as z:
         pitch, (h, w) = float(z["pixel_pitch_mm"]), z["mask"].shape
-    size_arg = size
-    if size == "default":                       # the RAW mosaic is twice the HDR grid
-        size = f"{2 * w}x{2 * h} (default)"
+    # the RAW mosaic is twice the HDR grid
+    label = f"{2 * w}x{2 * h} (default)" if size == "default" else size
     shadow, mid, clipped = _snr(d)
     # The merge alone, all lights, in a fresh process; then `facette process` alone.
     # with the `facette` command's allocator settings, as the merge runs inside the command
@@ -196,20 +199,20 @@ def one_run(size, work, exposures=None, rig_apart=True):
             "import sys, time; from facette.scan import merge_scan; t = time.perf_counter(); "
             "merge_scan(sys.argv[1], force=True); print(f'merge {time.perf_counter() - t:.3f}')")
     m_out, _, m_rss, _, m_cpu = _run_rss([sys.executable, "-c", code, str(d)])
-    p_out, p_wall, p_rss, _, p_cpu = _run_rss(facette + ["process", str(d), "-o", str(d / "results2")])
-    return {"size": size, "bracket": data.get("bracketing", {}).get("name"),
+    p_out, p_wall, p_rss, _, p_cpu = _run_rss(FACETTE + ["process", str(d), "-o", str(d / "results2")])
+    apart = rig_apart_run(size, work) if rig_apart and not exposures else \
+        {"rig_apart_gb": np.nan, "rig_apart_ready_s": np.nan}
+    return {"size": label, "bracket": data.get("bracketing", {}).get("name"),
             "frames": len(data["frames"]), "rig_s": float(data["rig_time_s"]), "wall_s": wall,
             "merge_s": merge_s, "merge_alone_s": float(m_out.split()[-1]), "merge_alone_cpu_s": m_cpu,
             "merge_alone_gb": m_rss, "process_cpu_s": p_cpu,
             "recon_s": times.get("ps", np.nan) + times.get("integrate", np.nan),
             "fit_s": times.get("fit", np.nan), "process_s": p_wall, "process_gb": p_rss,
-            "ready_s": _results_written(d / "results") - _journal_last_frame(d).timestamp(),
+            "ready_s": _ready_s(d),
             "exit_s": (end - _journal_last_frame(d)).total_seconds(), "peak_gb": rss,
             "shadow_db": shadow, "mid_db": mid, "clipped": clipped,
             "height_rms_mm": global_, "height_rms_px": global_ / pitch,
-            "height_rms_object_mm": per_object, "pitch_mm": pitch,
-            **(rig_apart_run(size_arg, work) if rig_apart and not exposures else
-               {"rig_apart_gb": np.nan, "rig_apart_ready_s": np.nan})}
+            "height_rms_object_mm": per_object, "pitch_mm": pitch, **apart}
 
 
 COLUMNS = [("size", "size", "s"), ("bracket", "bracket", "s"), ("frames", "frames", "d"),
