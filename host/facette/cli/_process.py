@@ -92,6 +92,9 @@ def register(sub):
                    help="replace the results of an earlier run with other options in OUT")
     p.add_argument("--hsh-order", type=int, default=3, choices=(2, 3),
                    help="hemispherical-harmonics order of relight.rti (2: 4 terms, 3: 9 terms)")
+    p.add_argument("--rti-encoding", default="srgb", choices=("srgb", "linear"),
+                   help="colour of relight.ptm and relight.rti: srgb (default: display values, what "
+                        "RTIViewer and Relight show as photographed) or linear (proportional to radiance)")
     return p
 
 
@@ -121,7 +124,7 @@ def run(args):
                   mask=args.mask, pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light,
                   mesh_step=args.mesh_step, ascii_ply=args.ascii_ply,
                   fit_options={"model": args.brdf_model, "method": args.fit_method},
-                  hsh_order=args.hsh_order,
+                  hsh_order=args.hsh_order, rti_encoding=args.rti_encoding,
                   ps_options={"init": args.init} if args.method == "li_alternating" else None,
                   allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
                   interreflections=args.interreflections)

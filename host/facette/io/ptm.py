@@ -1,19 +1,34 @@
 """Polynomial texture maps, PTM_FORMAT_LRGB (Malzbender & Gelb, "Polynomial Texture Map (.ptm)
-File Format", HP Labs, version 1.2, 2001), the format RTIViewer and the HP PTM viewer open.
+File Format", HP Labs, version 1.2, 2001), written and read as RTIViewer and Relight do.
 
 Layout (§2 of that document): the ASCII lines ``PTM_1.2``, ``PTM_FORMAT_LRGB``, the width,
 the height, six scale floats, six bias integers, then the binary data: the six luminance
-coefficients a0..a5 of every pixel as bytes, then the R, G, B bytes of every pixel, both in
-"simple reversed scanline order" (the bottom row first, left to right). A coefficient is
-recovered as a = (byte - bias) · scale; the pixel's colour is L(lu, lv) · RGB / 255.
+coefficients a0..a5 of every pixel as bytes, then the R, G, B bytes of every pixel, both
+bottom row first ("reversed scanline order": RTIViewer's loader fills rows h-1 .. 0, Relight's
+keeps them as its bottom-up rows). A coefficient is a = (byte - bias) · scale.
+
+Units, as every reader takes them: the luminance L(lu, lv) = a0 lu² + a1 lv² + a2 lu lv + a3 lu
++ a4 lv + a5 is in byte units (255 = the stored colour at full brightness; HP's own files have
+constant terms reaching 510) and a pixel is shown as L · RGB / 255, RGB the stored bytes.
+RTIViewer keeps each coefficient as the integer ``int((byte - bias) · scale)`` (truncated);
+Relight keeps the float. `PTMFile.relight` does either (``rtiviewer=True``: the truncation).
+
+`read_ptm` also reads PTM_FORMAT_JPEG_LRGB (HP's compressed variant: nine JPEG planes, some
+predicted from others), as RTIViewer's JPEGLRGBPtm loader does.
 """
+import io as _io
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["write_ptm_lrgb", "quantize_scale_bias", "column_range"]
+from facette.errors import BadInputError
+
+__all__ = ["write_ptm_lrgb", "quantize_scale_bias", "column_range", "read_ptm", "PTMFile",
+           "ptm_weights", "FULL"]
 
 ROWS = 64                  # image rows quantized at a time
+FULL = 255.0               # the luminance every reader takes as full brightness
 
 
 def column_range(a, fold=256):
@@ -47,11 +62,13 @@ def quantize_scale_bias(coeffs):
 
 
 def write_ptm_lrgb(path, coeffs, rgb):
-    """Write a PTM_FORMAT_LRGB file.
+    """Write a PTM_FORMAT_LRGB file that RTIViewer and Relight show as fitted.
 
     coeffs : (H, W, 6) float, the luminance polynomial a0..a5 per pixel (image row 0 = top),
-        in the order of `facette.recon.ptm_basis`; rgb : (H, W, 3) floats in [0, 1] (clipped).
-    Returns {"scale": [6], "bias": [6]} as written.
+        in the order of `ptm_weights`, with L = 1 for the stored colour at full brightness
+        (stored ×255: byte units, what the readers take); rgb : (H, W, 3) display colour in
+        [0, 1] (clipped), stored as bytes. The picture shown at light l is L(l) · rgb.
+    Returns {"scale": [6], "bias": [6]} as written (byte units).
     """
     coeffs = np.asarray(coeffs)            # float32 or float64 as given: no full-size copy
     if not np.issubdtype(coeffs.dtype, np.floating):
@@ -65,9 +82,11 @@ def write_ptm_lrgb(path, coeffs, rgb):
         raise ValueError("PTM coefficients and colours must be finite (set unfitted pixels to 0)")
     h, w, _ = coeffs.shape
     scale, bias = quantize_scale_bias(coeffs.reshape(-1, 6))
+    scale = scale * FULL                  # byte units: the range of L·255
     q = np.empty(coeffs.shape, np.uint8)
     for r in range(0, h, ROWS):          # by rows, in place: no full-size float64 temporaries
         x = coeffs[r:r + ROWS].astype(np.float64)
+        x *= FULL
         x /= scale
         x += bias
         np.round(x, out=x)
@@ -85,3 +104,143 @@ def write_ptm_lrgb(path, coeffs, rgb):
         out.write(c[::-1].tobytes())
     tmp.replace(path)
     return {"scale": [float(s) for s in scale], "bias": [int(b) for b in bias]}
+
+
+def ptm_weights(light):
+    """[lu², lv², lu·lv, lu, lv, 1] of a light (..., 3) or (..., 2): lu, lv its x (right) and
+    y (up) components, the document's §1.0 order. Returns (..., 6)."""
+    d = np.asarray(light, dtype=np.float64)
+    u, v = d[..., 0], d[..., 1]
+    return np.stack([u * u, v * v, u * v, u, v, np.ones_like(u)], axis=-1)
+
+
+@dataclass
+class PTMFile:
+    """A PTM LRGB as the readers hold it: image row 0 at the top of the picture.
+
+    coeffs (H, W, 6) float64, (byte - bias) · scale (byte units: 255 = full brightness);
+    rgb (H, W, 3) uint8; scale (6,), bias (6,) as in the header; format the header's format line.
+    """
+    width: int
+    height: int
+    format: str
+    scale: np.ndarray
+    bias: np.ndarray
+    coeffs: np.ndarray
+    rgb: np.ndarray
+
+    def luminance(self, light, rtiviewer=False):
+        """L (H, W) in byte units at a light direction (3,) (x right, y up, z to the camera).
+        rtiviewer=True truncates each coefficient to an integer first, as RTIViewer stores them."""
+        a = np.trunc(self.coeffs) if rtiviewer else self.coeffs
+        return a @ ptm_weights(light)
+
+    def relight(self, light, rtiviewer=False):
+        """The picture (H, W, 3) as displayed, in [0, 1]: L · RGB / 255 / 255, L clipped to
+        >= 0 and the result to 1 (the viewers' byte conversion)."""
+        lum = np.maximum(self.luminance(light, rtiviewer), 0.0)
+        return np.minimum(lum[..., None] * self.rgb / (FULL * 255.0), 1.0)
+
+
+def _lines(data, pos, n):
+    """n header lines (ASCII, LF or CRLF) from pos -> (list of str, position after them)."""
+    out = []
+    for _ in range(n):
+        end = data.find(b"\n", pos)
+        if end < 0:
+            raise BadInputError("PTM header ends early")
+        out.append(data[pos:end].decode("ascii", "replace").strip())
+        pos = end + 1
+    return out, pos
+
+
+def _ints(line, n, what, path):
+    try:
+        vals = [int(t) for t in line.split()]
+    except ValueError:
+        vals = []
+    if len(vals) != n:
+        raise BadInputError(f"{path}: the PTM header's {what} line is not {n} integers: {line!r}")
+    return vals
+
+
+def read_ptm(path):
+    """Read a PTM_FORMAT_LRGB or PTM_FORMAT_JPEG_LRGB file (PTM 1.2) -> `PTMFile`.
+
+    Raises BadInputError for other formats (RGB, LUM, JPEG-LS) and for side information or
+    motion compensation in a JPEG file (HP's encoder options that no sample we have uses)."""
+    path = Path(path)
+    data = path.read_bytes()
+    (version, fmt), pos = _lines(data, 0, 2)
+    if not version.startswith("PTM_1."):
+        raise BadInputError(f"{path} is not a PTM file (first line {version!r})")
+    if fmt not in ("PTM_FORMAT_LRGB", "PTM_FORMAT_JPEG_LRGB"):
+        raise BadInputError(f"{path}: {fmt} is not read (PTM_FORMAT_LRGB and PTM_FORMAT_JPEG_LRGB are)")
+    # width and height: one line each (what RTIViewer reads) or both on one line (§2.3)
+    (first,), pos = _lines(data, pos, 1)
+    if len(first.split()) == 2:
+        w, h = (int(t) for t in first.split())
+    else:
+        (second,), pos = _lines(data, pos, 1)
+        w, h = int(first), int(second)
+    (scale_line, bias_line), pos = _lines(data, pos, 2)
+    scale = np.array([float(t) for t in scale_line.split()])
+    bias = np.array(_ints(bias_line, 6, "bias", path), float)
+    if scale.size != 6:
+        raise BadInputError(f"{path}: the PTM header's scale line is not 6 numbers: {scale_line!r}")
+    n = w * h
+    if fmt == "PTM_FORMAT_LRGB":
+        body = np.frombuffer(data, np.uint8, offset=pos)
+        if body.size < 9 * n:
+            raise BadInputError(f"{path}: {body.size} data bytes for {w}x{h} pixels ({9 * n} expected)")
+        if version == "PTM_1.2":       # a0..a5 of every pixel, then R, G, B of every pixel
+            planes = body[:6 * n].reshape(h, w, 6), body[6 * n:9 * n].reshape(h, w, 3)
+        else:                          # PTM 1.1: a0..a5 R G B interleaved
+            px = body[:9 * n].reshape(h, w, 9)
+            planes = px[..., :6], px[..., 6:]
+        raw, rgb = planes[0][::-1], planes[1][::-1]                # bottom row first
+    else:
+        raw, rgb = _jpeg_planes(data, pos, w, h, path)
+    coeffs = (raw.astype(np.float64) - bias) * scale
+    return PTMFile(w, h, fmt, scale, bias.astype(int), coeffs, np.ascontiguousarray(rgb, np.uint8))
+
+
+def _jpeg_planes(data, pos, w, h, path):
+    """PTM_FORMAT_JPEG_LRGB (§2.7): compression parameter, then nine values per line for the
+    transforms, motion x, motion y, order, reference planes, compressed sizes, side information
+    sizes; then each plane's JPEG stream and side information. Planes are a0..a5, R, G, B;
+    a plane with a reference r is stored as (plane - ref + 128) mod 256 (transform 1: against
+    255 - ref), decoded in `order`. Each JPEG's top row is the picture's bottom row.
+    Returns (coefficient bytes (H, W, 6), rgb (H, W, 3)) with row 0 at the top."""
+    from PIL import Image        # the JPEG decoder (Pillow, a dependency), loaded only here
+
+    lines, pos = _lines(data, pos, 8)
+    xform, mx, my, order, ref, sizes, side = (_ints(l, 9, what, path) for l, what in zip(
+        lines[1:], ("transform", "motion x", "motion y", "order", "reference", "size", "side info")))
+    if any(mx) or any(my):
+        raise BadInputError(f"{path}: motion-compensated JPEG PTM planes are not read")
+    if any(side):
+        raise BadInputError(f"{path}: JPEG PTM side information (corrected pixels) is not read")
+    starts = np.concatenate([[pos], pos + np.cumsum(np.add(sizes, side))])
+    if starts[-1] > len(data):
+        raise BadInputError(f"{path}: the file is shorter than its JPEG planes ({starts[-1]} bytes)")
+    stored = []
+    for k in range(9):
+        img = Image.open(_io.BytesIO(data[starts[k]:starts[k] + sizes[k]]))
+        a = np.asarray(img.convert("L"))
+        if a.shape != (h, w):
+            raise BadInputError(f"{path}: JPEG plane {k} is {a.shape[1]}x{a.shape[0]}, not {w}x{h}")
+        stored.append(a.astype(np.int32))
+    planes = [None] * 9
+    for step in range(9):
+        k = order.index(step)
+        p = stored[k]
+        if ref[k] >= 0:
+            base = planes[ref[k]]
+            if base is None:
+                raise BadInputError(f"{path}: JPEG plane {k} refers to plane {ref[k]}, not decoded before it")
+            base = 255 - base if xform[k] == 1 else base
+            p = (p + base - 128) % 256
+        planes[k] = p
+    cube = np.stack(planes, axis=-1)[::-1].astype(np.uint8)        # JPEG row 0 = bottom
+    return cube[..., :6], cube[..., 6:]

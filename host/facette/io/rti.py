@@ -1,31 +1,37 @@
-"""Hemispherical-harmonics RTI files (.rti, "#HSH1.2"), as written by Cultural Heritage
-Imaging's RTIBuilder (its HSH fitter) and read by RTIViewer.
+"""Hemispherical-harmonics RTI files (.rti, "#HSH1.2"), written and read as Cultural Heritage
+Imaging's RTIBuilder writes them and RTIViewer and Relight read them.
 
-Layout: the ASCII lines ``#HSH1.2`` (comment lines start with '#'), the file type ``3``
+Layout: comment lines starting with '#' (the first is ``#HSH1.2``), the file type ``3``
 (HSH), ``width height bands`` (bands = 3, RGB), ``terms basis_type element_size``
 (order² terms, basis type 2, 1 byte per element); then `terms` little-endian float32
-scales, `terms` float32 biases, and the pixels, the bottom row first, left to right, each
-as terms bytes for red, then green, then blue. A coefficient is
-byte / 255 · scale[k] + bias[k]. The basis is `facette.recon.hsh_basis`.
+scales, `terms` float32 biases, and the pixels, **the top row of the picture first** (as
+RTIBuilder's own files, RTIViewer's loader, which fills rows 0 .. h-1 from the top, and
+Relight's, which turns them into its bottom-up rows), left to right, each as `terms` bytes for
+red, then green, then blue. A coefficient is byte / 255 · scale[k] + bias[k]; the value at a
+light is Σ_k coeff_k H_k(light), shown as that value × 255 (1 = full brightness).
+`hsh_weights` is the basis in RTIViewer's closed form.
 """
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from facette.errors import BadInputError
 from facette.io.ptm import column_range
 
-__all__ = ["write_hsh_rti"]
+__all__ = ["write_hsh_rti", "read_hsh_rti", "HSHFile", "hsh_weights"]
 
 HSH_FILE_TYPE = 3          # RTIViewer's file types: 1 PTM, 2 spherical harmonics, 3 HSH
 HSH_BASIS_TYPE = 2
 ROWS = 64                  # image rows quantized at a time
 
 
-def write_hsh_rti(path, coeffs):
+def write_hsh_rti(path, coeffs, comments=()):
     """Write an HSH .rti file.
 
     coeffs : (H, W, 3, T) float, T = 4 or 9 (order 2 or 3) HSH coefficients per colour
-        channel (image row 0 = top), values that relight to [0, 1] for display.
+        channel (image row 0 = top), values that relight to [0, 1] as displayed.
+    comments : lines written after ``#HSH1.2`` as '#' comments (what the values are).
     Returns {"scale": [T], "bias": [T]} as written (scale = max - min, bias = min per term).
     """
     coeffs = np.asarray(coeffs)            # float32 or float64 as given: no full-size copy
@@ -33,6 +39,9 @@ def write_hsh_rti(path, coeffs):
         coeffs = coeffs.astype(np.float64)
     if coeffs.ndim != 4 or coeffs.shape[2] != 3 or coeffs.shape[3] not in (4, 9) or 0 in coeffs.shape:
         raise ValueError(f"HSH coefficients must have shape (H, W, 3, 4 or 9), got {coeffs.shape}")
+    comments = [str(c) for c in comments]
+    if any("\n" in c or "\r" in c for c in comments):
+        raise ValueError("an .rti comment is one line")
     h, w, _, t = coeffs.shape
     terms = coeffs.reshape(-1, t)
     lo, hi = column_range(terms)
@@ -48,13 +57,94 @@ def write_hsh_rti(path, coeffs):
         x *= 255.0
         np.round(x, out=x)
         q[r:r + ROWS] = np.clip(x, 0, 255, out=x)
-    header = f"#HSH1.2\n{HSH_FILE_TYPE}\n{w} {h} 3\n{t} {HSH_BASIS_TYPE} 1\n"
+    header = ("#HSH1.2\n" + "".join(f"# {c}\n" for c in comments)
+              + f"{HSH_FILE_TYPE}\n{w} {h} 3\n{t} {HSH_BASIS_TYPE} 1\n")
     path = Path(path)
     tmp = path.with_name(path.name + ".partial")
     with open(tmp, "wb") as out:
-        out.write(header.encode("ascii"))
+        out.write(header.encode("utf-8"))
         out.write(scale.tobytes())
         out.write(bias.tobytes())
-        out.write(q[::-1].tobytes())           # bottom row first; per pixel R terms, G, B
+        out.write(q.tobytes())           # top row first; per pixel R terms, G, B
     tmp.replace(path)
     return {"scale": [float(s) for s in scale], "bias": [float(b) for b in bias]}
+
+
+def hsh_weights(light, terms=9):
+    """RTIViewer's hemispherical-harmonics weights (its getHSH, closed form) at light
+    directions (..., 3) (x right, y up, z towards the camera) -> (..., terms), terms 4 or 9."""
+    d = np.asarray(light, dtype=np.float64)
+    phi = np.arctan2(d[..., 1], d[..., 0])
+    ct = np.clip(d[..., 2] / np.maximum(np.linalg.norm(d, axis=-1), 1e-300), 0.0, 1.0)
+    ct2 = ct * ct
+    s = np.sqrt(np.maximum(ct - ct2, 0.0))
+    pi = np.pi
+    w = [np.full_like(ct, 1 / np.sqrt(2 * pi)),
+         np.sqrt(6 / pi) * np.cos(phi) * s,
+         np.sqrt(3 / (2 * pi)) * (-1 + 2 * ct),
+         np.sqrt(6 / pi) * s * np.sin(phi),
+         np.sqrt(30 / pi) * np.cos(2 * phi) * (-ct + ct2),
+         np.sqrt(30 / pi) * np.cos(phi) * (-1 + 2 * ct) * s,
+         np.sqrt(5 / (2 * pi)) * (1 - 6 * ct + 6 * ct2),
+         np.sqrt(30 / pi) * (-1 + 2 * ct) * s * np.sin(phi),
+         np.sqrt(30 / pi) * (-ct + ct2) * np.sin(2 * phi)]
+    if terms not in (4, 9):
+        raise ValueError(f"HSH terms must be 4 or 9, got {terms}")
+    return np.stack(w[:terms], axis=-1)
+
+
+@dataclass
+class HSHFile:
+    """An HSH .rti as the readers hold it: coeffs (H, W, 3, terms) float64 with image row 0
+    at the top of the picture; scale, bias (terms,) as stored; comments: the '#' lines."""
+    width: int
+    height: int
+    terms: int
+    scale: np.ndarray
+    bias: np.ndarray
+    coeffs: np.ndarray
+    comments: list = field(default_factory=list)
+
+    def relight(self, light):
+        """The picture (H, W, 3) as displayed at a light direction (3,), in [0, 1]."""
+        return np.clip(self.coeffs @ hsh_weights(light, self.terms), 0.0, 1.0)
+
+    @property
+    def encoding(self):
+        """"linear" when a comment says the values are linear, else "srgb" (RTIBuilder's)."""
+        text = " ".join(self.comments).lower()
+        return "linear" if "encoding: linear" in text else "srgb"
+
+
+def read_hsh_rti(path):
+    """Read an HSH .rti file (file type 3, 1 byte per element) -> `HSHFile`."""
+    path = Path(path)
+    data = path.read_bytes()
+    if not data.startswith(b"#HSH1.2"):
+        raise BadInputError(f"{path} is not an HSH .rti file (it does not start with #HSH1.2)")
+    pos, comments = 0, []
+    while data[pos:pos + 1] == b"#":
+        end = data.index(b"\n", pos)
+        comments.append(data[pos + 1:end].decode("utf-8", "replace").strip())
+        pos = end + 1
+    vals = []
+    for _ in range(3):
+        end = data.find(b"\n", pos)
+        if end < 0:
+            raise BadInputError(f"{path}: the .rti header ends early")
+        vals.append([int(t) for t in data[pos:end].split()])
+        pos = end + 1
+    if vals[0] != [HSH_FILE_TYPE]:
+        raise BadInputError(f"{path}: .rti file type {vals[0]} is not read (3, HSH, is)")
+    (w, h, bands), (terms, _basis, size) = vals[1], vals[2]
+    if bands != 3 or size != 1 or terms not in (4, 9):
+        raise BadInputError(f"{path}: {bands} bands, {terms} terms, {size}-byte elements: "
+                            "3 bands of 4 or 9 one-byte terms are read")
+    scale = np.frombuffer(data, "<f4", terms, pos).astype(np.float64)
+    bias = np.frombuffer(data, "<f4", terms, pos + 4 * terms).astype(np.float64)
+    n = w * h * 3 * terms
+    body = np.frombuffer(data, np.uint8, offset=pos + 8 * terms)
+    if body.size < n:
+        raise BadInputError(f"{path}: {body.size} data bytes for {w}x{h} pixels ({n} expected)")
+    q = body[:n].reshape(h, w, 3, terms)          # top row first; per pixel R, G, B blocks
+    return HSHFile(w, h, terms, scale, bias, q / 255.0 * scale + bias, comments[1:])

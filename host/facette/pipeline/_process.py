@@ -36,7 +36,7 @@ from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
 from facette.recon import (INTEGRATION_DEFAULT, INTEGRATION_METHODS, PS_DEFAULT, PS_METHODS, flat_margin, integrate,
                            mesh_from_height, near_light_directions, photometric_stereo,
-                           fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION,
+                           fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION, RTI_ENCODINGS,
                            without_interreflections)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
@@ -230,7 +230,7 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
             t_source=T_SOURCE, t_residual=T_RESIDUAL, theta0_deg=THETA0_DEG, mask=None,
             pixel_pitch_mm=None, near_light=True, mesh_step=None, ascii_ply=False,
             saturation=None, fit_options=None, hsh_order=3, ps_options=None, allow_incomplete=False,
-            overwrite=False, interreflections=False):
+            overwrite=False, interreflections=False, rti_encoding="srgb"):
     """Run the processing chain on a scan directory or a DiLiGenT-style folder.
 
     source : path (or Scan object) of a facette scan (scan.json + hdr/) or a DiLiGenT folder.
@@ -261,6 +261,10 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
     saturation : image values >= this are treated as missing.
     fit_options : keyword arguments of facette.fit.fit_brdf (model, method, volume, ...).
     hsh_order : order of the hemispherical harmonics of relight.rti (2: 4 terms, 3: 9 terms).
+    rti_encoding : what relight.ptm and relight.rti hold: "srgb" (default), the display values
+        RTIViewer and Relight show as they are (RTIBuilder fits sRGB photographs), the HDR
+        images / their 99th percentile sRGB-encoded; "linear": proportional to the radiance
+        (darker and harsher in those viewers). Said in relight.rti's header comment.
     allow_incomplete : process a scan that is not complete (every output then says so).
     overwrite : replace an earlier run's results in `out_dir` made with other options or inputs
         (without it, such a folder is refused: one folder holds one run, see process.json).
@@ -289,12 +293,15 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
 
 def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_source, t_residual,
              theta0_deg, mask, pixel_pitch_mm, near_light, mesh_step, ascii_ply, saturation,
-             fit_options, hsh_order, ps_options, allow_incomplete, overwrite, interreflections):
+             fit_options, hsh_order, ps_options, allow_incomplete, overwrite, interreflections,
+             rti_encoding):
     outputs = list(OUTPUTS if outputs is None else outputs)
     stages = stages_needed(outputs)
     res = ProcessResult(options=dict(method=method, integration=integration, t_ombre=t_ombre,
                                      t_spec=t_spec, t_source=t_source, t_residual=t_residual,
-                                     theta0_deg=theta0_deg, outputs=outputs))
+                                     theta0_deg=theta0_deg, outputs=outputs, rti_encoding=rti_encoding))
+    if rti_encoding not in RTI_ENCODINGS:
+        raise BadInputError(f"rti_encoding must be one of {', '.join(RTI_ENCODINGS)}, got {rti_encoding!r}")
     if pixel_pitch_mm is not None and not pixel_pitch_mm > 0:
         raise BadInputError(f"pixel_pitch_mm must be > 0 mm, got {pixel_pitch_mm}")
     if mesh_step is not None and not int(mesh_step) >= 1:
@@ -456,7 +463,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration
 
     def ptm():
         t0 = time.perf_counter()
-        res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.mask)
+        res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.mask, encoding=res.options["rti_encoding"])
         res.fit_errors["ptm_relative_rms"] = fit_relight_error(res.ptm, images, light_dirs, res.mask)
         res.timings["ptm"] = time.perf_counter() - t0
         write("ptm")
@@ -464,7 +471,8 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration
 
     def hsh():
         t0 = time.perf_counter()
-        res.hsh = fit_hsh(images, light_dirs, order=hsh_order, mask=res.mask)
+        res.hsh = fit_hsh(images, light_dirs, order=hsh_order, mask=res.mask,
+                          encoding=res.options["rti_encoding"])
         res.fit_errors["hsh_relative_rms"] = fit_relight_error(res.hsh, images, light_dirs, res.mask)
         res.timings["hsh"] = time.perf_counter() - t0
         write("rti")
@@ -528,7 +536,7 @@ def _writers(res, out, outputs, ascii_ply):
         "samples": samples,
         "brdf": lambda p: p.write_text(brdf_text()) if res.brdf is not None else None,
         "ptm": lambda p: write_ptm_lrgb(p, res.ptm.coeffs, res.ptm.rgb),
-        "rti": lambda p: write_hsh_rti(p, res.hsh.coeffs),
+        "rti": lambda p: write_hsh_rti(p, res.hsh.coeffs, _rti_comments(res)),
     }
 
     def write(output):
@@ -536,6 +544,18 @@ def _writers(res, out, outputs, ascii_ply):
             _timed(res, f"write_{output}", how[output], out / FILES[output])
 
     return write
+
+
+def _rti_comments(res):
+    """relight.rti's header comments: who wrote it and what its values are."""
+    enc = res.hsh.encoding
+    how = ("sRGB (display values, as RTIBuilder's from sRGB photographs)" if enc == "srgb"
+           else "linear (proportional to the radiance; viewers show it darker than the photographs)")
+    lines = [f"facette relight.rti: HSH order {res.hsh.order}, first row = top of the picture",
+             f"encoding: {enc} - {how}; 1.0 = {res.hsh.white:.6g} in the HDR images' unit"]
+    if res.inputs.incomplete:
+        lines.append(f"scan incomplete: {res.inputs.incomplete}")
+    return lines
 
 
 def _write_last(res, out, outputs, drawn):

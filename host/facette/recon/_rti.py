@@ -20,7 +20,12 @@ from math import factorial, pi, sqrt
 import numpy as np
 
 __all__ = ["ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh",
-           "relight_ptm", "relight_hsh", "relight_error", "fit_relight_error", "HSH_ORDERS"]
+           "relight_ptm", "relight_hsh", "relight_error", "fit_relight_error", "HSH_ORDERS",
+           "RTI_ENCODINGS", "srgb_encode", "srgb_decode", "display_ptm", "display_hsh"]
+
+# How the fitted values are encoded: "srgb", the display values RTIViewer shows as they are
+# (RTIBuilder fits sRGB photographs), or "linear": values proportional to the radiance
+RTI_ENCODINGS = ("srgb", "linear")
 
 HSH_ORDERS = (2, 3)     # 4 and 9 terms: the orders whose RTIViewer convention is pinned by a test
 # Tikhonov term, relative to trace(AᵀA): directions of AᵀA with eigenvalues far below it are
@@ -29,6 +34,29 @@ HSH_ORDERS = (2, 3)     # 4 and 9 terms: the orders whose RTIViewer convention i
 # coefficients that cancel on the photographs and explode between them
 _RCOND = 1e-6
 _BLOCK = 8192          # pixels per batched solve (memory ~ block * m * terms * 8 bytes)
+
+
+def _check_encoding(encoding):
+    if encoding not in RTI_ENCODINGS:
+        raise ValueError(f"RTI encoding must be one of {RTI_ENCODINGS}, got {encoding!r}")
+
+
+def srgb_encode(x, out=None):
+    """The sRGB transfer function (IEC 61966-2-1) of linear values, clipped to [0, 1] first;
+    NaN stays NaN. In place when out is x."""
+    x = np.clip(x, 0.0, 1.0, out=out)
+    low = x <= 0.0031308
+    hi = np.power(x, x.dtype.type(1 / 2.4) if x.dtype.kind == "f" else 1 / 2.4)
+    hi *= 1.055
+    hi -= 0.055
+    x *= 12.92
+    return np.where(low, x, hi) if out is None else np.copyto(out, hi, where=~low) or out
+
+
+def srgb_decode(y):
+    """Linear values of sRGB-encoded ones (clipped to [0, 1] first)."""
+    y = np.clip(y, 0.0, 1.0)
+    return np.where(y <= 0.04045, y / 12.92, np.power((y + 0.055) / 1.055, 2.4))
 
 
 def ptm_basis(light_dirs):
@@ -99,28 +127,34 @@ def hsh_basis(light_dirs, order=3):
 
 @dataclass
 class PTMFit:
-    """A luminance PTM (LRGB): colour (H, W, 3) = white · L(l) · rgb.
+    """A luminance PTM (LRGB): displayed colour (H, W, 3) = L(l) · rgb, in [0, 1] as shown;
+    the image value it stands for is white · that (encoding "linear") or white · sRGB⁻¹(that)
+    (encoding "srgb").
 
     coeffs (H, W, 6) float32, the L polynomial's a0..a5 (`ptm_basis` order), L ~ [0, 1];
-    rgb (H, W, 3) in [0, 1], the per-pixel colour (max channel 1 where lit);
-    white : the image value that L = 1 stands for (same unit as the fitted images);
-    valid (H, W) bool: pixels with at least 6 usable lights (others are zero).
+    rgb (H, W, 3) in [0, 1], the per-pixel colour (max channel 1 where lit), encoded;
+    white : the image value shown at full brightness (same unit as the fitted images);
+    valid (H, W) bool: pixels with at least 6 usable lights (others are zero);
+    encoding : "srgb" or "linear" (`RTI_ENCODINGS`).
     """
     coeffs: np.ndarray
     rgb: np.ndarray
     white: float
     valid: np.ndarray
+    encoding: str = "linear"
 
 
 @dataclass
 class HSHFit:
-    """RGB hemispherical harmonics: colour (H, W, 3) = white · Σ_k coeffs[..., c, k] H_k(l).
+    """RGB hemispherical harmonics: displayed colour (H, W, 3) = Σ_k coeffs[..., c, k] H_k(l),
+    the image value as in `PTMFit` (white, encoding).
 
-    coeffs (H, W, 3, order²) float32 (values ~ [0, 1]); order; white as in `PTMFit`; valid."""
+    coeffs (H, W, 3, order²) float32 (values ~ [0, 1]); order; white; valid; encoding."""
     coeffs: np.ndarray
     order: int
     white: float
     valid: np.ndarray
+    encoding: str = "linear"
 
 
 def _check(images, light_dirs):
@@ -248,7 +282,7 @@ def _top_percentile(select, starts, percentile, stride=37):
     return float(np.quantile(pair, float(vi - lo)))      # numpy's own interpolation, its dtype
 
 
-def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.0):
+def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.0, encoding="linear"):
     """Fit a luminance PTM (LRGB, Malzbender et al. 2001 §3.2) to every pixel.
 
     images : (m, H, W, 3) linear values (NaN = unknown); light_dirs : (m, 3) or (H, W, m, 3)
@@ -257,9 +291,12 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
     luminance over the masked pixels and all lights).
     Per pixel, rgb is the colour of the summed samples scaled to max channel 1, and each
     sample's L is its projection on rgb (least squares), divided by `white`.
+    encoding "srgb": rgb is sRGB-encoded and L fitted to the projections of the sRGB-encoded
+    samples (images / white, clipped to [0, 1]) on it: L · rgb is what a viewer shows.
     Returns a `PTMFit`.
     """
     from facette.recon._rti_jit import ptm_colour_block     # numba loads only when this runs
+    _check_encoding(encoding)
     images, dirs = _check(images, light_dirs)
     m, h, w, _ = images.shape
     flat = images.reshape(m, h * w, 3)                    # light-major
@@ -282,27 +319,45 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
         white = _top_percentile(known_lum, range(0, h * w, _BLOCK), white_percentile)
     if not white > 0:
         raise ValueError(f"white level must be > 0, got {white}")
+    scale = 1.0 / white
+    if encoding == "srgb":       # the display colour, and each sample's projection on it
+        rgb = srgb_encode(rgb)
+        scale = 1.0
+
+        def display_lum(a):
+            sl = slice(a, a + _BLOCK)
+            e = flat[:, sl] / np.float32(white)                    # (m, n, 3)
+            unknown = ~_all3(np.isfinite(e))
+            srgb_encode(e, out=e)
+            c = rgb[sl].astype(np.float32)
+            lb = np.einsum("mnc,nc->mn", e, c) / np.maximum((c * c).sum(-1), 1e-30)
+            lb[unknown] = np.nan
+            lum[:, sl] = lb
+
+        _run(display_lum, range(0, h * w, _BLOCK))
     lum_img = lum.reshape(m, h, w, 1)
 
     def values(e):                          # e: a copy of its own, changed in place
         ok = np.isfinite(e[..., 0])
         e = np.nan_to_num(e, copy=False)
-        e /= white
+        e *= scale
         return e, ok.astype(np.float64)
 
     coeffs, valid = _solve_blocks(lum_img, dirs, ptm_basis, 6, values)
     valid &= peak > 0
     return PTMFit(coeffs[:, 0].reshape(h, w, 6), rgb.reshape(h, w, 3), float(white),
-                  valid.reshape(h, w))
+                  valid.reshape(h, w), encoding)
 
 
-def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile=99.0):
+def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile=99.0, encoding="linear"):
     """Fit RGB hemispherical harmonics of `order` (2: 4 terms, 3: 9 terms) to every pixel.
 
     Same inputs as `fit_ptm_lrgb`; each colour channel gets its own coefficients, fitted to
-    images / white (white: the `white_percentile` of the masked values by default).
+    images / white (white: the `white_percentile` of the masked values by default); encoding
+    "srgb": to their sRGB encoding (images / white clipped to [0, 1]), what a viewer shows.
     Returns an `HSHFit`.
     """
+    _check_encoding(encoding)
     images, dirs = _check(images, light_dirs)
     m, h, w, _ = images.shape
     n_terms = order * order
@@ -325,26 +380,49 @@ def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile
     def values(e):                          # e: a copy of its own, changed in place
         ok = _all3(np.isfinite(e))
         e = np.nan_to_num(e, copy=False)
-        e /= white
+        e /= e.dtype.type(white)
+        if encoding == "srgb":
+            srgb_encode(e, out=e)
         return e, ok.astype(np.float64)
 
     coeffs, valid = _solve_blocks(images, dirs, lambda d: hsh_basis(d, order), n_terms, values)
-    return HSHFit(coeffs.reshape(h, w, 3, n_terms), order, float(white), valid.reshape(h, w))
+    return HSHFit(coeffs.reshape(h, w, 3, n_terms), order, float(white), valid.reshape(h, w), encoding)
+
+
+def display_ptm(fit, light_dir):
+    """The colour (H, W, 3) a viewer shows for a `PTMFit` under one light (a far light (3,)
+    or per-pixel directions (H, W, 3)): L · rgb, clipped to [0, 1], in the fit's encoding."""
+    b = ptm_basis(np.asarray(light_dir, float))
+    lum = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwt,hwt->hw", fit.coeffs, b)
+    return np.clip(np.clip(lum, 0, None)[..., None] * fit.rgb, 0, 1)
+
+
+def display_hsh(fit, light_dir):
+    """The colour (H, W, 3) a viewer shows for an `HSHFit` under one light, as `display_ptm`."""
+    b = hsh_basis(np.asarray(light_dir, float), fit.order)
+    val = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwct,hwt->hwc", fit.coeffs, b)
+    return np.clip(val, 0, 1)
+
+
+def _to_images(fit, shown):
+    """Displayed values (≥ 0) -> the fitted images' unit (sRGB decoded when so encoded)."""
+    return fit.white * (srgb_decode(shown) if fit.encoding == "srgb" else shown)
 
 
 def relight_ptm(fit, light_dir):
     """Colour (H, W, 3) of a `PTMFit` under one light: a far light (3,) or per-pixel
-    directions (H, W, 3); in the fitted images' unit."""
+    directions (H, W, 3); in the fitted images' unit (linear; not clipped at white when the
+    encoding is linear)."""
     b = ptm_basis(np.asarray(light_dir, float))
     lum = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwt,hwt->hw", fit.coeffs, b)
-    return fit.white * np.clip(lum, 0, None)[..., None] * fit.rgb
+    return _to_images(fit, np.clip(lum, 0, None)[..., None] * fit.rgb)
 
 
 def relight_hsh(fit, light_dir):
     """Colour (H, W, 3) of an `HSHFit` under one light (3,) or (H, W, 3), as `relight_ptm`."""
     b = hsh_basis(np.asarray(light_dir, float), fit.order)
     val = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwct,hwt->hwc", fit.coeffs, b)
-    return fit.white * np.clip(val, 0, None)
+    return _to_images(fit, np.clip(val, 0, None))
 
 
 def _error_sums(render, images, d_all, mask):
@@ -401,10 +479,9 @@ def fit_relight_error(fit, images, light_dirs, mask, rows=2, workers=2, max_pixe
             img = images[:, sl]                                              # (m, r, W, 3)
             pred = basis @ fit.coeffs[sl].reshape(-1, n_terms).T              # (m, r·W[·3])
             np.clip(pred, 0, None, out=pred)
-            pred *= fit.white
             if ptm:
                 pred = pred[..., None] * fit.rgb[sl].reshape(1, -1, 3)
-            pred = pred.reshape(img.shape)
+            pred = _to_images(fit, pred).reshape(img.shape)
             sel = (mask[sl] & _all3(np.isfinite(img)))[..., None]
             diff = np.where(sel, pred - img, 0.0).ravel()
             x = np.where(sel, img, np.zeros((), img.dtype)).astype(np.float64).ravel()

@@ -1,6 +1,9 @@
-"""Readers of PTM and HSH .rti files written from the formats' published definitions, not
-from facette's writers: the HP Labs "Polynomial Texture Map (.ptm) File Format" v1.2 (2001)
-and RTIViewer's HSH file layout and basis (the one RTIViewer and Relight evaluate)."""
+"""Readers of PTM and HSH .rti files written from the formats' published definitions and the
+reference viewers' loaders, not from facette's writers: the HP Labs "Polynomial Texture Map
+(.ptm) File Format" v1.2 (2001) and RTIViewer's LRGBPtm loader (rows bottom first, coefficients
+int((byte - bias) · scale), shown as L · RGB / 255 with L in byte units); RTIViewer's and
+Relight's HSH loaders (rows top first, byte / 255 · scale + bias, shown as value · 255), the
+layout of RTIBuilder's own files."""
 import struct
 from pathlib import Path
 
@@ -49,10 +52,13 @@ def ptm_luminance(coeffs, lu, lv):
             + a[..., 4] * lv + a[..., 5])
 
 
-def ptm_colour(ptm, light):
-    """RTIViewer's LRGB rendering: L clipped to >= 0 times the stored colour / 255."""
-    lum = np.maximum(ptm_luminance(ptm["coeffs"], light[0], light[1]), 0.0)
-    return lum[..., None] * ptm["rgb"] / 255.0
+def ptm_colour(ptm, light, rtiviewer=True):
+    """RTIViewer's LRGB rendering, in [0, 1]: the byte tobyte(L · RGB / 255) / 255, L clipped to
+    >= 0 and evaluated from the integer coefficients RTIViewer keeps (rtiviewer=False: Relight's
+    float ones)."""
+    coeffs = np.trunc(ptm["coeffs"]) if rtiviewer else ptm["coeffs"]
+    lum = np.maximum(ptm_luminance(coeffs, light[0], light[1]), 0.0)
+    return np.minimum(lum[..., None] * ptm["rgb"] / 255.0, 255.0) / 255.0
 
 
 def read_hsh(path):
@@ -73,7 +79,7 @@ def read_hsh(path):
     bias = np.array(struct.unpack(f"<{terms}f", data[pos + 4 * terms:pos + 8 * terms]))
     body = np.frombuffer(data, np.uint8, offset=pos + 8 * terms)
     assert body.size == w * h * 3 * terms
-    q = body.reshape(h, w, 3, terms)[::-1]           # bottom row first; per pixel R, G, B blocks
+    q = body.reshape(h, w, 3, terms)                 # top row first; per pixel R, G, B blocks
     return dict(width=w, height=h, terms=terms, basis_type=basis_type, scale=scale, bias=bias,
                 coeffs=q / 255.0 * scale + bias)
 
@@ -97,5 +103,44 @@ def hsh_weights(light, terms):
 
 
 def hsh_colour(rti, light):
-    """Σ_k coeff_k · H_k(light) per channel, clipped to >= 0."""
-    return np.maximum(rti["coeffs"] @ hsh_weights(light, rti["terms"]), 0.0)
+    """Σ_k coeff_k · H_k(light) per channel, clipped to [0, 1] (shown as that · 255)."""
+    return np.clip(rti["coeffs"] @ hsh_weights(light, rti["terms"]), 0.0, 1.0)
+
+
+def asymmetric_scene(h=48, w=64):
+    """Lambertian images of a dome in the top-left quadrant of a dark table, under the rig's
+    12 lights: the top of the picture is row 0, x points right, y up (the camera frame).
+    Returns (images (12, H, W, 3) float32, lights (12, 3), dome mask (H, W), centre (row, col))."""
+    from facette.recon.synthetic import thesis_light_directions
+    lights = thesis_light_directions()
+    yy, xx = np.mgrid[0:h, 0:w].astype(float)
+    cy, cx, r = h * 0.3, w * 0.3, min(h, w) * 0.22
+    px, py = (xx - cx) / r, -(yy - cy) / r            # y up
+    rho2 = px * px + py * py
+    dome = rho2 < 0.95
+    n = np.zeros((h, w, 3))
+    n[..., 2] = 1.0
+    nz = np.sqrt(np.clip(1 - rho2, 0, 1))
+    n[dome] = np.stack([px, py, nz], -1)[dome]
+    kd = np.where(dome[..., None], np.array([0.8, 0.6, 0.3]), 0.01)
+    imgs = np.stack([kd * np.maximum(n @ s, 0.0)[..., None] for s in lights]).astype(np.float32)
+    return imgs, lights, dome, (cy, cx)
+
+
+def check_upright(picture_at, dome, centre):
+    """The orientation checks on a relighting function picture_at(light) -> (H, W, 3) of
+    `asymmetric_scene`: the dome is drawn in the top-left quadrant, light from the right
+    lights its right half, light from the top its upper half; the picture is not black."""
+    h, w = dome.shape
+    cy, cx = centre
+    s = np.sin(np.radians(30)), np.cos(np.radians(30))
+    front = picture_at(np.array([0.0, 0.0, 1.0])).mean(-1)
+    quad = [front[:h // 2, :w // 2].mean(), front[:h // 2, w // 2:].mean(),
+            front[h // 2:, :w // 2].mean(), front[h // 2:, w // 2:].mean()]
+    assert quad[0] > 1.5 * max(quad[1:]), f"the dome is not in the top-left quadrant: {quad}"
+    assert front[dome].mean() > 0.25, f"the dome is nearly black: {front[dome].mean():.3f}"
+    yy, xx = np.mgrid[0:h, 0:w]
+    right = picture_at(np.array([s[0], 0.0, s[1]])).mean(-1)
+    assert right[dome & (xx > cx + 2)].mean() > 1.3 * right[dome & (xx < cx - 2)].mean()
+    top = picture_at(np.array([0.0, s[0], s[1]])).mean(-1)
+    assert top[dome & (yy < cy - 2)].mean() > 1.3 * top[dome & (yy > cy + 2)].mean()

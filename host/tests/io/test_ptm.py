@@ -1,11 +1,17 @@
-"""io.ptm: PTM LRGB files read back by a reader written from the HP Labs format document."""
+"""io.ptm: PTM LRGB files read back by a reader written from the HP Labs format document and
+RTIViewer's loader, and by the package's own reader (facette.io.ptm.read_ptm)."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from facette.io.ptm import column_range, quantize_scale_bias, write_ptm_lrgb
-from facette.recon import fit_ptm_lrgb, ptm_basis
+from facette.errors import BadInputError
+from facette.io.ptm import column_range, quantize_scale_bias, read_ptm as read_ptm_pkg, write_ptm_lrgb
+from facette.recon import display_ptm, fit_ptm_lrgb, ptm_basis
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
-from rti_spec_readers import ptm_colour, read_ptm
+from rti_spec_readers import asymmetric_scene, check_upright, ptm_colour, read_ptm
+
+REFERENCE = Path(__file__).resolve().parents[4].parent / "shared" / "data" / "rti_reference" / "ptm" / "tablet1.ptm"
 
 
 def test_values_rows_and_colours_come_back_within_half_a_step(tmp_path):
@@ -20,8 +26,9 @@ def test_values_rows_and_colours_come_back_within_half_a_step(tmp_path):
     assert (back["width"], back["height"]) == (w, h)
     np.testing.assert_allclose(back["scale"], written["scale"], rtol=1e-8)
     assert list(back["bias"]) == written["bias"]
-    assert np.all(np.abs(back["coeffs"] - coeffs) <= back["scale"] / 2 + 1e-12)
-    assert back["coeffs"][0, 0, 0] == pytest.approx(2.0, abs=back["scale"][0])   # top row stays on top
+    # byte units: L = 1 (full brightness) is stored as 255, what RTIViewer and Relight take
+    assert np.all(np.abs(back["coeffs"] - 255 * coeffs) <= back["scale"] / 2 + 1e-9)
+    assert back["coeffs"][0, 0, 0] == pytest.approx(510.0, abs=back["scale"][0])   # top row stays on top
     assert np.all(np.abs(back["rgb"] / 255.0 - rgb) <= 0.5 / 255 + 1e-12)
 
 
@@ -64,7 +71,7 @@ def test_fitted_ptm_relights_the_images_it_was_fitted_to(tmp_path):
     ptm = read_ptm(tmp_path / "s.ptm")
     num = num_float = den = 0.0
     for img, d in zip(imgs, lights):
-        got = fit.white * ptm_colour(ptm, d)
+        got = fit.white * ptm_colour(ptm, d, rtiviewer=False)
         flt = fit.white * np.maximum(fit.coeffs @ ptm_basis(d), 0)[..., None] * fit.rgb
         num += ((got - img)[sc.mask] ** 2).sum()
         num_float += ((flt - img)[sc.mask] ** 2).sum()
@@ -80,3 +87,53 @@ def test_column_range_is_min_and_max_over_rows(n):
     lo, hi = column_range(a)
     np.testing.assert_array_equal(lo, a.min(axis=0))
     np.testing.assert_array_equal(hi, a.max(axis=0))
+
+
+@pytest.mark.parametrize("encoding", ["srgb", "linear"])
+def test_ptm_of_an_asymmetric_scene_shows_upright_and_lit_from_the_right_side(tmp_path, encoding):
+    """Read as RTIViewer reads it (integer coefficients, L · RGB / 255): the top of the picture
+    is the top of the photographs, light from the right lights the right side, not black."""
+    imgs, lights, dome, centre = asymmetric_scene()
+    fit = fit_ptm_lrgb(imgs, lights, encoding=encoding)
+    write_ptm_lrgb(tmp_path / "s.ptm", fit.coeffs, fit.rgb)
+    ptm = read_ptm(tmp_path / "s.ptm")
+    check_upright(lambda d: ptm_colour(ptm, d), dome, centre)
+    check_upright(lambda d: read_ptm_pkg(tmp_path / "s.ptm").relight(d, rtiviewer=True), dome, centre)
+    # the constant term of a lit pixel is in byte units: around 255 · L, not around L
+    assert np.median(ptm["coeffs"][dome][:, 5]) > 100
+
+
+def test_package_reader_gives_what_was_fitted_within_the_quantisation(tmp_path):
+    imgs, lights, dome, _ = asymmetric_scene()
+    fit = fit_ptm_lrgb(imgs, lights, encoding="srgb")
+    write_ptm_lrgb(tmp_path / "s.ptm", fit.coeffs, fit.rgb)
+    back = read_ptm_pkg(tmp_path / "s.ptm")
+    assert (back.width, back.height, back.format) == (64, 48, "PTM_FORMAT_LRGB")
+    for d in lights[::3]:
+        want = display_ptm(fit, d)
+        assert np.abs(back.relight(d) - want)[dome].max() < 0.03            # Relight: float coefficients
+        assert np.abs(back.relight(d, rtiviewer=True) - want)[dome].mean() < 0.02   # RTIViewer: truncated
+
+
+def test_reader_refuses_other_formats_with_a_clear_error(tmp_path):
+    (tmp_path / "rgb.ptm").write_bytes(b"PTM_1.2\nPTM_FORMAT_RGB\n2\n2\n1 1 1 1 1 1\n0 0 0 0 0 0\n")
+    with pytest.raises(BadInputError, match="PTM_FORMAT_RGB is not read"):
+        read_ptm_pkg(tmp_path / "rgb.ptm")
+    (tmp_path / "x.ptm").write_bytes(b"P6\n2 2\n255\n")
+    with pytest.raises(BadInputError, match="not a PTM file"):
+        read_ptm_pkg(tmp_path / "x.ptm")
+
+
+@pytest.mark.skipif(not REFERENCE.is_file(), reason=f"HP's sample PTM is not here ({REFERENCE}): "
+                    "the shared data folder beside the repository is absent in a user's clone")
+def test_hp_sample_ptm_decodes_in_byte_units_and_lit_from_the_right():
+    """tablet1.ptm (PTM_FORMAT_JPEG_LRGB, HP's encoder): constant terms reach 510 (2 · 255),
+    and on the tablet, brighter towards the light: a3 (the lu term) grows to the right,
+    a4 (lv) towards the top."""
+    ptm = read_ptm_pkg(REFERENCE)
+    assert (ptm.width, ptm.height) == (512, 512)
+    assert ptm.coeffs[..., 5].max() > 255
+    lit = ptm.relight([0, 0, 1]).mean(-1) > 0.15
+    yy, xx = np.mgrid[0:512, 0:512]
+    assert np.corrcoef(ptm.coeffs[..., 3][lit], xx[lit])[0, 1] > 0.2
+    assert np.corrcoef(ptm.coeffs[..., 4][lit], -yy[lit])[0, 1] > 0.2

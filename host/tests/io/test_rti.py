@@ -1,11 +1,17 @@
-"""io.rti: HSH .rti files read back by a reader written from RTIViewer's published layout and basis."""
+"""io.rti: HSH .rti files read back by a reader written from RTIViewer's and Relight's loaders
+(rows top first, as RTIBuilder's files), and by the package's own reader (read_hsh_rti)."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from facette.io.rti import write_hsh_rti
-from facette.recon import fit_hsh, hsh_basis
+from facette.errors import BadInputError
+from facette.io.rti import hsh_weights as hsh_weights_pkg, read_hsh_rti, write_hsh_rti
+from facette.recon import display_hsh, fit_hsh, hsh_basis
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
-from rti_spec_readers import hsh_colour, hsh_weights, read_hsh
+from rti_spec_readers import asymmetric_scene, check_upright, hsh_colour, hsh_weights, read_hsh
+
+REFERENCE = Path(__file__).resolve().parents[4].parent / "shared" / "data" / "rti_reference" / "hsh"
 
 
 @pytest.mark.parametrize("terms", [4, 9])
@@ -33,6 +39,7 @@ def test_basis_is_rtiviewers_at_many_directions():
     ref = np.array([hsh_weights(x, 9) for x in d])
     np.testing.assert_allclose(ours, ref, atol=1e-12)
     np.testing.assert_allclose(hsh_basis(d, 2), ref[:, :4], atol=1e-12)
+    np.testing.assert_allclose(hsh_weights_pkg(d, 9), ref, atol=1e-12)
 
 
 @pytest.mark.parametrize("bad", [np.zeros((2, 3, 3, 5)), np.zeros((2, 3, 1, 9)),
@@ -56,3 +63,65 @@ def test_fitted_hsh_relights_the_images_it_was_fitted_to(tmp_path):
         num += ((got - img)[sc.mask] ** 2).sum()
         den += (img[sc.mask] ** 2).sum()
     assert np.sqrt(num / den) < 0.05
+
+
+@pytest.mark.parametrize("encoding", ["srgb", "linear"])
+@pytest.mark.parametrize("order", [2, 3])
+def test_hsh_of_an_asymmetric_scene_shows_upright_and_lit_from_the_right_side(tmp_path, encoding, order):
+    """Read as RTIViewer and Relight read it (first row = top): the top of the picture is the
+    top of the photographs, light from the right lights the right side, light from the top
+    the upper side."""
+    imgs, lights, dome, centre = asymmetric_scene()
+    fit = fit_hsh(imgs, lights, order, encoding=encoding)
+    write_hsh_rti(tmp_path / "s.rti", fit.coeffs, [f"encoding: {encoding}"])
+    rti = read_hsh(tmp_path / "s.rti")
+    check_upright(lambda d: hsh_colour(rti, d), dome, centre)
+    back = read_hsh_rti(tmp_path / "s.rti")
+    check_upright(back.relight, dome, centre)
+    assert back.encoding == encoding
+    for d in lights[::3]:
+        assert np.abs(back.relight(d) - display_hsh(fit, d))[dome].max() < 0.03
+
+
+def test_comment_lines_come_before_the_type_line(tmp_path):
+    write_hsh_rti(tmp_path / "a.rti", np.zeros((2, 3, 3, 4)), ["encoding: srgb", "made by a test"])
+    head = (tmp_path / "a.rti").read_bytes()
+    assert head.startswith(b"#HSH1.2\n# encoding: srgb\n# made by a test\n3\n3 2 3\n4 2 1\n")
+    assert read_hsh_rti(tmp_path / "a.rti").comments == ["encoding: srgb", "made by a test"]
+    with pytest.raises(ValueError, match="one line"):
+        write_hsh_rti(tmp_path / "b.rti", np.zeros((2, 3, 3, 4)), ["two\nlines"])
+
+
+def test_reader_refuses_what_is_not_hsh(tmp_path):
+    (tmp_path / "a.rti").write_bytes(b"#HSH1.2\n2\n2 2 3\n9 2 1\n")
+    with pytest.raises(BadInputError, match="file type"):
+        read_hsh_rti(tmp_path / "a.rti")
+    (tmp_path / "b.rti").write_bytes(b"PTM_1.2\n")
+    with pytest.raises(BadInputError, match="not an HSH"):
+        read_hsh_rti(tmp_path / "b.rti")
+
+
+@pytest.mark.skipif(not (REFERENCE / "vase.rti").is_file(),
+                    reason=f"RTIBuilder's sample files are not here ({REFERENCE}): the shared data "
+                           "folder beside the repository is absent in a user's clone")
+@pytest.mark.parametrize("name", ["vase.rti", "vase_2ndorder.rti", "cuniform.rti"])
+def test_rtibuilder_files_decode_upright(name):
+    """RTIBuilder's own files, first row = top: the vase's neck and the cone's tip (narrow, at
+    the top of the picture) are above its widest part, and light from +x brightens the right."""
+    rti = read_hsh_rti(REFERENCE / name)
+    front = rti.relight([0, 0, 1]).mean(-1)
+    lit = front > 0.15
+    widths = lit.sum(axis=1)
+    rows = np.flatnonzero(widths > 0)
+    top, bottom = rows[:len(rows) // 5], rows[-len(rows) // 5:]
+    if name.startswith("cuniform"):      # a cone standing on its base: narrow at the top
+        assert widths[top].mean() < 0.6 * widths[bottom].mean()
+    s = np.sqrt(0.5)
+    ratio = rti.relight([s, 0, s]).mean(-1) / np.maximum(rti.relight([-s, 0, s]).mean(-1), 1e-3)
+    xx = np.mgrid[0:rti.height, 0:rti.width][1]
+    cx = xx[lit].mean()
+    assert np.median(ratio[lit & (xx > cx)]) > np.median(ratio[lit & (xx < cx)])
+    ratio_y = rti.relight([0, s, s]).mean(-1) / np.maximum(rti.relight([0, -s, s]).mean(-1), 1e-3)
+    yy = np.mgrid[0:rti.height, 0:rti.width][0]
+    cy = yy[lit].mean()
+    assert np.median(ratio_y[lit & (yy < cy)]) > np.median(ratio_y[lit & (yy > cy)])

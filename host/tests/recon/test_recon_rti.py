@@ -4,7 +4,7 @@ import pytest
 
 from facette.recon import (fit_hsh, fit_ptm_lrgb, fit_relight_error, hsh_basis, near_light_directions,
                            ptm_basis, relight_error, relight_hsh, relight_ptm)
-from facette.recon.synthetic import thesis_light_directions
+from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
 L = thesis_light_directions()
 
@@ -233,3 +233,34 @@ def test_compiled_ptm_colour_pass_gives_numpys_values():
         np.testing.assert_array_equal(peak[100:], pk)
         np.testing.assert_array_equal(got[:, 100:], lum)
         assert not rgb[:100].any()
+
+
+@pytest.mark.parametrize("fit_fn", [lambda i, l, e: fit_ptm_lrgb(i, l, encoding=e),
+                                    lambda i, l, e: fit_hsh(i, l, 3, encoding=e)])
+def test_srgb_fit_shows_the_encoded_photographs_and_relights_to_linear(fit_fn):
+    """encoding="srgb": what a viewer shows (display_*) is close to the sRGB encoding of
+    images / white, and relight_* gives the images' linear values back."""
+    from facette.recon import display_hsh, display_ptm, relight_hsh, relight_ptm, srgb_decode, srgb_encode
+    lights = thesis_light_directions()
+    sc = sphere_on_plane(40, 48)
+    imgs = render(sc, lights, "matte")
+    fit = fit_fn(imgs, lights, "srgb")
+    ptm = hasattr(fit, "rgb")
+    show, relight = (display_ptm, relight_ptm) if ptm else (display_hsh, relight_hsh)
+    num = den = num_lin = den_lin = 0.0
+    for img, d in zip(imgs, lights):
+        want = srgb_encode(img / fit.white)
+        num += ((show(fit, d) - want)[sc.mask] ** 2).sum()
+        den += (want[sc.mask] ** 2).sum()
+        num_lin += ((relight(fit, d) - img)[sc.mask] ** 2).sum()
+        den_lin += (img[sc.mask] ** 2).sum()
+    assert np.sqrt(num / den) < 0.06
+    assert np.sqrt(num_lin / den_lin) < 0.12
+    np.testing.assert_allclose(srgb_decode(srgb_encode(np.linspace(0, 1, 11))), np.linspace(0, 1, 11), atol=1e-12)
+
+
+def test_unknown_encoding_is_refused():
+    lights = thesis_light_directions()
+    imgs = render(sphere_on_plane(8, 8), lights, "matte")
+    with pytest.raises(ValueError, match="encoding"):
+        fit_hsh(imgs, lights, 3, encoding="gamma")
