@@ -130,10 +130,12 @@ class PTMFile:
     rgb: np.ndarray
 
     def luminance(self, light, rtiviewer=False):
-        """L (H, W) in byte units at a light direction (3,) (x right, y up, z to the camera).
+        """L (H, W) in byte units at a light direction (3,) (x right, y up, z to the camera)
+        or per-pixel directions (H, W, 3).
         rtiviewer=True truncates each coefficient to an integer first, as RTIViewer stores them."""
         a = np.trunc(self.coeffs) if rtiviewer else self.coeffs
-        return a @ ptm_weights(light)
+        b = ptm_weights(light)
+        return a @ b if b.ndim == 1 else np.einsum("hwt,hwt->hw", a, b)
 
     def relight(self, light, rtiviewer=False):
         """The picture (H, W, 3) as displayed, in [0, 1]: L · RGB / 255 / 255, L clipped to

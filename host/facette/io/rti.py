@@ -106,8 +106,11 @@ class HSHFile:
     comments: list = field(default_factory=list)
 
     def relight(self, light):
-        """The picture (H, W, 3) as displayed at a light direction (3,), in [0, 1]."""
-        return np.clip(self.coeffs @ hsh_weights(light, self.terms), 0.0, 1.0)
+        """The picture (H, W, 3) as displayed at a light direction (3,) or per-pixel
+        directions (H, W, 3), in [0, 1]."""
+        b = hsh_weights(light, self.terms)
+        val = self.coeffs @ b if b.ndim == 1 else np.einsum("hwct,hwt->hwc", self.coeffs, b)
+        return np.clip(val, 0.0, 1.0)
 
     @property
     def encoding(self):

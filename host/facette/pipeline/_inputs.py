@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy import ndimage
 
 from facette.calib import ProfileError, ResolutionError, apply_flat_field, load, pitch_at_size
 from facette.errors import BadInputError
@@ -14,7 +15,13 @@ from facette.io.png import read_mask
 from facette.pipeline._quality import MIN_LEVELS, usable_from_green
 from facette.scan import MissingFrameWarning, ScanDirectory, merge_scan, stale_lights, take_held_light
 
-__all__ = ["PSInput", "load_input", "source_path", "auto_masks", "margin_of", "MARGIN_BORDER"]
+__all__ = ["PSInput", "load_input", "source_path", "auto_masks", "margin_of", "MARGIN_BORDER", "object_of",
+           "OBJECT_OVER_TABLE"]
+
+# `object_of`: an object pixel is lit, under its brightest light, at least this many times the
+# table's median brightest value (simulated demo: 116,003 object pixels found of the truth's
+# 116,082, 19 of the table taken; Otsu's class alone: 109,841, the sphere's dark rim left out)
+OBJECT_OVER_TABLE = 2.0
 
 
 # The dark class is a margin (a table, a cloth) only where it surrounds the object: at least
@@ -113,6 +120,27 @@ def auto_masks(images, min_contrast=4.0):
     material = np.zeros(lum.shape, bool)
     material[ok] = logl > edges[k + 1]
     return lit, material
+
+
+def object_of(images, lit, material, factor=OBJECT_OVER_TABLE):
+    """The object (H, W) bool: `material` (Otsu's bright class of `auto_masks`) grown into the
+    lit pixels connected to it that are brighter, under their brightest light, than `factor`
+    times the table's median (the dark rims and grooves of an object, which the median over the
+    lights puts on the table's side). `lit` itself when there is no table (material == lit)."""
+    lit, material = np.asarray(lit, bool), np.asarray(material, bool)
+    table = lit & ~material
+    if not table.any() or not material.any():
+        return material.copy()
+    ch = images[..., 1] if images.shape[-1] == 3 else images.mean(axis=-1)
+    top = np.fmax.reduce(ch, axis=0)                 # NaN-ignoring; all-NaN (saturated): NaN
+    floor = factor * float(np.median(np.nan_to_num(top[table], nan=0.0)))
+    with np.errstate(invalid="ignore"):
+        bright = lit & ((top > floor) | np.isnan(top))
+    labels, _ = ndimage.label(bright | material)
+    keep = np.zeros(labels.max() + 1, bool)
+    keep[np.unique(labels[material])] = True
+    keep[0] = False
+    return keep[labels]
 
 
 def margin_of(lit, material):

@@ -41,13 +41,16 @@ from facette.recon import (INTEGRATION_DEFAULT, INTEGRATION_METHODS, PS_DEFAULT,
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
 from facette.pipeline._exports import gltf_inputs, gltf_material
-from facette.pipeline._inputs import load_input
+from facette.pipeline._inputs import load_input, object_of
 from facette.pipeline._record import claim_results, write_record
 from facette.pipeline._quality import check_fit_cells, check_samples
 from facette.pipeline._report import report_fit_section, write_report
 
 __all__ = ["OUTPUTS", "STAGES_FOR", "ProcessResult", "process", "stages_needed"]
 
+# mesh.ply / model.glb leave out triangles steeper than this (rise over run, ~84°): the
+# curtains a height map hangs from a silhouette, which no photograph from above measured
+MESH_MAX_SLOPE = 10.0
 OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf",
            "report")
 STAGES_FOR = {
@@ -79,19 +82,22 @@ class ProcessResult:
     """What `process` computed. Arrays at the input image size (H, W):
 
     normals (H, W, 3) unit vectors, camera frame (0 where not valid); albedo (H, W, 3);
-    mask (H, W) bool (valid normals inside the input mask); height (H, W) mm or None;
+    mask (H, W) bool (valid normals inside the input mask); object_mask (H, W) bool, the object
+    in it (mask.png: the mask without the dark table or cloth `auto_masks` finds around the
+    object; the mask itself where there is none, or a mask was given); height (H, W) mm or None;
     mesh (vertices, faces) or None; filtered `FilteredReflectance` or None; samples raw
     `ReflectanceSamples` subset or None; brdf a facette.fit FitResult or None; ps the full `PSResult`;
     timings {stage: seconds}; files {output: path}; errors {name: value} against the
     scan's truth.npz when present (angular error in degrees, height RMS in mm); ptm a
     facette.recon PTMFit, hsh an HSHFit, or None; fit_errors {name: value}: relative RMS of
-    the PTM / HSH relighting against the (fall-off corrected) HDR images on the mask (above
+    the PTM / HSH relighting against the (fall-off corrected) HDR images on the object (above
     0.5 Mpx, on an even sample of rows: `recon.RELIGHT_ERROR_PIXELS`); interreflections the
     figures of `without_interreflections` when it was asked for, else None.
     """
     normals: np.ndarray = None
     albedo: np.ndarray = None
     mask: np.ndarray = None
+    object_mask: np.ndarray = None
     height: np.ndarray = None
     mesh: tuple = None
     filtered: object = None
@@ -360,6 +366,9 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
         ps = photometric_stereo(direct, light_dirs, method=method, **kwargs)
     res.ps = ps
     res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
+    # mask.png: the object, without the dark table or cloth around it (when one surrounds it)
+    res.object_mask = res.mask if inp.background_mask() is None else \
+        res.mask & object_of(inp.images, inp.mask, inp.material_mask)
     res.timings["ps"] = time.perf_counter() - t0
 
     drawn = {}         # report sections drawn by the concurrent stages
@@ -439,8 +448,10 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration
             "taken out of the background's slopes only, the object's integrated as measured"]
         write("height")
         if "mesh" in stages:
-            step = mesh_step or max(1, int(np.ceil(np.sqrt(res.mask.sum() / 1e6))))
-            res.mesh = _timed(res, "mesh", mesh_from_height, res.height, res.mask, inp.pixel_pitch_mm, step)
+            # the object's surface only: no table, no curtains down its silhouette
+            step = mesh_step or max(1, int(np.ceil(np.sqrt(res.object_mask.sum() / 1e6))))
+            res.mesh = _timed(res, "mesh", mesh_from_height, res.height, res.object_mask,
+                              inp.pixel_pitch_mm, step, MESH_MAX_SLOPE)
             res.options["mesh_step"] = step
             write("mesh")
         return notes
@@ -463,17 +474,17 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration
 
     def ptm():
         t0 = time.perf_counter()
-        res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.mask, encoding=res.options["rti_encoding"])
-        res.fit_errors["ptm_relative_rms"] = fit_relight_error(res.ptm, images, light_dirs, res.mask)
+        res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.object_mask, encoding=res.options["rti_encoding"])
+        res.fit_errors["ptm_relative_rms"] = fit_relight_error(res.ptm, images, light_dirs, res.object_mask)
         res.timings["ptm"] = time.perf_counter() - t0
         write("ptm")
         return []
 
     def hsh():
         t0 = time.perf_counter()
-        res.hsh = fit_hsh(images, light_dirs, order=hsh_order, mask=res.mask,
+        res.hsh = fit_hsh(images, light_dirs, order=hsh_order, mask=res.object_mask,
                           encoding=res.options["rti_encoding"])
-        res.fit_errors["hsh_relative_rms"] = fit_relight_error(res.hsh, images, light_dirs, res.mask)
+        res.fit_errors["hsh_relative_rms"] = fit_relight_error(res.hsh, images, light_dirs, res.object_mask)
         res.timings["hsh"] = time.perf_counter() - t0
         write("rti")
         return []
@@ -531,7 +542,7 @@ def _writers(res, out, outputs, ascii_ply):
         "albedo": lambda p: write_exr(p, res.albedo, ("R", "G", "B"), header=meta, compression="none"),
         "height": lambda p: write_exr(p, res.height, ("Z",), header={**meta, "unit": "mm"},
                                       compression="none"),
-        "mask": lambda p: write_mask(p, res.mask),
+        "mask": lambda p: write_mask(p, res.object_mask),
         "mesh": lambda p: write_ply(p, *res.mesh, binary=not ascii_ply, comment=comment),
         "samples": samples,
         "brdf": lambda p: p.write_text(brdf_text()) if res.brdf is not None else None,

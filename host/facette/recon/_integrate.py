@@ -244,12 +244,14 @@ def integrate(normals, pixel_pitch_mm=1.0, mask=None, method=INTEGRATION_DEFAULT
     return fn(normals, pixel_pitch_mm=pixel_pitch_mm, mask=mask)
 
 
-def mesh_from_height(height_mm, mask, pixel_pitch_mm=1.0, step=1):
+def mesh_from_height(height_mm, mask, pixel_pitch_mm=1.0, step=1, max_slope=None):
     """Triangle mesh of a height map: one vertex per masked pixel (every `step` px).
 
     Returns (vertices (V, 3) float32 in mm, camera frame: x right, y up, z = height;
     faces (F, 3) int32, counter-clockwise seen from +z). Two triangles per 2x2 block whose
-    four corners are in the mask, one where exactly three are.
+    four corners are in the mask, one where exactly three are. max_slope : leave out the
+    triangles with an edge steeper than this rise over run (|Δz| / horizontal length): the
+    walls a height map hangs from a silhouette down to what is behind it (None: keep all).
     """
     if step < 1:
         raise ValueError(f"step must be >= 1, got {step}")
@@ -273,4 +275,11 @@ def mesh_from_height(height_mm, mask, pixel_pitch_mm=1.0, step=1):
     f.append(faces[3][(a >= 0) & (d >= 0) & (b >= 0) & (c < 0)])
     f.append(np.stack([a, c, b], -1)[(a >= 0) & (b >= 0) & (c >= 0) & (d < 0)])
     f.append(np.stack([b, c, d], -1)[(b >= 0) & (c >= 0) & (d >= 0) & (a < 0)])
-    return verts, np.concatenate(f).astype(np.int32)
+    faces = np.concatenate(f).astype(np.int32)
+    if max_slope is not None and len(faces):
+        p = verts[faces].astype(np.float64)                    # (F, 3 corners, xyz)
+        q = np.roll(p, -1, axis=1)
+        run = np.hypot(p[..., 0] - q[..., 0], p[..., 1] - q[..., 1])
+        steep = (np.abs(p[..., 2] - q[..., 2]) > max_slope * run).any(axis=1)
+        faces = faces[~steep]
+    return verts, faces

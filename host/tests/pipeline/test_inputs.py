@@ -2,7 +2,7 @@ import warnings
 
 import numpy as np
 
-from facette.pipeline._inputs import auto_masks
+from facette.pipeline._inputs import auto_masks, object_of
 
 
 def _stack(albedo, m=12, seed=0):
@@ -58,3 +58,20 @@ def test_compiled_median_and_usable_test_give_numpys_values():
         ref = np.isfinite(g) & np.isfinite(v) & (g > 0) & (g * g >= MIN_SNR ** 2 * v)
     assert 0 < ref.sum() < ref.size
     np.testing.assert_array_equal(usable_from_green(g, v), ref)
+
+
+def test_object_takes_its_dark_rim_and_leaves_the_table_and_its_specks():
+    """A disc whose rim is dark (2.7x the table, as a sphere's limb under lights near the axis):
+    Otsu's bright class misses the rim, `object_of` takes it back; a speck lying apart on the
+    table stays out."""
+    yy, xx = np.mgrid[:40, :60]
+    r2 = (yy - 20) ** 2 + (xx - 30) ** 2
+    disc, core = r2 < 15 ** 2, r2 < 11 ** 2
+    albedo = np.where(core, 0.5, np.where(disc, 0.08, 0.03))[..., None] * np.ones((40, 60, 3))
+    albedo[2:4, 2:4] = 0.08                      # a speck as bright as the rim, apart on the table
+    img = _stack(albedo)
+    lit, material = auto_masks(img)
+    assert not (material & disc & ~core).any()  # the rim fell on the table's side
+    obj = object_of(img, lit, material)
+    np.testing.assert_array_equal(obj, disc)
+    assert object_of(img, lit, lit).all()        # no table: every lit pixel

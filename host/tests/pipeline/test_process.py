@@ -148,6 +148,8 @@ def test_heights_keep_an_object_level_on_a_dark_leaning_table(tmp_path):
     _write_scan(tmp_path / "scan", sc, imgs, pitch)
     res = process(tmp_path / "scan", outputs=["normals", "height"])
     assert any("the table's lean" in note for note in res.notes), res.notes
+    # mask.png is the object, not every lit pixel of the table
+    assert (res.object_mask == on).mean() > 0.99, (res.object_mask.sum(), on.sum())
 
     def tilt_rms(hgt):
         d = (hgt - z * pitch)[on]
@@ -166,6 +168,7 @@ def test_heights_keep_an_object_level_on_a_dark_leaning_table(tmp_path):
     slab = process(tmp_path / "slab", outputs=["normals", "height"])
     assert (slab.inputs.mask & ~slab.inputs.material_mask).any()       # a dark class was found
     assert slab.inputs.background_mask() is None
+    assert (slab.object_mask == slab.mask).all()      # the dark matrix is the slab's
     assert not any("the table's lean" in note for note in slab.notes)
 
 

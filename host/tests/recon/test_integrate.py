@@ -189,3 +189,19 @@ def test_mesh_from_height_counts_coordinates_and_orientation():
     assert np.all(normals[:, 2] > 0)      # counter-clockwise seen from the camera
     v2, _ = mesh_from_height(np.zeros((9, 9)), np.ones((9, 9), bool), step=2)
     assert len(v2) == 25
+
+
+def test_mesh_leaves_out_the_curtain_down_a_silhouette():
+    """A 10 mm plateau on a base at 0.1 mm pitch: with max_slope the triangles that join the
+    two levels (a wall no photograph from above measured) are left out, the rest kept."""
+    from facette.recon import mesh_from_height
+    h = np.zeros((20, 30))
+    h[5:15, 8:22] = 10.0
+    v_all, f_all = mesh_from_height(h, np.ones(h.shape, bool), 0.1)
+    v, f = mesh_from_height(h, np.ones(h.shape, bool), 0.1, max_slope=10.0)
+    z = v[f][..., 2]
+    assert len(v) == len(v_all) == h.size
+    assert np.all((z.max(axis=1) - z.min(axis=1)) == 0)          # no face joins the levels
+    za = v_all[f_all][..., 2]
+    spanning = int(((za.max(axis=1) - za.min(axis=1)) > 0).sum())
+    assert spanning > 0 and f.shape[0] == f_all.shape[0] - spanning    # the wall's faces only
