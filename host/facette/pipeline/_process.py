@@ -198,13 +198,17 @@ def preload():
     calls this on a thread while it acquires, so that the time does not come after the last
     frame."""
     from facette.pipeline._pixels_jit import median_over_lights, usable_green
-    from facette.recon._rti_jit import ptm_colour_block
+    from facette.recon._rti_jit import ptm_colour_block, srgb_lum_block, srgb_scale_inplace, srgb_table
     # each kernel loaded (or compiled) for the array types `process` hands it
     img = np.ones((2, 2, 2, 3), np.float32)
     median_over_lights(img[..., 1], np.empty((2, 2), np.float32), slice(0, 2))
     usable_green(img[0, ..., 1], np.ones((2, 2), np.float32), 3.0, np.empty((2, 2), bool))
     flat = img.reshape(2, 4, 3)
     ptm_colour_block(flat[:, 0:2], np.empty((4, 3)), np.empty(4), np.empty((2, 4)), 0)    # a block: strided
+    lut = srgb_table()               # the sRGB encodings of relight.ptm / relight.rti
+    srgb_lum_block(flat[:, 0:2], np.ones((4, 3)), np.empty((2, 4)), 0, 1.0, lut)
+    srgb_scale_inplace(img.copy(), 1.0, lut)
+    srgb_scale_inplace(img.astype(np.float64), 1.0, lut)
     try:
         import matplotlib
         matplotlib.use("Agg", force=False)

@@ -11,6 +11,7 @@ import html
 import io
 import json
 import math
+import warnings
 
 import numpy as np
 
@@ -513,6 +514,28 @@ def _viewer(res):
     return viewer_section(data), (kd_map, data["decimation"]), arrays["mask"], note
 
 
+def _mask_overlay(res, st):
+    """(title, RGB): mask.png over the photograph (the median over the lights, sRGB): the
+    object as photographed, the rest dimmed and tinted blue, the object's outline red."""
+    obj = getattr(res, "object_mask", None)
+    if obj is None or res.inputs is None or res.inputs.images is None:
+        return None
+    obj = obj[::st, ::st]
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)          # all-NaN (saturated) pixels
+        photo = np.nanmedian(res.inputs.images[:, ::st, ::st], axis=0)
+    photo = np.nan_to_num(photo, nan=1.0)
+    top = float(np.percentile(photo[obj], 99)) if obj.any() else float(np.max(photo) or 1.0)
+    x = np.clip(photo / max(top, 1e-12), 0, 1)
+    rgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    out = np.where(obj[..., None], rgb, 0.35 * rgb + np.array([0.0, 0.05, 0.25]))
+    edge = obj & ~(np.roll(obj, 1, 0) & np.roll(obj, -1, 0) & np.roll(obj, 1, 1) & np.roll(obj, -1, 1))
+    out[edge] = [1.0, 0.1, 0.1]
+    full = res.object_mask
+    return (f"mask.png over the photograph (median over the lights): the object, {int(full.sum()):,} of "
+            f"{full.size:,} px, outlined red; the rest dimmed", out)
+
+
 def report_fit_section(res):
     """The report's BRDF section (html: parameters, uncertainties, the fit against the data,
     residuals): it needs only the fit, the filtered reflectance and the truth, so `process`
@@ -554,6 +577,9 @@ def write_report(res, path, fit_html=None):
         figs.append(_map("Lights flagged as specular",
                          np.where(mask, ps.specular[::st, ::st].sum(-1), np.nan), cmap="Blues",
                          label="lights"))
+    overlay = _mask_overlay(res, st)
+    if overlay is not None:
+        figs.append(_map(*overlay))
     if res.height is not None:
         figs.append(_map("Height (mm)", np.where(mask, res.height[::st, ::st], np.nan),
                          cmap="terrain", label="mm"))

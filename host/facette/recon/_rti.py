@@ -321,20 +321,11 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
         raise ValueError(f"white level must be > 0, got {white}")
     scale = 1.0 / white
     if encoding == "srgb":       # the display colour, and each sample's projection on it
+        from facette.recon._rti_jit import srgb_lum_block, srgb_table
         rgb = srgb_encode(rgb)
-        scale = 1.0
-
-        def display_lum(a):
-            sl = slice(a, a + _BLOCK)
-            e = flat[:, sl] / np.float32(white)                    # (m, n, 3)
-            unknown = ~_all3(np.isfinite(e))
-            srgb_encode(e, out=e)
-            c = rgb[sl].astype(np.float32)
-            lb = np.einsum("mnc,nc->mn", e, c) / np.maximum((c * c).sum(-1), 1e-30)
-            lb[unknown] = np.nan
-            lum[:, sl] = lb
-
-        _run(display_lum, range(0, h * w, _BLOCK))
+        scale, lut = 1.0, srgb_table()
+        _run(lambda a: srgb_lum_block(flat[:, a:a + _BLOCK], rgb, lum, a, 1.0 / white, lut),
+             range(0, h * w, _BLOCK))
     lum_img = lum.reshape(m, h, w, 1)
 
     def values(e):                          # e: a copy of its own, changed in place
@@ -377,12 +368,17 @@ def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile
     if not white > 0:
         raise ValueError(f"white level must be > 0, got {white}")
 
+    if encoding == "srgb":
+        from facette.recon._rti_jit import srgb_scale_inplace, srgb_table
+        lut = srgb_table()
+
     def values(e):                          # e: a copy of its own, changed in place
         ok = _all3(np.isfinite(e))
         e = np.nan_to_num(e, copy=False)
-        e /= e.dtype.type(white)
-        if encoding == "srgb":
-            srgb_encode(e, out=e)
+        if encoding == "srgb":          # e is a contiguous copy (the blocks' astype)
+            srgb_scale_inplace(e, 1.0 / white, lut)
+        else:
+            e /= e.dtype.type(white)
         return e, ok.astype(np.float64)
 
     coeffs, valid = _solve_blocks(images, dirs, lambda d: hsh_basis(d, order), n_terms, values)
