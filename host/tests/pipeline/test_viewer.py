@@ -50,3 +50,28 @@ def test_viewer_in_chromium_matches_the_reference_render(simulated_result):
         assert "azimuth 1" in readout and "azimuth 135°" not in readout   # towards −x: about 170-190°
         assert np.abs(after[..., :3].astype(int) - before.astype(int))[mask].mean() > 2
         assert console_errors(driver) == []
+
+
+def test_viewer_at_a_raking_light_lights_what_faces_it_and_nothing_goes_negative(simulated_result):
+    """Raking light, 60-80° from the camera's axis, where the rig's 12 lights (15° and 30°)
+    never were and PTM/HSH go negative: the physically based model (normals, K_d, roughness)
+    stays >= 0 and finite, the browser lights the surfaces facing the light, as the reference."""
+    res, path = simulated_result
+    _, arr = viewer_data(res.normals, res.mask, res.brdf, albedo=res.albedo, height=res.height,
+                         pitch_mm=res.inputs.pixel_pitch_mm, material_mask=res.inputs.sample_mask())
+    mask = arr["mask"]
+    with chromium() as driver:
+        wait_for_viewer(driver, path)
+        for az, el in [(0.0, 10.0), (90.0, 20.0), (200.0, 30.0)]:
+            light = light_from_angles(az, el)
+            rad = relight(arr["normals"], arr["kd_map"], mask, arr["model"], light)
+            assert np.isfinite(rad).all() and rad.min() >= 0, (az, el, rad.min())
+            got = viewer_pixels(driver, az, el)
+            facing = mask & (arr["normals"] @ light > 0.5)
+            away = mask & (arr["normals"] @ light < 0)
+            assert facing.sum() > 20 and got[facing].mean() > 40, (az, el, got[facing].mean())
+            assert away.sum() == 0 or got[away].max() == 0                   # self-shadowed: black
+            want = to_srgb8(rad, mask, arr["exposure"])
+            diff = np.abs(got.astype(int) - want.astype(int))[mask]
+            assert diff.mean() <= TOL_MEAN and diff.max() <= TOL_MAX, (az, el, diff.mean(), diff.max())
+        assert console_errors(driver) == []
