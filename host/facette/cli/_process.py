@@ -130,7 +130,7 @@ def run(args):
                   interreflections=args.interreflections)
     h, w = res.normals.shape[:2]
     print(f"{res.inputs.kind} {res.inputs.source}: {len(res.inputs.light_dirs)} lights, {w}x{h} px, "
-          f"{int(res.mask.sum())} valid pixels ({res.options['method']})")
+          f"{int(res.mask.sum())} valid pixels, object {int(res.object_mask.sum())} ({res.options['method']})")
     ir = res.interreflections
     if ir is not None:
         print(f"  inter-reflections: {100 * ir['median_fraction']:.1f} % of the median value, "
