@@ -1,0 +1,51 @@
+"""`facette relight FILE`: open a PTM (.ptm) or HSH (.rti) file as RTIViewer and Relight read
+it, and write the picture it shows under a light as a PNG."""
+
+
+def register(sub):
+    p = sub.add_parser("relight", help="render a .ptm or .rti file under a light, as RTIViewer shows it",
+                       description=__doc__.splitlines()[0])
+    p.add_argument("file", help="a PTM (PTM_FORMAT_LRGB or PTM_FORMAT_JPEG_LRGB) or an HSH .rti file")
+    p.add_argument("--light", default="0,90", metavar="AZ,EL",
+                   help="light azimuth and elevation in degrees (azimuth 0 = from the right, 90 = "
+                        "from the top of the picture; elevation 90 = along the camera's axis); default 0,90")
+    p.add_argument("-o", "--out", help="PNG to write (default: FILE with .png)")
+    p.add_argument("--rtiviewer", action="store_true",
+                   help="PTM: integer coefficients, as RTIViewer keeps them (default: Relight's floats)")
+    return p
+
+
+def run(args):
+    from pathlib import Path
+
+    import numpy as np
+
+    from facette.errors import BadInputError
+    from facette.io.png import write_png
+    from facette.io.ptm import read_ptm
+    from facette.io.rti import read_hsh_rti
+
+    path = Path(args.file)
+    if not path.is_file():
+        raise BadInputError(f"{path} is not a file", hint="give a .ptm or .rti file")
+    try:
+        az, el = (float(t) for t in args.light.split(","))
+    except ValueError:
+        raise BadInputError(f"--light {args.light!r} is not AZ,EL in degrees", hint="e.g. --light 0,20") from None
+    a, e = np.radians(az), np.radians(el)
+    light = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+    head = path.read_bytes()[:8]
+    if head.startswith(b"PTM_1."):
+        f = read_ptm(path)
+        picture = f.relight(light, rtiviewer=args.rtiviewer)
+        what = f"{f.format}, {f.width}x{f.height}"
+    elif head.startswith(b"#HSH1.2"):
+        f = read_hsh_rti(path)
+        picture = f.relight(light)
+        what = f"HSH {f.terms} terms, {f.width}x{f.height}, {f.encoding}"
+    else:
+        raise BadInputError(f"{path} is neither a PTM nor an HSH .rti file (it starts {head!r})")
+    out = Path(args.out) if args.out else path.with_suffix(".png")
+    write_png(out, np.round(picture * 255).astype(np.uint8))
+    print(f"{path}: {what}; light azimuth {az:g}°, elevation {el:g}° -> {out}")
+    return 0
