@@ -35,7 +35,7 @@ from facette.io.png import write_mask
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
 from facette.recon import (INTEGRATION_DEFAULT, INTEGRATION_METHODS, PS_DEFAULT, PS_METHODS, flat_margin, integrate,
-                           mesh_from_height, near_light_directions, photometric_stereo,
+                           mesh_from_height, MESH_MAX_SLOPE, near_light_directions, photometric_stereo,
                            fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION, RTI_ENCODINGS,
                            without_interreflections)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
@@ -48,9 +48,6 @@ from facette.pipeline._report import report_fit_section, write_report
 
 __all__ = ["OUTPUTS", "STAGES_FOR", "ProcessResult", "process", "stages_needed"]
 
-# mesh.ply / model.glb leave out triangles steeper than this (rise over run, ~84°): the
-# curtains a height map hangs from a silhouette, which no photograph from above measured
-MESH_MAX_SLOPE = 10.0
 OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf",
            "report")
 STAGES_FOR = {

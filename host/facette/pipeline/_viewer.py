@@ -15,6 +15,7 @@ import facette.brdf as brdf
 from facette._data import package_text
 from facette.pipeline._relight import (BACKGROUND, DEFAULT_LIGHT, default_exposure, kd_map_from_albedo,
                                        viewer_model, volume_table)
+from facette.recon import MESH_MAX_SLOPE
 
 __all__ = ["viewer_data", "viewer_section", "MAX_SIDE", "MESH_MAX_SIDE"]
 
@@ -88,11 +89,11 @@ def viewer_data(normals, mask, fit, albedo=None, kd_map=None, height=None, pitch
     if height is not None:
         hgt = np.asarray(height, dtype=np.float64)[::st, ::st]
         ms = max(1, int(np.ceil(max(hgt.shape) / MESH_MAX_SIDE)))
+        # NaN outside the mask: the 3D view draws no triangle there (no curtains down the silhouette)
         grid = np.where(mk, hgt, np.nan)[::ms, ::ms]
-        fill = float(np.nanmedian(grid)) if np.isfinite(grid).any() else 0.0
         data["mesh"] = {"cols": int(grid.shape[1]), "rows": int(grid.shape[0]), "step_px": ms,
-                        "step_mm": float(pitch_mm) * st * ms,
-                        "heights": _b64(np.nan_to_num(grid, nan=fill).astype(np.float32))}
+                        "step_mm": float(pitch_mm) * st * ms, "max_slope": MESH_MAX_SLOPE,
+                        "heights": _b64(grid.astype(np.float32))}
     return data, {"normals": n, "mask": mk, "kd_map": kd, "model": m, "exposure": exposure}
 
 

@@ -365,18 +365,31 @@ void main() {
       const k = r * cols + c, z = hgt[k];
       pos[3 * k] = (c - (cols - 1) / 2) * m.step_mm;
       pos[3 * k + 1] = ((rows - 1) / 2 - r) * m.step_mm;
-      pos[3 * k + 2] = z;
+      pos[3 * k + 2] = Number.isFinite(z) ? z : 0;
       if (Number.isFinite(z)) { zmin = Math.min(zmin, z); zmax = Math.max(zmax, z); }
       uv[2 * k] = (c * m.step_px + 0.5) / d.width;
       uv[2 * k + 1] = (r * m.step_px + 0.5) / d.height;
     }
-    const idx = new Uint32Array((cols - 1) * (rows - 1) * 6);
+    // triangles of the object only: every corner inside the mask (heights are NaN outside) and
+    // no edge steeper than max_slope, so that the surface stops at the object's edge instead of
+    // hanging a curtain from its silhouette down to the background
+    const rise = (m.max_slope || Infinity) * m.step_mm;
+    const ok = (i, j, k) => {
+      const a = hgt[i], b = hgt[j], c = hgt[k];
+      return Number.isFinite(a) && Number.isFinite(b) && Number.isFinite(c) &&
+        Math.abs(a - b) <= rise * (i % cols === j % cols || Math.floor(i / cols) === Math.floor(j / cols) ? 1 : Math.SQRT2) &&
+        Math.abs(b - c) <= rise * (j % cols === k % cols || Math.floor(j / cols) === Math.floor(k / cols) ? 1 : Math.SQRT2) &&
+        Math.abs(c - a) <= rise * (k % cols === i % cols || Math.floor(k / cols) === Math.floor(i / cols) ? 1 : Math.SQRT2);
+    };
+    const all = new Uint32Array((cols - 1) * (rows - 1) * 6);
     let q = 0;
     for (let r = 0; r + 1 < rows; r++) for (let c = 0; c + 1 < cols; c++) {
       const a = r * cols + c;
-      idx.set([a, a + cols, a + 1, a + 1, a + cols, a + cols + 1], q);
-      q += 6;
+      if (ok(a, a + cols, a + 1)) { all.set([a, a + cols, a + 1], q); q += 3; }
+      if (ok(a + 1, a + cols, a + cols + 1)) { all.set([a + 1, a + cols, a + cols + 1], q); q += 3; }
     }
+    const idx = all.subarray(0, q);
+    api.meshTriangles = q / 3;
     const vao = gl.createVertexArray();
     gl.bindVertexArray(vao);
     for (const [name, data, size] of [["aPos", pos, 3], ["aUV", uv, 2]]) {

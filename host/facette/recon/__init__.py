@@ -15,7 +15,7 @@ from ._ps import (PS_DEFAULT, PSResult, ps_woodham1980, ps_hierarchical_tautzia2
 from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed      # registers both in PS_METHODS
 from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
                          integrate_simchony1990, integrate_poisson_flat_margin, integrate_least_squares,
-                         integrate, INTEGRATION_DEFAULT, INTEGRATION_METHODS, mesh_from_height,
+                         integrate, INTEGRATION_DEFAULT, INTEGRATION_METHODS, mesh_from_height, MESH_MAX_SLOPE,
                          flat_margin, MIN_BACKGROUND_PIXELS)
 from ._interreflect import (remove_interreflections, without_interreflections, IR_GRID, IR_MAX_FRACTION,
                             IR_PASSES, IR_SKIP_P95)
@@ -28,7 +28,7 @@ __all__ = ["PS_DEFAULT", "PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2
            "PS_METHODS", "triplet_inverses", "near_light_directions",
            "normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
            "integrate_poisson_flat_margin", "integrate_least_squares", "integrate", "INTEGRATION_DEFAULT",
-           "INTEGRATION_METHODS", "mesh_from_height", "flat_margin", "MIN_BACKGROUND_PIXELS",
+           "INTEGRATION_METHODS", "mesh_from_height", "MESH_MAX_SLOPE", "flat_margin", "MIN_BACKGROUND_PIXELS",
            "ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh", "relight_ptm",
            "relight_hsh", "relight_error", "fit_relight_error", "HSH_ORDERS", "RTI_ENCODINGS",
            "srgb_encode", "srgb_decode", "display_ptm", "display_hsh",

@@ -13,7 +13,7 @@ import scipy.sparse.linalg
 
 from facette._registry import Registry
 
-__all__ = ["normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
+__all__ = ["MESH_MAX_SLOPE", "normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
            "integrate_poisson_flat_margin", "integrate_least_squares", "INTEGRATION_DEFAULT", "integrate",
            "flat_margin", "MIN_BACKGROUND_PIXELS",
            "INTEGRATION_METHODS", "mesh_from_height"]
@@ -242,6 +242,11 @@ def integrate(normals, pixel_pitch_mm=1.0, mask=None, method=INTEGRATION_DEFAULT
     if fn is integrate_poisson_flat_margin:
         return fn(normals, pixel_pitch_mm=pixel_pitch_mm, mask=mask, background=background)
     return fn(normals, pixel_pitch_mm=pixel_pitch_mm, mask=mask)
+
+
+# meshes leave out triangles steeper than this (rise over run, ~84°): the curtains a height map
+# hangs from a silhouette down to what is behind it, which no photograph from above measured
+MESH_MAX_SLOPE = 10.0
 
 
 def mesh_from_height(height_mm, mask, pixel_pitch_mm=1.0, step=1, max_slope=None):

@@ -75,3 +75,39 @@ def test_viewer_at_a_raking_light_lights_what_faces_it_and_nothing_goes_negative
             diff = np.abs(got.astype(int) - want.astype(int))[mask]
             assert diff.mean() <= TOL_MEAN and diff.max() <= TOL_MAX, (az, el, diff.mean(), diff.max())
         assert console_errors(driver) == []
+
+
+def test_mesh_view_draws_the_object_only(simulated_result, tmp_path):
+    """The 3D view's triangles: those whose corners are all in the mask (heights NaN outside,
+    here a band cut out of the scene) and whose edges are no steeper than the mesh's max slope,
+    as the Python count; none reaches into the cut band."""
+    from facette.pipeline._viewer import viewer_section
+    res, _ = simulated_result
+    mask = res.mask.copy()
+    mask[:, 20:30] = False                       # a strip that is not the object
+    height = res.height.copy()
+    height[:, 20:30] = -50.0                     # far below: a curtain would be plain to see
+    data, _ = viewer_data(res.normals, mask, res.brdf, albedo=res.albedo, height=height,
+                          pitch_mm=res.inputs.pixel_pitch_mm, material_mask=res.inputs.sample_mask())
+    page = tmp_path / "viewer.html"
+    page.write_text(f"<!DOCTYPE html><html><body>{viewer_section(data)}</body></html>", encoding="utf-8")
+    m = data["mesh"]
+    z = np.frombuffer(base64.b64decode(m["heights"]), np.float32).reshape(m["rows"], m["cols"]).astype(float)
+    assert np.isnan(z[:, 20:30]).all() and np.isfinite(z[:, :20]).all()
+    rise = m["max_slope"] * m["step_mm"]
+
+    def ok(a, b, c, runs):           # runs: the edges' lengths a-b, b-c, c-a in grid steps
+        fin = np.isfinite(a) & np.isfinite(b) & np.isfinite(c)
+        with np.errstate(invalid="ignore"):
+            return fin & (np.abs(a - b) <= rise * runs[0]) & (np.abs(b - c) <= rise * runs[1]) \
+                & (np.abs(c - a) <= rise * runs[2])
+
+    tl, tr, bl, br = z[:-1, :-1], z[:-1, 1:], z[1:, :-1], z[1:, 1:]
+    d = np.sqrt(2)
+    want = int(ok(tl, bl, tr, (1, d, 1)).sum() + ok(tr, bl, br, (d, 1, 1)).sum())
+    full = 2 * (m["rows"] - 1) * (m["cols"] - 1)
+    with chromium() as driver:
+        wait_for_viewer(driver, page)
+        got = driver.execute_script("return window.facetteViewer.meshTriangles")
+        assert console_errors(driver) == []
+    assert got == want and 0 < want <= full - 2 * (m["rows"] - 1) * 11, (got, want, full)
