@@ -375,6 +375,12 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
     drawn = {}         # report sections drawn by the concurrent stages
     res.notes.extend(_after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration, mesh_step,
                                theta0_deg, fit_options, hsh_order, out_dir, ascii_ply, drawn))
+    if res.ptm is not None or res.hsh is not None:
+        res.notes.append("relight.ptm / relight.rti: " + (
+            "sRGB display values (what RTIViewer and Relight show, as photographed; --rti-encoding "
+            "linear for values proportional to the radiance)" if rti_encoding == "srgb" else
+            "linear values (proportional to the radiance: RTIViewer and Relight show them darker "
+            "and harsher than the photographs)"))
     res.errors = _truth_errors(inp, res)
     res.timings["total_compute"] = time.perf_counter() - t_all
     if out_dir is not None:
