@@ -50,3 +50,26 @@ def test_gltf_with_an_empty_mask_is_not_written(tmp_path):
         process(tmp_path / "scan", outputs=["gltf"], out_dir=tmp_path / "o",
                 mask=np.zeros((24, 24), bool), fit_options={"model": "lambert"})
     assert not (tmp_path / "o" / "model.glb").exists()
+
+
+@pytest.mark.parametrize("encoding", ["srgb", "linear"])
+def test_rti_files_hold_what_the_viewers_show_in_the_encoding_asked_for(tmp_path, encoding):
+    """relight.ptm and relight.rti read back as RTIViewer/Relight read them give the fits'
+    displayed values; relight.rti's header says the encoding; a wrong encoding is refused."""
+    from facette.errors import BadInputError
+    from facette.io.ptm import read_ptm
+    from facette.io.rti import read_hsh_rti
+    from facette.recon import display_hsh, display_ptm
+    sc = sphere_on_plane(24, 32)
+    _write_scan(tmp_path / "scan", sc, render(sc, L, "matte"), pitch=0.1)
+    res = process(tmp_path / "scan", outputs=["ptm", "rti"], out_dir=tmp_path / "o", rti_encoding=encoding)
+    assert res.ptm.encoding == res.hsh.encoding == encoding
+    ptm, rti = read_ptm(tmp_path / "o" / "relight.ptm"), read_hsh_rti(tmp_path / "o" / "relight.rti")
+    assert rti.encoding == encoding and any(f"encoding: {encoding}" in c for c in rti.comments)
+    obj = res.object_mask
+    for d in L[::4]:
+        assert np.abs(ptm.relight(d) - display_ptm(res.ptm, d))[obj].mean() < 0.01
+        assert np.abs(rti.relight(d) - display_hsh(res.hsh, d))[obj].mean() < 0.01
+    assert np.median(ptm.relight(L[0])[obj]) > 0.2                     # not black
+    with pytest.raises(BadInputError, match="rti_encoding"):
+        process(tmp_path / "scan", outputs=["ptm"], rti_encoding="gamma")
