@@ -87,7 +87,7 @@ def test_gains_persist_in_flash_across_a_reboot(lib_rig):
 def test_frame_records_match_what_the_camera_took(sim_rig_factory, tmp_path):
     rig = sim_rig_factory()
     scan = rig.scan(tmp_path / "s", lights=[0, 5], exposures=[20000, 5000], mode="bulb", progress=False)
-    frames = scan.manifest["frames"]
+    frames = scan.manifest.frames
     assert [(f["light"], f["exposure"]) for f in frames] == [(0, 0), (0, 1), (1, 0), (1, 1)]
     assert all(f["sync"] and f["current_meas_mA"] == f["current_set_mA"] == 500 for f in frames)
     starts = [f["start_us"] for f in frames]

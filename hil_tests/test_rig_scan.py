@@ -54,7 +54,7 @@ def test_full_default_scan_writes_the_contract_directory(sim_rig_factory, tmp_pa
 def test_pixels_follow_the_sensor_model_of_the_rendered_scene(sim_rig_factory, tmp_path):
     rig = sim_rig_factory()
     scan = rig.scan(tmp_path / "s", lights=[2], exposures=[(1_000_000, 0)], progress=False)
-    frame = read_raw(tmp_path / "s" / scan.manifest["frames"][0]["file"])
+    frame = read_raw(tmp_path / "s" / scan.manifest.frames[0]["file"])
     sensor = rig.sim.sensor
     expect_e = rig.sim.radiance[2] * 500 * 1_000_000                 # e- = e-/(mA·µs) × mA × µs
     expect_dn = (expect_e + sensor.dark_current_e_per_s * 1.0) / sensor.gain_e_per_dn
@@ -78,11 +78,11 @@ def test_abort_then_resume_keeps_every_frame(sim_rig_factory, tmp_path):
     with pytest.raises(ScanAborted, match="run the same scan again to resume"):
         rig.scan(tmp_path / "s", exposures=SHORT, progress=False, on_frame=abort_after_five)
     sd = ScanDirectory(tmp_path / "s")
-    assert 5 <= len(sd.manifest["frames"]) < 36 and sd.verify() == []
-    before = {f["file"]: f["sha256"] for f in sd.manifest["frames"]}
+    assert 5 <= len(sd.manifest.frames) < 36 and sd.verify() == []
+    before = {f["file"]: f["sha256"] for f in sd.manifest.frames}
     scan = rig.scan(tmp_path / "s", exposures=SHORT, progress=False)
-    assert len(scan.manifest["frames"]) == 36 and scan.verify() == []
-    after = {f["file"]: f["sha256"] for f in scan.manifest["frames"]}
+    assert len(scan.manifest.frames) == 36 and scan.verify() == []
+    after = {f["file"]: f["sha256"] for f in scan.manifest.frames}
     assert all(after[k] == v for k, v in before.items())              # earlier frames untouched
     _nothing_lost(rig, tmp_path / "s")
 
@@ -96,11 +96,11 @@ def test_resume_in_a_new_session_after_the_host_died(sim_rig_factory, tmp_path):
 
     with pytest.raises(KeyboardInterrupt):
         rig.scan(tmp_path / "s", exposures=SHORT, progress=False, on_frame=die)
-    n_before = len(ScanDirectory(tmp_path / "s").manifest["frames"])
+    n_before = len(ScanDirectory(tmp_path / "s").manifest.frames)
     rig.close()
     rig2 = sim_rig_factory()                                          # a new rig and host session
     scan = rig2.scan(tmp_path / "s", exposures=SHORT, progress=False)
-    assert n_before == 13 and len(scan.manifest["frames"]) == 36 and scan.verify() == []
+    assert n_before == 13 and len(scan.manifest.frames) == 36 and scan.verify() == []
     # the new run only took what was missing
     assert len(rig2.sim.simulator.frames) == 36 - n_before
 
@@ -119,13 +119,13 @@ def test_pause_and_resume_mid_scan(sim_rig_factory, tmp_path):
 
     scan = rig.scan(tmp_path / "s", lights=[0, 1, 2], exposures=SHORT, progress=False, on_frame=pause_once)
     assert states == ["PAUSED", True]
-    assert len(scan.manifest["frames"]) == 9 and scan.verify() == []
+    assert len(scan.manifest.frames) == 9 and scan.verify() == []
 
 
 def test_button_starts_the_scan(sim_rig_factory, tmp_path):
     rig = sim_rig_factory()
     scan = rig.scan(tmp_path / "s", lights=[0, 1], exposures=SHORT[:1], button="press", progress=False)
-    assert len(scan.manifest["frames"]) == 2
+    assert len(scan.manifest.frames) == 2
     starts = [json.loads(x) for x in (tmp_path / "s" / "journal.jsonl").read_text().splitlines()
               if '"start"' in x]
     assert starts[0]["button"] == "press"
@@ -146,8 +146,8 @@ def test_led_defined_exposures_bracket_by_duration_and_current(sim_rig_factory, 
     rig = sim_rig_factory()
     exposures = [(5000, 1000), (5000, 200), (500, 200)]          # (pulse µs, mA)
     scan = rig.scan(tmp_path / "s", lights=[0, 7], exposures=exposures, mode="led", progress=False)
-    frames = scan.manifest["frames"]
-    assert [e["current_mA"] for e in scan.manifest["exposures"]] == [1000, 200, 200]
+    frames = scan.manifest.frames
+    assert [e["current_mA"] for e in scan.manifest.exposures] == [1000, 200, 200]
     for rec, sim_frame in zip(frames, rig.sim.simulator.frames):
         t_us, ma = exposures[rec["exposure"]]
         assert rec["current_set_mA"] == ma and rec["current_meas_mA"] == ma
@@ -167,7 +167,7 @@ def test_design_script_scan_then_process_matches_the_truth(sim_rig_factory, tmp_
     profile = Profile(rig="sim", id="sim-truth", lights=Lights(leds.directions, leds.intensities),
                       pixel_pitch_mm=rig.sim.scene.pixel_pitch_mm)
     scan = rig.scan(tmp_path / "plaque", profile=profile, progress=False)
-    assert scan.manifest["profile"]["id"] == "sim-truth"
+    assert scan.manifest.profile["id"] == "sim-truth"
     result = facette.process(scan, outputs=["normals"])
     truth = np.load(tmp_path / "plaque" / "truth.npz")
     n, tn = np.asarray(result.normals), truth["normals"]
@@ -201,7 +201,7 @@ def test_wait_button_scans_only_once_the_rig_button_is_pressed(sim_rig_factory, 
     assert worker.is_alive() and rig.sim.simulator.shots == 0   # nothing is taken before the press
     rig.sim.press_button()
     worker.join(timeout=60)
-    assert not worker.is_alive() and len(out["scan"].manifest["frames"]) == 1
+    assert not worker.is_alive() and len(out["scan"].manifest.frames) == 1
 
 
 def test_a_stray_camera_image_is_never_filed_under_a_frame_name(sim_rig_factory, tmp_path):
@@ -220,9 +220,9 @@ def test_a_stray_camera_image_is_never_filed_under_a_frame_name(sim_rig_factory,
         rig.scan(tmp_path / "s", lights=[0, 1, 2], exposures=SHORT, progress=False, on_frame=stray)
     sd = ScanDirectory(tmp_path / "s")
     assert (tmp_path / "s" / "raw" / "unmatched" / "DSC_9999.dng").is_file()
-    assert sd.verify() == [] and len(sd.manifest["frames"]) in (4, 5)
+    assert sd.verify() == [] and len(sd.manifest.frames) in (4, 5)
     scan = rig.scan(tmp_path / "s", lights=[0, 1, 2], exposures=SHORT, progress=False)   # resume
-    assert len(scan.manifest["frames"]) == 9 and scan.verify() == []
+    assert len(scan.manifest.frames) == 9 and scan.verify() == []
     raw = tmp_path / "s" / "raw"
     kept = len(list(raw.glob("*.dng"))) + len(list(raw.glob("unmatched/*.dng")))
     assert kept == len(rig.sim.simulator.frames) + 1          # every camera image plus the stray

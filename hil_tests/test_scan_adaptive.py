@@ -63,27 +63,27 @@ def test_lights_are_merged_during_acquisition_and_a_resume_merges_only_the_rest(
         rig.scan(tmp_path / "s", exposures=SHORT, progress=False, merge_hdr=True,
                  on_frame=abort_in_light_5)
     sd = ScanDirectory(tmp_path / "s")
-    merged = sorted(r["index"] for r in sd.manifest["hdr"]["lights"])
+    merged = sorted(r["index"] for r in sd.manifest.hdr["lights"])
     assert merged == [0, 1, 2, 3, 4]                  # every complete light, nothing else
-    rec3 = next(r for r in sd.manifest["hdr"]["lights"] if r["index"] == 3)
-    sha = {f["file"]: f["sha256"] for f in sd.manifest["frames"]}
+    rec3 = next(r for r in sd.manifest.hdr["lights"] if r["index"] == 3)
+    sha = {f["file"]: f["sha256"] for f in sd.manifest.frames}
     assert [(i["file"], i["sha256"]) for i in rec3["inputs"]] == \
         [(f, sha[f]) for f in (f"raw/L03_E{e:02d}.dng" for e in range(3))]
     first = (tmp_path / "s" / "hdr" / "light_00.exr").stat().st_mtime_ns
-    rig.scan(tmp_path / "s", exposures=SHORT, progress=False, merge_hdr=True, hold_hdr=True)
+    scan = rig.scan(tmp_path / "s", exposures=SHORT, progress=False, merge_hdr=True, hold_hdr=True)
     sd = ScanDirectory(tmp_path / "s")
-    assert sorted(r["index"] for r in sd.manifest["hdr"]["lights"]) == list(range(12))
+    assert sorted(r["index"] for r in sd.manifest.hdr["lights"]) == list(range(12))
     assert sorted(e["light"] for e in _steps(tmp_path / "s", "hdr_light")) == list(range(12))
     assert (tmp_path / "s" / "hdr" / "light_00.exr").stat().st_mtime_ns == first
     # process finds the HDR up to date: no merge of its own; the lights this run merged come
-    # from memory (hold_hdr), with the values a process reading every file finds
+    # from memory (held by the ScanDirectory the scan returned), with the values a process
+    # reading every file finds
     from facette.pipeline import process
-    from facette.scan import hdr as scan_hdr, take_held_light
 
-    assert sorted(scan_hdr._HELD) == [str(tmp_path / "s" / "hdr" / f"light_{i:02d}.exr") for i in range(5, 12)]
-    held = process(tmp_path / "s", outputs=["normals"])
+    assert scan.held_lights() == list(range(5, 12)) and sd.held_lights() == []
+    held = process(scan, outputs=["normals"])
     assert _steps(tmp_path / "s", "hdr_begin") == []
-    assert take_held_light(tmp_path / "s" / "hdr" / "light_11.exr", tmp_path / "s" / "hdr" / "light_11_var.exr") is None
+    assert scan.held_lights() == [] and scan.take_held_light(11) is None    # taken: memory given back
     files = process(tmp_path / "s", outputs=["normals"])
     assert np.array_equal(held.inputs.images, files.inputs.images, equal_nan=True)
     assert np.array_equal(held.inputs.usable, files.inputs.usable)

@@ -33,6 +33,6 @@ def write_scan(folder, scene, images, pixel_pitch_mm=0.1, truth_brdf=None, albed
     sd = ScanDirectory(folder)
     sd.create(rig={"id": "synthetic"}, profile=None, pixel_pitch_mm=pixel_pitch_mm, lights=lights,
               exposures=[], plan=None)
-    sd.manifest["truth"] = "truth.npz"
+    sd.manifest.set_truth("truth.npz")
     sd.save()
     return folder

@@ -49,6 +49,7 @@ import numpy as np
 
 from facette.io.exr import read_exr
 from facette.io.png import read_mask
+from facette.scan import read_scan_manifest
 
 DEFAULT_SIZES = "default,1072x712"
 FACETTE = [sys.executable, "-m", "facette.cli.main"]
@@ -80,9 +81,9 @@ def _snr(scan_dir):
     """Median over lights of the merged SNR (dB) in the object's shadows and midtones, and the
     fraction of object pixels clipped (no finite variance), green channel."""
     mask = np.load(scan_dir / "truth.npz")["mask"].astype(bool)
-    data = json.loads((scan_dir / "scan.json").read_text())
+    data = read_scan_manifest(scan_dir)
     shadow, mid, clipped = [], [], []
-    for rec in data["hdr"]["lights"]:
+    for rec in data.hdr["lights"]:
         rad = read_exr(scan_dir / rec["file"])[0][..., 1][mask]
         var = read_exr(scan_dir / rec["var_file"])[0][..., 1][mask]
         ok = np.isfinite(var) & (var > 0) & (rad > 0)
@@ -183,8 +184,8 @@ def one_run(size, work, exposures=None, rig_apart=True):
     if exposures:
         cmd[-1:-1] = ["--exposures", exposures]
     out, wall, rss, end, _ = _run_rss(cmd)
-    data = json.loads((d / "scan.json").read_text())
-    hdr = data.get("hdr") or {}
+    data = read_scan_manifest(d)
+    hdr = data.hdr or {}
     merge_s = sum(sum(r.get("time_s", {}).values()) for r in hdr.get("lights", []))
     times = _times(out)
     global_, per_object = _scan_height_errors(d)
@@ -202,8 +203,8 @@ def one_run(size, work, exposures=None, rig_apart=True):
     p_out, p_wall, p_rss, _, p_cpu = _run_rss(FACETTE + ["process", str(d), "-o", str(d / "results2")])
     apart = rig_apart_run(size, work) if rig_apart and not exposures else \
         {"rig_apart_gb": np.nan, "rig_apart_ready_s": np.nan}
-    return {"size": label, "bracket": data.get("bracketing", {}).get("name"),
-            "frames": len(data["frames"]), "rig_s": float(data["rig_time_s"]), "wall_s": wall,
+    return {"size": label, "bracket": (data.bracketing or {}).get("name"),
+            "frames": len(data.frames), "rig_s": data.rig_time_s, "wall_s": wall,
             "merge_s": merge_s, "merge_alone_s": float(m_out.split()[-1]), "merge_alone_cpu_s": m_cpu,
             "merge_alone_gb": m_rss, "process_cpu_s": p_cpu,
             "recon_s": times.get("ps", np.nan) + times.get("integrate", np.nan),

@@ -98,13 +98,13 @@ def _write_scan(folder, imgs, normals, height, pitch):
     np.savez(folder / "truth.npz", normals=normals, height_mm=height * pitch,
              mask=np.ones(height.shape, bool))
     sd = ScanDirectory(folder)
-    sd.manifest = {
-        "schema": 1, "rig": {"id": "bench"}, "profile": None, "pixel_pitch_mm": pitch,
-        "lights": [{"index": i, "direction": L[i].tolist(), "position_mm": None,
-                    "intensity": [1.0, 1.0, 1.0]} for i in range(m)],
-        "exposures": [], "frames": [{"file": f"raw/L{i:02d}_E00.dng", "light": i, "exposure": 0}
-                                    for i in range(m)],
-        "rig_time_s": 0.0, "truth": "truth.npz"}
+    sd.create(rig={"id": "bench"}, profile=None, pixel_pitch_mm=pitch,
+              lights=[{"index": i, "direction": L[i].tolist(), "position_mm": None,
+                       "intensity": [1.0, 1.0, 1.0]} for i in range(m)],
+              exposures=[], plan=None)
+    for i in range(m):    # frames without files: the HDR images above are all there is
+        sd.manifest.add_frame({"file": f"raw/L{i:02d}_E00.dng", "light": i, "exposure": 0})
+    sd.manifest.set_truth("truth.npz")
     sd.save()
 
 

@@ -13,7 +13,7 @@ from facette.errors import BadInputError
 from facette.io.diligent import is_diligent_dir, read_diligent
 from facette.io.png import read_mask
 from facette.pipeline._quality import MIN_LEVELS, usable_from_green
-from facette.scan import MissingFrameWarning, ScanDirectory, merge_scan, stale_lights, take_held_light
+from facette.scan import MissingFrameWarning, ScanDirectory, merge_scan, stale_lights
 
 __all__ = ["PSInput", "load_input", "source_path", "auto_masks", "margin_of", "MARGIN_BORDER", "object_of",
            "OBJECT_OVER_TABLE"]
@@ -164,15 +164,15 @@ def _unreadable(path, exc):
                       "merge it again from raw/, or rescan that light")
 
 
-def _read_hdr_fast(scan_dir, light_ids):
+def _read_hdr_fast(scan_dir, light_ids, take_held=None):
     """Read hdr/light_XX.exr (and _var.exr, for unknown values) into one preallocated array,
     two files at a time. NaN where the variance is not finite (saturated in every frame).
-    A light merged in this process during the scan (`facette.scan.take_held_light`) is taken
-    from memory, the same values as its files."""
+    A light merged during the scan and held by its `ScanDirectory` (`take_held`: its
+    `take_held_light`) is taken from memory, the same values as its files."""
     import OpenEXR
     paths = [(scan_dir / "hdr" / f"light_{i:02d}.exr", scan_dir / "hdr" / f"light_{i:02d}_var.exr")
              for i in light_ids]
-    held = [take_held_light(img, var) for img, var in paths]
+    held = [take_held(i) if take_held is not None else None for i in light_ids]
     if held[0] is not None:
         h, w = held[0][1].shape
     else:
@@ -241,11 +241,12 @@ def _read_hdr_fast(scan_dir, light_ids):
     return images, usable
 
 
-def _load_hdr_images(scan_dir, data):
+def _load_hdr_images(scan_dir, data, take_held=None):
     """(images, usable, lights, notes): hdr/ read, after merging again (under the directory's
-    lock) every light whose files are absent, made from other frames, or changed."""
-    lights = sorted(data["lights"], key=lambda l: int(l["index"]))
-    ids = sorted({int(f["light"]) for f in data.get("frames", [])}) or [int(l["index"]) for l in lights]
+    lock) every light whose files are absent, made from other frames, or changed; the lights
+    `take_held` gives (see `_read_hdr_fast`) from memory."""
+    lights = sorted(data.lights, key=lambda l: int(l["index"]))
+    ids = data.frame_lights() or [int(l["index"]) for l in lights]
     by_index = {int(l["index"]): l for l in lights}
     unknown = [i for i in ids if i not in by_index]
     if unknown:
@@ -254,7 +255,7 @@ def _load_hdr_images(scan_dir, data):
     notes = list(stale_lights(scan_dir, data).values())
     absent = [i for i in ids if not all((scan_dir / "hdr" / f"light_{i:02d}{x}.exr").is_file()
                                         for x in ("", "_var"))]
-    if data.get("frames"):
+    if data.frames:
         # merges only the lights whose HDR is missing or no longer matches its RAW frames or
         # was changed since (nothing after a scan merged during acquisition); under the
         # directory's lock when it will write (one writer: not while a scan runs)
@@ -267,29 +268,29 @@ def _load_hdr_images(scan_dir, data):
                 merge_scan(scan_dir)
         finally:
             sd.unlock()
-    images, usable = _read_hdr_fast(scan_dir, ids)
+    images, usable = _read_hdr_fast(scan_dir, ids, take_held)
     return images, usable, [by_index[i] for i in ids], notes
 
 
-def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False):
+def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None):
     data = ScanDirectory(scan_dir).manifest      # a damaged scan.json is named (BadInputError)
-    expected = len(data.get("lights", [])) * len(data.get("exposures") or [])
+    expected = data.n_planned
     # every (light, exposure) of the plan has a frame (scan.json's own "complete" flag is not
     # set by every writer: a scan.json made by hand or by a tool has frames but no flag)
-    complete = len({(f["light"], f["exposure"]) for f in data["frames"]}) >= expected
+    complete = len({(f["light"], f["exposure"]) for f in data.frames}) >= expected
     if not complete and not allow_incomplete:
-        raise BadInputError(f"the scan is incomplete ({len(data['frames'])} of {expected} frames in "
+        raise BadInputError(f"the scan is incomplete ({len(data.frames)} of {expected} frames in "
                             f"{scan_dir}): run the same scan command to resume",
                             hint="or pass --allow-incomplete to process what is there (every output "
                                  "then says so)")
-    images, usable, lights, hdr_notes = _load_hdr_images(scan_dir, data)
+    images, usable, lights, hdr_notes = _load_hdr_images(scan_dir, data, take_held)
     dirs = np.array([l["direction"] for l in lights], dtype=np.float64)
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     inten = np.array([l.get("intensity") or [1.0, 1.0, 1.0] for l in lights], dtype=np.float64)
     if np.any(inten <= 0):
         raise ValueError(f"{scan_dir / 'scan.json'}: a light has a non-positive intensity; "
                          "fix the calibration profile")
-    scale = data.get("radiometric_scale")
+    scale = data.radiometric_scale
     if scale is not None:   # the Spectralon's absolute scale: images become radiance factors
         inten = inten * np.asarray(scale, dtype=np.float64)[None, :]
     m, h, w, c = images.shape
@@ -301,7 +302,7 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False):
         images /= inten[:, None, None, :].astype(np.float32)
     profile_pitch, profile_notes = _apply_profile(images, data, scan_dir)
     # the merge may have just run: its record (sensor used) is in scan.json as it is now
-    sensor_source = ((ScanDirectory(scan_dir).manifest or {}).get("hdr") or {}).get("sensor_source", "")
+    sensor_source = (ScanDirectory(scan_dir).manifest.hdr or {}).get("sensor_source", "")
     if sensor_source.startswith("nominal"):
         hdr_notes.append(f"HDR merged with the {sensor_source}")
     pos = [l.get("position_mm") for l in lights]
@@ -310,8 +311,8 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False):
     if not pitch:
         raise ValueError(f"{scan_dir / 'scan.json'} gives no pixel_pitch_mm; pass pixel_pitch_mm=")
     truth = None
-    if data.get("truth") and (scan_dir / data["truth"]).is_file():
-        with np.load(scan_dir / data["truth"], allow_pickle=False) as z:
+    if data.truth and (scan_dir / data.truth).is_file():
+        with np.load(scan_dir / data.truth, allow_pickle=False) as z:
             truth = {k: z[k] for k in z.files}
     mask, material = auto_masks(images)
     # the object: the lit pixels and those saturated under some light (which auto_masks, blind
@@ -320,8 +321,8 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False):
     inp = PSInput(images, dirs, positions, mask, float(pitch), "scan", scan_dir, truth,
                   material_mask=material, usable=usable, object_mask=obj)
     if not complete:
-        inp.incomplete = f"{len(data['frames'])} of {expected or '?'} frames"
-    inp.digest = _digest(sorted((f["file"], f.get("sha256", "")) for f in data["frames"]))
+        inp.incomplete = f"{len(data.frames)} of {expected or '?'} frames"
+    inp.digest = _digest(sorted((f["file"], f.get("sha256", "")) for f in data.frames))
     inp.notes.extend(profile_notes)
     inp.notes.extend(hdr_notes)
     if scale is None:
@@ -343,15 +344,15 @@ def _file_stamps(folder):
 
 
 def _apply_profile(images, data, scan_dir):
-    """Apply the calibration profile the scan was taken with (scan.json "profile": id, sha256,
+    """Apply the calibration profile the scan was taken with (the manifest's profile: id, sha256,
     path, and the image size it was measured at) at the images' size: divide `images`
     (m, H, W, 3) in place by its flat field, resampled if the scan reads the sensor at
     another resolution, and give the pixel pitch at this size.
 
     Returns (pixel_pitch_mm or None, notes). Raises ResolutionError (naming both sizes)
     when the scan's size cannot be another resolution of the profile's camera setting."""
-    ref = data.get("profile")
-    pitch = data.get("pixel_pitch_mm")
+    ref = data.profile
+    pitch = data.pixel_pitch_mm
     size = (images.shape[2], images.shape[1])
     if not ref:
         return pitch, ["no calibration profile recorded: no flat-field correction"]
@@ -398,6 +399,8 @@ def _apply_profile(images, data, scan_dir):
 def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False):
     """Read a scan directory (scan.json + hdr/) or a DiLiGenT-style folder into a `PSInput`.
 
+    source : a path, or a `ScanDirectory` (as `run_scan` returns it: the lights it merged and
+    held in memory are taken from it, the same values as their files, which are then not read).
     mask : optional (H, W) bool array or path to a PNG; default: scan -> lit pixels,
     DiLiGenT -> its mask.png. pixel_pitch_mm overrides the scan's (DiLiGenT default 1).
     allow_incomplete : process a scan that is not complete (BadInputError otherwise).
@@ -407,7 +410,8 @@ def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False):
         raise FileNotFoundError(f"{path} is not a directory; give a scan directory (with scan.json) "
                                 "or a DiLiGenT-style folder (with filenames.txt)")
     if (path / "scan.json").is_file():
-        inp = _load_scan(path, pixel_pitch_mm, allow_incomplete)
+        take_held = source.take_held_light if isinstance(source, ScanDirectory) else None
+        inp = _load_scan(path, pixel_pitch_mm, allow_incomplete, take_held)
         if inp.incomplete:
             inp.notes.insert(0, f"the scan is incomplete ({inp.incomplete}): these results come from "
                                 "part of its data; run the same scan command to resume it")

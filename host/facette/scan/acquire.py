@@ -26,14 +26,14 @@ from facette.calib import load as load_profile
 from facette.calib import nominal_light_directions
 from facette.camera.folder import CameraTimeout
 from facette.camera.raw import read_exposure_metadata
-from facette.device.client import DeviceReset, DeviceTimeout
+from facette.device.client import DeviceException, DeviceReset, DeviceTimeout
 from facette.errors import BadInputError, StoppedError
 from facette.hdr import THESIS_BRACKET_US
 from facette.scan.adaptive import METER_DIR, meter_and_plan
 from facette.scan.directory import LOCK_NAME, ScanDirectory, ScanDirectoryError, frame_name, sha256_file
 from facette.scan.hdr import LightMerger, scan_sensor, store_light_records
 
-__all__ = ["run_scan", "ScanPlan", "ScanError", "ScanAborted", "THESIS_BRACKET_US", "default_plan"]
+__all__ = ["run_scan", "ScanOptions", "ScanPlan", "ScanError", "ScanAborted", "THESIS_BRACKET_US", "default_plan"]
 
 # Faults that report a past event and do not make the next scan unsafe.
 _BENIGN_FAULTS = {"HOST_SILENT", "CAL_INVALID", "WATCHDOG_RESET"}
@@ -157,13 +157,14 @@ class _Acquisition:
     link_timeout_s = 20.0   # how long a silent link is tolerated while the device scans
     link_report_s = 5.0     # how often the wait for a silent link is reported
 
-    def __init__(self, rig, sd, plan, progress, on_frame, frame_timeout_s, poll_s):
+    def __init__(self, rig, sd, plan, options):
         self.rig, self.sd, self.plan = rig, sd, plan
         self.camera = rig.camera
-        self.progress = progress
-        self.on_frame = on_frame
-        self.frame_timeout_s = frame_timeout_s
-        self.poll_s = poll_s
+        self.progress = None
+        self.on_frame = options.on_frame
+        self.frame_timeout_s = options.frame_timeout_s
+        self.poll_s = options.poll_s
+        self.link_timeout_s = float(options.link_timeout_s)
         self.unmatched_dir = sd.path / "raw" / "unmatched"
         self.merger = None   # a LightMerger when merging during acquisition
 
@@ -243,18 +244,22 @@ class _Acquisition:
         self.store_merged()
 
     def store_merged(self, wait=False):
+        """Record the finished merges in scan.json; a held light goes to the scan directory
+        object, for the processing that follows in this process."""
         finished = self.merger.collect(wait=wait)
         records = []
-        for light, rec in finished:
+        for light, rec, held in finished:
             if isinstance(rec, Exception):
                 self.sd.journal("hdr_error", light=light, error=f"{type(rec).__name__}: {rec}"[:300])
             else:
                 records.append(rec)
                 self.sd.journal("hdr_light", light=light, time_s=rec["time_s"])
+                if held is not None:
+                    self.sd.hold_light(light, held)
         if records:
-            _, source = scan_sensor(self.sd.manifest, self.merger.sensor)
-            self.sd.manifest["hdr"] = store_light_records(self.sd.manifest, records,
-                                                          self.merger.basis(self.sd.manifest), source)
+            m = self.sd.manifest
+            _, source = scan_sensor(m, self.merger.sensor)
+            m.set_hdr(store_light_records(m, records, self.merger.basis(m), source))
             self.sd.save()
 
     def keep_unmatched_existing(self, dst):
@@ -276,7 +281,7 @@ class _Acquisition:
             pass
 
     def add_rig_time(self, end_us):
-        self.sd.manifest["rig_time_s"] = round(self.sd.manifest.get("rig_time_s", 0.0) + end_us * 1e-6, 6)
+        self.sd.manifest.add_rig_time(end_us * 1e-6)
         self.sd.save()
 
     # -- device runs ------------------------------------------------------------------
@@ -288,8 +293,7 @@ class _Acquisition:
             self.rig.abort()
             self.rig.wait_state({"ABORTED", "IDLE"}, timeout_s=30)
             self.wait_camera_quiet()
-        bits = dev.read("fault_bits")
-        names = self.rig._fault_names(bits)
+        names = self.rig.latched_faults()
         if names:
             if set(names) <= _BENIGN_FAULTS:
                 self.sd.journal("clear_faults", faults=names)
@@ -304,8 +308,6 @@ class _Acquisition:
         or the device refuses the press (its last_error changes: then say why, in words).
         The host first makes last_error a known value (a refused PAUSE in IDLE, "not allowed
         in this state") so that a refusal of the press, even for the same reason, shows."""
-        from facette.device.client import DeviceException
-
         dev = self.rig.device
         try:
             self.rig.pause()
@@ -340,7 +342,7 @@ class _Acquisition:
             # the button arms and starts a configured scan from IDLE/DONE/ABORTED (a press
             # while armed or running aborts), so the host leaves the device unarmed here
             if button == "press":
-                rig.sim.press_button()      # returns once the device started (sent an event)
+                rig.press_button()          # returns once the device started (sent an event)
             else:
                 print("press the rig's button to start the scan", flush=True)
                 # a finished state counts only if it is not the one left by an earlier scan
@@ -449,42 +451,10 @@ def _is_meter_dir(path):
     return path.is_dir() and (path.name == METER_DIR or path.name.startswith(METER_DIR + "-"))
 
 
-def _adaptive(rig, directory, profile, lights, light_current_mA, mode, retries, timing, button,
-              frame_timeout_s, poll_s, max_runs):
-    """(exposures, light currents, bracketing record) of an adaptive scan: the plan a started
-    scan recorded (a resume never re-plans), else meter each light and plan."""
-    sd = ScanDirectory(directory)
-    if sd.manifest is not None:
-        old = sd.manifest.get("plan", {})
-        return ([tuple(e) for e in old.get("exposures", [])], old.get("light_current_mA", light_current_mA),
-                sd.manifest.get("bracketing") or {"name": "adaptive"})
+@dataclasses.dataclass
+class ScanOptions:
+    """How `run_scan` acquires: what to take, and how to run the rig.
 
-    def scan(path, exposures, btn):
-        return run_scan(rig, path, profile, exposures, lights, light_current_mA, mode, retries, timing,
-                        button=btn, progress=False, frame_timeout_s=frame_timeout_s, poll_s=poll_s,
-                        max_runs=max_runs, save_truth=False)
-
-    sensor = profile.sensor if profile is not None and profile.sensor else (
-        rig.sim.sensor if rig.sim is not None else None)
-    n = len(lights) if lights is not None else (len(profile.lights) if profile is not None else rig.n_lights)
-    currents = list(light_current_mA) if hasattr(light_current_mA, "__len__") else [light_current_mA] * n
-    plan, record = meter_and_plan(scan, Path(directory), currents, mode, sensor, button=button)
-    kw = plan.scan_kwargs()
-    return kw["exposures"], kw.get("light_current_mA", light_current_mA), record
-
-
-def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_current_mA=500,
-             mode="camera", retries=1, timing=None, button=None, progress=True, on_frame=None,
-             frame_timeout_s=60.0, poll_s=0.003, max_runs=8, save_truth=True, merge_hdr=False,
-             link_timeout_s=20.0, hold_hdr=False):
-    """Acquire (or resume) a scan into `directory`; returns the ScanDirectory.
-
-    Parameters
-    ----------
-    rig : facette.scan.Rig with a camera backend (`rig.camera`)
-    directory : path of the scan directory (created; an existing one with the same
-        plan is resumed, one with another plan is refused)
-    profile : facette.calib.Profile, its folder, or None (nominal light directions)
     exposures : times in µs or (time_us, current_mA) pairs; "thesis" or None: the thesis
         bracket; "adaptive": meter each light once (into ``directory/meter``), plan the
         fewest exposures reaching 40 dB on the object without clipping it
@@ -492,62 +462,152 @@ def run_scan(rig, directory, profile=None, exposures=None, lights=None, light_cu
     lights : LED channels in scan order (default every LED)
     light_current_mA : int or one per light
     mode : "camera" | "bulb" | "led"
-    button : None (start now), "wait" (the rig's button starts it) or "press"
-        (simulated rig: press its button)
+    retries : repeats of a setting with a missing flash sync
+    timing : other µs registers (settle_us, gap_us, ...)
+    button : None (start now), "wait" (the rig's button starts it) or "press" (a rig that
+        presses its own button, the simulated one: `Rig.can_press_button`)
     progress : show a tqdm progress bar
     on_frame : callable(record) after each frame is stored (tests use it to abort/pause)
     frame_timeout_s : how long to wait for the camera's file after its record
+    poll_s : how often the device is polled while it scans
+    max_runs : device runs allowed (resets re-run the missing frames)
     link_timeout_s : how long the device may stay silent before the scan stops (its wait
         is reported on standard error every few seconds)
-    max_runs : device runs allowed (resets re-run the missing frames)
+    save_truth : write the rig's truth beside scan.json when it has one (`Rig.save_truth`:
+        the simulated rig's; a real rig has none)
     merge_hdr : merge each light into hdr/ on a worker as soon as its frames have landed
         (`facette.scan.LightMerger`, with the scan's sensor model), so that after the last
         frame only that light's merge remains; recorded in scan.json "hdr" with what each
         image was made from. A resumed scan merges only the lights not merged yet (or whose
         frames changed); `merge_scan` and `facette process` then find nothing to do.
-    hold_hdr : with merge_hdr, also keep each merged light in memory (`facette.scan.take_held_light`)
-        for processing in this process right after the scan, which then does not read the HDR
-        files back (4288x2848, 12 lights: ~2 CPU s less after the last frame, ~50 MB per light
-        held until processing takes it; `release_held_lights` drops what it did not).
+    hold_hdr : with merge_hdr, also keep each merged light in memory, in the returned
+        `ScanDirectory` (`take_held_light`), for processing right after the scan
+        (``facette.process(scan)``), which then does not read the HDR files back
+        (4288x2848, 12 lights: ~2 CPU s less after the last frame, ~50 MB per light held
+        until processing takes it or `release_held_lights` drops it).
     """
-    if rig.camera is None:
-        raise ValueError("this rig has no camera backend: connect with camera=FolderWatchCamera(folder) "
-                         "or GPhoto2Camera()")
+    exposures: object = None
+    lights: object = None
+    light_current_mA: object = 500
+    mode: str = "camera"
+    retries: int = 1
+    timing: dict | None = None
+    button: str | None = None
+    progress: bool = True
+    on_frame: object = None
+    frame_timeout_s: float = 60.0
+    poll_s: float = 0.003
+    max_runs: int = 8
+    link_timeout_s: float = 20.0
+    save_truth: bool = True
+    merge_hdr: bool = False
+    hold_hdr: bool = False
+
+    def check(self, rig):
+        """Refuse what cannot be asked of this rig (ValueError / BadInputError), before anything
+        is touched."""
+        if rig.camera is None:
+            raise ValueError("this rig has no camera backend: connect with camera=FolderWatchCamera(folder) "
+                             "or GPhoto2Camera()")
+        if isinstance(self.exposures, str) and self.exposures not in ("thesis", "adaptive"):
+            raise ValueError(f"exposures must be 'adaptive', 'thesis' or a list of exposures, got "
+                             f"{self.exposures!r}")
+        if self.button not in (None, "wait", "press"):
+            raise ValueError(f"button must be None, 'wait' or 'press', got {self.button!r}")
+        if self.button == "press" and not rig.can_press_button:
+            raise BadInputError("this rig's button is pressed by a person, not by the host",
+                                hint="wait for the press instead (button='wait', --wait-button)")
+
+    def plan(self, n_leds, exposures=None, light_current_mA=None):
+        """The `ScanPlan` of these options (with `exposures` and currents once known)."""
+        return default_plan(n_leds, self.exposures if exposures is None else exposures, self.lights,
+                            self.light_current_mA if light_current_mA is None else light_current_mA,
+                            self.mode, self.retries, self.timing)
+
+
+def run_scan(rig, directory, profile=None, options=None, **settings):
+    """Acquire (or resume) a scan into `directory`; returns the `ScanDirectory` (with the
+    lights it merged held in memory when ``hold_hdr``: pass it to ``facette.process``).
+
+    Parameters
+    ----------
+    rig : facette.scan.Rig with a camera backend (`rig.camera`)
+    directory : path of the scan directory (created; an existing one with the same
+        plan is resumed, one with another plan is refused)
+    profile : facette.calib.Profile, its folder, or None (nominal light directions)
+    options : `ScanOptions` (default: its defaults)
+    settings : fields of `ScanOptions` to set (``exposures=..., lights=..., button="wait"``)
+
+    The steps: check the options and plan against the rig (`_plan`: nothing touched when
+    refused; an adaptive scan meters first), take the directory (`_open`: create it, or
+    resume it), acquire the missing frames (`_acquire`), then record its completion
+    (`_finish`).
+    """
+    options = dataclasses.replace(options or ScanOptions(), **settings)
+    options.check(rig)
     profile = _load_profile(profile)
-    n_leds = len(profile.lights) if profile is not None else rig.n_lights
-    # everything is checked before the directory is touched (a refused plan leaves nothing
-    # behind): lights and currents before any metering, the whole plan once it is known
-    if exposures == "adaptive":
-        pre = default_plan(n_leds, [(1000, 0)], lights, light_current_mA, mode, retries, timing)
-        _lights_section(pre, profile)
-        rig.check_config(pre.exposures, pre.lights, pre.light_current_mA, pre.mode, pre.timing)
-    bracketing = {"name": "thesis2016" if exposures in (None, "thesis") else "explicit"}
-    if isinstance(exposures, str) and exposures not in ("thesis", "adaptive"):
-        raise ValueError(f"exposures must be 'adaptive', 'thesis' or a list of exposures, got {exposures!r}")
     sd = ScanDirectory(directory)
-    if exposures == "adaptive":
-        # the metering writes <directory>/meter/: the directory is ours before that (a second
-        # scan into a directory being written touches nothing in it)
-        sd.lock()
     try:
-        if exposures == "thesis":
-            exposures = None
-        elif exposures == "adaptive":
-            exposures, light_current_mA, bracketing = _adaptive(
-                rig, directory, profile, lights, light_current_mA, mode, retries, timing, button,
-                frame_timeout_s, poll_s, max_runs)
-            button = None   # the button started the metering
-        plan = default_plan(n_leds, exposures, lights, light_current_mA, mode, retries, timing)
+        plan, bracketing, button = _plan(rig, sd, profile, options)
         lights_section = _lights_section(plan, profile)
-        rig.check_config(plan.exposures, plan.lights, plan.light_current_mA, plan.mode, plan.timing)
-        _check_resumable(sd, plan)
         sd.lock()                            # one writer; scan.json is read again under the lock
         _check_resumable(sd, plan)
-        return _run_locked(rig, sd, plan, profile, lights_section, button, progress, on_frame,
-                           frame_timeout_s, poll_s, max_runs, save_truth, link_timeout_s, merge_hdr,
-                           bracketing, hold_hdr)
+        _open(rig, sd, plan, profile, lights_section, bracketing)
+        _acquire(rig, sd, plan, options, button)
+        _finish(rig, sd, plan, options)
+        return sd
     finally:
         sd.unlock()
+
+
+def _plan(rig, sd, profile, options):
+    """(ScanPlan, bracketing record, how the scan starts) once checked against the device's
+    limits, the profile and the directory (a refused plan leaves nothing behind). An adaptive
+    scan first takes the directory and meters each light (a resume keeps the recorded plan)."""
+    n_leds = len(profile.lights) if profile is not None else rig.n_lights
+    exposures, currents, button = options.exposures, None, options.button
+    if exposures == "adaptive":
+        # lights and currents before any metering; the metering writes <directory>/meter/:
+        # the directory is ours before that (a second scan into a directory being written
+        # touches nothing in it)
+        pre = options.plan(n_leds, [(1000, 0)])
+        _lights_section(pre, profile)
+        rig.check_config(pre.exposures, pre.lights, pre.light_current_mA, pre.mode, pre.timing)
+        sd.lock()
+        exposures, currents, bracketing = _adaptive(rig, sd, profile, options)
+        button = None   # the button started the metering
+    else:
+        bracketing = {"name": "thesis2016" if exposures in (None, "thesis") else "explicit"}
+        exposures = None if exposures == "thesis" else exposures
+    plan = options.plan(n_leds, exposures, currents)
+    _lights_section(plan, profile)
+    rig.check_config(plan.exposures, plan.lights, plan.light_current_mA, plan.mode, plan.timing)
+    _check_resumable(sd, plan)
+    return plan, bracketing, button
+
+
+def _adaptive(rig, sd, profile, options):
+    """(exposures, light currents, bracketing record) of an adaptive scan: the plan a started
+    scan recorded (a resume never re-plans), else meter each light and plan."""
+    m = sd.manifest
+    if m is not None:
+        old = m.plan or {}
+        return ([tuple(e) for e in old.get("exposures", [])],
+                old.get("light_current_mA", options.light_current_mA), m.bracketing or {"name": "adaptive"})
+    meter = dataclasses.replace(options, progress=False, on_frame=None, save_truth=False, merge_hdr=False,
+                                hold_hdr=False)
+
+    def scan(path, exposures, btn):
+        return run_scan(rig, path, profile, meter, exposures=exposures, button=btn)
+
+    sensor = profile.sensor if profile is not None and profile.sensor else rig.sensor
+    lights = options.lights
+    n = len(lights) if lights is not None else (len(profile.lights) if profile is not None else rig.n_lights)
+    current = options.light_current_mA
+    currents = list(current) if hasattr(current, "__len__") else [current] * n
+    plan, record = meter_and_plan(scan, sd.path, currents, options.mode, sensor, button=options.button)
+    kw = plan.scan_kwargs()
+    return kw["exposures"], kw.get("light_current_mA", current), record
 
 
 def _check_resumable(sd, plan):
@@ -558,7 +618,7 @@ def _check_resumable(sd, plan):
             raise ScanDirectoryError(f"{sd.path} is not empty and holds no scan.json",
                                      hint="choose a new directory (a scan starts in an empty one)")
         return
-    old = sd.manifest.get("plan", {})
+    old = sd.manifest.plan or {}
     differ = [k for k in plan.key() if old.get(k) != plan.key()[k]]
     if differ:
         said = "; ".join(f"{k}: this directory has {old.get(k)}, the command asks for {plan.key()[k]}"
@@ -567,62 +627,59 @@ def _check_resumable(sd, plan):
                                  hint="resume it with the same settings, or choose a new directory")
 
 
-def _run_locked(rig, sd, plan, profile, lights_section, button, progress, on_frame, frame_timeout_s,
-                poll_s, max_runs, save_truth, link_timeout_s, merge_hdr, bracketing, hold_hdr=False):
-    pitch = getattr(profile, "pixel_pitch_mm", None)
-    if pitch is None and rig.sim is not None:
-        pitch = rig.sim.scene.pixel_pitch_mm
+def _open(rig, sd, plan, profile, lights_section, bracketing):
+    """A new scan: its manifest (the plan, the profile's calibration, the bracketing); a
+    resumed one: finish what the journal says was under way, set damaged frames aside."""
     sd.notes = []
-    if sd.manifest is None:
-        ignored = rig.camera.ignore_existing()
-        sd.journal("begin", plan=plan.to_dict(), rig=rig.identity, camera=repr(rig.camera),
-                   camera_ignored=ignored)
-        sd.create(rig.identity, _profile_section(profile), pitch, lights_section,
-                  _exposures_section(plan), plan.to_dict())
-        if profile is not None:
-            if profile.sensor:
-                sd.manifest["sensor"] = dict(profile.sensor)  # the HDR merge's noise model
-            else:
-                sd.notes.append(f"profile {profile.id} has no sensor section: the HDR merge will use "
-                                "a nominal noise model (calibrate the sensor to get the camera's own)")
-            sd.manifest["radiometric_scale"] = profile.radiometric_scale
-        sd.manifest["bracketing"] = bracketing
-        # the metering runs are rig time of this scan too
-        sd.manifest["rig_time_s"] = round(float(bracketing.get("meter_rig_time_s", 0.0)), 6)
-        sd.save()
-    else:
+    if sd.manifest is not None:
         sd.journal("resume", rig=rig.identity)
         _recover(sd, rig.camera)
         sd.notes += sd.set_aside_damaged()     # a frame whose sha256 fails is taken again
         begin = next((e for e in sd.read_journal() if e.get("step") == "begin"), {})
         if hasattr(rig.camera, "ignore"):   # files that predate the scan are not ours
             rig.camera.ignore(begin.get("camera_ignored", []))
-    acq = _Acquisition(rig, sd, plan, None, on_frame, frame_timeout_s, poll_s)
-    acq.link_timeout_s = float(link_timeout_s)
+        return
+    pitch = getattr(profile, "pixel_pitch_mm", None)
+    if pitch is None:
+        pitch = rig.pixel_pitch_mm          # a simulated rig knows its own; a real one says None
+    ignored = rig.camera.ignore_existing()
+    sd.journal("begin", plan=plan.to_dict(), rig=rig.identity, camera=repr(rig.camera),
+               camera_ignored=ignored)
+    sd.create(rig.identity, _profile_section(profile), pitch, lights_section,
+              _exposures_section(plan), plan.to_dict())
+    if profile is not None:
+        sd.manifest.set_calibration(profile.sensor or None, profile.radiometric_scale)
+        if not profile.sensor:
+            sd.notes.append(f"profile {profile.id} has no sensor section: the HDR merge will use "
+                            "a nominal noise model (calibrate the sensor to get the camera's own)")
+    sd.manifest.set_bracketing(bracketing)   # the metering runs are rig time of this scan too
+    sd.save()
+
+
+def _acquire(rig, sd, plan, options, button):
+    """Take every (light, exposure) still missing, in device runs (a reset runs the missing
+    ones again), merging each complete light on a worker with ``merge_hdr``."""
+    acq = _Acquisition(rig, sd, plan, options)
     all_pairs = {(l, e) for l in range(len(plan.lights)) for e in range(len(plan.exposures))}
-    if merge_hdr:
-        acq.merger = LightMerger(sd.path, hold=hold_hdr)
+    if options.merge_hdr:
+        acq.merger = LightMerger(sd.path, hold=options.hold_hdr)
         done = sd.frames_done()
         for light in range(len(plan.lights)):   # a resumed scan: lights complete, not merged yet
             if all((light, e) in done for e in range(len(plan.exposures))) and \
                     acq.merger.stale(sd.manifest, light):
                 acq.merger.submit(sd.manifest, light)
-    bar = None
-    if progress:
+    if options.progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(all_pairs), initial=len(sd.frames_done()), unit="frame", desc="scan",
-                   leave=True, dynamic_ncols=True)
-    acq.progress = bar
-    runs = sd.manifest.get("runs", 0)
+        acq.progress = tqdm(total=len(all_pairs), initial=len(sd.frames_done()), unit="frame", desc="scan",
+                            leave=True, dynamic_ncols=True)
     try:
-        for _ in range(max_runs):
+        for _ in range(options.max_runs):
             pending = all_pairs - set(sd.frames_done())
             if not pending:
                 break
             for ls, es in _groups(pending, len(plan.lights)):
-                run, runs = runs, runs + 1
-                sd.manifest["runs"] = runs      # saved with the next manifest write
+                run = sd.manifest.start_run()      # saved with the next manifest write
                 end_us, how = acq.run_group(ls, es, run, button)
                 button = None           # the button starts the first run only
                 acq.add_rig_time(end_us)
@@ -630,23 +687,25 @@ def _run_locked(rig, sd, plan, profile, lights_section, button, progress, on_fra
                     break
         pending = all_pairs - set(sd.frames_done())
         if pending:
-            raise ScanError(f"{len(pending)} frames still missing after {max_runs} device runs in {sd.path}")
+            raise ScanError(f"{len(pending)} frames still missing after {options.max_runs} device runs "
+                            f"in {sd.path}")
     except BaseException as exc:   # say in the journal why this run stopped (then re-raise)
-        sd.journal("interrupted", error=f"{type(exc).__name__}: {exc}",
-                   frames=len(sd.manifest.get("frames", [])))
+        sd.journal("interrupted", error=f"{type(exc).__name__}: {exc}", frames=len(sd.manifest.frames))
         raise
     finally:
-        if bar is not None:
-            bar.close()
+        if acq.progress is not None:
+            acq.progress.close()
         if acq.merger is not None:
             acq.store_merged(wait=True)   # the last light's merge (an interrupted scan keeps the rest)
             acq.merger.close()
-    if save_truth and rig.sim is not None:
-        rig.sim.save_truth(sd.path, channels=plan.lights)
-        sd.manifest["truth"] = "truth.npz"
-    sd.manifest["complete"] = True
-    sd.manifest["faults_seen"] = [e for e in sd.read_journal() if e.get("step") in
-                                  ("device_reset", "no_sync", "unmatched", "clear_faults")]
+
+
+def _finish(rig, sd, plan, options):
+    """The scan is complete: the rig's truth beside it (a simulated rig's), what went wrong on
+    the way (from the journal), "complete" set."""
+    if options.save_truth:
+        sd.manifest.set_truth(rig.save_truth(sd.path, channels=plan.lights))
+    sd.manifest.finish([e for e in sd.read_journal() if e.get("step") in
+                        ("device_reset", "no_sync", "unmatched", "clear_faults")])
     sd.save()
-    sd.journal("done", frames=len(sd.manifest["frames"]), rig_time_s=sd.manifest["rig_time_s"])
-    return sd
+    sd.journal("done", frames=len(sd.manifest.frames), rig_time_s=sd.manifest.rig_time_s)

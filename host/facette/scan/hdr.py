@@ -3,7 +3,7 @@
 The merge itself is `facette.hdr.merge` on arrays; this module reads and writes the scan
 directory around it, through `ScanDirectory` (the one reader and writer of scan.json).
 
-Contract 3 (DESIGN §7): ``hdr/light_XX.exr`` holds R, G, B linear radiance per unit
+The files (docs/scan-format.md, "hdr/"): ``hdr/light_XX.exr`` holds R, G, B linear radiance per unit
 exposure, per µs·mA (black-subtracted DN / (exposure time µs × LED current mA)),
 float32, at RAW half-size; ``hdr/light_XX_var.exr`` the variances (DN / (µs·mA))².
 The merge is recorded in scan.json under ``"hdr"``.
@@ -11,8 +11,6 @@ The merge is recorded in scan.json under ``"hdr"``.
 from __future__ import annotations
 
 import datetime as _dt
-import json
-import threading
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -24,53 +22,38 @@ from facette.camera.raw import read_raw
 from facette.hdr import as_sensor, merge, n_workers
 from facette.io.checksum import sha256_file
 from facette.io.exr import read_exr, write_exr
-from facette.scan.directory import ScanDirectory, read_scan_manifest
+from facette.scan.directory import Manifest, ScanDirectory, read_scan_manifest
 
-__all__ = ["merge_scan", "merge_light", "LightMerger", "take_held_light", "release_held_lights",
-           "store_light_records", "hdr_up_to_date", "stale_lights", "hdr_record", "scan_sensor", "light_frames",
+__all__ = ["merge_scan", "merge_light", "LightMerger", "HeldLight", "store_light_records", "hdr_up_to_date", "stale_lights", "hdr_record", "scan_sensor", "light_frames",
            "load_hdr", "read_scan_manifest", "frame_exposure", "MissingFrameWarning",
            "HDR_UNIT"]
 
 HDR_UNIT = "DN/(us*mA)"
 
-# Lights merged in this process and kept in memory for the processing that follows (`merge_light`
-# hold=True): {radiance file: (`_stat` of both files, radiance, green variance)}. At 4288x2848
-# reading the 12 lights' EXR pairs back costs ~2 CPU s after the last frame.
-_HELD = {}
-_HELD_LOCK = threading.Lock()
 
 
-def _hold(img_path, var_path, radiance, variance, written):
-    """Keep what was just written to img_path / var_path (`written`: their `_stat`s, as the
-    light's record has them): the radiance as stored (float32) and the green variance, NaN
-    where any channel's variance is not finite."""
-    var = np.asarray(variance, np.float32)
-    green = np.array(var[..., 1])
-    green[~(np.isfinite(var[..., 0]) & np.isfinite(var[..., 1]) & np.isfinite(var[..., 2]))] = np.nan
-    with _HELD_LOCK:
-        _HELD[str(img_path)] = (written, np.asarray(radiance, np.float32), green)
+class HeldLight:
+    """A light merged in this process, kept in memory for the processing that follows the scan
+    (`ScanDirectory.hold_light`): the radiance as stored (float32) and the green variance, NaN
+    where any channel's variance is not finite, with the `_stat` of the two files written.
+    At 4288x2848, reading the 12 lights' EXR pairs back costs ~2 CPU s after the last frame."""
 
+    def __init__(self, img_path, var_path, radiance, variance, written):
+        var = np.asarray(variance, np.float32)
+        green = np.array(var[..., 1])
+        green[~(np.isfinite(var[..., 0]) & np.isfinite(var[..., 1]) & np.isfinite(var[..., 2]))] = np.nan
+        self.paths = (Path(img_path), Path(var_path))
+        self.written = tuple(written)
+        self.radiance, self.green = np.asarray(radiance, np.float32), green
 
-def take_held_light(img_path, var_path):
-    """(radiance (H, W, 3) float32, green variance (H, W) float32 with NaN where the variance
-    file has a non-finite value in any channel) of a light merged in this process with
-    hold=True, exactly as in its two files; None when it was not held or either file changed
-    since (then read the files). The arrays leave the store: a second call returns None."""
-    with _HELD_LOCK:
-        held = _HELD.pop(str(img_path), None)
-    if held is None:
-        return None
-    try:       # unchanged as `hdr_up_to_date` judges the HDR files: size and mtime
-        now = (_stat(Path(img_path)), _stat(Path(var_path)))
-    except OSError:
-        return None
-    return held[1:] if now == held[0] else None
-
-
-def release_held_lights():
-    """Drop every light kept in memory (`merge_light` hold=True) that was not taken."""
-    with _HELD_LOCK:
-        _HELD.clear()
+    def arrays(self):
+        """(radiance, green variance) when both files are unchanged since they were written (as
+        `hdr_up_to_date` judges them: size and mtime), else None (then read the files)."""
+        try:
+            now = tuple(_stat(p) for p in self.paths)
+        except OSError:
+            return None
+        return (self.radiance, self.green) if now == self.written else None
 
 
 class MissingFrameWarning(UserWarning):
@@ -110,9 +93,13 @@ def _stat(path):
 
 
 def light_frames(data, light):
-    """scan.json frame records of one light, by exposure index."""
-    return sorted((f for f in data["frames"] if int(f["light"]) == int(light)),
-                  key=lambda f: int(f["exposure"]))
+    """Frame records of one light, by exposure index (`data`: a Manifest or scan.json dict)."""
+    return Manifest.of(data).light_frames(light)
+
+
+def _hdr_lights(m):
+    """{light index: HDR record} of a manifest's merge."""
+    return {int(r["index"]): r for r in (m.hdr or {}).get("lights", [])}
 
 
 def hdr_up_to_date(scan_dir, data, record, basis=None):
@@ -120,6 +107,7 @@ def hdr_up_to_date(scan_dir, data, record, basis=None):
     scan.json lists now (same files, same sha256, unchanged on disk) and, if given, with
     the same `basis` (method, unit, current, sensor)."""
     scan_dir = Path(scan_dir)
+    data = Manifest.of(data)
     if basis is not None and record.get("basis") != basis:
         return False
     if not all((scan_dir / record.get(k, "")).is_file() for k in ("file", "var_file")):
@@ -143,9 +131,10 @@ def stale_lights(scan_dir, data):
     """Why each light's HDR files cannot be used as they are: {light: reason}, only for lights
     whose files exist (a missing one is simply merged) and can be merged again from raw/."""
     scan_dir = Path(scan_dir)
-    records = {int(r["index"]): r for r in (data.get("hdr") or {}).get("lights", [])}
+    data = Manifest.of(data)
+    records = _hdr_lights(data)
     out = {}
-    for li in sorted({int(f["light"]) for f in data["frames"]}):
+    for li in data.frame_lights():
         rec, name = records.get(li), f"hdr/light_{li:02d}.exr"
         if not (scan_dir / name).is_file() or not _stale(scan_dir, data, li, rec, None):
             continue
@@ -183,21 +172,26 @@ def _read_frame(scan_dir, fr, verify_sha256):
 
 
 def merge_light(scan_dir, data, light, sensor=None, method="inverse_variance", current="measured",
-                verify_sha256=True, per="us*mA", workers=None, hold=False):
+                verify_sha256=True, per="us*mA", workers=None):
     """Merge one light of a scan into hdr/light_XX.exr and _var.exr; returns its record.
 
-    `data` is the scan.json dict (read by the caller, who also stores the record: this
-    function writes only the two EXR files). The record lists the inputs (file, sha256,
+    `data` is the scan's `Manifest` (or its scan.json dict), read by the caller, who also
+    stores the record: this function writes only the two EXR files. The record lists the inputs (file, sha256,
     size, mtime) and the `basis` (method, unit, current, sensor), so that
     `hdr_up_to_date` can tell whether the files still describe the frames.
     Frames are decoded and hashed on `workers` threads (None: one per core, at most 4).
-    hold : also keep the result in this process for `take_held_light` (processing that follows
-        the scan reads it from memory instead of the files; `release_held_lights` drops it).
     """
+    return _merge_light(scan_dir, data, light, sensor, method, current, verify_sha256, per, workers)[0]
+
+
+def _merge_light(scan_dir, data, light, sensor, method, current, verify_sha256, per, workers,
+                 hold=False):
+    """`merge_light`: (record, `HeldLight` of what was written, or None without `hold`)."""
     scan_dir = Path(scan_dir)
+    data = Manifest.of(data)
     sens = as_sensor(sensor)
     li = int(light)
-    n_exposures = len(data.get("exposures") or [])
+    n_exposures = len(data.exposures)
     frames_rec = light_frames(data, li)
     recorded = {int(f["exposure"]) for f in frames_rec}
     missing = [{"exposure": e, "file": None, "reason": "not captured"}
@@ -244,16 +238,15 @@ def merge_light(scan_dir, data, light, sensor=None, method="inverse_variance", c
     write_exr(scan_dir / "hdr" / f"{name}_var.exr", res.variance, ("R", "G", "B"),
               dict(attrs, facette_unit=f"({basis['unit']})^2"), compression="none")
     outputs = {rel: _stat(scan_dir / rel) for rel in (f"hdr/{name}.exr", f"hdr/{name}_var.exr")}
-    if hold:
-        _hold(scan_dir / "hdr" / f"{name}.exr", scan_dir / "hdr" / f"{name}_var.exr", res.radiance,
-              res.variance, tuple(outputs.values()))
+    held = HeldLight(scan_dir / "hdr" / f"{name}.exr", scan_dir / "hdr" / f"{name}_var.exr",
+                     res.radiance, res.variance, outputs.values()) if hold else None
     return {"index": li, "file": f"hdr/{name}.exr", "var_file": f"hdr/{name}_var.exr",
             "frames": [fr["file"] for fr in todo], "inputs": inputs, "outputs": outputs,
             "missing": missing,
             "basis": basis, "saturated_fraction": float(res.saturated.mean()),
             "no_sample_fraction": float(np.mean(res.n_used == 0)),
             "time_s": {"read": round(t_read, 3), "merge": round(t_merge, 3),
-                       "write": round(time.perf_counter() - t0 - t_read - t_merge, 3)}}
+                       "write": round(time.perf_counter() - t0 - t_read - t_merge, 3)}}, held
 
 
 def hdr_record(records, basis, source, merge_time_s):
@@ -266,12 +259,13 @@ def hdr_record(records, basis, source, merge_time_s):
 
 def scan_sensor(data, sensor=None):
     """(noise model, where it came from): `sensor`, else scan.json's, else the nominal one."""
+    data = Manifest.of(data)
     if sensor is not None:
         return as_sensor(sensor), "given"
-    if isinstance(data.get("sensor"), dict):
-        return as_sensor(data["sensor"]), "scan.json sensor"
-    if isinstance(data.get("profile"), dict):
-        return as_sensor(None), (f"nominal: profile {data['profile'].get('id')} has no sensor section "
+    if isinstance(data.sensor, dict):
+        return as_sensor(data.sensor), "scan.json sensor"
+    if isinstance(data.profile, dict):
+        return as_sensor(None), (f"nominal: profile {data.profile.get('id')} has no sensor section "
                                  "(its noise model was never calibrated)")
     return as_sensor(None), "nominal (no profile given)"
 
@@ -279,10 +273,11 @@ def scan_sensor(data, sensor=None):
 class LightMerger:
     """Merge lights on a worker thread while a scan goes on (merge during acquisition).
 
-    `submit(data, light)` queues a light whose frames have all landed (`data`: the scan.json
-    dict at that moment, frames hashed); `collect()` returns the finished lights' records
+    `submit(data, light)` queues a light whose frames have all landed (`data`: the scan's
+    `Manifest` at that moment, frames hashed); `collect()` returns the finished lights' records
     (or the exception a merge raised) for the caller to store in scan.json: the worker
     writes only hdr/light_XX*.exr, never scan.json, so the scan directory keeps one writer.
+    With `hold`, each finished light also comes with its `HeldLight` (the arrays it wrote).
     """
 
     def __init__(self, scan_dir, sensor=None, method="inverse_variance", current="measured",
@@ -301,34 +296,35 @@ class LightMerger:
 
     def stale(self, data, light):
         """True when `light` has no HDR that describes its frames now (see `hdr_up_to_date`)."""
-        old = {r["index"]: r for r in (data.get("hdr") or {}).get("lights", [])}
-        return _stale(self.scan_dir, data, light, old.get(int(light)), self.basis(data))
+        data = Manifest.of(data)
+        return _stale(self.scan_dir, data, light, _hdr_lights(data).get(int(light)), self.basis(data))
 
     def submit(self, data, light):
         light = int(light)
         if light in self._futures:
             return
-        data = json.loads(json.dumps(data))   # a snapshot: the scan goes on writing its dict
+        data = Manifest.of(data).snapshot()   # the scan goes on writing its own
         sens, _ = scan_sensor(data, self.sensor)
 
         def work():
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", MissingFrameWarning)   # recorded in "missing"
-                return merge_light(self.scan_dir, data, light, sens, self.method, self.current,
-                                   workers=self.workers, hold=self.hold)
+                return _merge_light(self.scan_dir, data, light, sens, self.method, self.current,
+                                    True, "us*mA", self.workers, hold=self.hold)
 
         self._futures[light] = self._pool.submit(work)
         self.submitted.append(light)
 
     def collect(self, wait=False):
-        """[(light, record or Exception)] of the merges finished (all of them with `wait`)."""
+        """[(light, record or Exception, HeldLight or None)] of the merges finished (all of
+        them with `wait`)."""
         out = []
         for light, fut in list(self._futures.items()):
             if wait or fut.done():
                 try:
-                    out.append((light, fut.result()))
+                    out.append((light, *fut.result()))
                 except Exception as exc:   # the scan goes on; `facette process` merges it again
-                    out.append((light, exc))
+                    out.append((light, exc, None))
                 del self._futures[light]
         return out
 
@@ -339,8 +335,7 @@ class LightMerger:
 def store_light_records(data, records, basis, source):
     """scan.json's "hdr" with `records` (per-light, from `merge_light`) added or replaced;
     records of another basis are dropped (they no longer describe a merge of this kind)."""
-    old = {r["index"]: r for r in (data.get("hdr") or {}).get("lights", [])
-           if r.get("basis") == basis}
+    old = {i: r for i, r in _hdr_lights(Manifest.of(data)).items() if r.get("basis") == basis}
     old.update({r["index"]: r for r in records})
     total = sum(sum(r.get("time_s", {}).values()) for r in old.values())
     return hdr_record(list(old.values()), basis, source, total)
@@ -391,19 +386,19 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     data = sd.manifest
     sens, source = scan_sensor(data, sensor)
     basis = _basis(method, current, per, sens)
-    ids = sorted({int(fr["light"]) for fr in data["frames"]})
+    ids = data.frame_lights()
     wanted = ids if lights is None else sorted(int(i) for i in lights)
-    old = {r["index"]: r for r in (data.get("hdr") or {}).get("lights", [])}
+    old = _hdr_lights(data)
     todo = [li for li in wanted if force or _stale(scan_dir, data, li, old.get(li), basis)]
     if not todo:
-        return data.get("hdr") or hdr_record(list(old.values()), basis, source, 0.0)
+        return data.hdr or hdr_record(list(old.values()), basis, source, 0.0)
     sd.journal("hdr_begin", method=method, lights=todo)
     t0 = time.perf_counter()
     records = [merge_light(scan_dir, data, li, sens, method, current, verify_sha256, per, workers)
                for li in todo]
     record = store_light_records(data, records, basis, source)
     record["merge_time_s"] = round(time.perf_counter() - t0, 3)
-    sd.update(hdr=record)
+    sd.record_hdr(record)
     sd.journal("hdr_done", lights=todo, merge_time_s=record["merge_time_s"])
     return record
 
@@ -415,7 +410,7 @@ def load_hdr(scan_dir, sensor=None, merge_missing=True, method="inverse_variance
     -------
     images : ndarray (m, H, W, 3) float32, radiance per µs·mA
     variances : ndarray (m, H, W, 3) float32
-    lights : list of m dicts from scan.json's "lights" (index, direction, position_mm,
+    lights : list of m dicts from the manifest's lights (index, direction, position_mm,
         intensity), in the order of `images`.
 
     With `merge_missing`, `merge_scan` runs first with `sensor` and `method`: it merges
@@ -424,8 +419,8 @@ def load_hdr(scan_dir, sensor=None, merge_missing=True, method="inverse_variance
     """
     scan_dir = Path(scan_dir)
     data = read_scan_manifest(scan_dir)
-    lights = sorted(data["lights"], key=lambda l: int(l["index"]))
-    light_ids = sorted({int(f["light"]) for f in data["frames"]})
+    lights = sorted(data.lights, key=lambda l: int(l["index"]))
+    light_ids = data.frame_lights()
     paths = {li: (scan_dir / "hdr" / f"light_{li:02d}.exr",
                   scan_dir / "hdr" / f"light_{li:02d}_var.exr") for li in light_ids}
     if merge_missing:

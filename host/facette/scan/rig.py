@@ -1,7 +1,15 @@
-"""`Rig`: the instrument as a user scripts it (DESIGN §6): the device's registers, a
-camera backend and, for "sim", the simulated rig; `Rig.scan` acquires a scan directory.
-It sits in the scan layer because it brings these together (the device layer below
-knows only the Modbus client and the register map).
+"""`Rig`: the instrument as a user scripts it (docs/conventions.md, "Scripting"): the
+device's registers and a camera backend; `Rig.scan` acquires a scan directory. It sits in
+the scan layer because it brings these together (the device layer below knows only the
+Modbus client and the register map).
+
+`Rig` is also the one boundary between acquisition and whatever rig it runs on: the
+acquisition (`facette.scan.acquire`) never asks which kind of rig it has. What it may ask
+beyond the device and the camera is four things, which a real rig answers as "unknown":
+`sensor` (the camera's noise model), `pixel_pitch_mm`, `save_truth` (what the object really
+is) and `press_button`/`can_press_button`; and the latched faults by name
+(`latched_faults`). `SimRig`, the simulated rig (``connect("sim")``), answers them from its
+simulator, the only way the simulator reaches acquisition.
 
     rig = facette.connect("sim")              # or "/dev/ttyACM0", "socket://127.0.0.1:5020"
     rig.configure(exposures=[(1_000_000, 500)], lights=range(12))
@@ -19,7 +27,7 @@ from facette.hdr import TIMING_MODES
 from facette.scan.acquire import run_scan
 from facette.sim import SimulatedRig
 
-__all__ = ["Rig", "connect", "decode_frame_record", "TIMING_MODES", "RigFault"]
+__all__ = ["Rig", "SimRig", "connect", "decode_frame_record", "TIMING_MODES", "RigFault"]
 
 TIMING_KEYS = ("prefocus_us", "mirror_up_us", "settle_us", "gap_us", "led_pre_us", "led_post_us",
                "sync_timeout_us")
@@ -40,20 +48,44 @@ def decode_frame_record(words, n):
             "retry": bool(words[7] & 2), "valid": bool(words[7] & 4)}
 
 class Rig:
-    """A connected rig: device registers plus (optionally) a camera backend and a simulator.
+    """A connected rig: device registers plus (optionally) a camera backend.
 
     Parameters
     ----------
     device : DeviceClient
     camera : a camera backend (facette.camera) or None
-    sim : facette.sim.SimulatedRig or None (closed with the rig)
     """
+    sim = None                  # the simulator behind a `SimRig` (for tests and demonstrations)
+    can_press_button = False    # a person presses a real rig's button
 
-    def __init__(self, device, camera=None, sim=None):
+    def __init__(self, device, camera=None):
         self.device = device
         self.camera = camera
-        self.sim = sim
         self.config = None
+
+    # -- what a real rig does not know (a simulated one does: `SimRig`) --------------------
+    @property
+    def sensor(self):
+        """The camera's noise model when the rig knows it (a SensorModel), else None: a real
+        rig's comes from its calibration profile."""
+        return None
+
+    @property
+    def pixel_pitch_mm(self):
+        """mm per HDR pixel on the object when the rig knows it, else None (a real rig's comes
+        from its calibration profile)."""
+        return None
+
+    def save_truth(self, directory, channels):
+        """Write what the object really is beside a scan (normals, heights, ... for the LED
+        `channels` in scan order); returns the file's name in `directory`, or None when the
+        rig does not know it (a real rig never does)."""
+        return None
+
+    def press_button(self):
+        """Press the rig's own button (only a rig with `can_press_button`)."""
+        raise BadInputError("this rig's button is pressed by a person, not by the host",
+                            hint="wait for the press instead (button='wait', --wait-button)")
 
     # -- identity and status -------------------------------------------------------
     @property
@@ -67,10 +99,8 @@ class Rig:
 
     @property
     def n_lights(self):
-        """LEDs fitted: the simulator's, else 12 (the thesis rig; the firmware drives up to
-        `max_leds` channels, not all of which need an LED)."""
-        if self.sim is not None:
-            return len(self.sim.leds)
+        """LEDs fitted: 12 (the thesis rig; the firmware drives up to `max_leds` channels, not
+        all of which need an LED)."""
         return min(self.device.identity.get("max_leds", 12) or 12, 12)
 
     def status(self):
@@ -79,7 +109,7 @@ class Rig:
                                      "frames_done", "frames_expected", "time_left_us", "ring_count",
                                      "retries_used", "fault_log_count", "last_error"])
         st["state"] = R.enum_name("state", st["state"])
-        st["faults"] = self._fault_names(st["fault_bits"])
+        st["faults"] = _fault_names(st["fault_bits"])
         return st
 
     def progress(self):
@@ -87,8 +117,9 @@ class Rig:
         st = self.device.read_block(["frames_done", "frames_expected"])
         return st["frames_done"], st["frames_expected"]
 
-    def _fault_names(self, bits):
-        return [f.name for f in R.Fault if bits >> f.value & 1]
+    def latched_faults(self):
+        """Names of the faults the device has latched (empty when none)."""
+        return _fault_names(self.device.read("fault_bits"))
 
     def faults(self):
         """Latched faults (names) and the fault log: {"latched": [...], "log": [{"code", "detail", "time_ms"}]}."""
@@ -100,7 +131,7 @@ class Rig:
             e = self.device.read_block(["fault_log_code", "fault_log_detail", "fault_log_time_ms"], index=i)
             log.append({"code": R.enum_name("fault", e["fault_log_code"]),
                         "detail": e["fault_log_detail"], "time_ms": e["fault_log_time_ms"]})
-        return {"latched": self._fault_names(bits), "log": log}
+        return {"latched": _fault_names(bits), "log": log}
 
     def measurements(self):
         m = self.device.read_block(["led_temp_cC", "led_current_mA", "supply_mV", "led_channel", "led_set_mA"])
@@ -299,13 +330,8 @@ class Rig:
         return run_scan(self, directory, profile=profile, **kw)
 
     def close(self):
-        """Close the port; a simulated rig is stopped too."""
-        try:
-            self.device.close()
-        finally:
-            if self.sim is not None:
-                self.sim.close()
-                self.sim = None
+        """Close the port."""
+        self.device.close()
 
     def __enter__(self):
         return self
@@ -315,6 +341,57 @@ class Rig:
 
     def __repr__(self):
         return f"Rig({self.device.url!r}, boot {self.device.boot_count})"
+
+def _fault_names(bits):
+    return [f.name for f in R.Fault if bits >> f.value & 1]
+
+
+class SimRig(Rig):
+    """The simulated rig (`facette.sim.SimulatedRig`) as a `Rig`: the device is the firmware's
+    posix build, the camera its folder, and the simulator answers what a real rig cannot
+    (its sensor, pixel pitch and truth) and presses the button. Closing it stops the simulator.
+
+    Parameters
+    ----------
+    device : DeviceClient on the simulated device's port
+    sim : facette.sim.SimulatedRig
+    camera : camera backend (default: a FolderWatchCamera on the simulator's camera folder)
+    """
+    can_press_button = True
+
+    def __init__(self, device, sim, camera=None):
+        super().__init__(device, camera=camera or FolderWatchCamera(sim.camera_dir))
+        self.sim = sim
+
+    @property
+    def n_lights(self):
+        """The simulator's LEDs."""
+        return len(self.sim.leds)
+
+    @property
+    def sensor(self):
+        return self.sim.sensor
+
+    @property
+    def pixel_pitch_mm(self):
+        return self.sim.scene.pixel_pitch_mm
+
+    def save_truth(self, directory, channels):
+        return self.sim.save_truth(directory, channels=channels).name
+
+    def press_button(self):
+        """Press the simulated button; returns once the device started (sent an event)."""
+        self.sim.press_button()
+
+    def close(self):
+        """Close the port and stop the simulator."""
+        try:
+            self.device.close()
+        finally:
+            if self.sim is not None:
+                self.sim.close()
+                self.sim = None
+
 
 def connect(target="sim", camera=None, **kw):
     """Connect to a rig.
@@ -335,5 +412,5 @@ def connect(target="sim", camera=None, **kw):
         except Exception:
             sim.close()
             raise
-        return Rig(device, camera=camera or FolderWatchCamera(sim.camera_dir), sim=sim)
+        return SimRig(device, sim, camera=camera)
     return Rig(DeviceClient(target, **kw), camera=camera)

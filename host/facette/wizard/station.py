@@ -92,7 +92,7 @@ class RigStation:
         button = None
         if self._wait_button:
             # the simulated rig presses its own button; a person presses a real one
-            button = "press" if self.rig.sim is not None else "wait"
+            button = "press" if self.rig.can_press_button else "wait"
             self._wait_button = False
         run_scan(self.rig, d, exposures=list(exposures), lights=list(lights),
                  light_current_mA=self.current_mA, mode="camera", progress=False, save_truth=False,
@@ -118,7 +118,7 @@ class RigStation:
     def capture_raw(self, name, exposures, light=0):
         """RAW files of one LED at each exposure, in order (paths)."""
         d = self._scan(name, exposures, [light])
-        frames = sorted(read_scan_manifest(d)["frames"], key=lambda f: int(f["exposure"]))
+        frames = sorted(read_scan_manifest(d).frames, key=lambda f: int(f["exposure"]))
         return [d / f["file"] for f in frames]
 
     # -- device calibration store --------------------------------------------------------

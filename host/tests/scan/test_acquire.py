@@ -10,7 +10,8 @@ import pytest
 
 import facette
 from facette.errors import BadInputError
-from facette.scan import ScanDirectory, ScanDirectoryError, ScanError, default_plan, sha256_file
+from facette.scan import (Rig, ScanDirectory, ScanDirectoryError, ScanError, ScanOptions, default_plan,
+                          run_scan, sha256_file)
 from facette.scan.directory import ScanDirectoryBusy
 
 SHORT = [(200_000, 0), (20_000, 0)]
@@ -21,6 +22,19 @@ def rig():
     r = facette.connect("sim", raw_shape=(24, 32), speed=2000)
     yield r
     r.close()
+
+
+class _RigWithoutSimulator(Rig):
+    """The simulated device and its camera seen only through the `Rig` interface, as a real rig
+    is: no truth, no sensor, no pixel pitch, a button a person presses, and no simulator to look
+    behind it."""
+
+    def __init__(self, sim_rig):
+        super().__init__(sim_rig.device, camera=sim_rig.camera)
+
+    @property
+    def sim(self):
+        raise AssertionError("the acquisition looked behind the rig interface (rig.sim)")
 
 
 def intact(d):
@@ -117,7 +131,7 @@ def test_a_refused_button_press_is_said_in_words(rig, tmp_path):
 
     sd = ScanDirectory(tmp_path / "s")
     sd.path.mkdir()
-    acq = _Acquisition(rig, sd, default_plan(1, SHORT), None, None, 5.0, 0.003)
+    acq = _Acquisition(rig, sd, default_plan(1, SHORT), ScanOptions(frame_timeout_s=5.0))
     rig.configure(SHORT, lights=[0])
     rig.device.write_array("light_current_mA", [1200])               # above max_current_mA
     press = threading.Timer(0.3, rig.sim.press_button, kwargs={"timeout_s": 0.5})
@@ -151,3 +165,32 @@ def test_a_silent_link_is_reported_while_waiting_then_stops_the_scan(tmp_path, c
     err = capsys.readouterr().err
     assert "no answer from the device" in err and "retrying until 4 s" in err
     assert intact(tmp_path / "s") == 1
+
+
+def test_acquisition_knows_the_rig_only_through_its_interface(rig, tmp_path):
+    """The same device and camera scanned as a real rig (no simulator behind the interface)
+    and as the simulated one: only what the interface answers differs."""
+    real = _RigWithoutSimulator(rig)
+    assert real.sensor is None and real.pixel_pitch_mm is None and not real.can_press_button
+    assert real.save_truth(tmp_path, [0]) is None and not (tmp_path / "truth.npz").exists()
+    scan = run_scan(real, tmp_path / "real", exposures=SHORT, lights=[0, 1], progress=False)
+    m = scan.manifest
+    assert m.complete and len(m.frames) == 4 and m.truth is None and m.pixel_pitch_mm is None
+    assert not (tmp_path / "real" / "truth.npz").exists() and intact(tmp_path / "real") == 4
+    options = ScanOptions(exposures=SHORT, lights=[0, 1], progress=False)
+    scan = run_scan(rig, tmp_path / "sim", options=options)
+    m = scan.manifest
+    assert m.truth == "truth.npz" and (tmp_path / "sim" / "truth.npz").is_file()
+    assert m.pixel_pitch_mm == rig.sim.scene.pixel_pitch_mm == rig.pixel_pitch_mm
+    assert rig.sensor is rig.sim.sensor and rig.can_press_button
+
+
+def test_a_host_press_of_a_real_rigs_button_is_refused_before_anything_is_touched(rig, tmp_path):
+    with pytest.raises(BadInputError) as exc:
+        run_scan(_RigWithoutSimulator(rig), tmp_path / "s", exposures=SHORT, lights=[0], button="press",
+                 progress=False)
+    assert "pressed by a person" in exc.value.message and "button='wait'" in exc.value.hint
+    assert not (tmp_path / "s").exists()
+    with pytest.raises(TypeError, match="hold"):          # settings are ScanOptions' fields
+        run_scan(rig, tmp_path / "s", exposures=SHORT, hold=True)
+    assert not (tmp_path / "s").exists()

@@ -11,7 +11,7 @@ from facette.camera.raw import read_raw
 from facette.camera.sensor import SensorModel, bayer_mosaic_rggb
 from facette.hdr import plan_adaptive
 from facette.io.exr import read_exr
-from facette.scan import MissingFrameWarning, load_hdr, merge_scan, release_held_lights, take_held_light
+from facette.scan import LightMerger, MissingFrameWarning, ScanDirectory, load_hdr, merge_scan
 from facette.scan.hdr import merge_light
 from facette.sim.dng import write_dng
 
@@ -66,26 +66,41 @@ def test_merge_scan_writes_exr_and_records_it(tmp_path):
 
 def test_a_held_light_has_its_files_values_until_a_file_changes(tmp_path):
     _make_scan(tmp_path, exposures=EXPOSURES[:2])     # the brightest pixels saturate in both frames
-    data = json.loads((tmp_path / "scan.json").read_text())
+    sd = ScanDirectory(tmp_path)
     paths = [(tmp_path / "hdr" / f"light_{i:02d}.exr", tmp_path / "hdr" / f"light_{i:02d}_var.exr")
              for i in range(2)]
-    try:
-        for li in range(2):
-            merge_light(tmp_path, data, li, SENSOR, hold=True)
-        rad, green = take_held_light(*paths[0])
-        file_rad, file_var = read_exr(paths[0][0])[0], read_exr(paths[0][1])[0]
-        assert np.array_equal(rad, file_rad, equal_nan=True)
-        unknown = ~np.isfinite(file_var).all(axis=-1)
-        assert 0 < unknown.sum() < unknown.size
-        assert np.array_equal(np.isnan(green), unknown)
-        assert np.array_equal(green[~unknown], file_var[..., 1][~unknown])
-        assert take_held_light(*paths[0]) is None          # taken once: memory given back
-        st = paths[1][1].stat()                             # the variance file touched since
-        os.utime(paths[1][1], ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000))
-        assert take_held_light(*paths[1]) is None
-        assert take_held_light(*paths[0]) is None and take_held_light(tmp_path / "x.exr", tmp_path / "y.exr") is None
-    finally:
-        release_held_lights()
+    merger = LightMerger(tmp_path, SENSOR, hold=True)
+    for li in range(2):
+        merger.submit(sd.manifest, li)
+    finished = merger.collect(wait=True)
+    merger.close()
+    assert sorted(light for light, _, _ in finished) == [0, 1]
+    for light, rec, held in finished:
+        assert rec["index"] == light and held is not None
+        sd.hold_light(light, held)
+    assert sd.held_lights() == [0, 1]
+    rad, green = sd.take_held_light(0)
+    file_rad, file_var = read_exr(paths[0][0])[0], read_exr(paths[0][1])[0]
+    assert np.array_equal(rad, file_rad, equal_nan=True)
+    unknown = ~np.isfinite(file_var).all(axis=-1)
+    assert 0 < unknown.sum() < unknown.size
+    assert np.array_equal(np.isnan(green), unknown)
+    assert np.array_equal(green[~unknown], file_var[..., 1][~unknown])
+    assert sd.take_held_light(0) is None                # taken once: memory given back
+    st = paths[1][1].stat()                             # the variance file touched since
+    os.utime(paths[1][1], ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000))
+    assert sd.take_held_light(1) is None
+    assert sd.take_held_light(7) is None and sd.held_lights() == []
+    assert ScanDirectory(tmp_path).take_held_light(0) is None     # held by one object, not by the module
+
+
+def test_without_hold_nothing_is_kept(tmp_path):
+    _make_scan(tmp_path, n_lights=1, exposures=EXPOSURES[:2])
+    merger = LightMerger(tmp_path, SENSOR)
+    merger.submit(ScanDirectory(tmp_path).manifest, 0)
+    [(light, rec, held)] = merger.collect(wait=True)
+    merger.close()
+    assert light == 0 and rec["file"] == "hdr/light_00.exr" and held is None
 
 
 def test_per_microsecond_unit(tmp_path):
