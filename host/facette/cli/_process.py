@@ -128,6 +128,12 @@ def run(args):
                   ps_options={"init": args.init} if args.method == "li_alternating" else None,
                   allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
                   interreflections=args.interreflections)
+    print_result(res)
+    return 0
+
+
+def print_result(res):
+    """What `process` did, for a person: the input, its figures, the notes, the files."""
     h, w = res.normals.shape[:2]
     print(f"{res.inputs.kind} {res.inputs.source}: {len(res.inputs.light_dirs)} lights, {w}x{h} px, "
           f"{int(res.mask.sum())} valid pixels, object {int(res.object_mask.sum())} ({res.options['method']})")
@@ -157,4 +163,3 @@ def run(args):
         print(f"  note: {note}")
     for o, path in res.files.items():
         print(f"  wrote {path}")
-    return 0

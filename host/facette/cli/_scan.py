@@ -7,12 +7,18 @@ Running the same command again resumes an interrupted scan.
 """
 import argparse
 import os
-import sys
 import threading
 import time
 from pathlib import Path
+from types import MappingProxyType
+
+from facette.cli._process import print_result
 
 DEFAULT_SIM_PROFILE = "calibration/profiles/sim-default"
+# the fit `facette process` asks for when given no --brdf-model/--fit-method: the scan's own
+# processing asks for the same (so that a later `facette process SCAN -o SCAN/results` finds
+# one run, not another one)
+PROCESS_FIT_OPTIONS = MappingProxyType({"model": "li", "method": "least_squares"})
 
 
 def _limits(name):
@@ -177,24 +183,24 @@ def _connect(args):
 def _preload_processing():
     """The processing chain's modules imported while the scan runs (~0.8 s that would
     otherwise come after the last frame)."""
-    import facette.cli._process  # noqa: F401
     from facette.pipeline import preload
 
     preload()
 
 
-def _process(scan_dir):
-    """Run the processing chain on the scan just taken: (what ran, exit status)."""
-    from facette.cli.main import main as cli_main
+def _process(scan):
+    """Run the processing chain on the scan just taken (the `ScanDirectory` `run_scan` returned,
+    with the lights it merged held in memory), with `facette process`'s defaults, into
+    SCAN/results; prints what `facette process` prints. Returns the results folder."""
+    from facette.pipeline import process
 
-    from facette.scan import release_held_lights
-
-    out = Path(scan_dir) / "results"
-    try:     # reads the lights merged during the scan from memory (`hold_hdr`)
-        status = cli_main(["process", str(scan_dir), "-o", str(out)])
+    out = scan.path / "results"
+    try:
+        res = process(scan, out_dir=out, fit_options=dict(PROCESS_FIT_OPTIONS))
     finally:
-        release_held_lights()
-    return f"facette process → {out} (exit {status})", status
+        scan.release_held_lights()
+    print_result(res)
+    return out
 
 
 def _check_directory(path):
@@ -270,16 +276,17 @@ def run(args):
         rig.close()
     t_acq = time.perf_counter() - t0
     m = scan.manifest
-    print(f"scan: {len(m['frames'])} frames in {scan.path} "
-          f"(rig time {m['rig_time_s']:.1f} s, wall time {t_acq:.1f} s)", flush=True)
-    for line in getattr(scan, "notes", []):
+    print(f"scan: {len(m.frames)} frames in {scan.path} "
+          f"(rig time {m.rig_time_s:.1f} s, wall time {t_acq:.1f} s)", flush=True)
+    for line in scan.notes:
         print(f"  note: {line}", flush=True)
     if sim_summary and (sim_summary["missed"] or len(sim_summary["boots"]) > 1 or args.faults):
         print(f"simulated faults: {args.faults or '-'}; shots lost {sim_summary['missed']}, "
               f"boots {sim_summary['boots']}, link {link}")
-    status = 0
-    if not args.no_process:
-        ran, status = _process(scan.path)
-        print("processing: " + ran)
-    print(f"results: {os.path.abspath(scan.path)}")
-    return status
+    try:
+        if not args.no_process:
+            out = _process(scan)
+            print(f"processing: facette process → {out}")
+    finally:   # also when the processing stops: the scan is there
+        print(f"results: {os.path.abspath(scan.path)}", flush=True)
+    return 0

@@ -36,7 +36,7 @@ from facette.scan.hdr import LightMerger, scan_sensor, store_light_records
 __all__ = ["run_scan", "ScanOptions", "ScanPlan", "ScanError", "ScanAborted", "THESIS_BRACKET_US", "default_plan"]
 
 # Faults that report a past event and do not make the next scan unsafe.
-_BENIGN_FAULTS = {"HOST_SILENT", "CAL_INVALID", "WATCHDOG_RESET"}
+_BENIGN_FAULTS = frozenset({"HOST_SILENT", "CAL_INVALID", "WATCHDOG_RESET"})
 
 
 class ScanError(StoppedError):

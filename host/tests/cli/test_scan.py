@@ -115,3 +115,53 @@ def test_an_output_path_that_is_a_file_is_refused_before_the_rig_starts(no_rig, 
     f.write_text("x")
     code, err = _cli(capsys, "scan", "--sim", f)
     assert code == 2 and f"{f} is a file" in err and f.read_text() == "x", err
+
+
+def test_the_scan_hands_its_directory_to_process_and_drops_what_it_did_not_take(monkeypatch, tmp_path, capsys):
+    """`facette scan` processes the ScanDirectory the scan returned (its held lights with it),
+    with `facette process`'s default options, by a call: no argv, no module-level store."""
+    import facette.pipeline
+    from facette.scan import ScanDirectory
+
+    class Held:
+        def arrays(self):
+            return "radiance", "variance"
+
+    sd = ScanDirectory(tmp_path / "s")
+    sd.hold_light(0, Held())
+    sd.hold_light(1, Held())
+    calls = []
+
+    def process(source, **kw):
+        calls.append((source, kw))
+        assert source.take_held_light(0) == ("radiance", "variance")      # what load_input does
+        return "result"
+
+    monkeypatch.setattr(facette.pipeline, "process", process)
+    monkeypatch.setattr(_scan, "print_result", lambda res: print(f"printed {res}"))
+    assert _scan._process(sd) == tmp_path / "s" / "results"
+    [(source, kw)] = calls
+    assert source is sd and kw == {"out_dir": tmp_path / "s" / "results",
+                                   "fit_options": {"model": "li", "method": "least_squares"}}
+    assert sd.held_lights() == [] and "printed result" in capsys.readouterr().out
+
+
+def test_the_scan_processing_options_are_facette_process_defaults():
+    """A later `facette process SCAN -o SCAN/results` finds the scan's own run, not another."""
+    from facette.cli import _process
+
+    parser = argparse.ArgumentParser()
+    _process.register(parser.add_subparsers())
+    args = parser.parse_args(["process", "scan", "-o", "out"])
+    assert {"model": args.brdf_model, "method": args.fit_method} == dict(_scan.PROCESS_FIT_OPTIONS)
+
+
+def test_the_scan_command_does_not_import_the_command_line_entry():
+    """No cycle cli.main <-> cli._scan: the scan command imports no facette.cli.main, even
+    inside a function."""
+    import ast
+
+    tree = ast.parse(Path(_scan.__file__).read_text())
+    names = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+    names |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    assert "facette.cli.main" not in names and "facette.cli" not in names

@@ -247,3 +247,28 @@ def test_merge_scan_redoes_only_what_changed(tmp_path):
         fh.write(b"\0")
     with pytest.raises(ValueError, match="L02_E00.dng does not match the sha256"):
         merge_scan(tmp_path, sensor=SensorModel(gain_e_per_dn=2.0))
+
+
+def test_the_scan_package_keeps_no_state_in_module_globals():
+    """A result is returned and passed on (the held lights travel with the ScanDirectory), never
+    parked in a module-level container for someone else to pick up: no module of facette.scan
+    binds a dict, list or set at module level (besides __all__) or declares a global."""
+    import ast
+    import pathlib
+
+    import facette.scan
+
+    mutable = (ast.Dict, ast.List, ast.Set, ast.DictComp, ast.ListComp, ast.SetComp)
+    found = []
+    for path in sorted(pathlib.Path(facette.scan.__file__).parent.glob("*.py")):
+        tree = ast.parse(path.read_text())
+        for node in tree.body:
+            if isinstance(node, (ast.Assign, ast.AnnAssign)) and node.value is not None:
+                targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+                names = [t.id for t in targets if isinstance(t, ast.Name)]
+                call = isinstance(node.value, ast.Call) and getattr(node.value.func, "id", "") in (
+                    "dict", "list", "set", "defaultdict", "OrderedDict")
+                if (isinstance(node.value, mutable) or call) and names != ["__all__"]:
+                    found.append(f"{path.name}: {names}")
+        found += [f"{path.name}: global {n.names}" for n in ast.walk(tree) if isinstance(n, ast.Global)]
+    assert found == []
