@@ -158,7 +158,8 @@ def test_led_defined_exposures_bracket_by_duration_and_current(sim_rig_factory, 
 
 
 def test_design_script_scan_then_process_matches_the_truth(sim_rig_factory, tmp_path):
-    """DESIGN §6: rig.scan(...) then facette.process(scan, ...), compared with truth.npz."""
+    """docs/conventions.md, "Scripting": rig.scan(...) then facette.process(scan, ...), compared
+    with truth.npz."""
     import facette
     from facette.calib import Lights, Profile
 

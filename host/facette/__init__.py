@@ -1,6 +1,6 @@
 """facette: reflectance capture, from the rig's LEDs to shape and material.
 
-Scripting entry points (see DESIGN.md §6)::
+Scripting entry points (see docs/conventions.md, "Scripting")::
 
     import facette
     rig = facette.connect("sim")

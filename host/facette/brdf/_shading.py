@@ -1,7 +1,7 @@
 """The LI model as photometric stereo sees it: image values against normals, for a fixed view.
 
 For a pixel of normal n lit from s and seen from v (orthographic camera, v = +z of the camera
-frame), the image value divided by the light's intensity is (DESIGN §8, thesis eq 4.3 / 4.11)
+frame), the image value divided by the light's intensity is (docs/conventions.md, thesis eq 4.3 / 4.11)
 
     E = f(s, v; n) (n·s) = A(n, s) + B(n, s) · κ,    κ = K_d / (π n_i² (1 − K_d r_i)),
 

@@ -3,7 +3,7 @@
 Format (RTIBuilder, relight, PTM fitter): the first line is the number of lights,
 then one line per light ``filename x y z`` (whitespace separated; a file name may
 contain spaces, the last three fields are the numbers). Vectors are in the
-camera frame x right, y up, z towards the camera, as in facette (DESIGN §8);
+camera frame x right, y up, z towards the camera, as in facette (docs/conventions.md);
 most tools write unit vectors (directions), domes sometimes positions.
 """
 from __future__ import annotations

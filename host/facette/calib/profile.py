@@ -11,7 +11,7 @@ Schema 1::
      "image_size_px": [w, h] | null,           # the HDR grid it was measured at (optional:
                                                # older profiles give it by their flat field)
      "binning": int | null,                    # RAW photosites per HDR pixel side (2: half-size)
-     "lights": [{"index": int, "direction": [x, y, z],   # unit, camera frame (DESIGN §8)
+     "lights": [{"index": int, "direction": [x, y, z],   # unit, camera frame (docs/conventions.md)
                  "intensity": [r, g, b],                 # relative, mean over LEDs = 1
                  "position_mm": [x, y, z] | null}],      # near-light model, or null
      "sensor": {"gain_e_per_dn", "read_noise_e", "dark_current_e_per_s",

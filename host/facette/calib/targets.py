@@ -7,7 +7,7 @@ targets under one LED (distant or near), linear radiance per unit exposure, shap
 (H, W, 3): the tests use them. The targets as the simulated rig shows them are
 `facette.sim.targets`.
 
-Geometry (DESIGN §8): camera frame x right, y up, z towards the camera; the object
+Geometry (docs/conventions.md): camera frame x right, y up, z towards the camera; the object
 plane is z = 0; pixel (row, col) has its centre at
 ``x = (col - (W - 1) / 2) · pitch``, ``y = ((H - 1) / 2 - row) · pitch`` (mm).
 A light is either a unit direction (distant) or a position in mm (near light); a

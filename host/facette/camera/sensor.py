@@ -29,7 +29,7 @@ import numpy as np
 
 __all__ = ["SensorModel", "DEFAULT_SENSOR", "bayer_mosaic_rggb", "SENSOR_KEYS"]
 
-# Keys of the calibration profile's `sensor` section (contract 5).
+# Keys of the calibration profile's `sensor` section (calib/profile.py, schema 1).
 SENSOR_KEYS = ("gain_e_per_dn", "read_noise_e", "dark_current_e_per_s", "black_level_dn",
                 "white_level_dn")
 

@@ -92,7 +92,7 @@ class DeviceClient:
     ----------
     url : str, serial port ("/dev/ttyACM0"), pty path, or pyserial URL ("socket://127.0.0.1:5020")
     unit : int, Modbus unit id (1)
-    baudrate : int (115200, DESIGN §3)
+    baudrate : int (115200, docs/conventions.md)
     timeout_s : float, how long to wait for one answer
     retries : int, repeats of a request without a valid answer (timeouts, CRC errors)
     check_hash : bool, refuse a device whose definition hash differs from this host's

@@ -47,7 +47,7 @@ class PTCResult:
     fit_rms_rel: float = 0.0
 
     def to_profile_dict(self):
-        """The calibration profile's `sensor` section (contract 5 keys + full_well_e)."""
+        """The calibration profile's `sensor` section (`camera.sensor.SENSOR_KEYS` + full_well_e)."""
         d = {"gain_e_per_dn": float(self.gain_e_per_dn), "read_noise_e": float(self.read_noise_e),
              "dark_current_e_per_s": float(self.dark_current_e_per_s),
              "black_level_dn": int(round(self.black_level_dn)),

@@ -1,5 +1,5 @@
 """The processing chain: `process(scan_or_dir, outputs=[...])` runs only the stages the
-requested outputs need and writes the files of DESIGN §7 (normal.exr, albedo.exr,
+requested outputs need and writes the files of docs/outputs.md (normal.exr, albedo.exr,
 height.exr, mask.png, mesh.ply, samples.npz, brdf.json, relight.ptm, relight.rti, model.glb,
 report.html); `batch(scans, out)` runs it over a collection on Dask."""
 from ._inputs import PSInput, auto_masks, load_input, margin_of

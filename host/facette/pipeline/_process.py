@@ -1,6 +1,6 @@
 """`process`: from HDR images to normals, heights, mesh, reflectance samples, BRDF and report.
 
-Stages run only when a requested output needs them (DESIGN §2):
+Stages run only when a requested output needs them (docs/outputs.md):
 
     output    needs stages
     normals   load, ps                       (normal.exr)
@@ -242,7 +242,7 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
 
     source : path (or Scan object) of a facette scan (scan.json + hdr/) or a DiLiGenT folder.
     outputs : list from OUTPUTS (default all); only the stages they need run.
-    out_dir : where to write the files of DESIGN §7 (None: compute only, write nothing).
+    out_dir : where to write the files of docs/outputs.md (None: compute only, write nothing).
     method : photometric stereo (a name of recon.PS_METHODS; default PS_DEFAULT, "rank_trimmed"),
         e.g. "hierarchical_tautzia2016" (the thesis), "woodham1980", "rpca_wu2010" or "li_alternating"
         (BRDF-aware: facette.fit.ps_li_alternating; albedo.exr is then the LI K_d, and brdf.json

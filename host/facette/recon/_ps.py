@@ -1,6 +1,6 @@
 """Photometric stereo: Woodham's least squares and Tautzia's hierarchical elimination.
 
-Conventions (DESIGN §8): camera frame x right, y up, z towards the camera; light
+Conventions (docs/conventions.md): camera frame x right, y up, z towards the camera; light
 directions are unit vectors from the surface towards the light, in that frame.
 Images are linear radiance already divided by each light's intensity, so that a
 Lambertian surface of reflectance rho gives E_i = (rho / pi) s_i . n  (thesis eq 4.3).

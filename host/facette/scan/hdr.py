@@ -347,7 +347,7 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
 
     Parameters
     ----------
-    scan_dir : path with scan.json and raw/ (contract 3)
+    scan_dir : path with scan.json and raw/ (docs/scan-format.md)
     sensor : SensorModel, profile sensor dict, facette.calib Profile, or None
         Noise model; None uses scan.json's "sensor" dict when the scan recorded
         one, else the nominal simulated sensor (recorded as such).
@@ -360,7 +360,7 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     lights : iterable of int or None
         Only these light indices (default all lights with frames).
     per : {"us*mA", "us"}
-        Unit of exposure: µs·mA (contract 3, default) or µs alone (the LED current
+        Unit of exposure: µs·mA (docs/scan-format.md, default) or µs alone (the LED current
         ignored, e.g. for a constant-current rig whose currents are not recorded).
     force : bool
         Merge again even the lights whose HDR files are up to date (made from the same

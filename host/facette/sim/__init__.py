@@ -1,4 +1,4 @@
-"""facette.sim: the simulated rig (DESIGN §5).
+"""facette.sim: the simulated rig (docs/ARCHITECTURE.md, layer 5).
 
 `SimulatedRig` starts the firmware's posix build (``build/posix/facette-device``)
 and a rig simulator on its side channel: a virtual object (`scene`), LEDs with

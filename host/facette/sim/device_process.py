@@ -1,4 +1,4 @@
-"""Start and stop the simulated device (the firmware's posix build, contract 1)."""
+"""Start and stop the simulated device (the firmware's posix build: firmware/README.md, "Simulated device")."""
 from __future__ import annotations
 
 import os

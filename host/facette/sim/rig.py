@@ -1,7 +1,8 @@
 """The rig simulator: the camera and the optics on the simulated device's side channel.
 
 It connects to the Unix socket of ``build/posix/facette-device --side SOCKET``
-(contract 1), follows the LED and shutter lines in the device's virtual time,
+(its protocol: the header comment of firmware/ports/posix/hal_posix.c), follows the LED
+and shutter lines in the device's virtual time,
 and for every shutter window integrates LED current × time, renders the frame
 (sensor model of thesis eq 2.12–2.13), and writes it as a DNG into its camera
 folder, as a tethered camera would. It answers each shutter opening with a
@@ -188,7 +189,7 @@ class RigSimulator:
 
     # -- inputs to the device ------------------------------------------------
     def send(self, line):
-        """Send one input line to the device (see contract 1)."""
+        """Send one input line to the device (firmware/ports/posix/hal_posix.c)."""
         with self._send_lock:
             try:
                 self.sock.sendall((line.strip() + "\n").encode("ascii"))

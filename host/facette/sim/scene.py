@@ -2,7 +2,7 @@
 
 Everything is given on the grid the HDR images will have (the RAW half-size
 grid: one RGB pixel per 2×2 Bayer cell), each pixel the mean of the object over
-its footprint (see `make_scene`), in the camera frame of DESIGN §8:
+its footprint (see `make_scene`), in the camera frame of docs/conventions.md:
 x right, y up, z towards the camera; image row 0 is the top. The camera is
 orthographic and looks down −z, so heights are along +z, in mm.
 
@@ -54,7 +54,7 @@ class Scene:
         return np.meshgrid(x, y)
 
     def brdf_json(self):
-        """The BRDF as a JSON string (truth.npz `brdf`, contract 3)."""
+        """The BRDF as a JSON string (truth.npz `brdf`, docs/scan-format.md)."""
         return json.dumps({**self.brdf, "kd": "albedo (per pixel)"}, sort_keys=True)
 
 

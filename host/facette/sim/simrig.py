@@ -114,7 +114,7 @@ class SimulatedRig:
 
     # -- truth ---------------------------------------------------------------------------
     def truth(self):
-        """The simulator's truth at the HDR (half-size) resolution (contract 3)."""
+        """The simulator's truth at the HDR (half-size) resolution (truth.npz in docs/scan-format.md)."""
         s = self.scene
         return {"normals": s.normals.astype(np.float32), "height_mm": s.height_mm.astype(np.float32),
                 "mask": s.mask, "albedo": s.albedo.astype(np.float32),

@@ -20,7 +20,7 @@ EXPOSURES = [(200_000, 500), (20_000, 500), (2_000, 800)]  # (time_us, mA)
 
 
 def _make_scan(tmp_path, n_lights=2, h=24, w=32, seed=0, exposures=EXPOSURES):
-    """A scan directory as the acquisition writes it (contract 3), with known radiance."""
+    """A scan directory as the acquisition writes it (docs/scan-format.md), with known radiance."""
     rng = np.random.default_rng(seed)
     (tmp_path / "raw").mkdir()
     truth = np.exp(rng.uniform(np.log(1e-6), np.log(7e-3), size=(n_lights, h, w, 3)))  # DN/(µs·mA)

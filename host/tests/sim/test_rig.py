@@ -1,4 +1,4 @@
-"""The rig simulator on a scripted side channel (contract 1 event lines).
+"""The rig simulator on a scripted side channel (the event lines of firmware/ports/posix/hal_posix.c).
 
 The device end is a Unix socket driven by the test, so every charge and every
 answer line can be checked exactly; the same simulator runs against the real
