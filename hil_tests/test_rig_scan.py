@@ -23,7 +23,7 @@ def test_full_default_scan_writes_the_contract_directory(sim_rig_factory, tmp_pa
     rig = sim_rig_factory()
     scan = rig.scan(tmp_path / "plaque", progress=False)
     m = json.loads((tmp_path / "plaque" / "scan.json").read_text())
-    assert m["schema"] == 1 and m["complete"] and m["truth"] == "truth.npz"
+    assert m["schema"] == 2 and m["complete"] and m["truth"] == "truth.npz"   # docs/scan-format.md
     assert len(m["lights"]) == 12 and len(m["exposures"]) == len(THESIS_BRACKET_US)
     assert [e["time_us"] for e in m["exposures"]] == list(THESIS_BRACKET_US)
     assert len(m["frames"]) == 12 * 7 and scan.verify() == []

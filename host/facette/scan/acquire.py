@@ -518,9 +518,10 @@ class ScanOptions:
             raise BadInputError("this rig's button is pressed by a person, not by the host",
                                 hint="wait for the press instead (button='wait', --wait-button)")
 
-    def plan(self, n_leds, exposures=None, light_current_mA=None):
-        """The `ScanPlan` of these options (with `exposures` and currents once known)."""
-        return default_plan(n_leds, self.exposures if exposures is None else exposures, self.lights,
+    def plan(self, n_leds, exposures, light_current_mA=None):
+        """The `ScanPlan` of these options with `exposures` (a list; None: the thesis bracket)
+        and, once known, the light currents."""
+        return default_plan(n_leds, exposures, self.lights,
                             self.light_current_mA if light_current_mA is None else light_current_mA,
                             self.mode, self.retries, self.timing)
 
