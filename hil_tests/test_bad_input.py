@@ -17,6 +17,7 @@ import pytest
 
 from facette.cli.main import main
 from facette.io.checksum import sha256_file
+from facette.scan import ScanDirectory
 
 FACETTE = [sys.executable, "-m", "facette.cli.main"]
 SMALL = ["--raw-size", "32x24", "--lights", "0,1,2,3", "--exposures", "1/5,1/50", "--quiet"]
@@ -32,12 +33,12 @@ def run_cli(capsys, *argv):
 def frames_intact(scan_dir):
     """Every frame listed in scan.json is on disk with the sha256 recorded at capture; returns
     the number of frames (a scan directory where this fails has lost something)."""
-    m = json.loads((Path(scan_dir) / "scan.json").read_text())
-    for f in m["frames"]:
+    m = ScanDirectory(scan_dir).manifest
+    for f in m.frames:
         p = Path(scan_dir) / f["file"]
         assert p.is_file(), f"{f['file']} listed in scan.json is missing"
         assert sha256_file(p) == f["sha256"], f"{f['file']} differs from its sha256 in scan.json"
-    return len(m["frames"])
+    return len(m.frames)
 
 
 def tree(path):
@@ -136,7 +137,7 @@ def test_two_scans_into_one_directory_the_second_is_refused_and_nothing_is_lost(
     assert "another facette process" in second.stderr and "Traceback" not in second.stderr
     assert frames_intact(d) == 12
     assert not (d / "raw" / "unmatched").exists()
-    assert json.loads((d / "scan.json").read_text())["complete"]
+    assert ScanDirectory(d).manifest.complete
 
 
 def _frames_recorded(d):
@@ -163,14 +164,14 @@ def test_a_lock_left_by_a_killed_scan_does_not_block_the_next(tmp_path):
 
 def test_a_corrupt_frame_is_reshot_on_resume_and_the_damaged_file_kept(capsys, scan_copy):
     """Finding 5: a frame whose sha256 fails is taken again (only a missing one was)."""
-    m = json.loads((scan_copy / "scan.json").read_text())
-    bad = scan_copy / m["frames"][2]["file"]
+    m = ScanDirectory(scan_copy).manifest
+    bad = scan_copy / m.frames[2]["file"]
     data = bytearray(bad.read_bytes())
     data[len(data) // 2] ^= 0xFF
     bad.write_bytes(bytes(data))
     code, out, err = run_cli(capsys, "scan", "--sim", "--press-button", "--no-process", *SMALL, scan_copy)
     assert code == 0, err
-    assert "sha256" in out and m["frames"][2]["file"] in out
+    assert "sha256" in out and m.frames[2]["file"] in out
     assert frames_intact(scan_copy) == 8
     kept = list((scan_copy / "raw" / "damaged").iterdir())
     assert len(kept) == 1 and kept[0].read_bytes() == bytes(data)
@@ -311,8 +312,8 @@ def test_hdr_made_before_a_frame_was_reshot_is_merged_again(capsys, scan_copy, t
     assert code == 0, err
     assert "hdr/light_02.exr was merged from other frames" in out
     assert "light_00" not in out and "light_03" not in out          # the others are still good
-    hdr = json.loads((scan_copy / "scan.json").read_text())["hdr"]
-    frames = json.loads((scan_copy / "scan.json").read_text())["frames"]
+    m = ScanDirectory(scan_copy).manifest
+    hdr, frames = m.hdr, m.frames
     assert sorted((i["file"], i["sha256"]) for i in hdr["lights"][2]["inputs"]) == \
         sorted((f["file"], f["sha256"]) for f in frames if f["light"] == 2)
     fresh = tmp_path / "fresh"

@@ -38,9 +38,9 @@ class _RigWithoutSimulator(Rig):
 
 
 def intact(d):
-    m = json.loads((d / "scan.json").read_text())
-    assert all(sha256_file(d / f["file"]) == f["sha256"] for f in m["frames"])
-    return len(m["frames"])
+    m = ScanDirectory(d).manifest
+    assert all(sha256_file(d / f["file"]) == f["sha256"] for f in m.frames)
+    return len(m.frames)
 
 
 @pytest.mark.parametrize("kw, words", [

@@ -55,11 +55,11 @@ def test_merge_scan_writes_exr_and_records_it(tmp_path):
     assert names == ("R", "G", "B") and img.shape == (24, 32, 3) and img.dtype == np.float32
     z = (img - truth[1]) / np.sqrt(var)
     assert abs(z.mean()) < 0.2 and 0.8 < z.std() < 1.2
-    data = json.loads((tmp_path / "scan.json").read_text())
-    assert data["hdr"] == rec
+    m = ScanDirectory(tmp_path).manifest
+    assert m.hdr == rec
     assert rec["unit"] == "DN/(us*mA)" and rec["sensor_source"] == "given"
     assert [l["file"] for l in rec["lights"]] == ["hdr/light_00.exr", "hdr/light_01.exr"]
-    assert data["frames"] and data["rig_time_s"] == 1.0  # the rest of the manifest kept
+    assert m.frames and m.rig_time_s == 1.0  # the rest of the manifest kept
     steps = [json.loads(l)["step"] for l in (tmp_path / "journal.jsonl").read_text().splitlines()]
     assert steps == ["hdr_begin", "hdr_done"]
 
@@ -122,7 +122,7 @@ def test_load_hdr_merges_when_needed_and_uses_scan_sensor(tmp_path):
     assert images.shape == variances.shape == (3, 24, 32, 3)
     assert [l["index"] for l in lights] == [0, 1, 2]
     assert np.median(np.abs(images - truth) / truth) < 0.01
-    assert json.loads((tmp_path / "scan.json").read_text())["hdr"]["sensor_source"] == "scan.json sensor"
+    assert ScanDirectory(tmp_path).manifest.hdr["sensor_source"] == "scan.json sensor"
     with pytest.raises(FileNotFoundError, match="merge_scan"):
         (tmp_path / "hdr" / "light_02.exr").unlink()
         load_hdr(tmp_path, merge_missing=False)
@@ -208,8 +208,7 @@ def test_meter_plan_scan_merge_matches_truth(tmp_path):
 
 
 def read_scan_frames(scan_dir):
-    import json
-    return json.loads((scan_dir / "scan.json").read_text())["frames"]
+    return list(ScanDirectory(scan_dir).manifest.frames)
 
 
 def _hdr_steps(folder):
