@@ -8,8 +8,10 @@ acquisition (`facette.scan.acquire`) never asks which kind of rig it has. What i
 beyond the device and the camera is four things, which a real rig answers as "unknown":
 `sensor` (the camera's noise model), `pixel_pitch_mm`, `save_truth` (what the object really
 is) and `press_button`/`can_press_button`; and the latched faults by name
-(`latched_faults`). `SimRig`, the simulated rig (``connect("sim")``), answers them from its
-simulator, the only way the simulator reaches acquisition.
+(`latched_faults`). The calibration wizard asks two more: `show_target` and `restore_scene`
+(a person places a real rig's targets), and the rig's `name`. `SimRig`, the simulated rig
+(``connect("sim")``), answers them from its simulator, the only way the simulator reaches
+acquisition and the wizard.
 
     rig = facette.connect("sim")              # or "/dev/ttyACM0", "socket://127.0.0.1:5020"
     rig.configure(exposures=[(1_000_000, 500)], lights=range(12))
@@ -26,6 +28,7 @@ from facette.errors import BadInputError
 from facette.hdr import TIMING_MODES
 from facette.scan.acquire import run_scan
 from facette.sim import SimulatedRig
+from facette.sim.targets import restore_scene, show_target
 
 __all__ = ["Rig", "SimRig", "connect", "decode_frame_record", "TIMING_MODES", "RigFault"]
 
@@ -81,6 +84,19 @@ class Rig:
         `channels` in scan order); returns the file's name in `directory`, or None when the
         rig does not know it (a real rig never does)."""
         return None
+
+    @property
+    def name(self):
+        """The rig's name for its calibration profile: rig-<serial number>."""
+        return f"rig-{self.device.identity.get('serial_number', 0)}"
+
+    def show_target(self, target, fault=None, **scene):
+        """Put a calibration target under the camera: a person does that on a real rig (the
+        wizard asks them), so nothing happens here; returns None."""
+        return None
+
+    def restore_scene(self):
+        """Give the camera its object back after the calibration targets (a person's job)."""
 
     def press_button(self):
         """Press the rig's own button (only a rig with `can_press_button`)."""
@@ -382,6 +398,18 @@ class SimRig(Rig):
     def press_button(self):
         """Press the simulated button; returns once the device started (sent an event)."""
         self.sim.press_button()
+
+    @property
+    def name(self):
+        return "sim-default"
+
+    def show_target(self, target, fault=None, **scene):
+        """Show a calibration target to the simulated camera (`facette.sim.targets.show_target`:
+        `fault` "missing" or "overexposed" demonstrates a failed placement); returns its Scene."""
+        return show_target(self.sim, target, fault=fault, **scene)
+
+    def restore_scene(self):
+        restore_scene(self.sim)
 
     def close(self):
         """Close the port and stop the simulator."""

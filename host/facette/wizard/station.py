@@ -17,7 +17,6 @@ from facette.calib.checks import WizardError
 from facette.camera.sensor import DEFAULT_SENSOR
 from facette.device.client import DeviceError, DeviceException, DeviceReset
 from facette.scan import MissingFrameWarning, load_hdr, merge_scan, read_scan_manifest, run_scan
-from facette.sim.targets import restore_scene, show_target
 
 __all__ = ["RigStation", "INSTRUCTIONS"]
 
@@ -61,17 +60,15 @@ class RigStation:
         self.button = bool(button)  # the person starts each capture with the rig's button
         self._wait_button = False
         self.sensor = None          # set by the noise step (a SensorModel)
-        ident = rig.identity
-        self.rig_name = "sim-default" if rig.sim is not None else f"rig-{ident.get('serial_number', 0)}"
+        self.rig_name = rig.name
         # full scale of the nominal sensor until the noise step measures this camera's
         self.full_scale_dn = DEFAULT_SENSOR.white_level_dn - DEFAULT_SENSOR.black_level_dn
 
     # -- targets -------------------------------------------------------------------------
     def place(self, kind, instruction=None, **sim_kw):
         self.out(f"  → {instruction or INSTRUCTIONS.get(kind, kind)}")
-        if self.rig.sim is not None:
-            target = kind.split("#")[0]
-            show_target(self.rig.sim, target, fault=self.sim_faults.get(target), **sim_kw)
+        target = kind.split("#")[0]     # a real rig: a person places it; the simulated one shows it
+        self.rig.show_target(target, fault=self.sim_faults.get(target), **sim_kw)
         if self.button:
             self._wait_button = True
             self.out("    then press the rig's button to take the pictures")
@@ -79,8 +76,7 @@ class RigStation:
             self.ask("    press Enter when it is in place (Ctrl-C stops; nothing is written) ")
 
     def restore(self):
-        if self.rig.sim is not None:
-            restore_scene(self.rig.sim)
+        self.rig.restore_scene()
 
     # -- captures ------------------------------------------------------------------------
     def _scan(self, name, exposures, lights):

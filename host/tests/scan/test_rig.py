@@ -86,3 +86,17 @@ def test_status_faults_and_commands(rig):
         [(0, 0), (0, 1), (1, 0), (1, 1)]
     with pytest.raises(DeviceException, match="not allowed in this state"):
         rig.abort()                                                # nothing running
+
+
+def test_a_real_rig_answers_what_it_cannot_know_as_unknown(rig, tmp_path):
+    """The Rig interface acquisition and the wizard use: a real rig has no truth, no sensor or
+    pixel pitch of its own (they come from its profile), a person presses its button and places
+    its targets; its latched faults are named."""
+    assert rig.sensor is None and rig.pixel_pitch_mm is None
+    assert rig.save_truth(tmp_path, [0, 1]) is None and list(tmp_path.iterdir()) == []
+    assert not rig.can_press_button and rig.sim is None
+    with pytest.raises(BadInputError, match="pressed by a person"):
+        rig.press_button()
+    assert rig.show_target("spectralon") is None and rig.restore_scene() is None
+    assert rig.name == f"rig-{rig.device.identity['serial_number']}"
+    assert rig.latched_faults() == [f.name for f in R.Fault if rig.device.read("fault_bits") >> f.value & 1]
