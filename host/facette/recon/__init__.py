@@ -13,6 +13,7 @@ Relighting functions for RTI (PTM, Malzbender 2001; hemispherical harmonics, Gau
 from ._ps import (PS_DEFAULT, PSResult, ps_woodham1980, ps_hierarchical_tautzia2016, photometric_stereo,
                   PS_METHODS, triplet_inverses, near_light_directions)
 from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed      # registers both in PS_METHODS
+from ._ps_peers import ps_bipolynomial_shi2014, ps_bivariate_ikehata2014   # published peers, registered too
 from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
                          integrate_simchony1990, integrate_poisson_flat_margin, integrate_least_squares,
                          integrate, INTEGRATION_DEFAULT, INTEGRATION_METHODS, mesh_from_height, MESH_MAX_SLOPE,
@@ -24,7 +25,7 @@ from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, 
                    srgb_encode, srgb_decode, display_ptm, display_hsh)
 
 __all__ = ["PS_DEFAULT", "PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
-           "ps_rank_trimmed", "photometric_stereo",
+           "ps_rank_trimmed", "ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "photometric_stereo",
            "PS_METHODS", "triplet_inverses", "near_light_directions",
            "normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
            "integrate_poisson_flat_margin", "integrate_least_squares", "integrate", "INTEGRATION_DEFAULT",

@@ -1,0 +1,346 @@
+"""Published photometric-stereo methods for general isotropic BRDFs, written here from their papers.
+
+`ps_bipolynomial_shi2014` : Shi, Tan, Matsushita, Ikeuchi, "Bi-polynomial modeling of
+    low-frequency reflectances", TPAMI 36(6) 2014 (ST14 in DiLiGenT). The low-frequency part of
+    an isotropic BRDF, seen from a fixed view, is a bi-polynomial in cos θ_h = n·h and
+    cos θ_d = l·h; per pixel the observations outside shadows and the sharp specular peak are
+    fitted by E_i = (n·l_i) Σ_ab α_ab (n·h_i)^a (l_i·h_i)^b, linear in α for a given normal,
+    and the normal is the one whose best α leaves the smallest residual (variable projection,
+    Levenberg-Marquardt on two tangent angles from the least-squares normal of those lights).
+`ps_bivariate_ikehata2014` : Ikehata, Aizawa, "Photometric stereo using constrained bivariate
+    regression for general isotropic surfaces", CVPR 2014 (IA14). Seen from the fixed view v,
+    n·v is constant per pixel, so n·h_i = (n·l_i + n·v) / (2 l_i·h_i) and an isotropic
+    (sum-of-lobes) pixel's value is a function of (n·l_i, l_i·v) alone, increasing in n·l_i;
+    its inverse representation n·l_i = Ψ(E_i, l_i·v) separates the normal from the reflectance.
+    Ψ is a bivariate Bernstein polynomial, Ψ(0, ·) = 0, so n·l_i - Σ_k c_k B_k(E_i, l_i·v) = 0
+    is linear in (n, c) jointly: per pixel, n is the eigenvector of the smallest eigenvalue of
+    the 3x3 matrix L^T (I - P_B) L (c projected out), |n| = 1.
+
+How far these follow the papers (read this before quoting a figure): the search corpus
+available when this was written gave the papers' abstracts and first pages only, not their
+method sections, so the equations above are reconstructed from the abstracts and the models
+they name; equation numbers could not be checked and are not given. The parameters are ours
+where the paper's could not be read: ST14's degrees (3 in cos θ_h, 1 in cos θ_d), its
+low-frequency selection (values above T_SHADOW of the pixel's brightest, the brightest
+DROP_BRIGHT share left out); IA14's Bernstein degrees (3 in E, 2 in l·v) and the same shadow
+threshold. IA14's monotonicity constraints (the QP) are not imposed: the unconstrained
+minimiser is returned and `info["non_monotone"]` gives the share of pixels whose fitted Ψ is
+not increasing in E. `facette bench peers` prints both beside the papers' DiLiGenT figures.
+
+Conventions of `facette.recon._ps`: camera frame x right, y up, z towards the camera (the view
+v = (0, 0, 1), orthographic); images linear, divided by each light's intensity; `PSResult`.
+Both need distant lights, light_dirs (m, 3).
+"""
+from math import comb
+
+import numpy as np
+
+from ._ps import (PS_METHODS, _albedo, _check_inputs, _empty_result, _gather, _run_blocks, _scatter,
+                  _usable)
+from ._ps_robust import _unit, _wls
+
+__all__ = ["ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "T_SHADOW", "DROP_BRIGHT"]
+
+T_SHADOW = 0.02       # values below this share of the pixel's brightest usable value are shadows
+DROP_BRIGHT = 0.1     # ST14: share of each pixel's brightest lit values left out (the sharp peak)
+ST14_DEGREES = (3, 1)   # bi-polynomial degrees in cos θ_h and cos θ_d
+IA14_DEGREES = (3, 2)   # Bernstein degrees of Ψ in E (normalised) and in l·v
+RIDGE = 1e-6          # relative Tikhonov weight of the per-pixel coefficient solves (conditioning)
+_CHUNK = 8192         # pixels per block: (chunk, m, p) float64 arrays
+VIEW = np.array([0.0, 0.0, 1.0])
+
+
+def _check_distant(light_dirs, name):
+    if light_dirs.ndim != 2:
+        raise ValueError(f"{name} needs distant lights, light_dirs (m, 3): its reflectance is a "
+                         "function of the light's angles to the view, one per light; use "
+                         "ps_rank_trimmed or ps_woodham1980 for near lights")
+
+
+def _lit_mask(e, ok, t_shadow):
+    """(m, N) bool: usable values above t_shadow x the pixel's brightest usable value."""
+    peak = np.where(ok, e, 0).max(axis=0)
+    return ok & (e > t_shadow * peak) & (e > 0)
+
+
+def _projected_lstsq(a, y, w, ridge=RIDGE):
+    """Per pixel min_c ||W^(1/2) (y - A c)||²: returns (c (N, p), residual vector (N, m)).
+
+    a : (N, m, p), y : (N, m), w : (N, m) 0/1 weights. A small ridge relative to the trace keeps
+    the solve defined where the kept lights do not span every basis function."""
+    aw = a * w[..., None]
+    g = np.matmul(aw.transpose(0, 2, 1), a)                       # (N, p, p)
+    p = g.shape[-1]
+    tr = np.trace(g, axis1=1, axis2=2) / p
+    g += (ridge * np.maximum(tr, 1e-30))[:, None, None] * np.eye(p)
+    rhs = np.einsum("nmp,nm->np", aw, y)
+    c = np.linalg.solve(g, rhs[..., None])[..., 0]
+    r = (y - np.einsum("nmp,np->nm", a, c)) * w
+    return c, r
+
+
+# ----------------------------------------------------------------------------- ST14
+
+def _st14_basis(n, lights, halves, ld, degrees):
+    """(N, m, p) columns (n·l)_+ (n·h)^a (l·h)^b of the bi-polynomial model for normals n (N, 3)."""
+    kh, kd = degrees
+    nl = np.maximum(n @ lights.T, 0.0)                            # (N, m)
+    nh = np.clip(n @ halves.T, 0.0, 1.0)
+    cols = []
+    for a in range(kh + 1):
+        pa = nh ** a
+        for b in range(kd + 1):
+            cols.append(nl * pa * ld[None, :] ** b)
+    return np.stack(cols, axis=-1)
+
+
+def _tangent_frame(n):
+    """Two unit vectors (N, 3) orthogonal to n (N, 3) and to each other."""
+    ref = np.where(np.abs(n[:, 2:3]) < 0.9, np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]))
+    t1 = np.cross(n, ref)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    return t1, np.cross(n, t1)
+
+
+def _rotate(n, t1, t2, d):
+    """n moved by the tangent step d (N, 2) (radians), renormalised."""
+    out = n + d[:, :1] * t1 + d[:, 1:] * t2
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def _st14_block(e, w, n0, lights, halves, ld, degrees, iterations, tol):
+    """Levenberg-Marquardt on two tangent angles of each pixel's normal; e, w (N, m), n0 (N, 3)."""
+    def resid(n):
+        return _projected_lstsq(_st14_basis(n, lights, halves, ld, degrees), e, w)[1]
+
+    n = n0.copy()
+    r = resid(n)
+    cost = np.sum(r * r, axis=1)
+    mu = np.full(len(n), 1e-3)
+    active = np.ones(len(n), bool)
+    h = 1e-4                                                      # finite-difference step (rad)
+    it = 0
+    for it in range(1, iterations + 1):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        na, ra = n[idx], r[idx]
+        t1, t2 = _tangent_frame(na)
+        ea, wa = e[idx], w[idx]
+        jac = np.empty(ra.shape + (2,))
+        for k, t in enumerate((t1, t2)):
+            nk = na + h * t
+            nk /= np.linalg.norm(nk, axis=1, keepdims=True)
+            jac[..., k] = (_projected_lstsq(_st14_basis(nk, lights, halves, ld, degrees), ea, wa)[1] - ra) / h
+        jtj = np.einsum("nmi,nmj->nij", jac, jac)
+        jtr = np.einsum("nmi,nm->ni", jac, ra)
+        damp = jtj + (mu[idx] * np.maximum(np.trace(jtj, axis1=1, axis2=2), 1e-30))[:, None, None] * np.eye(2)
+        step = -np.linalg.solve(damp, jtr[..., None])[..., 0]
+        big = np.linalg.norm(step, axis=1)
+        step *= np.minimum(1.0, np.radians(5.0) / np.maximum(big, 1e-30))[:, None]   # at most 5° a step
+        n_try = _rotate(na, t1, t2, step)
+        r_try = _projected_lstsq(_st14_basis(n_try, lights, halves, ld, degrees), ea, wa)[1]
+        c_try = np.sum(r_try * r_try, axis=1)
+        better = c_try < cost[idx]
+        take = idx[better]
+        n[take], r[take], cost[take] = n_try[better], r_try[better], c_try[better]
+        mu[idx] = np.where(better, mu[idx] * 0.3, mu[idx] * 10.0)
+        done = (better & (np.linalg.norm(step, axis=1) < tol)) | (mu[idx] > 1e6)
+        active[idx[done]] = False
+    return n, cost, it
+
+
+def ps_bipolynomial_shi2014(images, light_dirs, mask=None, channel=None, saturation=None,
+                            degrees=ST14_DEGREES, t_shadow=T_SHADOW, drop_bright=DROP_BRIGHT,
+                            iterations=20, tol_deg=0.01):
+    """Bi-polynomial photometric stereo (Shi, Tan, Matsushita, Ikeuchi, TPAMI 2014; ST14).
+
+    images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
+    light_dirs : (m, 3) unit vectors towards the lights (distant lights only).
+    mask, channel, saturation : as `ps_woodham1980` (NaN, inf, values >= saturation are missing).
+    degrees : (k_h, k_d) polynomial degrees in cos θ_h and cos θ_d (default (3, 1)).
+    t_shadow : values below t_shadow x the pixel's brightest usable value are shadows, in [0, 1).
+    drop_bright : share of each pixel's lit values left out from the top (the specular peak,
+        the high-frequency part the model does not describe), in [0, 0.5).
+    iterations, tol_deg : Levenberg-Marquardt iterations at most, and the step (deg) under
+        which a pixel stops.
+    Returns a `PSResult`: normal; albedo (Lambertian ρ per channel on the kept lights, for the
+    later stages); valid (False where fewer kept lights than the model's unknowns + 2, or all
+    black); shadow = usable lights below t_shadow; specular = lit lights left out at the top;
+    residual = relative residual of the bi-polynomial fit. info: iterations, pixels.
+
+    Notes: model E_i = (n·l_i) ρ(cos θ_h, cos θ_d), ρ = Σ_{a≤k_h, b≤k_d} α_ab cos^a θ_h cos^b θ_d,
+    h_i = (l_i + v) / |l_i + v|; for a normal the α are linear least squares, and the normal
+    minimises the residual that remains (start: least squares on the kept lights).
+    """
+    if not 0 <= t_shadow < 1:
+        raise ValueError(f"t_shadow must be in [0, 1) (share of the pixel's brightest value), got {t_shadow}")
+    if not 0 <= drop_bright < 0.5:
+        raise ValueError(f"drop_bright must be in [0, 0.5) (share of the brightest values), got {drop_bright}")
+    kh, kd = (int(x) for x in degrees)
+    if kh < 0 or kd < 0:
+        raise ValueError(f"degrees must be two whole numbers >= 0, got {degrees}")
+    images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
+    _check_distant(light_dirs, "ps_bipolynomial_shi2014")
+    m, h, w, c = images.shape
+    res = _empty_result(h, w, m, c, "bipolynomial_shi2014")
+    idx, e_all, e, sub = _gather(images, mask, channel)
+    res.info = {"pixels": int(idx.size), "degrees": (kh, kd)}
+    if idx.size == 0:
+        return res
+    lights = light_dirs.astype(np.float64)
+    halves = lights + VIEW
+    halves /= np.linalg.norm(halves, axis=1, keepdims=True)
+    ld = np.sum(lights * halves, axis=1)                          # cos θ_d per light
+    p = (kh + 1) * (kd + 1)
+    ok = _usable(e, saturation)
+    e = np.where(ok, e, np.float32(0))
+    lit = _lit_mask(e, ok, t_shadow)
+    # the brightest drop_bright share of each pixel's lit values (ties kept): left out
+    n_lit = lit.sum(0)
+    n_drop = np.floor(drop_bright * n_lit).astype(np.intp)
+    srt = -np.sort(-np.where(lit, e, -np.inf), axis=0)            # descending per pixel
+    cut = srt[np.clip(n_drop, 0, m - 1), np.arange(e.shape[1])]
+    keep = lit & ((e < cut) | (n_drop == 0))
+    n_pix = idx.size
+    normal = np.zeros((3, n_pix), np.float32)
+    found = np.zeros(n_pix, bool)
+    resid = np.zeros(n_pix, np.float32)
+    iters = []
+
+    def block(a):
+        sl = slice(a, a + _CHUNK)
+        eb, kb = e[:, sl], keep[:, sl]
+        g = _wls(eb, light_dirs, kb)
+        n0, f0 = _unit(g)
+        f0 &= kb.sum(0) >= p + 2
+        sel = np.flatnonzero(f0)
+        if sel.size == 0:
+            return
+        n0 = n0[:, sel].T.astype(np.float64)
+        n0[:, 2] = np.maximum(n0[:, 2], 1e-3)                     # facing the camera
+        n0 /= np.linalg.norm(n0, axis=1, keepdims=True)
+        y = eb[:, sel].T.astype(np.float64)
+        wt = kb[:, sel].T.astype(np.float64)
+        scale = np.maximum(y.max(axis=1, keepdims=True), 1e-30)   # residuals relative to the pixel
+        nn, cost, it = _st14_block(y / scale, wt, n0, lights, halves, ld, (kh, kd), iterations,
+                                   np.radians(tol_deg))
+        iters.append(it)
+        cols = a + sel
+        normal[:, cols] = nn.T
+        found[cols] = np.all(np.isfinite(nn), axis=1)
+        ynorm = np.sqrt(np.sum((y / scale) ** 2 * wt, axis=1))
+        resid[cols] = np.sqrt(cost) / np.maximum(ynorm, 1e-30)
+
+    _run_blocks(block, range(0, n_pix, _CHUNK))
+    normal = np.where(found, normal, np.float32(0))
+    rho = _albedo(e_all, light_dirs, normal, keep & ok, idx=sub)
+    _scatter(res, idx, "normal", normal.T)
+    _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
+    _scatter(res, idx, "valid", found)
+    _scatter(res, idx, "shadow", (ok & ~lit & found).T)
+    _scatter(res, idx, "specular", (lit & ~keep & found).T)
+    _scatter(res, idx, "residual", resid)
+    res.info["iterations"] = int(max(iters)) if iters else 0
+    return res
+
+
+# ----------------------------------------------------------------------------- IA14
+
+def _bernstein(x, k):
+    """(..., k + 1) Bernstein basis of degree k at x in [0, 1]."""
+    x = np.clip(x, 0.0, 1.0)
+    return np.stack([comb(k, j) * x ** j * (1 - x) ** (k - j) for j in range(k + 1)], axis=-1)
+
+
+def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, saturation=None,
+                             degrees=IA14_DEGREES, t_shadow=T_SHADOW):
+    """Constrained bivariate regression (Ikehata, Aizawa, CVPR 2014; IA14), without the constraints.
+
+    images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
+    light_dirs : (m, 3) unit vectors towards the lights (distant lights only).
+    mask, channel, saturation : as `ps_woodham1980`.
+    degrees : (k_e, k_v) Bernstein degrees of Ψ in the value (E / the pixel's brightest) and in
+        l·v (rescaled to [0, 1] over the lights); k_v is 0 when every light has the same l·v.
+    t_shadow : values below t_shadow x the pixel's brightest usable value are shadows (left out).
+    Returns a `PSResult`: normal (facing the camera); albedo (Lambertian ρ per channel on the lit
+    lights); valid (False where fewer lit lights than the unknowns + 3, or all black); shadow =
+    usable lights left out as shadows; specular all False; residual = the smallest eigenvalue
+    relative to the trace (how far n·l_i is from a function of (E_i, l_i·v)).
+    info: pixels, degrees, non_monotone (share of valid pixels whose fitted Ψ decreases in E
+    somewhere on its control net: the paper's QP would constrain those).
+
+    Notes: n·l_i = Ψ(E_i, l_i·v) = Σ_{1≤a≤k_e, 0≤b≤k_v} c_ab B_a(E_i) B_b(l_i·v); for a unit n the
+    best c is the projection, so n minimises n^T L^T (I - P_B) L n: the eigenvector of the
+    smallest eigenvalue of that 3x3 matrix, its sign chosen so that n·v > 0.
+    """
+    if not 0 <= t_shadow < 1:
+        raise ValueError(f"t_shadow must be in [0, 1) (share of the pixel's brightest value), got {t_shadow}")
+    ke, kv = (int(x) for x in degrees)
+    if ke < 1 or kv < 0:
+        raise ValueError(f"degrees must be (k_e >= 1, k_v >= 0), got {degrees}")
+    images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
+    _check_distant(light_dirs, "ps_bivariate_ikehata2014")
+    m, h, w, c = images.shape
+    res = _empty_result(h, w, m, c, "bivariate_ikehata2014")
+    idx, e_all, e, sub = _gather(images, mask, channel)
+    lights = light_dirs.astype(np.float64)
+    lv = lights @ VIEW
+    span = lv.max() - lv.min()
+    if span < 1e-3:
+        kv = 0
+    yv = (lv - lv.min()) / span if span >= 1e-3 else np.zeros(m)
+    bv = _bernstein(yv, kv)                                       # (m, kv + 1)
+    p = ke * (kv + 1)
+    res.info = {"pixels": int(idx.size), "degrees": (ke, kv), "non_monotone": 0.0}
+    if idx.size == 0:
+        return res
+    ok = _usable(e, saturation)
+    e = np.where(ok, e, np.float32(0))
+    lit = _lit_mask(e, ok, t_shadow)
+    n_pix = idx.size
+    normal = np.zeros((3, n_pix), np.float32)
+    found = np.zeros(n_pix, bool)
+    resid = np.zeros(n_pix, np.float32)
+    non_mono = np.zeros(n_pix, bool)
+
+    def block(a):
+        sl = slice(a, a + _CHUNK)
+        eb, wb = e[:, sl].T.astype(np.float64), lit[:, sl].T.astype(np.float64)
+        peak = np.maximum(np.max(eb * wb, axis=1, keepdims=True), 1e-30)
+        be = _bernstein(eb / peak, ke)[..., 1:]                   # (N, m, ke): Ψ(0, ·) = 0
+        basis = (be[..., :, None] * bv[None, :, None, :]).reshape(eb.shape[0], m, p)
+        bw = basis * wb[..., None]
+        g = np.matmul(bw.transpose(0, 2, 1), basis)
+        tr = np.trace(g, axis1=1, axis2=2) / p
+        g += (RIDGE * np.maximum(tr, 1e-30))[:, None, None] * np.eye(p)
+        bl = np.einsum("nmp,mi->npi", bw, lights)                 # B^T W L  (N, p, 3)
+        ll = np.einsum("nm,mi,mj->nij", wb, lights, lights)       # L^T W L  (N, 3, 3)
+        sol = np.linalg.solve(g, bl)                              # G^-1 B^T W L
+        mat = ll - np.matmul(bl.transpose(0, 2, 1), sol)
+        mat = 0.5 * (mat + mat.transpose(0, 2, 1))
+        good = wb.sum(1) >= p + 3
+        ev, vec = np.linalg.eigh(np.where(good[:, None, None], mat, np.eye(3)))
+        nb = vec[:, :, 0]
+        nb *= np.where(nb[:, 2] < 0, -1.0, 1.0)[:, None]
+        coef = np.einsum("npq,nq->np", sol, nb).reshape(-1, ke, kv + 1)   # c = G^-1 B^T W L n
+        dec = np.any(np.diff(coef, axis=1) < -1e-9, axis=(1, 2)) | np.any(coef[:, 0] < -1e-9, axis=1)
+        fin = good & np.all(np.isfinite(nb), axis=1)
+        normal[:, sl] = np.where(fin[:, None], nb, 0).T
+        found[sl] = fin
+        resid[sl] = np.where(fin, ev[:, 0] / np.maximum(np.trace(ll, axis1=1, axis2=2), 1e-30), 0)
+        non_mono[sl] = dec & fin
+
+    _run_blocks(block, range(0, n_pix, _CHUNK))
+    rho = _albedo(e_all, light_dirs, normal, lit, idx=sub)
+    _scatter(res, idx, "normal", normal.T)
+    _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
+    _scatter(res, idx, "valid", found)
+    _scatter(res, idx, "shadow", (ok & ~lit & found).T)
+    _scatter(res, idx, "residual", resid)
+    res.info["non_monotone"] = float(non_mono.sum() / max(found.sum(), 1))
+    return res
+
+
+PS_METHODS.add("bipolynomial_shi2014", ps_bipolynomial_shi2014, aliases=("st14",))
+PS_METHODS.add("bivariate_ikehata2014", ps_bivariate_ikehata2014, aliases=("ia14",))

@@ -1,0 +1,111 @@
+"""Published peers (recon/_ps_peers.py): a non-Lambertian sphere better than least squares, and
+black, saturated and shadowed pixels give finite output or are marked not valid."""
+import numpy as np
+import pytest
+
+from facette.recon import PS_METHODS, photometric_stereo
+
+PEERS = ("bipolynomial_shi2014", "bivariate_ikehata2014")
+
+
+def _lights(m=40, seed=3):
+    """m directions over the upper hemisphere within 60° of the view (as DiLiGenT's)."""
+    rng = np.random.default_rng(seed)
+    th = np.arccos(rng.uniform(np.cos(np.radians(60)), np.cos(np.radians(10)), m))
+    ph = rng.uniform(0, 2 * np.pi, m)
+    return np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)
+
+
+def _sphere(size=40):
+    y, x = np.mgrid[1:-1:size * 1j, -1:1:size * 1j]
+    r2 = x * x + y * y
+    mask = r2 < 0.9 ** 2
+    n = np.stack([x, y, np.sqrt(np.clip(1 - r2, 0, 1))], -1)
+    return np.where(mask[..., None], n, 0), mask
+
+
+def _blinn_phong(n, lights, kd=0.5, ks=0.6, shininess=40.0, noise=0.0, seed=0):
+    """(m, H, W) E = (kd/π) (n·l)_+ + ks (n·h)^s (n·l)_+ (a Blinn-Phong lobe), camera along +z."""
+    h = lights + np.array([0, 0, 1.0])
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    nl = np.clip(np.einsum("hwk,mk->mhw", n, lights), 0, None)
+    nh = np.clip(np.einsum("hwk,mk->mhw", n, h), 0, None)
+    img = kd / np.pi * nl + ks * nh ** shininess * nl
+    if noise:
+        img *= 1 + noise * np.random.default_rng(seed).standard_normal(img.shape)
+    return img.astype(np.float32)
+
+
+def _mean_error(res, n, mask):
+    dot = np.clip(np.sum(res.normal * n, -1), -1, 1)
+    return float(np.degrees(np.arccos(dot))[mask].mean())
+
+
+@pytest.mark.parametrize("method", PEERS)
+def test_peer_recovers_glossy_sphere_better_than_least_squares(method):
+    n, mask = _sphere()
+    lights = _lights()
+    img = _blinn_phong(n, lights, noise=0.005)
+    ls = _mean_error(photometric_stereo(img, lights, method="woodham1980", mask=mask), n, mask)
+    res = photometric_stereo(img, lights, method=method, mask=mask)
+    err = _mean_error(res, n, mask)
+    assert res.valid[mask].mean() > 0.99
+    assert err < 0.5 * ls, (err, ls)
+    assert err < 5.0
+
+
+@pytest.mark.parametrize("method", PEERS)
+def test_peer_is_exact_on_lambertian(method):
+    n, mask = _sphere(24)
+    lights = _lights(24)
+    img = _blinn_phong(n, lights, ks=0.0)
+    res = photometric_stereo(img, lights, method=method, mask=mask)
+    # pixels whose lit lights are too few for the model are not valid; the others are exact
+    assert res.valid[mask].mean() > 0.9
+    good = res.valid & mask
+    assert _mean_error(res, n, good) < 0.1
+
+
+@pytest.mark.parametrize("method", PEERS)
+def test_peer_black_saturated_and_shadowed_pixels(method):
+    n, mask = _sphere(16)
+    lights = _lights(30)
+    img = _blinn_phong(n, lights)
+    img[:, 3, 8] = 0.0                                 # black everywhere
+    img[:, 8, 3] = np.nan                              # saturated (missing) everywhere
+    img[:20, 8, 8] = 0.0                               # shadowed under most lights
+    img[:, 8, 12] = np.where(np.arange(len(img)) < 27, 0.0, img[:, 8, 12])   # lit by 3 lights only
+    res = photometric_stereo(img, lights, method=method, mask=mask, saturation=10.0)
+    assert np.all(np.isfinite(res.normal)) and np.all(np.isfinite(res.albedo))
+    assert np.all(np.isfinite(res.residual))
+    for r, c in ((3, 8), (8, 3), (8, 12)):
+        assert not res.valid[r, c]
+        assert np.all(res.normal[r, c] == 0)
+    norms = np.linalg.norm(res.normal[res.valid], axis=-1)
+    assert np.allclose(norms, 1, atol=1e-5)
+
+
+@pytest.mark.parametrize("method", PEERS)
+def test_peer_refuses_near_lights_and_bad_options(method):
+    n, mask = _sphere(8)
+    lights = _lights(8)
+    img = _blinn_phong(n, lights)
+    per_pixel = np.broadcast_to(lights, (8, 8, 8, 3))
+    with pytest.raises(ValueError, match="distant lights"):
+        photometric_stereo(img, per_pixel, method=method, mask=mask)
+    with pytest.raises(ValueError, match="t_shadow"):
+        photometric_stereo(img, lights, method=method, mask=mask, t_shadow=1.5)
+
+
+def test_peers_are_registered_with_short_names():
+    assert PS_METHODS.canonical("st14") == "bipolynomial_shi2014"
+    assert PS_METHODS.canonical("IA14") == "bivariate_ikehata2014"
+
+
+def test_empty_mask_gives_an_empty_result():
+    n, _ = _sphere(8)
+    lights = _lights(8)
+    img = _blinn_phong(n, lights)
+    for method in PEERS:
+        res = photometric_stereo(img, lights, method=method, mask=np.zeros((8, 8), bool))
+        assert not res.valid.any()
