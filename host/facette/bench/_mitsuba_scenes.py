@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["MATERIALS", "SHAPES", "render_scene", "rig_light_directions"]
+__all__ = ["MATERIALS", "NON_LI_SCENES", "SHAPES", "render_scene", "rig_light_directions"]
 
 MATERIALS = {
     "plaster": {"type": "diffuse"},
@@ -36,7 +36,18 @@ MATERIALS = {
     "paint_0.05": {"sigma": 0.05, "n_i": 1.26},
     "satin": {"sigma": 0.20, "n_i": 1.50},
     "lacquer": {"sigma": 0.07, "n_i": 1.45},    # a check scene: n_i unlike the thesis's paints
+    # materials the LI model does not cover (no dielectric interface over a diffuse substrate):
+    # metals (Mitsuba's measured complex IOR; no diffuse part, K_d unused), a metallic paint (a
+    # blend of a copper lobe and a diffuse base) and a rough plastic with a broad lobe
+    "gold": {"type": "roughconductor", "conductor": "Au", "alpha": 0.15},
+    "aluminium": {"type": "roughconductor", "conductor": "Al", "alpha": 0.3},
+    "metallic_paint": {"type": "metallic_paint", "conductor": "Cu", "alpha": 0.2, "weight": 0.5},
+    "rough_plastic": {"sigma": 0.40, "n_i": 1.50},
 }
+# scenes of those materials (shape, material, textured): `facette bench peers --mitsuba`
+NON_LI_SCENES = [("sphere", "gold", False), ("sphere", "aluminium", False),
+                 ("sphere", "metallic_paint", True), ("sphere", "rough_plastic", False),
+                 ("relief", "rough_plastic", True), ("relief", "gold", False)]
 SHAPES = ("sphere", "relief", "vase", "shell", "table")
 # "table": two domes in the scene's material on a dark, slightly glossy table filling the frame (a
 # fossil on black cloth): a hemisphere (radius 0.38, a vertical wall at its foot) and a spherical
@@ -114,6 +125,13 @@ def _bsdf(mi, material, kd_img):
     spec = MATERIALS[material]
     if spec.get("type") == "diffuse":
         return {"type": "diffuse", "reflectance": tex}
+    if spec.get("type") in ("roughconductor", "metallic_paint"):
+        metal = {"type": "roughconductor", "material": spec["conductor"], "distribution": "beckmann",
+                 "alpha": spec["alpha"]}
+        if spec["type"] == "roughconductor":
+            return metal
+        return {"type": "blendbsdf", "weight": spec["weight"],
+                "bsdf_0": {"type": "diffuse", "reflectance": tex}, "bsdf_1": metal}
     return {"type": "roughplastic", "distribution": "beckmann", "alpha": spec["sigma"],
             "int_ior": spec["n_i"], "ext_ior": 1.0, "nonlinear": True, "diffuse_reflectance": tex}
 

@@ -1,0 +1,113 @@
+"""`facette bench peers`: published photometric-stereo methods beside ours, with the papers' figures.
+
+DiLiGenT (the shared objects: the 16-bit ball and the 8-bit crops, found as `facette bench
+diligent` finds them, the same grey input): per object and method the mean angular error and
+the run time, and for the peers the figure their paper reports on that object (Shi et al.'s
+DiLiGenT table, all 96 lights, full 16-bit images; `facette.bench.diligent.PUBLISHED_OTHERS`).
+Methods: least squares, rank_trimmed (the default), li_alternating (the BRDF-aware solve) and
+the peers of `facette.recon._ps_peers` (ST14 bi-polynomial, IA14 bivariate regression).
+
+--mitsuba: Mitsuba 3 renders of materials the LI model does not cover
+(`facette.bench._mitsuba_scenes.NON_LI_SCENES`: gold and aluminium `roughconductor`, a metallic
+paint `blendbsdf`, a rough plastic α 0.4, textured albedo), 12 rig lights, each method's mean
+error, its ratio to least squares and its time.
+"""
+import argparse
+import sys
+import time
+
+import numpy as np
+from scipy.ndimage import binary_erosion
+
+from facette.bench._mitsuba_scenes import NON_LI_SCENES, render_scene
+from facette.bench.diligent import PUBLISHED_OTHERS, default_root, find_objects, object_name, run_object
+from facette.bench.mitsuba import angular_errors as _angles
+from facette.bench.mitsuba import run_ps as mitsuba_run_ps
+from facette.recon import PS_METHODS
+
+METHODS = ("woodham1980", "rank_trimmed", "li_alternating", "bipolynomial_shi2014", "bivariate_ikehata2014")
+PAPER_OBJECTS = ("ball", "cat", "pot2", "buddha", "reading")    # the order of PUBLISHED_OTHERS
+PAPER_OF = {"bipolynomial_shi2014": "Shi 2014 bi-polynomial", "bivariate_ikehata2014": "Ikehata 2014 bivariate"}
+
+
+def paper_figure(method, obj):
+    """The paper's mean error (deg) for a peer on a DiLiGenT object, or None."""
+    key = PAPER_OF.get(PS_METHODS.canonical(method)) if method in PS_METHODS else None
+    if key is None or obj not in PAPER_OBJECTS:
+        return None
+    return PUBLISHED_OTHERS[key][PAPER_OBJECTS.index(obj)]
+
+
+def diligent_table(methods, root):
+    objects = [(f, t) for f, t in find_objects(root) if t is not None]
+    if not objects:
+        print(f"no DiLiGenT-style folder with truth under {root}; give one with --root DIR")
+        return 1
+    print("\n-- DiLiGenT, all lights, grey input: mean angular error (deg) and run time (s); "
+          "[paper]: the method's own figure on that object (96 lights, 16-bit)")
+    print(f"{'object':28s}" + "".join(f" | {m[:24]:>24s}" for m in methods))
+    sums = {m: [] for m in methods}
+    for folder, truth in objects:
+        rows, _, data = run_object(folder, truth, methods, "all")
+        obj = object_name(folder)
+        line = f"{folder.parent.name + '/' + obj + f' {data.bit_depth}-bit':28s}"
+        for name, mean, _, dt in rows:
+            pub = paper_figure(name, obj)
+            cell = f"{mean:6.2f} {dt:6.1f}s" + (f" [{pub:5.2f}]" if pub is not None else " " * 8)
+            line += f" | {cell:>24s}"
+            sums[name].append((mean, dt, pub))
+        print(line, flush=True)
+    line = f"{'mean':28s}"
+    for m in methods:
+        errs = [r[0] for r in sums[m]]
+        pubs = [r[2] for r in sums[m]]
+        cell = f"{np.mean(errs):6.2f} {np.sum([r[1] for r in sums[m]]):6.1f}s"
+        if all(p is not None for p in pubs):
+            cell += f" [{np.mean(pubs):5.2f}]"
+        line += f" | {cell:>24s}"
+    print(line + "   (time: total)")
+    return 0
+
+
+def mitsuba_table(methods, cache, size, spp):
+    print(f"\n-- Mitsuba 3, materials outside the LI model, {size}x{size} px, {spp} spp, 12 rig lights: "
+          "mean error (deg) / ratio to least squares / run time (s), mask eroded by 1 px")
+    print(f"{'scene':34s}" + "".join(f" | {m[:24]:>24s}" for m in methods))
+    for shape, mat, tex in NON_LI_SCENES:
+        t = time.perf_counter()
+        d = render_scene(shape, mat, size=size, spp=spp, textured=tex, cache_dir=cache)
+        if time.perf_counter() - t > 1:
+            print(f"  (rendered {shape}/{mat} in {time.perf_counter() - t:.0f} s)", file=sys.stderr, flush=True)
+        sel = binary_erosion(d["mask"], iterations=1)
+        ls = None
+        line = f"{shape + '/' + mat + (' textured' if tex else ''):34s}"
+        for m in methods:
+            r, dt = mitsuba_run_ps(d, m)
+            e = _angles(r.normal, d["normals"], sel).mean()
+            ls = e if PS_METHODS.canonical(m) == "woodham1980" else ls
+            ratio = f"{e / ls:5.2f}x" if ls else "   n/a"
+            line += f" | {f'{e:6.2f} {ratio} {dt:6.2f}s':>24s}"
+        print(line, flush=True)
+    return 0
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="facette bench peers", description=__doc__.splitlines()[0])
+    ap.add_argument("--root", default=None, help="folder searched for DiLiGenT-style folders (default ../shared/data)")
+    ap.add_argument("--methods", default=",".join(METHODS), help="comma-separated (least squares first: the ratios)")
+    ap.add_argument("--no-real", action="store_true", help="skip the DiLiGenT table")
+    ap.add_argument("--mitsuba", action="store_true", help="also the Mitsuba renders of metals, metallic paint, rough plastic")
+    ap.add_argument("--cache", default="out/mitsuba-cache", help="folder for the cached renders")
+    ap.add_argument("--size", type=int, default=128)
+    ap.add_argument("--spp", type=int, default=64)
+    args = ap.parse_args(argv)
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    unknown = [m for m in methods if m not in PS_METHODS]
+    if unknown:
+        raise SystemExit(f"unknown method {unknown[0]!r}; choose from {', '.join(sorted(PS_METHODS))}")
+    status = 0
+    if not args.no_real:
+        status |= diligent_table(methods, args.root or default_root())
+    if args.mitsuba:
+        status |= mitsuba_table(methods, args.cache, args.size, args.spp)
+    return status
