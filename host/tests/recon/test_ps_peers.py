@@ -86,6 +86,19 @@ def test_peer_black_saturated_and_shadowed_pixels(method):
 
 
 @pytest.mark.parametrize("method", PEERS)
+def test_peer_metal_without_diffuse_part_gives_finite_output(method):
+    """A mirror-like lobe and no diffuse part (a metal): most pixels are black under every
+    light; the output stays finite, unit normals where valid, zero where not."""
+    n, mask = _sphere(24)
+    lights = _lights(24)
+    img = _blinn_phong(n, lights, kd=0.0, ks=1.0, shininess=200.0)
+    res = photometric_stereo(img, lights, method=method, mask=mask)
+    assert np.all(np.isfinite(res.normal)) and np.all(np.isfinite(res.albedo))
+    norms = np.linalg.norm(res.normal, axis=-1)
+    assert np.allclose(norms[res.valid], 1, atol=1e-5) and np.all(norms[~res.valid] == 0)
+
+
+@pytest.mark.parametrize("method", PEERS)
 def test_peer_refuses_near_lights_and_bad_options(method):
     n, mask = _sphere(8)
     lights = _lights(8)
