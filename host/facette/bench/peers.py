@@ -78,7 +78,7 @@ def mitsuba_table(methods, cache, size, spp):
     print(f"\n-- Mitsuba 3, materials outside the LI model, {size}x{size} px, {spp} spp, 12 rig lights: "
           "mean error (deg) / ratio to least squares / run time (s), mask eroded by 1 px, on the lit "
           f"pixels (brightest value >= {LIT_SHARE:g} x the scene's; the dark share after the name)")
-    print(f"{'scene':34s}" + "".join(f" | {m[:24]:>24s}" for m in methods))
+    print(f"{'scene':42s}" + "".join(f" | {m[:24]:>24s}" for m in methods))
     for shape, mat, tex in NON_LI_SCENES:
         t = time.perf_counter()
         d = render_scene(shape, mat, size=size, spp=spp, textured=tex, cache_dir=cache)
