@@ -90,7 +90,7 @@ def mitsuba_table(methods, cache, size, spp):
         dark = 1 - float((sel & lit).sum()) / max(int(sel.sum()), 1)
         sel &= lit
         ls = None
-        line = f"{shape + '/' + mat + (' textured' if tex else '') + f' ({dark:.0%} dark)':34s}"
+        line = f"{shape + '/' + mat + (' textured' if tex else '') + f' ({dark:.0%} dark)':42s}"
         for m in methods:
             r, dt = mitsuba_run_ps(d, m)
             e = _angles(r.normal, d["normals"], sel).mean()
