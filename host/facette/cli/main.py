@@ -19,7 +19,8 @@ from facette._memory import keep_freed_memory
 
 keep_freed_memory()         # before numpy is imported or a thread starts (facette/_memory.py)
 
-from facette.errors import EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED, FacetteError
+from facette.errors import EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED, EXIT_STOPPED, FacetteError
+from facette.io.atomic import DiskFullError, disk_full_error, is_disk_full
 
 REPORT_URL_HINT = ("this is a bug in facette, not in what you did: please report it with the "
                    "command line and the traceback above")
@@ -75,6 +76,8 @@ def main(argv=None):
         code, lines = explain(exc)
         if code is None:
             raise
+        if command == "scan" and isinstance(exc, (DiskFullError, OSError)) and is_disk_full(exc):
+            code = EXIT_STOPPED          # a stopped scan: it resumes once space is freed
         for line in lines:
             print(f"facette {command}: {line}" if line is lines[0] else f"  {line}", file=sys.stderr)
         return code
@@ -118,6 +121,9 @@ def explain(exc):
         return None, None
     if isinstance(exc, FacetteError):
         return exc.exit_code, exc.user_lines()
+    if isinstance(exc, OSError) and is_disk_full(exc):
+        full = disk_full_error(exc.filename or os.getcwd())
+        return full.exit_code, full.user_lines()
     if isinstance(exc, OSError) and getattr(exc, "filename", None):
         return EXIT_BAD_INPUT, _os_error_lines(exc)
     if isinstance(exc, (ValueError, FileNotFoundError)) and _raised_by_facette(exc):

@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import OpenEXR
 
+from facette.io.atomic import atomic_path
+
 __all__ = ["write_exr", "read_exr", "read_exr_header", "channel_names_for"]
 
 
@@ -47,10 +49,9 @@ def write_exr(path, image, channels=None, header=None, compression="zip"):
     for key, value in (header or {}).items():
         hdr[str(key)] = str(value)
     path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
-    with OpenEXR.File(hdr, data) as f:
-        f.write(str(tmp))
-    tmp.replace(path)  # never leave a half-written EXR under the final name
+    needed = sum(a.nbytes for a in data.values())
+    with atomic_path(path, needed=needed) as tmp, OpenEXR.File(hdr, data) as f:
+        f.write(str(tmp))             # never a half-written EXR under the final name
 
 
 def read_exr(path, channels=None):

@@ -5,11 +5,11 @@ with base colour, normal and metallic-roughness textures embedded as PNG. glTF's
 the camera frame of facette (x right, y up, z towards the viewer) and its unit is the metre.
 """
 import json
-from pathlib import Path
 
 import numpy as np
 import pygltflib as gl
 
+from facette.io.atomic import write_bytes_atomic
 from facette.io.png import encode_png
 
 __all__ = ["write_glb"]
@@ -111,8 +111,5 @@ def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, norma
         blob.append(0)
     doc.buffers[0].byteLength = len(blob)
     doc.set_binary_blob(bytes(blob))
-    path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
-    tmp.write_bytes(b"".join(doc.save_to_bytes()))
-    tmp.replace(path)
+    write_bytes_atomic(path, b"".join(doc.save_to_bytes()))
     return json.loads(doc.to_json())

@@ -3,6 +3,8 @@ from pathlib import Path
 
 import numpy as np
 
+from facette.io.atomic import atomic_path
+
 __all__ = ["write_ply", "read_ply"]
 
 
@@ -23,9 +25,7 @@ def write_ply(path, vertices, faces, binary=True, comment="facette"):
     header = (f"ply\nformat {fmt} 1.0\ncomment {comment}\nelement vertex {len(v)}\n"
               "property float x\nproperty float y\nproperty float z\n"
               f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n")
-    path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
-    with open(tmp, "wb") as out:
+    with atomic_path(path, needed=len(header) + v.nbytes + 13 * len(f)) as tmp, open(tmp, "wb") as out:
         out.write(header.encode("ascii"))
         if binary:
             out.write(v.tobytes())
@@ -36,7 +36,6 @@ def write_ply(path, vertices, faces, binary=True, comment="facette"):
         else:
             np.savetxt(out, v, fmt="%.6g")
             np.savetxt(out, np.c_[np.full(len(f), 3), f], fmt="%d")
-    tmp.replace(path)
 
 
 def read_ply(path):

@@ -10,6 +10,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from facette.io.atomic import write_bytes_atomic
+
 __all__ = ["read_png", "write_png", "encode_png", "read_mask", "write_mask"]
 
 _SIG = b"\x89PNG\r\n\x1a\n"
@@ -60,11 +62,7 @@ def encode_png(image, compression=6):
 def write_png(path, image):
     """Write uint8 or uint16 (H, W), (H, W, 3) or (H, W, 4) as PNG (bool is written 0/255);
     the file appears complete or not at all."""
-    data = encode_png(image)
-    path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
-    tmp.write_bytes(data)
-    tmp.replace(path)
+    write_bytes_atomic(path, encode_png(image))
 
 
 def read_mask(path):

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from facette.errors import BadInputError
+from facette.io.atomic import atomic_path
 
 __all__ = ["write_ptm_lrgb", "quantize_scale_bias", "column_range", "read_ptm", "PTMFile",
            "ptm_weights", "FULL"]
@@ -96,13 +97,10 @@ def write_ptm_lrgb(path, coeffs, rgb):
               f"{w}\n{h}\n"          # separate lines: legal (§2.3) and what every reader takes
               + " ".join(f"{s:.9g}" for s in scale) + "\n"
               + " ".join(str(int(b)) for b in bias) + "\n")
-    path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
-    with open(tmp, "wb") as out:
+    with atomic_path(path, needed=len(header) + q.nbytes + c.nbytes) as tmp, open(tmp, "wb") as out:
         out.write(header.encode("ascii"))
         out.write(q[::-1].tobytes())           # bottom row first
         out.write(c[::-1].tobytes())
-    tmp.replace(path)
     return {"scale": [float(s) for s in scale], "bias": [int(b) for b in bias]}
 
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from facette.errors import BadInputError
+from facette.io.atomic import atomic_path
 from facette.io.ptm import column_range
 
 __all__ = ["write_hsh_rti", "read_hsh_rti", "HSHFile", "hsh_weights"]
@@ -59,14 +60,11 @@ def write_hsh_rti(path, coeffs, comments=()):
         q[r:r + ROWS] = np.clip(x, 0, 255, out=x)
     header = ("#HSH1.2\n" + "".join(f"# {c}\n" for c in comments)
               + f"{HSH_FILE_TYPE}\n{w} {h} 3\n{t} {HSH_BASIS_TYPE} 1\n")
-    path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
-    with open(tmp, "wb") as out:
+    with atomic_path(path, needed=len(header) + q.nbytes + 8 * t) as tmp, open(tmp, "wb") as out:
         out.write(header.encode("utf-8"))
         out.write(scale.tobytes())
         out.write(bias.tobytes())
         out.write(q.tobytes())           # top row first; per pixel R terms, G, B
-    tmp.replace(path)
     return {"scale": [float(s) for s in scale], "bias": [float(b) for b in bias]}
 
 

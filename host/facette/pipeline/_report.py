@@ -15,6 +15,7 @@ import warnings
 
 import numpy as np
 
+from facette.io.atomic import write_text_atomic
 from facette.fit import FitModel, cell_spread_directions
 from facette.pipeline._viewer import viewer_data, viewer_section
 
@@ -606,6 +607,4 @@ td,th{{padding:0 1em;text-align:left}}img{{max-width:100%}}.summary{{background:
 <h2>Options</h2><table>{opts}</table>
 <h2>Timings</h2><table>{timings}</table>
 </body></html>"""
-    tmp = path.with_name(path.name + ".partial")
-    tmp.write_text(page, encoding="utf-8")
-    tmp.replace(path)
+    write_text_atomic(path, page)

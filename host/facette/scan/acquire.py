@@ -27,8 +27,9 @@ from facette.calib import nominal_light_directions
 from facette.camera.folder import CameraTimeout
 from facette.camera.raw import read_exposure_metadata
 from facette.device.client import DeviceException, DeviceReset, DeviceTimeout
-from facette.errors import BadInputError, StoppedError
+from facette.errors import EXIT_STOPPED, BadInputError, StoppedError
 from facette.hdr import THESIS_BRACKET_US
+from facette.io.atomic import move_file
 from facette.scan.adaptive import METER_DIR, meter_and_plan
 from facette.scan.directory import LOCK_NAME, ScanDirectory, ScanDirectoryError, frame_name, sha256_file
 from facette.scan.hdr import LightMerger, scan_sensor, store_light_records
@@ -176,7 +177,7 @@ class _Acquisition:
         while dst.exists():
             dst, n = self.unmatched_dir / f"{Path(src).stem}-{n}{Path(src).suffix}", n + 1
         self.sd.journal("unmatched", src=str(src), dst=str(dst.relative_to(self.sd.path)), why=why)
-        os.replace(src, dst)
+        move_file(src, dst, exit_code=EXIT_STOPPED)
         self.camera.claimed(src)
         return dst
 
@@ -221,7 +222,7 @@ class _Acquisition:
         self.sd.journal("capture", src=str(src), record=record)
         if dst.exists():   # a frame taken again (after a reset): keep the earlier one too
             self.keep_unmatched_existing(dst)
-        os.replace(src, dst)
+        move_file(src, dst, exit_code=EXIT_STOPPED)
         self.camera.claimed(src)
         record["sha256"] = sha256_file(dst)
         self.sd.add_frame(record)
@@ -267,7 +268,7 @@ class _Acquisition:
         keep = self.unmatched_dir / f"{dst.stem}-superseded-{int(time.time() * 1e3)}{dst.suffix}"
         self.sd.journal("superseded", file=str(dst.relative_to(self.sd.path)),
                         kept=str(keep.relative_to(self.sd.path)))
-        os.replace(dst, keep)
+        move_file(dst, keep)
 
     def stop_device(self):
         """Best effort: abort the device's run when the host stops the scan itself."""
@@ -439,7 +440,7 @@ def _recover(sd, camera):
             continue
         dst, src = sd.path / rec["file"], Path(e["src"])
         if not dst.exists() and src.exists():
-            os.replace(src, dst)
+            move_file(src, dst, exit_code=EXIT_STOPPED)
         if dst.exists():
             rec["sha256"] = sha256_file(dst)
             sd.add_frame(rec)

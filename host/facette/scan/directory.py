@@ -51,7 +51,8 @@ import json
 import os
 from pathlib import Path
 
-from facette.errors import BadInputError
+from facette.errors import EXIT_STOPPED, BadInputError
+from facette.io.atomic import move_file, write_text_atomic
 from facette.io.checksum import sha256_file
 
 __all__ = ["ScanDirectory", "ScanDirectoryError", "ScanDirectoryBusy", "Manifest", "sha256_file",
@@ -341,14 +342,10 @@ class ScanDirectory:
         self.save()
 
     def save(self):
-        """Write the manifest to scan.json atomically (a temporary file, fsync'ed, renamed)."""
-        tmp = self.path / ".scan.json.partial"
-        with open(tmp, "w", encoding="utf-8") as fh:
-            json.dump(self.manifest.to_dict(), fh, indent=1, default=_jsonable)
-            fh.write("\n")
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, self.path / "scan.json")
+        """Write the manifest to scan.json atomically (a temporary file, fsync'ed, renamed; a full
+        disk is a DiskFullError that stops the scan: exit 1, it resumes)."""
+        text = json.dumps(self.manifest.to_dict(), indent=1, default=_jsonable) + "\n"
+        write_text_atomic(self.path / "scan.json", text, exit_code=EXIT_STOPPED)
 
     def record_hdr(self, record):
         """Store the HDR merge's record, scan.json re-read first so that what another writer
@@ -373,7 +370,7 @@ class ScanDirectory:
                 dst.parent.mkdir(parents=True, exist_ok=True)
                 rel = str(dst.relative_to(self.path))
                 self.journal("damaged", file=f["file"], kept=rel)
-                os.replace(p, dst)
+                move_file(p, dst)
                 damaged.append(f["file"])
                 lines.append(f"{f['file']}: sha256 differs from scan.json (the file changed after "
                              f"capture); kept as {rel} and taken again")
