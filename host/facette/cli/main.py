@@ -73,11 +73,9 @@ def main(argv=None):
               file=sys.stderr)
         return EXIT_INTERRUPTED
     except BaseException as exc:   # noqa: B902 - sorted into expected failures and bugs below
-        code, lines = explain(exc)
+        code, lines = explain(exc, command)
         if code is None:
             raise
-        if command == "scan" and isinstance(exc, (DiskFullError, OSError)) and is_disk_full(exc):
-            code = EXIT_STOPPED          # a stopped scan: it resumes once space is freed
         for line in lines:
             print(f"facette {command}: {line}" if line is lines[0] else f"  {line}", file=sys.stderr)
         return code
@@ -111,14 +109,19 @@ def _os_error_lines(exc):
     return [f"{name}: {what}" if name else what, todo]
 
 
-def explain(exc):
-    """(exit code, lines) for an expected failure; (None, None) for a bug.
+def explain(exc, command=None):
+    """(exit code, lines) for an expected failure; (None, None) for a bug. A full disk during
+    `facette scan` is a stopped scan (exit 1: it resumes once space is freed).
 
     A bug keeps its traceback and gets a line asking to report it (exit 70)."""
     if isinstance(exc, SystemExit):
         if isinstance(exc.code, str):                # a message for the user
             return EXIT_BAD_INPUT, [exc.code]
         return None, None
+    if command == "scan" and isinstance(exc, (DiskFullError, OSError)) and is_disk_full(exc):
+        full = disk_full_error(getattr(exc, "filename", None) or os.getcwd(), exit_code=EXIT_STOPPED) \
+            if isinstance(exc, OSError) else exc
+        return EXIT_STOPPED, full.user_lines()
     if isinstance(exc, FacetteError):
         return exc.exit_code, exc.user_lines()
     if isinstance(exc, OSError) and is_disk_full(exc):

@@ -20,7 +20,7 @@ import shutil
 import threading
 from pathlib import Path
 
-from facette.errors import EXIT_NO_RESULT, FacetteError
+from facette.errors import EXIT_NO_RESULT, EXIT_STOPPED, FacetteError
 
 __all__ = ["DiskFullError", "atomic_path", "write_bytes_atomic", "write_text_atomic", "move_file",
            "is_disk_full", "disk_full_error", "PARTIAL_SUFFIX"]
@@ -81,16 +81,18 @@ def disk_full_error(path, needed=None, written=None, exit_code=None):
     free = _free_bytes(path)
     mount = _mount_point(path)
     if needed:
-        need = f"{_mb(needed)} needed"
+        need = f"{path.name} needs {_mb(needed)}"
     elif written:
-        need = f"more than the {_mb(written)} that fitted needed"
+        need = f"{path.name} needs more than the {_mb(written)} that fitted"
     else:
-        need = "the size of the file needed"
-    said = f"{_mb(free)} free" if free is not None else "free space unknown"
-    quota = " (or your quota on it)" if mount else ""
-    return DiskFullError(f"the disk holding {path} (mounted at {mount}) is full{quota}: {said}, {need}",
-                         hint="free space on that disk (or choose a folder on another disk), then run "
-                              "the same command again; nothing was left half-written",
+        need = f"{path.name} did not fit"
+    said = f"{_mb(free)} free" if free is not None else "its free space unknown"
+    return DiskFullError(f"the disk holding {path} (mounted at {mount}) is full (or your quota on it): "
+                         f"{need}, {said}",
+                         hint=("free space on that disk, then run the same command again: the scan resumes "
+                               "where it stopped" if exit_code == EXIT_STOPPED else
+                               "free space on that disk (or choose a folder on another disk), then run the "
+                               "same command again") + "; nothing was left half-written",
                          exit_code=exit_code)
 
 

@@ -28,6 +28,7 @@ from threadpoolctl import threadpool_limits
 
 from facette.fit import fit_hemisphere_cells, ps_li_without_interreflections
 from facette.errors import BadInputError
+from facette.io.atomic import atomic_path, write_text_atomic
 from facette.io.exr import write_exr
 from facette.io.ply import write_ply
 from facette.io.gltf import write_glb
@@ -42,7 +43,7 @@ from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._inputs import load_input, object_of
-from facette.pipeline._record import claim_results, write_record
+from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._quality import check_fit_cells, check_samples
 from facette.pipeline._report import report_fit_section, write_report
 
@@ -328,7 +329,8 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
     t0 = time.perf_counter()
     inp = load_input(source, mask=mask, pixel_pitch_mm=pixel_pitch_mm, allow_incomplete=allow_incomplete)
     if out_dir is not None:            # before any work: the folder must take this run's files
-        previous = claim_results(Path(out_dir), record_options, inp, overwrite)
+        previous = claim_results(Path(out_dir), record_options, inp, overwrite, set(FILES.values()), mask)
+        mark_running(Path(out_dir), record_options, inp, [FILES[o] for o in outputs if o in FILES])
     res.inputs = inp
     res.notes.extend(inp.notes)
     if inp.usable is not None:       # the data must be able to carry normals (else exit 3)
@@ -534,12 +536,13 @@ def _writers(res, out, outputs, ascii_ply):
     def samples(path):
         fr, raw = res.filtered, res.samples
         # stored, not deflated: 12 MP samples.npz 9.4 MB against 6.2 MB, 0.01 s against 0.42 s
-        np.savez(
-            path, filtered_mean=fr.mean.astype(np.float32), filtered_count=fr.count,
-            filtered_theta_s=fr.theta_s, filtered_s=fr.s, filtered_o=fr.o, partition_edges=fr.edges,
-            partition_counts=fr.counts, theta0_deg=res.options["theta0_deg"],
-            raw_s=raw.s, raw_o=raw.o, raw_f=raw.f, raw_pixel=raw.pixel, raw_light=raw.light,
-            image_shape=np.array(res.normals.shape[:2]), scan_incomplete=res.inputs.incomplete)
+        with atomic_path(path) as tmp, open(tmp, "wb") as fh:   # never a truncated npz
+            np.savez(
+                fh, filtered_mean=fr.mean.astype(np.float32), filtered_count=fr.count,
+                filtered_theta_s=fr.theta_s, filtered_s=fr.s, filtered_o=fr.o, partition_edges=fr.edges,
+                partition_counts=fr.counts, theta0_deg=res.options["theta0_deg"],
+                raw_s=raw.s, raw_o=raw.o, raw_f=raw.f, raw_pixel=raw.pixel, raw_light=raw.light,
+                image_shape=np.array(res.normals.shape[:2]), scan_incomplete=res.inputs.incomplete)
 
     comment = "facette" + (f" (scan incomplete: {res.inputs.incomplete})" if res.inputs.incomplete else "")
     how = {
@@ -552,7 +555,7 @@ def _writers(res, out, outputs, ascii_ply):
         "mask": lambda p: write_mask(p, res.object_mask),
         "mesh": lambda p: write_ply(p, *res.mesh, binary=not ascii_ply, comment=comment),
         "samples": samples,
-        "brdf": lambda p: p.write_text(brdf_text()) if res.brdf is not None else None,
+        "brdf": lambda p: write_text_atomic(p, brdf_text()) if res.brdf is not None else None,
         "ptm": lambda p: write_ptm_lrgb(p, res.ptm.coeffs, res.ptm.rgb),
         "rti": lambda p: write_hsh_rti(p, res.hsh.coeffs, _rti_comments(res)),
     }

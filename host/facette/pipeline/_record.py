@@ -5,15 +5,22 @@ folder's files) and which options made the files beside it. A second run into th
 folder with the same options redoes the files (and removes those of the earlier run that it
 does not write again when the inputs changed: they no longer match); one with other options
 is refused unless `overwrite`, so a folder never mixes the files of two runs unmarked.
+
+The record is written twice: when the run claims the folder (``"state": "running"``, before
+any file) and when it is done (``"state": "done"``). A folder whose record still says
+"running" holds what an interrupted run left: a run of the same source replaces it without
+`overwrite`, so an interrupted processing (a scan's own, Ctrl-C, a full disk) is redone by
+the same command; a run of another source is refused as before. A run's inputs are never
+written: an output folder that is the input folder is refused, whatever the options.
 """
 import datetime as _dt
 import json
-import os
 from pathlib import Path
 
 from facette.errors import BadInputError
+from facette.io.atomic import PARTIAL_SUFFIX, write_text_atomic
 
-__all__ = ["RECORD", "claim_results", "write_record", "read_record"]
+__all__ = ["RECORD", "claim_results", "mark_running", "write_record", "read_record"]
 
 RECORD = "process.json"
 BESIDE = ("batch.json",)      # facette batch's own record of a scan's row, kept beside ours
@@ -38,24 +45,70 @@ def read_record(out):
     return rec
 
 
-def claim_results(out, options, inp, overwrite=False):
+def _refuse_inputs(out, inp, mask=None):
+    """An output folder must not be the input folder (a DiLiGenT folder's mask.png, a scan's
+    scan.json would be replaced) nor hold the --mask file."""
+    source = Path(inp.source).resolve()
+    where = Path(out).resolve()
+    if where == source or (source.is_file() and where == source.parent):
+        raise BadInputError(f"-o {out} is the input folder {inp.source}: its files would be replaced by the "
+                            "results (facette never writes its inputs)",
+                            hint=f"choose another -o folder, e.g. {Path(inp.source) / 'results'}")
+    if isinstance(mask, (str, Path)) and Path(mask).resolve().parent == where:
+        raise BadInputError(f"-o {out} holds the --mask file {mask}, which the results' mask.png could replace",
+                            hint="choose another -o folder, or keep the mask elsewhere")
+
+
+def _interrupted(rec, out, same_source):
+    """True when `rec` is the record of a run that never finished and its files may go."""
+    if rec.get("state") != "running":
+        return False
+    return same_source or not any((out / f).is_file() for f in rec.get("files", []))
+
+
+def _remove(out, names):
+    for name in names:
+        p = out / name
+        if p.is_file() and p.parent == out:
+            p.unlink()
+
+
+def claim_results(out, options, inp, overwrite=False, names=(), mask=None):
     """Check, before any work, that this run may write into `out`; remove the earlier run's
-    files that would otherwise stay beside this run's. Returns the earlier record or None."""
+    files that would otherwise stay beside this run's, and those of an interrupted run of the
+    same source; then record this run as "running". Returns the earlier record or None.
+
+    names : the file names a facette process run may write (what an interrupted run of the
+        scan's own results folder may have left before records were written first).
+    mask : the --mask path, refused as an output folder's file.
+    """
     out = Path(out)
+    _refuse_inputs(out, inp, mask)
     if not out.is_dir():
         return None
     rec = read_record(out)
+    for p in out.glob(f".*{PARTIAL_SUFFIX}"):          # temporaries of an interrupted write
+        if p.is_file():
+            p.unlink()
+    source = str(Path(inp.source).resolve())
     others = [p for p in out.iterdir() if p.name != RECORD and p.name not in BESIDE]
     if rec is None:
+        own = out.resolve() == Path(source) / "results"
+        if others and own and all(p.name in set(names) for p in others):
+            _remove(out, [p.name for p in others])    # the scan's own processing, interrupted
+            return None
         if others and not overwrite:
             raise BadInputError(f"{out} already holds files that no facette process run recorded "
                                 f"({', '.join(sorted(p.name for p in others)[:4])}...)",
                                 hint="choose another -o folder, or pass --overwrite to write beside them")
         return None
+    same_source = rec.get("source") == source
+    if _interrupted(rec, out, same_source):
+        _remove(out, set(rec.get("files", [])) | set(names))
+        return None
     options = _plain(options)
     differ = sorted(k for k in set(options) | set(rec.get("options", {}))
                     if options.get(k) != rec.get("options", {}).get(k))
-    same_source = rec.get("source") == str(Path(inp.source).resolve())
     if (differ or not same_source) and not overwrite:
         said = "; ".join(f"{k}: {rec.get('options', {}).get(k)} then, {options.get(k)} now" for k in differ[:4])
         if not same_source:
@@ -63,18 +116,27 @@ def claim_results(out, options, inp, overwrite=False):
         raise BadInputError(f"{out} holds the results of another run ({said})",
                             hint="choose another -o folder, or pass --overwrite to replace them")
     if differ or not same_source or rec.get("inputs") != inp.digest:
-        for name in rec.get("files", []):          # derived from other inputs or options
-            p = out / name
-            if p.is_file() and p.parent == out:
-                p.unlink()
+        _remove(out, rec.get("files", []))             # derived from other inputs or options
+    return rec
+
+
+def mark_running(out, options, inp, names=()):
+    """Record in `out` that a run of `inp` with `options` is writing `names` (before any file):
+    if it is interrupted, the next run of the same source knows whose files these are."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    rec = {"software": "facette", "state": "running", "source": str(Path(inp.source).resolve()),
+           "kind": inp.kind, "inputs": inp.digest, "options": _plain(options), "files": sorted(set(names)),
+           "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+    write_text_atomic(out / RECORD, json.dumps(rec, indent=1) + "\n")
     return rec
 
 
 def write_record(out, options, inp, res, previous=None):
     """Write `out`/process.json for the run whose result is `res` (atomically)."""
     out = Path(out)
-    rec = {"software": "facette", "source": str(Path(inp.source).resolve()), "kind": inp.kind, "inputs": inp.digest,
-           "scan_incomplete": inp.incomplete or None, "options": _plain(options),
+    rec = {"software": "facette", "state": "done", "source": str(Path(inp.source).resolve()), "kind": inp.kind,
+           "inputs": inp.digest, "scan_incomplete": inp.incomplete or None, "options": _plain(options),
            "outputs": list(res.options.get("outputs", [])),
            "files": sorted(Path(p).name for p in res.files.values()),
            "quality": _plain(res.quality), "notes": list(res.notes),
@@ -83,7 +145,5 @@ def write_record(out, options, inp, res, previous=None):
         # the same run with other outputs: its files stay valid beside these
         rec["files"] = sorted(set(rec["files"]) | {f for f in previous.get("files", []) if (out / f).is_file()})
         rec["outputs"] = sorted(set(rec["outputs"]) | set(previous.get("outputs", [])))
-    tmp = out / f".{RECORD}.partial"
-    tmp.write_text(json.dumps(rec, indent=1) + "\n")
-    os.replace(tmp, out / RECORD)
+    write_text_atomic(out / RECORD, json.dumps(rec, indent=1) + "\n")
     return rec

@@ -49,7 +49,7 @@ def test_a_move_onto_a_full_disk_keeps_the_source(tmp_path, small_disk):
     with pytest.raises(DiskFullError) as exc:
         move_file(src, scan / "L00_E0.dng", exit_code=EXIT_STOPPED)
     assert exc.value.exit_code == EXIT_STOPPED
-    assert f"mounted at {scan}" in exc.value.message and "0.2 MB needed" in exc.value.message
+    assert f"mounted at {scan}" in exc.value.message and "L00_E0.dng needs 0.2 MB" in exc.value.message
     assert "run the same command again" in exc.value.hint
     assert _sha(src) == digest and list(scan.iterdir()) == []      # nothing lost, nothing half-written
 

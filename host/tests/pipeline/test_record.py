@@ -1,0 +1,129 @@
+"""process.json: one run per results folder, interrupted runs redone by the same command,
+inputs never written (facette.pipeline._record)."""
+import hashlib
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+import facette.pipeline._process as process_module
+from facette.bench._sim_scan import write_scan
+from facette.cli.main import main
+from facette.errors import EXIT_BAD_INPUT, EXIT_NO_RESULT
+from facette.io.diligent import write_diligent
+from facette.pipeline import process
+from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
+
+OUTS = ["normals", "albedo", "mask"]
+
+
+def _sha(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _tree(folder):
+    return {p.relative_to(folder).as_posix(): _sha(p) for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def scan(tmp_path_factory):
+    sc = sphere_on_plane(24, 32)
+    return write_scan(tmp_path_factory.mktemp("rec") / "scan", sc,
+                      render(sc, thesis_light_directions(), "satin", noise=0.002))
+
+
+@pytest.fixture(scope="module")
+def diligent(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("dil") / "obj"
+    sc = sphere_on_plane(24, 32)
+    L = thesis_light_directions()
+    imgs = render(sc, L, "satin", noise=0.002)
+    write_diligent(folder, np.round(imgs / imgs.max() * 60000).astype(np.uint16), L, np.ones((len(L), 3)), sc.mask)
+    return folder
+
+
+def _interrupt_at_mask(monkeypatch):
+    real = process_module.write_mask
+
+    def stopped(path, mask):
+        raise KeyboardInterrupt          # Ctrl-C (or a kill) while the maps are written
+
+    monkeypatch.setattr(process_module, "write_mask", stopped)
+    return real
+
+
+def test_an_interrupted_processing_is_redone_by_the_same_command(scan, monkeypatch):
+    out = scan / "results"
+    _interrupt_at_mask(monkeypatch)
+    with pytest.raises(KeyboardInterrupt):
+        process(scan, outputs=OUTS, out_dir=out)
+    assert json.loads((out / "process.json").read_text())["state"] == "running"
+    left = sorted(p.name for p in out.iterdir())
+    assert "mask.png" not in left and not [n for n in left if n.endswith(".partial")]
+    monkeypatch.undo()
+    # no --overwrite: the record says these files are an unfinished run of this scan
+    assert main(["process", str(scan), "-o", str(out), "--outputs", ",".join(OUTS)]) == 0
+    rec = json.loads((out / "process.json").read_text())
+    assert rec["state"] == "done" and rec["files"] == ["albedo.exr", "mask.png", "normal.exr"]
+
+
+def test_a_scans_own_results_without_a_record_are_replaced(scan, tmp_path):
+    """What an interrupted processing left before records were written first: only facette's
+    file names, in the scan's own results/ folder."""
+    out = scan / "results"
+    shutil.rmtree(out, ignore_errors=True)
+    process(scan, outputs=OUTS, out_dir=out)
+    (out / "process.json").unlink()
+    (out / "normal.exr").write_bytes(b"truncated")
+    process(scan, outputs=OUTS, out_dir=out)
+    assert (out / "normal.exr").stat().st_size > 1000
+
+
+def test_foreign_files_and_other_sources_are_still_refused(scan, diligent, tmp_path, capsys):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    assert main(["process", str(scan), "-o", str(out), "--outputs", "mask"]) == EXIT_BAD_INPUT
+    assert "no facette process run recorded" in capsys.readouterr().err
+    assert (out / "notes.txt").read_text() == "mine"
+    # a finished run of another source: refused without --overwrite
+    done = tmp_path / "done"
+    process(diligent, outputs=["mask"], out_dir=done)
+    before = _tree(done)
+    assert main(["process", str(scan), "-o", str(done), "--outputs", "mask"]) == EXIT_BAD_INPUT
+    assert "holds the results of another run" in capsys.readouterr().err and _tree(done) == before
+
+
+def test_an_input_folder_is_never_an_output_folder(diligent, capsys):
+    before = _tree(diligent)
+    for extra in ([], ["--overwrite"]):
+        code = main(["process", str(diligent), "-o", str(diligent), "--outputs", "mask"] + extra)
+        assert code == EXIT_BAD_INPUT
+        err = capsys.readouterr().err
+        assert "is the input folder" in err and "facette never writes its inputs" in err
+    assert _tree(diligent) == before          # mask.png and every image unchanged
+
+
+def test_a_mask_file_in_the_output_folder_is_refused(diligent, tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "mask.png").write_bytes((diligent / "mask.png").read_bytes())
+    before = _sha(out / "mask.png")
+    assert main(["process", str(diligent), "-o", str(out), "--mask", str(out / "mask.png"),
+                 "--overwrite", "--outputs", "mask"]) == EXIT_BAD_INPUT
+    assert "holds the --mask file" in capsys.readouterr().err and _sha(out / "mask.png") == before
+
+
+def test_process_onto_a_full_disk_says_so_and_leaves_nothing_truncated(scan, small_disk, capsys):
+    disk = small_disk(48)
+    code = main(["process", str(scan), "-o", str(disk / "out"), "--outputs", "normals,albedo,mask,samples"])
+    err = capsys.readouterr().err
+    assert code == EXIT_NO_RESULT, err
+    assert f"(mounted at {disk}) is full" in err and "run the same command again" in err
+    assert "bug" not in err and "Traceback" not in err
+    out = disk / "out"
+    assert not [p for p in out.iterdir() if p.name.endswith(".partial")]
+    for name in ("normal.exr", "albedo.exr"):      # either whole or absent
+        p = out / name
+        assert not p.exists() or p.stat().st_size > 24 * 32 * 3 * 4
