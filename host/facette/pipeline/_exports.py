@@ -4,13 +4,73 @@ The fits live in `facette.recon` (fit_ptm_lrgb, fit_hsh), the file layouts in `f
 (ptm, rti, gltf); this module prepares what the glTF material needs from a process result:
 sRGB base colour, a tangent-space normal map and the roughness that stands for the LI σ.
 """
+import warnings
+
 import numpy as np
 from scipy.ndimage import uniform_filter
 
-__all__ = ["gltf_roughness", "srgb_encode", "vertex_normals", "vertex_tangents",
+from facette.recon import hsh_basis
+from facette.recon import srgb_encode as srgb_transfer
+
+__all__ = ["hsh_order_for", "fill_unfitted", "gltf_roughness", "srgb_encode", "vertex_normals", "vertex_tangents",
            "tangent_space_normal_map", "gltf_material", "gltf_inputs"]
 
 ROWS = 64                  # image rows of the normal map made at a time
+PTM_TERMS = 6
+
+
+def hsh_order_for(n_lights, asked):
+    """(the HSH order relight.rti can be fitted at with `n_lights` lights, note or None).
+
+    An order needs at least as many lights as terms (order²): with fewer, every pixel's fit
+    is undetermined and the file would be all zeros. `asked` when the lights allow it, else
+    order 2 (4 terms) with at least 4 lights, else None (relight.rti is not written)."""
+    if n_lights >= asked * asked:
+        return asked, None
+    if n_lights >= 4:
+        return 2, (f"relight.rti: HSH order 2 (4 terms) instead of {asked} ({asked * asked} terms): "
+                   f"{n_lights} lights cannot determine {asked * asked} terms")
+    return None, (f"relight.rti not written: {n_lights} light(s) cannot determine even the 4 terms of "
+                  "HSH order 2 (scan at least 4 lights)")
+
+
+def fill_unfitted(fit, images, mask, name):
+    """Give the masked pixels the fit left out (fewer usable lights than its terms: zero
+    coefficients, black in a viewer) their mean value as a constant term, in place; they
+    then look as the object does under average light, without relighting.
+
+    fit : a recon `PTMFit` or `HSHFit`; images (m, H, W, 3) as fitted; mask (H, W) bool;
+    name : the file name for the note. Returns (write, note): write False when no masked
+    pixel could be fitted (the file would say nothing: it is not written)."""
+    mask = np.asarray(mask, bool)
+    left = mask & ~np.asarray(fit.valid, bool)
+    n_left, n_mask = int(left.sum()), int(mask.sum())
+    ptm = fit.coeffs.ndim == 3
+    terms = PTM_TERMS if ptm else fit.coeffs.shape[-1]
+    if n_mask == 0 or n_left == n_mask:
+        return False, (f"{name} not written: no pixel of the mask has the {terms} usable lights its "
+                       f"{'PTM' if ptm else 'HSH'} fit needs")
+    if n_left == 0:
+        return True, None
+    vals = np.asarray(images)[:, left].astype(np.float64) / fit.white      # (m, n, 3), as fitted
+    if getattr(fit, "encoding", "linear") == "srgb":                         # the displayed values
+        vals = srgb_transfer(np.clip(vals, 0.0, 1.0))
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)                       # all-NaN: 0 below
+        if ptm:       # L of each sample: its projection on the pixel's colour (as the fit takes it)
+            rgb = fit.rgb[left].astype(np.float64)
+            lum = (vals * rgb).sum(-1) / np.maximum((rgb * rgb).sum(-1), 1e-12)
+            const = np.nan_to_num(np.nanmean(lum, axis=0))
+            coeffs = np.zeros((n_left, PTM_TERMS), fit.coeffs.dtype)
+            coeffs[:, 5] = const                                      # a5: the constant term
+        else:
+            y00 = float(hsh_basis(np.array([0.0, 0.0, 1.0]), fit.order)[0])
+            mean = np.nan_to_num(np.nanmean(vals, axis=0))                     # (n, 3)
+            coeffs = np.zeros((n_left, 3, terms), fit.coeffs.dtype)
+            coeffs[:, :, 0] = mean / y00
+    fit.coeffs[left] = coeffs
+    return True, (f"{name}: {n_left} of {n_mask} masked pixels ({n_left / n_mask:.1%}) have fewer than "
+                  f"{terms} usable lights; they keep their mean value (no relighting there)")
 
 
 def gltf_roughness(sigma, distribution="beckmann"):

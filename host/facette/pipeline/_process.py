@@ -41,7 +41,7 @@ from facette.recon import (INTEGRATION_DEFAULT, INTEGRATION_METHODS, PS_DEFAULT,
                            without_interreflections)
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
-from facette.pipeline._exports import gltf_inputs, gltf_material
+from facette.pipeline._exports import fill_unfitted, gltf_inputs, gltf_material, hsh_order_for
 from facette.pipeline._inputs import load_input, object_of
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._quality import check_fit_cells, check_samples
@@ -484,19 +484,28 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration
     def ptm():
         t0 = time.perf_counter()
         res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.object_mask, encoding=res.options["rti_encoding"])
-        res.fit_errors["ptm_relative_rms"] = fit_relight_error(res.ptm, images, light_dirs, res.object_mask)
+        ok, note = fill_unfitted(res.ptm, images, res.object_mask, FILES["ptm"])   # never a blank file
+        if ok:
+            res.fit_errors["ptm_relative_rms"] = fit_relight_error(res.ptm, images, light_dirs, res.object_mask)
         res.timings["ptm"] = time.perf_counter() - t0
-        write("ptm")
-        return []
+        if ok:
+            write("ptm")
+        return [note] if note else []
 
     def hsh():
         t0 = time.perf_counter()
-        res.hsh = fit_hsh(images, light_dirs, order=hsh_order, mask=res.object_mask,
-                          encoding=res.options["rti_encoding"])
-        res.fit_errors["hsh_relative_rms"] = fit_relight_error(res.hsh, images, light_dirs, res.object_mask)
+        order, note = hsh_order_for(len(images), hsh_order)
+        notes = [note] if note else []
+        if order is not None:
+            res.hsh = fit_hsh(images, light_dirs, order=order, mask=res.object_mask,
+                              encoding=res.options["rti_encoding"])
+            ok, note = fill_unfitted(res.hsh, images, res.object_mask, FILES["rti"])
+            notes += [note] if note else []
+            if ok:
+                res.fit_errors["hsh_relative_rms"] = fit_relight_error(res.hsh, images, light_dirs, res.object_mask)
+                write("rti")
         res.timings["hsh"] = time.perf_counter() - t0
-        write("rti")
-        return []
+        return notes
 
     def maps():
         for o in ("normals", "albedo", "mask"):

@@ -4,6 +4,7 @@ import pytest
 
 from facette.cli.main import main
 from facette.pipeline import OUTPUTS, process, stages_needed
+from facette.pipeline._exports import hsh_order_for
 from facette.recon.synthetic import render, sphere_on_plane
 from test_process import L, _write_scan
 
@@ -73,3 +74,63 @@ def test_rti_files_hold_what_the_viewers_show_in_the_encoding_asked_for(tmp_path
     assert np.median(ptm.relight(L[0])[obj]) > 0.2                     # not black
     with pytest.raises(BadInputError, match="rti_encoding"):
         process(tmp_path / "scan", outputs=["ptm"], rti_encoding="gamma")
+
+
+def _diligent(folder, n_lights, saturate=None):
+    """A DiLiGenT-style folder of a matte sphere under the first `n_lights` thesis lights;
+    `saturate`: (rows, cols, lights) set to 65535 (unusable) in those images."""
+    from facette.io.diligent import write_diligent
+    sc = sphere_on_plane(24, 32)
+    imgs = render(sc, L[:n_lights], "matte")
+    u16 = np.round(imgs / imgs.max() * 50000).astype(np.uint16)
+    if saturate is not None:
+        rows, cols, lights = saturate
+        for i in lights:
+            u16[i, rows, cols] = 65535
+    write_diligent(folder, u16, L[:n_lights], np.ones((n_lights, 3)), sc.mask)
+    return folder
+
+
+def _ptm_coeff_bytes(path, w, h):
+    data = path.read_bytes()
+    head = data.split(b"\n", 6)
+    return np.frombuffer(head[6], np.uint8, w * h * 6).reshape(h, w, 6)[::-1], head[5]
+
+
+def test_fewer_lights_than_hsh_terms_fit_order_2_and_say_so(tmp_path, capsys):
+    """6 lights cannot determine 9 HSH terms: order 2 is fitted (never an all-zero file)."""
+    folder = _diligent(tmp_path / "six", 6)
+    assert main(["process", str(folder), "-o", str(tmp_path / "o"), "--outputs", "normals,ptm,rti"]) == 0
+    text = capsys.readouterr().out
+    assert "relight.rti: HSH order 2 (4 terms) instead of 3 (9 terms): 6 lights" in text
+    data = (tmp_path / "o" / "relight.rti").read_bytes()
+    assert data.split(b"\n")[3] == b"4 2 1"                       # 4 terms
+    body = np.frombuffer(data[len(b"".join(x + b"\n" for x in data.split(b"\n")[:4])) + 32:], np.uint8)
+    assert body.size == 24 * 32 * 3 * 4 and np.ptp(body) > 50      # not blank
+    import re
+    rms = float(re.search(r"hsh_relative_rms\D*([0-9.]+)", text).group(1))
+    assert rms < 0.5
+
+
+def test_too_few_lights_for_a_ptm_write_none_and_say_so(tmp_path, capsys):
+    folder = _diligent(tmp_path / "four", 4)
+    assert main(["process", str(folder), "-o", str(tmp_path / "o"), "--outputs", "normals,ptm,rti"]) == 0
+    text = capsys.readouterr().out
+    assert "relight.rti: HSH order 2 (4 terms) instead of 3 (9 terms): 4 lights" in text
+    assert "relight.ptm not written: no pixel of the mask has the 6 usable lights" in text
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["normal.exr", "process.json", "relight.rti"]
+    assert hsh_order_for(3, 3) == (None, "relight.rti not written: 3 light(s) cannot determine even the 4 "
+                                         "terms of HSH order 2 (scan at least 4 lights)")
+    assert hsh_order_for(9, 3) == (3, None) and hsh_order_for(9, 2) == (2, None)
+
+
+def test_ptm_pixels_with_fewer_than_6_usable_lights_keep_their_mean_and_are_counted(tmp_path, capsys):
+    rows, cols = slice(10, 14), slice(14, 18)                      # on the sphere
+    folder = _diligent(tmp_path / "sat", 12, (rows, cols, range(7)))   # 5 usable lights there
+    res = process(folder, outputs=["normals", "ptm"], out_dir=tmp_path / "o")
+    assert any("relight.ptm: 16 of" in n and "fewer than 6 usable lights" in n for n in res.notes)
+    coeffs, bias_line = _ptm_coeff_bytes(tmp_path / "o" / "relight.ptm", 32, 24)
+    bias = np.array([int(b) for b in bias_line.split()])
+    a5 = coeffs[rows, cols, 5].astype(int) - bias[5]
+    assert (a5 > 0).all()                           # lit, not black: their mean luminance
+    assert (coeffs[rows, cols, :5].astype(int) == bias[:5]).all()   # no relighting terms there
