@@ -4,14 +4,18 @@
     facette batch scans/* -o out/collection --workers 8
     facette batch scans/* -o out/collection --scheduler tcp://10.0.0.5:8786
 
-A rerun skips the scans whose results were made from the same inputs (and options); a scan
-that fails is reported in its row (OUT/summary.csv, OUT/summary.html) and tried again next time.
+A rerun skips the scans whose results were made from the same inputs (and options) and are
+still intact; a scan that fails is reported in its row (OUT/summary.csv, OUT/summary.html) and
+tried again next time. The options are checked as `facette process` checks them, before any
+worker starts (exit 2).
 """
 import argparse
 import sys
 
 
 def register(sub):
+    from facette.brdf import MODELS
+    from facette.cli._process import _outputs
     from facette.pipeline import OUTPUTS
     p = sub.add_parser("batch", help="process many scans on Dask, with one summary table",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -22,23 +26,30 @@ def register(sub):
     where.add_argument("--scheduler", metavar="ADDRESS",
                        help="a running dask.distributed scheduler, e.g. tcp://host:8786 (its workers "
                             "need facette installed and the same paths)")
-    p.add_argument("--outputs", default=",".join(OUTPUTS),
+    p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
                    help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all)")
-    p.add_argument("--brdf-model", default="li", help="model fitted for brdf.json (see facette process)")
+    p.add_argument("--brdf-model", default="li", choices=list(MODELS.names()),
+                   help="model fitted for brdf.json (see facette process)")
+    p.add_argument("--allow-incomplete", action="store_true",
+                   help="process scans that are not complete (every output then says so)")
     p.add_argument("--force", action="store_true", help="reprocess scans that are already done")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
 
 def run(args):
+    from facette.cli._process import _check_out
+    from facette.errors import FacetteError
     from facette.pipeline import batch
-    outputs = [o.strip() for o in args.outputs.split(",") if o.strip()]
+    _check_out(args.out)
+    options = {"fit_options": {"model": args.brdf_model}}
+    if args.allow_incomplete:
+        options["allow_incomplete"] = True
     try:
-        from facette.pipeline import stages_needed
-        stages_needed(outputs)
         rows = batch(args.scans, args.out, workers=args.workers, scheduler=args.scheduler,
-                     outputs=outputs, options={"fit_options": {"model": args.brdf_model}},
-                     force=args.force, progress=not args.quiet)
+                     outputs=args.outputs, options=options, force=args.force, progress=not args.quiet)
+    except FacetteError:
+        raise                     # its message and hint, with its exit code (facette.cli.main)
     except (ValueError, OSError) as exc:
         print(f"facette batch: {exc}", file=sys.stderr)
         return 2

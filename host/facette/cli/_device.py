@@ -7,6 +7,7 @@
 """
 import argparse
 import json
+import sys
 
 from facette.device import registers as R
 
@@ -75,6 +76,18 @@ def _check_write(reg, value):
                             + (f" {reg.unit}" if reg.unit else "")) from None
 
 
+def _clamp_note(dev, reg, value):
+    """The line saying that a current written above the device's max_current_mA is driven at
+    that limit (the register keeps the value written), or None."""
+    if reg.space != "holding" or reg.unit != "mA" or "current" not in reg.name or reg.name == "max_current_mA":
+        return None
+    limit = dev.read("max_current_mA")
+    if value <= limit:
+        return None
+    return (f"{reg.name} holds {value} mA but the device drives at most max_current_mA = {limit} mA: "
+            "the rest is not driven (raise max_current_mA, up to 1500, to drive more)")
+
+
 def _command(rig, action):
     """clear / abort, refused in words when the device's state does not allow it."""
     from facette.errors import BadInputError
@@ -135,6 +148,10 @@ def run(args):
             _check_write(reg, value)
             dev.write(reg.name, value, idx)
             out = {reg.name: dev.read(reg.name, idx)}
+            note = _clamp_note(dev, reg, value)
+            if note:
+                out["note"] = note
+                print(f"facette device: note: {note}", file=sys.stderr)
         print(json.dumps(out, indent=1, default=str))
     finally:
         rig.close()

@@ -4,11 +4,12 @@ A folder holds `filenames.txt` (one image file per line), `light_directions.txt`
 vector per line, camera frame x right, y up, z towards the camera), `light_intensities.txt`
 (R G B per line; images are divided by them), `mask.png`, and 16-bit PNG images.
 """
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from facette.errors import BadInputError
 from facette.io.png import read_mask, read_png, write_png, write_mask
 
 __all__ = ["DiligentData", "is_diligent_dir", "read_diligent", "write_diligent"]
@@ -19,13 +20,44 @@ class DiligentData:
     """images (m, H, W, 3) float32 in [0, 1] divided by the light intensities, NaN where the
     PNG value was saturated; light_dirs (m, 3);
     light_intensities (m, 3); mask (H, W) bool; names (m,) file names; bit_depth 8 or 16, of
-    the PNG files (truth normals are not read here)."""
+    the PNG files (truth normals are not read here); notes: what was left out and why (lights
+    below the horizon)."""
     images: np.ndarray
     light_dirs: np.ndarray
     light_intensities: np.ndarray
     mask: np.ndarray
     names: list
     bit_depth: int = 16
+    notes: list = field(default_factory=list)
+
+
+# the smallest singular value over the largest of the directions' matrix under which the
+# lights do not span three dimensions (all from one direction, or all in one plane through
+# the object): photometric stereo cannot separate the normal from the albedo
+MIN_SPREAD = 1e-3
+
+
+def _check_directions(path, dirs):
+    """Refuse lights that cannot give normals; (indices kept, notes) for lights below the horizon."""
+    below = np.flatnonzero(dirs[:, 2] < 0)
+    if len(below) == len(dirs):
+        raise BadInputError(f"{path}: every light has z < 0, below the horizon (facette's frame: x right, y up, "
+                            "z towards the camera)",
+                            hint="the file is in another frame: flip the sign of z (and of y for a y-down frame)")
+    keep = np.flatnonzero(dirs[:, 2] >= 0)
+    notes = []
+    if len(below):
+        lines = ", ".join(str(i + 1) for i in below[:8]) + ("..." if len(below) > 8 else "")
+        notes.append(f"{path.name}: {len(below)} light(s) below the horizon (z < 0; lines {lines}) left out: "
+                     "they cannot light a surface the camera sees")
+    s = np.linalg.svd(dirs[keep], compute_uv=False) if len(keep) >= 3 else None   # fewer: the method says
+    if s is not None and s[2] < MIN_SPREAD * s[0]:
+        same = np.allclose(dirs[keep], dirs[keep][0], atol=1e-3)
+        raise BadInputError(f"{path}: the {len(keep)} lights " + ("all share one direction" if same else
+                            "lie in one plane through the object") + ": photometric stereo needs lights from "
+                            "at least three directions that are not in one plane",
+                            hint="check light_directions.txt (one direction per image, in the order of filenames.txt)")
+    return keep, notes
 
 
 def is_diligent_dir(path):
@@ -71,6 +103,7 @@ def read_diligent(folder, dtype=np.float32, select=None):
         raise ValueError(f"{folder / 'light_directions.txt'}, line {int(np.argmin(norms)) + 1}: a zero "
                          "direction (every light needs a direction)")
     dirs = dirs / norms[:, None]
+    keep, notes = _check_directions(folder / "light_directions.txt", dirs)
     inten_path = folder / "light_intensities.txt"
     inten = _table(inten_path, m, "R G B intensity per light") if inten_path.is_file() else np.ones((m, 3))
     if np.any(inten <= 0):
@@ -82,7 +115,9 @@ def read_diligent(folder, dtype=np.float32, select=None):
             raise ValueError(f"select must hold image indices in 0..{m - 1} for the {m} images of "
                              f"{folder}; got {select.tolist()}")
         names, dirs, inten = [names[i] for i in select], dirs[select], inten[select]
-        m = len(names)
+        keep = np.flatnonzero(dirs[:, 2] >= 0)
+    names, dirs, inten = [names[i] for i in keep], dirs[keep], inten[keep]
+    m = len(names)
     first = read_png(folder / names[0])
     h, w = first.shape[:2]
     images = np.empty((m, h, w, 3), dtype)
@@ -100,7 +135,7 @@ def read_diligent(folder, dtype=np.float32, select=None):
     mask = read_mask(mask_path) if mask_path.is_file() else np.ones((h, w), bool)
     if mask.shape != (h, w):
         raise ValueError(f"mask.png is {mask.shape[1]}x{mask.shape[0]}, images are {w}x{h}")
-    return DiligentData(images, dirs, inten, mask, names, 16 if first.dtype == np.uint16 else 8)
+    return DiligentData(images, dirs, inten, mask, names, 16 if first.dtype == np.uint16 else 8, notes)
 
 
 def write_diligent(folder, images_uint16, light_dirs, light_intensities=None, mask=None):

@@ -1,14 +1,22 @@
 """`batch`: many scans processed on a Dask cluster, with one summary table of every object.
 
-Each scan is one task (`process_scan`) that writes OUT/<name>/ (the files of `process`)
-and OUT/<name>/batch.json: the row of the summary and the fingerprint of its inputs. A scan
-is done when that record says "ok" and its fingerprint matches the scan as it is now (the
-sha256 of scan.json and of every file under hdr/, the outputs and options asked for, and
-facette's version): a rerun skips it. A scan that fails is reported in its row and does not
-stop the others; the next run tries it again.
+Each scan is one task (`process_scan`) that writes OUT/<folder>/ (the files of `process`)
+and OUT/<folder>/batch.json: the row of the summary, the fingerprint of its inputs and the
+sha256 of every file it wrote. A scan's folder is its directory's name, or, when another scan
+of that name already owns it (batch.json says whose), the name and a digest of the scan's
+full path: unique, and the same on every run whatever the other scans. A scan is done when
+its record says "ok", its fingerprint matches the scan as it is now (scan.json without the
+HDR record processing adds, the sha256 of every file under hdr/, the RAW frames' sizes and
+times, the outputs and options asked for, and facette's version; taken after processing, so
+what processing itself writes never makes a scan look changed) and every file it wrote is
+there with the same content: a rerun skips it. A scan that fails is reported in its row and
+does not stop the others; the next run tries it again. The summary merges the rows of every
+scan under OUT: a rerun on a subset keeps the others' rows.
 """
 import csv
+import hashlib
 import html
+import io
 import json
 import math
 import os
@@ -17,11 +25,14 @@ import traceback
 from pathlib import Path
 
 import facette
+from facette.errors import BadInputError
+from facette.io.atomic import write_text_atomic
 from facette.io.checksum import sha256_file
 from facette.pipeline._process import process
+from facette.pipeline._record import read_record
 
-__all__ = ["batch", "process_scan", "input_fingerprint", "write_summary", "SUMMARY_COLUMNS",
-           "RECORD"]
+__all__ = ["batch", "process_scan", "input_fingerprint", "write_summary", "result_folders",
+           "SUMMARY_COLUMNS", "RECORD"]
 
 RECORD = "batch.json"
 SUMMARY_COLUMNS = (
@@ -33,14 +44,25 @@ SUMMARY_COLUMNS = (
 
 def input_fingerprint(scan_dir, outputs, options):
     """What a scan's results depend on, as a dict that compares equal when nothing changed:
-    sha256 of scan.json and of every file under hdr/, the outputs, the options and the
-    facette version."""
+    scan.json without its "hdr" record (which processing writes), the sha256 of every file
+    under hdr/, the RAW frames' (size, mtime), the outputs, the options and the facette version."""
     scan_dir = Path(scan_dir)
     if not (scan_dir / "scan.json").is_file():
         raise FileNotFoundError(f"{scan_dir} has no scan.json: not a facette scan directory")
+    try:
+        manifest = json.loads((scan_dir / "scan.json").read_text())
+    except ValueError as exc:
+        raise BadInputError(f"{scan_dir / 'scan.json'} is damaged ({exc})") from exc
+    manifest.pop("hdr", None)
     hdr = scan_dir / "hdr"
     files = sorted(p for p in hdr.rglob("*") if p.is_file()) if hdr.is_dir() else []
-    return {"facette": facette.__version__, "scan.json": sha256_file(scan_dir / "scan.json"),
+    raw = []
+    for f in manifest.get("frames", []):
+        st = (scan_dir / f.get("file", "")).stat() if (scan_dir / f.get("file", "")).is_file() else None
+        raw.append([f.get("file"), st.st_size if st else None, st.st_mtime_ns if st else None])
+    return {"facette": facette.__version__,
+            "scan.json": hashlib.sha256(json.dumps(manifest, sort_keys=True, default=str).encode()).hexdigest(),
+            "raw": raw,
             "hdr": {str(p.relative_to(scan_dir)): sha256_file(p) for p in files},
             "outputs": list(outputs) if outputs is not None else None,
             "options": json.loads(json.dumps(options or {}, sort_keys=True, default=str))}
@@ -76,24 +98,41 @@ def _read_record(path):
         return None
 
 
+def _written(out_dir):
+    """{file name: sha256} of the files process.json says its run wrote into `out_dir`."""
+    rec = read_record(out_dir) or {}
+    return {name: sha256_file(out_dir / name) for name in rec.get("files", []) if (out_dir / name).is_file()}
+
+
+def _intact(out_dir, record):
+    """True when every file the recorded run wrote is in `out_dir` with the same content."""
+    files = record.get("files")
+    if not files:
+        return False
+    return all((out_dir / n).is_file() and sha256_file(out_dir / n) == h for n, h in files.items())
+
+
 def process_scan(scan_dir, out_dir, outputs=None, options=None, force=False):
     """Process one scan into out_dir (a Dask task; also callable directly).
 
     Returns the summary row (dict with SUMMARY_COLUMNS keys that apply): status "ok",
-    "skipped" (already done with the same inputs) or "failed" (error says why).
+    "skipped" (already done with the same inputs, its files intact) or "failed" (error says why).
     """
     scan_dir, out_dir = Path(scan_dir), Path(out_dir)
     row = {"scan": out_dir.name, "source": str(scan_dir), "results": str(out_dir)}
     t0 = time.perf_counter()
+    files = {}
     try:
         fingerprint = input_fingerprint(scan_dir, outputs, options)
         record = _read_record(out_dir / RECORD)
         if (not force and record and record.get("row", {}).get("status") == "ok"
-                and record.get("inputs") == fingerprint):
+                and record.get("inputs") == fingerprint and _intact(out_dir, record)):
             return {**record["row"], "status": "skipped"}
         # the batch decides itself when a scan's row is redone (its inputs or options changed)
         res = process(scan_dir, outputs=outputs, out_dir=out_dir, overwrite=True, **(options or {}))
         row.update(_figures(res), status="ok", error="")
+        fingerprint = input_fingerprint(scan_dir, outputs, options)    # after what processing wrote
+        files = _written(out_dir)
     except Exception as exc:   # one bad scan must not stop a collection: report it in its row
         error = f"{type(exc).__name__}: {exc}"
         if not isinstance(exc, (ValueError, OSError)):     # not a reported bad input: say where
@@ -103,20 +142,68 @@ def process_scan(scan_dir, out_dir, outputs=None, options=None, force=False):
         fingerprint = None
     row["time_s"] = time.perf_counter() - t0
     out_dir.mkdir(parents=True, exist_ok=True)
-    tmp = out_dir / (RECORD + ".partial")
-    tmp.write_text(json.dumps({"inputs": fingerprint, "row": row}, indent=1, default=str))
-    tmp.replace(out_dir / RECORD)
+    write_text_atomic(out_dir / RECORD, json.dumps({"inputs": fingerprint, "row": row, "files": files},
+                                                   indent=1, default=str))
     return row
 
 
-def _names(scans):
-    """One output folder name per scan: its directory name, made unique with -2, -3..."""
-    seen, names = {}, []
+def _path_digest(path):
+    return hashlib.sha256(str(Path(path).resolve()).encode()).hexdigest()[:8]
+
+
+def result_folders(scans, out_dir):
+    """One result folder name per scan, unique and stable: the scan directory's name when
+    that folder under `out_dir` is free or already this scan's (its batch.json says so), else
+    the name and a digest of the scan's full path ("object-1a2b3c4d")."""
+    out_dir = Path(out_dir)
+    taken, names = {}, []
     for s in scans:
-        base = Path(s).resolve().name or "scan"
-        seen[base] = seen.get(base, 0) + 1
-        names.append(base if seen[base] == 1 else f"{base}-{seen[base]}")
+        src = str(Path(s).resolve())
+        base = Path(src).name or "scan"
+        rec = _read_record(out_dir / base / RECORD) or {}
+        owner = (rec.get("row") or {}).get("source")
+        free = taken.get(base, src) == src and (owner is None or str(Path(owner).resolve()) == src)
+        name = base if free else f"{base}-{_path_digest(src)}"
+        if taken.get(name, src) != src:
+            raise BadInputError(f"two scans would share the result folder {out_dir / name}: {taken[name]} and {src}",
+                                hint="rename one of the scan folders")
+        taken[name] = src
+        names.append(name)
     return names
+
+
+def _check_out(scans, out_dir, names):
+    """Refuse an output folder inside a scan, or one whose result folders would be scans."""
+    out = Path(out_dir).resolve()
+    for s, n in zip(scans, names):
+        src = Path(s).resolve()
+        if out == src or src in out.parents:
+            raise BadInputError(f"-o {out_dir} is inside the scan {s}: results would be written among its "
+                                "files (facette never writes its inputs)",
+                                hint="choose an output folder outside the scans")
+        if (out / n).resolve() == src:
+            raise BadInputError(f"-o {out_dir} would put {s}'s results into {s} itself (the scans' own folder)",
+                                hint="choose an output folder beside the scans, e.g. "
+                                     f"{src.parent.parent / 'results'}")
+
+
+def _merged_rows(out_dir, rows, names):
+    """This run's rows, merged with those of the other scans under `out_dir` (their batch.json),
+    in the previous summary's order, this run's new scans after."""
+    out_dir = Path(out_dir)
+    by_name = {}
+    for rec_path in sorted(out_dir.glob(f"*/{RECORD}")):
+        rec = _read_record(rec_path)
+        if rec and isinstance(rec.get("row"), dict):
+            by_name[rec_path.parent.name] = rec["row"]
+    by_name.update(zip(names, rows))
+    order = []
+    if (out_dir / "summary.csv").is_file():
+        with open(out_dir / "summary.csv", newline="") as fh:
+            order = [r.get("scan") for r in csv.DictReader(fh)]
+    order = [n for n in order if n in by_name]
+    order += [n for n in names if n not in order] + sorted(n for n in by_name if n not in order and n not in names)
+    return [by_name[n] for n in order]
 
 
 def _fmt(v):
@@ -137,12 +224,12 @@ def write_summary(rows, out_dir):
     out_dir = Path(out_dir)
     cols = list(SUMMARY_COLUMNS) + sorted({k for r in rows for k in r} - set(SUMMARY_COLUMNS))
     csv_path, html_path = out_dir / "summary.csv", out_dir / "summary.html"
-    with open(csv_path.with_suffix(".csv.partial"), "w", newline="") as fh:
-        wr = csv.DictWriter(fh, fieldnames=cols, extrasaction="ignore")
-        wr.writeheader()
-        for r in rows:
-            wr.writerow({k: "" if r.get(k) is None else r.get(k) for k in cols})
-    csv_path.with_suffix(".csv.partial").replace(csv_path)
+    text = io.StringIO(newline="")
+    wr = csv.DictWriter(text, fieldnames=cols, extrasaction="ignore")
+    wr.writeheader()
+    for r in rows:
+        wr.writerow({k: "" if r.get(k) is None else r.get(k) for k in cols})
+    write_text_atomic(csv_path, text.getvalue())
     counts = {s: sum(r.get("status") == s for r in rows) for s in ("ok", "skipped", "failed")}
     head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
     body = []
@@ -168,9 +255,7 @@ are fractions.</p>
 {chr(10).join(body)}
 </table></body></html>
 """
-    tmp = html_path.with_suffix(".html.partial")
-    tmp.write_text(page)
-    tmp.replace(html_path)
+    write_text_atomic(html_path, page)
     return csv_path, html_path
 
 
@@ -178,13 +263,15 @@ def batch(scans, out_dir, workers=2, scheduler=None, outputs=None, options=None,
           progress=True):
     """Process many scans on Dask and write OUT/summary.csv and OUT/summary.html.
 
-    scans : scan directories; out_dir : results go to out_dir/<scan name>/.
+    scans : scan directories; out_dir : results go to out_dir/<folder>/ (`result_folders`);
+        refused (BadInputError, before any task) when it is inside a scan or would be one.
     workers : local worker processes (one thread each) when no scheduler is given.
     scheduler : address of a running dask.distributed scheduler ("tcp://host:8786"); its
         workers must have facette installed and see the same paths.
     outputs, options : as `process` (outputs list, keyword arguments).
     force : reprocess scans even when done. progress : a progress bar on stderr.
-    Returns the rows (list of dicts, in the order of `scans`).
+    Returns the rows (list of dicts, in the order of `scans`); summary.* holds them merged
+    with the rows of the other scans under `out_dir`.
     """
     # a deliberate lazy load: dask.distributed takes ~1 s to import, and `facette process`
     # (which imports this package) never needs it
@@ -196,13 +283,18 @@ def batch(scans, out_dir, workers=2, scheduler=None, outputs=None, options=None,
         raise ValueError("no scans given: pass one or more scan directories")
     if scheduler is None and workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+    if outputs is not None and not list(outputs):
+        raise BadInputError("no outputs asked for (--outputs is empty): nothing would be written",
+                            hint="name one or more outputs, or leave --outputs out for all")
     out_dir = Path(out_dir)
+    names = result_folders(scans, out_dir)
+    _check_out(scans, out_dir, names)
     out_dir.mkdir(parents=True, exist_ok=True)
-    names = _names(scans)
     cluster = None
     if scheduler is None:
+        # the dashboard on any free port: two batches on one machine never collide on 8787
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               dashboard_address=":0")
         client = Client(cluster)
     else:
         client = Client(scheduler)
@@ -226,5 +318,5 @@ def batch(scans, out_dir, workers=2, scheduler=None, outputs=None, options=None,
         client.close()
         if cluster is not None:
             cluster.close()
-    write_summary(rows, out_dir)
+    write_summary(_merged_rows(out_dir, rows, names), out_dir)
     return rows

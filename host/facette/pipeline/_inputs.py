@@ -424,6 +424,7 @@ def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False):
                       "diligent", path, usable=usable, object_mask=d.mask,
                       mask_source=f"{path / 'mask.png'}" if (path / "mask.png").is_file() else "the image")
         inp.digest = _digest(_file_stamps(path))
+        inp.notes.extend(d.notes)
         if pixel_pitch_mm is None:
             inp.notes.append("DiLiGenT folders carry no pixel pitch: heights are in pixels (pitch 1)")
     else:

@@ -67,3 +67,13 @@ def test_mistakes_are_said_in_words(capsys, port, args, code, words):
 def test_a_bad_port(capsys, tmp_path):
     got, out, err = dev_cli(capsys, str(tmp_path / "ttyNONE"), "info")
     assert got == 2 and "cannot open the port" in err and "check the port name" in err, err
+
+
+def test_a_current_above_the_device_limit_is_said_when_written(capsys, port):
+    code, out, err = dev_cli(capsys, port, "write", "manual_current_mA", "1500")
+    assert code == 0
+    said = json.loads(out)
+    assert said["manual_current_mA"] == 1500                  # what the register holds
+    assert "max_current_mA = 1000 mA" in said["note"] and "max_current_mA = 1000 mA" in err
+    code, out, err = dev_cli(capsys, port, "write", "manual_current_mA", "800")
+    assert code == 0 and "note" not in json.loads(out) and "note" not in err

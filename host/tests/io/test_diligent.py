@@ -42,3 +42,35 @@ def test_read_diligent_selects_images_and_reports_bit_depth(tmp_path):
     assert read_diligent(tmp_path / "b").bit_depth == 8
     with pytest.raises(ValueError, match="select"):
         read_diligent(tmp_path / "a", select=[4])
+
+
+def _folder_with_lights(folder, dirs):
+    from facette.recon.synthetic import render, sphere_on_plane
+    sc = sphere_on_plane(16, 16)
+    imgs = render(sc, np.abs(np.asarray(dirs)) / np.linalg.norm(dirs, axis=1)[:, None], "matte")
+    write_diligent(folder, np.round(imgs / imgs.max() * 50000).astype(np.uint16), dirs)
+    return folder
+
+
+def test_lights_below_the_horizon_are_left_out_and_said(tmp_path):
+    from facette.recon.synthetic import thesis_light_directions
+    dirs = thesis_light_directions()[:8].copy()
+    dirs[[2, 5], 2] *= -1                                  # two lights under the table
+    d = read_diligent(_folder_with_lights(tmp_path / "f", dirs))
+    assert len(d.light_dirs) == 6 and (d.light_dirs[:, 2] >= 0).all() and len(d.images) == 6
+    assert d.names == ["001.png", "002.png", "004.png", "005.png", "007.png", "008.png"]
+    assert d.notes == ["light_directions.txt: 2 light(s) below the horizon (z < 0; lines 3, 6) left out: "
+                       "they cannot light a surface the camera sees"]
+
+
+def test_lights_all_below_or_from_one_direction_are_refused(tmp_path):
+    from facette.errors import BadInputError
+    from facette.recon.synthetic import thesis_light_directions
+    dirs = thesis_light_directions()[:6].copy()
+    flipped = dirs * [1, 1, -1]
+    with pytest.raises(BadInputError, match="every light has z < 0") as exc:
+        read_diligent(_folder_with_lights(tmp_path / "a", flipped))
+    assert "flip the sign of z" in exc.value.hint
+    same = np.tile(dirs[:1], (6, 1))
+    with pytest.raises(BadInputError, match="the 6 lights all share one direction"):
+        read_diligent(_folder_with_lights(tmp_path / "b", same))

@@ -1,5 +1,6 @@
 """`facette batch` on a local Dask cluster: simulated scans, one of them corrupted."""
 import csv
+import json
 import shutil
 
 import pytest
@@ -8,6 +9,7 @@ import facette
 from facette.cli.main import main
 from facette.scan import merge_scan
 from facette.pipeline import batch
+from facette.pipeline._batch import result_folders
 from facette._data import sim_profile_dir
 
 OUTPUTS = ["normals", "mesh", "brdf", "ptm"]
@@ -89,8 +91,9 @@ def test_cli_exit_status_names_the_failed_scan(collection, tmp_path, capsys):
     assert main(["batch", str(tmp_path / "nowhere"), "-o", str(out), "--quiet",
                  "--outputs", "normals"]) == 1
     assert "no scan.json" in capsys.readouterr().err
-    assert main(["batch", str(collection[2]), "-o", str(out), "--outputs", "normal"]) == 2
-    assert "unknown output" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:          # checked by argparse, as `facette process` does
+        main(["batch", str(collection[2]), "-o", str(out), "--outputs", "normal"])
+    assert exc.value.code == 2 and "unknown output" in capsys.readouterr().err
 
 
 def test_a_running_scheduler_is_used_by_its_address(collection, tmp_path):
@@ -102,3 +105,61 @@ def test_a_running_scheduler_is_used_by_its_address(collection, tmp_path):
                      outputs=["normals"], progress=False)
         assert [r["status"] for r in rows] == ["ok", "failed"]
         assert cluster.scheduler.address == cluster.scheduler_address    # still up: not closed by batch
+
+
+def test_result_folders_are_unique_and_stable_whatever_the_other_scans(tmp_path):
+    a, b = tmp_path / "site1" / "vase", tmp_path / "site2" / "vase"
+    names = result_folders([a, b], tmp_path / "out")
+    assert names[0] == "vase" and names[1].startswith("vase-") and len(set(names)) == 2
+    third = tmp_path / "site3" / names[1]                 # named like the de-duplicated one
+    names3 = result_folders([a, b, third], tmp_path / "out")
+    assert len(set(names3)) == 3 and names3[:2] == names
+    # b alone keeps its folder once a's results own "vase" (batch.json says whose)
+    (tmp_path / "out" / "vase").mkdir(parents=True)
+    (tmp_path / "out" / "vase" / "batch.json").write_text(json.dumps({"row": {"source": str(a)}}))
+    assert result_folders([b], tmp_path / "out") == names[1:]
+    assert result_folders([b, a], tmp_path / "out") == [names[1], "vase"]
+
+
+def test_an_output_folder_in_or_as_the_scans_is_refused_before_any_task(sim_scans, tmp_path, capsys):
+    scans = [shutil.copytree(s, tmp_path / "scans" / s.name) for s in sim_scans]
+    before = {p: p.stat().st_mtime_ns for s in scans for p in s.rglob("*")}
+    for out in (tmp_path / "scans", scans[0] / "results", scans[0]):
+        assert main(["batch", *map(str, scans), "-o", str(out), "--quiet", "--outputs", "normals"]) == 2
+        err = capsys.readouterr().err
+        assert "facette never writes its inputs" in err or "into" in err, err
+    assert {p: p.stat().st_mtime_ns for s in scans for p in s.rglob("*")} == before
+    assert not (scans[0] / "results").exists()
+
+
+def test_bad_options_are_refused_before_any_worker_starts(sim_scans, tmp_path, capsys):
+    out = tmp_path / "out"
+    for bad, said in ((["--brdf-model", "lamber"], "invalid choice: 'lamber'"), (["--outputs", ""], "(none given)")):
+        with pytest.raises(SystemExit) as exc:          # argparse's exit, as `facette process`
+            main(["batch", str(sim_scans[0]), "-o", str(out), *bad])
+        assert exc.value.code == 2 and said in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_subset_rerun_keeps_the_other_rows_and_remakes_lost_outputs(sim_scans, tmp_path):
+    scans = [shutil.copytree(s, tmp_path / "scans" / s.name) for s in sim_scans]
+    # the HDR images left to processing: it merges them and records them in scan.json
+    shutil.rmtree(scans[1] / "hdr")
+    manifest = json.loads((scans[1] / "scan.json").read_text())
+    manifest.pop("hdr", None)
+    (scans[1] / "scan.json").write_text(json.dumps(manifest))
+    out = tmp_path / "out"
+    rows = batch(scans, out, workers=1, outputs=["normals", "mask"], options=OPTIONS, progress=False)
+    assert [r["status"] for r in rows] == ["ok", "ok"]
+    assert (scans[1] / "hdr").is_dir()
+    # processing's own writes (the HDR merge) do not make the scan look changed
+    rows = batch(scans, out, workers=1, outputs=["normals", "mask"], options=OPTIONS, progress=False)
+    assert [r["status"] for r in rows] == ["skipped", "skipped"]
+    (out / "object2" / "normal.exr").unlink()                  # an output lost
+    (out / "object1" / "mask.png").write_bytes(b"damaged")     # an output changed
+    rows = batch(scans[1:], out, workers=1, outputs=["normals", "mask"], options=OPTIONS, progress=False)
+    assert [r["status"] for r in rows] == ["ok"] and (out / "object2" / "normal.exr").is_file()
+    table = _summary(out)
+    assert [t["scan"] for t in table] == ["object1", "object2"]       # the subset kept object1's row
+    rows = batch(scans[:1], out, workers=1, outputs=["normals", "mask"], options=OPTIONS, progress=False)
+    assert rows[0]["status"] == "ok" and (out / "object1" / "mask.png").stat().st_size > 10
