@@ -48,6 +48,10 @@ class RawFrame:
     path : Path
     metadata : dict
         Extra metadata (JSON in ImageDescription, as written by the simulated camera).
+    notes : list of str
+        What a reader should know about the file: a RAW that is not a Bayer mosaic (a
+        linear DNG, a film scanner's NEF) used as the 3-colour image it holds; no exposure
+        time in the file.
     """
 
     image: np.ndarray
@@ -59,6 +63,7 @@ class RawFrame:
     iso: int | None
     path: Path
     metadata: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
 
     @property
     def range_dn(self):
@@ -76,17 +81,46 @@ def _fail(path, what):
         "(interrupted copy or capture): copy it again from the camera, or re-shoot that frame.")
 
 
+class _NotAMosaic(Exception):
+    """Internal: the RAW holds 3-colour pixels (`image` (H, W, 3) float32, black-subtracted DN;
+    `white` the range's top in the same DN), not a Bayer mosaic."""
+
+    def __init__(self, image, white, how):
+        super().__init__(how)
+        self.image, self.white, self.how = image, white, how
+
+
+def _stack_image(raw):
+    """(H, W, 3) float32 black-subtracted DN and the white level (DN above black) of a RAW
+    that is not a mosaic: its own values when LibRaw gives them, else LibRaw's linear 16-bit
+    rendering (no white balance, no gamma, no brightening: DN scaled to 0..65535)."""
+    try:
+        stack = np.asarray(raw.raw_image_visible)
+    except (RuntimeError, rawpy.LibRawError):
+        stack = None
+    if stack is not None and stack.ndim == 3 and stack.shape[2] >= 3:
+        black = np.asarray(raw.black_level_per_channel, dtype=np.float32)[:3]
+        img = stack[..., :3].astype(np.float32) - black
+        return img, float(raw.white_level) - float(black.mean()), "its own values"
+    img = raw.postprocess(gamma=(1, 1), no_auto_bright=True, output_bps=16, use_camera_wb=False,
+                          user_wb=[1, 1, 1, 1], output_color=rawpy.ColorSpace.raw, user_flip=0)
+    return img.astype(np.float32), 65535.0, "LibRaw's linear rendering"
+
+
 def _decode(path, cell_only=False):
     """(raw uint16 mosaic (H, W), colors int8 (H, W), black per colour (4,) float32, white).
 
     cell_only: when the CFA repeats every 2×2 photosites, `colors` is that 2×2 cell
     only (building the full colour map costs as much as decoding a 12 MP frame).
+    Raises _NotAMosaic (with the 3-colour image) for a RAW that is not a Bayer mosaic.
     """
     path = Path(path)
     if not path.is_file():
         raise RawDecodeError(f"no RAW file at {path}; check the scan's raw/ folder and scan.json")
     try:
         with rawpy.imread(str(path)) as raw:
+            if raw.raw_type != rawpy.RawType.Flat:
+                raise _NotAMosaic(*_stack_image(raw))
             mosaic = raw.raw_image_visible.copy()
             pattern = np.asarray(raw.raw_pattern)
             if cell_only and pattern.shape == (2, 2):
@@ -100,7 +134,7 @@ def _decode(path, cell_only=False):
             desc = raw.color_desc
     except rawpy.LibRawFileUnsupportedError as exc:
         raise _fail(path, f"not a RAW format LibRaw supports ({exc})") from exc
-    except (rawpy.LibRawError, OSError) as exc:
+    except (rawpy.LibRawError, OSError, RuntimeError) as exc:
         raise _fail(path, f"{type(exc).__name__}: {exc}") from exc
     if mosaic.ndim != 2 or mosaic.size == 0:
         raise _fail(path, f"no single-plane Bayer mosaic (shape {mosaic.shape})")
@@ -115,7 +149,12 @@ def read_raw_mosaic(path):
     Returns (mosaic float32 (H, W) in raw DN, colors int (H, W) with 0=R, 1=G, 2=B,
     3=second G, black_per_channel (4,) DN, white_level DN).
     """
-    mosaic, colors, black, white = _decode(path)
+    try:
+        mosaic, colors, black, white = _decode(path)
+    except _NotAMosaic:
+        raise RawDecodeError(f"{path} is not a Bayer mosaic (a linear or 3-colour RAW: each pixel already "
+                             "holds R, G and B), so it has no mosaic to return; read it with read_raw, "
+                             "which uses its 3-colour image as it is") from None
     return mosaic.astype(np.float32), colors, black, white
 
 
@@ -249,7 +288,10 @@ def read_raw(path, half_size=True, demosaic="bilinear", white_balance=None):
     RawFrame
     """
     path = Path(path)
-    raw, colors, black, white = _decode(path, cell_only=half_size)
+    try:
+        raw, colors, black, white = _decode(path, cell_only=half_size)
+    except _NotAMosaic as stack:
+        return _frame_not_mosaic(path, stack, half_size, white_balance)
     binned = _bin_half_size_raw(raw, colors, black) if half_size and colors.shape == (2, 2) else None
     if binned is not None:
         image, peak = binned
@@ -275,10 +317,30 @@ def read_raw(path, half_size=True, demosaic="bilinear", white_balance=None):
     return _frame(path, image, peak, n, black, white, white_balance)
 
 
-def _frame(path, image, peak, n, black, white, white_balance):
+def _frame_not_mosaic(path, stack, half_size, white_balance):
+    """A RawFrame of a RAW that holds 3-colour pixels: used as it is (half_size: 2×2 means,
+    the peak the largest of the four), its notes saying so."""
+    image = stack.image
+    peak = image
+    n = (1, 1, 1)
+    if half_size:
+        h, w = image.shape[0] // 2 * 2, image.shape[1] // 2 * 2
+        cells = image[:h, :w].reshape(h // 2, 2, w // 2, 2, 3)
+        image, peak, n = cells.mean(axis=(1, 3)), cells.max(axis=(1, 3)), (4, 4, 4)
+    note = (f"{path.name} is not a Bayer mosaic (a linear or 3-colour RAW): its 3-colour pixels are used "
+            f"as they are ({stack.how}; no demosaicing)")
+    return _frame(path, image.astype(np.float32), peak.astype(np.float32), n, np.zeros(4, np.float32),
+                  stack.white, white_balance, [note])
+
+
+def _frame(path, image, peak, n, black, white, white_balance, notes=()):
     if white_balance is not None:
         wb = np.asarray(white_balance, dtype=np.float32).reshape(3)
         image, peak = image * wb, peak * wb
     t, iso, extra = read_exposure_metadata(path)
+    notes = list(notes)
+    if t is None:
+        notes.append(f"{path.name} carries no exposure time (no ExposureTime tag): the exposure must "
+                     "come from elsewhere (a scan takes its frame record's)")
     return RawFrame(image=image, peak=peak, n_photosites=n, black_level=float(black.mean()),
-                    white_level=white, exposure_time_s=t, iso=iso, path=path, metadata=extra)
+                    white_level=white, exposure_time_s=t, iso=iso, path=path, metadata=extra, notes=notes)

@@ -80,3 +80,45 @@ def test_truncated_and_garbage_files_give_clear_errors(tmp_path):
         assert "re-shoot" in str(info.value)
     with pytest.raises(RawDecodeError, match="no RAW file"):
         read_raw(tmp_path / "missing.dng")
+
+
+def _write_linear_dng(path, rgb, black=0, white=65535, exposure_s=None):
+    """A linear DNG (PhotometricInterpretation LinearRaw, 3 samples per pixel): what a film
+    scanner or a camera writing demosaiced RAW gives; `exposure_s` None: no ExposureTime tag
+    (as a Blackmagic DNG)."""
+    import tifffile
+    tags = [(50706, "B", 4, (1, 4, 0, 0), True), (50707, "B", 4, (1, 1, 0, 0), True),
+            (50708, "s", 0, "Test Linear", True), (50714, "H", 1, black, True), (50717, "H", 1, white, True),
+            (50721, 10, 9, (1, 1, 0, 1, 0, 1, 0, 1, 1, 1, 0, 1, 0, 1, 0, 1, 1, 1), True),
+            (50778, "H", 1, 21, True), (50728, 5, 3, (1, 1, 1, 1, 1, 1), True),
+            (271, "s", 0, "Test", True), (272, "s", 0, "Linear", True)]
+    if exposure_s:
+        tags.append((33434, 5, 1, (1, int(round(1 / exposure_s))), True))
+    tifffile.imwrite(path, rgb, photometric=34892, planarconfig="contig", compression=None, subfiletype=0,
+                     metadata=None, extratags=tags)
+    return path
+
+
+def test_a_raw_that_is_not_a_mosaic_is_used_as_its_3_colour_image(tmp_path):
+    from facette.camera.raw import read_raw_mosaic
+    rgb = np.zeros((32, 48, 3), np.uint16)
+    rgb[...] = (1000, 2000, 3000)
+    rgb[4:6, 6:8] = 60000
+    path = _write_linear_dng(tmp_path / "scan.dng", rgb, black=100, exposure_s=0.01)
+    full = read_raw(path, half_size=False)
+    assert full.image.shape == (32, 48, 3) and np.allclose(full.image[0, 0], [900, 1900, 2900])
+    assert full.range_dn == 65435 and full.exposure_time_s == pytest.approx(0.01)
+    assert full.notes == ["scan.dng is not a Bayer mosaic (a linear or 3-colour RAW): its 3-colour pixels "
+                          "are used as they are (its own values; no demosaicing)"]
+    half = read_raw(path)
+    assert half.image.shape == (16, 24, 3) and half.n_photosites == (4, 4, 4)
+    assert np.allclose(half.peak[2, 3], 59900) and np.allclose(half.image[0, 0], [900, 1900, 2900])
+    with pytest.raises(RawDecodeError, match="is not a Bayer mosaic .* read it with read_raw"):
+        read_raw_mosaic(path)
+
+
+def test_a_raw_without_exposure_time_says_so(tmp_path):
+    path = _write_linear_dng(tmp_path / "bmd.dng", np.full((32, 48, 3), 500, np.uint16))
+    frame = read_raw(path)
+    assert frame.exposure_time_s is None
+    assert "bmd.dng carries no exposure time (no ExposureTime tag)" in frame.notes[-1]
