@@ -27,7 +27,7 @@ def _u8_image(name, img, channels):
 
 
 def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, normal_map,
-              metallic_roughness, ior=None, name="facette scan"):
+              metallic_roughness, ior=None, name="facette scan", extras=None):
     """Write a .glb.
 
     vertices_mm (V, 3) float, mm (written in metres); faces (F, 3) int indices in [0, V),
@@ -36,7 +36,8 @@ def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, norma
     image row 0 at v = 0). Textures (H, W, 3) uint8: base_color sRGB-encoded; normal_map
     tangent-space, (n + 1) / 2 · 255; metallic_roughness with roughness in G and metallic
     in B (glTF's channels). ior : index of refraction (KHR_materials_ior), or None for
-    glTF's default 1.5.
+    glTF's default 1.5. extras : a dict stored as the asset's extras (e.g. that the scan was
+    incomplete), shown by viewers that list the asset's metadata.
     """
     v = np.asarray(vertices_mm, np.float64)
     f = np.asarray(faces)
@@ -97,7 +98,7 @@ def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, norma
         material.extensions = {"KHR_materials_ior": {"ior": float(ior)}}
         extensions.append("KHR_materials_ior")
     doc = gl.GLTF2(
-        asset=gl.Asset(version="2.0", generator="facette"),
+        asset=gl.Asset(version="2.0", generator="facette", extras=dict(extras or {})),
         scene=0, scenes=[gl.Scene(nodes=[0])], nodes=[gl.Node(mesh=0, name=name)],
         meshes=[gl.Mesh(name=name, primitives=[gl.Primitive(
             attributes=gl.Attributes(POSITION=0, NORMAL=1, TANGENT=2, TEXCOORD_0=3),

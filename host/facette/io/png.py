@@ -7,12 +7,15 @@ are expanded to RGB). `write_png` takes uint8 or uint16 grey, RGB or RGBA.
 """
 from pathlib import Path
 
+import struct
+import zlib
+
 import cv2
 import numpy as np
 
 from facette.io.atomic import write_bytes_atomic
 
-__all__ = ["read_png", "write_png", "encode_png", "read_mask", "write_mask"]
+__all__ = ["read_png", "read_png_text", "write_png", "encode_png", "read_mask", "write_mask"]
 
 _SIG = b"\x89PNG\r\n\x1a\n"
 _TO_RGB = {3: cv2.COLOR_BGR2RGB, 4: cv2.COLOR_BGRA2RGBA}
@@ -37,9 +40,34 @@ def read_png(path):
     return img
 
 
-def encode_png(image, compression=6):
+def _text_chunks(text):
+    """tEXt chunks (PNG 1.2 §11.3.4.3) of {keyword: Latin-1 text}."""
+    out = b""
+    for key, value in (text or {}).items():
+        data = str(key).encode("latin-1")[:79] + b"\0" + str(value).encode("latin-1", "replace")
+        out += struct.pack(">I", len(data)) + b"tEXt" + data + struct.pack(">I", zlib.crc32(b"tEXt" + data))
+    return out
+
+
+def read_png_text(path):
+    """{keyword: text} of a PNG's tEXt chunks."""
+    data = Path(path).read_bytes()
+    out, at = {}, 8
+    while at + 8 <= len(data):
+        n, kind = struct.unpack(">I4s", data[at:at + 8])
+        if kind == b"tEXt":
+            key, _, value = data[at + 8:at + 8 + n].partition(b"\0")
+            out[key.decode("latin-1")] = value.decode("latin-1")
+        if kind == b"IEND":
+            break
+        at += 12 + n
+    return out
+
+
+def encode_png(image, compression=6, text=None):
     """PNG bytes of uint8 or uint16 (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) (bool: 0/255).
-    compression : zlib level 0-9."""
+    compression : zlib level 0-9. text : {keyword: text} stored as tEXt chunks (what a
+    viewer's file properties show, e.g. that the scan was incomplete)."""
     image = np.asarray(image)
     if image.dtype == bool:
         image = image.astype(np.uint8) * 255
@@ -56,13 +84,17 @@ def encode_png(image, compression=6):
     ok, buf = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, int(compression)])
     if not ok:
         raise ValueError(f"OpenCV could not encode a {image.shape} {image.dtype} image as PNG")
-    return buf.tobytes()
+    data = buf.tobytes()
+    if text:
+        ihdr_end = 8 + 8 + 13 + 4                      # signature, IHDR (length, type, 13 bytes, CRC)
+        data = data[:ihdr_end] + _text_chunks(text) + data[ihdr_end:]
+    return data
 
 
-def write_png(path, image):
+def write_png(path, image, text=None):
     """Write uint8 or uint16 (H, W), (H, W, 3) or (H, W, 4) as PNG (bool is written 0/255);
-    the file appears complete or not at all."""
-    write_bytes_atomic(path, encode_png(image))
+    the file appears complete or not at all. text : {keyword: text} tEXt chunks."""
+    write_bytes_atomic(path, encode_png(image, text=text))
 
 
 def read_mask(path):
@@ -71,6 +103,6 @@ def read_mask(path):
     return arr.any(axis=-1) if arr.ndim == 3 else arr > 0
 
 
-def write_mask(path, mask):
-    """Write an (H, W) bool mask as an 8-bit grey PNG (0 / 255)."""
-    write_png(path, np.asarray(mask, bool))
+def write_mask(path, mask, text=None):
+    """Write an (H, W) bool mask as an 8-bit grey PNG (0 / 255); text as `write_png`."""
+    write_png(path, np.asarray(mask, bool), text)

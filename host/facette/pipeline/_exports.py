@@ -213,4 +213,5 @@ def gltf_inputs(res, step, material=None):
     return dict(vertices_mm=verts, faces=faces, normals=normals, tangents=vertex_tangents(normals),
                 uv=uv, base_color=srgb_encode(albedo),
                 normal_map=tangent_space_normal_map(res.normals, res.height, res.mask, pitch, step),
-                metallic_roughness=mr, ior=None if ior is None else float(ior)), notes
+                metallic_roughness=mr, ior=None if ior is None else float(ior),
+                extras={"scan_incomplete": res.inputs.incomplete} if res.inputs.incomplete else None), notes

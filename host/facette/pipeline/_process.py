@@ -561,7 +561,7 @@ def _writers(res, out, outputs, ascii_ply):
         "albedo": lambda p: write_exr(p, res.albedo, ("R", "G", "B"), header=meta, compression="none"),
         "height": lambda p: write_exr(p, res.height, ("Z",), header={**meta, "unit": "mm"},
                                       compression="none"),
-        "mask": lambda p: write_mask(p, res.object_mask),
+        "mask": lambda p: write_mask(p, res.object_mask, {"Comment": comment} if res.inputs.incomplete else None),
         "mesh": lambda p: write_ply(p, *res.mesh, binary=not ascii_ply, comment=comment),
         "samples": samples,
         "brdf": lambda p: write_text_atomic(p, brdf_text()) if res.brdf is not None else None,

@@ -134,3 +134,25 @@ def test_ptm_pixels_with_fewer_than_6_usable_lights_keep_their_mean_and_are_coun
     a5 = coeffs[rows, cols, 5].astype(int) - bias[5]
     assert (a5 > 0).all()                           # lit, not black: their mean luminance
     assert (coeffs[rows, cols, :5].astype(int) == bias[:5]).all()   # no relighting terms there
+
+
+def test_outputs_of_an_incomplete_scan_say_so_in_their_own_metadata(tmp_path):
+    import json
+    import pygltflib
+    from facette.io.png import read_png_text
+    from facette.scan.directory import ScanDirectory
+    sc = sphere_on_plane(24, 32)
+    _write_scan(tmp_path / "scan", sc, render(sc, L, "matte"), pitch=0.1)
+    sd = ScanDirectory.existing(tmp_path / "scan")
+    sd.manifest["exposures"].append({"index": 1, "time_us": 4000, "current_mA": 100, "mode": "camera"})
+    sd.save()                                  # a plan of 24 frames, 12 taken
+    out = tmp_path / "o"
+    res = process(tmp_path / "scan", outputs=["mask", "rti", "gltf"], out_dir=out, allow_incomplete=True,
+                  fit_options={"model": "lambert"})
+    said = "scan incomplete: 12 of 24 frames"
+    assert said in read_png_text(out / "mask.png")["Comment"]
+    assert f"# {said}".encode() in (out / "relight.rti").read_bytes().split(b"\n")[:6]
+    glb = pygltflib.GLTF2().load(str(out / "model.glb"))
+    assert glb.asset.extras == {"scan_incomplete": "12 of 24 frames"}
+    assert json.loads((out / "process.json").read_text())["scan_incomplete"] == "12 of 24 frames"
+    assert res.inputs.incomplete
