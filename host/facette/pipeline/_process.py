@@ -62,6 +62,9 @@ STAGES_FOR = {
 FILES = {"normals": "normal.exr", "albedo": "albedo.exr", "mask": "mask.png", "height": "height.exr",
          "mesh": "mesh.ply", "samples": "samples.npz", "brdf": "brdf.json", "ptm": "relight.ptm",
          "rti": "relight.rti", "gltf": "model.glb", "report": "report.html"}
+SIM_INTERREFLECTIONS_NOTE = (
+    "--interreflections on a simulated scan: the simulator renders no inter-reflections, so their removal "
+    "takes away light that no wall gathered (errors against truth grow); leave it out for simulated scans")
 RAW_SAMPLES_KEPT = 200_000   # raw samples stored next to the filtered ones (a uniform subset)
 
 
@@ -333,6 +336,8 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
         mark_running(Path(out_dir), record_options, inp, [FILES[o] for o in outputs if o in FILES])
     res.inputs = inp
     res.notes.extend(inp.notes)
+    if interreflections and inp.truth is not None and "sensor" in inp.truth:   # the rig simulator's truth
+        res.notes.append(SIM_INTERREFLECTIONS_NOTE)
     if inp.usable is not None:       # the data must be able to carry normals (else exit 3)
         notes, res.quality = check_samples(inp.images, inp.usable, inp.object_mask, inp.mask_source)
         res.notes.extend(notes)

@@ -127,3 +127,15 @@ def test_process_onto_a_full_disk_says_so_and_leaves_nothing_truncated(scan, sma
     for name in ("normal.exr", "albedo.exr"):      # either whole or absent
         p = out / name
         assert not p.exists() or p.stat().st_size > 24 * 32 * 3 * 4
+
+
+def test_interreflections_on_a_simulated_scan_are_warned_about(tmp_path):
+    sc = sphere_on_plane(24, 32)
+    folder = write_scan(tmp_path / "sim", sc, render(sc, thesis_light_directions(), "matte", noise=0.002))
+    with np.load(folder / "truth.npz") as z:
+        truth = {k: z[k] for k in z.files}
+    np.savez(folder / "truth.npz", sensor=np.str_("{}"), **truth)      # the rig simulator's truth
+    res = process(folder, outputs=["normals"], interreflections=True)
+    assert any(n.startswith("--interreflections on a simulated scan: the simulator renders no") for n in res.notes)
+    res = process(folder, outputs=["normals"])
+    assert not any("simulated scan" in n for n in res.notes)
