@@ -307,6 +307,12 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None)
         hdr_notes.append(f"HDR merged with the {sensor_source}")
     pos = [l.get("position_mm") for l in lights]
     positions = np.array(pos, dtype=np.float64) if all(p is not None for p in pos) else None
+    below = [int(l["index"]) for k, l in enumerate(lights)
+             if dirs[k, 2] < 0 or (positions is not None and positions[k, 2] < 0)]
+    if below:    # a profile measured wrong (or a light's sign flipped): said, not silently fitted
+        hdr_notes.append(f"light(s) {below} of scan.json lie below the horizon (z < 0 in the calibration "
+                         "profile's directions or positions): no such light can light a surface the camera "
+                         "sees, and the normals fitted with it err; check the profile (facette calibrate)")
     pitch = pixel_pitch_mm or profile_pitch
     if not pitch:
         raise ValueError(f"{scan_dir / 'scan.json'} gives no pixel_pitch_mm; pass pixel_pitch_mm=")

@@ -139,3 +139,13 @@ def test_interreflections_on_a_simulated_scan_are_warned_about(tmp_path):
     assert any(n.startswith("--interreflections on a simulated scan: the simulator renders no") for n in res.notes)
     res = process(folder, outputs=["normals"])
     assert not any("simulated scan" in n for n in res.notes)
+
+
+def test_a_profile_light_below_the_horizon_is_said(tmp_path):
+    sc = sphere_on_plane(24, 32)
+    folder = write_scan(tmp_path / "s", sc, render(sc, thesis_light_directions(), "matte", noise=0.002))
+    data = json.loads((folder / "scan.json").read_text())
+    data["lights"][4]["direction"][2] *= -1
+    (folder / "scan.json").write_text(json.dumps(data))
+    res = process(folder, outputs=["normals"])
+    assert any(n.startswith("light(s) [4] of scan.json lie below the horizon") for n in res.notes)
