@@ -278,6 +278,12 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None)
     # every (light, exposure) of the plan has a frame (scan.json's own "complete" flag is not
     # set by every writer: a scan.json made by hand or by a tool has frames but no flag)
     complete = len({(f["light"], f["exposure"]) for f in data.frames}) >= expected
+    busy = None if complete else ScanDirectory(scan_dir).writer()
+    if busy and not allow_incomplete:
+        raise BadInputError(f"the scan {scan_dir} is being acquired by another facette process ({busy}): "
+                            f"{len(data.frames)} of {expected} frames so far",
+                            hint="wait for the scan to finish, then process it (or pass --allow-incomplete "
+                                 "to process what is there now)")
     if not complete and not allow_incomplete:
         raise BadInputError(f"the scan is incomplete ({len(data.frames)} of {expected} frames in "
                             f"{scan_dir}): run the same scan command to resume",

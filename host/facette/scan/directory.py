@@ -281,6 +281,23 @@ class ScanDirectory:
         self._lock_fh = fh
         self.reload()
 
+    def writer(self):
+        """Who writes the directory now ("pid N") when another process holds its lock, else None
+        (the lock is not taken: a read-only folder can be asked too)."""
+        p = self.path / LOCK_NAME
+        try:
+            fh = open(p, encoding="utf-8")
+        except OSError:
+            return None
+        with fh:
+            try:
+                fcntl.flock(fh.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = fh.read().strip() or "?"
+                return None if self._lock_fh is not None or holder == f"pid {os.getpid()}" else holder
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+        return None
+
     def unlock(self):
         if self._lock_fh is not None:
             fcntl.flock(self._lock_fh.fileno(), fcntl.LOCK_UN)

@@ -46,7 +46,7 @@ def diligent(tmp_path_factory):
 def _interrupt_at_mask(monkeypatch):
     real = process_module.write_mask
 
-    def stopped(path, mask):
+    def stopped(*args):
         raise KeyboardInterrupt          # Ctrl-C (or a kill) while the maps are written
 
     monkeypatch.setattr(process_module, "write_mask", stopped)
@@ -149,3 +149,33 @@ def test_a_profile_light_below_the_horizon_is_said(tmp_path):
     (folder / "scan.json").write_text(json.dumps(data))
     res = process(folder, outputs=["normals"])
     assert any(n.startswith("light(s) [4] of scan.json lie below the horizon") for n in res.notes)
+
+
+def test_a_scan_being_acquired_is_said_so_not_resume(tmp_path, capsys):
+    import subprocess
+    import sys
+    sc = sphere_on_plane(24, 32)
+    folder = write_scan(tmp_path / "s", sc, render(sc, thesis_light_directions(), "matte", noise=0.002))
+    data = json.loads((folder / "scan.json").read_text())
+    data["exposures"] = [{"index": 0, "time_us": 1000}]
+    data["frames"] = [{"file": "raw/L00_E00.dng", "light": 0, "exposure": 0, "sha256": ""}]
+    (folder / "scan.json").write_text(json.dumps(data))
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import fcntl, os, sys, time\n"
+        f"fh = open({str(folder / '.facette.lock')!r}, 'a+')\n"
+        "fcntl.flock(fh.fileno(), fcntl.LOCK_EX)\n"
+        "fh.write(f'pid {os.getpid()}\\n'); fh.flush()\n"
+        "print('locked', flush=True)\n"
+        "time.sleep(60)\n")], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        assert main(["process", str(folder), "-o", str(tmp_path / "o"), "--outputs", "normals"]) == EXIT_BAD_INPUT
+        err = capsys.readouterr().err
+        assert f"is being acquired by another facette process (pid {holder.pid}): 1 of 12 frames so far" in err
+        assert "wait for the scan to finish" in err and "resume" not in err
+    finally:
+        holder.kill()
+        holder.wait()
+        holder.stdout.close()
+    assert main(["process", str(folder), "-o", str(tmp_path / "o"), "--outputs", "normals"]) == EXIT_BAD_INPUT
+    assert "run the same scan command to resume" in capsys.readouterr().err
