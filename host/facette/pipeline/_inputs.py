@@ -261,7 +261,14 @@ def _load_hdr_images(scan_dir, data, take_held=None):
         # directory's lock when it will write (one writer: not while a scan runs)
         sd = ScanDirectory(scan_dir)
         if notes or absent:
-            sd.lock()
+            try:
+                sd.lock()
+            except OSError as exc:       # read-only disk or folder: the scan, not the output
+                why = (f"lights {absent} have no HDR image in hdr/" if absent else "; ".join(notes[:2]))
+                raise BadInputError(f"the scan {scan_dir} cannot be written ({exc.strerror}) and its HDR images must "
+                                    f"be merged first: {why}",
+                                    hint="copy the scan to a disk you can write to (or make it writable), then "
+                                         "process the copy") from exc
         try:
             with warnings.catch_warnings():           # an incomplete scan is said once, not per light
                 warnings.simplefilter("ignore", MissingFrameWarning)

@@ -7,7 +7,9 @@ import shutil
 import numpy as np
 import pytest
 
+import facette
 import facette.pipeline._process as process_module
+from facette._data import sim_profile_dir
 from facette.bench._sim_scan import write_scan
 from facette.cli.main import main
 from facette.errors import EXIT_BAD_INPUT, EXIT_NO_RESULT
@@ -179,3 +181,19 @@ def test_a_scan_being_acquired_is_said_so_not_resume(tmp_path, capsys):
         holder.stdout.close()
     assert main(["process", str(folder), "-o", str(tmp_path / "o"), "--outputs", "normals"]) == EXIT_BAD_INPUT
     assert "run the same scan command to resume" in capsys.readouterr().err
+
+
+def test_a_read_only_scan_that_needs_merging_is_named_not_the_output(small_disk, tmp_path, capsys):
+    import subprocess
+    disk = small_disk(16 * 1024)
+    scan = disk / "scan"
+    with facette.connect("sim", raw_shape=(48, 64), seed=3) as rig:
+        rig.scan(scan, profile=str(sim_profile_dir()), button="press", progress=False)
+    shutil.rmtree(scan / "hdr", ignore_errors=True)             # left to processing to merge
+    before = _tree(scan)
+    subprocess.run(["mount", "-o", "remount,ro", str(disk)], check=True)
+    code = main(["process", str(scan), "-o", str(tmp_path / "o"), "--outputs", "normals"])
+    err = capsys.readouterr().err
+    assert code == EXIT_BAD_INPUT
+    assert f"the scan {scan} cannot be written (Read-only file system)" in err and "copy the scan" in err
+    assert _tree(scan) == before
