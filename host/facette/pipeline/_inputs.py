@@ -62,6 +62,9 @@ class PSInput:
         return None if self.material_mask is None else margin_of(self.mask, self.material_mask)
 
 
+NO_PITCH_NOTE = "DiLiGenT folders carry no pixel pitch: heights are in pixels (pitch 1)"
+
+
 def source_path(source):
     """A path from a str/PathLike or an object with .path / .directory / .root (a Scan)."""
     if isinstance(source, (str, os.PathLike)):
@@ -445,7 +448,7 @@ def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False):
         inp.digest = _digest(_file_stamps(path))
         inp.notes.extend(d.notes)
         if pixel_pitch_mm is None:
-            inp.notes.append("DiLiGenT folders carry no pixel pitch: heights are in pixels (pitch 1)")
+            inp.notes.append(NO_PITCH_NOTE)
     else:
         raise ValueError(f"{path} holds neither scan.json (a facette scan) nor filenames.txt and "
                          "light_directions.txt (a DiLiGenT-style folder)")

@@ -17,6 +17,7 @@ import numpy as np
 
 from facette.io.atomic import write_text_atomic
 from facette.fit import FitModel, cell_spread_directions
+from facette.pipeline._inputs import NO_PITCH_NOTE
 from facette.pipeline._viewer import viewer_data, viewer_section
 
 __all__ = ["write_report", "fmt", "fmt_pm", "fit_predictions"]
@@ -427,6 +428,14 @@ def _truth_section(res, kd_map, kd_mask):
             + _figures([("Error against the scan's truth (histograms, log counts)", _png(fig, tight=False))]))
 
 
+def _height_unit(res):
+    """"mm", or "px" for a DiLiGenT folder processed without a pixel pitch (heights in pixels)."""
+    inp = res.inputs
+    if inp is not None and inp.kind == "diligent" and NO_PITCH_NOTE in inp.notes:
+        return "px"
+    return "mm"
+
+
 # ----------------------------------------------------------------------------- summary
 
 def _summary(res, viewer_note):
@@ -582,8 +591,9 @@ def write_report(res, path, fit_html=None):
     if overlay is not None:
         figs.append(_map(*overlay))
     if res.height is not None:
-        figs.append(_map("Height (mm)", np.where(mask, res.height[::st, ::st], np.nan),
-                         cmap="terrain", label="mm"))
+        unit = _height_unit(res)
+        figs.append(_map(f"Height ({unit})", np.where(mask, res.height[::st, ::st], np.nan),
+                         cmap="terrain", label=unit))
     if truth and "normals" in truth and truth["normals"].shape == res.normals.shape:
         tn = truth["normals"][::st, ::st]
         err = np.degrees(np.arccos(np.clip(np.sum(n * tn, -1), -1, 1)))

@@ -197,3 +197,11 @@ def test_a_read_only_scan_that_needs_merging_is_named_not_the_output(small_disk,
     assert code == EXIT_BAD_INPUT
     assert f"the scan {scan} cannot be written (Read-only file system)" in err and "copy the scan" in err
     assert _tree(scan) == before
+
+
+def test_a_diligent_report_captions_heights_in_pixels(diligent, tmp_path):
+    process(diligent, outputs=["height", "report"], out_dir=tmp_path / "px")
+    page = (tmp_path / "px" / "report.html").read_text()
+    assert "Height (px)" in page and "Height (mm)" not in page
+    process(diligent, outputs=["height", "report"], out_dir=tmp_path / "mm", pixel_pitch_mm=0.1)
+    assert "Height (mm)" in (tmp_path / "mm" / "report.html").read_text()
