@@ -1,8 +1,11 @@
 """The command line: `facette sim` (first line `port: <path>`), `facette device`,
 `facette scan --sim --press-button` (what `make scan` runs)."""
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -118,3 +121,26 @@ def test_a_scan_stopped_by_a_fault_says_why_and_exits_1(tmp_path):
     assert "LED_OPEN" in run.stderr and "run the same scan again to resume" in run.stderr
     assert "Traceback" not in run.stderr
     assert len(json.loads((tmp_path / "s" / "scan.json").read_text())["frames"]) == 1
+
+
+def test_sim_stops_and_says_so_when_its_firmware_process_dies(tmp_path):
+    sim = subprocess.Popen(FACETTE + ["sim", "--raw-size", "64x48", "--workdir", str(tmp_path)],
+                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert sim.stdout.readline().startswith("port: ")
+        children = Path(f"/proc/{sim.pid}/task/{sim.pid}/children").read_text().split()
+        firmware = [int(c) for c in children
+                    if "facette-device" in Path(f"/proc/{c}/cmdline").read_bytes().decode(errors="replace")]
+        assert firmware, children
+        os.kill(firmware[0], signal.SIGKILL)
+        t0 = time.monotonic()
+        code = sim.wait(timeout=30)
+        err = sim.stderr.read()
+        assert code == 1 and time.monotonic() - t0 < 10
+        assert "the simulated device's firmware process ended" in err and "start facette sim again" in err
+    finally:
+        if sim.poll() is None:
+            sim.kill()
+            sim.wait()
+        for f in (sim.stdin, sim.stdout, sim.stderr):
+            f.close()

@@ -7,8 +7,13 @@ one per line: ``button`` (press and release), ``ntc <°C>``, ``reset``, ``biterr
 with standard input closed (``< /dev/null``) it runs until killed.
 """
 import argparse
+import os
 import sys
+import threading
 import time
+
+DEAD_CHECKS = 4          # the device's process seen ended this many times in a row (0.5 s apart):
+                         # a restart (reset) takes far less
 
 from facette.cli._scan import SIM_RAW_SIZE, SIM_RAW_SIZE_TEXT, _positive, _shape
 
@@ -29,12 +34,35 @@ def register(sub):
     return p
 
 
+def _died(sim):
+    """The lines that say the device's firmware process ended, and what to do."""
+    code = sim.device.proc.poll()
+    log = sim.device.workdir / "device.log"
+    return (f"facette sim: the simulated device's firmware process ended (exit code {code}); the rig is "
+            f"gone (its log: {log})\n  start facette sim again")
+
+
+def _watch(sim, stopping):
+    """Stop the whole command, saying why, when the device's process ends for good."""
+    dead = 0
+    while not stopping.wait(0.5):
+        dead = dead + 1 if not sim.device.alive() else 0
+        if dead >= DEAD_CHECKS:
+            print(_died(sim), file=sys.stderr, flush=True)
+            try:
+                sim.close()
+            finally:
+                os._exit(1)       # the main thread is blocked reading standard input
+
+
 def run(args):
     from facette.sim import SimulatedRig
 
     sim = SimulatedRig(scene=args.scene, raw_shape=args.raw_size, near=args.near, brdf=args.brdf,
                        faults=args.faults or None, speed=args.speed, workdir=args.workdir, seed=args.seed,
                        max_unclaimed=None)
+    stopping = threading.Event()
+    threading.Thread(target=_watch, args=(sim, stopping), daemon=True).start()
     try:
         print(f"port: {sim.port}", flush=True)
         print(f"camera: {sim.camera_dir}", flush=True)
@@ -60,8 +88,9 @@ def run(args):
                 print(f"unknown command {line.strip()!r}", file=sys.stderr, flush=True)
         else:
             # standard input closed: serve until killed (or the device exits)
-            while sim.device.alive():
-                time.sleep(0.5)
+            while not stopping.wait(0.5):
+                pass
     finally:
+        stopping.set()
         sim.close()
     return 0
