@@ -15,4 +15,3 @@ def test_bad_arguments(capsys, args, words):
         main(["sim", *args])
     err = capsys.readouterr().err
     assert exc.value.code == 2 and words in err and len(err.splitlines()) == 2, err
-
