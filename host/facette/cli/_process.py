@@ -109,6 +109,9 @@ def _check_out(out):
     if out.exists() and not out.is_dir():
         raise BadInputError(f"-o {out} is a file, not a folder", hint="give a new folder for the results")
     parent = out if out.is_dir() else next((p for p in out.parents if p.exists()), Path("."))
+    if parent.exists() and not parent.is_dir():
+        raise BadInputError(f"cannot write the results to {out}: {parent} is a file, not a folder",
+                            hint="give a folder path for -o")
     if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
         raise BadInputError(f"cannot write the results to {out}: {parent} is not writable",
                             hint="choose a folder you can write to (-o)")

@@ -333,7 +333,6 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
     inp = load_input(source, mask=mask, pixel_pitch_mm=pixel_pitch_mm, allow_incomplete=allow_incomplete)
     if out_dir is not None:            # before any work: the folder must take this run's files
         previous = claim_results(Path(out_dir), record_options, inp, overwrite, set(FILES.values()), mask)
-        mark_running(Path(out_dir), record_options, inp, [FILES[o] for o in outputs if o in FILES])
     res.inputs = inp
     res.notes.extend(inp.notes)
     if interreflections and inp.truth is not None and "sensor" in inp.truth:   # the rig simulator's truth
@@ -380,6 +379,8 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
     res.timings["ps"] = time.perf_counter() - t0
 
     drawn = {}         # report sections drawn by the concurrent stages
+    if out_dir is not None:            # before the first file: whose files these will be
+        mark_running(Path(out_dir), record_options, inp, [FILES[o] for o in outputs if o in FILES])
     res.notes.extend(_after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration, mesh_step,
                                theta0_deg, fit_options, hsh_order, out_dir, ascii_ply, drawn))
     if res.ptm is not None or res.hsh is not None:

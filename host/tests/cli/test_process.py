@@ -130,6 +130,8 @@ def test_the_output_is_a_file(capsys, folders, tmp_path):
     f.write_text("mine")
     code, out, err = run_cli(capsys, "process", folders["good"], "-o", f)
     assert code == 2 and f"-o {f} is a file" in err and f.read_text() == "mine", err
+    code, out, err = run_cli(capsys, "process", folders["good"], "-o", f / "out")   # under a file
+    assert code == 2 and f"{f} is a file, not a folder" in err and f.read_text() == "mine", err
 
 
 def test_the_output_is_not_writable(capsys, folders, tmp_path):
