@@ -7,10 +7,14 @@ file still in the watched folder is a file nobody has accounted for yet.
 from __future__ import annotations
 
 import os
+import shutil
 import time
 from pathlib import Path
 
 __all__ = ["FolderWatchCamera", "CameraTimeout", "RAW_EXTENSIONS"]
+
+FULL_DISK_BYTES = 1 << 20    # under this free, a camera cannot write a RAW into the folder
+FULL_DISK_WAIT_S = 3.0       # how long the folder's disk must stay full before the wait stops
 
 RAW_EXTENSIONS = (".dng", ".nef", ".cr2", ".cr3", ".arw", ".raf", ".orf", ".rw2", ".pef")
 
@@ -88,6 +92,7 @@ class FolderWatchCamera:
         stops early with CameraTimeout(message) (e.g. the device faulted).
         """
         deadline = time.monotonic() + timeout_s
+        full_since = None
         while True:
             path = self.poll()
             if path is not None:
@@ -96,10 +101,33 @@ class FolderWatchCamera:
                 why = alive()
                 if why:
                     raise CameraTimeout(why)
+            full = self._disk_full()
+            full_since = (full_since or time.monotonic()) if full else None
+            if full and time.monotonic() - full_since > FULL_DISK_WAIT_S:
+                raise CameraTimeout(full)
             if time.monotonic() > deadline:
-                raise CameraTimeout(f"no new image in {self.folder} within {timeout_s:g} s: is the camera on, "
-                                    "in RAW mode, and writing to this folder?")
+                try:
+                    free = f" (its disk has {shutil.disk_usage(self.folder).free / 1e6:.0f} MB free)"
+                except OSError:
+                    free = ""
+                raise CameraTimeout(f"no new image in {self.folder}{free} within {timeout_s:g} s: is the camera "
+                                    "on, in RAW mode, and writing to this folder?")
             time.sleep(self.poll_s)
+
+    def _disk_full(self):
+        """The sentence saying the folder's disk is full (no RAW can be written there), or None."""
+        try:
+            free = shutil.disk_usage(self.folder).free
+        except OSError:
+            return None
+        if free >= FULL_DISK_BYTES:
+            return None
+        mount = Path(self.folder).absolute()
+        while not os.path.ismount(mount) and mount != mount.parent:
+            mount = mount.parent
+        return (f"the disk holding the camera folder {self.folder} (mounted at {mount}) is full ({free / 1e3:.0f} kB "
+                "free): the camera cannot write its images there; free space on it, then run the same command "
+                "again (the scan resumes where it stopped)")
 
     def claimed(self, path):
         """Forget a file that was moved away."""

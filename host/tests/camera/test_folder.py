@@ -42,3 +42,20 @@ def test_existing_files_can_be_ignored_and_timeouts_explain(tmp_path):
     assert cam.pending() == []
     with pytest.raises(CameraTimeout, match="in RAW mode"):
         cam.wait_for_file(timeout_s=0.0)
+
+
+def test_a_full_camera_folder_disk_stops_the_wait_and_says_so(small_disk):
+    import time
+    from facette.camera.folder import FULL_DISK_WAIT_S
+    disk = small_disk(256)
+    cam = FolderWatchCamera(disk, poll_s=0.05)
+    with open(disk / "filler", "wb") as fh:            # what fills it: not a RAW, not taken
+        try:
+            fh.write(b"\0" * (300 << 10))
+        except OSError:
+            pass
+    t0 = time.monotonic()
+    with pytest.raises(CameraTimeout) as exc:
+        cam.wait_for_file(timeout_s=60)
+    assert time.monotonic() - t0 < FULL_DISK_WAIT_S + 5
+    assert f"(mounted at {disk}) is full" in str(exc.value) and "the scan resumes" in str(exc.value)
