@@ -100,7 +100,7 @@ def test_a_running_scheduler_is_used_by_its_address(collection, tmp_path):
     """--scheduler ADDRESS: the collection runs on a cluster that batch did not start."""
     from dask.distributed import LocalCluster
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                      dashboard_address=None) as cluster:
+                      dashboard_address=":0") as cluster:   # any free port: never 8787 taken
         rows = batch(collection[2:], tmp_path / "out", scheduler=cluster.scheduler_address,
                      outputs=["normals"], progress=False)
         assert [r["status"] for r in rows] == ["ok", "failed"]
