@@ -74,3 +74,8 @@ def test_lights_all_below_or_from_one_direction_are_refused(tmp_path):
     same = np.tile(dirs[:1], (6, 1))
     with pytest.raises(BadInputError, match="the 6 lights all share one direction"):
         read_diligent(_folder_with_lights(tmp_path / "b", same))
+    # a column of lights in one plane through the object (as DiLiGenT's first 8): normals undetermined
+    t = np.radians(np.linspace(10, 50, 6))
+    column = np.stack([np.zeros(6), np.sin(t), np.cos(t)], axis=1)
+    with pytest.raises(BadInputError, match="the 6 lights lie in one plane through the object"):
+        read_diligent(_folder_with_lights(tmp_path / "c", column))

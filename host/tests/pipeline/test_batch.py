@@ -163,3 +163,22 @@ def test_a_subset_rerun_keeps_the_other_rows_and_remakes_lost_outputs(sim_scans,
     assert [t["scan"] for t in table] == ["object1", "object2"]       # the subset kept object1's row
     rows = batch(scans[:1], out, workers=1, outputs=["normals", "mask"], options=OPTIONS, progress=False)
     assert rows[0]["status"] == "ok" and (out / "object1" / "mask.png").stat().st_size > 10
+
+
+def test_batch_has_the_allow_incomplete_its_errors_advise(tmp_path):
+    from facette.bench._sim_scan import write_scan
+    from facette.cli.main import build_parser
+    from facette.pipeline import process_scan
+    from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
+    sc = sphere_on_plane(24, 32)
+    scan = write_scan(tmp_path / "s", sc, render(sc, thesis_light_directions(), "matte"))
+    m = json.loads((scan / "scan.json").read_text())
+    m["exposures"] = [{"index": 0, "time_us": 1000}]
+    m["frames"] = []                              # a plan of 12 frames, none taken (hdr/ made by hand)
+    (scan / "scan.json").write_text(json.dumps(m))
+    row = process_scan(scan, tmp_path / "o", outputs=["normals"])
+    assert row["status"] == "failed" and "--allow-incomplete" in row["error"]
+    args = build_parser("batch").parse_args(["batch", str(scan), "-o", str(tmp_path / "o"), "--allow-incomplete"])
+    assert args.allow_incomplete
+    row = process_scan(scan, tmp_path / "o", outputs=["normals"], options={"allow_incomplete": True})
+    assert row["status"] == "ok", row["error"]
