@@ -40,6 +40,10 @@ __all__ = ["run_scan", "ScanOptions", "ScanPlan", "ScanError", "ScanAborted", "T
 _BENIGN_FAULTS = frozenset({"HOST_SILENT", "CAL_INVALID", "WATCHDOG_RESET"})
 
 
+NO_EXPOSURE_NOTE = ("the camera's files carry no exposure time (no ExposureTime tag): the scan cannot check "
+                    "the camera's shutter against its plan and uses the frame records' times")
+
+
 class ScanError(StoppedError):
     """The scan stopped; the directory holds everything captured so far."""
 
@@ -205,6 +209,8 @@ class _Acquisition:
             # the file's own exposure time must be the record's: a mismatch means a frame
             # without a record (or a camera set otherwise); never file it under the wrong name
             et, _, _ = read_exposure_metadata(src)
+            if et is None and not any(n.startswith(NO_EXPOSURE_NOTE[:40]) for n in self.sd.notes):
+                self.sd.notes.append(NO_EXPOSURE_NOTE)
             if et is not None and abs(et * 1e6 - t_us) > max(0.05 * t_us, 1000):
                 kept = self.keep_unmatched(src, f"exposure {et:g} s, the frame record says {t_us / 1e6:g} s "
                                                 f"(light {light} exposure {exposure})")

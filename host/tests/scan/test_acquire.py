@@ -194,3 +194,10 @@ def test_a_host_press_of_a_real_rigs_button_is_refused_before_anything_is_touche
     with pytest.raises(TypeError, match="hold"):          # settings are ScanOptions' fields
         run_scan(rig, tmp_path / "s", exposures=SHORT, hold=True)
     assert not (tmp_path / "s").exists()
+
+
+def test_camera_files_without_exposure_time_are_said_once(rig, tmp_path, monkeypatch):
+    import facette.scan.acquire as acquire
+    monkeypatch.setattr(acquire, "read_exposure_metadata", lambda path: (None, None, {}))   # a Blackmagic DNG
+    sd = rig.scan(tmp_path / "s", lights=[0, 1], exposures=SHORT, progress=False)
+    assert sd.notes == [acquire.NO_EXPOSURE_NOTE] and intact(tmp_path / "s") == 4
