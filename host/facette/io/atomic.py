@@ -170,6 +170,7 @@ def move_file(src, dst, exit_code=None):
             raise
     with atomic_path(dst, needed=src.stat().st_size, exit_code=exit_code) as tmp:
         shutil.copyfile(src, tmp)
-        shutil.copystat(src, tmp)
+        with contextlib.suppress(OSError):     # times and modes: kept where the filesystem can
+            shutil.copystat(src, tmp)
     os.unlink(src)
     return dst
