@@ -18,11 +18,12 @@ from __future__ import annotations
 
 import dataclasses
 
+import cv2
 import numpy as np
 from scipy import ndimage, optimize
 
 __all__ = ["Circle", "Highlight", "fit_circle", "sphere_mask", "fit_sphere_outline",
-           "highlight_centroid", "mirror_direction", "mirror_sphere_directions",
+           "find_sphere_outline", "highlight_centroid", "mirror_direction", "mirror_sphere_directions",
            "light_positions_from_rays", "sphere_rays", "directions_from_origin"]
 
 
@@ -158,10 +159,142 @@ def fit_sphere_outline(mask, image=None, min_radius_px=8):
     return c
 
 
-def highlight_centroid(image, circle, white_level=None, threshold=0.5, margin=0.98):
+def _circle_from_card(ref, points):
+    """The card method (a dark sphere on a lit card, `sphere_mask`), or None when it does not
+    apply: no region off the frame's edge, a region that is not a disc (dark patches of the
+    background joined to it), or one that leaves out the highlights."""
+    try:
+        region = sphere_mask(ref, dark=True)
+        c = fit_sphere_outline(region, ref)
+    except ValueError:
+        return None
+    rows, cols = np.nonzero(region)
+    disc_area = np.pi * c.r * c.r
+    inside = np.hypot(cols - c.cx, rows - c.cy) < c.r + 1.0
+    # a disc: (almost) every pixel of the region within the circle, and the circle filled
+    if inside.mean() < 0.99 or abs(len(rows) - disc_area) > 0.03 * disc_area + 2 * np.pi * c.r:
+        return None
+    if c.rms > 0.02 * c.r + 0.5 or _share_inside(c, points) < 0.9:
+        return None
+    return c
+
+
+def _share_inside(circle, points, margin=0.98):
+    if points is None or not len(points):
+        return 1.0
+    p = np.asarray(points, float)
+    return float(np.mean(np.hypot(p[:, 0] - circle.cx, p[:, 1] - circle.cy) < margin * circle.r))
+
+
+def _log_image(ref):
+    """The image as 8 bits on a log scale, smoothed: a chrome sphere's faint rim on a dark
+    background and a lit card's edge both give a gradient there."""
+    g = np.log1p(np.maximum(ref, 0) / max(float(np.percentile(ref, 50)), 1e-6 * float(ref.max()), 1e-12))
+    lo, hi = float(g.min()), float(np.percentile(g, 99.5))
+    u = np.clip(255 * (g - lo) / max(hi - lo, 1e-12), 0, 255).astype(np.uint8)
+    return cv2.GaussianBlur(u, (5, 5), 1.5)
+
+
+def _refine_on_edges(logimg, c, search_px=4.0, n_angles=720):
+    """Sub-pixel circle from the strongest radial change near a first circle `c`: for each of
+    `n_angles` rays from its centre, the radius within ±`search_px` where the smoothed log image
+    changes fastest, either way (a busy background is brighter than the sphere here, darker
+    there), to a parabola's peak; the half of the rays with the strongest edges is kept (a rim
+    lost in a dark background gives none), and `fit_circle` is repeated with the points further
+    than 1 px from the last circle dropped (the background's own edges that cross a ray)."""
+    g = logimg.astype(float)
+    th = np.linspace(0, 2 * np.pi, n_angles, endpoint=False)
+    rr = c.r + np.arange(-search_px, search_px + 0.25, 0.5)
+    xs = c.cx + np.cos(th)[:, None] * rr[None]
+    ys = c.cy + np.sin(th)[:, None] * rr[None]
+    d = np.abs(np.gradient(ndimage.map_coordinates(g, [ys, xs], order=1, mode="nearest"), axis=1))
+    i = np.arange(n_angles)
+    k = np.clip(np.argmax(d, axis=1), 1, len(rr) - 2)
+    y0, y1, y2 = d[i, k - 1], d[i, k], d[i, k + 1]
+    den = y0 - 2 * y1 + y2
+    off = np.where(den < 0, 0.5 * (y0 - y2) / np.where(den < 0, den, -1.0), 0.0)
+    r_edge = rr[k] + 0.5 * np.clip(off, -1, 1)
+    keep = (y1 >= np.median(y1)) & (y1 > 0) & (k > 1) & (k < len(rr) - 2)
+    if keep.sum() < 24:
+        return c
+    pts = np.c_[c.cx + np.cos(th[keep]) * r_edge[keep], c.cy + np.sin(th[keep]) * r_edge[keep]]
+    f = fit_circle(pts)
+    for tol in (2.0, 1.0, 1.0):
+        near = np.abs(np.hypot(pts[:, 0] - f.cx, pts[:, 1] - f.cy) - f.r) <= tol
+        if near.sum() < 24:
+            break
+        f = fit_circle(pts[near])
+    return f if abs(f.r - c.r) < search_px and np.hypot(f.cx - c.cx, f.cy - c.cy) < search_px else c
+
+
+def find_sphere_outline(ref, highlight_points=None, min_radius_px=8):
+    """A mirror sphere's outline in an image, on a lit card, a dark or a busy background.
+
+    ref : (H, W) or (H, W, 3) image of the sphere (the mean of its photographs: every
+        highlight at once, the rim lit from every side).
+    highlight_points : (m, 2) (x = column, y = row) points that lie on the sphere (each
+        photograph's brightest change, see `mirror_sphere_directions`), or None. A candidate
+        outline must hold 90 % of them.
+
+    The card method first (`sphere_mask`: the dark sphere on a lit card, Otsu); where it does not
+    apply (a dark background, where the sphere is barely darker than what surrounds it, or a
+    textured one), circles voted by the gradient of the log image (Hough), the strongest
+    candidate that holds the highlights, refined to sub-pixel on the strongest half of its edge
+    (`_refine_on_edges`). Returns a Circle; ValueError when no outline is found (give the sphere
+    as a circle or a mask then).
+    """
+    g = np.asarray(ref, float)
+    g = g.mean(axis=2) if g.ndim == 3 else g
+    if g.ndim != 2 or not np.all(np.isfinite(g)):
+        raise ValueError(f"need a finite (H, W) or (H, W, 3) image, got shape {g.shape}")
+    c = _circle_from_card(g, highlight_points)
+    if c is not None:
+        return c
+    u = _log_image(g)
+    h, w = g.shape
+    for votes in (30, 20, 12):
+        found = cv2.HoughCircles(u, cv2.HOUGH_GRADIENT, dp=1, minDist=max(8, min(h, w) // 10),
+                                 param1=40, param2=votes, minRadius=int(min_radius_px),
+                                 maxRadius=min(h, w) // 2)
+        if found is None:
+            continue
+        for cx, cy, r in found[0][:10]:
+            cand = Circle(float(cx), float(cy), float(r))
+            if (cx - r < -1 or cy - r < -1 or cx + r > w or cy + r > h
+                    or _share_inside(cand, highlight_points) < 0.9):
+                continue
+            return _refine_on_edges(u, cand)
+    raise ValueError("no sphere outline found in the photographs: give it as a circle "
+                     "(--sphere cx,cy,r) or a mask, or photograph the sphere whole, off the frame's edge")
+
+
+def highlight_points(images, box=None):
+    """Where each photograph is brightest against the others: (m, 2) (x = column, y = row), the
+    peak of (image − median of the photographs), smoothed by 1 px (one hot pixel does not win).
+    A fixed reflection (a window, the lamp stand) is in every photograph and drops out. `box`
+    (r0, r1, c0, c1) limits the search."""
+    img = np.asarray(images, float)
+    if img.ndim == 4:
+        img = img.mean(axis=3)
+    if box is not None:
+        r0, r1, c0, c1 = box
+        img = img[:, r0:r1, c0:c1]
+    else:
+        r0 = c0 = 0
+    med = np.median(img, axis=0) if len(img) >= 3 else img.min(axis=0)
+    pts = []
+    for im in img:
+        d = ndimage.gaussian_filter(im - med, 1.0)
+        k = np.unravel_index(int(np.argmax(d)), d.shape)
+        pts.append((k[1] + c0, k[0] + r0))
+    return np.array(pts, float)
+
+
+def highlight_centroid(image, circle, white_level=None, threshold=0.5, margin=0.98, background=None):
     """Sub-pixel centroid of the brightest highlight inside the sphere.
 
-    Pixels above `threshold` × the peak in the region connected to the peak, weighted
+    `background` (H, W), when given, is taken off first (the median of the photographs: what the
+    sphere mirrors under every light, a window or the lamp stand, is not a highlight). Pixels above `threshold` × the peak in the region connected to the peak, weighted
     by their value above the threshold. Saturated pixels (≥ `white_level`, when
     given) all weigh the same: the centroid of a clipped, symmetric blob is still
     its centre, and the result says it was saturated.
@@ -171,6 +304,8 @@ def highlight_centroid(image, circle, white_level=None, threshold=0.5, margin=0.
     clipped = None if white_level is None else (g >= white_level if g.ndim == 2
                                                  else np.any(g >= white_level, axis=2))
     g = g.mean(axis=2) if g.ndim == 3 else g
+    if background is not None:
+        g = g - np.asarray(background, float)
     h, w = g.shape
     rows, cols = np.mgrid[0:h, 0:w]
     inside = np.hypot(cols - circle.cx, rows - circle.cy) < margin * circle.r
@@ -219,31 +354,51 @@ def mirror_direction(circle, x, y):
     return l / np.linalg.norm(l)
 
 
-def mirror_sphere_directions(images, white_level=None, outline_image=None):
-    """Light directions from mirror-sphere images, one per LED.
+def mirror_sphere_directions(images, white_level=None, outline_image=None, circle=None, mask=None):
+    """Light directions from mirror-sphere images, one per LED (one highlight per photograph).
 
     Parameters
     ----------
-    images : (m, H, W) or (m, H, W, 3) linear images of the sphere on its card.
+    images : (m, H, W) or (m, H, W, 3) linear images of the sphere (on its card, or in the
+        corner of an RTI capture on any background).
     white_level : value at which a pixel saturated (single exposures), or None (HDR).
     outline_image : image to find the silhouette in (default the mean of `images`,
-        where the card is lit from every side).
+        where the card is lit from every side and every highlight shows).
+    circle : the sphere's outline as a `Circle` or (cx, cy, r) px, when known.
+    mask : (H, W) bool of the sphere, when known (its outline is fitted: `fit_sphere_outline`).
 
-    Returns (directions (m, 3), circle, [Highlight] * m).
+    Returns (directions (m, 3), circle, [Highlight] * m). The outline is found otherwise by
+    `find_sphere_outline` (a lit card, a dark or a busy background); with three photographs or
+    more, what the sphere mirrors in all of them (their median) is taken off before each
+    highlight is located.
     """
     img = np.asarray(images)
     if img.ndim not in (3, 4):
         raise ValueError(f"images must be (m, H, W) or (m, H, W, 3), got {np.shape(images)}")
-    if outline_image is None:
-        ref = np.zeros(img.shape[1:3])
-        for im in img:                       # one LED at a time: full-size stacks are large
-            ref += im.mean(axis=2) if im.ndim == 3 else im
-        ref /= len(img)
+    if circle is not None:
+        circle = circle if isinstance(circle, Circle) else Circle(*[float(v) for v in circle][:3])
+    elif mask is not None:
+        circle = fit_sphere_outline(np.asarray(mask, bool))
     else:
-        ref = np.asarray(outline_image, float)
-        ref = ref.mean(axis=2) if ref.ndim == 3 else ref
-    circle = fit_sphere_outline(sphere_mask(ref, dark=True), ref)
-    hl = [highlight_centroid(im, circle, white_level) for im in img]
+        if outline_image is None:
+            ref = np.zeros(img.shape[1:3])
+            for im in img:                       # one LED at a time: full-size stacks are large
+                ref += im.mean(axis=2) if im.ndim == 3 else im
+            ref /= len(img)
+        else:
+            ref = np.asarray(outline_image, float)
+            ref = ref.mean(axis=2) if ref.ndim == 3 else ref
+        circle = find_sphere_outline(ref, highlight_points(img))
+    background = None
+    if len(img) >= 3:                        # the median over the sphere's box only (cheap)
+        h, w = img.shape[1:3]
+        r0, r1 = max(int(circle.cy - circle.r) - 2, 0), min(int(circle.cy + circle.r) + 3, h)
+        c0, c1 = max(int(circle.cx - circle.r) - 2, 0), min(int(circle.cx + circle.r) + 3, w)
+        crop = img[:, r0:r1, c0:c1].astype(float)
+        crop = crop.mean(axis=3) if crop.ndim == 4 else crop
+        background = np.zeros((h, w))
+        background[r0:r1, c0:c1] = np.median(crop, axis=0)
+    hl = [highlight_centroid(im, circle, white_level, background=background) for im in img]
     dirs = np.array([mirror_direction(circle, h.x, h.y) for h in hl])
     return dirs, circle, hl
 

@@ -150,3 +150,73 @@ def test_sphere_cut_by_the_frame_or_too_small_is_refused():
         fit_sphere_outline(sphere_mask(small), small)
     with pytest.raises(ValueError, match="finite"):
         sphere_mask(np.full(SHAPE, np.nan))
+
+
+def _coverage(center, radius, supersample=4):
+    """Share of each pixel inside the sphere's disc, (H, W)."""
+    o = (np.arange(supersample) + 0.5) / supersample - 0.5
+    rows, cols = np.mgrid[0:SHAPE[0], 0:SHAPE[1]]
+    inside = [np.hypot(cols + dx - center[0], rows + dy - center[1]) < radius for dy in o for dx in o]
+    return np.mean(inside, axis=0)
+
+
+def _sphere_on(background, dirs, env=0.02, seed=3):
+    """The chrome sphere (its card black) over a given background (H, W), mirroring a faint
+    environment (brighter towards the top, as a room's ceiling) besides the LED: the RTI
+    photographs' sphere, not the rig's card."""
+    cov = _coverage(CENTER, R)
+    rows = np.mgrid[0:SHAPE[0], 0:SHAPE[1]][0]
+    room = env * (1.5 - (rows - (CENTER[1] - R)) / (2 * R))
+    rng = np.random.default_rng(seed)
+    out = []
+    for d in dirs:
+        sphere = render_mirror_sphere(SHAPE, CENTER, R, PITCH, direction=d, source_radius_deg=1.0,
+                                      psf_px=1.0, supersample=4, backdrop_albedo=0.0)[..., 1]
+        img = sphere + cov * room + (1 - cov) * background
+        out.append(img + 0.002 * rng.standard_normal(img.shape))
+    return np.stack(out)
+
+
+def _dark_background():
+    return np.full(SHAPE, 0.01)
+
+
+def _textured_background(seed=5):
+    """Cloth and print: a checkerboard of 9 px squares, black and light grey, under smoothed
+    noise. Its black squares join the dark sphere, so the card method finds no round region."""
+    rng = np.random.default_rng(seed)
+    rows, cols = np.mgrid[0:SHAPE[0], 0:SHAPE[1]]
+    checks = ((rows // 9 + cols // 9) % 2) * 0.4
+    from scipy import ndimage
+    return np.clip(checks + 0.05 * ndimage.gaussian_filter(rng.standard_normal(SHAPE), 2.0), 0.003, None)
+
+
+@pytest.mark.parametrize("background", [_dark_background, _textured_background],
+                         ids=["dark", "textured"])
+def test_sphere_found_on_a_dark_or_busy_background_gives_directions_within_half_a_degree(background):
+    dirs = nominal_light_directions()
+    stack = _sphere_on(background(), dirs)
+    got, circle, hls = mirror_sphere_directions(stack)
+    assert abs(circle.cx - CENTER[0]) < 0.5 and abs(circle.cy - CENTER[1]) < 0.5
+    assert abs(circle.r - R) < 0.5
+    err = _angle_deg(got, dirs)
+    assert err.max() < 0.5, err
+
+
+def test_sphere_given_as_a_circle_or_a_mask_is_used_as_given():
+    dirs = nominal_light_directions()
+    stack = _sphere_on(_textured_background(), dirs)
+    got_c, circle, _ = mirror_sphere_directions(stack, circle=(CENTER[0], CENTER[1], R))
+    assert (circle.cx, circle.cy, circle.r) == (CENTER[0], CENTER[1], R)
+    assert _angle_deg(got_c, dirs).max() < 0.5
+    rows, cols = np.mgrid[0:SHAPE[0], 0:SHAPE[1]]
+    mask = np.hypot(cols - CENTER[0], rows - CENTER[1]) < R
+    got_m, circle_m, _ = mirror_sphere_directions(stack, mask=mask)
+    assert abs(circle_m.r - R) < 1.0
+    assert _angle_deg(got_m, dirs).max() < 1.0
+
+
+def test_no_sphere_in_view_is_refused_with_what_to_give():
+    flat = np.stack([_textured_background(s) for s in range(4)])
+    with pytest.raises(ValueError, match="circle|outline|highlight"):
+        mirror_sphere_directions(flat)
