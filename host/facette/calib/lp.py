@@ -59,9 +59,13 @@ def write_lp(path, filenames, vectors):
     v = np.asarray(vectors, float)
     if v.ndim != 2 or v.shape[1] != 3 or len(filenames) != len(v):
         raise ValueError(f"need one (x, y, z) per file name: {len(filenames)} names, vectors {v.shape}")
-    bad = [f for f in filenames if not str(f).strip() or "\n" in str(f)]
+    bad = [f for f in filenames if not str(f).strip() or len(str(f).split()) != 1]
     if bad:
-        raise ValueError(f"file names must be non-empty single lines, got {bad[:3]}")
+        # Relight's loader splits a line on whitespace and wants exactly 4 fields
+        raise ValueError(f"file names must be non-empty and hold no spaces (Relight reads 4 fields a "
+                         f"line), got {bad[:3]}")
+    if len(v) > 1000:
+        raise ValueError(f"{len(v)} lights: Relight's loader takes at most 1000")
     text = [str(len(v))] + [f"{f} {x:.9f} {y:.9f} {z:.9f}" for f, (x, y, z) in zip(filenames, v)]
     Path(path).write_text("\n".join(text) + "\n")
     return Path(path)

@@ -354,6 +354,11 @@ def mirror_direction(circle, x, y):
     return l / np.linalg.norm(l)
 
 
+# A lamp mirrored in a chrome ball is a small spot; a matte ball (or an object taken for the
+# sphere) is lit over a third of its disc.
+MAX_HIGHLIGHT_SHARE = 0.03
+
+
 def mirror_sphere_directions(images, white_level=None, outline_image=None, circle=None, mask=None):
     """Light directions from mirror-sphere images, one per LED (one highlight per photograph).
 
@@ -399,6 +404,11 @@ def mirror_sphere_directions(images, white_level=None, outline_image=None, circl
         background = np.zeros((h, w))
         background[r0:r1, c0:c1] = np.median(crop, axis=0)
     hl = [highlight_centroid(im, circle, white_level, background=background) for im in img]
+    broad = np.median([h.area for h in hl]) / (np.pi * circle.r ** 2)
+    if broad > MAX_HIGHLIGHT_SHARE:
+        raise ValueError(f"the highlights cover {100 * broad:.0f} % of the sphere at ({circle.cx:.0f}, "
+                         f"{circle.cy:.0f}) px, radius {circle.r:.0f} px (a mirror's cover well under "
+                         f"{100 * MAX_HIGHLIGHT_SHARE:.0f} %): that is no mirror sphere")
     dirs = np.array([mirror_direction(circle, h.x, h.y) for h in hl])
     return dirs, circle, hl
 

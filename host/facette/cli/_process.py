@@ -42,9 +42,10 @@ def register(sub):
     from facette.brdf import MODELS
     from facette.fit import METHODS
     from facette.reflect import THETA0_DEG
-    p = sub.add_parser("process", help="process a scan or a DiLiGenT-style folder",
+    p = sub.add_parser("process", help="process a scan, a DiLiGenT-style folder or an RTI capture",
                        description=__doc__.splitlines()[0])
-    p.add_argument("source", help="scan directory (scan.json, hdr/) or DiLiGenT-style folder")
+    p.add_argument("source", help="scan directory (scan.json, hdr/), DiLiGenT-style folder, or RTI capture "
+                                  "(photographs with an .lp file, or with a mirror sphere in view)")
     p.add_argument("-o", "--out", required=True, help="output directory (created)")
     p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
                    help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all); only the "
@@ -90,6 +91,13 @@ def register(sub):
                    help="process a scan that is not complete (every output then says so)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace the results of an earlier run with other options in OUT")
+    p.add_argument("--encoding", choices=("srgb", "linear"),
+                   help="RTI capture: how the photographs encode light (default: srgb for 8-bit files, "
+                        "linear for 16-bit and float ones)")
+    p.add_argument("--sphere", help="RTI capture without .lp: the mirror sphere as cx,cy,r (px) or a mask PNG "
+                                    "(default: found in the photographs)")
+    p.add_argument("--reference", help="RTI capture: x0,y0,x1,y1 (px) of a white or grey patch in every "
+                                       "photograph; each photograph is divided by its level there")
     p.add_argument("--hsh-order", type=int, default=3, choices=(2, 3),
                    help="hemispherical-harmonics order of relight.rti (2: 4 terms, 3: 9 terms)")
     p.add_argument("--rti-encoding", default="srgb", choices=("srgb", "linear"),
@@ -117,10 +125,20 @@ def _check_out(out):
                             hint="choose a folder you can write to (-o)")
 
 
+def _capture(args):
+    """The RTI capture options of `process` from --encoding, --sphere, --reference."""
+    from facette.pipeline._rti_capture import parse_box, parse_circle
+
+    return {"encoding": args.encoding,
+            "sphere": parse_circle(args.sphere) if args.sphere else None,
+            "reference": parse_box(args.reference) if args.reference else None}
+
+
 def run(args):
     from facette.pipeline import process
 
     _check_out(args.out)
+    capture = _capture(args)
     res = process(args.source, outputs=args.outputs, out_dir=args.out, method=args.method,
                   integration=args.integration, t_ombre=args.t_ombre, t_spec=args.t_spec,
                   t_source=args.t_source, t_residual=args.t_residual, theta0_deg=args.theta0,
@@ -130,7 +148,7 @@ def run(args):
                   hsh_order=args.hsh_order, rti_encoding=args.rti_encoding,
                   ps_options={"init": args.init} if args.method == "li_alternating" else None,
                   allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
-                  interreflections=args.interreflections)
+                  interreflections=args.interreflections, capture=capture)
     print_result(res)
     return 0
 

@@ -13,6 +13,7 @@ from facette.errors import BadInputError
 from facette.io.diligent import is_diligent_dir, read_diligent
 from facette.io.png import read_mask
 from facette.pipeline._quality import MIN_LEVELS, usable_from_green
+from facette.pipeline._rti_capture import is_rti_capture, read_rti_capture
 from facette.scan import MissingFrameWarning, ScanDirectory, merge_scan, stale_lights
 
 __all__ = ["PSInput", "load_input", "source_path", "auto_masks", "margin_of", "MARGIN_BORDER", "object_of",
@@ -51,6 +52,7 @@ class PSInput:
     mask_source: str = "the lit pixels"
     incomplete: str = ""           # scans: "" when complete, else e.g. "5 of 6 frames"
     digest: str = ""               # what the inputs were: changes when a frame or image changes
+    lights_file: object = None     # RTI captures lit by a sphere: (file names, directions) of the .lp to write
 
     def sample_mask(self):
         """Pixels whose reflectance samples are taken: the mask, within the material mask."""
@@ -418,7 +420,7 @@ def _apply_profile(images, data, scan_dir):
     return pitch, notes
 
 
-def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False):
+def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False, capture=None):
     """Read a scan directory (scan.json + hdr/) or a DiLiGenT-style folder into a `PSInput`.
 
     source : a path, or a `ScanDirectory` (as `run_scan` returns it: the lights it merged and
@@ -426,6 +428,8 @@ def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False):
     mask : optional (H, W) bool array or path to a PNG; default: scan -> lit pixels,
     DiLiGenT -> its mask.png. pixel_pitch_mm overrides the scan's (DiLiGenT default 1).
     allow_incomplete : process a scan that is not complete (BadInputError otherwise).
+    capture : options of an RTI capture folder (`pipeline._rti_capture.read_rti_capture`:
+        encoding, sphere, reference).
     """
     path = source_path(source)
     if not path.is_dir():
@@ -449,9 +453,12 @@ def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False):
         inp.notes.extend(d.notes)
         if pixel_pitch_mm is None:
             inp.notes.append(NO_PITCH_NOTE)
+    elif is_rti_capture(path):
+        inp = PSInput(**read_rti_capture(path, auto_masks, pixel_pitch_mm, **(capture or {})))
     else:
         raise ValueError(f"{path} holds neither scan.json (a facette scan) nor filenames.txt and "
-                         "light_directions.txt (a DiLiGenT-style folder)")
+                         "light_directions.txt (a DiLiGenT-style folder) nor photographs with an .lp "
+                         "file (an RTI capture)")
     if mask is not None:
         m = read_mask(mask) if isinstance(mask, (str, os.PathLike)) else np.asarray(mask, bool)
         if m.shape != inp.mask.shape:

@@ -33,6 +33,7 @@ from facette.io.exr import write_exr
 from facette.io.ply import write_ply
 from facette.io.gltf import write_glb
 from facette.io.png import write_mask
+from facette.calib.lp import write_lp
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
 from facette.recon import (INTEGRATION_DEFAULT, INTEGRATION_METHODS, PS_DEFAULT, PS_METHODS, flat_margin, integrate,
@@ -44,6 +45,7 @@ from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, T
 from facette.pipeline._exports import fill_unfitted, gltf_inputs, gltf_material, hsh_order_for
 from facette.pipeline._inputs import load_input, object_of
 from facette.pipeline._record import claim_results, mark_running, write_record
+from facette.pipeline._rti_capture import LP_NAME
 from facette.pipeline._quality import check_fit_cells, check_samples
 from facette.pipeline._report import report_fit_section, write_report
 
@@ -241,8 +243,8 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
             t_source=T_SOURCE, t_residual=T_RESIDUAL, theta0_deg=THETA0_DEG, mask=None,
             pixel_pitch_mm=None, near_light=True, mesh_step=None, ascii_ply=False,
             saturation=None, fit_options=None, hsh_order=3, ps_options=None, allow_incomplete=False,
-            overwrite=False, interreflections=False, rti_encoding="srgb"):
-    """Run the processing chain on a scan directory or a DiLiGenT-style folder.
+            overwrite=False, interreflections=False, rti_encoding="srgb", capture=None):
+    """Run the processing chain on a scan directory, a DiLiGenT-style folder or an RTI capture.
 
     source : path (or Scan object) of a facette scan (scan.json + hdr/) or a DiLiGenT folder.
     outputs : list from OUTPUTS (default all); only the stages they need run.
@@ -279,6 +281,9 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
     allow_incomplete : process a scan that is not complete (every output then says so).
     overwrite : replace an earlier run's results in `out_dir` made with other options or inputs
         (without it, such a folder is refused: one folder holds one run, see process.json).
+    capture : options of an RTI capture folder (photographs + .lp, or a mirror sphere in view):
+        {"encoding": "srgb"|"linear", "sphere": Circle or (H, W) mask, "reference": (x0, y0, x1, y1)};
+        see `pipeline._rti_capture.read_rti_capture`.
     Returns a `ProcessResult` (timings: wall seconds per stage, "after_ps" the concurrent
     stages together, "cpu" the CPU seconds of the whole call; `interreflections` the removal's
     figures when it was asked for). Raises InsufficientData
@@ -305,7 +310,7 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
 def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_source, t_residual,
              theta0_deg, mask, pixel_pitch_mm, near_light, mesh_step, ascii_ply, saturation,
              fit_options, hsh_order, ps_options, allow_incomplete, overwrite, interreflections,
-             rti_encoding):
+             rti_encoding, capture):
     outputs = list(OUTPUTS if outputs is None else outputs)
     stages = stages_needed(outputs)
     res = ProcessResult(options=dict(method=method, integration=integration, t_ombre=t_ombre,
@@ -323,6 +328,9 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
                           ps_options=dict(ps_options or {}), hsh_order=hsh_order,
                           interreflections=bool(interreflections))
     record_options.pop("outputs")
+    said = {k: str(v) for k, v in (capture or {}).items() if v is not None and not isinstance(v, np.ndarray)}
+    if said:                 # recorded only when given: earlier runs' records stay comparable
+        record_options["capture"] = said
     t_all = time.perf_counter()
     cpu_all = time.process_time()
     if out_dir is not None and "report" in outputs:
@@ -330,9 +338,10 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
         threading.Thread(target=preload, daemon=True).start()
 
     t0 = time.perf_counter()
-    inp = load_input(source, mask=mask, pixel_pitch_mm=pixel_pitch_mm, allow_incomplete=allow_incomplete)
+    inp = load_input(source, mask=mask, pixel_pitch_mm=pixel_pitch_mm, allow_incomplete=allow_incomplete,
+                     capture=capture)
     if out_dir is not None:            # before any work: the folder must take this run's files
-        previous = claim_results(Path(out_dir), record_options, inp, overwrite, set(FILES.values()), mask)
+        previous = claim_results(Path(out_dir), record_options, inp, overwrite, set(FILES.values()) | {LP_NAME}, mask)
     res.inputs = inp
     res.notes.extend(inp.notes)
     if interreflections and inp.truth is not None and "sensor" in inp.truth:   # the rig simulator's truth
@@ -394,6 +403,8 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
     if out_dir is not None:
         t0 = time.perf_counter()
         _write_last(res, Path(out_dir), outputs, drawn)
+        if inp.lights_file is not None:       # the sphere's lights, beside the results (never the input)
+            res.files["lp"] = str(write_lp(Path(out_dir) / LP_NAME, *inp.lights_file))
         write_record(Path(out_dir), record_options, inp, res, previous)
         res.timings["write"] = time.perf_counter() - t0
     res.timings["cpu"] = time.process_time() - cpu_all
