@@ -167,6 +167,7 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
     images = np.empty((len(paths), h, w, 3), np.float32)
     usable = np.empty((len(paths), h, w), bool)
     lut = srgb_to_linear(np.arange(256) / 255.0) if enc == "srgb" and bits == 8 else None
+    inten = _read_intensities(folder / "light_intensities.txt", len(paths), notes)
     for k, p in enumerate(paths):
         raw, top_k, _ = (first, top, bits) if k == 0 else _read_image(p)
         if raw.shape[:2] != (h, w):
@@ -174,11 +175,13 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
                                 hint="every photograph of a capture must have the same size")
         usable[k] = raw[..., 1] >= MIN_LEVELS if np.isfinite(top_k) else raw[..., 1] > 0
         clipped = raw >= top_k
-        if lut is not None:
-            images[k] = lut[raw.astype(np.uint8)]
+        scale = top_k if np.isfinite(top_k) else 1.0
+        if enc == "linear":            # one division in float64, as the DiLiGenT reader does
+            images[k] = raw / (scale * (1.0 if inten is None else inten[k]))
         else:
-            v = raw / (top_k if np.isfinite(top_k) else 1.0)
-            images[k] = srgb_to_linear(v) if enc == "srgb" else v
+            images[k] = lut[raw.astype(np.uint8)] if lut is not None else srgb_to_linear(raw / scale)
+            if inten is not None:
+                images[k] /= inten[k].astype(np.float32)
         images[k][clipped] = np.nan
     if pixel_pitch_mm is None:
         notes.append("an RTI capture carries no pixel pitch: heights are in pixels (--pixel-pitch to give it)")
@@ -193,7 +196,6 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
             lights_file = None             # Relight reads 4 fields a line: no .lp it could not load
             notes[:] = [n.replace(f"{LP_NAME} written beside the results",
                                   f"no {LP_NAME} written: a file name holds a space") for n in notes]
-    _divide_by_intensities(images, folder / "light_intensities.txt", notes)
     if reference is not None:
         _divide_by_reference(images, reference, notes)
     mask_file = next((p for p in folder.iterdir() if p.name.lower() == "mask.png"), None)
@@ -222,7 +224,9 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
 
 def _sphere_directions(images, sphere, notes):
     """Directions from the mirror sphere in the photographs (linear, NaN where clipped)."""
-    filled = np.nan_to_num(images, nan=1.0)          # a clipped highlight is at the top
+    # a clipped highlight is at the top of its photograph
+    filled = np.stack([np.nan_to_num(im, nan=float(np.nanmax(im)) if np.isfinite(im).any() else 1.0)
+                       for im in images])
     kw = {}
     if isinstance(sphere, Circle) or (sphere is not None and np.ndim(sphere) == 1):
         kw["circle"] = sphere
@@ -233,7 +237,7 @@ def _sphere_directions(images, sphere, notes):
                                 f"{images.shape[2]}x{images.shape[1]}")
         kw["mask"] = m
     try:
-        dirs, circle, hls = mirror_sphere_directions(filled, white_level=1.0, **kw)
+        dirs, circle, hls = mirror_sphere_directions(filled, **kw)
     except ValueError as exc:
         raise BadInputError(f"the capture has no .lp file and its light directions could not be taken "
                             f"from a mirror sphere: {exc}",
@@ -246,22 +250,21 @@ def _sphere_directions(images, sphere, notes):
     return dirs, circle
 
 
-def _divide_by_intensities(images, path, notes):
+def _read_intensities(path, m, notes):
     """A light_intensities.txt beside the photographs (R G B per light, in the order of the .lp
-    or of the names; DiLiGenT's layout): each photograph divided by its light's intensity."""
+    or of the names; DiLiGenT's layout): (m, 3), or None when there is none."""
     if not path.is_file():
-        return
+        return None
     try:
         inten = np.loadtxt(path, ndmin=2)
     except ValueError as exc:
         raise BadInputError(f"{path}: not a table of numbers ({exc})", hint="R G B per light, one line each") from None
-    if inten.shape != (len(images), 3) or not np.all(np.isfinite(inten) & (inten > 0)):
-        raise BadInputError(f"{path} must hold {len(images)} lines of 3 positive numbers (R G B per "
+    if inten.shape != (m, 3) or not np.all(np.isfinite(inten) & (inten > 0)):
+        raise BadInputError(f"{path} must hold {m} lines of 3 positive numbers (R G B per "
                             f"light), it holds {inten.shape}")
-    for k in range(len(images)):
-        images[k] /= inten[k].astype(np.float32)
     notes.append(f"each photograph divided by its light's intensity ({path.name}: {inten[:, 1].min():.3g}–"
                  f"{inten[:, 1].max():.3g} in green)")
+    return inten
 
 
 def _divide_by_reference(images, box, notes):
