@@ -6,9 +6,9 @@ temporary directory: its PNGs, its mask.png, and an .lp written from light_direc
 normals `process` gives on it are compared with the DiLiGenT path's (mean and worst angle over
 the pixels both keep, and the time of each): with the object's light_intensities.txt beside the
 .lp (what the DiLiGenT path divides by), and without it (a plain .lp carries no intensity)
-against the DiLiGenT path given no intensities either. Then a JPEG copy of the first object
-(quality 95, 8 bits, the same linear values) read as linear, and read as sRGB (the default for
-8-bit files, wrong for these), against the PNG capture.
+against the DiLiGenT path given no intensities either. Then a JPEG copy of one 8-bit object
+(quality 95, the same linear values) read as linear, and read as sRGB (the default for 8-bit
+files, wrong for these), against the PNG capture, with the chosen method and least squares.
 """
 import argparse
 import shutil
@@ -74,6 +74,9 @@ def main(argv=None):
     ap.add_argument("--method", default="rank_trimmed", help="photometric stereo (default rank_trimmed)")
     ap.add_argument("--objects", default="ballPNG,catPNG,pot2PNG,buddhaPNG,readingPNG",
                     help="DiLiGenT folders to use (the 16-bit ball, the 8-bit crops)")
+    ap.add_argument("--jpeg-object", default="catPNG",
+                    help="the object copied to JPEG (default catPNG: 8 bits already, so the JPEG "
+                         "differs by its compression only)")
     args = ap.parse_args(argv)
     base = Path(args.root)
     folders = []
@@ -102,17 +105,20 @@ def main(argv=None):
             label = f"{src.parent.name}/{src.name}"
             print(f"  {label:24s} {e1.mean():9.4f}° / {e1.max():7.4f}° {e0.mean():9.4f}° / {e0.max():7.4f}° "
                   f"{t_ref:7.2f} s {t_rti:5.2f} s", flush=True)
-        src = folders[0]
+        src = next((f for f in folders if f.name == args.jpeg_object), folders[0])
         work = tmp / (src.name + "_jpeg")
-        png, _ = _run(_rti_folder(src, work / "png"), args.method, capture={"encoding": "linear"})
+        png_dir = _rti_folder(src, work / "png")
         jpg_dir = _rti_folder(src, work / "jpg", jpeg=True)
-        print(f"2. JPEG copy (quality 95, 8 bits) of {src.name} against the PNG capture: angle (mean / "
-              "median / 95th percentile)")
-        for enc in ("linear", "srgb"):
-            jpg, t = _run(jpg_dir, args.method, capture={"encoding": enc})
-            e = _apart(jpg, png)
-            print(f"  read as {enc:7s} {e.mean():7.3f}° / {np.median(e):6.3f}° / {np.percentile(e, 95):6.3f}°  "
-                  f"{t:6.2f} s" + ("   (the values are linear: sRGB decoding is wrong here)" if enc == "srgb" else ""))
+        print(f"2. JPEG copy (quality 95, 8 bits) of {src.parent.name}/{src.name} against the PNG capture: "
+              "angle (mean / median / 95th percentile), time")
+        for method in dict.fromkeys((args.method, "woodham1980")):
+            png, _ = _run(png_dir, method, capture={"encoding": "linear"})
+            for enc in ("linear", "srgb"):
+                jpg, t = _run(jpg_dir, method, capture={"encoding": enc})
+                e = _apart(jpg, png)
+                print(f"  {method:13s} read as {enc:7s} {e.mean():7.3f}° / {np.median(e):6.3f}° / "
+                      f"{np.percentile(e, 95):6.3f}°  {t:6.2f} s"
+                      + ("   (the values are linear: sRGB decoding is wrong here)" if enc == "srgb" else ""))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return 0

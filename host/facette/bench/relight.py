@@ -69,6 +69,7 @@ class _Scores:
         self.seconds = 0.0
         self.why = ""
         self.unknown = 0
+        self.failed = False
 
     def add(self, pred, photo, mask):
         sel = mask & np.all(np.isfinite(photo), axis=-1)
@@ -199,7 +200,10 @@ def _physically_based(train, dirs, mask, work, ps_method="rank_trimmed"):
         ok = np.isfinite(img)
         num += np.where(ok, pred * np.nan_to_num(img), 0.0)
         den += np.where(ok, pred * pred, 0.0)
-    gain = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+    # where the model gives (almost) no light under every fitted light there is nothing to scale:
+    # gain 1; elsewhere bounded to [0, 4] (a pixel the model gets wrong is not rescued by a gain)
+    tiny = den <= 1e-6 * max(float(np.median(den[res.mask])) if res.mask.any() else 0.0, 1e-30)
+    gain = np.clip(np.where(tiny, 1.0, num / np.where(tiny, 1.0, den)), 0.0, 4.0)
     GAINS.append(float(np.median(gain[res.mask][:, 1])))
     fns.update({k: (f, never_negative(f)) for k, f in
                 (("facette PB", viewer), ("facette PB+gain", lambda d: gain * viewer(d)))})
@@ -210,8 +214,9 @@ FITS = {"PTM": _ptm, "HSH 2": _hsh(2), "HSH 3": _hsh(3), "RBF (Relight)": _rbf}
 
 
 def _score(sc, fns, why, images, dirs, held, mask, raking, t0):
-    if fns is None:
-        sc.why = why
+    if fns is None:              # one fold without a fit: the method is n/a on this object
+        sc.why = sc.why or why
+        sc.failed = True
     else:
         render, negative = fns
         for h in held:
@@ -245,12 +250,12 @@ def evaluate(images, dirs, mask, folds, work, ps_method="rank_trimmed"):
 
 
 def _print(label, scores, peak):
-    if GAINS:
+    if GAINS and not scores["facette PB+gain"].failed:
         scores["facette PB+gain"].why = f"median gain {np.median(GAINS):.3f}"
         GAINS.clear()
     for name in METHODS:
         sc = scores[name]
-        if not sc.sq:
+        if sc.failed or not sc.sq:
             print(f"  {label:22s} {name:15s} {'n/a':>8s} {'':>8s} {'':>11s} {sc.seconds:7.2f} s  ({sc.why})")
         else:
             neg = f"{100 * np.mean(sc.neg):9.2f} %" if sc.neg else f"{'n/a':>11s}"
