@@ -299,7 +299,7 @@ def main(argv=None):
             pi = sorted(p.name for p in pi_base.iterdir() if (p / "filenames.txt").is_file()) \
                 if pi_base.is_dir() else []
         else:
-            pi = [n for n in args.pi.split(",") if n]
+            pi = [n for n in args.pi.split(",") if n and (pi_base / n / "filenames.txt").is_file()]
         if pi:
             print(f"2. DiLiGenT-Π reliefs, 5 lights: each left out in turn (predicted from 4), every "
                   f"{args.pi_step} px")
