@@ -12,7 +12,8 @@ import numpy as np
 from facette.errors import BadInputError
 from facette.io.png import read_mask, read_png, write_png, write_mask
 
-__all__ = ["DiligentData", "is_diligent_dir", "read_diligent", "write_diligent"]
+__all__ = ["DiligentData", "is_diligent_dir", "read_diligent", "read_diligent_lights", "png_radiance",
+           "write_diligent"]
 
 
 @dataclass
@@ -85,13 +86,10 @@ def _table(path, m=None, what=""):
     return np.array(rows, dtype=np.float64).reshape(-1, 3)
 
 
-def read_diligent(folder, dtype=np.float32, select=None):
-    """Read a DiLiGenT-style folder. Returns `DiligentData` (images divided by intensities,
-    scaled so that 65535 -> 1 before the division; values at the top of the range (saturated)
-    become NaN, which photometric stereo treats as missing).
-
-    select : optional indices (0-based, into filenames.txt) of the images to read, in that
-    order; the light tables are cut to match (default: every image)."""
+def read_diligent_lights(folder, select=None):
+    """The light tables of a DiLiGenT-style folder, without its images: (names, light_dirs (m, 3)
+    unit, light_intensities (m, 3), notes), lights below the horizon left out as `read_diligent`
+    leaves them out (and said in notes); `select` as in `read_diligent`."""
     folder = Path(folder)
     names = [l.strip() for l in (folder / "filenames.txt").read_text().splitlines() if l.strip()]
     if not names:
@@ -117,6 +115,31 @@ def read_diligent(folder, dtype=np.float32, select=None):
         names, dirs, inten = [names[i] for i in select], dirs[select], inten[select]
         keep = np.flatnonzero(dirs[:, 2] >= 0)
     names, dirs, inten = [names[i] for i in keep], dirs[keep], inten[keep]
+    return names, dirs, inten, notes
+
+
+def png_radiance(arr, intensity, out):
+    """Stored PNG integers (H, W) grey or (H, W, 3|4) -> `out` (H, W, 3) float: divided by the
+    full scale (65535 or 255) and by the light's R G B `intensity`, NaN where the value is at the
+    top of the range (clipped: unknown)."""
+    if arr.ndim == 2:
+        arr = np.repeat(arr[..., None], 3, axis=2)
+    scale = 65535.0 if arr.dtype == np.uint16 else 255.0
+    rgb = arr[..., :3]
+    out[...] = rgb / (scale * np.asarray(intensity))
+    out[rgb >= scale] = np.nan
+    return out
+
+
+def read_diligent(folder, dtype=np.float32, select=None):
+    """Read a DiLiGenT-style folder. Returns `DiligentData` (images divided by intensities,
+    scaled so that 65535 -> 1 before the division; values at the top of the range (saturated)
+    become NaN, which photometric stereo treats as missing).
+
+    select : optional indices (0-based, into filenames.txt) of the images to read, in that
+    order; the light tables are cut to match (default: every image)."""
+    folder = Path(folder)
+    names, dirs, inten, notes = read_diligent_lights(folder, select)
     m = len(names)
     first = read_png(folder / names[0])
     h, w = first.shape[:2]
@@ -125,12 +148,7 @@ def read_diligent(folder, dtype=np.float32, select=None):
         arr = first if i == 0 else read_png(folder / name)
         if arr.shape[:2] != (h, w):
             raise ValueError(f"{name} is {arr.shape[1]}x{arr.shape[0]}, {names[0]} is {w}x{h}")
-        if arr.ndim == 2:
-            arr = np.repeat(arr[..., None], 3, axis=2)
-        scale = 65535.0 if arr.dtype == np.uint16 else 255.0
-        rgb = arr[..., :3]
-        images[i] = rgb / (scale * inten[i])
-        images[i][rgb >= scale] = np.nan        # clipped at the top of the range: unknown
+        png_radiance(arr, inten[i], images[i])
     mask_path = folder / "mask.png"
     mask = read_mask(mask_path) if mask_path.is_file() else np.ones((h, w), bool)
     if mask.shape != (h, w):

@@ -5,17 +5,16 @@ stored integers but orders colour channels BGR(A); this module turns them into R
 `read_png` returns uint8 or uint16, shape (H, W) grey or (H, W, 3|4) colour (palette images
 are expanded to RGB). `write_png` takes uint8 or uint16 grey, RGB or RGBA.
 """
-from pathlib import Path
-
 import struct
 import zlib
+from pathlib import Path
 
 import cv2
 import numpy as np
 
 from facette.io.atomic import write_bytes_atomic
 
-__all__ = ["read_png", "read_png_text", "write_png", "encode_png", "read_mask", "write_mask"]
+__all__ = ["read_png", "read_png_text", "write_png", "encode_png", "read_mask", "write_mask", "PngBandWriter"]
 
 _SIG = b"\x89PNG\r\n\x1a\n"
 _TO_RGB = {3: cv2.COLOR_BGR2RGB, 4: cv2.COLOR_BGRA2RGBA}
@@ -106,3 +105,74 @@ def read_mask(path):
 def write_mask(path, mask, text=None):
     """Write an (H, W) bool mask as an 8-bit grey PNG (0 / 255); text as `write_png`."""
     write_png(path, np.asarray(mask, bool), text)
+
+
+def _chunk(kind, data):
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+class PngBandWriter:
+    """A PNG written band of rows by band of rows, so that the whole image is never held
+    (OpenCV encodes whole images only). Rows are stored unfiltered (filter type 0), zlib at
+    `compression`; any PNG reader (OpenCV included) reads the file.
+
+    path : the file; it appears complete at `close()` (written to `path.partial` until then).
+    width, height : pixels; channels : 1 (grey) or 3 (RGB); dtype : uint8 or uint16.
+    Use as a context manager, `write(band)` with bands of shape (rows, width[, channels]) from
+    the top, `height` rows in all."""
+
+    def __init__(self, path, width, height, channels=3, dtype=np.uint16, compression=1):
+        dtype = np.dtype(dtype)
+        if dtype not in (np.uint8, np.uint16) or channels not in (1, 3):
+            raise ValueError(f"PngBandWriter writes uint8 or uint16 grey or RGB, got {dtype} with "
+                             f"{channels} channels")
+        if not (int(width) > 0 and int(height) > 0):
+            raise ValueError(f"width and height must be > 0 px, got {width}x{height}")
+        self.path, self.width, self.height = Path(path), int(width), int(height)
+        self.channels, self.dtype, self.rows = channels, dtype, 0
+        self._tmp = self.path.with_name(self.path.name + ".partial")
+        self._f = open(self._tmp, "wb")
+        self._z = zlib.compressobj(int(compression))
+        colour = 0 if channels == 1 else 2
+        self._f.write(_SIG + _chunk(b"IHDR", struct.pack(">IIBBBBB", self.width, self.height,
+                                                          8 * dtype.itemsize, colour, 0, 0, 0)))
+
+    def write(self, band):
+        """Append rows: (rows, width) or (rows, width, channels) of the writer's dtype."""
+        band = np.asarray(band)
+        shape = (self.width,) if self.channels == 1 else (self.width, self.channels)
+        if band.dtype != self.dtype or band.shape[1:] != shape:
+            raise ValueError(f"{self.path.name}: a band must be (rows, {', '.join(map(str, shape))}) "
+                             f"{self.dtype}, got {band.shape} {band.dtype}")
+        if self.rows + band.shape[0] > self.height:
+            raise ValueError(f"{self.path.name}: {self.rows + band.shape[0]} rows written, the image "
+                             f"has {self.height}")
+        rows = band.reshape(band.shape[0], -1).astype(self.dtype.newbyteorder(">"), copy=False)
+        raw = np.zeros((band.shape[0], 1 + rows.shape[1] * self.dtype.itemsize), np.uint8)
+        raw[:, 1:] = rows.view(np.uint8).reshape(band.shape[0], -1)
+        data = self._z.compress(raw.tobytes())
+        if data:
+            self._f.write(_chunk(b"IDAT", data))
+        self.rows += band.shape[0]
+
+    def close(self):
+        if self._f.closed:
+            return
+        if self.rows != self.height:
+            self._f.close()
+            self._tmp.unlink()
+            raise ValueError(f"{self.path.name}: {self.rows} rows written of {self.height}; "
+                             "the file was not kept")
+        self._f.write(_chunk(b"IDAT", self._z.flush()) + _chunk(b"IEND", b""))
+        self._f.close()
+        self._tmp.replace(self.path)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, value, tb):
+        if kind is None:
+            self.close()
+        elif not self._f.closed:
+            self._f.close()
+            self._tmp.unlink()
