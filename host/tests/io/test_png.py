@@ -5,7 +5,7 @@ import zlib
 import numpy as np
 import pytest
 
-from facette.io.png import read_mask, read_png, write_mask, write_png
+from facette.io.png import PngBandWriter, read_mask, read_png, write_mask, write_png
 
 
 def _encode_filtered(img):
@@ -84,3 +84,35 @@ def test_png_truncated_file_and_unsupported_shapes_are_refused(tmp_path):
     with pytest.raises(ValueError, match=r"\(H, W\)"):
         write_png(tmp_path / "b.png", np.zeros((4, 4, 2), np.uint8))
     assert not (tmp_path / "b.png").exists()
+
+
+# ----------------------------------------------------------------------------- PngBandWriter
+
+def test_band_writer_gives_the_image_to_opencv(tmp_path):
+    rng = np.random.default_rng(1)
+    rgb = rng.integers(0, 65536, (23, 31, 3)).astype(np.uint16)
+    with PngBandWriter(tmp_path / "rgb.png", 31, 23) as w:
+        for r0 in range(0, 23, 4):
+            w.write(rgb[r0:r0 + 4])
+    np.testing.assert_array_equal(read_png(tmp_path / "rgb.png"), rgb)
+    grey = rng.integers(0, 256, (5, 9)).astype(np.uint8)
+    with PngBandWriter(tmp_path / "grey.png", 9, 5, channels=1, dtype=np.uint8) as w:
+        w.write(grey)
+    np.testing.assert_array_equal(read_png(tmp_path / "grey.png"), grey)
+
+
+def test_band_writer_refuses_wrong_bands_and_keeps_no_partial_file(tmp_path):
+    path = tmp_path / "x.png"
+    with pytest.raises(ValueError, match="a band must be"):
+        with PngBandWriter(path, 8, 4) as w:
+            w.write(np.zeros((2, 8, 3), np.uint8))                 # wrong dtype
+    with pytest.raises(ValueError, match="the image has 4"):
+        with PngBandWriter(path, 8, 4) as w:
+            w.write(np.zeros((5, 8, 3), np.uint16))
+    w = PngBandWriter(path, 8, 4)
+    w.write(np.zeros((3, 8, 3), np.uint16))
+    with pytest.raises(ValueError, match="3 rows written of 4"):
+        w.close()
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(ValueError, match="grey or RGB"):
+        PngBandWriter(path, 8, 4, channels=4)

@@ -1,0 +1,219 @@
+"""`facette bench size`: photometric stereo of large captures, untiled against tiled.
+
+For each size a relief slab with known normals (bench/_large.py: 12 lights, the rig's
+directions, 16-bit RGB PNGs, a DiLiGenT-style folder written band by band) is generated, then
+each of these runs in a process of its own (peak memory = that child's max RSS, from wait4):
+
+- untiled: `facette process SLAB -o OUT --outputs normals,height` as a user runs it (every
+  photograph held as float32, photometric stereo of the whole image, then the integration);
+- tiled: `recon.ps_tiled` with a memory budget (`--memory`, default 2GB), each band's normals
+  written to a .npy as it comes (nothing kept at the image's size), the same method.
+
+Printed per size: generation time and peak; for both runs wall seconds, seconds per megapixel
+and peak memory (the untiled run also its load and ps stage times); the normals' mean angular
+error against the truth; and the largest angle between the tiled and the untiled normals.
+The untiled run is skipped (`--no-untiled`, or above `--untiled-max-mp`, default 20 MP: at
+100 MP it needs ~38 GB).
+
+Usage: facette bench size [--sizes 12] [--memory 2GB] [--method rank_trimmed] [--keep DIR]
+Sizes in megapixels (3, 12, 50, 100: the thesis camera's half and whole, 50 MP, the GFX100)
+or WxH.
+"""
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from facette.bench._large import npy_band_writer, write_relief_capture
+from facette.io.exr import read_exr
+from facette.recon import PS_DEFAULT, ps_tiled
+
+SIZES = {"3": (2144, 1424), "12": (4288, 2848), "50": (8192, 6144), "100": (11648, 8736)}
+DEFAULT_SIZES = "12"
+FACETTE = [sys.executable, "-m", "facette.cli.main"]
+SELF = [sys.executable, "-m", "facette.bench.size"]
+UNTILED_MAX_MP = 20.0
+BAND_ROWS = 256           # rows compared at a time (tiled .npy and truth read through a memmap)
+
+
+def _size(text):
+    if text in SIZES:
+        return SIZES[text]
+    m = re.fullmatch(r"(\d+)x(\d+)", text)
+    if not m:
+        raise SystemExit(f"a size is one of {', '.join(SIZES)} (megapixels) or WxH, got {text!r}")
+    return int(m.group(1)), int(m.group(2))
+
+
+# The `facette` command's allocator settings (facette/_memory.py) through the environment, for
+# the tiled child: the same as the untiled `facette process`, for a fair peak and time.
+ALLOCATOR_ENV = {"MALLOC_MMAP_MAX_": "0", "MALLOC_TRIM_THRESHOLD_": "2147483647", "MALLOC_ARENA_MAX": "1",
+                 "NUMPY_MADVISE_HUGEPAGE": "0", "MALLOC_TOP_PAD_": str(64 << 20)}
+
+
+def _run_rss(cmd, env=None):
+    """(stdout, wall s, max RSS GB) of a command in a process of its own (wait4)."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=None if env is None else dict(os.environ, **env))
+    out, err = proc.communicate()
+    wall = time.perf_counter() - t0
+    # the child's own max RSS comes from the --_rss wrapper (its wait4), printed on stderr
+    if proc.returncode:
+        raise RuntimeError(f"{' '.join(map(str, cmd))} failed ({proc.returncode}):\n{err[-2000:]}")
+    rss = re.search(r"^max_rss_kb (\d+)$", err, re.M)
+    return out, wall, int(rss.group(1)) / 1e6 if rss else float("nan")
+
+
+def _measured(cmd):
+    """The command run by this module's --_rss wrapper, which prints the child's max RSS."""
+    return SELF + ["--_rss", "--"] + [str(c) for c in cmd]
+
+
+def _rss_wrapper(cmd):
+    proc = subprocess.Popen(cmd)
+    _, status, usage = os.wait4(proc.pid, 0)
+    print(f"max_rss_kb {usage.ru_maxrss}", file=sys.stderr)
+    return os.waitstatus_to_exitcode(status)
+
+
+def _times(stdout):
+    """The stage times `facette process` prints ("times: load 0.53 s, ps 2.35 s, ...")."""
+    m = re.search(r"times: (.*)", stdout)
+    return {k: float(v) for k, v in re.findall(r"(\w+) ([\d.]+) s", m.group(1))} if m else {}
+
+
+def _angles_deg(a, b):
+    a, b = a.astype(np.float64), b.astype(np.float64)
+    return np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1)))
+
+
+def _tiled_child(folder, out_npy, memory, method):
+    """Photometric stereo over tiles, each band's normals appended to `out_npy` as it comes."""
+    t0 = time.perf_counter()
+    h = w = None
+    with open(Path(folder) / "normal_gt.npy", "rb") as f:
+        np.lib.format.read_magic(f)
+        h, w, _ = np.lib.format.read_array_header_1_0(f)[0]
+    out = npy_band_writer(out_npy, (h, w, 3))
+    written = [0]
+
+    def on_band(r0, r1, part):
+        if r0 > written[0]:          # bands the mask leaves out: zeros
+            out.write(np.zeros((r0 - written[0], w, 3), "<f4").tobytes())
+        out.write(part.normal.astype("<f4").tobytes())
+        written[0] = r1
+
+    res = ps_tiled(folder, method=method, memory=memory, keep=(), on_band=on_band,
+                   work_dir=Path(out_npy).parent)
+    if written[0] < h:
+        out.write(np.zeros((h - written[0], w, 3), "<f4").tobytes())
+    out.close()
+    print(json.dumps({"seconds": time.perf_counter() - t0, "tiles": res.info["tiles"],
+                      "rows_per_tile": res.info["rows_per_tile"]}))
+
+
+def _compare(folder, tiled_npy, untiled_exr):
+    """Mean angle to the truth (tiled, untiled) and the largest tiled-untiled angle, in degrees."""
+    truth = np.load(Path(folder) / "normal_gt.npy", mmap_mode="r")
+    tiled = np.load(tiled_npy, mmap_mode="r")
+    untiled = read_exr(untiled_exr)[0] if untiled_exr else None
+    sums, worst, count = [0.0, 0.0], 0.0, 0
+    for r0 in range(0, truth.shape[0], BAND_ROWS):
+        sl = slice(r0, r0 + BAND_ROWS)
+        t, n = np.asarray(truth[sl]), np.asarray(tiled[sl])
+        ok = np.linalg.norm(n, axis=-1) > 0.5
+        sums[0] += _angles_deg(n[ok], t[ok]).sum()
+        count += int(ok.sum())
+        if untiled is not None:
+            u = untiled[sl][..., :3]
+            sums[1] += _angles_deg(u[ok], t[ok]).sum()
+            worst = max(worst, float(_angles_deg(n[ok], u[ok]).max(initial=0.0)))
+    return sums[0] / count, (sums[1] / count if untiled is not None else float("nan")), \
+        (worst if untiled is not None else float("nan"))
+
+
+def one_size(size, work, memory, method, untiled):
+    w, h = size
+    mp = w * h / 1e6
+    folder = work / f"slab_{w}x{h}"
+    _, gen_s, gen_gb = _run_rss(_measured(SELF + ["--_generate", folder, str(w), str(h)]))
+    row = dict(size=f"{w}x{h}", mp=mp, gen_s=gen_s, gen_gb=gen_gb)
+    exr = None
+    if untiled:
+        out = work / f"untiled_{w}x{h}"
+        stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", folder, "-o", out, "--outputs",
+                                                         "normals,height", "--method", method,
+                                                         "--overwrite"]))
+        times = _times(stdout)
+        row.update(untiled_s=wall, untiled_gb=gb, untiled_load=times.get("load", float("nan")),
+                   untiled_ps=times.get("ps", float("nan")))
+        exr = out / "normal.exr"
+    npy = work / f"tiled_{w}x{h}.npy"
+    stdout, wall, gb = _run_rss(_measured(SELF + ["--_tiled", folder, npy, memory, method]), ALLOCATOR_ENV)
+    info = json.loads(stdout.strip().splitlines()[-1])
+    row.update(tiled_s=wall, tiled_gb=gb, tiles=info["tiles"], rows=info["rows_per_tile"])
+    row["err_tiled"], row["err_untiled"], row["tiled_vs_untiled"] = _compare(folder, npy, exr)
+    return row
+
+
+def _header(memory, method):
+    print(f"method {method}, tiled budget {memory}; peak = the child process's max RSS; "
+          "s/MP = wall seconds per megapixel")
+    print(f"{'size':>12} {'MP':>6} | {'gen s':>6} {'GB':>5} | {'untiled s':>9} {'s/MP':>5} {'GB':>5} "
+          f"{'(load':>6} {'ps)':>5} | {'tiled s':>7} {'s/MP':>5} {'GB':>5} {'tiles':>5} | "
+          f"{'err° untiled':>12} {'tiled':>6} {'max° tiled-untiled':>18}")
+
+
+def _print(rows):
+    for r in rows:
+        u = r.get("untiled_s", float("nan"))
+        print(f"{r['size']:>12} {r['mp']:6.1f} | {r['gen_s']:6.1f} {r['gen_gb']:5.2f} | {u:9.1f} "
+              f"{u / r['mp']:5.2f} {r.get('untiled_gb', float('nan')):5.2f} "
+              f"{r.get('untiled_load', float('nan')):6.1f} {r.get('untiled_ps', float('nan')):5.1f} | "
+              f"{r['tiled_s']:7.1f} {r['tiled_s'] / r['mp']:5.2f} {r['tiled_gb']:5.2f} {r['tiles']:5d} | "
+              f"{r['err_untiled']:12.3f} {r['err_tiled']:6.3f} {r['tiled_vs_untiled']:18.5f}", flush=True)
+
+
+def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["--_rss"]:
+        return _rss_wrapper(argv[2:])
+    if argv[:1] == ["--_generate"]:
+        write_relief_capture(argv[1], int(argv[2]), int(argv[3]))
+        return 0
+    if argv[:1] == ["--_tiled"]:
+        _tiled_child(*argv[1:5])
+        return 0
+    p = argparse.ArgumentParser(prog="facette bench size", description=__doc__.splitlines()[0])
+    p.add_argument("--sizes", default=DEFAULT_SIZES,
+                   help=f"megapixels ({', '.join(SIZES)}) or WxH, comma-separated (default {DEFAULT_SIZES})")
+    p.add_argument("--memory", default="2GB", help="the tiled run's memory budget (default 2GB)")
+    p.add_argument("--method", default=PS_DEFAULT, help=f"a per-pixel method (default {PS_DEFAULT})")
+    p.add_argument("--no-untiled", action="store_true", help="skip the untiled `facette process`")
+    p.add_argument("--untiled-max-mp", type=float, default=UNTILED_MAX_MP,
+                   help=f"skip the untiled run above this size (default {UNTILED_MAX_MP:g} MP)")
+    p.add_argument("--keep", help="keep the captures and results in this folder (default: temporary)")
+    args = p.parse_args(argv)
+    sizes = [_size(s.strip()) for s in args.sizes.split(",") if s.strip()]
+    rows = []
+    _header(args.memory, args.method)
+    with tempfile.TemporaryDirectory(prefix="facette-bench-size-") as tmp:
+        work = Path(args.keep) if args.keep else Path(tmp)
+        work.mkdir(parents=True, exist_ok=True)
+        for size in sizes:
+            untiled = not args.no_untiled and size[0] * size[1] / 1e6 <= args.untiled_max_mp
+            rows.append(one_size(size, work, args.memory, args.method, untiled))
+            _print(rows[-1:])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
