@@ -10,7 +10,8 @@ each of these runs in a process of its own (peak memory = that child's max RSS, 
   written to a .npy as it comes (nothing kept at the image's size), the same method.
 
 Printed per size: generation time and peak; for both runs wall seconds, seconds per megapixel
-and peak memory (the untiled run also its load and ps stage times); the normals' mean angular
+and peak memory (the untiled run also its load and ps stage times, the tiled one its staging
+of the photographs and its bands' reading and photometric stereo); the normals' mean angular
 error against the truth; the largest angle between the tiled and the untiled normals and the
 number of pixels where they differ by more than 0.01 deg (rank_trimmed's window is a discrete
 choice per pixel: a pixel whose values sit on its edge may flip between two answers with the
@@ -120,8 +121,8 @@ def _tiled_child(folder, out_npy, memory, method):
     if written[0] < h:
         out.write(np.zeros((h - written[0], w, 3), "<f4").tobytes())
     out.close()
-    print(json.dumps({"seconds": time.perf_counter() - t0, "tiles": res.info["tiles"],
-                      "rows_per_tile": res.info["rows_per_tile"]}))
+    print(json.dumps({"seconds": time.perf_counter() - t0, **{k: res.info[k] for k in (
+        "tiles", "rows_per_tile", "staging_s", "read_s", "ps_s")}}))
 
 
 def _compare(folder, tiled_npy, untiled_exr):
@@ -152,7 +153,10 @@ def one_size(size, work, memory, method, untiled):
     w, h = size
     mp = w * h / 1e6
     folder = work / f"slab_{w}x{h}"
-    _, gen_s, gen_gb = _run_rss(_measured(SELF + ["--_generate", folder, str(w), str(h)]))
+    if (folder / "mask.png").is_file():       # written last, when every image is complete
+        gen_s = gen_gb = float("nan")          # a slab kept from an earlier run (--keep): reused
+    else:
+        _, gen_s, gen_gb = _run_rss(_measured(SELF + ["--_generate", folder, str(w), str(h)]))
     row = dict(size=f"{w}x{h}", mp=mp, gen_s=gen_s, gen_gb=gen_gb)
     exr = None
     if untiled:
@@ -167,7 +171,8 @@ def one_size(size, work, memory, method, untiled):
     npy = work / f"tiled_{w}x{h}.npy"
     stdout, wall, gb = _run_rss(_measured(SELF + ["--_tiled", folder, npy, memory, method]), ALLOCATOR_ENV)
     info = json.loads(stdout.strip().splitlines()[-1])
-    row.update(tiled_s=wall, tiled_gb=gb, tiles=info["tiles"], rows=info["rows_per_tile"])
+    row.update(tiled_s=wall, tiled_gb=gb, tiles=info["tiles"], rows=info["rows_per_tile"],
+               tiled_stage=info["staging_s"], tiled_ps=info["read_s"] + info["ps_s"])
     row["err_tiled"], row["err_untiled"], row["tiled_vs_untiled"], row["over"] = _compare(folder, npy, exr)
     return row
 
@@ -176,7 +181,7 @@ def _header(memory, method):
     print(f"method {method}, tiled budget {memory}; peak = the child process's max RSS; "
           "s/MP = wall seconds per megapixel")
     print(f"{'size':>12} {'MP':>6} | {'gen s':>6} {'GB':>5} | {'untiled s':>9} {'s/MP':>5} {'GB':>5} "
-          f"{'(load':>6} {'ps)':>5} | {'tiled s':>7} {'s/MP':>5} {'GB':>5} {'tiles':>5} | "
+          f"{'(load':>6} {'ps)':>5} | {'tiled s':>7} {'s/MP':>5} {'GB':>5} {'tiles':>5} {'(stage':>6} {'ps)':>5} | "
           f"{'err° untiled':>12} {'tiled':>6} {'max° tiled-untiled':>18} {'px > 0.01°':>10}")
 
 
@@ -186,7 +191,8 @@ def _print(rows):
         print(f"{r['size']:>12} {r['mp']:6.1f} | {r['gen_s']:6.1f} {r['gen_gb']:5.2f} | {u:9.1f} "
               f"{u / r['mp']:5.2f} {r.get('untiled_gb', float('nan')):5.2f} "
               f"{r.get('untiled_load', float('nan')):6.1f} {r.get('untiled_ps', float('nan')):5.1f} | "
-              f"{r['tiled_s']:7.1f} {r['tiled_s'] / r['mp']:5.2f} {r['tiled_gb']:5.2f} {r['tiles']:5d} | "
+              f"{r['tiled_s']:7.1f} {r['tiled_s'] / r['mp']:5.2f} {r['tiled_gb']:5.2f} {r['tiles']:5d} "
+              f"{r['tiled_stage']:6.1f} {r['tiled_ps']:5.1f} | "
               f"{r['err_untiled']:12.3f} {r['err_tiled']:6.3f} {r['tiled_vs_untiled']:18.5f} {r['over']:10d}",
               flush=True)
 
@@ -209,7 +215,8 @@ def main(argv=None):
     p.add_argument("--no-untiled", action="store_true", help="skip the untiled `facette process`")
     p.add_argument("--untiled-max-mp", type=float, default=UNTILED_MAX_MP,
                    help=f"skip the untiled run above this size (default {UNTILED_MAX_MP:g} MP)")
-    p.add_argument("--keep", help="keep the captures and results in this folder (default: temporary)")
+    p.add_argument("--keep", help="keep the captures and results in this folder (default: temporary); "
+                                  "a slab already there is reused")
     args = p.parse_args(argv)
     sizes = [_size(s.strip()) for s in args.sizes.split(",") if s.strip()]
     rows = []

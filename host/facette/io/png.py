@@ -14,7 +14,8 @@ import numpy as np
 
 from facette.io.atomic import write_bytes_atomic
 
-__all__ = ["read_png", "read_png_text", "write_png", "encode_png", "read_mask", "write_mask", "PngBandWriter"]
+__all__ = ["read_png", "read_png_text", "png_size", "write_png", "encode_png", "read_mask", "write_mask",
+           "PngBandWriter"]
 
 _SIG = b"\x89PNG\r\n\x1a\n"
 _TO_RGB = {3: cv2.COLOR_BGR2RGB, 4: cv2.COLOR_BGRA2RGBA}
@@ -37,6 +38,16 @@ def read_png(path):
     if img.ndim == 3:
         img = cv2.cvtColor(img, _TO_RGB[img.shape[2]])
     return img
+
+
+def png_size(path):
+    """(width, height) of a PNG from its header, without decoding it."""
+    path = Path(path)
+    with open(path, "rb") as f:
+        head = f.read(24)
+    if head[:8] != _SIG or head[12:16] != b"IHDR":
+        raise ValueError(f"{path} is not a PNG file")
+    return struct.unpack(">II", head[16:24])
 
 
 def _text_chunks(text):

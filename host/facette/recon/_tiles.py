@@ -12,12 +12,13 @@ and one band's working set (`rows_per_tile`); not the m x H x W x 3 float32 imag
 import re
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
 
 from facette.io.diligent import png_radiance, read_diligent_lights
-from facette.io.png import read_mask, read_png
+from facette.io.png import png_size, read_mask, read_png
 from facette.recon._ps import PS_DEFAULT, PS_METHODS, PSResult
 
 __all__ = ["WHOLE_IMAGE_METHODS", "TILED_METHODS", "FIELD_BYTES", "parse_memory", "rows_per_tile", "ps_tiled"]
@@ -152,27 +153,36 @@ def ps_tiled(folder, method=PS_DEFAULT, memory="2GB", rows=None, mask=None, keep
         temporary folder, removed at the end).
     kwargs : the method's options (saturation, thresholds, ...).
     Returns a `PSResult` as the untiled method's (normals equal within float32 rounding);
-    info: method, pixels, tiles, rows_per_tile, and the first tile's other info.
+    info: method, pixels, tiles, rows_per_tile, notes (lights left out), seconds spent staging the photographs
+    (staging_s), reading the bands (read_s) and in the method (ps_s, `on_band` included), and
+    the first tile's other info.
     """
     folder = Path(folder)
     name = _check_method(method)
     fn = PS_METHODS[name]
     names, dirs, inten, notes = read_diligent_lights(folder)
     m = len(names)
+    unknown = set(keep) - set(FIELD_BYTES)
+    if unknown:
+        raise ValueError(f"keep names outputs of {', '.join(FIELD_BYTES)}; got {sorted(unknown)}")
+    if rows is None:               # before any work: a budget too small is said at once
+        w, h = png_size(folder / names[0])
+        rows = rows_per_tile(w, h, m, memory, name, keep, per_light_flags)
+    rows = int(rows)
+    if rows < 1:
+        raise ValueError(f"rows must be >= 1, got {rows}")
     work = Path(tempfile.mkdtemp(prefix="facette-tiles-", dir=work_dir))
     try:
+        t0 = time.perf_counter()
         staged = _Staged(folder, names, work)
+        t_staged = time.perf_counter()
+        read_s = 0.0
         h, w, _ = staged.shape
         if mask is None:
             mask = read_mask(folder / "mask.png") if (folder / "mask.png").is_file() else np.ones((h, w), bool)
         mask = np.asarray(mask, bool)
         if mask.shape != (h, w):
             raise ValueError(f"the mask is {mask.shape[1]}x{mask.shape[0]}, the images are {w}x{h}")
-        if rows is None:
-            rows = rows_per_tile(w, h, m, memory, name, keep, per_light_flags)
-        rows = int(rows)
-        if rows < 1:
-            raise ValueError(f"rows must be >= 1, got {rows}")
         k = m if per_light_flags else 0
 
         def full(field, tail, dtype):
@@ -188,7 +198,11 @@ def ps_tiled(folder, method=PS_DEFAULT, memory="2GB", rows=None, mask=None, keep
             tiles += 1
             if not mask[r0:r1].any():
                 continue       # outputs stay zero; on_band is not called for an empty band
-            part = fn(staged.band(r0, r1, inten), dirs, mask=mask[r0:r1], **kwargs)
+            t_read = time.perf_counter()
+            band = staged.band(r0, r1, inten)
+            read_s += time.perf_counter() - t_read
+            part = fn(band, dirs, mask=mask[r0:r1], **kwargs)
+            del band
             for field in keep:
                 getattr(res, field)[r0:r1] = getattr(part, field)
             if per_light_flags:
@@ -198,7 +212,9 @@ def ps_tiled(folder, method=PS_DEFAULT, memory="2GB", rows=None, mask=None, keep
             pixels += int(part.info.get("pixels", 0))
             info = info or dict(part.info)
             del part
-        res.info = dict(info, method=name, pixels=pixels, tiles=tiles, rows_per_tile=rows, notes=notes)
+        res.info = dict(info, method=name, pixels=pixels, tiles=tiles, rows_per_tile=rows, notes=notes,
+                        staging_s=t_staged - t0, read_s=read_s,
+                        ps_s=time.perf_counter() - t_staged - read_s)
         return res
     finally:
         shutil.rmtree(work, ignore_errors=True)

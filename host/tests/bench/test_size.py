@@ -9,7 +9,7 @@ def test_tiny_slab_tiled_equals_untiled(tmp_path, capsys):
     out = capsys.readouterr().out
     row = next(line for line in out.splitlines() if line.strip().startswith("64x48"))
     figures = [float(x) for x in re.findall(r"-?\d+\.\d+|\b\d+\b", row.split("|", 1)[1])]
-    gen_s, gen_gb, u_s, u_spm, u_gb, u_load, u_ps, t_s, t_spm, t_gb, tiles, err_u, err_t, worst, over = figures
+    gen_s, gen_gb, u_s, u_spm, u_gb, u_load, u_ps, t_s, t_spm, t_gb, tiles, t_stage, t_ps, err_u, err_t, worst, over = figures
     assert 0 < u_gb < 2 and 0 < t_gb < 2 and tiles == 1
     assert err_u == err_t and err_t < 5                     # the same normals, near the truth
     assert worst < 0.01 and over == 0                       # degrees, tiled against untiled

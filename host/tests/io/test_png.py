@@ -5,7 +5,7 @@ import zlib
 import numpy as np
 import pytest
 
-from facette.io.png import PngBandWriter, read_mask, read_png, write_mask, write_png
+from facette.io.png import PngBandWriter, png_size, read_mask, read_png, write_mask, write_png
 
 
 def _encode_filtered(img):
@@ -116,3 +116,11 @@ def test_band_writer_refuses_wrong_bands_and_keeps_no_partial_file(tmp_path):
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(ValueError, match="grey or RGB"):
         PngBandWriter(path, 8, 4, channels=4)
+
+
+def test_png_size_reads_the_header_only(tmp_path):
+    write_png(tmp_path / "a.png", np.zeros((7, 11, 3), np.uint16))
+    assert png_size(tmp_path / "a.png") == (11, 7)
+    (tmp_path / "b.png").write_bytes(b"not a png at all, no header here")
+    with pytest.raises(ValueError, match="not a PNG"):
+        png_size(tmp_path / "b.png")

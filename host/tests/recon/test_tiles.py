@@ -83,3 +83,17 @@ def test_rows_per_tile_follow_the_budget():
     with pytest.raises(ValueError, match="give at least"):
         rows_per_tile(11648, 8736, 12, "2GB")                     # 100 MP outputs do not fit in 2 GB
     assert rows_per_tile(11648, 8736, 12, "2GB", keep=()) >= 1
+
+
+def test_a_budget_too_small_or_a_bad_request_is_said_before_any_work(folder):
+    with pytest.raises(ValueError, match="give at least"):
+        ps_tiled(folder, method="woodham1980", memory=1000)
+    with pytest.raises(ValueError, match="keep names outputs"):
+        ps_tiled(folder, method="woodham1980", rows=5, keep=("normals",))
+    with pytest.raises(ValueError, match="rows must be >= 1"):
+        ps_tiled(folder, method="woodham1980", rows=0)
+
+
+def test_a_budget_chooses_the_tiles(folder):
+    res = ps_tiled(folder, method="woodham1980", memory="2GB")
+    assert res.info["tiles"] == 1 and res.info["rows_per_tile"] == 36
