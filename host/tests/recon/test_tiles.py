@@ -1,5 +1,7 @@
 """Photometric stereo over tiles: forced small tiles give the untiled result, for every
 per-pixel method; whole-image methods refuse; the tile height follows the memory budget."""
+import shutil
+
 import numpy as np
 import pytest
 
@@ -97,3 +99,16 @@ def test_a_budget_too_small_or_a_bad_request_is_said_before_any_work(folder):
 def test_a_budget_chooses_the_tiles(folder):
     res = ps_tiled(folder, method="woodham1980", memory="2GB")
     assert res.info["tiles"] == 1 and res.info["rows_per_tile"] == 36
+
+
+def test_lights_below_the_horizon_are_left_out_as_read_diligent_does(folder, tmp_path):
+    shutil.copytree(folder, tmp_path / "f")
+    dirs = np.loadtxt(tmp_path / "f" / "light_directions.txt")
+    dirs[4] = [0.3, 0.2, -0.9]                                   # below the horizon
+    np.savetxt(tmp_path / "f" / "light_directions.txt", dirs, fmt="%.8f")
+    d = read_diligent(tmp_path / "f")
+    assert len(d.light_dirs) == 11
+    whole = photometric_stereo(d.images, d.light_dirs, method="woodham1980", mask=d.mask)
+    tiled = ps_tiled(tmp_path / "f", method="woodham1980", rows=9)
+    assert _angle_deg(tiled.normal, whole.normal)[whole.valid].max() < 0.01
+    assert any("below the horizon" in note for note in tiled.info["notes"])
