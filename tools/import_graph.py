@@ -22,6 +22,7 @@ LAYERS = (
     ("brdf",),
     ("hdr", "recon", "reflect"),
     ("fit", "calib"),
+    ("methods",),
     ("sim",),
     ("scan",),
     ("pipeline", "wizard"),

@@ -2,16 +2,17 @@
 
 Names are case-insensitive and listed once, each with its aliases beside it; a name that is
 not there raises a ValueError listing the valid ones (after colour's `CanonicalMapping` and
-`validate_method`). Adding a method is one line next to its function::
+`validate_method`). Adding a name is one line next to its function::
 
-    PS_METHODS = Registry("photometric-stereo method")
-    PS_METHODS.add("woodham1980", ps_woodham1980, aliases=("least_squares",))
+    INTEGRATION_METHODS = Registry("integration method")
+    INTEGRATION_METHODS.add("simchony1990", integrate_simchony1990)
 
-    def photometric_stereo(images, light_dirs, method="rank_trimmed", **kw):
-        return PS_METHODS[method](images, light_dirs, **kw)
+    def integrate(normals, ..., method="poisson_flat_margin"):
+        return INTEGRATION_METHODS[method](normals, ...)
 
 Iterating a registry gives its canonical names in the order they were added (aliases are
-accepted but not listed twice).
+accepted but not listed twice). A table that must not grow after import is built in one
+literal with `Registry.fixed(what, {name: (value, aliases), ...})`: its `add` then raises.
 """
 from __future__ import annotations
 
@@ -31,9 +32,22 @@ class Registry(Mapping):
         self._values = {}     # canonical name -> value, in the order added
         self._aliases = {}    # canonical name -> tuple of its aliases
         self._lookup = {}     # lower-case name or alias -> canonical name
+        self._fixed = False
+
+    @classmethod
+    def fixed(cls, what, entries):
+        """A registry of `entries` ({name: (value, aliases)}, in order) that cannot be added to."""
+        table = cls(what)
+        for name, (value, aliases) in entries.items():
+            table.add(name, value, aliases)
+        table._fixed = True
+        return table
 
     def add(self, name, value, aliases=()):
-        """Register `value` under `name` (and `aliases`); returns `value`. A name twice is an error."""
+        """Register `value` under `name` (and `aliases`); returns `value`. A name twice is an error,
+        and so is any name added to a fixed registry."""
+        if self._fixed:
+            raise TypeError(f"the {self.what} table is fixed: a new one is a line in its literal")
         aliases = tuple(aliases)
         for key in (name, *aliases):
             if key.lower() in self._lookup:

@@ -2,7 +2,8 @@
 import pytest
 
 from facette._registry import Registry
-from facette.recon import PS_METHODS, photometric_stereo, ps_woodham1980
+from facette.methods import PS_METHODS, photometric_stereo
+from facette.recon import ps_woodham1980
 
 
 def test_names_aliases_and_case():

@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-import facette.fit  # noqa: F401  (registers the BRDF-aware li_alternating, for --methods)
 from facette.io.diligent import is_diligent_dir, read_diligent
-from facette.recon import PS_METHODS, photometric_stereo, remove_interreflections
+from facette.methods import PS_METHODS, photometric_stereo
+from facette.recon import remove_interreflections
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
 DEFAULT_METHODS = ["woodham1980", "hierarchical_tautzia2016", "rpca_wu2010", "rank_trimmed", "rank_trimmed+ir"]
@@ -111,13 +111,13 @@ def run_ps(images, light_dirs, name, mask, init=None):
     """photometric_stereo by name; a name ending in IR_SUFFIX first removes the inter-reflections
     (shape and albedo from a rank_trimmed pass, the albedo scaled as IR_ASSUMED_P99 says)."""
     method = base_method(name)
-    extra = {"init": init} if init and PS_METHODS.canonical(method) == "li_alternating" else {}
     if name != method:
         first = photometric_stereo(images, light_dirs, method="rank_trimmed", mask=mask)
         p99 = float(np.percentile(first.albedo[first.valid], 99)) if first.valid.any() else 1.0
         images, _ = remove_interreflections(images, light_dirs, first.normal, first.albedo, first.valid,
                                             reflectance_scale=IR_ASSUMED_P99 / max(p99, 1e-12))
-    return photometric_stereo(images, light_dirs, method=method, mask=mask, **extra)
+    # li_alternating takes `init`; the other methods leave it
+    return photometric_stereo(images, light_dirs, method=method, mask=mask, options={"init": init} if init else None)
 
 
 def run_object(folder, truth_path, methods, lights, init=None):

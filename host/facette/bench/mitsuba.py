@@ -26,11 +26,11 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import binary_erosion
 
-import facette.fit  # noqa: F401  (registers the BRDF-aware li_alternating with recon's dispatch)
 from facette.bench._mitsuba_scenes import MATERIALS, TABLE_MATERIAL, render_scene
 from facette.bench.e2e import height_errors
-from facette.pipeline import auto_masks, margin_of
-from facette.recon import INTEGRATION_METHODS, PS_DEFAULT, integrate, photometric_stereo
+from facette.methods import PS_DEFAULT, options_for, photometric_stereo
+from facette.pipeline import ProcessOptions, auto_masks, margin_of
+from facette.recon import INTEGRATION_METHODS, integrate
 
 METHODS = ("woodham1980", "hierarchical_tautzia2016", "rank_trimmed", "rpca_wu2010", "li_alternating")
 PIPELINE_METHODS = ("woodham1980", "hierarchical_tautzia2016", "rank_trimmed", "li_alternating")
@@ -80,18 +80,18 @@ def run_ps(d, method, init=None, interreflections=False):
     """(PSResult, seconds); with `interreflections`, a first rank_trimmed pass gives the shape
     and remove_interreflections the images the method sees (both inside the seconds)."""
     from facette.fit import ps_li_without_interreflections
-    from facette.recon import photometric_stereo, without_interreflections
+    from facette.recon import without_interreflections
     im, L = _images_and_dirs(d)
-    extra = {"materials": "auto"} if d["params"].get("two_materials") else {}
-    if init:
-        extra["init"] = init
+    # one bag for every method: each takes its own (li_alternating: materials, init)
+    options = {"mask": d["mask"], **({"materials": "auto"} if d["params"].get("two_materials") else {}),
+               **({"init": init} if init else {})}
     t = time.perf_counter()
     if interreflections and method == "li_alternating":     # as `process`: glossy walls too
-        r = ps_li_without_interreflections(im, L, d["mask"], **extra)[0]
+        r = ps_li_without_interreflections(im, L, **options_for(method, options))[0]
         return r, time.perf_counter() - t
     if interreflections:
         im, _, _ = without_interreflections(im, L, d["mask"])
-    r = photometric_stereo(im, L, method=method, mask=d["mask"], **(extra if method == "li_alternating" else {}))
+    r = photometric_stereo(im, L, method=method, options=options)
     return r, time.perf_counter() - t
 
 
@@ -105,9 +105,9 @@ def whole_pipeline(d, method, workdir, init=None, interreflections=False):
     write_diligent(folder, np.clip(np.round(im * k), 0, 65535).astype(np.uint16), d["light_dirs"],
                    np.full((len(im), 3), k / 65535.0), d["mask"])
     t = time.perf_counter()
-    opts = {"ps_options": {"init": init}} if init and method == "li_alternating" else {}
-    res = process(folder, outputs=["normals", "albedo", "samples", "brdf"], method=method,
-                  interreflections=interreflections, **opts)
+    options = ProcessOptions(method=method, interreflections=interreflections,
+                             ps_options={"init": init} if init else None)
+    res = process(folder, outputs=["normals", "albedo", "samples", "brdf"], options=options)
     return res, time.perf_counter() - t
 
 

@@ -27,7 +27,7 @@ from facette.bench._mitsuba_scenes import NON_LI_SCENES, render_scene
 from facette.bench.diligent import PUBLISHED_OTHERS, default_root, find_objects, object_name, run_object
 from facette.bench.mitsuba import angular_errors as _angles
 from facette.bench.mitsuba import run_ps as mitsuba_run_ps
-from facette.recon import PS_METHODS
+from facette.methods import PS_METHODS
 
 METHODS = ("woodham1980", "rank_trimmed", "li_alternating", "bipolynomial_shi2014", "bivariate_ikehata2014")
 LIT_SHARE = 0.01       # a pixel whose brightest value is below this share of the scene's is dark

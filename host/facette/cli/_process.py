@@ -36,12 +36,12 @@ def _outputs(text):
 
 
 def register(sub):
-    from facette.pipeline import OUTPUTS
-    from facette.recon import INTEGRATION_DEFAULT, INTEGRATION_METHODS, PS_DEFAULT, PS_METHODS
-    from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
     from facette.brdf import MODELS
     from facette.fit import METHODS
-    from facette.reflect import THETA0_DEG
+    from facette.methods import PS_DEFAULT, PS_METHODS
+    from facette.pipeline import OUTPUTS, ProcessOptions
+    from facette.recon import INTEGRATION_METHODS
+    d = ProcessOptions()            # the defaults: defined once, there
     p = sub.add_parser("process", help="process a scan, a DiLiGenT-style folder or an RTI capture",
                        description=__doc__.splitlines()[0])
     p.add_argument("source", help="scan directory (scan.json, hdr/), DiLiGenT-style folder, or RTI capture "
@@ -50,31 +50,31 @@ def register(sub):
     p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
                    help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all); only the "
                         "stages they need run")
-    p.add_argument("--method", default=PS_DEFAULT,
+    p.add_argument("--method", default=d.method,
                    choices=list(PS_METHODS),
                    help="photometric stereo (li_alternating: BRDF-aware, the LI model fitted and the "
                         "normals re-estimated against it in alternation)")
-    p.add_argument("--init", default=PS_DEFAULT,
+    p.add_argument("--init", default=None,
                    choices=[m for m in PS_METHODS if m != "li_alternating"],
-                   help=f"initial normals of --method li_alternating (default {PS_DEFAULT}; the "
-                        "hierarchy is better on satins)")
+                   help=f"initial normals of --method li_alternating (default its own, {PS_DEFAULT}; the "
+                        "hierarchy is better on satins); the other methods take none")
     p.add_argument("--interreflections", action="store_true",
                    help="take the light a concave matte surface gathers from itself out of the images "
                         "first (craters, grooves, a vase's neck; needs a reflectance-calibrated scan); with "
                         "--method li_alternating also what glossy walls mirror into each other")
-    p.add_argument("--integration", default=INTEGRATION_DEFAULT, choices=list(INTEGRATION_METHODS),
-                   help=f"normal integration (default {INTEGRATION_DEFAULT}: the object needs a flat "
+    p.add_argument("--integration", default=d.integration, choices=list(INTEGRATION_METHODS),
+                   help=f"normal integration (default {d.integration}: the object needs a flat "
                         "margin around it, as for frankot_chellappa1988, the thesis's; least_squares "
                         "integrates the mask only)")
-    p.add_argument("--t-ombre", type=_number(float, 0, math.pi / 2, True, "--t-ombre"), default=T_OMBRE,
+    p.add_argument("--t-ombre", type=_number(float, 0, math.pi / 2, True, "--t-ombre"), default=d.t_ombre,
                    help="shadow angle threshold, rad, in (0, pi/2] (1.5)")
-    p.add_argument("--t-spec", type=_number(float, 0, None, True, "--t-spec"), default=T_SPEC,
+    p.add_argument("--t-spec", type=_number(float, 0, None, True, "--t-spec"), default=d.t_spec,
                    help="specular variance threshold (0.25)")
-    p.add_argument("--t-source", type=_number(float, 0, None, True, "--t-source"), default=T_SOURCE,
+    p.add_argument("--t-source", type=_number(float, 0, None, True, "--t-source"), default=d.t_source,
                    help="max |entry| of a triplet's inverse (10)")
-    p.add_argument("--t-residual", type=_number(float, 0, None, False, "--t-residual"), default=T_RESIDUAL,
+    p.add_argument("--t-residual", type=_number(float, 0, None, False, "--t-residual"), default=d.t_residual,
                    help="LS residual under which a pixel skips the hierarchy (0.03; 0 = never)")
-    p.add_argument("--theta0", type=_number(float, 0, 90, True, "--theta0"), default=THETA0_DEG,
+    p.add_argument("--theta0", type=_number(float, 0, 90, True, "--theta0"), default=d.theta0_deg,
                    help="hemisphere cell size, deg (3)")
     p.add_argument("--mask", help="mask PNG (non-zero = object)")
     p.add_argument("--pixel-pitch", type=_number(float, 0, None, True, "--pixel-pitch"),
@@ -98,9 +98,9 @@ def register(sub):
                                     "(default: found in the photographs)")
     p.add_argument("--reference", help="RTI capture: x0,y0,x1,y1 (px) of a white or grey patch in every "
                                        "photograph; each photograph is divided by its level there")
-    p.add_argument("--hsh-order", type=int, default=3, choices=(2, 3),
+    p.add_argument("--hsh-order", type=int, default=d.hsh_order, choices=(2, 3),
                    help="hemispherical-harmonics order of relight.rti (2: 4 terms, 3: 9 terms)")
-    p.add_argument("--rti-encoding", default="srgb", choices=("srgb", "linear"),
+    p.add_argument("--rti-encoding", default=d.rti_encoding, choices=("srgb", "linear"),
                    help="colour of relight.ptm and relight.rti: srgb (default: display values, what "
                         "RTIViewer and Relight show as photographed) or linear (proportional to radiance)")
     return p
@@ -134,21 +134,25 @@ def _capture(args):
             "reference": parse_box(args.reference) if args.reference else None}
 
 
+def options(args):
+    """The ProcessOptions of parsed `facette process` arguments."""
+    from facette.pipeline import ProcessOptions
+
+    return ProcessOptions(
+        method=args.method, integration=args.integration, t_ombre=args.t_ombre, t_spec=args.t_spec,
+        t_source=args.t_source, t_residual=args.t_residual, theta0_deg=args.theta0, mask=args.mask,
+        pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light, mesh_step=args.mesh_step,
+        ascii_ply=args.ascii_ply, fit_options={"model": args.brdf_model, "method": args.fit_method},
+        hsh_order=args.hsh_order, rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
+        interreflections=args.interreflections, capture=_capture(args),
+        ps_options={"init": args.init} if args.init else None)     # li_alternating takes it, the others leave it
+
+
 def run(args):
     from facette.pipeline import process
 
     _check_out(args.out)
-    capture = _capture(args)
-    res = process(args.source, outputs=args.outputs, out_dir=args.out, method=args.method,
-                  integration=args.integration, t_ombre=args.t_ombre, t_spec=args.t_spec,
-                  t_source=args.t_source, t_residual=args.t_residual, theta0_deg=args.theta0,
-                  mask=args.mask, pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light,
-                  mesh_step=args.mesh_step, ascii_ply=args.ascii_ply,
-                  fit_options={"model": args.brdf_model, "method": args.fit_method},
-                  hsh_order=args.hsh_order, rti_encoding=args.rti_encoding,
-                  ps_options={"init": args.init} if args.method == "li_alternating" else None,
-                  allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
-                  interreflections=args.interreflections, capture=capture)
+    res = process(args.source, outputs=args.outputs, out_dir=args.out, options=options(args))
     print_result(res)
     return 0
 

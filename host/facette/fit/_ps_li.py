@@ -2,7 +2,8 @@
 
 Layer: this module calls photometric stereo (facette.recon) and identifies BRDF parameters, so it
 lives in facette.fit, which may import recon and brdf (recon may not import fit). It is offered
-to `facette.recon.photometric_stereo(method="li_alternating")` through the method registry.
+by name in the one table of photometric-stereo methods, `facette.methods` (a layer above),
+as `photometric_stereo(method="li_alternating")`.
 
     ps_li_alternating(images, light_dirs, ...) -> PSResult
 
@@ -45,7 +46,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from facette.brdf import li_kd_from_kappa, li_shading_terms
-from facette.recon import PS_METHODS, PSResult, photometric_stereo
+from facette.recon import PSResult, ps_rank_trimmed, ps_woodham1980
 from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _run_blocks, _usable
 from ._normals_li import RefineResult, refine_normals_li
 
@@ -240,7 +241,7 @@ def _regions(albedo, n_pix, materials, min_fraction, seed):
 
 
 def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=None,
-                      init="rank_trimmed", rounds=4, tol_deg=0.1, fit_pixels=1000,
+                      init=ps_rank_trimmed, rounds=4, tol_deg=0.1, fit_pixels=1000,
                       t_residual=T_RESIDUAL, iterations=24, materials=1, min_region_fraction=0.05,
                       seed=0, init_options=None, coarse_pixels=COARSE_PIXELS, fine_iterations=2,
                       engine="auto", volume_model=LI_VOLUME_MODEL):
@@ -250,8 +251,9 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     light_dirs : (m, 3) unit vectors towards the lights, or (H, W, m, 3) per pixel (near lights,
         fall-off already divided out of the images).
     mask, channel, saturation : as `ps_woodham1980`.
-    init : photometric-stereo method for the starting normals (default "rank_trimmed"; or
-        "hierarchical_tautzia2016", "woodham1980", ...); init_options : its keyword arguments.
+    init : photometric-stereo function for the starting normals (default `ps_rank_trimmed`; or
+        `ps_hierarchical_tautzia2016`, `ps_woodham1980`, ...; by name through
+        `facette.methods.photometric_stereo`); init_options : its keyword arguments.
         On the 17 Mitsuba scenes at 256 spp the rank_trimmed start is better than the hierarchy's
         on 11 (sphere paint 0.10: 1.14 against 1.29 deg; the relief paint 0.05: 0.59 against 0.96;
         the thesis test 0.97 / 0.87 / 0.74 against 1.01 / 1.01 / 1.14 deg), equal on 4 and worse
@@ -290,7 +292,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     m, h, w, c = images.shape
     if rounds < 1:
         raise ValueError(f"rounds = {rounds}: give at least 1 fit / re-estimate round")
-    if PS_METHODS.canonical(init) == "li_alternating":
+    if init is ps_li_alternating:
         raise ValueError("init = 'li_alternating': the initial normals must come from another method "
                          "(hierarchical_tautzia2016, woodham1980, rpca_wu2010, ...)")
     coarse = None
@@ -308,14 +310,13 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         coarse.info["seconds"] = time.perf_counter() - t_c
         coarse.info["cpu_seconds"] = time.process_time() - c_c
     opts = dict(init_options or {})
-    base = photometric_stereo(images, light_dirs, method=init, mask=mask, channel=channel,
-                              saturation=saturation, **opts)
+    base = init(images, light_dirs, mask=mask, channel=channel, saturation=saturation, **opts)
     t_init = time.perf_counter() - t_start
     res = PSResult(normal=base.normal.copy(), albedo=base.albedo.copy(), valid=base.valid.copy(),
                    n_triplets=base.n_triplets, shadow=base.shadow.copy(), specular=base.specular.copy(),
                    residual=base.residual.copy(), skipped=np.ones((h, w), bool), method="li_alternating")
     idx = np.flatnonzero(base.valid.ravel())
-    info = {"init": init, "rounds": [], "materials": [], "pixels": int(idx.size)}
+    info = {"init": base.method, "rounds": [], "materials": [], "pixels": int(idx.size)}
     res.info = info
     if idx.size == 0:
         info["levels"] = {"init": {"pixels": 0, "seconds": t_init}}
@@ -327,9 +328,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     # the Lambertian level: least squares over every light (its residual decides which pixels it
     # explains; the init's own residual is on the lights that method kept, and its normal would
     # bias the tabulated correction, which models least squares over every light)
-    ls = base if PS_METHODS.canonical(init) == "woodham1980" else \
-        photometric_stereo(images, light_dirs, method="woodham1980", mask=mask, channel=channel,
-                           saturation=saturation)
+    ls = base if init is ps_woodham1980 else \
+        ps_woodham1980(images, light_dirs, mask=mask, channel=channel, saturation=saturation)
     nrm_ls = ls.normal.reshape(-1, 3)[idx].astype(np.float32)
     resid_ls = np.where(ls.valid.reshape(-1)[idx], ls.residual.reshape(-1)[idx], np.inf)
     alb = base.albedo.reshape(-1, c)[idx]
@@ -593,7 +593,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     spec = res.specular.reshape(-1, m)
     spec[idx[refined]] = False     # the model explains the highlights: no light eliminated
     info["levels"] = {
-        "init": {"method": init, "pixels": int(idx.size), "seconds": t_init},
+        "init": {"method": base.method, "pixels": int(idx.size), "seconds": t_init},
         "lambertian": {"pixels": int((~refined).sum())},
         "brdf_aware": {"pixels": int(refined.sum()), "seconds": t_brdf},
     }
@@ -671,6 +671,3 @@ def _scatter_rows(arr, idx, values):
     flat = arr.reshape((-1,) + arr.shape[2:])
     flat[idx] = values
 
-
-# offered by recon's dispatch: photometric_stereo(..., method="li_alternating")
-PS_METHODS.add("li_alternating", ps_li_alternating, aliases=("brdf_li",))

@@ -1,10 +1,10 @@
-"""The processing chain: `process(scan_or_dir, outputs=[...])` runs only the stages the
-requested outputs need and writes the files of docs/outputs.md (normal.exr, albedo.exr,
+"""The processing chain: `process(scan_or_dir, outputs=[...], options=ProcessOptions(...))` runs only
+the stages the requested outputs need and writes the files of docs/outputs.md (normal.exr, albedo.exr,
 height.exr, mask.png, mesh.ply, samples.npz, brdf.json, relight.ptm, relight.rti, model.glb,
 report.html); `batch(scans, out)` runs it over a collection on Dask."""
 from ._inputs import PSInput, auto_masks, load_input, margin_of
-from ._process import OUTPUTS, STAGES_FOR, ProcessResult, preload, process, stages_needed
+from ._process import OUTPUTS, STAGES_FOR, ProcessOptions, ProcessResult, preload, process, stages_needed
 from ._batch import batch, process_scan
 
-__all__ = ["PSInput", "auto_masks", "load_input", "margin_of", "OUTPUTS", "STAGES_FOR", "ProcessResult", "preload", "process",
+__all__ = ["PSInput", "auto_masks", "load_input", "margin_of", "OUTPUTS", "STAGES_FOR", "ProcessOptions", "ProcessResult", "preload", "process",
            "stages_needed", "batch", "process_scan"]

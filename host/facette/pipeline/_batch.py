@@ -28,6 +28,7 @@ import facette
 from facette.errors import BadInputError
 from facette.io.atomic import write_text_atomic
 from facette.io.checksum import sha256_file
+from facette.pipeline._options import ProcessOptions
 from facette.pipeline._process import process
 from facette.pipeline._record import read_record
 
@@ -129,7 +130,8 @@ def process_scan(scan_dir, out_dir, outputs=None, options=None, force=False):
                 and record.get("inputs") == fingerprint and _intact(out_dir, record)):
             return {**record["row"], "status": "skipped"}
         # the batch decides itself when a scan's row is redone (its inputs or options changed)
-        res = process(scan_dir, outputs=outputs, out_dir=out_dir, overwrite=True, **(options or {}))
+        res = process(scan_dir, outputs=outputs, out_dir=out_dir,
+                      options=ProcessOptions(**{**(options or {}), "overwrite": True}))
         row.update(_figures(res), status="ok", error="")
         fingerprint = input_fingerprint(scan_dir, outputs, options)    # after what processing wrote
         files = _written(out_dir)
@@ -268,7 +270,8 @@ def batch(scans, out_dir, workers=2, scheduler=None, outputs=None, options=None,
     workers : local worker processes (one thread each) when no scheduler is given.
     scheduler : address of a running dask.distributed scheduler ("tcp://host:8786"); its
         workers must have facette installed and see the same paths.
-    outputs, options : as `process` (outputs list, keyword arguments).
+    outputs, options : as `process` (outputs list; options: fields of ProcessOptions as a dict,
+        which the rerun check fingerprints; checked here once, before any scan).
     force : reprocess scans even when done. progress : a progress bar on stderr.
     Returns the rows (list of dicts, in the order of `scans`); summary.* holds them merged
     with the rows of the other scans under `out_dir`.
@@ -286,6 +289,7 @@ def batch(scans, out_dir, workers=2, scheduler=None, outputs=None, options=None,
     if outputs is not None and not list(outputs):
         raise BadInputError("no outputs asked for (--outputs is empty): nothing would be written",
                             hint="name one or more outputs, or leave --outputs out for all")
+    ProcessOptions(**(options or {}))        # a bad option fails here, not in every row
     out_dir = Path(out_dir)
     names = result_folders(scans, out_dir)
     _check_out(scans, out_dir, names)

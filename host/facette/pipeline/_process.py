@@ -20,7 +20,7 @@ import sys
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -36,20 +36,20 @@ from facette.io.png import write_mask
 from facette.calib.lp import write_lp
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
-from facette.recon import (INTEGRATION_DEFAULT, INTEGRATION_METHODS, PS_DEFAULT, PS_METHODS, flat_margin, integrate,
-                           mesh_from_height, MESH_MAX_SLOPE, near_light_directions, photometric_stereo,
-                           fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION, RTI_ENCODINGS,
+from facette.methods import PS_METHODS, options_for, photometric_stereo
+from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_from_height, MESH_MAX_SLOPE,
+                           near_light_directions, fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION,
                            without_interreflections)
-from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
-from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid, THETA0_DEG
+from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid
 from facette.pipeline._exports import fill_unfitted, gltf_inputs, gltf_material, hsh_order_for
 from facette.pipeline._inputs import load_input, object_of
+from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_capture import LP_NAME
 from facette.pipeline._quality import check_fit_cells, check_samples
 from facette.pipeline._report import report_fit_section, write_report
 
-__all__ = ["OUTPUTS", "STAGES_FOR", "ProcessResult", "process", "stages_needed"]
+__all__ = ["OUTPUTS", "STAGES_FOR", "ProcessOptions", "ProcessResult", "process", "stages_needed"]
 
 OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf",
            "report")
@@ -238,59 +238,31 @@ def _truth_errors(inp, res):
     return out
 
 
-def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
-            integration=INTEGRATION_DEFAULT, t_ombre=T_OMBRE, t_spec=T_SPEC,
-            t_source=T_SOURCE, t_residual=T_RESIDUAL, theta0_deg=THETA0_DEG, mask=None,
-            pixel_pitch_mm=None, near_light=True, mesh_step=None, ascii_ply=False,
-            saturation=None, fit_options=None, hsh_order=3, ps_options=None, allow_incomplete=False,
-            overwrite=False, interreflections=False, rti_encoding="srgb", capture=None):
+def process(source, outputs=None, out_dir=None, options=None, **overrides):
     """Run the processing chain on a scan directory, a DiLiGenT-style folder or an RTI capture.
 
     source : path (or Scan object) of a facette scan (scan.json + hdr/) or a DiLiGenT folder.
     outputs : list from OUTPUTS (default all); only the stages they need run.
     out_dir : where to write the files of docs/outputs.md (None: compute only, write nothing).
-    method : photometric stereo (a name of recon.PS_METHODS; default PS_DEFAULT, "rank_trimmed"),
-        e.g. "hierarchical_tautzia2016" (the thesis), "woodham1980", "rpca_wu2010" or "li_alternating"
-        (BRDF-aware: facette.fit.ps_li_alternating; albedo.exr is then the LI K_d, and brdf.json
-        gains "materials" (σ, n_i, pixel count per region) and "levels" (pixels and seconds of
-        each level)).
-    ps_options : extra keyword arguments of the "li_alternating" method (rounds, materials, ...).
-    interreflections : take the light a concave surface gathers from itself out of the images
-        before photometric stereo (`facette.recon.without_interreflections`, its shape from a first
-        rank_trimmed pass; needs the albedo as a reflectance, as the rig's calibration gives it).
-        The BRDF fit then sees the direct light only; PTM/HSH keep the images as photographed.
-        Left out, with a note, when gathered light is under IR_SKIP_P95 (0.5 %) of the values at
-        their 95th percentile (a convex object gathers none). With li_alternating, the light glossy
-        walls mirror into each other is removed too, with the lobe it finds
-        (facette.fit.ps_li_without_interreflections).
-    integration : a name of recon.INTEGRATION_METHODS: "poisson_flat_margin" (default; needs a flat
-        margin around the object: when the scan has a dark background, the table's lean is taken
-        from it and out of its slopes only), "frankot_chellappa1988" (the thesis's, which needs it too),
-        "simchony1990" or "least_squares" (on the mask only).
-    t_ombre (rad), t_spec, t_source, t_residual : see `ps_hierarchical_tautzia2016`.
-    theta0_deg : hemisphere-sensor cell size (deg). mask : (H, W) bool or PNG path.
-    near_light : use the lights' positions (per-pixel directions, 1/r^2) when the scan has them.
-    mesh_step : pixel step of the mesh (default: so that it has at most ~1e6 vertices).
-    saturation : image values >= this are treated as missing.
-    fit_options : keyword arguments of facette.fit.fit_brdf (model, method, volume, ...).
-    hsh_order : order of the hemispherical harmonics of relight.rti (2: 4 terms, 3: 9 terms).
-    rti_encoding : what relight.ptm and relight.rti hold: "srgb" (default), the display values
-        RTIViewer and Relight show as they are (RTIBuilder fits sRGB photographs), the HDR
-        images / their 99th percentile sRGB-encoded; "linear": proportional to the radiance
-        (darker and harsher in those viewers). Said in relight.rti's header comment.
-    allow_incomplete : process a scan that is not complete (every output then says so).
-    overwrite : replace an earlier run's results in `out_dir` made with other options or inputs
-        (without it, such a folder is refused: one folder holds one run, see process.json).
-    capture : options of an RTI capture folder (photographs + .lp, or a mirror sphere in view):
-        {"encoding": "srgb"|"linear", "sphere": Circle or (H, W) mask, "reference": (x0, y0, x1, y1)};
-        see `pipeline._rti_capture.read_rti_capture`.
+    options : a `ProcessOptions` (default: every default); **overrides : fields of ProcessOptions
+        that replace its values (`process(src, method="woodham1980")`).
+    interreflections (an option): take the light a concave surface gathers from itself out of
+        the images before photometric stereo (`facette.recon.without_interreflections`, its shape
+        from a first rank_trimmed pass; needs the albedo as a reflectance, as the rig's
+        calibration gives it). The BRDF fit then sees the direct light only; PTM/HSH keep the
+        images as photographed. Left out, with a note, when gathered light is under IR_SKIP_P95
+        (0.5 %) of the values at their 95th percentile (a convex object gathers none). With
+        li_alternating, the light glossy walls mirror into each other is removed too, with the
+        lobe it finds (facette.fit.ps_li_without_interreflections).
     Returns a `ProcessResult` (timings: wall seconds per stage, "after_ps" the concurrent
     stages together, "cpu" the CPU seconds of the whole call; `interreflections` the removal's
     figures when it was asked for). Raises InsufficientData
     (facette.errors) when the data cannot carry the result (too dark, saturated, empty mask,
     too few filled cells for a BRDF fit).
     """
-    kwargs = dict(locals())
+    options = options if options is not None else ProcessOptions()
+    if overrides:
+        options = replace(options, **overrides)
     # The concurrent stages mix a Python-bound BRDF fit with numpy blocks that give the GIL
     # up and want it back after each operation; at Python's 5 ms switch interval each block
     # waits for the fit to hand it over. 0.5 ms for the call: 12 MP process 10.8 -> 10.1 s
@@ -302,35 +274,16 @@ def process(source, outputs=None, out_dir=None, method=PS_DEFAULT,
         # threads on top of ours oversubscribe the cores: a 6x12 by 12x32768 product took 7 ms
         # instead of 0.2 ms on a busy 2-core machine)
         with threadpool_limits(limits=1, user_api="blas"):
-            return _process(**kwargs)
+            return _process(source, outputs, out_dir, options)
     finally:
         sys.setswitchinterval(interval)
 
 
-def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_source, t_residual,
-             theta0_deg, mask, pixel_pitch_mm, near_light, mesh_step, ascii_ply, saturation,
-             fit_options, hsh_order, ps_options, allow_incomplete, overwrite, interreflections,
-             rti_encoding, capture):
+def _process(source, outputs, out_dir, o):
     outputs = list(OUTPUTS if outputs is None else outputs)
     stages = stages_needed(outputs)
-    res = ProcessResult(options=dict(method=method, integration=integration, t_ombre=t_ombre,
-                                     t_spec=t_spec, t_source=t_source, t_residual=t_residual,
-                                     theta0_deg=theta0_deg, outputs=outputs, rti_encoding=rti_encoding))
-    if rti_encoding not in RTI_ENCODINGS:
-        raise BadInputError(f"rti_encoding must be one of {', '.join(RTI_ENCODINGS)}, got {rti_encoding!r}")
-    if pixel_pitch_mm is not None and not pixel_pitch_mm > 0:
-        raise BadInputError(f"pixel_pitch_mm must be > 0 mm, got {pixel_pitch_mm}")
-    if mesh_step is not None and not int(mesh_step) >= 1:
-        raise BadInputError(f"mesh_step must be >= 1 pixel, got {mesh_step}")
-    record_options = dict(res.options, mask=None if mask is None or not isinstance(mask, (str, Path))
-                          else str(mask), pixel_pitch_mm=pixel_pitch_mm, near_light=near_light,
-                          mesh_step=mesh_step, saturation=saturation, fit_options=dict(fit_options or {}),
-                          ps_options=dict(ps_options or {}), hsh_order=hsh_order,
-                          interreflections=bool(interreflections))
-    record_options.pop("outputs")
-    said = {k: str(v) for k, v in (capture or {}).items() if v is not None and not isinstance(v, np.ndarray)}
-    if said:                 # recorded only when given: earlier runs' records stay comparable
-        record_options["capture"] = said
+    res = ProcessResult(options=dict(o.reported(), outputs=outputs))
+    record_options = o.recorded()
     t_all = time.perf_counter()
     cpu_all = time.process_time()
     if out_dir is not None and "report" in outputs:
@@ -338,13 +291,14 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
         threading.Thread(target=preload, daemon=True).start()
 
     t0 = time.perf_counter()
-    inp = load_input(source, mask=mask, pixel_pitch_mm=pixel_pitch_mm, allow_incomplete=allow_incomplete,
-                     capture=capture)
+    inp = load_input(source, mask=o.mask, pixel_pitch_mm=o.pixel_pitch_mm, allow_incomplete=o.allow_incomplete,
+                     capture=o.capture)
     if out_dir is not None:            # before any work: the folder must take this run's files
-        previous = claim_results(Path(out_dir), record_options, inp, overwrite, set(FILES.values()) | {LP_NAME}, mask)
+        previous = claim_results(Path(out_dir), record_options, inp, o.overwrite, set(FILES.values()) | {LP_NAME},
+                                 o.mask)
     res.inputs = inp
     res.notes.extend(inp.notes)
-    if interreflections and inp.truth is not None and "sensor" in inp.truth:   # the rig simulator's truth
+    if o.interreflections and inp.truth is not None and "sensor" in inp.truth:   # the rig simulator's truth
         res.notes.append(SIM_INTERREFLECTIONS_NOTE)
     if inp.usable is not None:       # the data must be able to carry normals (else exit 3)
         notes, res.quality = check_samples(inp.images, inp.usable, inp.object_mask, inp.mask_source)
@@ -355,31 +309,23 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
     t0 = time.perf_counter()
     light_dirs = inp.light_dirs
     images = inp.images
-    if near_light and inp.positions_mm is not None:
+    if o.near_light and inp.positions_mm is not None:
         light_dirs, falloff = near_light_directions(inp.positions_mm, (h, w), inp.pixel_pitch_mm)
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
         res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
-    kwargs = dict(mask=inp.mask, saturation=saturation)
-    thresholds = dict(t_ombre=t_ombre, t_spec=t_spec, t_source=t_source, t_residual=t_residual)
-    # names through the registry, so that an alias or another case gets the same options
-    method_name = PS_METHODS.canonical(method)
-    if method_name == "hierarchical_tautzia2016":
-        kwargs.update(thresholds)
-    elif method_name == "li_alternating":
-        extra = dict(ps_options or {})
-        if PS_METHODS.canonical(extra.get("init", PS_DEFAULT)) == "hierarchical_tautzia2016":
-            extra.setdefault("init_options", thresholds)
-        kwargs.update(t_residual=t_residual, **extra)
+    # one bag of options for whichever method: each takes its own (facette.methods)
+    bag = o.ps_bag(mask=inp.mask, saturation=o.saturation)
+    method_name = PS_METHODS.canonical(o.method)
     direct, ps = images, None
-    if interreflections and method_name == "li_alternating":
+    if o.interreflections and method_name == "li_alternating":
         # glossy walls mirror each other: a second removal with li's lobe (facette.fit._ps_li_ir)
-        ps, direct, info = ps_li_without_interreflections(images, light_dirs, **kwargs)
+        ps, direct, info = ps_li_without_interreflections(images, light_dirs, **options_for(method_name, bag))
         _note_interreflections(res, info, info["removal_seconds"])
-    elif interreflections:
-        direct, ps = _without_interreflections(res, images, light_dirs, inp.mask, saturation,
+    elif o.interreflections:
+        direct, ps = _without_interreflections(res, images, light_dirs, inp.mask, o.saturation,
                                                method_name == "rank_trimmed")
     if ps is None:
-        ps = photometric_stereo(direct, light_dirs, method=method, **kwargs)
+        ps = photometric_stereo(direct, light_dirs, method=o.method, options=bag)
     res.ps = ps
     res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
     # mask.png: the object, without the dark table or cloth around it (when one surrounds it)
@@ -389,13 +335,12 @@ def _process(source, outputs, out_dir, method, integration, t_ombre, t_spec, t_s
 
     drawn = {}         # report sections drawn by the concurrent stages
     if out_dir is not None:            # before the first file: whose files these will be
-        mark_running(Path(out_dir), record_options, inp, [FILES[o] for o in outputs if o in FILES])
-    res.notes.extend(_after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration, mesh_step,
-                               theta0_deg, fit_options, hsh_order, out_dir, ascii_ply, drawn))
+        mark_running(Path(out_dir), record_options, inp, [FILES[name] for name in outputs if name in FILES])
+    res.notes.extend(_after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, drawn))
     if res.ptm is not None or res.hsh is not None:
         res.notes.append("relight.ptm / relight.rti: " + (
             "sRGB display values (what RTIViewer and Relight show, as photographed; --rti-encoding "
-            "linear for values proportional to the radiance)" if rti_encoding == "srgb" else
+            "linear for values proportional to the radiance)" if o.rti_encoding == "srgb" else
             "linear values (proportional to the radiance: RTIViewer and Relight show them darker "
             "and harsher than the photographs)"))
     res.errors = _truth_errors(inp, res)
@@ -449,17 +394,17 @@ def _note_interreflections(res, info, seconds):
                          "then li_alternating again")
 
 
-def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration, mesh_step, theta0_deg,
-              fit_options, hsh_order, out_dir, ascii_ply, drawn, workers=2):
+def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, drawn, workers=2):
     """The stages after photometric stereo, which depend on it only and not on each other,
     concurrently on `workers` threads (numpy, scipy's FFT and the file writers release the
     GIL): heights -> mesh, samples -> BRDF fit, PTM, HSH; each writes its files as soon as it
-    is done; `drawn` receives the report sections they draw. Returns the notes, in the order of
-    the stages (whatever order they finish in)."""
+    is done; `drawn` receives the report sections they draw; `o` the ProcessOptions. Returns the
+    notes, in the order of the stages (whatever order they finish in)."""
+    integration, mesh_step = o.integration, o.mesh_step
     out = None if out_dir is None else Path(out_dir)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-    write = _writers(res, out, outputs, ascii_ply)
+    write = _writers(res, out, outputs, o.ascii_ply)
 
     def shape():
         mk = res.mask if integration == "least_squares" else None
@@ -486,11 +431,11 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration
         # the images as photometric stereo saw them (near lights: fall-off divided out; the
         # direct light only when inter-reflections were removed: what the BRDF models)
         res.filtered, res.samples = _timed(res, "samples", _samples_stage, direct, inp.sample_mask(),
-                                           res.ps, light_dirs, theta0_deg)
+                                           res.ps, light_dirs, o.theta0_deg)
         write("samples")
         if "fit" not in stages:
             return []
-        res.brdf, note = _timed(res, "fit", _fit_stage, res.filtered, dict(fit_options or {}),
+        res.brdf, note = _timed(res, "fit", _fit_stage, res.filtered, dict(o.fit_options),
                                 res.ps.method == "li_alternating")
         write("brdf")
         if out is not None and "report" in outputs:
@@ -511,7 +456,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, integration
 
     def hsh():
         t0 = time.perf_counter()
-        order, note = hsh_order_for(len(images), hsh_order)
+        order, note = hsh_order_for(len(images), o.hsh_order)
         notes = [note] if note else []
         if order is not None:
             res.hsh = fit_hsh(images, light_dirs, order=order, mask=res.object_mask,

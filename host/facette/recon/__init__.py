@@ -2,7 +2,9 @@
 
 Photometric stereo (thesis §4.2.1): `ps_woodham1980`, `ps_hierarchical_tautzia2016`; robust
 methods for real photographs: `ps_rpca_wu2010` (low-rank recovery), `ps_rank_trimmed` (per-pixel
-trimmed least squares); all dispatched by `photometric_stereo(..., method=)`. Integration: `integrate_poisson_flat_margin`
+trimmed least squares); published peers for general isotropic BRDFs: `ps_bipolynomial_shi2014`,
+`ps_bivariate_ikehata2014`; each called directly here, and by name through `facette.methods` (the one
+table of photometric-stereo methods, with fit's li_alternating). Integration: `integrate_poisson_flat_margin`
 (the default), `integrate_frankot_chellappa1988` (the thesis's), `integrate_simchony1990`, `integrate_least_squares`,
 dispatched by `integrate(..., method=)`.
 Inter-reflections of concave matte surfaces taken out of the images before photometric stereo:
@@ -12,10 +14,9 @@ Relighting functions for RTI (PTM, Malzbender 2001; hemispherical harmonics, Gau
 Photometric stereo of a DiLiGenT-style folder over row bands in bounded memory (per-pixel
 methods): `ps_tiled`, its band height from a memory budget `rows_per_tile`.
 """
-from ._ps import (PS_DEFAULT, PSResult, ps_woodham1980, ps_hierarchical_tautzia2016, photometric_stereo,
-                  PS_METHODS, triplet_inverses, near_light_directions)
-from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed      # registers both in PS_METHODS
-from ._ps_peers import ps_bipolynomial_shi2014, ps_bivariate_ikehata2014   # published peers, registered too
+from ._ps import PSResult, ps_woodham1980, ps_hierarchical_tautzia2016, triplet_inverses, near_light_directions
+from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed
+from ._ps_peers import ps_bipolynomial_shi2014, ps_bivariate_ikehata2014   # published peers
 from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
                          integrate_simchony1990, integrate_poisson_flat_margin, integrate_least_squares,
                          integrate, INTEGRATION_DEFAULT, INTEGRATION_METHODS, mesh_from_height, MESH_MAX_SLOPE,
@@ -27,9 +28,9 @@ from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, 
                    srgb_encode, srgb_decode, display_ptm, display_hsh)
 from ._tiles import WHOLE_IMAGE_METHODS, TILED_METHODS, parse_memory, rows_per_tile, ps_tiled
 
-__all__ = ["PS_DEFAULT", "PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
-           "ps_rank_trimmed", "ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "photometric_stereo",
-           "PS_METHODS", "triplet_inverses", "near_light_directions",
+__all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
+           "ps_rank_trimmed", "ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "triplet_inverses",
+           "near_light_directions",
            "normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
            "integrate_poisson_flat_margin", "integrate_least_squares", "integrate", "INTEGRATION_DEFAULT",
            "INTEGRATION_METHODS", "mesh_from_height", "MESH_MAX_SLOPE", "flat_margin", "MIN_BACKGROUND_PIXELS",

@@ -11,11 +11,10 @@ from itertools import combinations
 
 import numpy as np
 
-from facette._registry import Registry
 from facette.errors import InsufficientData
 
-__all__ = ["PS_DEFAULT", "PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "photometric_stereo",
-           "PS_METHODS", "triplet_inverses", "near_light_directions"]
+__all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "triplet_inverses",
+           "near_light_directions"]
 
 T_OMBRE = 1.5          # rad, thesis §4.2.1 ("slightly below pi/2")
 T_SPEC = 0.25          # variance of the kept unit normals, thesis §4.2.1
@@ -517,23 +516,3 @@ def ps_hierarchical_tautzia2016(images, light_dirs, mask=None, channel=None, sat
     _scatter(res, idx, "skipped", skip)
     res.info["skipped_fraction"] = float(skip.mean())
     return res
-
-
-# A new method: one line here, `PS_METHODS.add("name_author_year", ps_function, aliases=(...))`.
-PS_METHODS = Registry("photometric-stereo method")
-PS_METHODS.add("woodham1980", ps_woodham1980, aliases=("least_squares",))
-PS_METHODS.add("hierarchical_tautzia2016", ps_hierarchical_tautzia2016, aliases=("hierarchical",))
-
-# The default of `photometric_stereo`, `facette process` and the one-button scan: on real
-# photographs (DiLiGenT, 96 lights) rank_trimmed gives 8.6 deg mean against 12.1 for the
-# hierarchy and 12.6 for least squares, at the hierarchy's cost (see the issue-10 figures).
-PS_DEFAULT = "rank_trimmed"
-
-
-def photometric_stereo(images, light_dirs, method=PS_DEFAULT, **kwargs):
-    """Dispatch by name: "woodham1980" (alias "least_squares"), "hierarchical_tautzia2016"
-    (alias "hierarchical"), "rpca_wu2010" or "rank_trimmed" (facette.recon._ps_robust);
-    "li_alternating", the BRDF-aware method, lives in facette.fit (it calls the BRDF fit, a layer
-    above) and is registered here when facette.fit is imported.
-    Arguments as the chosen function."""
-    return PS_METHODS[method](images, light_dirs, **kwargs)

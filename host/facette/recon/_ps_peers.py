@@ -37,7 +37,7 @@ from math import comb
 
 import numpy as np
 
-from ._ps import (PS_METHODS, _albedo, _check_inputs, _empty_result, _gather, _run_blocks, _scatter,
+from ._ps import (_albedo, _check_inputs, _empty_result, _gather, _run_blocks, _scatter,
                   _usable)
 from ._ps_robust import _unit, _wls
 
@@ -414,6 +414,3 @@ def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, satura
     res.info["non_monotone"] = float(non_mono.sum() / max(found.sum(), 1))
     return res
 
-
-PS_METHODS.add("bipolynomial_shi2014", ps_bipolynomial_shi2014, aliases=("st14",))
-PS_METHODS.add("bivariate_ikehata2014", ps_bivariate_ikehata2014, aliases=("ia14",))

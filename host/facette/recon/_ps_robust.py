@@ -20,7 +20,7 @@ towards the camera; images linear, divided by each light's intensity; `PSResult`
 """
 import numpy as np
 
-from ._ps import (PS_METHODS, PSResult, _albedo, _check_inputs, _empty_result, _gather, _ls_normals,
+from ._ps import (PSResult, _albedo, _check_inputs, _empty_result, _gather, _ls_normals,
                   _pixel_dirs, _run_blocks, _scatter, _shading, _usable)
 
 __all__ = ["ps_rpca_wu2010", "ps_rank_trimmed", "TRIM", "MIN_KEEP", "NOISE", "T_SHADOW_RPCA"]
@@ -338,7 +338,3 @@ def ps_rpca_wu2010(images, light_dirs, mask=None, channel=None, saturation=None,
     _scatter(res, idx, "specular", (sparse & found).T)
     _scatter(res, idx, "residual", _rel_residual(e, light_dirs, g, lit) * found)
     return res
-
-
-PS_METHODS.add("rpca_wu2010", ps_rpca_wu2010)
-PS_METHODS.add("rank_trimmed", ps_rank_trimmed)

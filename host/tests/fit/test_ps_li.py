@@ -6,7 +6,8 @@ from scipy.ndimage import binary_erosion
 
 from facette.bench._mitsuba_scenes import render_scene
 from facette.fit import LI_VOLUME_MODEL, fit_li_per_pixel_kd, ps_li_alternating
-from facette.recon import photometric_stereo
+from facette.methods import photometric_stereo
+from facette.recon import ps_hierarchical_tautzia2016
 
 
 @pytest.fixture(scope="module")
@@ -107,7 +108,7 @@ def test_arguments_and_degenerate_inputs():
     with pytest.raises(ValueError, match="rounds"):
         ps_li_alternating(np.ones((6, 4, 4)), L, rounds=0)
     with pytest.raises(ValueError, match="another method"):
-        ps_li_alternating(np.ones((6, 4, 4)), L, init="li_alternating")
+        ps_li_alternating(np.ones((6, 4, 4)), L, init=ps_li_alternating)
     black = ps_li_alternating(np.zeros((6, 8, 8, 3)), L)       # nothing lit: no valid pixel, no crash
     assert not black.valid.any() and np.all(np.isfinite(black.normal))
     f = fit_li_per_pixel_kd(np.zeros((3, 6, 3)), L, np.tile([0, 0, 1.0], (3, 1)), np.zeros((3, 6), bool))
@@ -138,10 +139,10 @@ def test_a_lobe_is_not_ruled_out_by_the_first_fit_alone(cache):
     # normals finds no interface (n_i = 1); refitted with a lobe kept on the robust Lambertian
     # normals and warmed up, the lobe is found. The default volume tables find it at once.
     d = render_scene("sphere", "satin", size=48, spp=8, cache_dir=cache)
-    r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"], init="hierarchical")
+    r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"], init=ps_hierarchical_tautzia2016)
     assert r.info["materials"][0]["model_choice"]["lobe_start"] == "first fit"
     assert r.info["materials"][0]["model_choice"]["model"] == "lobe"
-    r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"], init="hierarchical",
+    r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"], init=ps_hierarchical_tautzia2016,
                           volume_model="approx")
     mat = r.info["materials"][0]
     choice = mat["model_choice"]

@@ -10,7 +10,7 @@ from facette.io.exr import read_exr, write_exr
 from facette.io.ply import read_ply
 from facette.io.png import read_mask
 from facette.errors import InsufficientData
-from facette.pipeline import process, stages_needed
+from facette.pipeline import ProcessOptions, process, stages_needed
 from facette.recon.synthetic import angular_error_deg, render, sphere_on_plane, thesis_light_directions
 
 L = thesis_light_directions()
@@ -72,6 +72,20 @@ def test_outputs_limit_the_stages(diligent_dir, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["normal.exr", "process.json"]
     with pytest.raises(ValueError, match="unknown output"):
         process(folder, outputs=["normal"])
+
+
+def test_process_takes_one_options_object_and_records_it(diligent_dir, tmp_path):
+    folder, _, _ = diligent_dir
+    o = ProcessOptions(method="least_squares", mesh_step=2, fit_options={"model": "lambert"})
+    res = process(folder, outputs=["normals"], out_dir=tmp_path / "o", options=o, theta0_deg=5.0)
+    rec = json.loads((tmp_path / "o" / "process.json").read_text())["options"]
+    assert rec == {**o.recorded(), "theta0_deg": 5.0}                  # a keyword overrides a field
+    assert res.options == {**o.reported(), "theta0_deg": 5.0, "outputs": ["normals"]}
+    assert res.ps.method == "woodham1980"
+    with pytest.raises(ValueError, match="unknown photometric-stereo method 'magic'"):
+        process(tmp_path / "nothing", method="magic")                 # checked before reading
+    with pytest.raises(TypeError, match="nope"):
+        process(folder, nope=1)
 
 
 def test_least_squares_method_and_bad_sources(diligent_dir, tmp_path, capsys):

@@ -4,7 +4,8 @@ import pytest
 from scipy.ndimage import binary_erosion
 
 from facette.bench._mitsuba_scenes import render_scene
-from facette.recon import photometric_stereo, remove_interreflections
+from facette.methods import photometric_stereo
+from facette.recon import remove_interreflections
 
 UP = np.array([[0.0, 0.0, 1.0], [0.5, 0.0, np.sqrt(0.75)], [0.0, 0.5, np.sqrt(0.75)],
                [-0.5, 0.0, np.sqrt(0.75)]])

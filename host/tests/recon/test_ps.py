@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from facette.recon import (near_light_directions, photometric_stereo, ps_hierarchical_tautzia2016,
-                           ps_woodham1980, triplet_inverses)
+from facette.methods import photometric_stereo
+from facette.recon import near_light_directions, ps_hierarchical_tautzia2016, ps_woodham1980, triplet_inverses
 from facette.recon.synthetic import angular_error_deg, render, sphere_on_plane, thesis_light_directions
 
 L = thesis_light_directions()

@@ -3,7 +3,7 @@ black, saturated and shadowed pixels give finite output or are marked not valid.
 import numpy as np
 import pytest
 
-from facette.recon import PS_METHODS, photometric_stereo
+from facette.methods import PS_METHODS, photometric_stereo
 
 PEERS = ("bipolynomial_shi2014", "bivariate_ikehata2014")
 

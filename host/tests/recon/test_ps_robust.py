@@ -3,8 +3,8 @@ glossy sphere with highlights and shadows, shapes, and edge values."""
 import numpy as np
 import pytest
 
-from facette.recon import (near_light_directions, photometric_stereo, ps_rank_trimmed,
-                           ps_rpca_wu2010, ps_woodham1980)
+from facette.methods import photometric_stereo
+from facette.recon import near_light_directions, ps_rank_trimmed, ps_rpca_wu2010, ps_woodham1980
 from facette.recon._ps_robust import _trim_window, rpca_inexact_alm
 from facette.recon.synthetic import angular_error_deg, render, sphere_on_plane, thesis_light_directions
 
