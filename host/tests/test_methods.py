@@ -75,6 +75,8 @@ def test_li_alternating_starts_from_a_method_named_in_the_table():
     L = thesis_light_directions()[:6]
     with pytest.raises(ValueError, match="another method"):
         photometric_stereo(np.ones((6, 4, 4)), L, method="li_alternating", init="li_alternating")
+    with pytest.raises(TypeError, match="by name: facette.methods"):      # the function itself takes no name
+        ps_li_alternating(np.ones((6, 4, 4)), L, init="hierarchical")
 
 
 def test_dispatch_gives_the_functions_result():

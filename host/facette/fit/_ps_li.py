@@ -292,6 +292,9 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     m, h, w, c = images.shape
     if rounds < 1:
         raise ValueError(f"rounds = {rounds}: give at least 1 fit / re-estimate round")
+    if not callable(init):      # a name is looked up by facette.methods, the layer above
+        raise TypeError(f"init = {init!r}: give a photometric-stereo function (ps_rank_trimmed, ...); by name: "
+                        "facette.methods.photometric_stereo(..., method='li_alternating', init=NAME)")
     if init is ps_li_alternating:
         raise ValueError("init = 'li_alternating': the initial normals must come from another method "
                          "(hierarchical_tautzia2016, woodham1980, rpca_wu2010, ...)")
