@@ -6,7 +6,7 @@ each of these runs in a process of its own (peak memory = that child's max RSS, 
 
 - untiled: `facette process SLAB -o OUT --outputs normals,height` as a user runs it (every
   photograph held as float32, photometric stereo of the whole image, then the integration);
-- tiled: `recon.ps_tiled` with a memory budget (`--memory`, default 2GB), each band's normals
+- tiled: `pipeline.ps_tiled` with a memory budget (`--memory`, default 2GB), each band's normals
   written to a .npy as it comes (nothing kept at the image's size), the same method.
 
 Printed per size: generation time and peak; for both runs wall seconds, seconds per megapixel
@@ -37,7 +37,8 @@ import numpy as np
 
 from facette.bench._large import npy_band_writer, write_relief_capture
 from facette.io.exr import read_exr
-from facette.recon import PS_DEFAULT, ps_tiled
+from facette.methods import PS_DEFAULT
+from facette.pipeline import ps_tiled
 
 SIZES = {"3": (2144, 1424), "12": (4288, 2848), "50": (8192, 6144), "100": (11648, 8736)}
 DEFAULT_SIZES = "12"

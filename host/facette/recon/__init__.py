@@ -11,8 +11,6 @@ Inter-reflections of concave matte surfaces taken out of the images before photo
 `remove_interreflections` (`without_interreflections`: with its first shape).
 Relighting functions for RTI (PTM, Malzbender 2001; hemispherical harmonics, Gautron 2004):
 `fit_ptm_lrgb`, `fit_hsh`.
-Photometric stereo of a DiLiGenT-style folder over row bands in bounded memory (per-pixel
-methods): `ps_tiled`, its band height from a memory budget `rows_per_tile`.
 """
 from ._ps import PSResult, ps_woodham1980, ps_hierarchical_tautzia2016, triplet_inverses, near_light_directions
 from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed
@@ -26,7 +24,6 @@ from ._interreflect import (remove_interreflections, without_interreflections, I
 from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, fit_relight_error, relight_ptm,
                    relight_hsh, relight_error, HSH_ORDERS, RELIGHT_ERROR_PIXELS, RTI_ENCODINGS,
                    srgb_encode, srgb_decode, display_ptm, display_hsh)
-from ._tiles import WHOLE_IMAGE_METHODS, TILED_METHODS, parse_memory, rows_per_tile, ps_tiled
 
 __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
            "ps_rank_trimmed", "ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "triplet_inverses",
@@ -38,4 +35,4 @@ __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca
            "relight_hsh", "relight_error", "fit_relight_error", "HSH_ORDERS", "RTI_ENCODINGS",
            "srgb_encode", "srgb_decode", "display_ptm", "display_hsh",
            "RELIGHT_ERROR_PIXELS", "remove_interreflections", "without_interreflections", "IR_GRID", "IR_MAX_FRACTION", "IR_PASSES",
-           "IR_SKIP_P95", "WHOLE_IMAGE_METHODS", "TILED_METHODS", "parse_memory", "rows_per_tile", "ps_tiled"]
+           "IR_SKIP_P95"]

@@ -4,7 +4,7 @@ import pytest
 
 from facette.bench._large import relief_surface, write_relief_capture
 from facette.io.diligent import read_diligent
-from facette.recon import photometric_stereo
+from facette.methods import photometric_stereo
 from facette.recon.synthetic import thesis_light_directions
 
 

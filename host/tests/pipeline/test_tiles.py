@@ -5,10 +5,9 @@ import shutil
 import numpy as np
 import pytest
 
-import facette.fit  # noqa: F401  (registers li_alternating, a whole-image method)
 from facette.io.diligent import read_diligent, write_diligent
-from facette.recon import (TILED_METHODS, WHOLE_IMAGE_METHODS, parse_memory, photometric_stereo,
-                           ps_tiled, rows_per_tile)
+from facette.methods import photometric_stereo
+from facette.pipeline import TILED_METHODS, WHOLE_IMAGE_METHODS, parse_memory, ps_tiled, rows_per_tile
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
 L = thesis_light_directions()

@@ -19,7 +19,8 @@ import numpy as np
 
 from facette.io.diligent import png_radiance, read_diligent_lights
 from facette.io.png import png_size, read_mask, read_png
-from facette.recon._ps import PS_DEFAULT, PS_METHODS, PSResult
+from facette.methods import PS_DEFAULT, PS_METHODS
+from facette.recon import PSResult
 
 __all__ = ["WHOLE_IMAGE_METHODS", "TILED_METHODS", "FIELD_BYTES", "parse_memory", "rows_per_tile", "ps_tiled"]
 
@@ -139,7 +140,7 @@ def ps_tiled(folder, method=PS_DEFAULT, memory="2GB", rows=None, mask=None, keep
 
     folder : a DiLiGenT-style folder (filenames.txt, light_directions.txt, optional
         light_intensities.txt and mask.png, PNG photographs).
-    method : a per-pixel name of recon.PS_METHODS (not those of WHOLE_IMAGE_METHODS: ValueError).
+    method : a per-pixel name of facette.methods.PS_METHODS (not those of WHOLE_IMAGE_METHODS: ValueError).
     memory : the budget (bytes or '2GB') from which `rows_per_tile` chooses the band height.
     rows : the band height in rows instead (tests force small tiles with it).
     mask : (H, W) bool, default the folder's mask.png (all pixels without one).
