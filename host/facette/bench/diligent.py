@@ -3,8 +3,14 @@
 Reads every DiLiGenT-style folder under the root (default `../shared/data` beside the
 repository, or `../../shared/data` from a git worktree; a folder holds filenames.txt and light_directions.txt, its truth is
 `<folder>.truth/normals_gt.npy` beside it; folders without truth are listed and skipped).
-Every method gets the same input: the grey (mean RGB) images divided by the light intensities,
-saturated values (any channel at the top of the range) missing, the folder's mask.
+Every figure is `facette process`'s (facette.pipeline.process on the folder, outputs=["normals"],
+the method by --methods): the user's path, with the channels, the usable-value test and the mask
+process uses (the RGB images divided by the light intensities, saturated values missing; the
+Lambertian methods solve on green, li_alternating on the channels' mean with K_d per channel).
+The time is process's wall time for the normals (reading included); `facette process` with every
+output adds the integration, BRDF fit, PTM/HSH and report. Rows of a name ending in "+ir" are
+NOT process's (process refuses to remove inter-reflections from an albedo that is not a
+reflectance, as DiLiGenT's is not): `run_ps` on the same images, the albedo's scale assumed.
 Per object and method: mean and median angular error over the mask (zero-length truth normals
 left out), run time, and the published least-squares figure (Shi et al. 2016/2019, all 96
 lights) beside it; then the mean over each group of objects. "rank_trimmed+ir": the same after
@@ -13,7 +19,8 @@ assumed, see IR_ASSUMED_P99).
 
 --lights 12 picks the 12 DiLiGenT lights nearest the rig's directions (thesis §4.2: theta 15 deg
 at phi 30, 90, ..., 330 and 30 deg at phi 0, 60, ..., 300; one light each, by an optimal
-assignment on the angle). --speed times each method at 2144x1424 x 12 lights (a rendered
+assignment on the angle). (process reads them from a temporary DiLiGenT-style folder
+of links to the chosen images.) --speed times each method at 2144x1424 x 12 lights (a rendered
 sphere on a plane), in seconds and seconds per megapixel. --trim-study sweeps the trim of
 `ps_rank_trimmed` and chooses it leaving one object out at a time.
 """
@@ -31,7 +38,7 @@ from facette.methods import PS_METHODS, photometric_stereo
 from facette.recon import remove_interreflections
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
-DEFAULT_METHODS = ["woodham1980", "hierarchical_tautzia2016", "rpca_wu2010", "rank_trimmed", "rank_trimmed+ir"]
+DEFAULT_METHODS = ["woodham1980", "rank_trimmed", "li_alternating"]
 IR_SUFFIX = "+ir"   # a method name with it: inter-reflections removed first (`run_ps`)
 # DiLiGenT's images are divided by the light intensities, but their scale is not a reflectance:
 # for the inter-reflection removal the albedo is scaled so that its 99th percentile is this
@@ -120,7 +127,40 @@ def run_ps(images, light_dirs, name, mask, init=None):
     return photometric_stereo(images, light_dirs, method=method, mask=mask, options={"init": init} if init else None)
 
 
+def subset_folder(folder, select, dest):
+    """A DiLiGenT-style folder at dest holding the lights `select` of folder: links to its images
+    and mask, the rows of its text files (what `process` reads, for --lights 12)."""
+    folder, dest = Path(folder), Path(dest)
+    dest.mkdir(parents=True, exist_ok=True)
+    names = (folder / "filenames.txt").read_text().split()
+    lines = {f: (folder / f).read_text().strip().splitlines()
+             for f in ("light_directions.txt", "light_intensities.txt") if (folder / f).is_file()}
+    for f, rows in lines.items():
+        (dest / f).write_text("\n".join(rows[i] for i in select) + "\n")
+    (dest / "filenames.txt").write_text("\n".join(names[i] for i in select) + "\n")
+    for name in [names[i] for i in select] + ["mask.png"]:
+        if (folder / name).exists() and not (dest / name).exists():
+            os.symlink((folder / name).resolve(), dest / name)
+    return dest
+
+
+def process_normals(folder, name, init=None):
+    """(normals (H, W, 3), mask, wall seconds) of facette.pipeline.process on folder, method
+    `name` (a name ending in IR_SUFFIX: `run_ps` on the images process reads, see the module doc)."""
+    from facette.pipeline import load_input, process
+    method = base_method(name)
+    opts = {"ps_options": {"init": init}} if init and PS_METHODS.canonical(method) == "li_alternating" else {}
+    t = time.perf_counter()
+    if name != method:
+        inp = load_input(folder)
+        res = run_ps(inp.images, inp.light_dirs, name, inp.mask, init)
+        return res.normal, inp.mask, time.perf_counter() - t
+    res = process(folder, outputs=["normals"], method=method, **opts)
+    return res.normals, res.inputs.mask, time.perf_counter() - t
+
+
 def run_object(folder, truth_path, methods, lights, init=None):
+    import tempfile
     select = None
     if lights == "12":
         with open(Path(folder) / "light_directions.txt") as fh:
@@ -132,14 +172,13 @@ def run_object(folder, truth_path, methods, lights, init=None):
     truth = np.load(truth_path)
     if truth.shape[:2] != data.mask.shape:
         raise SystemExit(f"{truth_path} is {truth.shape[:2]}, the images {data.mask.shape}")
-    grey = grey_input(data)
     rows = []
-    for name in methods:
-        t = time.perf_counter()
-        res = run_ps(grey, data.light_dirs, name, data.mask, init)
-        dt = time.perf_counter() - t
-        e = angular_errors(res.normal, truth, data.mask)
-        rows.append((name, float(e.mean()), float(np.median(e)), dt))
+    with tempfile.TemporaryDirectory() as tmp:
+        src = folder if select is None else subset_folder(folder, select, Path(tmp) / Path(folder).name)
+        for name in methods:
+            normal, mask, dt = process_normals(src, name, init)
+            e = angular_errors(normal, truth, mask)
+            rows.append((name, float(e.mean()), float(np.median(e)), dt))
     return rows, t_read, data
 
 

@@ -52,8 +52,10 @@ def register(sub):
                         "stages they need run")
     p.add_argument("--method", default=d.method,
                    choices=list(PS_METHODS),
-                   help="photometric stereo (li_alternating: BRDF-aware, the LI model fitted and the "
-                        "normals re-estimated against it in alternation)")
+                   help=f"photometric stereo (default {d.method}: BRDF-aware, the LI model fitted "
+                        "per material and the normals re-estimated against it where the data show a lobe, "
+                        f"the robust Lambertian {PS_DEFAULT} where they do not; {PS_DEFAULT}: robust "
+                        "Lambertian alone, 10-50x faster)")
     p.add_argument("--init", default=None,
                    choices=[m for m in PS_METHODS if m != "li_alternating"],
                    help=f"initial normals of --method li_alternating (default its own, {PS_DEFAULT}; the "

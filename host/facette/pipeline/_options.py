@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from facette.errors import BadInputError
-from facette.methods import PS_DEFAULT, options_for
+from facette.methods import PROCESS_DEFAULT, options_for
 from facette.recon import HSH_ORDERS, INTEGRATION_DEFAULT, INTEGRATION_METHODS, RTI_ENCODINGS
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import THETA0_DEG
@@ -37,10 +37,11 @@ class ProcessOptions:
     (`recorded()`), the report lists those marked `report` (`reported()`).
     `dataclasses.replace(options, method="woodham1980")` gives a variant (checked again).
     """
-    method: str = _option(PS_DEFAULT, "photometric stereo: a name of facette.methods.PS_METHODS (PS_DEFAULT), "
-                          "e.g. hierarchical_tautzia2016 (the thesis), woodham1980, "
-                          "rpca_wu2010 or li_alternating (BRDF-aware: facette.fit.ps_li_alternating; albedo.exr is "
-                          "then the LI K_d, and brdf.json gains materials and levels)", report=True)
+    method: str = _option(PROCESS_DEFAULT, "photometric stereo: a name of facette.methods.PS_METHODS; default "
+                          "PROCESS_DEFAULT, li_alternating (BRDF-aware: facette.fit.ps_li_alternating, from "
+                          "rank_trimmed's robust normals; albedo.exr is then the LI K_d, and brdf.json gains "
+                          "materials and levels), or e.g. rank_trimmed (robust Lambertian alone, 10-50x faster), "
+                          "hierarchical_tautzia2016 (the thesis), woodham1980", report=True)
     integration: str = _option(INTEGRATION_DEFAULT, "a name of recon.INTEGRATION_METHODS: poisson_flat_margin "
                                "(default; needs a flat margin around the object: with a dark background the "
                                "table's lean is taken from it and out of its slopes only), frankot_chellappa1988 "
