@@ -107,6 +107,8 @@ def test_arguments_and_degenerate_inputs():
                   for t, p in [(0.5, 0), (0.5, 2), (0.5, 4), (0.3, 1), (0.3, 3), (0.3, 5)]])
     with pytest.raises(ValueError, match="rounds"):
         ps_li_alternating(np.ones((6, 4, 4)), L, rounds=0)
+    with pytest.raises(ValueError, match="highlight_start"):
+        ps_li_alternating(np.ones((6, 4, 4)), L, highlight_start="some")
     with pytest.raises(ValueError, match="another method"):
         ps_li_alternating(np.ones((6, 4, 4)), L, init=ps_li_alternating)
     black = ps_li_alternating(np.zeros((6, 8, 8, 3)), L)       # nothing lit: no valid pixel, no crash
