@@ -52,10 +52,9 @@ def register(sub):
                         "stages they need run")
     p.add_argument("--method", default=d.method,
                    choices=list(PS_METHODS),
-                   help=f"photometric stereo (default {d.method}: BRDF-aware, the LI model fitted "
-                        "per material and the normals re-estimated against it where the data show a lobe, "
-                        f"the robust Lambertian {PS_DEFAULT} where they do not; {PS_DEFAULT}: robust "
-                        "Lambertian alone, 10-50x faster)")
+                   help=f"photometric stereo (default {d.method}: robust Lambertian; li_alternating: "
+                        "BRDF-aware, the LI model fitted per material and the normals re-estimated against "
+                        "it where the data show a lobe, better on real glossy photographs, 10-50x slower)")
     p.add_argument("--init", default=None,
                    choices=[m for m in PS_METHODS if m != "li_alternating"],
                    help=f"initial normals of --method li_alternating (default its own, {PS_DEFAULT}; the "

@@ -38,9 +38,9 @@ class ProcessOptions:
     `dataclasses.replace(options, method="woodham1980")` gives a variant (checked again).
     """
     method: str = _option(PROCESS_DEFAULT, "photometric stereo: a name of facette.methods.PS_METHODS; default "
-                          "PROCESS_DEFAULT, li_alternating (BRDF-aware: facette.fit.ps_li_alternating, from "
-                          "rank_trimmed's robust normals; albedo.exr is then the LI K_d, and brdf.json gains "
-                          "materials and levels), or e.g. rank_trimmed (robust Lambertian alone, 10-50x faster), "
+                          "PROCESS_DEFAULT (rank_trimmed, robust Lambertian), or e.g. li_alternating (BRDF-aware: "
+                          "facette.fit.ps_li_alternating, from rank_trimmed's robust normals; albedo.exr is then "
+                          "the LI K_d, and brdf.json gains materials and levels; 10-50x slower), "
                           "hierarchical_tautzia2016 (the thesis), woodham1980", report=True)
     integration: str = _option(INTEGRATION_DEFAULT, "a name of recon.INTEGRATION_METHODS: poisson_flat_margin "
                                "(default; needs a flat margin around the object: with a dark background the "

@@ -11,7 +11,10 @@ from facette.recon import display_ptm, fit_ptm_lrgb, ptm_basis
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 from rti_spec_readers import asymmetric_scene, check_upright, ptm_colour, read_ptm
 
-REFERENCE = Path(__file__).resolve().parents[4].parent / "shared" / "data" / "rti_reference" / "ptm" / "tablet1.ptm"
+# the folder holding shared/: beside the repository (a clone), or one further up (a git worktree)
+_SHARED = next((p for p in Path(__file__).resolve().parents[3:5] if (p.parent / "shared").is_dir()),
+               Path(__file__).resolve().parents[3]).parent
+REFERENCE = _SHARED / "shared" / "data" / "rti_reference" / "ptm" / "tablet1.ptm"
 
 
 def test_values_rows_and_colours_come_back_within_half_a_step(tmp_path):

@@ -11,7 +11,10 @@ from facette.recon import display_hsh, fit_hsh, hsh_basis
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 from rti_spec_readers import asymmetric_scene, check_upright, hsh_colour, hsh_weights, read_hsh
 
-REFERENCE = Path(__file__).resolve().parents[4].parent / "shared" / "data" / "rti_reference" / "hsh"
+# the folder holding shared/: beside the repository (a clone), or one further up (a git worktree)
+_SHARED = next((p for p in Path(__file__).resolve().parents[3:5] if (p.parent / "shared").is_dir()),
+               Path(__file__).resolve().parents[3]).parent
+REFERENCE = _SHARED / "shared" / "data" / "rti_reference" / "hsh"
 
 
 @pytest.mark.parametrize("terms", [4, 9])
