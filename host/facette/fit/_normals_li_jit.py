@@ -27,6 +27,7 @@ from facette.brdf._lobe_jit import beckmann_d, smith_g1_beckmann as _g1
 
 __all__ = ["volume_table", "refine_distant_compiled", "bin_images", "TABLE_GRID"]
 
+CHUNK = 256               # pixels per work item of the threaded per-pixel loop
 TABLE_GRID = 257           # grid points per axis of the B table over nx, ny ∈ [−1, 1]
 
 
@@ -356,9 +357,12 @@ def _refine_all(e, ok, n0, n1, has1, s, sh, fres, btab, sigma, spec, iterations,
 
 def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_start=None,
                             extra_rows=None, cast_ratio=0.25, floor=0.03, step_fd=1e-3, max_step=0.15,
-                            step_tol=2e-4, table=None, volume_model="approx"):
+                            step_tol=2e-4, table=None, volume_model="approx", chunk=CHUNK):
     """Arrays in as `refine_normals_li` (distant lights (m, 3) only, at most one extra start);
     step_tol : rad, a pixel stops once an accepted step is below it.
+    chunk : pixels per work item of the threaded loop (numba prange over chunks, as many threads
+        as numba's NUMBA_NUM_THREADS, by default os.cpu_count()); each pixel is solved alone, so
+        the result does not depend on it nor on the thread count (tests/fit/test_normals_li.py).
     Returns (normals (N, 3) f32, kappa (N, C) f32, used (N, m), cost (N,), rel (N,) f32,
     iterations (N,) int32)."""
     e = np.asarray(e, np.float32)
@@ -382,7 +386,7 @@ def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, 
     out_rel = np.empty(n_pix)
     out_it = np.empty(n_pix, np.int32)
     _refine_all(e, ok, n0, n1, has1, s, sh, fres, btab, sig, spec, int(iterations), cast_ratio, floor,
-                step_fd, max_step, float(step_tol), out_n, out_k, out_used, out_cost, out_rel, out_it, 256)
+                step_fd, max_step, float(step_tol), out_n, out_k, out_used, out_cost, out_rel, out_it, int(chunk))
     return (out_n.astype(np.float32), out_k.astype(np.float32), out_used, out_cost,
             out_rel.astype(np.float32), out_it)
 

@@ -132,3 +132,32 @@ def test_sigma_to_zero_and_no_interface_give_finite_normals():
 def test_bad_shapes_raise():
     with pytest.raises(ValueError, match="lights"):
         refine_normals_li(np.zeros((5, 12, 3)), np.ones((4, 3)), np.tile([0, 0, 1.0], (5, 1)), 0.1, 1.3)
+
+
+def test_compiled_engine_same_result_on_one_thread_and_on_all():
+    # the per-pixel loop runs on numba's threads (prange over chunks of pixels): each pixel is
+    # solved alone, so the thread count and the chunking must not change a single bit
+    import numba
+    from facette.fit._normals_li_jit import _refine_all, refine_distant_compiled
+    assert _refine_all.targetoptions.get("parallel"), "the per-pixel loop is no longer threaded"
+    normals, kd, e = _scene(n=1500, sigma=0.2, n_i=1.4, seed=3)
+    e = e.copy()
+    e[::7, 4] *= 0.05                       # some cast shadows and outliers: pixels of uneven cost
+    e[::5, 9] *= 2.5
+    start, extra = _perturb(normals, 5), _perturb(normals, 2, seed=4)
+    rows = np.arange(len(normals)) % 3 == 0
+    ok = np.ones(e.shape[:2], bool)
+    args = (e, RIG, start, 0.2, 1.4, ok, 24, extra, rows)
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        serial = refine_distant_compiled(*args)
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        threaded = refine_distant_compiled(*args)
+        small_chunks = refine_distant_compiled(*args, chunk=7)
+    finally:
+        numba.set_num_threads(before)
+    for other in (threaded, small_chunks):
+        for a, b in zip(serial, other):
+            np.testing.assert_array_equal(a, b)
+    assert np.median(_err(serial[0], normals)) < 0.05   # and it did solve something
