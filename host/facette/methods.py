@@ -64,8 +64,9 @@ PS_DEFAULT = "rank_trimmed"
 # on the simulated rig's scan (rendered with the LI model itself) its normals are 0.95 deg off
 # against 0.70 and its heights 0.36 pixel pitch against 0.06 (hil_tests/test_scan_heights.py),
 # with the 12 lights nearest the rig's it is worse than least squares on pot2 (19.3 against
-# 17.7 deg), and at 2144x1424 x 12 it takes 38 s against 5.4. Until those hold, the default stays
-# the robust Lambertian solve; `--method li_alternating` is one flag away.
+# 17.7 deg), and at 2144x1424 x 12 it takes 21.6 s against 2.5 (idle machine, both cores). Until
+# those hold, the default stays the robust Lambertian solve; `--method li_alternating` is one
+# flag away.
 PROCESS_DEFAULT = PS_DEFAULT
 
 _INPUTS = ("images", "light_dirs")      # every method's two positional arguments
