@@ -209,7 +209,7 @@ class _Acquisition:
             # the file's own exposure time must be the record's: a mismatch means a frame
             # without a record (or a camera set otherwise); never file it under the wrong name
             et, _, _ = read_exposure_metadata(src)
-            if et is None and not any(n.startswith(NO_EXPOSURE_NOTE[:40]) for n in self.sd.notes):
+            if et is None and NO_EXPOSURE_NOTE not in self.sd.notes:
                 self.sd.notes.append(NO_EXPOSURE_NOTE)
             if et is not None and abs(et * 1e6 - t_us) > max(0.05 * t_us, 1000):
                 kept = self.keep_unmatched(src, f"exposure {et:g} s, the frame record says {t_us / 1e6:g} s "
@@ -556,8 +556,7 @@ def run_scan(rig, directory, profile=None, options=None, **settings):
     profile = _load_profile(profile)
     sd = ScanDirectory(directory)
     try:
-        plan, bracketing, button = _plan(rig, sd, profile, options)
-        lights_section = _lights_section(plan, profile)
+        plan, lights_section, bracketing, button = _plan(rig, sd, profile, options)
         sd.lock()                            # one writer; scan.json is read again under the lock
         _check_resumable(sd, plan)
         _open(rig, sd, plan, profile, lights_section, bracketing)
@@ -569,7 +568,7 @@ def run_scan(rig, directory, profile=None, options=None, **settings):
 
 
 def _plan(rig, sd, profile, options):
-    """(ScanPlan, bracketing record, how the scan starts) once checked against the device's
+    """(ScanPlan, its lights section, bracketing record, how the scan starts) once checked against the device's
     limits, the profile and the directory (a refused plan leaves nothing behind). An adaptive
     scan first takes the directory and meters each light (a resume keeps the recorded plan)."""
     n_leds = len(profile.lights) if profile is not None else rig.n_lights
@@ -588,10 +587,10 @@ def _plan(rig, sd, profile, options):
         bracketing = {"name": "thesis2016" if exposures in (None, "thesis") else "explicit"}
         exposures = None if exposures == "thesis" else exposures
     plan = options.plan(n_leds, exposures, currents)
-    _lights_section(plan, profile)
+    lights_section = _lights_section(plan, profile)
     rig.check_config(plan.exposures, plan.lights, plan.light_current_mA, plan.mode, plan.timing)
     _check_resumable(sd, plan)
-    return plan, bracketing, button
+    return plan, lights_section, bracketing, button
 
 
 def _adaptive(rig, sd, profile, options):
