@@ -414,7 +414,7 @@ class SimRig(Rig):
     def close(self):
         """Close the port and stop the simulator."""
         try:
-            self.device.close()
+            super().close()
         finally:
             if self.sim is not None:
                 self.sim.close()
