@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from facette.bench._large import npy_band_writer, write_relief_capture
+from facette.bench.e2e import _times   # the stage times `facette process` prints
 from facette.io.exr import read_exr
 from facette.methods import PS_DEFAULT
 from facette.pipeline import ps_tiled
@@ -88,12 +89,6 @@ def _rss_wrapper(cmd):
     _, status, usage = os.wait4(proc.pid, 0)
     print(f"max_rss_kb {usage.ru_maxrss}", file=sys.stderr)
     return os.waitstatus_to_exitcode(status)
-
-
-def _times(stdout):
-    """The stage times `facette process` prints ("times: load 0.53 s, ps 2.35 s, ...")."""
-    m = re.search(r"times: (.*)", stdout)
-    return {k: float(v) for k, v in re.findall(r"(\w+) ([\d.]+) s", m.group(1))} if m else {}
 
 
 def _angles_deg(a, b):
