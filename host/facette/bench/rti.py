@@ -28,7 +28,7 @@ import facette
 from facette.io.diligent import read_diligent
 from facette.io.png import read_mask
 from facette.io.ptm import read_ptm
-from facette.io.rti import read_hsh_rti
+from facette.io.rti import hsh_weights, read_hsh_rti
 from facette.recon import (fit_hsh, fit_ptm_lrgb, near_light_directions, relight_error, relight_hsh,
                            relight_ptm, srgb_decode, srgb_encode)
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
@@ -159,9 +159,9 @@ def demo_results(results):
                ("relight.rti, RTIViewer/Relight", rti.relight, "hsh")]
     print(f"  {'file, as read by':42s} {'display RMS':>12s} {'linear RMS':>11s} {'flipped':>9s} "
           f"{'< 0 at 60°':>11s}  (relative, object, {m} captured lights)")
+    ok = obj & np.isfinite(images).all(axis=(0, 3))      # the same for every reader
     for label, shown_at, kind in readers:
         white = fits[kind, enc].white
-        ok = obj & np.isfinite(images).all(axis=(0, 3))
         disp, lin, flip = [], [], []
         for k in range(m):
             shown = shown_at(per_light[k])
@@ -175,17 +175,12 @@ def demo_results(results):
         for az in np.radians(np.arange(0, 360, 45)):
             d = np.array([np.sin(np.radians(60)) * np.cos(az), np.sin(np.radians(60)) * np.sin(az),
                           np.cos(np.radians(60))])
-            raw = (ptm.luminance(d) if kind == "ptm" else rti.coeffs @ _hsh_w(d, rti.terms))
+            raw = (ptm.luminance(d) if kind == "ptm" else rti.coeffs @ hsh_weights(d, rti.terms))
             raw = raw if raw.ndim == 2 else raw.min(-1)
             neg.append(float((raw[ok] < 0).mean()))
         print(f"  {label:42s} {_rms(disp):12.4f} {_rms(lin):11.4f} {_rms(flip):9.4f} {100 * np.mean(neg):10.1f}%")
     print("  fit time on these images (s): " + ", ".join(
         f"{k} {e} {fits[k, e, 's']:.2f}" for k in ("ptm", "hsh") for e in ("linear", "srgb")))
-
-
-def _hsh_w(d, terms):
-    from facette.io.rti import hsh_weights
-    return hsh_weights(d, terms)
 
 
 def main(argv=None):
