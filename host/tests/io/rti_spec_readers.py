@@ -8,6 +8,19 @@ import struct
 from pathlib import Path
 
 import numpy as np
+import pytest
+
+# the folder holding shared/: beside the repository (a clone), or one further up (a git worktree)
+_SHARED = next((p for p in Path(__file__).resolve().parents[3:5] if (p.parent / "shared").is_dir()),
+               Path(__file__).resolve().parents[3]).parent
+RTI_REFERENCE = _SHARED / "shared" / "data" / "rti_reference"
+
+
+def needs_reference(path, what):
+    """skipif mark: `what` (the sample files) is not here when `path` is absent, as in a user's
+    clone without the shared data folder beside the repository."""
+    return pytest.mark.skipif(not path.is_file(), reason=f"{what} not here ({path}): the shared data "
+                              "folder beside the repository is absent in a user's clone")
 
 
 def _header_tokens(data, pos, count):

@@ -1,6 +1,5 @@
 """io.ptm: PTM LRGB files read back by a reader written from the HP Labs format document and
 RTIViewer's loader, and by the package's own reader (facette.io.ptm.read_ptm)."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,12 +8,10 @@ from facette.errors import BadInputError
 from facette.io.ptm import column_range, quantize_scale_bias, read_ptm as read_ptm_pkg, write_ptm_lrgb
 from facette.recon import display_ptm, fit_ptm_lrgb, ptm_basis
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
-from rti_spec_readers import asymmetric_scene, check_upright, ptm_colour, read_ptm
+from rti_spec_readers import (RTI_REFERENCE, asymmetric_scene, check_upright, needs_reference, ptm_colour,
+                              read_ptm)
 
-# the folder holding shared/: beside the repository (a clone), or one further up (a git worktree)
-_SHARED = next((p for p in Path(__file__).resolve().parents[3:5] if (p.parent / "shared").is_dir()),
-               Path(__file__).resolve().parents[3]).parent
-REFERENCE = _SHARED / "shared" / "data" / "rti_reference" / "ptm" / "tablet1.ptm"
+REFERENCE = RTI_REFERENCE / "ptm" / "tablet1.ptm"
 
 
 def test_values_rows_and_colours_come_back_within_half_a_step(tmp_path):
@@ -127,8 +124,7 @@ def test_reader_refuses_other_formats_with_a_clear_error(tmp_path):
         read_ptm_pkg(tmp_path / "x.ptm")
 
 
-@pytest.mark.skipif(not REFERENCE.is_file(), reason=f"HP's sample PTM is not here ({REFERENCE}): "
-                    "the shared data folder beside the repository is absent in a user's clone")
+@needs_reference(REFERENCE, "HP's sample PTM is")
 def test_hp_sample_ptm_decodes_in_byte_units_and_lit_from_the_right():
     """tablet1.ptm (PTM_FORMAT_JPEG_LRGB, HP's encoder): constant terms reach 510 (2 · 255),
     and on the tablet, brighter towards the light: a3 (the lu term) grows to the right,

@@ -1,6 +1,5 @@
 """io.rti: HSH .rti files read back by a reader written from RTIViewer's and Relight's loaders
 (rows top first, as RTIBuilder's files), and by the package's own reader (read_hsh_rti)."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,12 +8,10 @@ from facette.errors import BadInputError
 from facette.io.rti import hsh_weights as hsh_weights_pkg, read_hsh_rti, write_hsh_rti
 from facette.recon import display_hsh, fit_hsh, hsh_basis
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
-from rti_spec_readers import asymmetric_scene, check_upright, hsh_colour, hsh_weights, read_hsh
+from rti_spec_readers import (RTI_REFERENCE, asymmetric_scene, check_upright, hsh_colour, hsh_weights,
+                              needs_reference, read_hsh)
 
-# the folder holding shared/: beside the repository (a clone), or one further up (a git worktree)
-_SHARED = next((p for p in Path(__file__).resolve().parents[3:5] if (p.parent / "shared").is_dir()),
-               Path(__file__).resolve().parents[3]).parent
-REFERENCE = _SHARED / "shared" / "data" / "rti_reference" / "hsh"
+REFERENCE = RTI_REFERENCE / "hsh"
 
 
 @pytest.mark.parametrize("terms", [4, 9])
@@ -104,9 +101,7 @@ def test_reader_refuses_what_is_not_hsh(tmp_path):
         read_hsh_rti(tmp_path / "b.rti")
 
 
-@pytest.mark.skipif(not (REFERENCE / "vase.rti").is_file(),
-                    reason=f"RTIBuilder's sample files are not here ({REFERENCE}): the shared data "
-                           "folder beside the repository is absent in a user's clone")
+@needs_reference(REFERENCE / "vase.rti", "RTIBuilder's sample files are")
 @pytest.mark.parametrize("name", ["vase.rti", "vase_2ndorder.rti", "cuniform.rti"])
 def test_rtibuilder_files_decode_upright(name):
     """RTIBuilder's own files, first row = top: the vase's neck and the cone's tip (narrow, at
