@@ -68,6 +68,23 @@ def _check_distant(light_dirs, name):
                          "ps_rank_trimmed or ps_woodham1980 for near lights")
 
 
+def _distant_start(images, light_dirs, mask, channel, name):
+    """The checked inputs of the method `name` (distant lights only), its empty result and the
+    gathered pixels: (images, light_dirs, res, idx, e_all, e, sub), as `_gather`."""
+    images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
+    _check_distant(light_dirs, name)
+    m, h, w, c = images.shape
+    res = _empty_result(h, w, m, c, name.removeprefix("ps_"))
+    return (images, light_dirs, res) + tuple(_gather(images, mask, channel))
+
+
+def _lit_values(e, saturation, t_shadow):
+    """(ok, e, lit): the usable values, e with the others set to 0, and `_lit_mask`."""
+    ok = _usable(e, saturation)
+    e = np.where(ok, e, np.float32(0))
+    return ok, e, _lit_mask(e, ok, t_shadow)
+
+
 def _lit_mask(e, ok, t_shadow):
     """(m, N) bool: usable values above t_shadow x the pixel's brightest usable value."""
     peak = np.where(ok, e, 0).max(axis=0)
@@ -191,11 +208,9 @@ def ps_bipolynomial_shi2014(images, light_dirs, mask=None, channel=None, saturat
     kh, kd = (int(x) for x in degrees)
     if kh < 0 or kd < 0:
         raise ValueError(f"degrees must be two whole numbers >= 0, got {degrees}")
-    images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
-    _check_distant(light_dirs, "ps_bipolynomial_shi2014")
-    m, h, w, c = images.shape
-    res = _empty_result(h, w, m, c, "bipolynomial_shi2014")
-    idx, e_all, e, sub = _gather(images, mask, channel)
+    images, light_dirs, res, idx, e_all, e, sub = _distant_start(images, light_dirs, mask, channel,
+                                                                 "ps_bipolynomial_shi2014")
+    m = images.shape[0]
     res.info = {"pixels": int(idx.size), "degrees": (kh, kd)}
     if idx.size == 0:
         return res
@@ -204,9 +219,7 @@ def ps_bipolynomial_shi2014(images, light_dirs, mask=None, channel=None, saturat
     halves /= np.linalg.norm(halves, axis=1, keepdims=True)
     ld = np.sum(lights * halves, axis=1)                          # cos θ_d per light
     p = (kh + 1) * (kd + 1)
-    ok = _usable(e, saturation)
-    e = np.where(ok, e, np.float32(0))
-    lit = _lit_mask(e, ok, t_shadow)
+    ok, e, lit = _lit_values(e, saturation, t_shadow)
     # the brightest floor(drop_bright x lit) values of each pixel are left out
     n_lit = lit.sum(0)
     n_drop = np.floor(drop_bright * n_lit).astype(np.intp)
@@ -358,11 +371,9 @@ def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, satura
     ke, kv = (int(x) for x in degrees)
     if ke < 1 or kv < 0:
         raise ValueError(f"degrees must be (k_e >= 1, k_v >= 0), got {degrees}")
-    images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
-    _check_distant(light_dirs, "ps_bivariate_ikehata2014")
-    m, h, w, c = images.shape
-    res = _empty_result(h, w, m, c, "bivariate_ikehata2014")
-    idx, e_all, e, sub = _gather(images, mask, channel)
+    images, light_dirs, res, idx, e_all, e, sub = _distant_start(images, light_dirs, mask, channel,
+                                                                 "ps_bivariate_ikehata2014")
+    m = images.shape[0]
     lights = light_dirs.astype(np.float64)
     lv = lights @ VIEW
     span = lv.max() - lv.min()
@@ -374,9 +385,7 @@ def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, satura
     res.info = {"pixels": int(idx.size), "degrees": (ke, kv), "non_monotone": 0.0}
     if idx.size == 0:
         return res
-    ok = _usable(e, saturation)
-    e = np.where(ok, e, np.float32(0))
-    lit = _lit_mask(e, ok, t_shadow)
+    ok, e, lit = _lit_values(e, saturation, t_shadow)
     n_pix = idx.size
     normal = np.zeros((3, n_pix), np.float32)
     found = np.zeros(n_pix, bool)
