@@ -50,12 +50,15 @@ def png_size(path):
     return struct.unpack(">II", head[16:24])
 
 
+def _chunk(kind, data):
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
 def _text_chunks(text):
     """tEXt chunks (PNG 1.2 §11.3.4.3) of {keyword: Latin-1 text}."""
     out = b""
     for key, value in (text or {}).items():
-        data = str(key).encode("latin-1")[:79] + b"\0" + str(value).encode("latin-1", "replace")
-        out += struct.pack(">I", len(data)) + b"tEXt" + data + struct.pack(">I", zlib.crc32(b"tEXt" + data))
+        out += _chunk(b"tEXt", str(key).encode("latin-1")[:79] + b"\0" + str(value).encode("latin-1", "replace"))
     return out
 
 
@@ -116,10 +119,6 @@ def read_mask(path):
 def write_mask(path, mask, text=None):
     """Write an (H, W) bool mask as an 8-bit grey PNG (0 / 255); text as `write_png`."""
     write_png(path, np.asarray(mask, bool), text)
-
-
-def _chunk(kind, data):
-    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
 
 
 class PngBandWriter:
