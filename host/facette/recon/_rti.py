@@ -19,6 +19,8 @@ from math import factorial, pi, sqrt
 
 import numpy as np
 
+from facette.io.ptm import ptm_weights
+
 __all__ = ["ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh",
            "relight_ptm", "relight_hsh", "relight_error", "fit_relight_error", "HSH_ORDERS",
            "RTI_ENCODINGS", "srgb_encode", "srgb_decode", "display_ptm", "display_hsh"]
@@ -65,8 +67,7 @@ def ptm_basis(light_dirs):
     d = np.asarray(light_dirs, dtype=np.float64)
     if d.shape[-1] != 3:
         raise ValueError(f"light directions must have shape (..., 3), got {d.shape}")
-    u, v = d[..., 0], d[..., 1]
-    return np.stack([u * u, v * v, u * v, u, v, np.ones_like(u)], axis=-1)
+    return ptm_weights(d)
 
 
 def _legendre_no_cs(l_max, x, sq):
@@ -385,19 +386,29 @@ def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile
     return HSHFit(coeffs.reshape(h, w, 3, n_terms), order, float(white), valid.reshape(h, w), encoding)
 
 
+def _shown_ptm(fit, light_dir):
+    """L · rgb (H, W, 3) of a `PTMFit` under one light (3,) or (H, W, 3), L clipped to >= 0."""
+    b = ptm_basis(np.asarray(light_dir, float))
+    lum = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwt,hwt->hw", fit.coeffs, b)
+    return np.clip(lum, 0, None)[..., None] * fit.rgb
+
+
+def _shown_hsh(fit, light_dir):
+    """Σ_k coeffs H_k(l) (H, W, 3) of an `HSHFit` under one light (3,) or (H, W, 3), clipped to >= 0."""
+    b = hsh_basis(np.asarray(light_dir, float), fit.order)
+    val = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwct,hwt->hwc", fit.coeffs, b)
+    return np.clip(val, 0, None)
+
+
 def display_ptm(fit, light_dir):
     """The colour (H, W, 3) a viewer shows for a `PTMFit` under one light (a far light (3,)
     or per-pixel directions (H, W, 3)): L · rgb, clipped to [0, 1], in the fit's encoding."""
-    b = ptm_basis(np.asarray(light_dir, float))
-    lum = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwt,hwt->hw", fit.coeffs, b)
-    return np.clip(np.clip(lum, 0, None)[..., None] * fit.rgb, 0, 1)
+    return np.clip(_shown_ptm(fit, light_dir), 0, 1)
 
 
 def display_hsh(fit, light_dir):
     """The colour (H, W, 3) a viewer shows for an `HSHFit` under one light, as `display_ptm`."""
-    b = hsh_basis(np.asarray(light_dir, float), fit.order)
-    val = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwct,hwt->hwc", fit.coeffs, b)
-    return np.clip(val, 0, 1)
+    return np.clip(_shown_hsh(fit, light_dir), 0, 1)
 
 
 def _to_images(fit, shown):
@@ -409,16 +420,12 @@ def relight_ptm(fit, light_dir):
     """Colour (H, W, 3) of a `PTMFit` under one light: a far light (3,) or per-pixel
     directions (H, W, 3); in the fitted images' unit (linear; not clipped at white when the
     encoding is linear)."""
-    b = ptm_basis(np.asarray(light_dir, float))
-    lum = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwt,hwt->hw", fit.coeffs, b)
-    return _to_images(fit, np.clip(lum, 0, None)[..., None] * fit.rgb)
+    return _to_images(fit, _shown_ptm(fit, light_dir))
 
 
 def relight_hsh(fit, light_dir):
     """Colour (H, W, 3) of an `HSHFit` under one light (3,) or (H, W, 3), as `relight_ptm`."""
-    b = hsh_basis(np.asarray(light_dir, float), fit.order)
-    val = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwct,hwt->hwc", fit.coeffs, b)
-    return _to_images(fit, np.clip(val, 0, None))
+    return _to_images(fit, _shown_hsh(fit, light_dir))
 
 
 def _error_sums(render, images, d_all, mask):

@@ -49,8 +49,8 @@ SRGB_STEPS = 4096
 
 def srgb_table():
     """(SRGB_STEPS + 1,) float64: the sRGB encoding (IEC 61966-2-1) of i / SRGB_STEPS."""
-    x = np.linspace(0.0, 1.0, SRGB_STEPS + 1)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    from facette.recon._rti import srgb_encode
+    return srgb_encode(np.linspace(0.0, 1.0, SRGB_STEPS + 1))
 
 
 @njit(cache=True, nogil=True, inline="always")
