@@ -17,11 +17,17 @@ TOL_MEAN, TOL_P99, TOL_MAX = 0.6, 2, 12
 LIGHTS = [(135.0, 45.0), (0.0, 20.0), (270.0, 70.0)]
 
 
+def _viewer_data(res, mask=None, height=None):
+    """The viewer's data and arrays, made as the report made them, for the Python reference
+    (mask and height: the result's unless given)."""
+    return viewer_data(res.normals, res.mask if mask is None else mask, res.brdf, albedo=res.albedo,
+                       height=res.height if height is None else height,
+                       pitch_mm=res.inputs.pixel_pitch_mm, material_mask=res.inputs.sample_mask())
+
+
 def test_viewer_in_chromium_matches_the_reference_render(simulated_result):
     res, path = simulated_result
-    # the viewer's arrays, made as the report made them, for the Python reference
-    _, arr = viewer_data(res.normals, res.mask, res.brdf, albedo=res.albedo, height=res.height,
-                         pitch_mm=res.inputs.pixel_pitch_mm, material_mask=res.inputs.sample_mask())
+    _, arr = _viewer_data(res)
     mask = arr["mask"]
     with chromium() as driver:
         wait_for_viewer(driver, path)
@@ -57,8 +63,7 @@ def test_viewer_at_a_raking_light_lights_what_faces_it_and_nothing_goes_negative
     never were and PTM/HSH go negative: the physically based model (normals, K_d, roughness)
     stays >= 0 and finite, the browser lights the surfaces facing the light, as the reference."""
     res, path = simulated_result
-    _, arr = viewer_data(res.normals, res.mask, res.brdf, albedo=res.albedo, height=res.height,
-                         pitch_mm=res.inputs.pixel_pitch_mm, material_mask=res.inputs.sample_mask())
+    _, arr = _viewer_data(res)
     mask = arr["mask"]
     with chromium() as driver:
         wait_for_viewer(driver, path)
@@ -87,8 +92,7 @@ def test_mesh_view_draws_the_object_only(simulated_result, tmp_path):
     mask[:, 20:30] = False                       # a strip that is not the object
     height = res.height.copy()
     height[:, 20:30] = -50.0                     # far below: a curtain would be plain to see
-    data, _ = viewer_data(res.normals, mask, res.brdf, albedo=res.albedo, height=height,
-                          pitch_mm=res.inputs.pixel_pitch_mm, material_mask=res.inputs.sample_mask())
+    data, _ = _viewer_data(res, mask, height)
     page = tmp_path / "viewer.html"
     page.write_text(f"<!DOCTYPE html><html><body>{viewer_section(data)}</body></html>", encoding="utf-8")
     m = data["mesh"]
