@@ -445,7 +445,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
 
     def ptm():
         t0 = time.perf_counter()
-        res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.object_mask, encoding=res.options["rti_encoding"])
+        res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.object_mask, encoding=o.rti_encoding)
         ok, note = fill_unfitted(res.ptm, images, res.object_mask, FILES["ptm"])   # never a blank file
         if ok:
             res.fit_errors["ptm_relative_rms"] = fit_relight_error(res.ptm, images, light_dirs, res.object_mask)
@@ -460,7 +460,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
         notes = [note] if note else []
         if order is not None:
             res.hsh = fit_hsh(images, light_dirs, order=order, mask=res.object_mask,
-                              encoding=res.options["rti_encoding"])
+                              encoding=o.rti_encoding)
             ok, note = fill_unfitted(res.hsh, images, res.object_mask, FILES["rti"])
             notes += [note] if note else []
             if ok:
@@ -470,8 +470,8 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
         return notes
 
     def maps():
-        for o in ("normals", "albedo", "mask"):
-            write(o)
+        for name in ("normals", "albedo", "mask"):
+            write(name)
         return []
 
     tasks = [(reflectance, "samples" in stages), (hsh, "hsh" in stages), (ptm, "ptm" in stages),
