@@ -19,6 +19,7 @@ from facette.io.atomic import write_text_atomic
 from facette.fit import FitModel, cell_spread_directions
 from facette.pipeline._inputs import NO_PITCH_NOTE
 from facette.pipeline._viewer import viewer_data, viewer_section
+from facette.recon import srgb_encode
 
 __all__ = ["write_report", "fmt", "fmt_pm", "fit_predictions"]
 
@@ -536,8 +537,7 @@ def _mask_overlay(res, st):
         photo = np.nanmedian(res.inputs.images[:, ::st, ::st], axis=0)
     photo = np.nan_to_num(photo, nan=1.0)
     top = float(np.percentile(photo[obj], 99)) if obj.any() else float(np.max(photo) or 1.0)
-    x = np.clip(photo / max(top, 1e-12), 0, 1)
-    rgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    rgb = srgb_encode(photo / max(top, 1e-12))
     out = np.where(obj[..., None], rgb, 0.35 * rgb + np.array([0.0, 0.05, 0.25]))
     edge = obj & ~(np.roll(obj, 1, 0) & np.roll(obj, -1, 0) & np.roll(obj, 1, 1) & np.roll(obj, -1, 1))
     out[edge] = [1.0, 0.1, 0.1]
