@@ -75,9 +75,7 @@ def rows_per_tile(width, height, lights, memory, method=PS_DEFAULT, keep=tuple(F
     Raises ValueError when even one row does not fit."""
     memory = parse_memory(memory)
     width, height, lights = int(width), int(height), int(lights)
-    unknown = set(keep) - set(FIELD_BYTES)
-    if unknown:
-        raise ValueError(f"keep names outputs of {', '.join(FIELD_BYTES)}; got {sorted(unknown)}")
+    _check_keep(keep)
     per_out = sum(FIELD_BYTES[k] for k in keep) + (2 * lights if per_light_flags else 0)
     pixels = width * height
     staging = pixels * (3 * 2 * 2 + 1)
@@ -91,6 +89,13 @@ def rows_per_tile(width, height, lights, memory, method=PS_DEFAULT, keep=tuple(F
                          f"image and one band of {lights} lights: give at least {need:.2f} GB, or "
                          "keep fewer outputs")
     return int(max(MIN_ROWS, min(height, (memory - fixed) // per_row)))
+
+
+def _check_keep(keep):
+    """ValueError unless every name of `keep` is an output of FIELD_BYTES."""
+    unknown = set(keep) - set(FIELD_BYTES)
+    if unknown:
+        raise ValueError(f"keep names outputs of {', '.join(FIELD_BYTES)}; got {sorted(unknown)}")
 
 
 class _Staged:
@@ -163,9 +168,7 @@ def ps_tiled(folder, method=PS_DEFAULT, memory="2GB", rows=None, mask=None, keep
     fn = PS_METHODS[name]
     names, dirs, inten, notes = read_diligent_lights(folder)
     m = len(names)
-    unknown = set(keep) - set(FIELD_BYTES)
-    if unknown:
-        raise ValueError(f"keep names outputs of {', '.join(FIELD_BYTES)}; got {sorted(unknown)}")
+    _check_keep(keep)
     if rows is None:               # before any work: a budget too small is said at once
         w, h = png_size(folder / names[0])
         rows = rows_per_tile(w, h, m, memory, name, keep, per_light_flags)
