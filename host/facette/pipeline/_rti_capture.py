@@ -120,10 +120,9 @@ def _lp_images(folder, lp):
 
 def _directions(vecs, lp, notes):
     norms = np.linalg.norm(vecs, axis=1)
-    if np.all(np.abs(norms - 1) < 0.05):
-        return vecs / norms[:, None]
-    notes.append(f"{lp.name} holds positions (lengths {norms.min():.3g}–{norms.max():.3g}), not unit "
-                 "directions: each light's direction is taken from the frame's centre (far light)")
+    if not np.all(np.abs(norms - 1) < 0.05):
+        notes.append(f"{lp.name} holds positions (lengths {norms.min():.3g}–{norms.max():.3g}), not unit "
+                     "directions: each light's direction is taken from the frame's centre (far light)")
     return vecs / norms[:, None]
 
 
@@ -190,12 +189,10 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
         dirs = _directions(vecs, lps[0], notes)
         lights_file = None
     else:
-        dirs, sphere_circle = _sphere_directions(images, sphere, notes)
-        lights_file = ([p.name for p in paths], dirs)
-        if any(len(p.name.split()) != 1 for p in paths):
-            lights_file = None             # Relight reads 4 fields a line: no .lp it could not load
-            notes[:] = [n.replace(f"{LP_NAME} written beside the results",
-                                  f"no {LP_NAME} written: a file name holds a space") for n in notes]
+        # Relight reads 4 fields a line: no .lp it could not load
+        lp_ok = all(len(p.name.split()) == 1 for p in paths)
+        dirs, sphere_circle = _sphere_directions(images, sphere, notes, lp_ok)
+        lights_file = ([p.name for p in paths], dirs) if lp_ok else None
     if reference is not None:
         _divide_by_reference(images, reference, notes)
     mask_file = next((p for p in folder.iterdir() if p.name.lower() == "mask.png"), None)
@@ -222,8 +219,9 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
                 digest=digest, lights_file=lights_file)
 
 
-def _sphere_directions(images, sphere, notes):
-    """Directions from the mirror sphere in the photographs (linear, NaN where clipped)."""
+def _sphere_directions(images, sphere, notes, lp_written=True):
+    """Directions from the mirror sphere in the photographs (linear, NaN where clipped);
+    `lp_written`: whether its .lp goes beside the results (the note says)."""
     # a clipped highlight is at the top of its photograph
     filled = np.stack([np.nan_to_num(im, nan=float(np.nanmax(im)) if np.isfinite(im).any() else 1.0)
                        for im in images])
@@ -244,7 +242,9 @@ def _sphere_directions(images, sphere, notes):
                             hint="add the capture's .lp file, or give the sphere (--sphere cx,cy,r or a mask)") from None
     how = "given" if kw else "found"
     notes.append(f"light directions from the mirror sphere ({how}: centre ({circle.cx:.1f}, {circle.cy:.1f}) px, "
-                 f"radius {circle.r:.1f} px), one highlight per photograph; {LP_NAME} written beside the results")
+                 f"radius {circle.r:.1f} px), one highlight per photograph; "
+                 + (f"{LP_NAME} written beside the results" if lp_written
+                    else f"no {LP_NAME} written: a file name holds a space"))
     if any(h.area < 2 for h in hls):
         notes.append("some highlights on the sphere are a pixel or less: their directions are rough")
     return dirs, circle
