@@ -34,7 +34,8 @@ def run(args):
         raise BadInputError(f"--light {args.light!r} is not AZ,EL in degrees", hint="e.g. --light 0,20") from None
     a, e = np.radians(az), np.radians(el)
     light = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
-    head = path.read_bytes()[:8]
+    with open(path, "rb") as fh:          # the signature only: the reader reads the file once
+        head = fh.read(8)
     if head.startswith(b"PTM_1."):
         f = read_ptm(path)
         picture = f.relight(light, rtiviewer=args.rtiviewer)
