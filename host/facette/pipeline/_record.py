@@ -76,7 +76,8 @@ def _remove(out, names):
 def claim_results(out, options, inp, overwrite=False, names=(), mask=None):
     """Check, before any work, that this run may write into `out`; remove the earlier run's
     files that would otherwise stay beside this run's, and those of an interrupted run of the
-    same source; then record this run as "running". Returns the earlier record or None.
+    same source (`mark_running` then records this run, before its first file). Returns the
+    earlier record or None.
 
     names : the file names a facette process run may write (what an interrupted run of the
         scan's own results folder may have left before records were written first).
@@ -94,7 +95,7 @@ def claim_results(out, options, inp, overwrite=False, names=(), mask=None):
     others = [p for p in out.iterdir() if p.name != RECORD and p.name not in BESIDE]
     if rec is None:
         own = out.resolve() == Path(source) / "results"
-        if others and own and all(p.name in set(names) for p in others):
+        if others and own and set(p.name for p in others) <= set(names):
             _remove(out, [p.name for p in others])    # the scan's own processing, interrupted
             return None
         if others and not overwrite:
