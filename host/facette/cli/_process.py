@@ -6,6 +6,12 @@ asked for (too dark, saturated, an empty mask, too few filled cells for a BRDF f
 """
 import argparse
 import math
+from types import MappingProxyType
+
+# the BRDF fit asked for without --brdf-model/--fit-method; the scan's own processing asks for
+# the same (facette.cli._scan), so that a later `facette process SCAN -o SCAN/results` finds
+# one run, not another one
+PROCESS_FIT_OPTIONS = MappingProxyType({"model": "li", "method": "least_squares"})
 
 
 def _number(kind, lo=None, hi=None, lo_open=False, what="value"):
@@ -85,9 +91,10 @@ def register(sub):
     p.add_argument("--mesh-step", type=_number(int, 1, None, False, "--mesh-step"),
                    help="mesh vertex every N pixels, >= 1 (default: <= ~1e6 vertices)")
     p.add_argument("--ascii-ply", action="store_true", help="write mesh.ply as ASCII")
-    p.add_argument("--brdf-model", default="li", choices=list(MODELS.names()),
+    p.add_argument("--brdf-model", default=PROCESS_FIT_OPTIONS["model"], choices=list(MODELS.names()),
                    help="model fitted for brdf.json")
-    p.add_argument("--fit-method", default="least_squares", choices=list(METHODS.names()), help="fit method")
+    p.add_argument("--fit-method", default=PROCESS_FIT_OPTIONS["method"], choices=list(METHODS.names()),
+                   help="fit method")
     p.add_argument("--allow-incomplete", action="store_true",
                    help="process a scan that is not complete (every output then says so)")
     p.add_argument("--overwrite", action="store_true",

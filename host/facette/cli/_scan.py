@@ -10,15 +10,10 @@ import os
 import threading
 import time
 from pathlib import Path
-from types import MappingProxyType
 
-from facette.cli._process import print_result
+from facette.cli._process import PROCESS_FIT_OPTIONS, print_result
 
 DEFAULT_SIM_PROFILE = "calibration/profiles/sim-default"
-# the fit `facette process` asks for when given no --brdf-model/--fit-method: the scan's own
-# processing asks for the same (so that a later `facette process SCAN -o SCAN/results` finds
-# one run, not another one)
-PROCESS_FIT_OPTIONS = MappingProxyType({"model": "li", "method": "least_squares"})
 
 
 def _limits(name):
