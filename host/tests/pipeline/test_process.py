@@ -35,8 +35,8 @@ def test_cli_processes_a_diligent_folder_end_to_end(diligent_dir, tmp_path, caps
     folder, sc, mask = diligent_dir
     out = tmp_path / "out"
     outputs = "normals,albedo,mask,height,mesh,samples,report"     # brdf: see the scan test
-    # the Lambertian albedo's scale is what is checked here: the default li_alternating writes
-    # the LI K_d, clipped to [0, 1], which an uncalibrated scale (a DiLiGenT folder) saturates
+    # the Lambertian albedo's scale is what is checked here, named whatever PROCESS_DEFAULT is:
+    # li_alternating writes the LI K_d, clipped to [0, 1], which an uncalibrated scale (a DiLiGenT folder) saturates
     assert main(["process", str(folder), "-o", str(out), "--outputs", outputs, "--method", "rank_trimmed"]) == 0
     text = capsys.readouterr().out
     assert "diligent" in text and "valid pixels" in text
@@ -197,8 +197,8 @@ def test_scan_with_near_lights_uses_positions(tmp_path):
     shade = np.maximum(np.einsum("hwmi,hwi->mhw", dirs, sc.normals), 0) * np.transpose(fall, (2, 0, 1))
     imgs = (0.5 / np.pi * shade[..., None] * np.ones(3)).astype(np.float32)
     _write_scan(tmp_path / "scan", sc, imgs, pitch, positions=pos)
-    # the geometry of near lights is checked, on the Lambertian solve (the default li_alternating
-    # moves 36 of 1278 samples by 1 %)
+    # the geometry of near lights is checked, on the Lambertian solve, named whatever PROCESS_DEFAULT is
+    # (li_alternating moves 36 of 1278 samples by 1 %)
     near = process(tmp_path / "scan", outputs=["normals", "samples"], method="rank_trimmed")
     far = process(tmp_path / "scan", outputs=["normals"], near_light=False, method="rank_trimmed")
     assert any("near lights" in n for n in near.notes)
