@@ -153,7 +153,11 @@ def test_the_scan_processing_options_are_facette_process_defaults():
     parser = argparse.ArgumentParser()
     _process.register(parser.add_subparsers())
     args = parser.parse_args(["process", "scan", "-o", "out"])
-    assert {"model": args.brdf_model, "method": args.fit_method} == dict(_scan.PROCESS_FIT_OPTIONS)
+    # every option process.json records, as `facette process` builds them from its own flags,
+    # against those of the scan's call (PROCESS_FIT_OPTIONS is the one thing the scan passes)
+    from facette.pipeline import ProcessOptions
+    assert _process.options(args).recorded() == \
+        ProcessOptions(fit_options=dict(_scan.PROCESS_FIT_OPTIONS)).recorded()
 
 
 def test_the_scan_command_does_not_import_the_command_line_entry():
