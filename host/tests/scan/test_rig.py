@@ -99,4 +99,6 @@ def test_a_real_rig_answers_what_it_cannot_know_as_unknown(rig, tmp_path):
         rig.press_button()
     assert rig.show_target("spectralon") is None and rig.restore_scene() is None
     assert rig.name == f"rig-{rig.device.identity['serial_number']}"
-    assert rig.latched_faults() == [f.name for f in R.Fault if rig.device.read("fault_bits") >> f.value & 1]
+    # the simulated device boots with no calibration in its flash: CAL_INVALID latched, by name
+    assert rig.device.read("fault_bits") == 1 << R.Fault.CAL_INVALID.value
+    assert rig.latched_faults() == ["CAL_INVALID"]
