@@ -24,9 +24,9 @@ from ._fresnel import check_n_i, fresnel_dielectric, r_e_molenaar1999, r_i_simon
 from ._microfacet import SIGMA_FLAT
 from ._volume import approx_coefficients, rough_lambert_terms, volume_table_at
 
-__all__ = ["li_shading_terms", "li_kappa", "li_kd_from_kappa", "VOLUME_MODELS"]
+__all__ = ["li_shading_terms", "li_kappa", "li_kd_from_kappa", "kd_from_kappa", "VOLUME_MODELS"]
 
-VOLUME_MODELS = ("approx", "tables")
+VOLUME_MODELS = ("approx", "tables", "lambert")
 
 _SQRT_PI = np.float32(np.sqrt(np.pi))
 
@@ -43,6 +43,14 @@ def li_kd_from_kappa(kappa, n_i):
     ri = r_i_simonot2009(n)
     k = np.maximum(np.asarray(kappa, dtype=np.float32), 0)
     return np.clip(np.pi * n * n * k / (1.0 + np.pi * n * n * ri * k), 0.0, 1.0).astype(np.float32)
+
+
+def kd_from_kappa(kappa, n_i, volume_model):
+    """K_d from κ under either diffuse part: the LI substrate (`li_kd_from_kappa`) or, with
+    volume_model "lambert" (a Lambertian term beside the lobe, no transmission), K_d = π κ."""
+    if volume_model == "lambert":
+        return np.clip(np.pi * np.maximum(np.asarray(kappa, dtype=np.float32), 0), 0.0, 1.0).astype(np.float32)
+    return li_kd_from_kappa(kappa, n_i)
 
 
 def _smith_g1_beckmann(c, sigma):
@@ -66,7 +74,9 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True, vo
     specular : False gives A = 0 (the volume part only).
     volume : False skips the volume part and returns B = None (the specular lobe only, the cheap
         part: it is evaluated on the pairs near the lobe alone).
-    volume_model : "approx" (eq 3.49–3.57) or "tables" (eq 3.15 itself, see the module doc).
+    volume_model : "approx" (eq 3.49–3.57) or "tables" (eq 3.15 itself, see the module doc), or
+        "lambert": B = n·s, a Lambertian substrate beside the lobe with no Fresnel transmission
+        in or out (the Cook–Torrance form, facette.brdf.cook_torrance1982; κ = ρ/π).
     Returns (A, B), each (N, m) float32, 0 where n·s ≤ 0 or n·v ≤ 0 (attached shadow,
     back-facing). Units: E is the image value over the light's intensity; a Lambertian
     surface of reflectance ρ has A = 0, B κ = (ρ/π) n·s.
@@ -109,7 +119,9 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True, vo
         cphi = np.where(both, np.clip((sv - cs_c * co_c) / np.where(both, sin_s * sin_o, 1), -1, 1),
                         np.float32(1))
     ts, to = np.arccos(cs_c), np.arccos(co_c)
-    if volume_model == "tables":
+    if volume_model == "lambert":
+        vol = np.ones_like(cs_c)
+    elif volume_model == "tables":
         vol = volume_table_at(sig_v, n_i).at_angles(ts, to, np.arccos(cphi)).astype(np.float32)
     else:
         vol = _volume_approx(ts, to, cs_c, co_c, cphi, sig_v, n_i)

@@ -15,7 +15,7 @@ usable (NaN, saturated) and cast shadows (observed < 25 % of the model's predict
 """
 import numpy as np
 
-from facette.brdf import li_kd_from_kappa, li_shading_terms
+from facette.brdf import kd_from_kappa, li_shading_terms
 from facette.brdf._fresnel import check_n_i
 
 __all__ = ["refine_normals_li", "RefineResult", "CAST_SHADOW_RATIO"]
@@ -258,7 +258,7 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
     # 0 for a black pixel (nothing to explain), 1 where fewer than 3 values were kept (nothing explained)
     rel = np.where(den > 0, num / np.maximum(den, 1e-30), 0).astype(np.float32)
     rel[keep.sum(1) < 3] = 1
-    return RefineResult(normals=n, kappa=k, kd=li_kd_from_kappa(k, n_i), used=keep, cost=cost,
+    return RefineResult(normals=n, kappa=k, kd=kd_from_kappa(k, n_i, volume_model), used=keep, cost=cost,
                         rel_residual=rel, iterations=it, evaluations=evals, scale=scale)
 
 
@@ -283,7 +283,7 @@ def _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_s
         e, lights, normals, sigma, n_i, ok, iterations, extra_start=extra, extra_rows=extra_rows,
         cast_ratio=CAST_SHADOW_RATIO, floor=SCALE_FLOOR, step_fd=STEP_FD, max_step=MAX_STEP,
         step_tol=step_tol, volume_model=volume_model)
-    return RefineResult(normals=nrm, kappa=k, kd=li_kd_from_kappa(k, n_i), used=used, cost=cost,
+    return RefineResult(normals=nrm, kappa=k, kd=kd_from_kappa(k, n_i, volume_model), used=used, cost=cost,
                         rel_residual=rel, iterations=int(its.max()) if its.size else 0,
                         mean_iterations=float(its.mean()) if its.size else 0.0,
                         evaluations=None, scale=None)

@@ -45,7 +45,7 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from facette.brdf import li_kd_from_kappa, li_shading_terms
+from facette.brdf import kd_from_kappa, li_kd_from_kappa, li_shading_terms
 from facette.recon import PSResult, ps_rank_trimmed, ps_woodham1980
 from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _run_blocks, _usable
 from ._normals_li import RefineResult, refine_normals_li
@@ -74,6 +74,26 @@ FINE_STEP_TOL = 1e-3       # rad (0.06°): full-size steps stop below this (erro
 ROUND_STEP_TOL = 1e-3      # rad (0.06°): a pixel's solve stops below this step in the rounds too
 SETTLED_SIGMA = 0.05       # a later round's refit within 5 % of σ and 0.01 of n_i: no new re-estimate
 SETTLED_N_I = 0.01
+# Round 1's model choice (`_profile_lobe`): a grid of (σ, n_i), each diffuse part, the fit pixels'
+# normals solved against each point, scored by the summed robust cost of the PROFILE_KEEP best
+# explained fit pixels. Fitting (σ, n_i) on the initial normals, as before, is pulled to no lobe by
+# the few pixels whose robust normal is a degree off where the lobe is steep: on the simulated
+# rig's scan (Cook–Torrance σ 0.05, n_i 1.2, dark glossy table) it found σ 0.017, n_i 1.06 on the
+# initial normals and σ 0.035 on normals solved against each point with every pixel counted; the
+# best 80 % give σ 0.050, n_i 1.200, and the lobe lowers their cost to 46 % of Lambert's.
+# The search: σ along PROFILE_SIGMAS at n_i PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ,
+# for each diffuse part (26 solves of the profile pixels), on at most PROFILE_VALUES values (pixels ×
+# lights): a full 8 × 3 grid stopped at n_i 1.15 on the scan above (truth 1.2; the search: 1.2).
+PROFILE_SIGMAS = (0.02, 0.035, 0.05, 0.08, 0.13, 0.2, 0.3, 0.5)
+PROFILE_N_I0 = 1.3
+PROFILE_N_IS = (1.1, 1.2, 1.45, 1.7, 2.0)
+PROFILE_KEEP = 0.8
+PROFILE_VALUES = 12_000
+# The diffuse part beside the lobe: the LI substrate under the interface (eq 3.15: Fresnel
+# transmissions in and out) or a Lambertian term with no transmission (Cook–Torrance). Which one a
+# material gets is its fit pixels' profile cost (`diffuse="auto"`), never a fixed choice: the
+# simulated rig renders Cook–Torrance, Mitsuba's roughplastic a layered (LI-like) material.
+DIFFUSE = {"li": LI_VOLUME_MODEL, "lambert": "lambert"}
 _BLOCK = 32768             # pixels per block of the per-pixel solve (array code, two threads)
 _BLOCK_COMPILED = 262144   # pixels per call of the compiled solve (it threads inside)
 
@@ -161,6 +181,53 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
     return dict(success=bool(best.success), sigma=float(best.x[0]), n_i=float(best.x[1]), kappa=k,
                 kd=li_kd_from_kappa(k, best.x[1]), cost=float(best.cost), n_values=int(sel.sum()),
                 seconds=time.perf_counter() - t0, message=str(best.message))
+
+
+def _pixel_costs(e, lights, normals, usable, sigma, n_i, volume_model, f_scale=0.05):
+    """(N,) each pixel's share of `li_fit_cost` (soft-L1 of its relative residuals)."""
+    e0, w, sel, den = _relative_fit_values(e, usable)
+    r = _kd_and_residuals(e0, w, den, normals, lights, sigma, n_i, volume_model)[1]
+    z = (r.astype(np.float64) / f_scale) ** 2
+    return np.sum(np.where(sel, f_scale ** 2 * (np.sqrt(1 + z) - 1), 0), axis=(1, 2))
+
+
+def _trimmed(costs, keep=PROFILE_KEEP):
+    """(sum of the `keep` fraction of smallest per-pixel costs, bool mask of those pixels)."""
+    n = max(1, int(round(keep * costs.size)))
+    order = np.argsort(costs, kind="stable")
+    kept = np.zeros(costs.size, bool)
+    kept[order[:n]] = True
+    return float(costs[order[:n]].sum()), kept
+
+
+def _profile_lobe(e, lights, usable, solve, volume_models):
+    """Round 1's model choice on the profile pixels: for each diffuse part (`volume_models`), the
+    normals solved against each (σ, n_i) of a coordinate search (σ along PROFILE_SIGMAS at
+    PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ; `solve(sigma, n_i, volume_model)` ->
+    (N, 3)), each scored by the trimmed robust cost of the result (`_trimmed`: a pixel whose solve
+    stopped in a wrong minimum does not decide the model).
+    Returns (best: dict(cost, volume_model, sigma, n_i, normals, kept), lambertian: dict(cost,
+    normals, kept), {volume_model: its best trimmed cost}, the number of solves)."""
+    best, per_model, solves = None, {}, 0
+
+    def score(sigma, n_i, vm):
+        nonlocal best, solves
+        n = solve(sigma, n_i, vm)
+        solves += 1
+        cost, kept = _trimmed(_pixel_costs(e, lights, n, usable, sigma, n_i, vm))
+        per_model[vm] = min(per_model.get(vm, np.inf), cost)
+        if best is None or cost < best["cost"]:
+            best = dict(cost=cost, volume_model=vm, sigma=sigma, n_i=n_i, normals=n, kept=kept)
+        return cost
+
+    for vm in volume_models:
+        costs = [score(sigma, PROFILE_N_I0, vm) for sigma in PROFILE_SIGMAS]
+        sigma = PROFILE_SIGMAS[int(np.argmin(costs))]
+        for n_i in PROFILE_N_IS:
+            score(sigma, n_i, vm)
+    n = solve(LAMBERTIAN_SIGMA, 1.0, volume_models[0])
+    cost, kept = _trimmed(_pixel_costs(e, lights, n, usable, LAMBERTIAN_SIGMA, 1.0, volume_models[0]))
+    return best, dict(cost=cost, normals=n, kept=kept), per_model, solves + 1
 
 
 def _has_interface(fit):
@@ -252,7 +319,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                       init=ps_rank_trimmed, rounds=4, tol_deg=0.1, fit_pixels=1000,
                       t_residual=T_RESIDUAL, iterations=24, materials=1, min_region_fraction=0.05,
                       seed=0, init_options=None, coarse_pixels=COARSE_PIXELS, fine_iterations=2,
-                      engine="auto", volume_model=LI_VOLUME_MODEL, highlight_start="all"):
+                      engine="auto", volume_model=LI_VOLUME_MODEL, highlight_start="all",
+                      diffuse="auto"):
     """BRDF-aware photometric stereo with the LI model (module doc).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m ≥ 4.
@@ -298,6 +366,10 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         cat with (σ, n_i) fixed: 5.72° at 21.7 CPU s against 5.78° at 8.6 s; choosing, before any
         step, the start of lower cost was worse than either (5.83°). "all" is the default because
         it is what held up on the unseen objects of issue 24.
+    diffuse : the diffuse part beside the lobe: "li" (the LI substrate, `volume_model`), "lambert"
+        (Lambertian, no transmission: Cook–Torrance) or "auto" (default): per material, the one
+        whose best lobe has the lower trimmed profile cost on the fit pixels (DIFFUSE,
+        `_profile_lobe`; info["materials"][k]["diffuse"] and its "model_choice").
     Returns a `PSResult` (method "li_alternating"): albedo is K_d (a reflectance, per channel);
     info holds "rounds" (per round: σ, n_i, pixels fitted and re-estimated, median change,
     seconds), "materials" (per region: σ, n_i, pixel count, whether the BRDF step ran) and
@@ -314,6 +386,11 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                         "facette.methods.photometric_stereo(..., method='li_alternating', init=NAME)")
     if highlight_start not in ("all", "subsample"):
         raise ValueError(f"highlight_start = {highlight_start!r}: choose 'all' or 'subsample'")
+    if diffuse not in ("auto", *DIFFUSE):
+        raise ValueError(f"diffuse = {diffuse!r}: choose 'auto', {', '.join(repr(k) for k in DIFFUSE)}")
+    diffuse_models = tuple(dict.fromkeys([volume_model if k == "li" else DIFFUSE[k] for k in
+                                          (("li", "lambert") if diffuse == "auto" else (diffuse,))]))
+    vm = diffuse_models[0]      # the current material's diffuse part (read by the steps below)
     if init is ps_li_alternating:
         raise ValueError("init = 'li_alternating': the initial normals must come from another method "
                          "(hierarchical_tautzia2016, woodham1980, rpca_wu2010, ...)")
@@ -327,7 +404,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                                    rounds=rounds, tol_deg=tol_deg, fit_pixels=fit_pixels,
                                    t_residual=t_residual, iterations=iterations, materials=1,
                                    seed=seed, init_options=init_options, coarse_pixels=None,
-                                   engine=engine, volume_model=volume_model, highlight_start=highlight_start)
+                                   engine=engine, volume_model=volume_model, highlight_start=highlight_start,
+                                   diffuse=diffuse)
         coarse.info["factor"] = f
         coarse.info["seconds"] = time.perf_counter() - t_c
         coarse.info["cpu_seconds"] = time.process_time() - c_c
@@ -388,11 +466,12 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     half = (half / np.linalg.norm(half, axis=-1, keepdims=True)).astype(np.float32)
     hl_start = half[brightest] if half.ndim == 2 else half[np.arange(idx.size), brightest]
 
-    def refine(sel, sigma, n_i, first_round=True, engine=engine, step_tol=ROUND_STEP_TOL):
+    def refine(sel, sigma, n_i, first_round=True, engine=engine, step_tol=ROUND_STEP_TOL, vm=None):
         # first round: the current normal and the highlight start; later rounds start from the
         # previous round's normals, already near, so one start and fewer steps do. Pixel blocks
         # on WORKERS threads (numpy releases the GIL in its loops).
         out = {}
+        vm_ = vm_now() if vm is None else vm
 
         def block(a):
             sub = sel[a:a + (_BLOCK if s_all.ndim == 3 else _BLOCK_COMPILED)]
@@ -404,11 +483,11 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                 out[a] = refine_normals_li(gather(sub), lights_of(sub), nrm[sub], sigma, n_i,
                                            usable=all_ok[sub], iterations=iterations,
                                            extra_starts=[hl_start[sub]] if hl.any() else None, extra_rows=hl,
-                                           engine=engine, volume_model=volume_model, step_tol=step_tol)
+                                           engine=engine, volume_model=vm_, step_tol=step_tol)
             else:
                 out[a] = refine_normals_li(gather(sub), lights_of(sub), nrm[sub], sigma, n_i,
                                            usable=all_ok[sub], iterations=max(2, iterations // 2), engine=engine,
-                                           volume_model=volume_model, step_tol=step_tol)
+                                           volume_model=vm_, step_tol=step_tol)
 
         if s_all.ndim == 2:
             # the compiled per-pixel solve runs its own threads: blocks in turn (memory only)
@@ -427,57 +506,61 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         lam_ok = (resid_ls[pix] < t_residual) & all_ok[pix].all(1) & ~lobe
         lam_pix = pix[lam_ok]
         if lam_pix.size:
-            nrm[lam_pix] = _lambertian_correction(nrm_ls[lam_pix], lights_of(lam_pix), sigma, n_i, volume_model)
+            nrm[lam_pix] = _lambertian_correction(nrm_ls[lam_pix], lights_of(lam_pix), sigma, n_i, vm)
             refined[lam_pix] = False
         return lobe, lam_ok, pix[~lam_ok & lobe]
 
-    def choose_model(fsel, e_f, first):
-        # Interface or none, i.e. the BRDF step or the Lambertian level. The first fit, on the
-        # initial normals, can land at n_i ≈ 1 on a material with a lobe (the Mitsuba satin sphere
-        # on the hierarchy's normals: σ 0.001, n_i 1.000), and whether the warm-up's refit then
-        # found the lobe hinged on small differences of the warm-up normals (6.3° against 2.6°). So
-        # such a fit is not taken as it is: the lobe candidate is fitted again with a lobe kept
-        # (LOBE_FIT_BOUNDS) on the fit pixels' robust Lambertian normals, warmed up (normals against
-        # it, refit within the full bounds), and the material is Lambertian only if it falls back to
-        # no interface or if it lowers the fit pixels' robust cost by less than LOBE_MIN_GAIN against
-        # the Lambertian normals' (the first fit said Lambertian: overturning it takes evidence). The
-        # array code, channel by channel, on these pixels.
+    def vm_now():
+        return vm
+
+    def choose_model(fsel, e_f):
+        # Round 1: lobe or none, and which diffuse part, by the trimmed profile cost of the fit
+        # pixels (`_profile_lobe`); the lobe must lower it by LOBE_MIN_GAIN against Lambert's.
+        # Then (σ, n_i) fitted from the best grid point on its best-explained pixels, warmed up
+        # (those pixels' normals against the fit, refit) until (σ, n_i) settle. The array code,
+        # channel by channel, on these pixels.
+        # the profile pixels: the fit pixels, fewer under many lights (PROFILE_VALUES values)
+        fsel = fsel[np.sort(rng.choice(fsel.size, min(fsel.size, max(100, PROFILE_VALUES // m)), replace=False))]
+        e_f = gather(fsel)
         l_f, ok_f = lights_of(fsel), all_ok[fsel]
         warm_engine = "arrays" if engine == "auto" else engine
-        choice = {}
-        fit, n_f = first, nrm[fsel]
-        first_lobe = _has_interface(first)
-        if not first_lobe:
-            n_f = refine(fsel, LAMBERTIAN_SIGMA, 1.0, engine=warm_engine).normals
-            choice["cost_lambertian"] = li_fit_cost(e_f, l_f, n_f, ok_f, LAMBERTIAN_SIGMA, 1.0, volume_model=volume_model)
-            fit = fit_li_per_pixel_kd(e_f, l_f, n_f, ok_f, bounds=LOBE_FIT_BOUNDS, volume_model=volume_model)
-        warm = 0
+
+        def solve(sigma, n_i, vm_):
+            return refine(fsel, sigma, n_i, engine=warm_engine, vm=vm_).normals
+
+        t_p = time.perf_counter()
+        best, lam, per_model, solves = _profile_lobe(e_f, l_f, ok_f, solve, diffuse_models)
+        gain = 1 - best["cost"] / max(lam["cost"], 1e-30)
+        name = {v: k for k, v in DIFFUSE.items()}.get(best["volume_model"], best["volume_model"])
+        choice = {"cost_lambertian": lam["cost"], "cost_lobe": best["cost"], "gain": gain,
+                  "profile_pixels": int(fsel.size), "profile_solves": solves,
+                  "profile_seconds": time.perf_counter() - t_p, "trimmed_to": PROFILE_KEEP, "grid_sigma": best["sigma"], "grid_n_i": best["n_i"],
+                  "cost_by_diffuse": {({v: k for k, v in DIFFUSE.items()}.get(k, k)): c for k, c in per_model.items()}}
+        if gain < LOBE_MIN_GAIN:
+            choice.update(model="lambertian", why=f"the best lobe (σ {best['sigma']:.3f}, n_i {best['n_i']:.2f}, "
+                          f"{name} diffuse) lowers the trimmed robust cost by {100 * gain:.1f} % only")
+            return dict(sigma=LAMBERTIAN_SIGMA, n_i=1.0, volume_model=diffuse_models[0]), 0, choice
+        vm_, kept, n_f = best["volume_model"], best["kept"], best["normals"]
+        fit, warm = dict(sigma=best["sigma"], n_i=best["n_i"]), 0
         while warm < 3:
-            # warm-up: the fit pixels' normals against the model, refit, until (σ, n_i) settle
             warm += 1
-            n_f = refine(fsel, fit["sigma"], fit["n_i"], engine=warm_engine).normals
             prev = fit
-            fit = fit_li_per_pixel_kd(e_f, l_f, n_f, ok_f, x0=(prev["sigma"], prev["n_i"]), volume_model=volume_model)
+            fit = fit_li_per_pixel_kd(e_f[kept], l_f if l_f.ndim == 2 else l_f[kept], n_f[kept], ok_f[kept],
+                                      x0=(prev["sigma"], prev["n_i"]), volume_model=vm_)
+            if not _has_interface(fit):
+                break
+            n_f = solve(fit["sigma"], fit["n_i"], vm_)
+            _, kept = _trimmed(_pixel_costs(e_f, l_f, n_f, ok_f, fit["sigma"], fit["n_i"], vm_))
             if abs(fit["sigma"] - prev["sigma"]) < 0.02 * prev["sigma"] and abs(fit["n_i"] - prev["n_i"]) < 0.005:
                 break
-        choice.update(cost_lobe=li_fit_cost(e_f, l_f, n_f, ok_f, fit["sigma"], fit["n_i"], volume_model=volume_model),
-                      lobe_sigma=fit["sigma"], lobe_n_i=fit["n_i"],
-                      lobe_start="first fit" if first_lobe else "refitted with a lobe kept")
-        gain = None if first_lobe else 1 - choice["cost_lobe"] / max(choice["cost_lambertian"], 1e-30)
-        if gain is not None:
-            choice["gain"] = gain
-        if _has_interface(fit) and (gain is None or gain >= LOBE_MIN_GAIN):
-            choice.update(model="lobe", why=f"after the warm-up the fit keeps n_i {fit['n_i']:.3f}"
-                          + ("" if gain is None else f" and lowers the robust cost by {100 * gain:.0f} %"))
-        elif _has_interface(fit):
-            choice.update(model="lambertian", why=f"the lobe fit (σ {fit['sigma']:.3f}, n_i {fit['n_i']:.3f}) "
-                          f"lowers the robust cost by {100 * gain:.1f} % only")
-            fit = dict(fit, sigma=LAMBERTIAN_SIGMA, n_i=1.0)
-        else:
-            choice.update(model="lambertian", why=f"the warmed-up fit ends at σ {fit['sigma']:.3f}, "
-                          f"n_i {fit['n_i']:.3f}: no interface")
-            fit = dict(fit, sigma=LAMBERTIAN_SIGMA, n_i=1.0)
-        return fit, warm, choice
+        choice.update(lobe_sigma=fit["sigma"], lobe_n_i=fit["n_i"], diffuse=name)
+        if not _has_interface(fit):
+            choice.update(model="lambertian", why=f"the fit from the best grid point (σ {best['sigma']:.3f}, "
+                          f"n_i {best['n_i']:.2f}) ends at n_i {fit['n_i']:.3f}: no interface")
+            return dict(fit, sigma=LAMBERTIAN_SIGMA, n_i=1.0, volume_model=diffuse_models[0]), warm, choice
+        choice.update(model="lobe", why=f"a lobe (σ {fit['sigma']:.3f}, n_i {fit['n_i']:.3f}) with {name} diffuse "
+                      f"lowers the trimmed robust cost by {100 * gain:.0f} % against Lambert's")
+        return dict(fit, volume_model=vm_), warm, choice
 
     def lambertian_material(pix):
         # no interface: least squares over every light is the Lambertian answer where it explains
@@ -507,7 +590,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                 sub = todo[a:a + (_BLOCK_COMPILED if s_all.ndim == 2 else _BLOCK)]
                 out.append(refine_normals_li(gather(sub), lights_of(sub), up[sub], sigma, n_i,
                                              usable=all_ok[sub], iterations=fine_iterations,
-                                             step_tol=FINE_STEP_TOL, engine=engine, volume_model=volume_model))
+                                             step_tol=FINE_STEP_TOL, engine=engine, volume_model=vm))
             rr = RefineResult(**{k: np.concatenate([getattr(p, k) for p in out])
                                  for k in ("normals", "kd", "used", "rel_residual")})
             mean_its = float(np.average([getattr(p, "mean_iterations", p.iterations) for p in out],
@@ -536,8 +619,10 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         if trust.size < 10:
             trust = pix
         score = None
+        vm = diffuse_models[0]
         if coarse is not None:
             cmat = coarse.info["materials"][0] if coarse.info.get("materials") else {"brdf_step": False}
+            vm = cmat.get("volume_model", vm)
             if "model_choice" in cmat:     # made on the coarse images: say so at full size too
                 mat["model_choice"] = dict(cmat["model_choice"], made_on="the coarse pass")
             if not cmat.get("brdf_step") or cmat.get("sigma") is None:
@@ -557,10 +642,12 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                 trust = pix[score <= np.median(score[np.isfinite(score)])] if np.isfinite(score).any() else pix
             fsel = np.sort(rng.choice(trust, min(fit_pixels, trust.size), replace=False))
             e_f = gather(fsel)
-            fit = fit_li_per_pixel_kd(e_f, lights_of(fsel), nrm[fsel], all_ok[fsel], x0=x0, volume_model=volume_model)
             warm, choice = 0, None
-            if rnd == 1 and np.isfinite(fit["sigma"]):
-                fit, warm, choice = choose_model(fsel, e_f, fit)
+            if rnd == 1:
+                fit, warm, choice = choose_model(fsel, e_f)
+                vm = fit["volume_model"]
+            else:
+                fit = fit_li_per_pixel_kd(e_f, lights_of(fsel), nrm[fsel], all_ok[fsel], x0=x0, volume_model=vm)
             if not np.isfinite(fit["sigma"]):
                 mat.update(brdf_step=False, note=f"fit failed: {fit['message']}")
                 break
@@ -604,14 +691,15 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
             info["rounds"].append(round_info)
             if med < tol_deg:
                 break
-        mat.update(sigma=x0[0] if x0 else None, n_i=x0[1] if x0 else None,
+        mat.update(sigma=x0[0] if x0 else None, n_i=x0[1] if x0 else None, volume_model=vm,
+                   diffuse={v: k for k, v in DIFFUSE.items()}.get(vm, vm),
                    pixels_refined=int(refined[pix].sum()), seconds=time.perf_counter() - t_reg)
         # K_d of the pixels that kept their Lambertian solution: ρ/π = κ × I at normal incidence
         keep = pix[~refined[pix]]
         if keep.size and x0 is not None and x0[1] >= 1.0:
             _, b0 = li_shading_terms(np.float32([[0, 0, 1]]), np.float32([[0, 0, 1]]), x0[0], x0[1],
-                                     volume_model=volume_model)
-            kd[keep] = li_kd_from_kappa(alb[keep] / np.pi / max(float(b0[0, 0]), 1e-6), x0[1])
+                                     volume_model=vm)
+            kd[keep] = kd_from_kappa(alb[keep] / np.pi / max(float(b0[0, 0]), 1e-6), x0[1], vm)
         elif keep.size:
             kd[keep] = np.clip(alb[keep], 0, 1)
         t_brdf += time.perf_counter() - t_reg
@@ -685,7 +773,7 @@ def _merge_agreeing(mats):
     for mat in mats:
         for other in out:
             if (mat.get("sigma") is not None and other.get("sigma") is not None
-                    and mat["brdf_step"] == other["brdf_step"]
+                    and mat["brdf_step"] == other["brdf_step"] and mat.get("diffuse") == other.get("diffuse")
                     and abs(mat["sigma"] - other["sigma"]) < 0.15 * max(other["sigma"], 1e-3)
                     and abs(mat["n_i"] - other["n_i"]) < 0.03):
                 n1, n2 = other["pixels"], mat["pixels"]
