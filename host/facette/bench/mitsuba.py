@@ -206,8 +206,11 @@ def main(argv=None):
                     extra = "materials: " + ", ".join(
                         f"(σ {q['sigma']:.3f}, n_i {q['n_i']:.3f}, {q['pixels']} px)" for q in r.info["materials"]) + " "
                     rounds = []
-                extra = " ".join(f"[σ {q['sigma']:.3f} n_i {q['n_i']:.3f} Δ{q['median_change_deg']:.2f}°]"
-                                 for q in rounds)
+                extra += " ".join(f"[σ {q['sigma']:.3f} n_i {q['n_i']:.3f} Δ{q['median_change_deg']:.2f}°]"
+                                  for q in rounds)
+                extra += "".join(f" {q['model_choice']['model']}, {q.get('diffuse', '?')} diffuse, lobe gain "
+                                 f"{100 * q['model_choice']['gain']:.1f} %;" for q in r.info.get("materials", [])
+                                 if "gain" in q.get("model_choice", {}))
                 kd_true = d["kd"][sel]
                 kd_est = r.albedo[sel]
                 ok = kd_true.min(1) > 0

@@ -74,7 +74,7 @@ ENGINES = ("auto", "compiled", "arrays")
 
 def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12, kappa=None,
                       extra_starts=None, extra_rows=None, engine="auto", step_tol=STEP_TOL,
-                      volume_model="approx"):
+                      volume_model="approx", table_grid=None):
     """Robust per-pixel normals and K_d against the LI model of given (σ, n_i); see
     `_refine_one_start` for the arguments. extra_starts : optional (K, N, 3) other starting
     normals (e.g. the half-vector of a pixel's brightest light: a highlight says where the normal
@@ -90,7 +90,9 @@ def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12
         channel the two agree to a small fraction of a degree, not bit for bit; on RGB the robust
         scale differs (36 residuals against 12).
     volume_model : the LI volume part, "approx" (eq 3.49–3.57) or "tables" (eq 3.15 by quadrature
-        tables; facette.brdf.li_shading_terms).
+        tables; facette.brdf.li_shading_terms), or "lambert".
+    table_grid : the compiled engine's table of the volume part, points per axis (default
+        TABLE_GRID of facette.fit._normals_li_jit, 257); a coarser one costs less to build.
     """
     if engine not in ENGINES:
         raise ValueError(f"engine = {engine!r}: choose one of {', '.join(ENGINES)}")
@@ -101,7 +103,7 @@ def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12
                          "and no starting kappa; use engine='arrays' for the others")
     if engine != "arrays" and fits_compiled:
         return _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_starts, extra_rows,
-                                step_tol, volume_model)
+                                step_tol, volume_model, table_grid)
     first = _refine_one_start(e, lights, normals, sigma, n_i, usable, iterations, kappa,
                               volume_model=volume_model)
     if extra_starts is None or len(extra_starts) == 0:
@@ -263,8 +265,8 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
 
 
 def _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_starts, extra_rows, step_tol,
-                     volume_model):
-    from ._normals_li_jit import refine_distant_compiled
+                     volume_model, table_grid=None):
+    from ._normals_li_jit import refine_distant_compiled, volume_table
     e = np.asarray(e, np.float32)
     if e.ndim == 2:
         e = e[..., None]
@@ -282,7 +284,8 @@ def _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_s
     nrm, k, used, cost, rel, its = refine_distant_compiled(
         e, lights, normals, sigma, n_i, ok, iterations, extra_start=extra, extra_rows=extra_rows,
         cast_ratio=CAST_SHADOW_RATIO, floor=SCALE_FLOOR, step_fd=STEP_FD, max_step=MAX_STEP,
-        step_tol=step_tol, volume_model=volume_model)
+        step_tol=step_tol, volume_model=volume_model,
+        table=None if table_grid is None else volume_table(lights, sigma, n_i, grid=table_grid, volume_model=volume_model))
     return RefineResult(normals=nrm, kappa=k, kd=kd_from_kappa(k, n_i, volume_model), used=used, cost=cost,
                         rel_residual=rel, iterations=int(its.max()) if its.size else 0,
                         mean_iterations=float(its.mean()) if its.size else 0.0,
