@@ -8,6 +8,7 @@ from facette.bench._mitsuba_scenes import render_scene
 from facette.fit import LI_VOLUME_MODEL, fit_li_per_pixel_kd, ps_li_alternating
 from facette.methods import photometric_stereo
 from facette.recon import ps_hierarchical_tautzia2016
+from facette.recon.synthetic import angular_error_deg, render, sphere_on_plane, thesis_light_directions
 
 
 @pytest.fixture(scope="module")
@@ -136,30 +137,57 @@ def test_stability_black_saturated_shadowed_and_single_light_pixels(cache):
     assert np.all(err < 5)
 
 
-def test_a_lobe_is_not_ruled_out_by_the_first_fit_alone(cache):
-    # on the satin sphere, with the approximate volume formula, the first fit on the hierarchy's
-    # normals finds no interface (n_i = 1); refitted with a lobe kept on the robust Lambertian
-    # normals and warmed up, the lobe is found. The default volume tables find it at once.
+def test_the_lobe_and_its_diffuse_part_are_chosen_by_the_profile_cost(cache):
+    # the satin sphere (Mitsuba's roughplastic: a layered, LI-like material), from the hierarchy's
+    # normals and with either volume evaluation: a lobe, the LI diffuse part, (σ, n_i) near the truth
     d = render_scene("sphere", "satin", size=48, spp=8, cache_dir=cache)
-    r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"], init=ps_hierarchical_tautzia2016)
-    assert r.info["materials"][0]["model_choice"]["lobe_start"] == "first fit"
-    assert r.info["materials"][0]["model_choice"]["model"] == "lobe"
-    r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"], init=ps_hierarchical_tautzia2016,
-                          volume_model="approx")
-    mat = r.info["materials"][0]
-    choice = mat["model_choice"]
-    assert choice["lobe_start"] == "refitted with a lobe kept"
-    assert choice["model"] == "lobe" and mat["brdf_step"] is True
-    assert choice["cost_lobe"] < 0.9 * choice["cost_lambertian"]
-    last = r.info["rounds"][-1]
-    assert 0.15 < last["sigma"] < 0.26 and 1.35 < last["n_i"] < 1.65, last
-    assert r.info["levels"]["brdf_aware"]["pixels"] > 0.3 * r.valid.sum()
+    for volume_model in ("tables", "approx"):
+        r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"], init=ps_hierarchical_tautzia2016,
+                              volume_model=volume_model)
+        mat = r.info["materials"][0]
+        choice = mat["model_choice"]
+        assert choice["model"] == "lobe" and mat["brdf_step"] is True, choice
+        assert choice["cost_lobe"] < 0.9 * choice["cost_lambertian"]
+        assert mat["diffuse"] == "li", choice["cost_by_diffuse"]
+        last = r.info["rounds"][-1]
+        assert 0.15 < last["sigma"] < 0.26 and 1.35 < last["n_i"] < 1.65, last
+        assert r.info["levels"]["brdf_aware"]["pixels"] > 0.3 * r.valid.sum()
+
+
+def test_a_lambertian_diffuse_part_beside_the_lobe_is_found_and_gives_better_normals():
+    # Cook–Torrance images (a Lambertian term beside the lobe, σ 0.05, n_i 1.2: the simulated rig's
+    # material): the search picks the "lambert" diffuse part and the lobe near the truth, and the
+    # normals beat the same solve forced to the LI substrate
+    sc = sphere_on_plane(96, 96)
+    lights = thesis_light_directions()
+    im = render(sc, lights, "glossy", noise=0.005, rng=np.random.default_rng(3))
+    auto = ps_li_alternating(im, lights, mask=sc.mask)
+    forced = ps_li_alternating(im, lights, mask=sc.mask, diffuse="li")
+    mat = auto.info["materials"][0]
+    assert mat["model_choice"]["model"] == "lobe" and mat["diffuse"] == "lambert", mat["model_choice"]
+    assert abs(mat["sigma"] - 0.05) < 0.01 and abs(mat["n_i"] - 1.2) < 0.05, mat
+    assert forced.info["materials"][0]["diffuse"] == "li"
+    err_auto = angular_error_deg(auto.normal, sc.normals, sc.mask)
+    err_li = angular_error_deg(forced.normal, sc.normals, sc.mask)
+    assert err_auto < err_li, (err_auto, err_li)
+    with pytest.raises(ValueError, match="diffuse"):
+        ps_li_alternating(im, lights, mask=sc.mask, diffuse="metal")
+
+
+def test_a_matte_material_gets_no_lobe(cache):
+    # Mitsuba plaster: the best lobe does not lower the trimmed profile cost by LOBE_MIN_GAIN
+    from facette.fit._ps_li import LOBE_MIN_GAIN
+    d = render_scene("sphere", "plaster", size=48, spp=8, cache_dir=cache)
+    r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"])
+    choice = r.info["materials"][0]["model_choice"]
+    assert choice["model"] == "lambertian" and choice["gain"] < LOBE_MIN_GAIN, choice
+    assert r.info["levels"]["brdf_aware"]["pixels"] == 0
 
 
 def test_fit_bounds_and_cost():
     from facette.brdf import li_shading_terms
     from facette.fit import li_fit_cost
-    from facette.fit._ps_li import LOBE_FIT_BOUNDS
+    LOBE_FIT_BOUNDS = ((0.01, 1.0), (1.05, 2.5))    # bounds that keep a lobe
     rng = np.random.default_rng(1)
     L = np.array([[np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)]
                   for t, p in [(0.5, 0), (0.5, 2), (0.5, 4), (0.3, 1), (0.3, 3), (0.3, 5), (0.2, 0.5), (0.4, 2.5)]])
