@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import binary_erosion
 
-from facette.bench._mitsuba_scenes import MATERIALS, TABLE_MATERIAL, render_scene
+from facette.bench._mitsuba_scenes import MATERIALS, NON_LI_SCENES, TABLE_MATERIAL, render_scene
 from facette.bench.e2e import height_errors
 from facette.methods import PS_DEFAULT, options_for, photometric_stereo
 from facette.pipeline import ProcessOptions, auto_masks, margin_of
@@ -43,7 +43,7 @@ SCENES = [  # (shape, material, textured, near_distance)
     ("relief", "satin", True, None), ("vase", "paint_0.08", True, None), ("vase", "plaster", False, None),
     ("sphere", "paint_0.10", False, 12.0),
     ("shell", "lacquer", True, None), ("shell", "plaster", False, None),   # the check scenes
-]
+] + [(shape, mat, tex, None) for shape, mat, tex in NON_LI_SCENES]      # metals, metallic paint, broad lobes
 THESIS_SHAPE = "relief"
 IR_METHODS = ("woodham1980", "rank_trimmed", "li_alternating")   # also run with inter-reflections removed
 IR_SUFFIX = " +ir"
@@ -239,16 +239,21 @@ def main(argv=None):
     print(f"{'scene':22s} {'method':30s} {'σ':>7s} {'(true)':>6s} {'n_i':>6s} {'(true)':>6s} {'K_d/true':>18s} {'s':>6s}")
     with tempfile.TemporaryDirectory() as tmp:
         for shape, mat in (("sphere", "paint_0.10"), ("sphere", "paint_0.05"), ("sphere", "satin"),
-                           ("relief", "paint_0.08")):
+                           ("relief", "paint_0.08"), ("sphere", "rough_plastic"), ("sphere", "metallic_paint"),
+                           ("relief", "gold")):
             d = render_scene(shape, mat, size=args.size, spp=args.spp, cache_dir=args.cache)
-            truth = MATERIALS[mat]
+            truth = {"sigma": np.nan, "n_i": np.nan, **MATERIALS[mat]}
             for method, ir, name in [v for v in variants if v[0] in PIPELINE_METHODS]:
                 res, dt = whole_pipeline(d, method, tmp, args.init, ir)
                 p = res.brdf.params if res.brdf is not None and res.brdf.success else {}
-                kd = np.array(p.get("kd", [np.nan] * 3)) / np.array(d["params"]["kd"])
+                kd = np.array(p.get("kd", [np.nan] * 3)) / np.array(d["params"].get("kd", [np.nan] * 3))
+                b = res.brdf
+                verdict = "no fit" if b is None else (f"{b.model}, relative RMS {b.error.get('relative_rms', np.nan):.3f}, "
+                                                      f"{b.verdict or 'no verdict'}: " + ", ".join(
+                                                          f"{t['model']} {t['relative_rms'] or np.nan:.3f}" for t in b.models_tried))
                 print(f"{shape + '/' + mat:22s} {name:30s} {p.get('sigma', np.nan):7.4f} {truth['sigma']:6.3f} "
                       f"{p.get('n_i', np.nan):6.3f} {truth['n_i']:6.2f} {' '.join(f'{x:5.3f}' for x in kd):>18s} "
-                      f"{dt:6.1f}  ({res.brdf.model if res.brdf is not None else 'no fit'})", flush=True)
+                      f"{dt:6.1f}  ({verdict})", flush=True)
     rows, found = table_heights(args)
     print(f"\nHeights: two domes in paint_0.10 on a dark table (K_d 0.04, {TABLE_MATERIAL}), rank_trimmed "
           f"normals; RMS against Mitsuba's positions in pixels, one constant over both domes / one per dome; "

@@ -37,6 +37,8 @@ class FitResult:
     error : {"rms": 1/sr, "relative_rms": rms / rms(data), "n_samples", "n_channels"}.
     method : "least_squares" | "genetic"; time_s : wall time; n_evaluations : model evaluations.
     selection : notes of the model selection (which simpler models were tried, and why chosen).
+    verdict : "" (not judged), "fits" or "no model fits well" (`facette.fit.fit_cells_verdict`);
+    models_tried : one dict per model fitted for the verdict (model, relative_rms, parameters).
     """
     success: bool
     message: str
@@ -52,6 +54,8 @@ class FitResult:
     time_s: float = 0.0
     n_evaluations: int = 0
     selection: list = field(default_factory=list)
+    verdict: str = ""
+    models_tried: list = field(default_factory=list)
 
     def brdf_params(self):
         """Keyword arguments for ``facette.brdf.get(self.model)``."""
@@ -77,6 +81,8 @@ class FitResult:
              "parameters": self.params, "uncertainties": self.uncertainties, "fit_error": self.error,
              "success": self.success, "message": self.message, "method": self.method,
              "time_s": self.time_s, "n_evaluations": self.n_evaluations, "selection": self.selection}
+        if self.verdict:
+            d.update(verdict=self.verdict, models_tried=self.models_tried)
         return _clean(d)
 
     def to_json(self, indent=2):
@@ -85,5 +91,6 @@ class FitResult:
 
     def __str__(self):
         p = ", ".join(f"{k}={np.round(v, 4).tolist()}" for k, v in self.params.items())
-        state = "ok" if self.success else "FAILED"
+        state = ("FAILED" if not self.success else "NO MODEL FITS WELL" if self.verdict == "no model fits well"
+                 else "ok")
         return f"{self.model}({p}) [{state}: {self.message}]"

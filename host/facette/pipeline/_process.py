@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from facette.fit import fit_hemisphere_cells, ps_li_without_interreflections
+from facette.fit import fit_cells_verdict, ps_li_without_interreflections
 from facette.errors import BadInputError
 from facette.io.atomic import atomic_path, write_text_atomic
 from facette.io.exr import write_exr
@@ -174,7 +174,7 @@ def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=
     return total_sensor.result(), raw
 
 
-def _fit_stage(filtered, fit_options, brdf_aware=False):
+def _fit_stage(filtered, fit_options, brdf_aware=False, prefer="li"):
     """BRDF identification on the hemisphere sensor's cells (facette.fit.fit_hemisphere_cells:
     the model averaged over each cell, which removes the lobe-widening bias of fitting cell
     centres). The LI volume part: after BRDF-aware normals (`brdf_aware`, li_alternating, which
@@ -185,13 +185,22 @@ def _fit_stage(filtered, fit_options, brdf_aware=False):
     with rank_trimmed's, whose normal error dominates, tables are better on two scenes and worse
     on two (satin 1.157 / 1.443 → 0.824 / 1.277) for 0.4-1.4 s more, so approx stays there.
     fit_options={"volume": ...} chooses ("quadrature": the reference, ~15× slower).
+    The model: `prefer` first (Cook–Torrance where li_alternating chose a Lambertian diffuse part),
+    the other dielectric model too when it is off by more than facette.fit.FITS_RELATIVE_RMS, and a
+    verdict either way (facette.fit.fit_cells_verdict); fit_options={"model": ...} fits that one.
     Returns (FitResult or None, note)."""
     check_fit_cells(filtered)         # too few filled cells: InsufficientData (exit 3)
     options = dict(fit_options)
-    if options.get("model", "li") == "li":
+    model = options.pop("model", None)
+    if model in (None, "li"):
         options.setdefault("volume", "tables" if brdf_aware else "approx")
-    res = fit_hemisphere_cells(filtered, **options)
+    res = fit_cells_verdict(filtered, prefer=model or prefer, **({} if model is None else {"models": (model,)}),
+                            **options)
     note = "" if getattr(res, "success", True) else f"brdf: the fit failed ({res.message})"
+    if getattr(res, "verdict", "") == "no model fits well":
+        note = "brdf: no model fits well (" + ", ".join(
+            f"{t['model']} off by {100 * t['relative_rms']:.0f} % RMS" for t in res.models_tried
+            if t["relative_rms"] is not None) + "): the parameters are the closest, not the material's"
     return res, note
 
 
@@ -435,8 +444,11 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
         write("samples")
         if "fit" not in stages:
             return []
+        mats = res.ps.info.get("materials") or [{}]
+        main = max(mats, key=lambda q: q.get("pixels", 0))
         res.brdf, note = _timed(res, "fit", _fit_stage, res.filtered, dict(o.fit_options),
-                                res.ps.method == "li_alternating")
+                                res.ps.method == "li_alternating",
+                                "cook_torrance" if main.get("diffuse") == "lambert" else "li")
         write("brdf")
         if out is not None and "report" in outputs:
             # matplotlib holds the GIL: drawn here, it runs beside numpy stages that let it go
