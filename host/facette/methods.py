@@ -58,16 +58,15 @@ PS_METHODS = Registry.fixed("photometric-stereo method", {
 # the fast choice of `facette process --method`: on real photographs (DiLiGenT, 96 lights)
 # rank_trimmed gives 8.6 deg mean against 12.1 for the hierarchy and 12.6 for least squares.
 PS_DEFAULT = "rank_trimmed"
-# What `facette process` and the one-button scan use unless told otherwise. The BRDF-aware
-# li_alternating wins on real photographs (DiLiGenT crops through `process`, 96 lights: 8.1 deg
-# against 9.9; unseen objects of issue 24: 12.4 against 15.0) but not yet on the data we make:
-# on the simulated rig's scan (rendered with the LI model itself) its normals are 0.95 deg off
-# against 0.70 and its heights 0.36 pixel pitch against 0.06 (hil_tests/test_scan_heights.py),
-# with the 12 lights nearest the rig's it is worse than least squares on pot2 (19.3 against
-# 17.7 deg), and at 2144x1424 x 12 it takes 21.6 s against 2.5 (idle machine, both cores). Until
-# those hold, the default stays the robust Lambertian solve; `--method li_alternating` is one
-# flag away.
-PROCESS_DEFAULT = PS_DEFAULT
+# What `facette process` and the one-button scan use unless told otherwise: the BRDF-aware solve,
+# which itself decides per material whether the data show a lobe (and which diffuse part) and keeps
+# the robust Lambertian normals where they do not (facette.fit._ps_li, round 1). Measured before the
+# switch, against rank_trimmed: the simulated rig's scan (Cook-Torrance, 12 lights) normals 0.38 deg
+# against 0.70 and heights 0.046 mm against 0.059 (hil_tests/test_scan_heights.py); Mitsuba paints
+# 0.08-0.11x least squares against 0.1-0.5x, plaster equal; DiLiGenT crops through `process`,
+# 96 lights, 7.98 deg against 9.90, 12 lights 9.77 against 11.54, no object worse than least squares.
+# It costs more time (see the issue 24 note); `--method rank_trimmed` is the fast choice.
+PROCESS_DEFAULT = "li_alternating"
 
 _INPUTS = ("images", "light_dirs")      # every method's two positional arguments
 

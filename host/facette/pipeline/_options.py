@@ -38,7 +38,7 @@ class ProcessOptions:
     `dataclasses.replace(options, method="woodham1980")` gives a variant (checked again).
     """
     method: str = _option(PROCESS_DEFAULT, "photometric stereo: a name of facette.methods.PS_METHODS; default "
-                          "PROCESS_DEFAULT (rank_trimmed, robust Lambertian), or e.g. li_alternating (BRDF-aware: "
+                          "PROCESS_DEFAULT (li_alternating, BRDF-aware where the data show a lobe), or e.g. rank_trimmed (robust Lambertian, fast); li_alternating: "
                           "facette.fit.ps_li_alternating, from rank_trimmed's robust normals; albedo.exr is then "
                           "the LI K_d, and brdf.json gains materials and levels; 10-50x slower), "
                           "hierarchical_tautzia2016 (the thesis), woodham1980", report=True)
