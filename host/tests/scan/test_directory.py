@@ -6,7 +6,9 @@ import pytest
 
 from facette.scan import Manifest, ScanDirectory, ScanDirectoryError, default_plan, frame_name, sha256_file
 from facette.scan.directory import SCHEMA
-from facette.scan.acquire import THESIS_BRACKET_US, _groups, _recover
+from facette.scan._plan import device_run_groups
+from facette.scan._resume import recover
+from facette.scan.acquire import THESIS_BRACKET_US
 
 
 def _new(tmp_path):
@@ -51,7 +53,7 @@ def test_an_interrupted_move_is_completed_from_the_journal(tmp_path):
     src.write_bytes(b"frame data")
     record = {"file": frame_name(0, 0), "light": 0, "exposure": 0, "time_us": 1000}
     sd.journal("capture", src=str(src), record=record)       # the host died here
-    _recover(ScanDirectory(sd.path), None)
+    recover(ScanDirectory(sd.path))
     sd2 = ScanDirectory(sd.path)
     assert not src.exists() and (sd.path / frame_name(0, 0)).read_bytes() == b"frame data"
     assert sd2.manifest.frames[0]["sha256"] == sha256_file(sd.path / frame_name(0, 0))
@@ -60,8 +62,8 @@ def test_an_interrupted_move_is_completed_from_the_journal(tmp_path):
 
 def test_missing_frames_are_grouped_into_lights_by_exposures_runs():
     pending = {(3, 1), (3, 2)} | {(l, e) for l in range(4, 12) for e in range(3)}
-    assert _groups(pending, 12) == [([3], [1, 2]), (list(range(4, 12)), [0, 1, 2])]
-    assert _groups({(0, 0), (2, 0)}, 3) == [([0, 2], [0])]
+    assert device_run_groups(pending) == [([3], [1, 2]), (list(range(4, 12)), [0, 1, 2])]
+    assert device_run_groups({(0, 0), (2, 0)}) == [([0, 2], [0])]
 
 
 def test_default_plan_is_the_thesis_bracket_and_checks_currents():
