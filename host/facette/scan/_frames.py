@@ -12,6 +12,7 @@ from facette.errors import EXIT_STOPPED
 from facette.io.atomic import move_file
 from facette.scan._errors import ScanError
 from facette.scan.directory import frame_name, sha256_file
+from facette.scan.manifest import Frame
 
 __all__ = ["FrameFiler", "NO_EXPOSURE_NOTE"]
 
@@ -82,24 +83,25 @@ class FrameFiler:
                 "or scan with --mode bulb or led; then run the same scan again to resume")
 
     def file(self, rec, light, exposure, run):
-        """Move the camera's next file to raw/L<l>_E<e> and record it in scan.json; returns the
-        frame record (docs/scan-format.md, "A frame record")."""
+        """Move the camera's next file to raw/L<l>_E<e> and record it in scan.json; returns its
+        `Frame` (docs/scan-format.md, "A frame record"). `rec`: the device's frame record."""
         t_us, _ = self.plan.exposures[exposure]
         src = self.camera.wait_for_file(self.frame_timeout_s)
         if self.plan.mode in ("camera", "bulb"):
             self.check_exposure(src, light, exposure, t_us)
         dst_rel = frame_name(light, exposure, src.suffix.lower())
         dst = self.sd.path / dst_rel
-        record = {"file": dst_rel, "light": light, "exposure": exposure, "time_us": t_us,
-                  "current_set_mA": rec["current_set_mA"], "current_meas_mA": rec["current_meas_mA"],
-                  "start_us": rec["start_us"], "sync": rec["sync"], "retry": rec["retry"], "run": run,
-                  "ring": rec["n"]}
+        frame = Frame(file=dst_rel, light=light, exposure=exposure, time_us=t_us,
+                      current_set_mA=rec["current_set_mA"], current_meas_mA=rec["current_meas_mA"],
+                      start_us=rec["start_us"], sync=rec["sync"], retry=rec["retry"], run=run, ring=rec["n"])
+        # the journal's record is the frame's without its sha256 (not known before the move)
+        record = {k: v for k, v in frame.to_json().items() if k != "sha256"}
         self.sd.journal("capture", src=str(src), record=record)
         if dst.exists():   # a frame taken again (after a reset): keep the earlier one too
             self.keep_superseded(dst)
         move_file(src, dst, exit_code=EXIT_STOPPED)
         self.camera.claimed(src)
-        record["sha256"] = sha256_file(dst)
-        self.sd.add_frame(record)
-        self.sd.journal("captured", file=dst_rel, sha256=record["sha256"])
-        return record
+        frame = frame.replace(sha256=sha256_file(dst))
+        self.sd.add_frame(frame)
+        self.sd.journal("captured", file=dst_rel, sha256=frame.sha256)
+        return frame

@@ -43,7 +43,7 @@ class MergeDuringScan:
                 self.sd.journal("hdr_error", light=light, error=f"{type(rec).__name__}: {rec}"[:300])
             else:
                 records.append(rec)
-                self.sd.journal("hdr_light", light=light, time_s=rec["time_s"])
+                self.sd.journal("hdr_light", light=light, time_s=rec.time_s)
                 if held is not None:
                     self.sd.hold_light(light, held)
         if records:

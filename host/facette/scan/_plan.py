@@ -10,6 +10,7 @@ from facette.calib import load as load_profile
 from facette.calib import nominal_light_directions
 from facette.errors import BadInputError
 from facette.hdr import THESIS_BRACKET_US
+from facette.scan.manifest import Exposure, Light
 
 __all__ = ["ScanPlan", "default_plan", "load_scan_profile", "profile_section", "lights_section",
            "exposures_section", "device_run_groups"]
@@ -92,7 +93,7 @@ def profile_section(profile):
 
 
 def lights_section(plan, profile):
-    """scan.json's lights: one record per light in scan order, from the profile (a channel it
+    """scan.json's lights: one `Light` per light in scan order, from the profile (a channel it
     did not calibrate is refused) or the nominal directions."""
     nominal = nominal_light_directions()
     out = []
@@ -107,14 +108,19 @@ def lights_section(plan, profile):
             pos = None if lt.positions_mm is None else lt.positions_mm[ch].tolist()
         else:
             d, inten, pos = (nominal[ch].tolist() if ch < len(nominal) else None), [1.0, 1.0, 1.0], None
-        out.append({"index": i, "channel": ch, "direction": d, "position_mm": pos, "intensity": inten})
+        out.append(Light(index=i, channel=ch, direction=_tuple(d), position_mm=_tuple(pos),
+                         intensity=_tuple(inten)))
     return out
 
 
 def exposures_section(plan):
-    """scan.json's exposures: one record per exposure (its current, else the first light's)."""
-    return [{"index": e, "time_us": t, "current_mA": c if c else plan.light_current_mA[0],
-             "mode": plan.mode} for e, (t, c) in enumerate(plan.exposures)]
+    """scan.json's exposures: one `Exposure` each (its current, else the first light's)."""
+    return [Exposure(index=e, time_us=t, current_mA=c if c else plan.light_current_mA[0], mode=plan.mode)
+            for e, (t, c) in enumerate(plan.exposures)]
+
+
+def _tuple(values):
+    return None if values is None else tuple(values)
 
 
 def device_run_groups(pending):

@@ -9,6 +9,7 @@ from facette.errors import EXIT_STOPPED
 from facette.io.atomic import move_file
 from facette.scan.adaptive import METER_DIR
 from facette.scan.directory import LOCK_NAME, ScanDirectoryError, sha256_file
+from facette.scan.manifest import Frame
 
 __all__ = ["check_resumable", "recover", "resume"]
 
@@ -42,17 +43,17 @@ def recover(sd):
     for e in entries:
         if e.get("step") != "capture":
             continue
-        rec = dict(e["record"])
-        if rec["file"] in done:
+        frame = Frame.from_json(e["record"], where=sd.path / "journal.jsonl")
+        if frame.file in done:
             continue
-        dst, src = sd.path / rec["file"], Path(e["src"])
+        dst, src = sd.path / frame.file, Path(e["src"])
         if not dst.exists() and src.exists():
             move_file(src, dst, exit_code=EXIT_STOPPED)
         if dst.exists():
-            rec["sha256"] = sha256_file(dst)
-            sd.add_frame(rec)
-            sd.journal("recovered", file=rec["file"], sha256=rec["sha256"])
-            done.add(rec["file"])
+            frame = frame.replace(sha256=sha256_file(dst))
+            sd.add_frame(frame)
+            sd.journal("recovered", file=frame.file, sha256=frame.sha256)
+            done.add(frame.file)
 
 
 def resume(rig, sd):

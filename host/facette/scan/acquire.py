@@ -53,7 +53,7 @@ class ScanOptions:
     button : None (start now), "wait" (the rig's button starts it) or "press" (a rig that
         presses its own button, the simulated one: `Rig.can_press_button`)
     progress : show a tqdm progress bar
-    on_frame : callable(record) after each frame is stored (tests use it to abort/pause)
+    on_frame : callable(`Frame`) after each frame is stored (tests use it to abort/pause)
     frame_timeout_s : how long to wait for the camera's file after its record
     poll_s : how often the device is polled while it scans
     max_runs : device runs allowed (resets re-run the missing frames)

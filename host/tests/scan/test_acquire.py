@@ -39,7 +39,7 @@ class _RigWithoutSimulator(Rig):
 
 def intact(d):
     m = ScanDirectory(d).manifest
-    assert all(sha256_file(d / f["file"]) == f["sha256"] for f in m.frames)
+    assert all(sha256_file(d / f.file) == f.sha256 for f in m.frames)
     return len(m.frames)
 
 
