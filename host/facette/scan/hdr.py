@@ -23,7 +23,7 @@ from facette.hdr import as_sensor, merge, n_workers
 from facette.io.checksum import sha256_file
 from facette.io.exr import read_exr, write_exr
 from facette.scan.directory import ScanDirectory, read_scan_manifest
-from facette.scan.manifest import Frame, Hdr, HdrLight, Manifest
+from facette.scan.manifest import Hdr, HdrLight, Manifest
 
 __all__ = ["merge_scan", "merge_light", "LightMerger", "HeldLight", "store_light_records", "hdr_up_to_date", "stale_lights", "hdr_record", "scan_sensor", "light_frames",
            "load_hdr", "read_scan_manifest", "frame_exposure", "MissingFrameWarning",
@@ -68,19 +68,19 @@ def frame_exposure(frame, current="measured"):
     `current`: "measured" uses current_meas_mA when it is a positive number (falls
     back to current_set_mA), "set" always uses current_set_mA.
     """
-    frame = Frame.from_json(frame)
-    t_us = float(frame.time_us)
-    meas, setc = frame.current_meas_mA, frame.current_set_mA
+    get = frame.get if isinstance(frame, dict) else lambda key: getattr(frame, key)
+    t_us = float(get("time_us"))
+    meas, setc = get("current_meas_mA"), get("current_set_mA")
     if current == "measured" and meas is not None and float(meas) > 0:
         i_ma = float(meas)
     elif setc is not None and float(setc) > 0:
         i_ma = float(setc)
     else:
-        raise ValueError(f"frame {frame.file} records no positive LED current "
+        raise ValueError(f"frame {get('file')} records no positive LED current "
                          f"(current_set_mA={setc}, current_meas_mA={meas}); cannot express its "
                          "exposure per µs·mA")
     if not t_us > 0:
-        raise ValueError(f"frame {frame.file} has exposure time {t_us} µs; must be > 0")
+        raise ValueError(f"frame {get('file')} has exposure time {t_us} µs; must be > 0")
     return t_us * i_ma, i_ma
 
 
