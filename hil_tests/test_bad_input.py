@@ -35,9 +35,9 @@ def frames_intact(scan_dir):
     the number of frames (a scan directory where this fails has lost something)."""
     m = ScanDirectory(scan_dir).manifest
     for f in m.frames:
-        p = Path(scan_dir) / f["file"]
+        p = Path(scan_dir) / f.file
         assert p.is_file(), f"{f['file']} listed in scan.json is missing"
-        assert sha256_file(p) == f["sha256"], f"{f['file']} differs from its sha256 in scan.json"
+        assert sha256_file(p) == f.sha256, f"{f.file} differs from its sha256 in scan.json"
     return len(m.frames)
 
 
@@ -165,13 +165,13 @@ def test_a_lock_left_by_a_killed_scan_does_not_block_the_next(tmp_path):
 def test_a_corrupt_frame_is_reshot_on_resume_and_the_damaged_file_kept(capsys, scan_copy):
     """Finding 5: a frame whose sha256 fails is taken again (only a missing one was)."""
     m = ScanDirectory(scan_copy).manifest
-    bad = scan_copy / m.frames[2]["file"]
+    bad = scan_copy / m.frames[2].file
     data = bytearray(bad.read_bytes())
     data[len(data) // 2] ^= 0xFF
     bad.write_bytes(bytes(data))
     code, out, err = run_cli(capsys, "scan", "--sim", "--press-button", "--no-process", *SMALL, scan_copy)
     assert code == 0, err
-    assert "sha256" in out and m.frames[2]["file"] in out
+    assert "sha256" in out and m.frames[2].file in out
     assert frames_intact(scan_copy) == 8
     kept = list((scan_copy / "raw" / "damaged").iterdir())
     assert len(kept) == 1 and kept[0].read_bytes() == bytes(data)
@@ -314,8 +314,8 @@ def test_hdr_made_before_a_frame_was_reshot_is_merged_again(capsys, scan_copy, t
     assert "light_00" not in out and "light_03" not in out          # the others are still good
     m = ScanDirectory(scan_copy).manifest
     hdr, frames = m.hdr, m.frames
-    assert sorted((i["file"], i["sha256"]) for i in hdr["lights"][2]["inputs"]) == \
-        sorted((f["file"], f["sha256"]) for f in frames if f["light"] == 2)
+    assert sorted((i["file"], i["sha256"]) for i in hdr.lights[2].inputs) == \
+        sorted((f.file, f.sha256) for f in frames if f.light == 2)
     fresh = tmp_path / "fresh"
     shutil.copytree(scan_copy, fresh, ignore=shutil.ignore_patterns("hdr"))
     assert run_cli(capsys, "process", fresh, "-o", tmp_path / "r3", "--outputs", "normals")[0] == 0

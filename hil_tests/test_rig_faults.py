@@ -43,12 +43,12 @@ def test_device_reset_mid_scan_reconnects_and_completes(sim_rig_factory, tmp_pat
     assert len(resets) == 1 and resets[0]["new_boot"] == resets[0]["old_boot"] + 1
     # frames of the first run are kept; later runs take only what is missing (the
     # light that was interrupted, with its missing exposures, then the rest)
-    runs = {f["run"] for f in scan.manifest.frames}
+    runs = {f.run for f in scan.manifest.frames}
     assert 0 in runs and len(runs) >= 2
     # the simulated camera waits for the host to take each file before the next shot
     # (facette.sim back-pressure), so all 10 shots before the reset are matched
-    first = [f for f in scan.manifest.frames if f["run"] == 0]
-    assert len(first) == 10 and all(f["light"] <= 3 for f in first)
+    first = [f for f in scan.manifest.frames if f.run == 0]
+    assert len(first) == 10 and all(f.light <= 3 for f in first)
     _nothing_lost(rig, tmp_path / "s")
 
 
@@ -59,8 +59,8 @@ def test_missed_flash_sync_is_retried_by_the_device(sim_rig_factory, tmp_path):
     assert rig.device.read("retries_used") == 1
     no_sync = [e for e in _journal(tmp_path / "s") if e["step"] == "no_sync"]
     assert len(no_sync) == 1
-    retried = [f for f in scan.manifest.frames if f["retry"]]
-    assert [(f["light"], f["exposure"]) for f in retried] == [(no_sync[0]["light"], no_sync[0]["exposure"])]
+    retried = [f for f in scan.manifest.frames if f.retry]
+    assert [(f.light, f.exposure) for f in retried] == [(no_sync[0]["light"], no_sync[0]["exposure"])]
     _nothing_lost(rig, tmp_path / "s")
 
 

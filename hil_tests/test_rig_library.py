@@ -88,14 +88,14 @@ def test_frame_records_match_what_the_camera_took(sim_rig_factory, tmp_path):
     rig = sim_rig_factory()
     scan = rig.scan(tmp_path / "s", lights=[0, 5], exposures=[20000, 5000], mode="bulb", progress=False)
     frames = scan.manifest.frames
-    assert [(f["light"], f["exposure"]) for f in frames] == [(0, 0), (0, 1), (1, 0), (1, 1)]
-    assert all(f["sync"] and f["current_meas_mA"] == f["current_set_mA"] == 500 for f in frames)
-    starts = [f["start_us"] for f in frames]
+    assert [(f.light, f.exposure) for f in frames] == [(0, 0), (0, 1), (1, 0), (1, 1)]
+    assert all(f.sync and f.current_meas_mA == f.current_set_mA == 500 for f in frames)
+    starts = [f.start_us for f in frames]
     assert starts == sorted(starts)
     sim_frames = rig.sim.simulator.frames
     # the camera integrated 500 mA over exactly the bulb time, on the right LED channel
     for rec, sf in zip(frames, sim_frames):
-        ch = [0, 5][rec["light"]]
+        ch = [0, 5][rec.light]
         q = np.asarray(sf["charge_mA_us"])
-        assert q[ch] == pytest.approx(500 * rec["time_us"], rel=1e-6)
+        assert q[ch] == pytest.approx(500 * rec.time_us, rel=1e-6)
         assert np.count_nonzero(q) == 1

@@ -54,7 +54,7 @@ def test_full_default_scan_writes_the_contract_directory(sim_rig_factory, tmp_pa
 def test_pixels_follow_the_sensor_model_of_the_rendered_scene(sim_rig_factory, tmp_path):
     rig = sim_rig_factory()
     scan = rig.scan(tmp_path / "s", lights=[2], exposures=[(1_000_000, 0)], progress=False)
-    frame = read_raw(tmp_path / "s" / scan.manifest.frames[0]["file"])
+    frame = read_raw(tmp_path / "s" / scan.manifest.frames[0].file)
     sensor = rig.sim.sensor
     expect_e = rig.sim.radiance[2] * 500 * 1_000_000                 # e- = e-/(mA·µs) × mA × µs
     expect_dn = (expect_e + sensor.dark_current_e_per_s * 1.0) / sensor.gain_e_per_dn
@@ -79,10 +79,10 @@ def test_abort_then_resume_keeps_every_frame(sim_rig_factory, tmp_path):
         rig.scan(tmp_path / "s", exposures=SHORT, progress=False, on_frame=abort_after_five)
     sd = ScanDirectory(tmp_path / "s")
     assert 5 <= len(sd.manifest.frames) < 36 and sd.verify() == []
-    before = {f["file"]: f["sha256"] for f in sd.manifest.frames}
+    before = {f.file: f.sha256 for f in sd.manifest.frames}
     scan = rig.scan(tmp_path / "s", exposures=SHORT, progress=False)
     assert len(scan.manifest.frames) == 36 and scan.verify() == []
-    after = {f["file"]: f["sha256"] for f in scan.manifest.frames}
+    after = {f.file: f.sha256 for f in scan.manifest.frames}
     assert all(after[k] == v for k, v in before.items())              # earlier frames untouched
     _nothing_lost(rig, tmp_path / "s")
 
@@ -91,7 +91,7 @@ def test_resume_in_a_new_session_after_the_host_died(sim_rig_factory, tmp_path):
     rig = sim_rig_factory()
 
     def die(record):
-        if record["light"] == 4:
+        if record.light == 4:
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
@@ -110,7 +110,7 @@ def test_pause_and_resume_mid_scan(sim_rig_factory, tmp_path):
     states = []
 
     def pause_once(record):
-        if record["light"] == 1 and record["exposure"] == 0:
+        if record.light == 1 and record.exposure == 0:
             rig.pause()
             states.append(rig.wait_state({"PAUSED"}, timeout_s=10))
             done = rig.progress()[0]
@@ -147,12 +147,12 @@ def test_led_defined_exposures_bracket_by_duration_and_current(sim_rig_factory, 
     exposures = [(5000, 1000), (5000, 200), (500, 200)]          # (pulse µs, mA)
     scan = rig.scan(tmp_path / "s", lights=[0, 7], exposures=exposures, mode="led", progress=False)
     frames = scan.manifest.frames
-    assert [e["current_mA"] for e in scan.manifest.exposures] == [1000, 200, 200]
+    assert [e.current_mA for e in scan.manifest.exposures] == [1000, 200, 200]
     for rec, sim_frame in zip(frames, rig.sim.simulator.frames):
-        t_us, ma = exposures[rec["exposure"]]
-        assert rec["current_set_mA"] == ma and rec["current_meas_mA"] == ma
+        t_us, ma = exposures[rec.exposure]
+        assert rec.current_set_mA == ma and rec.current_meas_mA == ma
         charge = np.asarray(sim_frame["charge_mA_us"])
-        assert charge[[0, 7][rec["light"]]] == pytest.approx(t_us * ma)    # the pulse, nothing else
+        assert charge[[0, 7][rec.light]] == pytest.approx(t_us * ma)    # the pulse, nothing else
         assert charge.sum() == pytest.approx(t_us * ma)
         assert sim_frame["window_us"] > t_us                                # the shutter window is longer
 
@@ -212,7 +212,7 @@ def test_a_stray_camera_image_is_never_filed_under_a_frame_name(sim_rig_factory,
     rig = sim_rig_factory()
 
     def stray(record):
-        if (record["light"], record["exposure"]) == (1, 0):
+        if (record.light, record.exposure) == (1, 0):
             mosaic = np.full((96, 128), 600, np.uint16)
             write_dng(rig.camera.folder / "DSC_9999.dng", mosaic, 512, 16383, 1 / 250, 400)
 

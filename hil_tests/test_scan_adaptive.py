@@ -56,23 +56,23 @@ def test_lights_are_merged_during_acquisition_and_a_resume_merges_only_the_rest(
 
     def abort_in_light_5(record):
         taken.append(record)
-        if record["light"] == 5 and record["exposure"] == 0:
+        if record.light == 5 and record.exposure == 0:
             rig.abort()
 
     with pytest.raises(ScanAborted):
         rig.scan(tmp_path / "s", exposures=SHORT, progress=False, merge_hdr=True,
                  on_frame=abort_in_light_5)
     sd = ScanDirectory(tmp_path / "s")
-    merged = sorted(r["index"] for r in sd.manifest.hdr["lights"])
+    merged = sorted(r.index for r in sd.manifest.hdr.lights)
     assert merged == [0, 1, 2, 3, 4]                  # every complete light, nothing else
-    rec3 = next(r for r in sd.manifest.hdr["lights"] if r["index"] == 3)
-    sha = {f["file"]: f["sha256"] for f in sd.manifest.frames}
-    assert [(i["file"], i["sha256"]) for i in rec3["inputs"]] == \
+    rec3 = next(r for r in sd.manifest.hdr.lights if r.index == 3)
+    sha = {f.file: f.sha256 for f in sd.manifest.frames}
+    assert [(i["file"], i["sha256"]) for i in rec3.inputs] == \
         [(f, sha[f]) for f in (f"raw/L03_E{e:02d}.dng" for e in range(3))]
     first = (tmp_path / "s" / "hdr" / "light_00.exr").stat().st_mtime_ns
     scan = rig.scan(tmp_path / "s", exposures=SHORT, progress=False, merge_hdr=True, hold_hdr=True)
     sd = ScanDirectory(tmp_path / "s")
-    assert sorted(r["index"] for r in sd.manifest.hdr["lights"]) == list(range(12))
+    assert sorted(r.index for r in sd.manifest.hdr.lights) == list(range(12))
     assert sorted(e["light"] for e in _steps(tmp_path / "s", "hdr_light")) == list(range(12))
     assert (tmp_path / "s" / "hdr" / "light_00.exr").stat().st_mtime_ns == first
     # process finds the HDR up to date: no merge of its own; the lights this run merged come

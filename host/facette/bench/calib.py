@@ -23,6 +23,12 @@ from facette.pipeline import process
 from facette.wizard import RigStation, Wizard, WizardError, angle_deg
 
 
+def _true_lights(truth):
+    """The rig's LEDs as they really are (`Lights`), from its truth (positions: None for far LEDs)."""
+    pos = truth["light_positions_mm"]
+    return Lights(truth["light_dirs"], truth["light_intensity"], None if np.isnan(pos).all() else pos)
+
+
 def _pipeline_errors(scan_dir, methods=("hierarchical_tautzia2016", "woodham1980")):
     out = {}
     for meth in methods:
@@ -70,10 +76,11 @@ def main(argv=None):
                           seed=args.seed, near=args.near, speed=2000.0)
     status = 0
     try:
-        leds = rig.sim.leds
+        truth = rig.truth()                 # the simulated rig's own LEDs and scene (`Rig.truth`)
+        leds = _true_lights(truth)
         m = len(leds)
         nominal = Profile(rig="sim-nominal", lights=Lights(nominal_light_directions()[:m], np.ones((m, 3))),
-                          pixel_pitch_mm=rig.sim.scene.pixel_pitch_mm)
+                          pixel_pitch_mm=rig.pixel_pitch_mm)
         save(nominal, work / "nominal")
         lines = []
         station = RigStation(rig, work / "captures", attended=False, out=lines.append)
@@ -97,7 +104,7 @@ def main(argv=None):
         i_err = 100 * (prof.lights.intensities / truth_int - 1)
         print(f"simulated rig: LED errors {args.direction_error}° RMS direction, ±{100 * args.intensity_error:.0f} % "
               f"RMS intensity, seed {args.seed}, {'near (1.5 m)' if args.near else 'distant'} LEDs; "
-              f"HDR {rig.sim.scene.shape[1]}×{rig.sim.scene.shape[0]} px")
+              f"HDR {truth['height_mm'].shape[1]}×{truth['height_mm'].shape[0]} px")
         print(" LED  true I (G)  I error % (R, G, B)        nominal dir err  mirror dir err  matte dir err")
         for i in range(m):
             print(f" {i:3d}  {truth_int[i, 1]:9.3f}  " + " ".join(f"{v:+6.2f}" for v in i_err[i])
@@ -114,11 +121,11 @@ def main(argv=None):
             else:
                 print(f" LED positions: distant LEDs, rays meet at {np.median(np.linalg.norm(est, axis=1)):.0f} mm "
                       f"(median); {'stored' if prof.lights.positions_mm is not None else 'not stored'}")
-        s, t = prof.sensor, rig.sim.sensor
+        s, t = prof.sensor, rig.sensor
         print(f" sensor: gain {s['gain_e_per_dn']:.3f} e-/DN (true {t.gain_e_per_dn}), read noise "
               f"{s['read_noise_e']:.2f} e- (true {t.read_noise_e}), dark {s['dark_current_e_per_s']:.2f} e-/s "
               f"(true {t.dark_current_e_per_s}), black {s['black_level_dn']} DN (true {t.black_level_dn})")
-        print(f" pixel pitch {prof.pixel_pitch_mm:.4f} mm (true {rig.sim.scene.pixel_pitch_mm:.4f}); "
+        print(f" pixel pitch {prof.pixel_pitch_mm:.4f} mm (true {rig.pixel_pitch_mm:.4f}); "
               f"gains: LED spread {100 * wiz.figures['gains']['spread_before']:.1f} % → "
               f"{100 * wiz.figures['gains']['spread_after']:.2f} % after equalisation")
         print(f" wizard run time {t_wiz:.1f} s (all five steps, simulated device at 2000× real time)")

@@ -83,9 +83,9 @@ def _snr(scan_dir):
     mask = np.load(scan_dir / "truth.npz")["mask"].astype(bool)
     data = read_scan_manifest(scan_dir)
     shadow, mid, clipped = [], [], []
-    for rec in data.hdr["lights"]:
-        rad = read_exr(scan_dir / rec["file"])[0][..., 1][mask]
-        var = read_exr(scan_dir / rec["var_file"])[0][..., 1][mask]
+    for rec in data.hdr.lights:
+        rad = read_exr(scan_dir / rec.file)[0][..., 1][mask]
+        var = read_exr(scan_dir / rec.var_file)[0][..., 1][mask]
         ok = np.isfinite(var) & (var > 0) & (rad > 0)
         clipped.append(float(np.mean(~np.isfinite(var))))
         snr = 20 * np.log10(rad[ok] / np.sqrt(var[ok]))
@@ -185,8 +185,7 @@ def one_run(size, work, exposures=None, rig_apart=True):
         cmd[-1:-1] = ["--exposures", exposures]
     out, wall, rss, end, _ = _run_rss(cmd)
     data = read_scan_manifest(d)
-    hdr = data.hdr or {}
-    merge_s = sum(sum(r.get("time_s", {}).values()) for r in hdr.get("lights", []))
+    merge_s = sum(r.seconds() for r in data.hdr.lights) if data.hdr is not None else 0.0
     times = _times(out)
     global_, per_object = _scan_height_errors(d)
     with np.load(d / "truth.npz") as z:

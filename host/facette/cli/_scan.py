@@ -265,7 +265,7 @@ def run(args):
             if st["timeouts"]:
                 exc.hint = f"{exc.hint or ''} (link: {st['requests']} requests, {st['timeouts']} timeouts)"
             raise
-        sim_summary = rig.sim.summary() if rig.sim is not None else None
+        sim_summary = rig.simulated_events()
         link = dict(rig.device.stats)
     finally:
         rig.close()

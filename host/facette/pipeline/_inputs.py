@@ -250,9 +250,9 @@ def _load_hdr_images(scan_dir, data, take_held=None):
     """(images, usable, lights, notes): hdr/ read, after merging again (under the directory's
     lock) every light whose files are absent, made from other frames, or changed; the lights
     `take_held` gives (see `_read_hdr_fast`) from memory."""
-    lights = sorted(data.lights, key=lambda l: int(l["index"]))
-    ids = data.frame_lights() or [int(l["index"]) for l in lights]
-    by_index = {int(l["index"]): l for l in lights}
+    lights = sorted(data.lights, key=lambda l: int(l.index))
+    ids = data.frame_lights() or [int(l.index) for l in lights]
+    by_index = {int(l.index): l for l in lights}
     unknown = [i for i in ids if i not in by_index]
     if unknown:
         raise BadInputError(f"{scan_dir / 'scan.json'} has frames for lights {unknown} that its "
@@ -289,7 +289,7 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None)
     expected = data.n_planned
     # every (light, exposure) of the plan has a frame (scan.json's own "complete" flag is not
     # set by every writer: a scan.json made by hand or by a tool has frames but no flag)
-    complete = len({(f["light"], f["exposure"]) for f in data.frames}) >= expected
+    complete = len({(f.light, f.exposure) for f in data.frames}) >= expected
     busy = None if complete else ScanDirectory(scan_dir).writer()
     if busy and not allow_incomplete:
         raise BadInputError(f"the scan {scan_dir} is being acquired by another facette process ({busy}): "
@@ -302,9 +302,9 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None)
                             hint="or pass --allow-incomplete to process what is there (every output "
                                  "then says so)")
     images, usable, lights, hdr_notes = _load_hdr_images(scan_dir, data, take_held)
-    dirs = np.array([l["direction"] for l in lights], dtype=np.float64)
+    dirs = np.array([l.direction for l in lights], dtype=np.float64)
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    inten = np.array([l.get("intensity") or [1.0, 1.0, 1.0] for l in lights], dtype=np.float64)
+    inten = np.array([l.intensity or [1.0, 1.0, 1.0] for l in lights], dtype=np.float64)
     if np.any(inten <= 0):
         raise ValueError(f"{scan_dir / 'scan.json'}: a light has a non-positive intensity; "
                          "fix the calibration profile")
@@ -320,12 +320,13 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None)
         images /= inten[:, None, None, :].astype(np.float32)
     profile_pitch, profile_notes = _apply_profile(images, data, scan_dir)
     # the merge may have just run: its record (sensor used) is in scan.json as it is now
-    sensor_source = (ScanDirectory(scan_dir).manifest.hdr or {}).get("sensor_source", "")
+    hdr = ScanDirectory(scan_dir).manifest.hdr
+    sensor_source = (hdr.sensor_source if hdr is not None else None) or ""
     if sensor_source.startswith("nominal"):
         hdr_notes.append(f"HDR merged with the {sensor_source}")
-    pos = [l.get("position_mm") for l in lights]
+    pos = [l.position_mm for l in lights]
     positions = np.array(pos, dtype=np.float64) if all(p is not None for p in pos) else None
-    below = [int(l["index"]) for k, l in enumerate(lights)
+    below = [int(l.index) for k, l in enumerate(lights)
              if dirs[k, 2] < 0 or (positions is not None and positions[k, 2] < 0)]
     if below:    # a profile measured wrong (or a light's sign flipped): said, not silently fitted
         hdr_notes.append(f"light(s) {below} of scan.json lie below the horizon (z < 0 in the calibration "
@@ -346,7 +347,7 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None)
                   material_mask=material, usable=usable, object_mask=obj)
     if not complete:
         inp.incomplete = f"{len(data.frames)} of {expected or '?'} frames"
-    inp.digest = _digest(sorted((f["file"], f.get("sha256", "")) for f in data.frames))
+    inp.digest = _digest(sorted((f.file, "" if "sha256" in f.absent else f.sha256) for f in data.frames))
     inp.notes.extend(profile_notes)
     inp.notes.extend(hdr_notes)
     if scale is None:

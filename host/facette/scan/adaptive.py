@@ -77,8 +77,8 @@ def meter_and_plan(scan, directory, light_current_mA, mode, sensor=None, *, butt
         button = None
         dirs.append(name)
         rig_s += sd.manifest.rig_time_s
-        frames = sorted(sd.manifest.frames, key=lambda f: int(f["light"]))
-        meters = [(read_raw(sd.path / f["file"]), (int(f["time_us"]), int(f["current_set_mA"])))
+        frames = sorted(sd.manifest.frames, key=lambda f: int(f.light))
+        meters = [(read_raw(sd.path / f.file), (int(f.time_us), int(f.current_set_mA)))
                   for f in frames]
         if not any(_clipped(m, sat) for m, _ in meters) or attempt == _RETRIES:
             break

@@ -22,7 +22,8 @@ from facette.camera.raw import read_raw
 from facette.hdr import as_sensor, merge, n_workers
 from facette.io.checksum import sha256_file
 from facette.io.exr import read_exr, write_exr
-from facette.scan.directory import Manifest, ScanDirectory, read_scan_manifest
+from facette.scan.directory import ScanDirectory, read_scan_manifest
+from facette.scan.manifest import Hdr, HdrLight, Manifest
 
 __all__ = ["merge_scan", "merge_light", "LightMerger", "HeldLight", "store_light_records", "hdr_up_to_date", "stale_lights", "hdr_record", "scan_sensor", "light_frames",
            "load_hdr", "read_scan_manifest", "frame_exposure", "MissingFrameWarning",
@@ -61,23 +62,25 @@ class MissingFrameWarning(UserWarning):
 
 
 def frame_exposure(frame, current="measured"):
-    """Exposure of a scan.json frame record in µs·mA, and the current used (mA).
+    """Exposure of a scan.json frame record (a `Frame` or its JSON object) in µs·mA, and the
+    current used (mA).
 
     `current`: "measured" uses current_meas_mA when it is a positive number (falls
     back to current_set_mA), "set" always uses current_set_mA.
     """
-    t_us = float(frame["time_us"])
-    meas, setc = frame.get("current_meas_mA"), frame.get("current_set_mA")
+    get = frame.get if isinstance(frame, dict) else lambda key: getattr(frame, key)
+    t_us = float(get("time_us"))
+    meas, setc = get("current_meas_mA"), get("current_set_mA")
     if current == "measured" and meas is not None and float(meas) > 0:
         i_ma = float(meas)
     elif setc is not None and float(setc) > 0:
         i_ma = float(setc)
     else:
-        raise ValueError(f"frame {frame.get('file')} records no positive LED current "
+        raise ValueError(f"frame {get('file')} records no positive LED current "
                          f"(current_set_mA={setc}, current_meas_mA={meas}); cannot express its "
                          "exposure per µs·mA")
     if not t_us > 0:
-        raise ValueError(f"frame {frame.get('file')} has exposure time {t_us} µs; must be > 0")
+        raise ValueError(f"frame {get('file')} has exposure time {t_us} µs; must be > 0")
     return t_us * i_ma, i_ma
 
 
@@ -93,38 +96,37 @@ def _stat(path):
 
 
 def light_frames(data, light):
-    """Frame records of one light, by exposure index (`data`: a Manifest or scan.json dict)."""
+    """`Frame`s of one light, by exposure index (`data`: a Manifest or scan.json dict)."""
     return Manifest.of(data).light_frames(light)
-
-
-def _hdr_lights(m):
-    """{light index: HDR record} of a manifest's merge."""
-    return {int(r["index"]): r for r in (m.hdr or {}).get("lights", [])}
 
 
 def hdr_up_to_date(scan_dir, data, record, basis=None):
     """True when the HDR files of a light record exist and were made from the frames
     scan.json lists now (same files, same sha256, unchanged on disk) and, if given, with
-    the same `basis` (method, unit, current, sensor)."""
+    the same `basis` (method, unit, current, sensor). `record`: an `HdrLight` (or its JSON object)."""
     scan_dir = Path(scan_dir)
     data = Manifest.of(data)
-    if basis is not None and record.get("basis") != basis:
+    record = HdrLight.from_json(record)
+    if basis is not None and record.basis != basis:
         return False
-    if not all((scan_dir / record.get(k, "")).is_file() for k in ("file", "var_file")):
+    if not all((scan_dir / (f or "")).is_file() for f in (record.file, record.var_file)):
         return False
-    inputs = record.get("inputs")
+    inputs = record.inputs
     if not inputs:
         return False
-    now = {f["file"]: f.get("sha256") for f in light_frames(data, record["index"])
-           if f.get("sync") is not False}
-    if {i["file"]: i["sha256"] for i in inputs} != now:
+    if {i["file"]: i["sha256"] for i in inputs} != _synced_sha256(data, record.index):
         return False   # a frame was re-shot, added or lost since the merge
     for i in inputs:   # a file touched after the merge: let the sha256 check decide
         p = scan_dir / i["file"]
         if not p.is_file() or _stat(p) != {"size": i["size"], "mtime_ns": i["mtime_ns"]}:
             return False
     # the HDR files themselves, edited or damaged since the merge wrote them
-    return all(_stat(scan_dir / rel) == st for rel, st in (record.get("outputs") or {}).items())
+    return all(_stat(scan_dir / rel) == st for rel, st in (record.outputs or {}).items())
+
+
+def _synced_sha256(data, light):
+    """{file: sha256} of a light's frames taken with their flash sync."""
+    return {f.file: f.sha256 for f in light_frames(data, light) if f.synced}
 
 
 def stale_lights(scan_dir, data):
@@ -132,19 +134,19 @@ def stale_lights(scan_dir, data):
     whose files exist (a missing one is simply merged) and can be merged again from raw/."""
     scan_dir = Path(scan_dir)
     data = Manifest.of(data)
-    records = _hdr_lights(data)
+    records = data.hdr_lights()
     out = {}
     for li in data.frame_lights():
         rec, name = records.get(li), f"hdr/light_{li:02d}.exr"
         if not (scan_dir / name).is_file() or not _stale(scan_dir, data, li, rec, None):
             continue
-        now = {f["file"]: f.get("sha256") for f in light_frames(data, li) if f.get("sync") is not False}
-        if rec is None or not rec.get("inputs"):
+        now = _synced_sha256(data, li)
+        if rec is None or not rec.inputs:
             out[li] = f"{name} has no record of the frames it was merged from: merged again"
-        elif {i["file"]: i["sha256"] for i in rec["inputs"]} != now:
-            out[li] = (f"{name} was merged from other frames ({len(rec['inputs'])} then, {len(now)} "
+        elif {i["file"]: i["sha256"] for i in rec.inputs} != now:
+            out[li] = (f"{name} was merged from other frames ({len(rec.inputs)} then, {len(now)} "
                        "now): merged again")
-        elif any(_stat(scan_dir / r) != st for r, st in (rec.get("outputs") or {}).items()
+        elif any(_stat(scan_dir / r) != st for r, st in (rec.outputs or {}).items()
                  if (scan_dir / r).is_file()):
             out[li] = f"{name} changed since it was merged: merged again from raw/"
     return out
@@ -155,20 +157,20 @@ def _stale(scan_dir, data, light, record, basis):
     all there is (no RAW frame of it on disk: a scan copied without raw/)."""
     if record is not None and hdr_up_to_date(scan_dir, data, record, basis):
         return False
-    has_raw = any((scan_dir / f["file"]).is_file() for f in light_frames(data, light))
+    has_raw = any((scan_dir / f.file).is_file() for f in light_frames(data, light))
     name = scan_dir / "hdr" / f"light_{int(light):02d}"
     has_hdr = Path(f"{name}.exr").is_file() and Path(f"{name}_var.exr").is_file()
     return has_raw or not has_hdr
 
 
 def _read_frame(scan_dir, fr, verify_sha256):
-    """Decode one frame (and check its sha256 on the same thread): (frame record, RawFrame, input)."""
-    path = scan_dir / fr["file"]
+    """Decode one frame (and check its sha256 on the same thread): (`Frame`, RawFrame, input)."""
+    path = scan_dir / fr.file
     digest = sha256_file(path)
-    if verify_sha256 and fr.get("sha256") and digest != fr["sha256"]:
+    if verify_sha256 and fr.sha256 and digest != fr.sha256:
         raise ValueError(f"{path} does not match the sha256 recorded in scan.json: the "
                          "file changed after capture; re-shoot that frame or restore it")
-    return fr, read_raw(path), {"file": fr["file"], "sha256": digest, **_stat(path)}
+    return fr, read_raw(path), {"file": fr.file, "sha256": digest, **_stat(path)}
 
 
 def merge_light(scan_dir, data, light, sensor=None, method="inverse_variance", current="measured",
@@ -193,15 +195,15 @@ def _merge_light(scan_dir, data, light, sensor, method, current, verify_sha256, 
     li = int(light)
     n_exposures = len(data.exposures)
     frames_rec = light_frames(data, li)
-    recorded = {int(f["exposure"]) for f in frames_rec}
+    recorded = {int(f.exposure) for f in frames_rec}
     missing = [{"exposure": e, "file": None, "reason": "not captured"}
                for e in range(n_exposures) if e not in recorded]
     todo = []
     for fr in frames_rec:
-        if fr.get("sync") is False:  # the camera's flash sync never came: not a real frame
-            missing.append({"exposure": int(fr["exposure"]), "file": fr["file"], "reason": "no flash sync"})
-        elif not (scan_dir / fr["file"]).is_file():
-            missing.append({"exposure": int(fr["exposure"]), "file": fr["file"], "reason": "file missing"})
+        if not fr.synced:  # the camera's flash sync never came: not a real frame
+            missing.append({"exposure": int(fr.exposure), "file": fr.file, "reason": "no flash sync"})
+        elif not (scan_dir / fr.file).is_file():
+            missing.append({"exposure": int(fr.exposure), "file": fr.file, "reason": "file missing"})
         else:
             todo.append(fr)
     if missing:
@@ -216,15 +218,15 @@ def _merge_light(scan_dir, data, light, sensor, method, current, verify_sha256, 
     with ThreadPoolExecutor(n_threads) as pool:
         frames = list(pool.map(lambda fr: _read_frame(scan_dir, fr, verify_sha256), todo))
     t_read = time.perf_counter() - t0
-    exposures = [frame_exposure(fr, current)[0] if per == "us*mA" else float(fr["time_us"])
+    exposures = [frame_exposure(fr, current)[0] if per == "us*mA" else float(fr.time_us)
                  for fr, _, _ in frames]
-    times_s = [float(fr["time_us"]) * 1e-6 for fr, _, _ in frames]
+    times_s = [float(fr.time_us) * 1e-6 for fr, _, _ in frames]
     try:
         res = merge([rf for _, rf, _ in frames], exposures, sens, method=method, times_s=times_s,
                     workers=workers)
     except ValueError as exc:
         raise ValueError(f"light {li} of {scan_dir}: {exc} (files "
-                         f"{[fr['file'] for fr, _, _ in frames]})") from exc
+                         f"{[fr.file for fr, _, _ in frames]})") from exc
     inputs = [inp for _, _, inp in frames]
     del frames[:]    # the RawFrames (7 × 2 × 36 MB at 12 MP) are no longer needed
     t_merge = time.perf_counter() - t0 - t_read
@@ -240,21 +242,21 @@ def _merge_light(scan_dir, data, light, sensor, method, current, verify_sha256, 
     outputs = {rel: _stat(scan_dir / rel) for rel in (f"hdr/{name}.exr", f"hdr/{name}_var.exr")}
     held = HeldLight(scan_dir / "hdr" / f"{name}.exr", scan_dir / "hdr" / f"{name}_var.exr",
                      res.radiance, res.variance, outputs.values()) if hold else None
-    return {"index": li, "file": f"hdr/{name}.exr", "var_file": f"hdr/{name}_var.exr",
-            "frames": [fr["file"] for fr in todo], "inputs": inputs, "outputs": outputs,
-            "missing": missing,
-            "basis": basis, "saturated_fraction": float(res.saturated.mean()),
-            "no_sample_fraction": float(np.mean(res.n_used == 0)),
-            "time_s": {"read": round(t_read, 3), "merge": round(t_merge, 3),
-                       "write": round(time.perf_counter() - t0 - t_read - t_merge, 3)}}, held
+    return HdrLight(index=li, file=f"hdr/{name}.exr", var_file=f"hdr/{name}_var.exr",
+                    frames=tuple(fr.file for fr in todo), inputs=tuple(inputs), outputs=outputs,
+                    missing=tuple(missing), basis=basis, saturated_fraction=float(res.saturated.mean()),
+                    no_sample_fraction=float(np.mean(res.n_used == 0)),
+                    time_s={"read": round(t_read, 3), "merge": round(t_merge, 3),
+                            "write": round(time.perf_counter() - t0 - t_read - t_merge, 3)}), held
 
 
 def hdr_record(records, basis, source, merge_time_s):
-    """scan.json's "hdr" section from per-light records (sorted by light)."""
-    return {"method": basis["method"], "unit": basis["unit"], "current": basis["current"],
-            "resolution": "half-size", "sensor": basis["sensor"], "sensor_source": source,
-            "lights": sorted(records, key=lambda r: r["index"]), "merge_time_s": round(merge_time_s, 3),
-            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+    """scan.json's "hdr" section (an `Hdr`) from per-light `HdrLight` records (sorted by light)."""
+    return Hdr(method=basis["method"], unit=basis["unit"], current=basis["current"],
+               resolution="half-size", sensor=basis["sensor"], sensor_source=source,
+               lights=tuple(sorted((HdrLight.from_json(r) for r in records), key=lambda r: r.index)),
+               merge_time_s=round(merge_time_s, 3),
+               created=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
 
 
 def scan_sensor(data, sensor=None):
@@ -297,7 +299,7 @@ class LightMerger:
     def stale(self, data, light):
         """True when `light` has no HDR that describes its frames now (see `hdr_up_to_date`)."""
         data = Manifest.of(data)
-        return _stale(self.scan_dir, data, light, _hdr_lights(data).get(int(light)), self.basis(data))
+        return _stale(self.scan_dir, data, light, data.hdr_lights().get(int(light)), self.basis(data))
 
     def submit(self, data, light):
         light = int(light)
@@ -335,9 +337,9 @@ class LightMerger:
 def store_light_records(data, records, basis, source):
     """scan.json's "hdr" with `records` (per-light, from `merge_light`) added or replaced;
     records of another basis are dropped (they no longer describe a merge of this kind)."""
-    old = {i: r for i, r in _hdr_lights(Manifest.of(data)).items() if r.get("basis") == basis}
-    old.update({r["index"]: r for r in records})
-    total = sum(sum(r.get("time_s", {}).values()) for r in old.values())
+    old = {i: r for i, r in Manifest.of(data).hdr_lights().items() if r.basis == basis}
+    old.update({r.index: r for r in (HdrLight.from_json(x) for x in records)})
+    total = sum(r.seconds() for r in old.values())
     return hdr_record(list(old.values()), basis, source, total)
 
 
@@ -371,7 +373,7 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
 
     Returns
     -------
-    dict: the ``"hdr"`` record also written into scan.json; each light's record says
+    Hdr: the ``"hdr"`` record also written into scan.json; each light's `HdrLight` says
     what it was made from (``inputs``, ``basis``).
 
     A frame listed in scan.json whose file is missing, or recorded with
@@ -388,7 +390,7 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     basis = _basis(method, current, per, sens)
     ids = data.frame_lights()
     wanted = ids if lights is None else sorted(int(i) for i in lights)
-    old = _hdr_lights(data)
+    old = data.hdr_lights()
     todo = [li for li in wanted if force or _stale(scan_dir, data, li, old.get(li), basis)]
     if not todo:
         return data.hdr or hdr_record(list(old.values()), basis, source, 0.0)
@@ -397,9 +399,9 @@ def merge_scan(scan_dir, sensor=None, method="inverse_variance", current="measur
     records = [merge_light(scan_dir, data, li, sens, method, current, verify_sha256, per, workers)
                for li in todo]
     record = store_light_records(data, records, basis, source)
-    record["merge_time_s"] = round(time.perf_counter() - t0, 3)
+    record = record.replace(merge_time_s=round(time.perf_counter() - t0, 3))
     sd.record_hdr(record)
-    sd.journal("hdr_done", lights=todo, merge_time_s=record["merge_time_s"])
+    sd.journal("hdr_done", lights=todo, merge_time_s=record.merge_time_s)
     return record
 
 
@@ -410,7 +412,7 @@ def load_hdr(scan_dir, sensor=None, merge_missing=True, method="inverse_variance
     -------
     images : ndarray (m, H, W, 3) float32, radiance per µs·mA
     variances : ndarray (m, H, W, 3) float32
-    lights : list of m dicts from the manifest's lights (index, direction, position_mm,
+    lights : list of m `Light` records of the manifest (index, direction, position_mm,
         intensity), in the order of `images`.
 
     With `merge_missing`, `merge_scan` runs first with `sensor` and `method`: it merges
@@ -419,7 +421,7 @@ def load_hdr(scan_dir, sensor=None, merge_missing=True, method="inverse_variance
     """
     scan_dir = Path(scan_dir)
     data = read_scan_manifest(scan_dir)
-    lights = sorted(data.lights, key=lambda l: int(l["index"]))
+    lights = sorted(data.lights, key=lambda l: int(l.index))
     light_ids = data.frame_lights()
     paths = {li: (scan_dir / "hdr" / f"light_{li:02d}.exr",
                   scan_dir / "hdr" / f"light_{li:02d}_var.exr") for li in light_ids}
@@ -429,7 +431,7 @@ def load_hdr(scan_dir, sensor=None, merge_missing=True, method="inverse_variance
     if absent:
         raise FileNotFoundError(f"{scan_dir / 'hdr'} lacks lights {absent}; run "
                                 "facette.scan.merge_scan(scan_dir) first")
-    by_index = {int(l["index"]): l for l in lights}
+    by_index = {int(l.index): l for l in lights}
     unknown = [li for li in light_ids if li not in by_index]
     if unknown:
         raise ValueError(f"scan.json has frames for lights {unknown} that its 'lights' list "

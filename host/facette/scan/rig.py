@@ -9,9 +9,13 @@ beyond the device and the camera is four things, which a real rig answers as "un
 `sensor` (the camera's noise model), `pixel_pitch_mm`, `save_truth` (what the object really
 is) and `press_button`/`can_press_button`; and the latched faults by name
 (`latched_faults`). The calibration wizard asks two more: `show_target` and `restore_scene`
-(a person places a real rig's targets), and the rig's `name`. `SimRig`, the simulated rig
+(a person places a real rig's targets), and the rig's `name`. The benchmarks and the command
+line ask two more, again "unknown" on a real rig: `truth` (what `save_truth` writes, as
+arrays: the benchmarks compare a calibration with it) and `simulated_events` (the shots a
+simulator lost and the reboots it made on purpose). `SimRig`, the simulated rig
 (``connect("sim")``), answers them from its simulator, the only way the simulator reaches
-acquisition and the wizard.
+acquisition, the wizard, the benchmarks and the command line: outside `facette.sim` only
+`SimRig` touches it (``host/tests/test_rig_door.py`` checks).
 
     rig = facette.connect("sim")              # or "/dev/ttyACM0", "socket://127.0.0.1:5020"
     rig.configure(exposures=[(1_000_000, 500)], lights=range(12))
@@ -58,7 +62,7 @@ class Rig:
     device : DeviceClient
     camera : a camera backend (facette.camera) or None
     """
-    sim = None                  # the simulator behind a `SimRig` (for tests and demonstrations)
+    sim = None                  # the simulator behind a `SimRig` (for tests only: the package asks the Rig)
     can_press_button = False    # a person presses a real rig's button
 
     def __init__(self, device, camera=None):
@@ -83,6 +87,19 @@ class Rig:
         """Write what the object really is beside a scan (normals, heights, ... for the LED
         `channels` in scan order); returns the file's name in `directory`, or None when the
         rig does not know it (a real rig never does)."""
+        return None
+
+    def truth(self):
+        """What the object and the lights really are, as `save_truth` writes it (arrays at the HDR
+        resolution: ``normals``, ``height_mm``, ``mask``, ``albedo``, ``light_dirs``,
+        ``light_intensity``, ``light_positions_mm`` (NaN for far lights), one row per LED channel;
+        docs/scan-format.md, "truth.npz"), or None when the rig does not know it (a real rig never
+        does)."""
+        return None
+
+    def simulated_events(self):
+        """What the rig's simulator did on purpose, {"shots", "frames", "missed" (shots lost),
+        "boots", "virtual_us"}, or None (a real rig has no simulator)."""
         return None
 
     @property
@@ -394,6 +411,12 @@ class SimRig(Rig):
 
     def save_truth(self, directory, channels):
         return self.sim.save_truth(directory, channels=channels).name
+
+    def truth(self):
+        return self.sim.truth()
+
+    def simulated_events(self):
+        return self.sim.summary()
 
     def press_button(self):
         """Press the simulated button; returns once the device started (sent an event)."""

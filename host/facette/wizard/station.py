@@ -114,8 +114,8 @@ class RigStation:
     def capture_raw(self, name, exposures, light=0):
         """RAW files of one LED at each exposure, in order (paths)."""
         d = self._scan(name, exposures, [light])
-        frames = sorted(read_scan_manifest(d).frames, key=lambda f: int(f["exposure"]))
-        return [d / f["file"] for f in frames]
+        frames = sorted(read_scan_manifest(d).frames, key=lambda f: int(f.exposure))
+        return [d / f.file for f in frames]
 
     # -- device calibration store --------------------------------------------------------
     def gains(self):

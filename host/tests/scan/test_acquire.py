@@ -39,7 +39,7 @@ class _RigWithoutSimulator(Rig):
 
 def intact(d):
     m = ScanDirectory(d).manifest
-    assert all(sha256_file(d / f["file"]) == f["sha256"] for f in m.frames)
+    assert all(sha256_file(d / f.file) == f.sha256 for f in m.frames)
     return len(m.frames)
 
 
@@ -127,11 +127,11 @@ def test_another_plan_in_the_directory_says_what_differs(rig, tmp_path):
 def test_a_refused_button_press_is_said_in_words(rig, tmp_path):
     """The device refuses to arm (a configuration changed behind the host's back): a person's
     press on the rig's button must not leave the host waiting forever."""
-    from facette.scan.acquire import _Acquisition
+    from facette.scan._device_run import DeviceRuns
 
     sd = ScanDirectory(tmp_path / "s")
     sd.path.mkdir()
-    acq = _Acquisition(rig, sd, default_plan(1, SHORT), ScanOptions(frame_timeout_s=5.0))
+    acq = DeviceRuns(rig, sd, default_plan(1, SHORT), ScanOptions(frame_timeout_s=5.0))
     rig.configure(SHORT, lights=[0])
     rig.device.write_array("light_current_mA", [1200])               # above max_current_mA
     press = threading.Timer(0.3, rig.sim.press_button, kwargs={"timeout_s": 0.5})
@@ -197,7 +197,7 @@ def test_a_host_press_of_a_real_rigs_button_is_refused_before_anything_is_touche
 
 
 def test_camera_files_without_exposure_time_are_said_once(rig, tmp_path, monkeypatch):
-    import facette.scan.acquire as acquire
-    monkeypatch.setattr(acquire, "read_exposure_metadata", lambda path: (None, None, {}))   # a Blackmagic DNG
+    import facette.scan._frames as frames
+    monkeypatch.setattr(frames, "read_exposure_metadata", lambda path: (None, None, {}))   # a Blackmagic DNG
     sd = rig.scan(tmp_path / "s", lights=[0, 1], exposures=SHORT, progress=False)
-    assert sd.notes == [acquire.NO_EXPOSURE_NOTE] and intact(tmp_path / "s") == 4
+    assert sd.notes == [frames.NO_EXPOSURE_NOTE] and intact(tmp_path / "s") == 4

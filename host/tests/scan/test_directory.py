@@ -6,7 +6,9 @@ import pytest
 
 from facette.scan import Manifest, ScanDirectory, ScanDirectoryError, default_plan, frame_name, sha256_file
 from facette.scan.directory import SCHEMA
-from facette.scan.acquire import THESIS_BRACKET_US, _groups, _recover
+from facette.scan._plan import device_run_groups
+from facette.scan._resume import recover
+from facette.scan.acquire import THESIS_BRACKET_US
 
 
 def _new(tmp_path):
@@ -51,17 +53,17 @@ def test_an_interrupted_move_is_completed_from_the_journal(tmp_path):
     src.write_bytes(b"frame data")
     record = {"file": frame_name(0, 0), "light": 0, "exposure": 0, "time_us": 1000}
     sd.journal("capture", src=str(src), record=record)       # the host died here
-    _recover(ScanDirectory(sd.path), None)
+    recover(ScanDirectory(sd.path))
     sd2 = ScanDirectory(sd.path)
     assert not src.exists() and (sd.path / frame_name(0, 0)).read_bytes() == b"frame data"
-    assert sd2.manifest.frames[0]["sha256"] == sha256_file(sd.path / frame_name(0, 0))
+    assert sd2.manifest.frames[0].sha256 == sha256_file(sd.path / frame_name(0, 0))
     assert sd2.read_journal()[-1]["step"] == "recovered"
 
 
 def test_missing_frames_are_grouped_into_lights_by_exposures_runs():
     pending = {(3, 1), (3, 2)} | {(l, e) for l in range(4, 12) for e in range(3)}
-    assert _groups(pending, 12) == [([3], [1, 2]), (list(range(4, 12)), [0, 1, 2])]
-    assert _groups({(0, 0), (2, 0)}, 3) == [([0, 2], [0])]
+    assert device_run_groups(pending) == [([3], [1, 2]), (list(range(4, 12)), [0, 1, 2])]
+    assert device_run_groups({(0, 0), (2, 0)}) == [([0, 2], [0])]
 
 
 def test_default_plan_is_the_thesis_bracket_and_checks_currents():
@@ -130,13 +132,13 @@ def test_a_schema_1_scan_json_is_read_into_the_manifest_and_written_back_as_sche
     assert isinstance(m, Manifest)
     assert m.rig["serial_number"] == 1509949441 and m.profile["image_size_px"] == [256, 192]
     assert m.pixel_pitch_mm == pytest.approx(0.46877642275026465)
-    assert [l["channel"] for l in m.lights] == [0, 1] and m.n_planned == 2
-    assert [f["file"] for f in m.frames] == ["raw/L01_E00.dng", "raw/L00_E00.dng"]   # as read
-    assert m.frame_lights() == [0, 1] and m.light_frames(0)[0]["ring"] == 0
+    assert [l.channel for l in m.lights] == [0, 1] and m.n_planned == 2
+    assert [f.file for f in m.frames] == ["raw/L01_E00.dng", "raw/L00_E00.dng"]   # as read
+    assert m.frame_lights() == [0, 1] and m.light_frames(0)[0].ring == 0
     assert m.rig_time_s == 1.44 and m.runs == 1 and m.complete and m.truth == "truth.npz"
     assert m.plan["exposures"] == [[200000, 0]] and m.bracketing == {"name": "explicit"}
     assert m.sensor["black_level_dn"] == 512 and m.radiometric_scale[0] == pytest.approx(4.174220486049001e-05)
-    assert m.hdr["lights"][0]["file"] == "hdr/light_00.exr" and m.faults_seen[0]["step"] == "clear_faults"
+    assert m.hdr.lights[0].file == "hdr/light_00.exr" and m.faults_seen[0]["step"] == "clear_faults"
     assert m.created == "2026-12-03T09:25:17.705+00:00" and m.extra == {}
     sd = ScanDirectory(tmp_path)
     sd.save()
@@ -171,7 +173,7 @@ def test_the_manifest_is_set_through_its_methods_only(tmp_path):
     m.add_frame({"file": frame_name(0, 1), "light": 0, "exposure": 1})
     m.add_frame({"file": frame_name(0, 0), "light": 0, "exposure": 0})
     m.add_frame({"file": frame_name(0, 0), "light": 0, "exposure": 0, "retry": True})   # taken again
-    assert [(f["exposure"], f.get("retry")) for f in m.frames] == [(0, True), (1, None)]
+    assert [(f.exposure, f.retry) for f in m.frames] == [(0, True), (1, None)]
     assert m.start_run() == 0 and m.start_run() == 1 and m.runs == 2
     m.add_rig_time(1.5)
     m.set_bracketing({"name": "adaptive", "meter_rig_time_s": 2.25})   # the metering's time counts
@@ -180,7 +182,7 @@ def test_the_manifest_is_set_through_its_methods_only(tmp_path):
     m.finish([{"step": "no_sync"}])
     assert m.complete and m.faults_seen == ({"step": "no_sync"},)
     m.drop_frames([frame_name(0, 1)])
-    assert not m.complete and [f["exposure"] for f in m.frames] == [0]
+    assert not m.complete and [f.exposure for f in m.frames] == [0]
     sd.save()
     again = ScanDirectory(sd.path).manifest
     assert again.to_dict() == m.to_dict()

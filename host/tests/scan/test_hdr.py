@@ -57,8 +57,8 @@ def test_merge_scan_writes_exr_and_records_it(tmp_path):
     assert abs(z.mean()) < 0.2 and 0.8 < z.std() < 1.2
     m = ScanDirectory(tmp_path).manifest
     assert m.hdr == rec
-    assert rec["unit"] == "DN/(us*mA)" and rec["sensor_source"] == "given"
-    assert [l["file"] for l in rec["lights"]] == ["hdr/light_00.exr", "hdr/light_01.exr"]
+    assert rec.unit == "DN/(us*mA)" and rec.sensor_source == "given"
+    assert [l.file for l in rec.lights] == ["hdr/light_00.exr", "hdr/light_01.exr"]
     assert m.frames and m.rig_time_s == 1.0  # the rest of the manifest kept
     steps = [json.loads(l)["step"] for l in (tmp_path / "journal.jsonl").read_text().splitlines()]
     assert steps == ["hdr_begin", "hdr_done"]
@@ -76,7 +76,7 @@ def test_a_held_light_has_its_files_values_until_a_file_changes(tmp_path):
     merger.close()
     assert sorted(light for light, _, _ in finished) == [0, 1]
     for light, rec, held in finished:
-        assert rec["index"] == light and held is not None
+        assert rec.index == light and held is not None
         sd.hold_light(light, held)
     assert sd.held_lights() == [0, 1]
     rad, green = sd.take_held_light(0)
@@ -100,14 +100,14 @@ def test_without_hold_nothing_is_kept(tmp_path):
     merger.submit(ScanDirectory(tmp_path).manifest, 0)
     [(light, rec, held)] = merger.collect(wait=True)
     merger.close()
-    assert light == 0 and rec["file"] == "hdr/light_00.exr" and held is None
+    assert light == 0 and rec.file == "hdr/light_00.exr" and held is None
 
 
 def test_per_microsecond_unit(tmp_path):
     truth = _make_scan(tmp_path, n_lights=1, exposures=[(200_000, 400), (20_000, 400), (2_000, 400)])
     rec = merge_scan(tmp_path, sensor=SENSOR, per="us")
     img, _ = read_exr(tmp_path / "hdr" / "light_00.exr")
-    assert rec["unit"] == "DN/us" and rec["current"] is None
+    assert rec.unit == "DN/us" and rec.current is None
     assert np.median(img / (truth[0] * 400)) == pytest.approx(1.0, abs=0.005)
     with pytest.raises(ValueError, match="per must be"):
         merge_scan(tmp_path, sensor=SENSOR, per="s")
@@ -120,9 +120,9 @@ def test_load_hdr_merges_when_needed_and_uses_scan_sensor(tmp_path):
     (tmp_path / "scan.json").write_text(json.dumps(data))
     images, variances, lights = load_hdr(tmp_path)
     assert images.shape == variances.shape == (3, 24, 32, 3)
-    assert [l["index"] for l in lights] == [0, 1, 2]
+    assert [l.index for l in lights] == [0, 1, 2]
     assert np.median(np.abs(images - truth) / truth) < 0.01
-    assert ScanDirectory(tmp_path).manifest.hdr["sensor_source"] == "scan.json sensor"
+    assert ScanDirectory(tmp_path).manifest.hdr.sensor_source == "scan.json sensor"
     with pytest.raises(FileNotFoundError, match="merge_scan"):
         (tmp_path / "hdr" / "light_02.exr").unlink()
         load_hdr(tmp_path, merge_missing=False)
@@ -133,8 +133,8 @@ def test_missing_frame_is_skipped_with_warning_and_recorded(tmp_path):
     (tmp_path / "raw" / "L00_E00.dng").unlink()
     with pytest.warns(MissingFrameWarning, match="light 0"):
         rec = merge_scan(tmp_path, sensor=SENSOR)
-    assert rec["lights"][0]["missing"][0]["exposure"] == 0
-    assert rec["lights"][1]["missing"] == []
+    assert rec.lights[0].missing[0]["exposure"] == 0
+    assert rec.lights[1].missing == ()
     img, _ = read_exr(tmp_path / "hdr" / "light_00.exr")
     assert np.median(np.abs(img - truth[0]) / truth[0]) < 0.03  # still a valid, noisier merge
 
@@ -163,8 +163,7 @@ def test_unsynced_frame_skipped_and_mismatched_sizes_named(tmp_path):
     (tmp_path / "scan.json").write_text(json.dumps(data))
     with pytest.warns(MissingFrameWarning, match="no flash sync"):
         rec = merge_scan(tmp_path, sensor=SENSOR, lights=[0])
-    assert rec["lights"][0]["missing"] == [{"exposure": 1, "file": "raw/L00_E01.dng",
-                                            "reason": "no flash sync"}]
+    assert rec.lights[0].missing == ({"exposure": 1, "file": "raw/L00_E01.dng", "reason": "no flash sync"},)
     # A frame from another camera size in light 1.
     big = SENSOR.expose(np.zeros((30, 40, 3)), 0.01, 0)
     name = data["frames"][4]["file"]
@@ -188,8 +187,8 @@ def test_meter_plan_scan_merge_matches_truth(tmp_path):
         m = rig.scan(tmp_path / "meter", exposures=[meter], lights=LIGHTS, mode="led",
                      progress=False)
         meter_dir = getattr(m, "path", tmp_path / "meter")
-        frames = sorted(read_scan_frames(meter_dir), key=lambda f: f["light"])
-        meters = [read_raw(meter_dir / f["file"]) for f in frames]
+        frames = sorted(read_scan_frames(meter_dir), key=lambda f: f.light)
+        meters = [read_raw(meter_dir / f.file) for f in frames]
         # 2. Plan: one exposure list for every light, as the device runs it.
         plan = plan_adaptive(meters, [meter] * len(LIGHTS), sensor, target_snr_db=35.0,
                              shared=True, mode="led")
@@ -198,7 +197,7 @@ def test_meter_plan_scan_merge_matches_truth(tmp_path):
         scan = rig.scan(tmp_path / "scan", lights=LIGHTS, progress=False, **plan.scan_kwargs())
     scan_dir = getattr(scan, "path", tmp_path / "scan")
     rec = merge_scan(scan_dir, sensor=sensor)
-    assert [l["index"] for l in rec["lights"]] == [0, 1, 2]
+    assert [l.index for l in rec.lights] == [0, 1, 2]
     images, variances, lights = load_hdr(scan_dir)
     assert images.shape == truth.shape
     sel = truth > 0.05 * truth.max()
@@ -219,7 +218,7 @@ def _hdr_steps(folder):
 def test_merge_scan_redoes_only_what_changed(tmp_path):
     truth = _make_scan(tmp_path, n_lights=3)
     rec = merge_scan(tmp_path, sensor=SENSOR)
-    assert [i["file"] for i in rec["lights"][1]["inputs"]] == [f"raw/L01_E{e:02d}.dng" for e in range(3)]
+    assert [i["file"] for i in rec.lights[1].inputs] == [f"raw/L01_E{e:02d}.dng" for e in range(3)]
     before = (tmp_path / "hdr" / "light_00.exr").stat().st_mtime_ns
     assert merge_scan(tmp_path, sensor=SENSOR) == rec          # up to date: nothing merged
     assert _hdr_steps(tmp_path) == [[0, 1, 2]]
@@ -236,7 +235,7 @@ def test_merge_scan_redoes_only_what_changed(tmp_path):
     (tmp_path / "scan.json").write_text(json.dumps({**data}))
     rec2 = merge_scan(tmp_path, sensor=SENSOR)
     assert _hdr_steps(tmp_path)[-1] == [1]
-    assert rec2["lights"][1]["inputs"][2]["sha256"] == fr["sha256"]
+    assert rec2.lights[1].inputs[2]["sha256"] == fr["sha256"]
     assert (tmp_path / "hdr" / "light_00.exr").stat().st_mtime_ns == before
     # Another sensor model is another basis: everything again; a file edited behind the
     # record's back is caught by its sha256.
