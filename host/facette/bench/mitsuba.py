@@ -95,6 +95,14 @@ def run_ps(d, method, init=None, interreflections=False):
     return r, time.perf_counter() - t
 
 
+def _verdict(fit):
+    """The fitted model, its relative RMS and the verdict over every model tried, in one line."""
+    if fit is None:
+        return "no fit"
+    return (f"{fit.model}, relative RMS {fit.error.get('relative_rms', np.nan):.3f}, {fit.verdict or 'no verdict'}: "
+            + ", ".join(f"{t['model']} {t['relative_rms'] or np.nan:.3f}" for t in fit.models_tried))
+
+
 def whole_pipeline(d, method, workdir, init=None, interreflections=False):
     """σ, n_i, K_d (mean over channels ratio) from `process` on a DiLiGenT-style folder."""
     from facette.io.diligent import write_diligent
@@ -247,13 +255,9 @@ def main(argv=None):
                 res, dt = whole_pipeline(d, method, tmp, args.init, ir)
                 p = res.brdf.params if res.brdf is not None and res.brdf.success else {}
                 kd = np.array(p.get("kd", [np.nan] * 3)) / np.array(d["params"].get("kd", [np.nan] * 3))
-                b = res.brdf
-                verdict = "no fit" if b is None else (f"{b.model}, relative RMS {b.error.get('relative_rms', np.nan):.3f}, "
-                                                      f"{b.verdict or 'no verdict'}: " + ", ".join(
-                                                          f"{t['model']} {t['relative_rms'] or np.nan:.3f}" for t in b.models_tried))
                 print(f"{shape + '/' + mat:22s} {name:30s} {p.get('sigma', np.nan):7.4f} {truth['sigma']:6.3f} "
                       f"{p.get('n_i', np.nan):6.3f} {truth['n_i']:6.2f} {' '.join(f'{x:5.3f}' for x in kd):>18s} "
-                      f"{dt:6.1f}  ({verdict})", flush=True)
+                      f"{dt:6.1f}  ({_verdict(res.brdf)})", flush=True)
     rows, found = table_heights(args)
     print(f"\nHeights: two domes in paint_0.10 on a dark table (K_d 0.04, {TABLE_MATERIAL}), rank_trimmed "
           f"normals; RMS against Mitsuba's positions in pixels, one constant over both domes / one per dome; "

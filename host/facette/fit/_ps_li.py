@@ -44,204 +44,24 @@ parameters and pixel count.
 import time
 
 import numpy as np
-from scipy.optimize import least_squares
 
-from facette.brdf import kd_from_kappa, li_kd_from_kappa, li_shading_terms
+from facette.brdf import kd_from_kappa, li_shading_terms
 from facette.recon import PSResult, ps_rank_trimmed, ps_woodham1980
 from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _run_blocks, _usable
+from ._li_model import (DIFFUSE, LAMBERTIAN_SIGMA, LI_VOLUME_MODEL, LOBE_MIN_GAIN, PROFILE_TABLE_GRID,
+                        PROFILE_VALUES, _has_interface, _pixel_costs, _profile_lobe, _trimmed, fit_li_per_pixel_kd)
 from ._normals_li import RefineResult, refine_normals_li
 
-__all__ = ["ps_li_alternating", "fit_li_per_pixel_kd", "li_fit_cost", "LI_FIT_BOUNDS", "LI_VOLUME_MODEL"]
+__all__ = ["ps_li_alternating"]
 
-LI_FIT_BOUNDS = ((1e-3, 1.0), (1.0, 2.5))   # σ, n_i (σ ≤ 1: beyond it no lobe is left to see)
-LAMBERTIAN_N_I = 1.02      # a fitted n_i below this: no interface, the BRDF step is skipped
-LAMBERTIAN_SIGMA = LI_FIT_BOUNDS[0][0]    # the model without interface (n_i = 1): Lambert
-# a lobe must lower the trimmed profile cost this much against Lambert's (Mitsuba renders: plaster
-# sphere / relief / vase −20.5 / −0.3 / +4.4 %, a false lobe there costs the vase 0.41° and the
-# relief 0.03°; paints and satin 74–99 %; the simulated scan 54 %): twice the matte renders' most
-LOBE_MIN_GAIN = 0.1
 LOBE_TAN = 2.5             # a light is inside the lobe when tan θ_h < LOBE_TAN σ (D > 0.2 % of its peak)
-_STARTS = ((0.1, 1.3), (0.3, 1.5), (0.04, 1.2))
-# The volume part eq 3.15 from quadrature tables (facette.brdf.volume_table_at), not the approximate
-# formula eq 3.49-3.57, which is 3-5 % off the integral at the median and 10-20 % at grazing angles.
-# Mitsuba, 256 spp, mean normal error approx -> tables: sphere paint 0.10 1.10 -> 0.46 deg, 0.05
-# 0.48 -> 0.19, satin 2.93 -> 1.98, near lights 1.17 -> 0.53, shell lacquer 0.91 -> 0.58; the relief
-# paints with inter-reflections removed 0.54-0.74 -> 0.42-0.46; K_d/true 0.97-1.10 -> 0.99-1.03.
-# Worse: the reliefs' raw paints 0.53-0.59 -> 0.56-0.66 and the glossy vase 3.12 -> 3.32, whose error
-# is the inter-reflections' (with them removed, facette.fit.ps_li_without_interreflections: 1.38).
-# Costs 0-2 s more at 128² (node tables, 0.03-0.05 s each, cached in the process).
-LI_VOLUME_MODEL = "tables"
 COARSE_PIXELS = 250_000    # above this many valid pixels the alternation runs coarse-to-fine
 FINE_STEP_TOL = 1e-3       # rad (0.06°): full-size steps stop below this (errors are ~1°)
 ROUND_STEP_TOL = 1e-3      # rad (0.06°): a pixel's solve stops below this step in the rounds too
 SETTLED_SIGMA = 0.05       # a later round's refit within 5 % of σ and 0.01 of n_i: no new re-estimate
 SETTLED_N_I = 0.01
-# Round 1's model choice (`_profile_lobe`): a grid of (σ, n_i), each diffuse part, the fit pixels'
-# normals solved against each point, scored by the summed robust cost of the PROFILE_KEEP best
-# explained fit pixels. Fitting (σ, n_i) on the initial normals, as before, is pulled to no lobe by
-# the few pixels whose robust normal is a degree off where the lobe is steep: on the simulated
-# rig's scan (Cook–Torrance σ 0.05, n_i 1.2, dark glossy table) it found σ 0.017, n_i 1.06 on the
-# initial normals and σ 0.035 on normals solved against each point with every pixel counted; the
-# best 80 % give σ 0.050, n_i 1.200, and the lobe lowers their cost to 46 % of Lambert's.
-# The search: σ along PROFILE_SIGMAS at n_i PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ,
-# for each diffuse part (26 solves of the profile pixels), on at most PROFILE_VALUES values (pixels ×
-# lights): a full 8 × 3 grid stopped at n_i 1.15 on the scan above (truth 1.2; the search: 1.2).
-PROFILE_SIGMAS = (0.02, 0.035, 0.05, 0.08, 0.13, 0.2, 0.3, 0.5)
-PROFILE_N_I0 = 1.3
-PROFILE_N_IS = (1.1, 1.2, 1.45, 1.7, 2.0)
-PROFILE_KEEP = 0.8
-PROFILE_VALUES = 12_000
-PROFILE_TABLE_GRID = 65
-# The diffuse part beside the lobe: the LI substrate under the interface (eq 3.15: Fresnel
-# transmissions in and out) or a Lambertian term with no transmission (Cook–Torrance). Which one a
-# material gets is its fit pixels' profile cost (`diffuse="auto"`), never a fixed choice: the
-# simulated rig renders Cook–Torrance, Mitsuba's roughplastic a layered (LI-like) material.
-DIFFUSE = {"li": LI_VOLUME_MODEL, "lambert": "lambert"}
 _BLOCK = 32768             # pixels per block of the per-pixel solve (array code, two threads)
 _BLOCK_COMPILED = 262144   # pixels per call of the compiled solve (it threads inside)
-
-
-def _relative_fit_values(e, usable):
-    """Values, weights, the usable mask per channel and each pixel's mean value (the residuals'
-    denominator) of `fit_li_per_pixel_kd` and `li_fit_cost`."""
-    e = np.asarray(e, np.float32)
-    ok = np.asarray(usable, bool) & np.all(np.isfinite(e), axis=2)
-    e0 = np.where(ok[..., None], e, np.float32(0))
-    w = ok.astype(np.float32)
-    mean_e = np.sum(w[..., None] * e0, axis=(1, 2)) / np.maximum(w.sum(1) * e.shape[2], 1)
-    # residuals relative to each pixel's mean value: every pixel weighs alike whatever its K_d, and a
-    # highlight's misfit counts in full (relative to the value itself it would count ≤ 1 and
-    # missing the lobe altogether would be cheap)
-    den = np.maximum(mean_e, 1e-12)[:, None, None]
-    return e0, w, np.broadcast_to(ok[..., None], e.shape), den
-
-
-def _kd_and_residuals(e0, w, den, normals, lights, sigma, n_i, volume_model):
-    """κ (N, C) in closed form (E = A + B κ, weights w) and the relative residuals (N, m, C)."""
-    a, b = li_shading_terms(normals, lights, sigma, n_i, volume_model=volume_model)
-    wb = w * b
-    k = np.maximum(np.einsum("nm,nmc->nc", wb, e0 - a[..., None]) / np.maximum(np.sum(wb * b, 1), 1e-20)[:, None], 0)
-    return k, (e0 - a[..., None] - b[..., None] * k[:, None, :]) / den
-
-
-def _soft_l1_cost(r, f_scale):
-    """scipy's least_squares cost with loss="soft_l1": ½ Σ 2 f² (√(1 + (r/f)²) − 1)."""
-    z = (np.asarray(r, np.float64) / f_scale) ** 2
-    return float(np.sum(f_scale ** 2 * (np.sqrt(1 + z) - 1)))
-
-
-def li_fit_cost(e, lights, normals, usable, sigma, n_i, f_scale=0.05, volume_model=LI_VOLUME_MODEL):
-    """The robust cost `fit_li_per_pixel_kd` minimises, at given normals and (σ, n_i): soft-L1
-    (scale f_scale) of the relative residuals of every usable value, K_d per pixel and channel in
-    closed form. e : (N, m, C); lights : (m, 3) or (N, m, 3); normals : (N, 3); usable : (N, m).
-    n_i = 1 is the Lambertian model (no interface: no lobe). Returns a float ≥ 0."""
-    e0, w, sel, den = _relative_fit_values(e, usable)
-    return _soft_l1_cost(_kd_and_residuals(e0, w, den, normals, lights, sigma, n_i, volume_model)[1][sel],
-                         f_scale)
-
-
-def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_nfev=40, bounds=LI_FIT_BOUNDS,
-                        volume_model=LI_VOLUME_MODEL):
-    """(σ, n_i) shared by all pixels, K_d per pixel and channel, from image values.
-
-    e : (N, m, C) values divided by the light intensities; lights : (m, 3) or (N, m, 3);
-    normals : (N, 3) unit (fixed); usable : (N, m) bool.
-    x0 : (σ, n_i) start (alone when it has a lobe: σ > 0.01, n_i > 1.02); otherwise the best
-        of three fixed starts and x0.
-    f_scale : soft-L1 scale on the relative residual (0.05: 5 % misfits count fully,
-        larger ones linearly).
-    bounds : ((σ_min, σ_max), (n_i_min, n_i_max)), within LI_FIT_BOUNDS (a narrower n_i range
-        above 1 asks for the best solution with a lobe).
-    volume_model : the volume part's evaluation (facette.brdf.li_shading_terms; LI_VOLUME_MODEL).
-    Returns dict(sigma, n_i, kd (N, C), kappa (N, C), cost, n_values, seconds, success).
-    Residual per value: (E − A − B κ) / (the pixel's mean value).
-    """
-    t0 = time.perf_counter()
-    e0, w, sel, den = _relative_fit_values(e, usable)
-    lo, hi = np.array([b[0] for b in bounds], float), np.array([b[1] for b in bounds], float)
-    if not np.all(lo < hi):
-        raise ValueError(f"bounds = {bounds!r}: each (low, high) pair needs low < high")
-
-    def fun(p):
-        return _kd_and_residuals(e0, w, den, normals, lights, p[0], p[1], volume_model)[1][sel].astype(np.float64)
-
-    if not sel.any():
-        return dict(success=False, sigma=float("nan"), n_i=float("nan"), message="no usable values to fit")
-    # the previous solution and the fixed starts: at σ near its lower bound the lobe is too narrow
-    # for a finite-difference gradient, so a start there alone would stay there
-    if x0 is not None and x0[0] > 0.01 and x0[1] > LAMBERTIAN_N_I:
-        starts = [np.clip(np.asarray(x0, float), lo, hi)]
-    else:
-        starts = [np.clip(np.array(x), lo, hi) for x in _STARTS] + \
-            ([] if x0 is None else [np.clip(np.asarray(x0, float), lo, hi)])
-    best = None
-    for x in starts:
-        r = least_squares(fun, x, bounds=(lo, hi), loss="soft_l1", f_scale=f_scale, diff_step=1e-3,
-                          max_nfev=max_nfev, x_scale=np.array([0.05, 0.1]))
-        if best is None or r.cost < best.cost:
-            best = r
-    k, _ = _kd_and_residuals(e0, w, den, normals, lights, best.x[0], best.x[1], volume_model)
-    return dict(success=bool(best.success), sigma=float(best.x[0]), n_i=float(best.x[1]), kappa=k,
-                kd=li_kd_from_kappa(k, best.x[1]), cost=float(best.cost), n_values=int(sel.sum()),
-                seconds=time.perf_counter() - t0, message=str(best.message))
-
-
-def _pixel_costs(e, lights, normals, usable, sigma, n_i, volume_model, f_scale=0.05):
-    """(N,) each pixel's share of `li_fit_cost` (soft-L1 of its relative residuals)."""
-    e0, w, sel, den = _relative_fit_values(e, usable)
-    r = _kd_and_residuals(e0, w, den, normals, lights, sigma, n_i, volume_model)[1]
-    z = (r.astype(np.float64) / f_scale) ** 2
-    return np.sum(np.where(sel, f_scale ** 2 * (np.sqrt(1 + z) - 1), 0), axis=(1, 2))
-
-
-def _trimmed(costs, keep=PROFILE_KEEP):
-    """(sum of the `keep` fraction of smallest per-pixel costs, bool mask of those pixels)."""
-    n = max(1, int(round(keep * costs.size)))
-    order = np.argsort(costs, kind="stable")
-    kept = np.zeros(costs.size, bool)
-    kept[order[:n]] = True
-    return float(costs[order[:n]].sum()), kept
-
-
-def _profile_lobe(e, lights, usable, solve, volume_models):
-    """Round 1's model choice on the profile pixels: for each diffuse part (`volume_models`), the
-    normals solved against each (σ, n_i) of a coordinate search (σ along PROFILE_SIGMAS at
-    PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ; `solve(sigma, n_i, volume_model)` ->
-    (N, 3)), each scored by the trimmed robust cost of the result (`_trimmed`: a pixel whose solve
-    stopped in a wrong minimum does not decide the model).
-    Returns (best: dict(cost, volume_model, sigma, n_i, normals, kept), lambertian: dict(cost on
-    the best's kept pixels, normals, kept), {volume_model: its best trimmed cost}, the number of
-    solves)."""
-    best, per_model, solves = None, {}, 0
-
-    def score(sigma, n_i, vm):
-        nonlocal best, solves
-        n = solve(sigma, n_i, vm)
-        solves += 1
-        cost, kept = _trimmed(_pixel_costs(e, lights, n, usable, sigma, n_i, vm))
-        per_model[vm] = min(per_model.get(vm, np.inf), cost)
-        if best is None or cost < best["cost"]:
-            best = dict(cost=cost, volume_model=vm, sigma=sigma, n_i=n_i, normals=n, kept=kept)
-        return cost
-
-    for vm in volume_models:
-        costs = [score(sigma, PROFILE_N_I0, vm) for sigma in PROFILE_SIGMAS]
-        sigma = PROFILE_SIGMAS[int(np.argmin(costs))]
-        for n_i in PROFILE_N_IS:
-            score(sigma, n_i, vm)
-    # the Lambertian solution scored on the best lobe's kept pixels: trimmed on its own, it would
-    # drop the highlights, the very pixels that show a lobe (a glossy sphere's few % of pixels)
-    n = solve(LAMBERTIAN_SIGMA, 1.0, volume_models[0])
-    costs = _pixel_costs(e, lights, n, usable, LAMBERTIAN_SIGMA, 1.0, volume_models[0])
-    return best, dict(cost=float(costs[best["kept"]].sum()), normals=n, kept=best["kept"]), per_model, solves + 1
-
-
-def _has_interface(fit):
-    """Whether a fit's (σ, n_i) is not Lambertian: an interface (n_i > 1) gives a specular lobe and
-    Fresnel transmissions that shape the volume part, even where σ is too small for a lobe to be
-    seen (DiLiGenT buddha and cat on 12 lights fit σ < 0.01, n_i 1.07–1.11, and the BRDF step still
-    takes their error from 13.8° to 11.1° and 8.6° to 7.2°)."""
-    return bool(np.isfinite(fit["sigma"]) and fit["n_i"] >= LAMBERTIAN_N_I)
 
 
 def _settled(prev, new):

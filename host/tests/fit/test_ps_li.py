@@ -176,7 +176,7 @@ def test_a_lambertian_diffuse_part_beside_the_lobe_is_found_and_gives_better_nor
 
 def test_a_matte_material_gets_no_lobe(cache):
     # Mitsuba plaster: the best lobe does not lower the trimmed profile cost by LOBE_MIN_GAIN
-    from facette.fit._ps_li import LOBE_MIN_GAIN
+    from facette.fit._li_model import LOBE_MIN_GAIN
     d = render_scene("sphere", "plaster", size=48, spp=8, cache_dir=cache)
     r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"])
     choice = r.info["materials"][0]["model_choice"]
