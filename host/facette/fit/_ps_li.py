@@ -48,7 +48,7 @@ import numpy as np
 from facette.brdf import kd_from_kappa, li_shading_terms
 from facette.recon import PSResult, ps_rank_trimmed, ps_woodham1980
 from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _run_blocks, _usable
-from ._li_model import (DIFFUSE, LAMBERTIAN_SIGMA, LI_VOLUME_MODEL, LOBE_MIN_GAIN, PROFILE_TABLE_GRID,
+from ._li_model import (DIFFUSE, LAMBERTIAN_SIGMA, LI_VOLUME_MODEL, LOBE_MIN_GAIN, PROFILE_KEEP, PROFILE_TABLE_GRID,
                         PROFILE_VALUES, _has_interface, _pixel_costs, _profile_lobe, _trimmed, fit_li_per_pixel_kd)
 from ._normals_li import RefineResult, refine_normals_li
 
