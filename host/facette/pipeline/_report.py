@@ -310,6 +310,10 @@ def _fit_section(res, truth_brdf, truth_kd):
              + f" by {html.escape(str(d.get('method')))} in {fmt(d.get('time_s'), 2)} s.",
              f"Fitted to {fmt(err.get('n_samples'))} sensor cells × {fmt(err.get('n_channels'))} channels: "
              f"RMS error {fmt(err.get('rms'))} 1/sr, {_pct(err.get('relative_rms'))} of the data's RMS."]
+    if d.get("verdict"):
+        lines.insert(0, f"<b>Verdict: {html.escape(str(d['verdict']))}</b> (models tried: " + ", ".join(
+            f"{html.escape(str(t['model']))} {_pct(t.get('relative_rms'))} of the data's RMS"
+            for t in d.get("models_tried") or []) + ").")
     if d.get("message") and d.get("message") != "converged":
         lines.append("Fit notes: " + html.escape(str(d["message"])))
     for s in d.get("selection") or []:

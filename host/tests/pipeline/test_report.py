@@ -35,6 +35,10 @@ def test_report_shows_the_fit_its_uncertainties_and_the_truth(simulated_result):
     assert unc and fmt_pm(res.brdf.params["sigma"], unc["sigma"]) in text
     assert fmt_pm(res.brdf.params["kd"][1], unc["kd"][1]) in text
     assert "covariance = s² (JᵀJ)⁻¹" in text
+    # a verdict over the models tried, first: a Cook–Torrance satin fits within the threshold
+    assert res.brdf.verdict == "fits" and res.brdf.models_tried[0]["model"] == res.brdf.model
+    assert f"Verdict: fits</b> (models tried: {res.brdf.model}" in text
+    assert text.index("Verdict:") < text.index("Fitted to")
     # data and model per incidence, residuals per cell, truth as histograms
     for caption in ("Filtered reflectance and fitted model per incidence", "Residual per sensor cell",
                     "Error against the scan's truth (histograms", "normal angular error (deg)"):
