@@ -20,7 +20,7 @@ def test_recorded_and_reported_fields_and_defaults():
     assert list(o.recorded()) == RECORDED and o.recorded()["mask"] is None
     assert list(o.reported()) == ["method", "integration", "t_ombre", "t_spec", "t_source", "t_residual",
                                   "theta0_deg", "rti_encoding"]
-    assert o.method == PROCESS_DEFAULT == "rank_trimmed" and o.fit_options == {} and o.ps_options == {} and o.near_light
+    assert o.method == PROCESS_DEFAULT == "li_alternating" and o.fit_options == {} and o.ps_options == {} and o.near_light
     assert replace(o, mask="m.png").recorded()["mask"] == "m.png"       # a path is recorded, an array not
     for name in RECORDED + ["ascii_ply", "allow_incomplete", "overwrite"]:
         assert f"    {name} : " in ProcessOptions.__doc__               # each field's line, from the field
