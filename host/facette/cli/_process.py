@@ -106,6 +106,10 @@ def register(sub):
                                     "(default: found in the photographs)")
     p.add_argument("--reference", help="RTI capture: x0,y0,x1,y1 (px) of a white or grey patch in every "
                                        "photograph; each photograph is divided by its level there")
+    p.add_argument("--memory", metavar="SIZE", default=d.memory,
+                   help="a memory budget such as 2GB, 512MB or 3GiB: photometric stereo runs over bands of "
+                        "rows in it (a per-pixel --method); with --outputs among normals,albedo,mask,height,"
+                        "mesh,report the images are read band by band, never whole (default: untiled)")
     p.add_argument("--hsh-order", type=int, default=d.hsh_order, choices=(2, 3),
                    help="hemispherical-harmonics order of relight.rti (2: 4 terms, 3: 9 terms)")
     p.add_argument("--rti-encoding", default=d.rti_encoding, choices=("srgb", "linear"),
@@ -152,7 +156,7 @@ def options(args):
         pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light, mesh_step=args.mesh_step,
         ascii_ply=args.ascii_ply, fit_options={"model": args.brdf_model, "method": args.fit_method},
         hsh_order=args.hsh_order, rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
-        interreflections=args.interreflections, capture=_capture(args),
+        interreflections=args.interreflections, capture=_capture(args), memory=args.memory,
         ps_options={"init": args.init} if args.init else None)     # li_alternating takes it, the others leave it
 
 

@@ -96,17 +96,25 @@ def auto_masks(images, min_contrast=4.0):
     that split is the median over the lights (highlights and shadows do not move it).
     """
     ch = images[..., 1] if images.shape[-1] == 3 else images.mean(axis=-1)
-    lum = np.nan_to_num(np.fmax.reduce(ch, axis=0), nan=0.0)   # NaN-ignoring max over the lights
-    sub = lum.ravel()[::7]                                   # a quantile needs no full sort
-    ref = float(np.quantile(sub, 0.99)) if sub.size else 0.0
-    if not ref > 0:
-        return np.zeros(lum.shape, bool), np.zeros(lum.shape, bool)
-    lit = lum > 0.02 * ref
+    lum = np.fmax.reduce(ch, axis=0)      # NaN-ignoring max over the lights
     from facette.pipeline._pixels_jit import median_over_lights
     med = np.empty(lum.shape, ch.dtype)  # pixels unknown under every light: NaN, dropped below
     half = lum.shape[0] // 2              # two halves of the rows on two threads (the kernel frees the GIL)
     with ThreadPoolExecutor(2) as pool:
         list(pool.map(lambda sl: median_over_lights(ch, med, sl), (slice(0, half), slice(half, None))))
+    return masks_from(lum, med, min_contrast)
+
+
+def masks_from(top, med, min_contrast=4.0):
+    """`auto_masks` from its two maps of the green channel over the lights, (H, W) each: `top`
+    the NaN-ignoring maximum, `med` the median of the known values (NaN where none); a tiled
+    reading computes them band by band (pipeline._tiled_process)."""
+    lum = np.nan_to_num(top, nan=0.0)
+    sub = lum.ravel()[::7]                                   # a quantile needs no full sort
+    ref = float(np.quantile(sub, 0.99)) if sub.size else 0.0
+    if not ref > 0:
+        return np.zeros(lum.shape, bool), np.zeros(lum.shape, bool)
+    lit = lum > 0.02 * ref
     ok = lit & np.isfinite(med) & (med > 0)
     if ok.sum() < 16:
         return lit, lit
@@ -127,17 +135,20 @@ def auto_masks(images, min_contrast=4.0):
     return lit, material
 
 
-def object_of(images, lit, material, factor=OBJECT_OVER_TABLE):
+def object_of(images, lit, material, factor=OBJECT_OVER_TABLE, top=None):
     """The object (H, W) bool: `material` (Otsu's bright class of `auto_masks`) grown into the
     lit pixels connected to it that are brighter, under their brightest light, than `factor`
     times the table's median (the dark rims and grooves of an object, which the median over the
-    lights puts on the table's side). `lit` itself when there is no table (material == lit)."""
+    lights puts on the table's side). `lit` itself when there is no table (material == lit).
+    top : that brightest value (H, W), NaN-ignoring maximum of the green channel over the lights,
+    when it is at hand (then `images` is not read and may be None)."""
     lit, material = np.asarray(lit, bool), np.asarray(material, bool)
     table = lit & ~material
     if not table.any() or not material.any():
         return material.copy()
-    ch = images[..., 1] if images.shape[-1] == 3 else images.mean(axis=-1)
-    top = np.fmax.reduce(ch, axis=0)                 # NaN-ignoring; all-NaN (saturated): NaN
+    if top is None:
+        ch = images[..., 1] if images.shape[-1] == 3 else images.mean(axis=-1)
+        top = np.fmax.reduce(ch, axis=0)             # NaN-ignoring; all-NaN (saturated): NaN
     floor = factor * float(np.median(np.nan_to_num(top[table], nan=0.0)))
     with np.errstate(invalid="ignore"):
         bright = lit & ((top > floor) | np.isnan(top))
@@ -250,6 +261,15 @@ def _load_hdr_images(scan_dir, data, take_held=None):
     """(images, usable, lights, notes): hdr/ read, after merging again (under the directory's
     lock) every light whose files are absent, made from other frames, or changed; the lights
     `take_held` gives (see `_read_hdr_fast`) from memory."""
+    ids, lights, notes = merged_lights(scan_dir, data)
+    images, usable = _read_hdr_fast(scan_dir, ids, take_held)
+    return images, usable, lights, notes
+
+
+def merged_lights(scan_dir, data):
+    """(light ids, their scan.json entries, notes) once every light's hdr/ files are there and
+    up to date (merged again, under the directory's lock, where absent, made from other frames,
+    or changed)."""
     lights = sorted(data.lights, key=lambda l: int(l.index))
     ids = data.frame_lights() or [int(l.index) for l in lights]
     by_index = {int(l.index): l for l in lights}
@@ -280,11 +300,12 @@ def _load_hdr_images(scan_dir, data, take_held=None):
                 merge_scan(scan_dir)
         finally:
             sd.unlock()
-    images, usable = _read_hdr_fast(scan_dir, ids, take_held)
-    return images, usable, [by_index[i] for i in ids], notes
+    return ids, [by_index[i] for i in ids], notes
 
 
-def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None):
+def scan_manifest(scan_dir, allow_incomplete=False):
+    """(scan.json's manifest, complete): BadInputError for a scan being acquired or incomplete
+    unless `allow_incomplete`."""
     data = ScanDirectory(scan_dir).manifest      # a damaged scan.json is named (BadInputError)
     expected = data.n_planned
     # every (light, exposure) of the plan has a frame (scan.json's own "complete" flag is not
@@ -301,7 +322,12 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None)
                             f"{scan_dir}): run the same scan command to resume",
                             hint="or pass --allow-incomplete to process what is there (every output "
                                  "then says so)")
-    images, usable, lights, hdr_notes = _load_hdr_images(scan_dir, data, take_held)
+    return data, complete
+
+
+def scan_lights(scan_dir, data, lights):
+    """(directions (m, 3), intensities (m, 3) times the radiometric scale, positions (m, 3) or
+    None, notes) of the scan's lights (`merged_lights`)."""
     dirs = np.array([l.direction for l in lights], dtype=np.float64)
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     inten = np.array([l.intensity or [1.0, 1.0, 1.0] for l in lights], dtype=np.float64)
@@ -311,6 +337,22 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None)
     scale = data.radiometric_scale
     if scale is not None:   # the Spectralon's absolute scale: images become radiance factors
         inten = inten * np.asarray(scale, dtype=np.float64)[None, :]
+    pos = [l.position_mm for l in lights]
+    positions = np.array(pos, dtype=np.float64) if all(p is not None for p in pos) else None
+    below = [int(l.index) for k, l in enumerate(lights)
+             if dirs[k, 2] < 0 or (positions is not None and positions[k, 2] < 0)]
+    notes = []
+    if below:    # a profile measured wrong (or a light's sign flipped): said, not silently fitted
+        notes.append(f"light(s) {below} of scan.json lie below the horizon (z < 0 in the calibration "
+                     "profile's directions or positions): no such light can light a surface the camera "
+                     "sees, and the normals fitted with it err; check the profile (facette calibrate)")
+    return dirs, inten, positions, notes
+
+
+def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None):
+    data, complete = scan_manifest(scan_dir, allow_incomplete)
+    images, usable, lights, hdr_notes = _load_hdr_images(scan_dir, data, take_held)
+    dirs, inten, positions, light_notes = scan_lights(scan_dir, data, lights)
     m, h, w, c = images.shape
     if images.flags.c_contiguous:   # a light's row as one (W·3) run: 7x faster than broadcasting (..., 3)
         rows = images.reshape(m, h, w * c)                       # a view
@@ -319,38 +361,39 @@ def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None)
     else:
         images /= inten[:, None, None, :].astype(np.float32)
     profile_pitch, profile_notes = _apply_profile(images, data, scan_dir)
+    mask, material = auto_masks(images)
+    # the object: the lit pixels and those saturated under some light (which auto_masks, blind
+    # to unknown values, leaves out)
+    obj = mask | np.isnan(images[..., 1]).any(axis=0)
+    return scan_input(scan_dir, data, complete, images, dirs, positions, mask, material, usable, obj,
+                      pixel_pitch_mm or profile_pitch, hdr_notes, light_notes, profile_notes)
+
+
+def scan_input(scan_dir, data, complete, images, dirs, positions, mask, material, usable, obj, pitch,
+               hdr_notes, light_notes, profile_notes):
+    """The `PSInput` of a scan from its parts (images may be None: read band by band)."""
     # the merge may have just run: its record (sensor used) is in scan.json as it is now
     hdr = ScanDirectory(scan_dir).manifest.hdr
     sensor_source = (hdr.sensor_source if hdr is not None else None) or ""
+    hdr_notes = list(hdr_notes)
     if sensor_source.startswith("nominal"):
         hdr_notes.append(f"HDR merged with the {sensor_source}")
-    pos = [l.position_mm for l in lights]
-    positions = np.array(pos, dtype=np.float64) if all(p is not None for p in pos) else None
-    below = [int(l.index) for k, l in enumerate(lights)
-             if dirs[k, 2] < 0 or (positions is not None and positions[k, 2] < 0)]
-    if below:    # a profile measured wrong (or a light's sign flipped): said, not silently fitted
-        hdr_notes.append(f"light(s) {below} of scan.json lie below the horizon (z < 0 in the calibration "
-                         "profile's directions or positions): no such light can light a surface the camera "
-                         "sees, and the normals fitted with it err; check the profile (facette calibrate)")
-    pitch = pixel_pitch_mm or profile_pitch
+    hdr_notes.extend(light_notes)
     if not pitch:
         raise ValueError(f"{scan_dir / 'scan.json'} gives no pixel_pitch_mm; pass pixel_pitch_mm=")
     truth = None
     if data.truth and (scan_dir / data.truth).is_file():
         with np.load(scan_dir / data.truth, allow_pickle=False) as z:
             truth = {k: z[k] for k in z.files}
-    mask, material = auto_masks(images)
-    # the object: the lit pixels and those saturated under some light (which auto_masks, blind
-    # to unknown values, leaves out)
-    obj = mask | np.isnan(images[..., 1]).any(axis=0)
     inp = PSInput(images, dirs, positions, mask, float(pitch), "scan", scan_dir, truth,
                   material_mask=material, usable=usable, object_mask=obj)
+    expected = data.n_planned
     if not complete:
         inp.incomplete = f"{len(data.frames)} of {expected or '?'} frames"
     inp.digest = _digest(sorted((f.file, "" if "sha256" in f.absent else f.sha256) for f in data.frames))
     inp.notes.extend(profile_notes)
     inp.notes.extend(hdr_notes)
-    if scale is None:
+    if data.radiometric_scale is None:
         inp.notes.append("no radiometric scale in scan.json (profile without a Spectralon step): "
                          "albedo and BRDF values are relative, K_d is not a reflectance")
     return inp
@@ -369,18 +412,30 @@ def _file_stamps(folder):
 
 
 def _apply_profile(images, data, scan_dir):
-    """Apply the calibration profile the scan was taken with (the manifest's profile: id, sha256,
-    path, and the image size it was measured at) at the images' size: divide `images`
-    (m, H, W, 3) in place by its flat field, resampled if the scan reads the sensor at
-    another resolution, and give the pixel pitch at this size.
+    """`profile_flat` applied to `images` (m, H, W, 3), in place; returns (pixel_pitch_mm or
+    None, notes)."""
+    pitch, notes, flat = profile_flat(data, scan_dir, (images.shape[2], images.shape[1]))
+    if flat is not None:
+        images[0] = apply_flat_field(images[0], flat)      # checks the field
+        with ThreadPoolExecutor(2) as pool:        # in place (no full-size copy), on both cores
+            list(pool.map(lambda k: np.divide(images[k], flat, out=images[k]), range(1, images.shape[0])))
+    return pitch, notes
 
-    Returns (pixel_pitch_mm or None, notes). Raises ResolutionError (naming both sizes)
-    when the scan's size cannot be another resolution of the profile's camera setting."""
+
+def profile_flat(data, scan_dir, size):
+    """The calibration profile the scan was taken with (the manifest's profile: id, sha256,
+    path, and the image size it was measured at) at the images' size (W, H): its flat field,
+    resampled if the scan reads the sensor at another resolution, to divide the images by, and
+    the pixel pitch at this size.
+
+    Returns (pixel_pitch_mm or None, notes, flat field (H, W, 3) float32 or None). Raises
+    ResolutionError (naming both sizes) when the scan's size cannot be another resolution of
+    the profile's camera setting."""
     ref = data.profile
     pitch = data.pixel_pitch_mm
-    size = (images.shape[2], images.shape[1])
+    size = tuple(size)
     if not ref:
-        return pitch, ["no calibration profile recorded: no flat-field correction"]
+        return pitch, ["no calibration profile recorded: no flat-field correction"], None
     profile, why = None, None
     if ref.get("path"):
         try:
@@ -406,19 +461,15 @@ def _apply_profile(images, data, scan_dir):
                      "as measured")
     if profile is None:
         notes.append(f"flat field not applied: {why or 'no profile path recorded'}")
-        return pitch, notes
+        return pitch, notes, None
     if profile.flat_field is None:
         notes.append(f"profile {profile.id} has no flat field: no flat-field correction")
-        return pitch, notes
+        return pitch, notes, None
     at = profile.at_size(size)
-    images[0] = apply_flat_field(images[0], at.flat_field)      # checks the field
-    flat = np.asarray(at.flat_field, np.float32)
-    with ThreadPoolExecutor(2) as pool:        # in place (no full-size copy), on both cores
-        list(pool.map(lambda k: np.divide(images[k], flat, out=images[k]), range(1, images.shape[0])))
     notes.append(f"flat field of profile {profile.id} applied"
                  + ("" if at.flat_field is profile.flat_field else
                     f" (resampled from {measured[0]}×{measured[1]} px)"))
-    return pitch, notes
+    return pitch, notes, np.asarray(at.flat_field, np.float32)
 
 
 def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False, capture=None):
@@ -461,12 +512,17 @@ def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False, c
                          "light_directions.txt (a DiLiGenT-style folder) nor photographs with an .lp "
                          "file (an RTI capture)")
     if mask is not None:
-        m = read_mask(mask) if isinstance(mask, (str, os.PathLike)) else np.asarray(mask, bool)
-        if m.shape != inp.mask.shape:
-            raise ValueError(f"the mask {mask if isinstance(mask, (str, os.PathLike)) else ''} is "
-                             f"{m.shape[1]}x{m.shape[0]} px, the images are {inp.mask.shape[1]}x"
-                             f"{inp.mask.shape[0]}: give a mask of the images' size")
-        inp.mask, inp.material_mask = m, None     # a given mask is the object: samples follow it
-        inp.object_mask = m
-        inp.mask_source = f"--mask {mask}" if isinstance(mask, (str, os.PathLike)) else "the given mask"
+        given_mask(inp, mask)
     return inp
+
+
+def given_mask(inp, mask):
+    """A mask given to `process` (array or PNG path) in place of the input's own."""
+    m = read_mask(mask) if isinstance(mask, (str, os.PathLike)) else np.asarray(mask, bool)
+    if m.shape != inp.mask.shape:
+        raise ValueError(f"the mask {mask if isinstance(mask, (str, os.PathLike)) else ''} is "
+                         f"{m.shape[1]}x{m.shape[0]} px, the images are {inp.mask.shape[1]}x"
+                         f"{inp.mask.shape[0]}: give a mask of the images' size")
+    inp.mask, inp.material_mask = m, None     # a given mask is the object: samples follow it
+    inp.object_mask = m
+    inp.mask_source = f"--mask {mask}" if isinstance(mask, (str, os.PathLike)) else "the given mask"

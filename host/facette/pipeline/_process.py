@@ -46,6 +46,7 @@ from facette.pipeline._inputs import load_input, object_of
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_capture import LP_NAME
+from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
 from facette.pipeline._quality import check_fit_cells, check_samples
 from facette.pipeline._report import report_fit_section, write_report
 
@@ -299,12 +300,27 @@ def _process(source, outputs, out_dir, o):
         # matplotlib takes ~0.5 s to import: let it load while the numbers are computed
         threading.Thread(target=preload, daemon=True).start()
 
+    def claim(inp):                    # before any work: the folder must take this run's files
+        return None if out_dir is None else claim_results(Path(out_dir), record_options, inp, o.overwrite,
+                                                          set(FILES.values()) | {LP_NAME}, o.mask)
+
+    if o.memory is not None and streamed(source, outputs):
+        # --memory, outputs that need no image after photometric stereo: the images are read band by
+        # band, never whole (pipeline._tiled_process); the stages after photometric stereo as untiled
+        claimed = {}
+        inp, ps, light_dirs, top = streamed_ps(source, o, res, lambda i: claimed.update(previous=claim(i)))
+        previous, images, direct = claimed["previous"], None, None
+        res.ps = ps
+        res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
+        res.object_mask = res.mask if inp.background_mask() is None else \
+            res.mask & object_of(None, inp.mask, inp.material_mask, top=top)
+        res.notes.append(MEMORY_FLAGS_NOTE)
+        return _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options,
+                        previous, t_all, cpu_all)
     t0 = time.perf_counter()
     inp = load_input(source, mask=o.mask, pixel_pitch_mm=o.pixel_pitch_mm, allow_incomplete=o.allow_incomplete,
                      capture=o.capture)
-    if out_dir is not None:            # before any work: the folder must take this run's files
-        previous = claim_results(Path(out_dir), record_options, inp, o.overwrite, set(FILES.values()) | {LP_NAME},
-                                 o.mask)
+    previous = claim(inp)
     res.inputs = inp
     res.notes.extend(inp.notes)
     if o.interreflections and inp.truth is not None and "sensor" in inp.truth:   # the rig simulator's truth
@@ -333,7 +349,9 @@ def _process(source, outputs, out_dir, o):
     elif o.interreflections:
         direct, ps = _without_interreflections(res, images, light_dirs, inp.mask, o.saturation,
                                                method_name == "rank_trimmed")
-    if ps is None:
+    if ps is None and o.memory is not None:     # over bands of the images held whole
+        ps = in_memory_ps(direct, light_dirs, o, bag, outputs, res)
+    elif ps is None:
         ps = photometric_stereo(direct, light_dirs, method=o.method, options=bag)
     res.ps = ps
     res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
@@ -341,7 +359,13 @@ def _process(source, outputs, out_dir, o):
     res.object_mask = res.mask if inp.background_mask() is None else \
         res.mask & object_of(inp.images, inp.mask, inp.material_mask)
     res.timings["ps"] = time.perf_counter() - t0
+    return _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options, previous,
+                    t_all, cpu_all)
 
+
+def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options, previous,
+             t_all, cpu_all):
+    """The stages after photometric stereo, the checks against truth and the files."""
     drawn = {}         # report sections drawn by the concurrent stages
     if out_dir is not None:            # before the first file: whose files these will be
         mark_running(Path(out_dir), record_options, inp, [FILES[name] for name in outputs if name in FILES])

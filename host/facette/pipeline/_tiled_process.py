@@ -1,0 +1,356 @@
+"""`process(..., memory="2GB")` (`facette process --memory 2GB`): photometric stereo over row bands.
+
+A per-pixel method (`_tiles.TILED_METHODS`) gives each pixel's normal from that pixel's values
+alone, so the bands solved one after the other give the untiled normals. Two ways, chosen by
+the outputs asked for:
+
+- streamed (every output in STREAMED_OUTPUTS: normals, albedo, mask, height, mesh, report; a
+  scan directory or a DiLiGenT-style folder): the photographs are never held whole. A scan's
+  HDR images are read a window of scanlines at a time (OpenEXR's scanline reader), twice: once
+  for the masks' two maps (the brightest value and the median over the lights, what
+  `auto_masks` splits), once for photometric stereo; a DiLiGenT folder's PNGs are staged once
+  to raw files (`_tiles._Staged`: PNG decodes whole images only) and read band by band. The
+  quality counts (`check_samples`) add up over the bands and are judged after the bands (the
+  same verdict, later). What is kept at the image's size: the PS outputs (32 bytes/pixel),
+  the masks and, for a scan, the two maps (8 bytes/pixel); then the integration of heights
+  runs on the whole float32 normal map as untiled.
+- in memory (an output that needs the images after photometric stereo: samples, brdf, ptm,
+  rti, gltf; or an RTI capture): the input is loaded whole as untiled; photometric stereo runs
+  over bands of it, which bounds its own working set only; a note says which outputs came from
+  the whole images.
+
+The band height is `_tiles.rows_per_tile` of the budget (`rows` forces it: tests).
+"""
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from facette.io.diligent import is_diligent_dir, read_diligent_lights
+from facette.io.png import read_mask
+from facette.methods import PS_METHODS, photometric_stereo
+from facette.pipeline._inputs import (NO_PITCH_NOTE, PSInput, _digest, _file_stamps, given_mask, masks_from,
+                                      merged_lights, profile_flat, scan_input, scan_lights, scan_manifest,
+                                      source_path)
+from facette.pipeline._quality import MIN_LEVELS, add_counts, check_counts, sample_counts, usable_from_green
+from facette.pipeline._tiles import FIELD_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, _Staged, rows_per_tile
+from facette.recon import PSResult, near_light_directions
+from facette.scan import ScanDirectory
+
+__all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "open_streamed", "ps_bands", "streamed_ps",
+           "in_memory_ps"]
+
+STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "report")
+MEMORY_FLAGS_NOTE = ("--memory: the per-light shadow and specular flags are not kept (m bytes per pixel "
+                     "each): the report leaves their share out and draws their maps empty")
+
+
+def check_memory_options(method, interreflections):
+    """ValueError unless `method` can run over bands and nothing asks for the whole images first."""
+    name = PS_METHODS.canonical(method)
+    if name not in TILED_METHODS:
+        why = WHOLE_IMAGE_METHODS.get(name, "it is not known to be per-pixel")
+        raise ValueError(f"--memory runs photometric stereo over bands of rows, which {name} cannot: {why}; "
+                         f"choose a per-pixel method ({', '.join(TILED_METHODS)}), or leave --memory out")
+    if interreflections:
+        raise ValueError("--interreflections needs the whole images at once (the light a surface gathers "
+                         "from itself comes from everywhere): leave --memory out to remove them")
+
+
+def streamed(source, outputs):
+    """True when `process` can run without the whole images: every output in STREAMED_OUTPUTS
+    and a scan directory or a DiLiGenT-style folder (an RTI capture is read whole)."""
+    if not set(outputs) <= set(STREAMED_OUTPUTS):
+        return False
+    try:
+        path = source_path(source)
+    except TypeError:
+        return False
+    return path.is_dir() and ((path / "scan.json").is_file() or is_diligent_dir(path))
+
+
+class _ScanBands:
+    """A scan's HDR images (hdr/light_XX.exr and _var.exr), read a band of scanlines at a time,
+    as `_inputs._read_hdr_fast` then `_load_scan` make them: NaN where the variance is not
+    finite, `usable` from the green channel before the light's intensity is divided out, then
+    divided by the intensity and the flat field."""
+
+    def __init__(self, scan_dir, ids, inten, flat):
+        import Imath
+        import OpenEXR
+        self.paths = [(scan_dir / "hdr" / f"light_{i:02d}.exr", scan_dir / "hdr" / f"light_{i:02d}_var.exr")
+                      for i in ids]
+        self.inten = np.asarray(inten, np.float64)
+        self.flat = flat
+        self.float = Imath.PixelType(Imath.PixelType.FLOAT)
+        self.files, self.windows = [], []
+        try:
+            for img, var in self.paths:
+                pair = []
+                for path in (img, var):
+                    if path is var and not var.is_file():
+                        pair.append(None)      # radiance without its variance (made elsewhere): no noise
+                        continue
+                    f = OpenEXR.InputFile(str(path))
+                    box = f.header()["dataWindow"]
+                    pair.append(f)
+                    self.windows.append((box.min.x, box.min.y, box.max.x - box.min.x + 1, box.max.y - box.min.y + 1))
+                self.files.append(pair)
+        except Exception as exc:
+            self.close()
+            raise ValueError(f"{path}: cannot read this HDR image ({exc}); delete {path.parent} to merge it "
+                             "again from raw/, or rescan that light") from exc
+        if len(set(self.windows)) != 1:
+            raise ValueError(f"the HDR images of {scan_dir / 'hdr'} differ in size: merge them again")
+        self.x0, self.y0, self.w, self.h = self.windows[0]
+
+    def close(self):
+        for pair in self.files:
+            for f in pair:
+                if f is not None:
+                    f.close()
+        self.files = []
+
+    def _channels(self, f, r0, r1):
+        y = self.y0
+        raw = f.channels(["R", "G", "B"], self.float, y + r0, y + r1 - 1)
+        return [np.frombuffer(b, np.float32).reshape(r1 - r0, self.w) for b in raw]
+
+    def read(self, r0, r1):
+        """(images (m, r1 - r0, W, 3) float32, usable (m, r1 - r0, W) bool) of rows r0..r1."""
+        m, b, w = len(self.paths), r1 - r0, self.w
+        images = np.empty((m, b, w, 3), np.float32)
+        usable = np.empty((m, b, w), bool)
+        for k, (f_img, f_var) in enumerate(self.files):
+            for c, ch in enumerate(self._channels(f_img, r0, r1)):
+                images[k, :, :, c] = ch
+            if f_var is None:
+                images[k][~np.isfinite(images[k]).all(axis=-1)] = np.nan
+                usable[k] = np.isfinite(images[k][..., 1]) & (images[k][..., 1] > 0)
+            else:
+                v = self._channels(f_var, r0, r1)
+                bad = ~(np.isfinite(v[0]) & np.isfinite(v[1]) & np.isfinite(v[2]))
+                fin = np.isfinite(images[k])
+                wild = ~(fin[..., 0] | fin[..., 1] | fin[..., 2]) & ~bad
+                if wild.any():
+                    raise ValueError(f"{self.paths[k][0]} has {int(wild.sum())} non-finite values (Inf or NaN) "
+                                     f"where its variance is finite: the file is damaged; delete it: processing "
+                                     "merges it again from raw/")
+                images[k][bad] = np.nan
+                usable[k] = usable_from_green(images[k][..., 1], np.ascontiguousarray(v[1]))
+            images[k] /= self.inten[k].astype(np.float32)
+            if self.flat is not None:
+                np.divide(images[k], self.flat[r0:r1], out=images[k])
+        return images, usable
+
+
+class _DiligentBands:
+    """A DiLiGenT-style folder's photographs staged to raw files, read a band at a time as
+    `read_diligent` and `load_input` make them (usable: >= MIN_LEVELS grey levels)."""
+
+    def __init__(self, folder, names, inten, work):
+        self.staged = _Staged(folder, names, work)
+        self.inten = inten
+        self.h, self.w = self.staged.shape[:2]
+        bits = 16 if self.staged.dtype == np.uint16 else 8
+        self.levels = (np.asarray(inten)[:, 1] * (2.0 ** bits - 1))[:, None, None]
+
+    def read(self, r0, r1):
+        images = self.staged.band(r0, r1, self.inten)
+        with np.errstate(invalid="ignore"):
+            levels = images[..., 1] * self.levels
+        return images, np.isfinite(levels) & (levels >= MIN_LEVELS)
+
+    def close(self):
+        pass
+
+
+def _rows(w, h, m, memory, method, rows):
+    if rows is not None:
+        if int(rows) < 1:
+            raise ValueError(f"rows must be >= 1, got {rows}")
+        return int(rows)
+    return rows_per_tile(w, h, m, memory, method, tuple(FIELD_BYTES))
+
+
+def open_streamed(source, o, work, rows=None):
+    """(PSInput with images=None and usable=None, band reader with .read(r0, r1) and .close(),
+    the brightest value over the lights (H, W) or None, band rows) of a scan or DiLiGenT folder."""
+    from facette.pipeline._pixels_jit import median_over_lights
+    path = source_path(source)
+    if (path / "scan.json").is_file():
+        data, complete = scan_manifest(path, o.allow_incomplete)
+        ids, lights, hdr_notes = merged_lights(path, data)
+        dirs, inten, positions, light_notes = scan_lights(path, data, lights)
+        bands = _ScanBands(path, ids, inten, None)
+        try:
+            h, w = bands.h, bands.w
+            pitch, profile_notes, bands.flat = profile_flat(data, path, (w, h))
+            if bands.flat is not None and bands.flat.shape != (h, w, 3):
+                raise ValueError(f"the flat field is {bands.flat.shape} but the images are {(h, w, 3)}: the profile "
+                                 "was made at another resolution; recalibrate at this one (facette calibrate)")
+            if bands.flat is not None and not (np.all(np.isfinite(bands.flat)) and np.all(bands.flat > 0)):
+                raise ValueError("the flat field has non-positive or non-finite values: the profile is damaged")
+            n = _rows(w, h, len(ids), o.memory, o.method, rows)
+            top, med = np.empty((h, w), np.float32), np.empty((h, w), np.float32)
+            unknown = np.zeros((h, w), bool)
+            for r0 in range(0, h, n):        # the masks' maps, band by band
+                r1 = min(h, r0 + n)
+                g = bands.read(r0, r1)[0][..., 1]
+                top[r0:r1] = np.fmax.reduce(g, axis=0)
+                median_over_lights(g, med[r0:r1], slice(0, r1 - r0))
+                unknown[r0:r1] = np.isnan(g).any(axis=0)
+            mask, material = masks_from(top, med)
+            del med
+            inp = scan_input(path, data, complete, None, dirs, positions, mask, material, None, mask | unknown,
+                             o.pixel_pitch_mm or pitch, hdr_notes, light_notes, profile_notes)
+        except BaseException:
+            bands.close()
+            raise
+    else:
+        names, dirs, inten, notes = read_diligent_lights(path)
+        bands = _DiligentBands(path, names, inten, work)
+        h, w = bands.h, bands.w
+        n = _rows(w, h, len(names), o.memory, o.method, rows)
+        mask = read_mask(path / "mask.png") if (path / "mask.png").is_file() else np.ones((h, w), bool)
+        if mask.shape != (h, w):
+            raise ValueError(f"mask.png is {mask.shape[1]}x{mask.shape[0]}, images are {w}x{h}")
+        inp = PSInput(None, dirs, None, mask, float(o.pixel_pitch_mm or 1.0), "diligent", path, object_mask=mask,
+                      mask_source=f"{path / 'mask.png'}" if (path / "mask.png").is_file() else "the image")
+        inp.digest = _digest(_file_stamps(path))
+        inp.notes.extend(notes)
+        if o.pixel_pitch_mm is None:
+            inp.notes.append(NO_PITCH_NOTE)
+        top = None
+    if o.mask is not None:
+        given_mask(inp, o.mask)
+    return inp, bands, (None if o.mask is not None else top), n
+
+
+def ps_bands(read, shape, m, light_dirs, method, bag, mask, rows, flags=False, count_in=None):
+    """Photometric stereo of `method` over bands of `rows` rows.
+
+    read(r0, r1) -> (images (m, r1 - r0, W, C) as the method takes them, usable or None);
+    shape (H, W); light_dirs (m, 3), or a function (r0, r1) -> the band's directions
+    ((r1 - r0, W, m, 3)), or an (H, W, m, 3) array; bag: the options (its mask replaced by the
+    band's); mask (H, W) bool; flags: keep the (H, W, m) shadow and specular flags (else (H, W, 0));
+    count_in: (H, W) bool, the object over which the quality counts (`sample_counts`) are summed.
+    Returns (PSResult at the image's size, counts or None). info: the first band's, its
+    fractions (keys ending in _fraction) weighted by the bands' pixels, and pixels, tiles,
+    rows_per_tile, read_s, ps_s.
+    """
+    h, w = shape
+    k = m if flags else 0
+    res = PSResult(normal=np.zeros((h, w, 3), np.float32), albedo=np.zeros((h, w, 3), np.float32),
+                   valid=np.zeros((h, w), bool), n_triplets=np.zeros((h, w), np.int16),
+                   shadow=np.zeros((h, w, k), bool), specular=np.zeros((h, w, k), bool),
+                   residual=np.zeros((h, w), np.float32), skipped=np.zeros((h, w), bool),
+                   method=PS_METHODS.canonical(method))
+    info, pixels, tiles, counts, read_s, ps_s = {}, 0, 0, None, 0.0, 0.0
+    weighted = {}
+    for r0 in range(0, h, rows):
+        r1 = min(h, r0 + rows)
+        tiles += 1
+        if not mask[r0:r1].any() and count_in is None:
+            continue                   # outputs stay zero
+        t0 = time.perf_counter()
+        band, usable = read(r0, r1)
+        read_s += time.perf_counter() - t0
+        if count_in is not None:
+            counts = add_counts(counts, sample_counts(band, usable, count_in[r0:r1]))
+        if not mask[r0:r1].any():
+            continue
+        t0 = time.perf_counter()
+        if callable(light_dirs):
+            dirs = light_dirs(r0, r1)
+        else:
+            dirs = light_dirs if np.ndim(light_dirs) == 2 else light_dirs[r0:r1]
+        part = photometric_stereo(band, dirs, method=method, options=dict(bag, mask=mask[r0:r1]))
+        del band
+        for name in ("normal", "albedo", "valid", "n_triplets", "residual", "skipped"):
+            getattr(res, name)[r0:r1] = getattr(part, name)
+        if flags:
+            res.shadow[r0:r1], res.specular[r0:r1] = part.shadow, part.specular
+        n = int(part.info.get("pixels", mask[r0:r1].sum()))
+        pixels += n
+        info = info or dict(part.info)
+        for key, value in part.info.items():
+            if key.endswith("_fraction") and isinstance(value, (int, float)):
+                weighted[key] = weighted.get(key, 0.0) + float(value) * n
+        ps_s += time.perf_counter() - t0
+        del part
+    info.update({key: total / max(pixels, 1) for key, total in weighted.items()})
+    res.info = dict(info, method=res.method, pixels=pixels, tiles=tiles, rows_per_tile=rows, read_s=read_s,
+                    ps_s=ps_s)
+    return res, counts
+
+
+def streamed_ps(source, o, res, on_input=None, rows=None):
+    """The load and photometric-stereo stages of `process` without the whole images: (PSInput
+    with images=None, PSResult, light_dirs as `process` uses them (m, 3) or None with near
+    lights, the brightest value over the lights or None). on_input(inp) is called once the
+    input is known, before photometric stereo. Fills res.inputs, res.timings load / ps,
+    res.quality and the notes (InsufficientData as untiled)."""
+    t0 = time.perf_counter()
+    work = Path(tempfile.mkdtemp(prefix="facette-tiles-"))
+    try:
+        inp, bands, top, n = open_streamed(source, o, work, rows)
+        try:
+            res.inputs = inp
+            res.notes.extend(inp.notes)
+            if on_input is not None:
+                on_input(inp)
+            res.timings["load"] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            h, w = inp.mask.shape
+            m = len(inp.light_dirs)
+            near = o.near_light and inp.positions_mm is not None
+            cache = {}
+
+            def near_band(r0, r1):
+                if cache.get("rows") != (r0, r1):
+                    dirs, falloff = near_light_directions(inp.positions_mm, (h, w), inp.pixel_pitch_mm,
+                                                          rows=(r0, r1))
+                    cache.update(rows=(r0, r1), dirs=dirs, falloff=falloff)
+                return cache["dirs"], cache["falloff"]
+
+            def read(r0, r1):
+                images, usable = bands.read(r0, r1)
+                if near:
+                    images = images / np.transpose(near_band(r0, r1)[1], (2, 0, 1))[..., None]
+                return images, usable
+
+            dirs = (lambda r0, r1: near_band(r0, r1)[0]) if near else inp.light_dirs
+            bag = o.ps_bag(saturation=o.saturation)
+            ps, counts = ps_bands(read, (h, w), m, dirs, o.method, bag, inp.mask, n, count_in=inp.object_mask)
+        finally:
+            bands.close()
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    # the check's verdict (InsufficientData) as untiled, after the bands that counted
+    notes, res.quality = check_counts(counts if counts is not None else {"m": m, "object": 0}, inp.mask_source)
+    res.notes.extend(notes)
+    if near:
+        res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
+    res.notes.append(f"--memory {o.memory}: photometric stereo over {ps.info['tiles']} bands of {n} rows, the "
+                     "images read band by band (never held whole)")
+    res.timings["ps"] = time.perf_counter() - t0
+    return inp, ps, (None if near else inp.light_dirs), top
+
+
+def in_memory_ps(images, light_dirs, o, bag, outputs, res, rows=None):
+    """Photometric stereo over bands of images held whole (outputs that need them after it, or
+    an RTI capture): the PSResult, with the per-light flags (the samples leave shadows out)."""
+    m, h, w = images.shape[:3]
+    n = int(rows) if rows is not None else rows_per_tile(w, h, m, o.memory, o.method, tuple(FIELD_BYTES),
+                                                         per_light_flags=True)
+    ps, _ = ps_bands(lambda r0, r1: (images[:, r0:r1], None), (h, w), m, light_dirs, o.method, bag,
+                     bag["mask"], n, flags=True)
+    whole = [x for x in outputs if x not in STREAMED_OUTPUTS] or ["the input (an RTI capture is read whole)"]
+    res.notes.append(f"--memory {o.memory}: photometric stereo over {ps.info['tiles']} bands of {n} rows; the "
+                     f"images were loaded whole (untiled) for {', '.join(whole)}: the memory budget bounds "
+                     "photometric stereo only (ask for normals, albedo, mask, height, mesh, report alone to "
+                     "read the images band by band)")
+    return ps
