@@ -110,6 +110,9 @@ def register(sub):
                    help="a memory budget such as 2GB, 512MB or 3GiB: photometric stereo runs over bands of "
                         "rows in it (a per-pixel --method); with --outputs among normals,albedo,mask,height,"
                         "mesh,report the images are read band by band, never whole (default: untiled)")
+    p.add_argument("--scheduler", metavar="ADDRESS", default=d.scheduler,
+                   help="with --memory: a running dask.distributed scheduler, e.g. tcp://host:8786, whose workers "
+                        "run the bands (they must see the same paths; the same flag as facette batch)")
     p.add_argument("--hsh-order", type=int, default=d.hsh_order, choices=(2, 3),
                    help="hemispherical-harmonics order of relight.rti (2: 4 terms, 3: 9 terms)")
     p.add_argument("--rti-encoding", default=d.rti_encoding, choices=("srgb", "linear"),
@@ -157,6 +160,7 @@ def options(args):
         ascii_ply=args.ascii_ply, fit_options={"model": args.brdf_model, "method": args.fit_method},
         hsh_order=args.hsh_order, rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
         interreflections=args.interreflections, capture=_capture(args), memory=args.memory,
+        scheduler=args.scheduler,
         ps_options={"init": args.init} if args.init else None)     # li_alternating takes it, the others leave it
 
 

@@ -88,6 +88,10 @@ class ProcessOptions:
                           "outputs that need no image after it (normals, albedo, mask, height, mesh, report) the "
                           "images are read band by band, never whole; recorded only when given")
 
+    scheduler: str = _option(None, "with memory: the address of a dask.distributed scheduler (tcp://host:8786) whose "
+                             "workers run the bands (they must see the scan's path); None: here, one after the other",
+                             record=False)
+
     def __post_init__(self):
         # copies, so that a caller's dict changed later does not change these options
         object.__setattr__(self, "fit_options", dict(self.fit_options or {}))
@@ -106,6 +110,9 @@ class ProcessOptions:
             from facette.pipeline._tiled_process import check_memory_options
             parse_memory(self.memory)                           # '2 apples': ValueError
             check_memory_options(self.method, self.interreflections)
+        elif self.scheduler is not None:
+            raise ValueError("--scheduler runs the bands of --memory on a Dask cluster: give --memory too "
+                             "(e.g. --memory 2GB), or leave --scheduler out")
 
     def ps_bag(self, **more):
         """The one bag of photometric-stereo options: the thresholds, then ps_options, then `more`."""

@@ -77,11 +77,12 @@ class _ScanBands:
     finite, `usable` from the green channel before the light's intensity is divided out, then
     divided by the intensity and the flat field."""
 
-    def __init__(self, scan_dir, ids, inten, flat):
+    def __init__(self, scan_dir, ids, inten, flat=None):
         import Imath
         import OpenEXR
-        self.paths = [(scan_dir / "hdr" / f"light_{i:02d}.exr", scan_dir / "hdr" / f"light_{i:02d}_var.exr")
-                      for i in ids]
+        self.scan_dir, self.ids = Path(scan_dir), list(ids)
+        self.paths = [(self.scan_dir / "hdr" / f"light_{i:02d}.exr", self.scan_dir / "hdr" / f"light_{i:02d}_var.exr")
+                      for i in self.ids]
         self.inten = np.asarray(inten, np.float64)
         self.flat = flat
         self.float = Imath.PixelType(Imath.PixelType.FLOAT)
@@ -103,8 +104,13 @@ class _ScanBands:
             raise ValueError(f"{path}: cannot read this HDR image ({exc}); delete {path.parent} to merge it "
                              "again from raw/, or rescan that light") from exc
         if len(set(self.windows)) != 1:
-            raise ValueError(f"the HDR images of {scan_dir / 'hdr'} differ in size: merge them again")
+            self.close()
+            raise ValueError(f"the HDR images of {self.scan_dir / 'hdr'} differ in size: merge them again")
         self.x0, self.y0, self.w, self.h = self.windows[0]
+
+    def spec(self):
+        """What a task needs to open the same reader (`_open`), flat field apart."""
+        return ("scan", str(self.scan_dir), self.ids, self.inten.tolist())
 
     def close(self):
         for pair in self.files:
@@ -118,8 +124,11 @@ class _ScanBands:
         raw = f.channels(["R", "G", "B"], self.float, y + r0, y + r1 - 1)
         return [np.frombuffer(b, np.float32).reshape(r1 - r0, self.w) for b in raw]
 
-    def read(self, r0, r1):
-        """(images (m, r1 - r0, W, 3) float32, usable (m, r1 - r0, W) bool) of rows r0..r1."""
+    def read(self, r0, r1, flat=None):
+        """(images (m, r1 - r0, W, 3) float32, usable (m, r1 - r0, W) bool) of rows r0..r1;
+        flat: the flat field's rows r0..r1 (default this reader's own, if any)."""
+        if flat is None and self.flat is not None:
+            flat = self.flat[r0:r1]
         m, b, w = len(self.paths), r1 - r0, self.w
         images = np.empty((m, b, w, 3), np.float32)
         usable = np.empty((m, b, w), bool)
@@ -141,23 +150,29 @@ class _ScanBands:
                 images[k][bad] = np.nan
                 usable[k] = usable_from_green(images[k][..., 1], np.ascontiguousarray(v[1]))
             images[k] /= self.inten[k].astype(np.float32)
-            if self.flat is not None:
-                np.divide(images[k], self.flat[r0:r1], out=images[k])
+            if flat is not None:
+                np.divide(images[k], flat, out=images[k])
         return images, usable
 
 
 class _DiligentBands:
-    """A DiLiGenT-style folder's photographs staged to raw files, read a band at a time as
-    `read_diligent` and `load_input` make them (usable: >= MIN_LEVELS grey levels)."""
+    """A DiLiGenT-style folder's photographs staged to raw files (`_tiles._Staged`), read a band
+    at a time as `read_diligent` and `load_input` make them (usable: >= MIN_LEVELS grey levels)."""
 
     def __init__(self, folder, names, inten, work):
-        self.staged = _Staged(folder, names, work)
-        self.inten = inten
+        self._init(_Staged(folder, names, work), inten)
+
+    def _init(self, staged, inten):
+        self.staged, self.inten = staged, np.asarray(inten)
         self.h, self.w = self.staged.shape[:2]
         bits = 16 if self.staged.dtype == np.uint16 else 8
-        self.levels = (np.asarray(inten)[:, 1] * (2.0 ** bits - 1))[:, None, None]
+        self.levels = (self.inten[:, 1] * (2.0 ** bits - 1))[:, None, None]
 
-    def read(self, r0, r1):
+    def spec(self):
+        st = self.staged
+        return ("diligent", [str(p) for p in st.paths], tuple(st.shape), np.dtype(st.dtype).str, self.inten.tolist())
+
+    def read(self, r0, r1, flat=None):
         images = self.staged.band(r0, r1, self.inten)
         with np.errstate(invalid="ignore"):
             levels = images[..., 1] * self.levels
@@ -165,6 +180,17 @@ class _DiligentBands:
 
     def close(self):
         pass
+
+
+def _open(spec):
+    """The band reader a `spec()` describes (in a task, on whichever worker runs it)."""
+    if spec[0] == "scan":
+        return _ScanBands(Path(spec[1]), spec[2], spec[3])
+    staged = _Staged.__new__(_Staged)
+    staged.paths, staged.shape, staged.dtype = [Path(p) for p in spec[1]], tuple(spec[2]), np.dtype(spec[3])
+    reader = _DiligentBands.__new__(_DiligentBands)
+    reader._init(staged, spec[4])
+    return reader
 
 
 def _rows(w, h, m, memory, method, rows):
@@ -175,16 +201,117 @@ def _rows(w, h, m, memory, method, rows):
     return rows_per_tile(w, h, m, memory, method, tuple(FIELD_BYTES))
 
 
-def open_streamed(source, o, work, rows=None):
-    """(PSInput with images=None and usable=None, band reader with .read(r0, r1) and .close(),
-    the brightest value over the lights (H, W) or None, band rows) of a scan or DiLiGenT folder."""
+def _maps_task(spec, r0, r1, flat):
+    """A band's part of the masks' maps: (r0, r1, brightest value, median over the lights,
+    unknown under some light) of the green channel."""
     from facette.pipeline._pixels_jit import median_over_lights
+    reader = _open(spec)
+    try:
+        g = reader.read(r0, r1, flat)[0][..., 1]
+    finally:
+        reader.close()
+    med = np.empty(g.shape[1:], g.dtype)
+    median_over_lights(g, med, slice(0, r1 - r0))
+    return r0, r1, np.fmax.reduce(g, axis=0), med, np.isnan(g).any(axis=0)
+
+
+def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in):
+    """A band's photometric stereo: (r0, r1, PSResult without per-light flags or None when the
+    mask leaves the band out, its quality counts or None, read seconds, PS seconds)."""
+    t0 = time.perf_counter()
+    reader = _open(spec)
+    try:
+        images, usable = reader.read(r0, r1, flat)
+    finally:
+        reader.close()
+    read_s = time.perf_counter() - t0
+    counts = None if count_in is None else sample_counts(images, usable, count_in)
+    if not mask.any():
+        return r0, r1, None, counts, read_s, 0.0
+    t0 = time.perf_counter()
+    bag = dict(bag)
+    dirs = bag.pop("light_dirs", None)          # far lights: (m, 3)
+    if near is not None:
+        positions, shape, pitch = near
+        dirs, falloff = near_light_directions(positions, shape, pitch, rows=(r0, r1))
+        images = images / np.transpose(falloff, (2, 0, 1))[..., None]
+    part = photometric_stereo(images, dirs, method=method, options=dict(bag, mask=mask))
+    part.shadow = part.specular = None         # m bytes per pixel each: not sent back
+    return r0, r1, part, counts, read_s, time.perf_counter() - t0
+
+
+def _map(fn, calls, client=None, in_flight=None):
+    """fn(*args) for each args of `calls`: here one after the other (none in flight beside the
+    one running), or as tasks on a dask.distributed `client`, at most `in_flight` at a time (default
+    twice its threads) so that finished bands do not pile up; results as they finish. A task
+    whose worker dies is run again by the scheduler elsewhere."""
+    if client is None:
+        for args in calls:
+            yield fn(*args)
+        return
+    from dask.distributed import as_completed
+    calls = iter(calls)
+    if in_flight is None:
+        in_flight = 2 * max(1, sum(client.nthreads().values()))
+    running = as_completed()
+    for args in calls:
+        running.add(client.submit(fn, *args, pure=False))
+        if running.count() >= in_flight:
+            break
+    for fut in running:
+        yield fut.result()
+        del fut
+        for args in calls:
+            running.add(client.submit(fn, *args, pure=False))
+            break
+
+
+def _assemble(shape, method, results, flags_m=0):
+    """The bands' results (`_ps_task`'s tuples) into one PSResult at the image's size, and the
+    quality counts summed. info: the first band's, its fractions (keys ending in _fraction)
+    weighted by the bands' pixels, and pixels, tiles, read_s, ps_s."""
+    h, w = shape
+    res = PSResult(normal=np.zeros((h, w, 3), np.float32), albedo=np.zeros((h, w, 3), np.float32),
+                   valid=np.zeros((h, w), bool), n_triplets=np.zeros((h, w), np.int16),
+                   shadow=np.zeros((h, w, flags_m), bool), specular=np.zeros((h, w, flags_m), bool),
+                   residual=np.zeros((h, w), np.float32), skipped=np.zeros((h, w), bool),
+                   method=PS_METHODS.canonical(method))
+    info, pixels, counts, read_s, ps_s, weighted = {}, 0, None, 0.0, 0.0, {}
+    for r0, r1, part, band_counts, band_read, band_ps in results:
+        read_s, ps_s = read_s + band_read, ps_s + band_ps
+        if band_counts is not None:
+            counts = add_counts(counts, band_counts)
+        if part is None:
+            continue
+        for name in ("normal", "albedo", "valid", "n_triplets", "residual", "skipped"):
+            getattr(res, name)[r0:r1] = getattr(part, name)
+        if flags_m:
+            res.shadow[r0:r1], res.specular[r0:r1] = part.shadow, part.specular
+        n = int(part.info.get("pixels", part.valid.sum()))
+        pixels += n
+        info = info or dict(part.info)
+        for key, value in part.info.items():
+            if key.endswith("_fraction") and isinstance(value, (int, float)):
+                weighted[key] = weighted.get(key, 0.0) + float(value) * n
+    info.update({key: total / max(pixels, 1) for key, total in weighted.items()})
+    res.info = dict(info, method=res.method, pixels=pixels, read_s=read_s, ps_s=ps_s)
+    return res, counts
+
+
+def _bands(h, rows):
+    return [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
+
+
+def open_streamed(source, o, work, rows=None, client=None):
+    """(PSInput with images=None and usable=None, band reader with .spec(), .read(r0, r1) and
+    .close(), the brightest value over the lights (H, W) or None, band rows) of a scan or a
+    DiLiGenT-style folder; a scan's masks' maps are read band by band (on `client` if given)."""
     path = source_path(source)
     if (path / "scan.json").is_file():
         data, complete = scan_manifest(path, o.allow_incomplete)
         ids, lights, hdr_notes = merged_lights(path, data)
         dirs, inten, positions, light_notes = scan_lights(path, data, lights)
-        bands = _ScanBands(path, ids, inten, None)
+        bands = _ScanBands(path, ids, inten)
         try:
             h, w = bands.h, bands.w
             pitch, profile_notes, bands.flat = profile_flat(data, path, (w, h))
@@ -196,12 +323,10 @@ def open_streamed(source, o, work, rows=None):
             n = _rows(w, h, len(ids), o.memory, o.method, rows)
             top, med = np.empty((h, w), np.float32), np.empty((h, w), np.float32)
             unknown = np.zeros((h, w), bool)
-            for r0 in range(0, h, n):        # the masks' maps, band by band
-                r1 = min(h, r0 + n)
-                g = bands.read(r0, r1)[0][..., 1]
-                top[r0:r1] = np.fmax.reduce(g, axis=0)
-                median_over_lights(g, med[r0:r1], slice(0, r1 - r0))
-                unknown[r0:r1] = np.isnan(g).any(axis=0)
+            flat = bands.flat
+            calls = [(bands.spec(), r0, r1, None if flat is None else flat[r0:r1]) for r0, r1 in _bands(h, n)]
+            for r0, r1, t, md, u in _map(_maps_task, calls, client):
+                top[r0:r1], med[r0:r1], unknown[r0:r1] = t, md, u
             mask, material = masks_from(top, med)
             del med
             inp = scan_input(path, data, complete, None, dirs, positions, mask, material, None, mask | unknown,
@@ -230,60 +355,32 @@ def open_streamed(source, o, work, rows=None):
 
 
 def ps_bands(read, shape, m, light_dirs, method, bag, mask, rows, flags=False, count_in=None):
-    """Photometric stereo of `method` over bands of `rows` rows.
+    """Photometric stereo of `method` over bands of `rows` rows, here.
 
     read(r0, r1) -> (images (m, r1 - r0, W, C) as the method takes them, usable or None);
-    shape (H, W); light_dirs (m, 3), or a function (r0, r1) -> the band's directions
-    ((r1 - r0, W, m, 3)), or an (H, W, m, 3) array; bag: the options (its mask replaced by the
+    shape (H, W); light_dirs (m, 3) or (H, W, m, 3); bag: the options (its mask replaced by the
     band's); mask (H, W) bool; flags: keep the (H, W, m) shadow and specular flags (else (H, W, 0));
     count_in: (H, W) bool, the object over which the quality counts (`sample_counts`) are summed.
-    Returns (PSResult at the image's size, counts or None). info: the first band's, its
-    fractions (keys ending in _fraction) weighted by the bands' pixels, and pixels, tiles,
-    rows_per_tile, read_s, ps_s.
+    Returns (PSResult at the image's size, counts or None); info as `_assemble`'s, with tiles
+    and rows_per_tile.
     """
     h, w = shape
-    k = m if flags else 0
-    res = PSResult(normal=np.zeros((h, w, 3), np.float32), albedo=np.zeros((h, w, 3), np.float32),
-                   valid=np.zeros((h, w), bool), n_triplets=np.zeros((h, w), np.int16),
-                   shadow=np.zeros((h, w, k), bool), specular=np.zeros((h, w, k), bool),
-                   residual=np.zeros((h, w), np.float32), skipped=np.zeros((h, w), bool),
-                   method=PS_METHODS.canonical(method))
-    info, pixels, tiles, counts, read_s, ps_s = {}, 0, 0, None, 0.0, 0.0
-    weighted = {}
-    for r0 in range(0, h, rows):
-        r1 = min(h, r0 + rows)
-        tiles += 1
-        if not mask[r0:r1].any() and count_in is None:
-            continue                   # outputs stay zero
+
+    def one(r0, r1):
         t0 = time.perf_counter()
         band, usable = read(r0, r1)
-        read_s += time.perf_counter() - t0
-        if count_in is not None:
-            counts = add_counts(counts, sample_counts(band, usable, count_in[r0:r1]))
+        read_s = time.perf_counter() - t0
+        counts = None if count_in is None else sample_counts(band, usable, count_in[r0:r1])
         if not mask[r0:r1].any():
-            continue
+            return r0, r1, None, counts, read_s, 0.0
         t0 = time.perf_counter()
-        if callable(light_dirs):
-            dirs = light_dirs(r0, r1)
-        else:
-            dirs = light_dirs if np.ndim(light_dirs) == 2 else light_dirs[r0:r1]
+        dirs = light_dirs if np.ndim(light_dirs) == 2 else light_dirs[r0:r1]
         part = photometric_stereo(band, dirs, method=method, options=dict(bag, mask=mask[r0:r1]))
-        del band
-        for name in ("normal", "albedo", "valid", "n_triplets", "residual", "skipped"):
-            getattr(res, name)[r0:r1] = getattr(part, name)
-        if flags:
-            res.shadow[r0:r1], res.specular[r0:r1] = part.shadow, part.specular
-        n = int(part.info.get("pixels", mask[r0:r1].sum()))
-        pixels += n
-        info = info or dict(part.info)
-        for key, value in part.info.items():
-            if key.endswith("_fraction") and isinstance(value, (int, float)):
-                weighted[key] = weighted.get(key, 0.0) + float(value) * n
-        ps_s += time.perf_counter() - t0
-        del part
-    info.update({key: total / max(pixels, 1) for key, total in weighted.items()})
-    res.info = dict(info, method=res.method, pixels=pixels, tiles=tiles, rows_per_tile=rows, read_s=read_s,
-                    ps_s=ps_s)
+        return r0, r1, part, counts, read_s, time.perf_counter() - t0
+
+    spans = [b for b in _bands(h, rows) if count_in is not None or mask[b[0]:b[1]].any()]
+    res, counts = _assemble(shape, method, (one(r0, r1) for r0, r1 in spans), m if flags else 0)
+    res.info.update(tiles=len(_bands(h, rows)), rows_per_tile=rows)
     return res, counts
 
 
@@ -291,12 +388,18 @@ def streamed_ps(source, o, res, on_input=None, rows=None):
     """The load and photometric-stereo stages of `process` without the whole images: (PSInput
     with images=None, PSResult, light_dirs as `process` uses them (m, 3) or None with near
     lights, the brightest value over the lights or None). on_input(inp) is called once the
-    input is known, before photometric stereo. Fills res.inputs, res.timings load / ps,
-    res.quality and the notes (InsufficientData as untiled)."""
+    input is known, before photometric stereo. The bands run here one after the other, or as
+    tasks on the dask.distributed scheduler `o.scheduler` (its workers read the scan from its
+    path: they must see it). Fills res.inputs, res.timings load / ps, res.quality and the notes
+    (InsufficientData as untiled)."""
     t0 = time.perf_counter()
     work = Path(tempfile.mkdtemp(prefix="facette-tiles-"))
+    client = None
     try:
-        inp, bands, top, n = open_streamed(source, o, work, rows)
+        if o.scheduler is not None:
+            from dask.distributed import Client
+            client = Client(o.scheduler)
+        inp, bands, top, n = open_streamed(source, o, work, rows, client)
         try:
             res.inputs = inp
             res.notes.extend(inp.notes)
@@ -306,36 +409,32 @@ def streamed_ps(source, o, res, on_input=None, rows=None):
             t0 = time.perf_counter()
             h, w = inp.mask.shape
             m = len(inp.light_dirs)
-            near = o.near_light and inp.positions_mm is not None
-            cache = {}
-
-            def near_band(r0, r1):
-                if cache.get("rows") != (r0, r1):
-                    dirs, falloff = near_light_directions(inp.positions_mm, (h, w), inp.pixel_pitch_mm,
-                                                          rows=(r0, r1))
-                    cache.update(rows=(r0, r1), dirs=dirs, falloff=falloff)
-                return cache["dirs"], cache["falloff"]
-
-            def read(r0, r1):
-                images, usable = bands.read(r0, r1)
-                if near:
-                    images = images / np.transpose(near_band(r0, r1)[1], (2, 0, 1))[..., None]
-                return images, usable
-
-            dirs = (lambda r0, r1: near_band(r0, r1)[0]) if near else inp.light_dirs
+            near = (o.near_light and inp.positions_mm is not None) or None
+            if near:
+                near = (np.asarray(inp.positions_mm), (h, w), inp.pixel_pitch_mm)
             bag = o.ps_bag(saturation=o.saturation)
-            ps, counts = ps_bands(read, (h, w), m, dirs, o.method, bag, inp.mask, n, count_in=inp.object_mask)
+            if near is None:
+                bag["light_dirs"] = inp.light_dirs
+            flat = getattr(bands, "flat", None)
+            spec, obj = bands.spec(), inp.object_mask
+            calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
+                      inp.mask[r0:r1], obj[r0:r1]) for r0, r1 in _bands(h, n))
+            ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client))
+            ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n)
         finally:
             bands.close()
     finally:
+        if client is not None:
+            client.close()
         shutil.rmtree(work, ignore_errors=True)
     # the check's verdict (InsufficientData) as untiled, after the bands that counted
     notes, res.quality = check_counts(counts if counts is not None else {"m": m, "object": 0}, inp.mask_source)
     res.notes.extend(notes)
     if near:
         res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
-    res.notes.append(f"--memory {o.memory}: photometric stereo over {ps.info['tiles']} bands of {n} rows, the "
-                     "images read band by band (never held whole)")
+    where = f" as tasks on the scheduler {o.scheduler}" if o.scheduler is not None else ""
+    res.notes.append(f"--memory {o.memory}: photometric stereo over {ps.info['tiles']} bands of {n} rows{where}, "
+                     "the images read band by band (never held whole)")
     res.timings["ps"] = time.perf_counter() - t0
     return inp, ps, (None if near else inp.light_dirs), top
 
@@ -349,6 +448,9 @@ def in_memory_ps(images, light_dirs, o, bag, outputs, res, rows=None):
     ps, _ = ps_bands(lambda r0, r1: (images[:, r0:r1], None), (h, w), m, light_dirs, o.method, bag,
                      bag["mask"], n, flags=True)
     whole = [x for x in outputs if x not in STREAMED_OUTPUTS] or ["the input (an RTI capture is read whole)"]
+    if o.scheduler is not None:
+        res.notes.append(f"--scheduler {o.scheduler}: not used, the images being held whole here (it runs the "
+                         "bands of --memory when every output is among normals, albedo, mask, height, mesh, report)")
     res.notes.append(f"--memory {o.memory}: photometric stereo over {ps.info['tiles']} bands of {n} rows; the "
                      f"images were loaded whole (untiled) for {', '.join(whole)}: the memory budget bounds "
                      "photometric stereo only (ask for normals, albedo, mask, height, mesh, report alone to "

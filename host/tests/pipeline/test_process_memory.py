@@ -162,3 +162,33 @@ def test_cli_memory(capsys, diligent, tmp_path):
     out = capsys.readouterr().out
     assert code == 0 and "read band by band" in out
     assert json.loads((tmp_path / "c" / "process.json").read_text())["options"]["memory"] == "512MB"
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A dask.distributed LocalCluster of 2 workers × 1 thread, in this process."""
+    from dask.distributed import LocalCluster
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0") as c:
+        yield c
+
+
+@pytest.mark.parametrize("source", ["scan", "diligent"])
+def test_bands_on_a_dask_cluster_give_the_untiled_results(request, cluster, tmp_path, small_bands, monkeypatch,
+                                                          source):
+    src = request.getfixturevalue(source)
+    whole = process(src, outputs=["normals", "height"])
+    _never_whole(monkeypatch)
+    def bands_run():                     # _ps_task tasks the scheduler has seen finish (counts of transitions)
+        prefix = cluster.scheduler.task_prefixes.get("ps_task")
+        return 0 if prefix is None else prefix.state_counts.get("memory", 0)
+
+    before = bands_run()
+    tiled = process(src, outputs=["normals", "height"], memory="1GB", scheduler=cluster.scheduler_address)
+    _same(whole, tiled)
+    assert bands_run() - before == tiled.ps.info["tiles"]
+    assert any(f"on the scheduler {cluster.scheduler_address}" in n for n in tiled.notes)
+
+
+def test_a_scheduler_without_memory_is_refused():
+    with pytest.raises(ValueError, match="give --memory too"):
+        ProcessOptions(scheduler="tcp://127.0.0.1:8786")
