@@ -14,6 +14,11 @@ each of these runs in a process of its own (peak memory = that child's max RSS, 
   (largest angle between the normals, pixels over 0.01 deg, largest height difference over
   the untiled heights' range on the mask; issue 26 asks 0.01 deg and 0.1 %).
 
+With `--scan`, the slab is also written as a scan directory (hdr/light_XX.exr and _var.exr per
+light, uncompressed as the HDR merge writes them, scan.json with the lights and their
+intensities) and `facette process SCAN --outputs normals,height` runs untiled and with
+`--memory` on it: a second table (wall s, s/MP, peak, agreement).
+
 Printed per size: generation time and peak; for both runs wall seconds, seconds per megapixel
 and peak memory (the untiled run also its load and ps stage times, the tiled one its staging
 of the photographs and its bands' reading and photometric stereo); the normals' mean angular
@@ -32,6 +37,7 @@ import argparse
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -168,6 +174,68 @@ def _compare_process(untiled_dir, memory_dir):
     return worst, over, float(np.abs(ha - hb)[mask].max(initial=0.0)) / span if span > 0 else float("nan")
 
 
+def _slab_to_scan(folder, scan_dir):
+    """The slab's DiLiGenT folder as a scan directory, one light at a time: radiance = PNG / 65535
+    (NaN where clipped), variance 1e-6 x radiance + 1e-9 (every sample above the noise)."""
+    from facette.io.diligent import read_diligent_lights
+    from facette.io.exr import write_exr
+    from facette.io.png import read_png
+    from facette.scan import ScanDirectory
+    folder, scan_dir = Path(folder), Path(scan_dir)
+    names, dirs, inten, _ = read_diligent_lights(folder)
+    (scan_dir / "hdr").mkdir(parents=True)
+    for i, name in enumerate(names):
+        raw = read_png(folder / name)
+        e = raw.astype(np.float32) / np.float32(65535)
+        e[raw >= 65535] = np.nan
+        del raw
+        write_exr(scan_dir / "hdr" / f"light_{i:02d}.exr", e, compression="none")
+        write_exr(scan_dir / "hdr" / f"light_{i:02d}_var.exr", np.nan_to_num(e, nan=np.inf) * 1e-6 + 1e-9,
+                  compression="none")
+        del e
+    lights = [{"index": i, "direction": dirs[i].tolist(), "position_mm": None, "intensity": inten[i].tolist()}
+              for i in range(len(names))]
+    sd = ScanDirectory(scan_dir)
+    sd.create(rig={"id": "synthetic"}, profile=None, pixel_pitch_mm=0.05, lights=lights, exposures=[], plan=None)
+    sd.save()
+    return scan_dir
+
+
+def scan_size(size, work, memory, method, untiled):
+    """The slab as a scan directory: untiled `process` against `process --memory`."""
+    w, h = size
+    folder = work / f"slab_{w}x{h}"
+    scan = work / f"scan_{w}x{h}"
+    row = dict(size=f"{w}x{h}", mp=w * h / 1e6)
+    if not (scan / "scan.json").is_file():
+        shutil.rmtree(scan, ignore_errors=True)
+        _, row["gen_s"], row["gen_gb"] = _run_rss(_measured(SELF + ["--_scan", folder, scan]))
+    else:
+        row["gen_s"] = row["gen_gb"] = float("nan")
+    base = FACETTE + ["process", scan, "--outputs", "normals,height", "--method", method, "--overwrite", "-o"]
+    out_u, out_m = work / f"scan_untiled_{w}x{h}", work / f"scan_memory_{w}x{h}"
+    if untiled:
+        stdout, row["untiled_s"], row["untiled_gb"] = _run_rss(_measured(base + [out_u]))
+    stdout, row["mem_s"], row["mem_gb"] = _run_rss(_measured(base + [out_m, "--memory", memory]))
+    bands = re.search(r"over (\d+) bands of (\d+) rows", stdout)
+    row["mem_tiles"] = int(bands.group(1)) if bands else -1
+    row["mem_deg"], row["mem_over"], row["mem_height"] = (
+        _compare_process(out_u, out_m) if untiled else (float("nan"), -1, float("nan")))
+    return row
+
+
+def _print_scan(rows, memory):
+    print(f"scan directories (hdr/ EXR + _var.exr), process --outputs normals,height; --memory {memory}")
+    print(f"{'size':>12} {'MP':>6} | {'to scan s':>9} | {'untiled s':>9} {'s/MP':>5} {'GB':>5} | "
+          f"{'--memory s':>10} {'s/MP':>5} {'GB':>5} {'bands':>5} | {'max°':>8} {'px > 0.01°':>10} {'height/range':>12}")
+    for r in rows:
+        u = r.get("untiled_s", float("nan"))
+        print(f"{r['size']:>12} {r['mp']:6.1f} | {r['gen_s']:9.1f} | {u:9.1f} {u / r['mp']:5.2f} "
+              f"{r.get('untiled_gb', float('nan')):5.2f} | {r['mem_s']:10.1f} {r['mem_s'] / r['mp']:5.2f} "
+              f"{r['mem_gb']:5.2f} {r['mem_tiles']:5d} | {r['mem_deg']:8.5f} {r['mem_over']:10d} "
+              f"{r['mem_height']:12.2e}", flush=True)
+
+
 def one_size(size, work, memory, method, untiled):
     w, h = size
     mp = w * h / 1e6
@@ -235,6 +303,9 @@ def main(argv=None):
     if argv[:1] == ["--_generate"]:
         write_relief_capture(argv[1], int(argv[2]), int(argv[3]))
         return 0
+    if argv[:1] == ["--_scan"]:
+        _slab_to_scan(argv[1], argv[2])
+        return 0
     if argv[:1] == ["--_tiled"]:
         _tiled_child(*argv[1:5])
         return 0
@@ -246,19 +317,31 @@ def main(argv=None):
     p.add_argument("--no-untiled", action="store_true", help="skip the untiled `facette process`")
     p.add_argument("--untiled-max-mp", type=float, default=UNTILED_MAX_MP,
                    help=f"skip the untiled run above this size (default {UNTILED_MAX_MP:g} MP)")
+    p.add_argument("--scan", action="store_true", help="also process the slab as a scan directory (EXR), "
+                                                        "untiled and with --memory")
+    p.add_argument("--only-scan", action="store_true", help="the scan directory's table alone")
     p.add_argument("--keep", help="keep the captures and results in this folder (default: temporary); "
                                   "a slab already there is reused")
     args = p.parse_args(argv)
     sizes = [_size(s.strip()) for s in args.sizes.split(",") if s.strip()]
-    rows = []
-    _header(args.memory, args.method)
+    rows, scan_rows = [], []
+    if not args.only_scan:
+        _header(args.memory, args.method)
     with tempfile.TemporaryDirectory(prefix="facette-bench-size-") as tmp:
         work = Path(args.keep) if args.keep else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         for size in sizes:
             untiled = not args.no_untiled and size[0] * size[1] / 1e6 <= args.untiled_max_mp
-            rows.append(one_size(size, work, args.memory, args.method, untiled))
-            _print(rows[-1:])
+            if args.only_scan:
+                if not (work / f"slab_{size[0]}x{size[1]}" / "mask.png").is_file():
+                    _run_rss(_measured(SELF + ["--_generate", work / f"slab_{size[0]}x{size[1]}", *map(str, size)]))
+            else:
+                rows.append(one_size(size, work, args.memory, args.method, untiled))
+                _print(rows[-1:])
+            if args.scan or args.only_scan:
+                scan_rows.append(scan_size(size, work, args.memory, args.method, untiled))
+        if scan_rows:
+            _print_scan(scan_rows, args.memory)
     return 0
 
 
