@@ -19,6 +19,11 @@ light, uncompressed as the HDR merge writes them, scan.json with the lights and 
 intensities) and `facette process SCAN --outputs normals,height` runs untiled and with
 `--memory` on it: a second table (wall s, s/MP, peak, agreement).
 
+With `--dask` (and --scan), the scan's `process --memory` runs again with its bands on a
+dask.distributed LocalCluster of 2 worker processes x 1 thread (`--scheduler`): wall s, s/MP,
+the driver's and the workers' peaks, the agreement with the untiled run; `--kill-worker S`
+kills one worker S seconds into that run (the scheduler runs its bands again elsewhere).
+
 Printed per size: generation time and peak; for both runs wall seconds, seconds per megapixel
 and peak memory (the untiled run also its load and ps stage times, the tiled one its staging
 of the photographs and its bands' reading and photometric stereo); the normals' mean angular
@@ -224,6 +229,43 @@ def scan_size(size, work, memory, method, untiled):
     return row
 
 
+def _dask_child(scan, out, memory, method, kill_after):
+    """`process --memory` of `scan` with its bands on a LocalCluster of 2 workers x 1 thread;
+    prints a JSON line: seconds, bands, the workers' max RSS (GB), killed (a worker was)."""
+    import resource
+    import signal
+    import threading
+
+    from dask.distributed import Client, LocalCluster
+
+    from facette.pipeline import process
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
+            Client(cluster) as client:
+        pids = sorted(client.run(os.getpid).values())
+        if kill_after > 0:
+            threading.Timer(kill_after, lambda: os.kill(pids[0], signal.SIGKILL)).start()
+        t0 = time.perf_counter()
+        res = process(scan, outputs=["normals", "height"], out_dir=out, method=method, memory=memory,
+                      scheduler=cluster.scheduler_address, overwrite=True)
+        seconds = time.perf_counter() - t0
+        rss = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6)
+        after = sorted(client.run(os.getpid).values())
+    print(json.dumps({"seconds": seconds, "bands": res.ps.info["tiles"], "workers_gb": sorted(rss.values()),
+                      "killed": pids != after}))
+
+
+def scan_dask(row, size, work, memory, method, kill_after):
+    w, h = size
+    out = work / f"scan_dask_{w}x{h}"
+    stdout, wall, gb = _run_rss(_measured(SELF + ["--_dask", work / f"scan_{w}x{h}", out, memory, method,
+                                                  str(kill_after)]))
+    info = json.loads(stdout.strip().splitlines()[-1])
+    row.update(dask_s=info["seconds"], dask_gb=gb, dask_workers_gb=max(info["workers_gb"]), dask_killed=info["killed"])
+    row["dask_deg"], row["dask_over"], row["dask_height"] = (
+        _compare_process(work / f"scan_untiled_{w}x{h}", out) if "untiled_s" in row else (float("nan"), -1, float("nan")))
+    return row
+
+
 def _print_scan(rows, memory):
     print(f"scan directories (hdr/ EXR + _var.exr), process --outputs normals,height; --memory {memory}")
     print(f"{'size':>12} {'MP':>6} | {'to scan s':>9} | {'untiled s':>9} {'s/MP':>5} {'GB':>5} | "
@@ -234,6 +276,16 @@ def _print_scan(rows, memory):
               f"{r.get('untiled_gb', float('nan')):5.2f} | {r['mem_s']:10.1f} {r['mem_s'] / r['mp']:5.2f} "
               f"{r['mem_gb']:5.2f} {r['mem_tiles']:5d} | {r['mem_deg']:8.5f} {r['mem_over']:10d} "
               f"{r['mem_height']:12.2e}", flush=True)
+    dask = [r for r in rows if "dask_s" in r]
+    if dask:
+        print("the same on a dask.distributed LocalCluster (2 worker processes x 1 thread); GB: the largest "
+              "process of the run's tree (wait4), worker GB: the workers' own largest")
+        print(f"{'size':>12} | {'dask s':>7} {'s/MP':>5} {'GB':>5} {'worker GB':>9} {'killed':>6} | {'max°':>8} "
+              f"{'px > 0.01°':>10} {'height/range':>12}")
+        for r in dask:
+            print(f"{r['size']:>12} | {r['dask_s']:7.1f} {r['dask_s'] / r['mp']:5.2f} {r['dask_gb']:5.2f} "
+                  f"{r['dask_workers_gb']:9.2f} {str(r['dask_killed']):>6} | {r['dask_deg']:8.5f} {r['dask_over']:10d} "
+                  f"{r['dask_height']:12.2e}", flush=True)
 
 
 def one_size(size, work, memory, method, untiled):
@@ -306,6 +358,9 @@ def main(argv=None):
     if argv[:1] == ["--_scan"]:
         _slab_to_scan(argv[1], argv[2])
         return 0
+    if argv[:1] == ["--_dask"]:
+        _dask_child(argv[1], argv[2], argv[3], argv[4], float(argv[5]))
+        return 0
     if argv[:1] == ["--_tiled"]:
         _tiled_child(*argv[1:5])
         return 0
@@ -320,6 +375,10 @@ def main(argv=None):
     p.add_argument("--scan", action="store_true", help="also process the slab as a scan directory (EXR), "
                                                         "untiled and with --memory")
     p.add_argument("--only-scan", action="store_true", help="the scan directory's table alone")
+    p.add_argument("--dask", action="store_true", help="with --scan: the scan's --memory run again on a "
+                                                        "LocalCluster of 2 workers x 1 thread")
+    p.add_argument("--kill-worker", type=float, default=0.0, metavar="S",
+                   help="with --dask: kill one worker S seconds into the run (default: none)")
     p.add_argument("--keep", help="keep the captures and results in this folder (default: temporary); "
                                   "a slab already there is reused")
     args = p.parse_args(argv)
@@ -340,6 +399,8 @@ def main(argv=None):
                 _print(rows[-1:])
             if args.scan or args.only_scan:
                 scan_rows.append(scan_size(size, work, args.memory, args.method, untiled))
+                if args.dask:
+                    scan_dask(scan_rows[-1], size, work, args.memory, args.method, args.kill_worker)
         if scan_rows:
             _print_scan(scan_rows, args.memory)
     return 0
