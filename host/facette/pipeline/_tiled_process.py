@@ -19,7 +19,13 @@ the outputs asked for:
   over bands of it, which bounds its own working set only; a note says which outputs came from
   the whole images.
 
-The band height is `_tiles.rows_per_tile` of the budget (`rows` forces it: tests).
+The band height is `_tiles.rows_per_tile` of the budget (tests force a few rows). The streamed
+bands run here one after the other, or, with `scheduler` (`--scheduler tcp://host:8786`), as
+tasks on a dask.distributed cluster (`_maps_task`, `_ps_task`: each opens the files itself, so
+its workers must see the scan's path; a DiLiGenT folder's staged files are in a local temporary
+folder: workers on this machine only); at most twice the cluster's threads in flight, so that
+finished bands do not pile up; a band whose worker dies is run again by the scheduler.
+12 MP (`facette bench size --scan --dask`): see README ("Large captures").
 """
 import shutil
 import tempfile
@@ -37,7 +43,6 @@ from facette.pipeline._inputs import (NO_PITCH_NOTE, PSInput, _digest, _file_sta
 from facette.pipeline._quality import MIN_LEVELS, add_counts, check_counts, sample_counts, usable_from_green
 from facette.pipeline._tiles import FIELD_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, _Staged, rows_per_tile
 from facette.recon import PSResult, near_light_directions
-from facette.scan import ScanDirectory
 
 __all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "open_streamed", "ps_bands", "streamed_ps",
            "in_memory_ps"]
