@@ -85,7 +85,7 @@ class ProcessOptions:
 
     memory: str = _option(None, "a memory budget ('2GB', '512MB', '3GiB' or bytes): photometric stereo then runs "
                           "over bands of rows in it (a per-pixel method only: pipeline._tiles.TILED_METHODS); with "
-                          "outputs that need no image after it (normals, albedo, mask, height, mesh, report) the "
+                          "outputs that need no image after it (all but ptm and rti: the samples are taken band by band too) the "
                           "images are read band by band, never whole; recorded only when given")
 
     scheduler: str = _option(None, "with memory: the address of a dask.distributed scheduler (tcp://host:8786) whose "

@@ -125,14 +125,25 @@ def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=
                    seed=0, workers=2):
     """Samples (eq 4.11) pixel block by pixel block into the hemisphere sensor, keeping a
     uniform random subset of the raw samples. Shadows found by the PS stage are left out.
-    Blocks run on `workers` threads (numpy releases the GIL), each with its own sensor."""
+    Blocks run on `workers` threads (numpy releases the GIL), each with its own sensor.
+    Returns (FilteredReflectance, raw ReflectanceSamples)."""
+    sensor, raw = samples_sensor(images, mask, ps, light_dirs, theta0_deg, chunk, keep, seed, workers)
+    return sensor.result(), raw
+
+
+def samples_sensor(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=RAW_SAMPLES_KEPT,
+                   seed=0, workers=2, total=None, first_pixel=0):
+    """`_samples_stage` before the sensor's result: (HemisphereSensor, raw samples), so that the
+    sensors of row bands merge into the whole image's. total: the samples the raw subset's
+    share is drawn against (default this image's: m x its valid pixels); first_pixel: added to
+    the raw samples' pixel indices (a band's first pixel in the whole image)."""
     m, h, w, c = images.shape
     pix = np.flatnonzero((ps.valid & mask).ravel())
     flat = images.reshape(m, h * w, c)
     # each pixel's c floats as one opaque item: gathering pixels is then ~4x faster
     flat = np.ascontiguousarray(flat)
     items = flat.view(np.dtype((np.void, flat.itemsize * c))).reshape(m, h * w)
-    total = max(pix.size * m, 1)
+    total = max(pix.size * m if total is None else total, 1)
     shadow = ps.shadow.reshape(-1, m)
     normals = ps.normal.reshape(-1, 3)
     finite = bool(np.isfinite(images).all())          # one pass instead of one per block
@@ -172,7 +183,9 @@ def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=
                                         np.zeros(0, np.int64), np.zeros(0, np.int16)))
     raw = parts[0] if len(parts) == 1 else ReflectanceSamples(
         *(np.concatenate([getattr(q, k) for q in parts]) for k in ("s", "o", "f", "pixel", "light")))
-    return total_sensor.result(), raw
+    if first_pixel:
+        raw.pixel = raw.pixel + first_pixel
+    return total_sensor, raw
 
 
 def _fit_stage(filtered, fit_options, brdf_aware=False, prefer="li"):
@@ -308,7 +321,8 @@ def _process(source, outputs, out_dir, o):
         # --memory, outputs that need no image after photometric stereo: the images are read band by
         # band, never whole (pipeline._tiled_process); the stages after photometric stereo as untiled
         claimed = {}
-        inp, ps, light_dirs, top = streamed_ps(source, o, res, lambda i: claimed.update(previous=claim(i)))
+        inp, ps, light_dirs, top = streamed_ps(source, o, res, lambda i: claimed.update(previous=claim(i)),
+                                               samples="samples" in stages)
         previous, images, direct = claimed["previous"], None, None
         res.ps = ps
         res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
@@ -462,9 +476,11 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
 
     def reflectance():
         # the images as photometric stereo saw them (near lights: fall-off divided out; the
-        # direct light only when inter-reflections were removed: what the BRDF models)
-        res.filtered, res.samples = _timed(res, "samples", _samples_stage, direct, inp.sample_mask(),
-                                           res.ps, light_dirs, o.theta0_deg)
+        # direct light only when inter-reflections were removed: what the BRDF models);
+        # --memory: taken band by band with photometric stereo already
+        if res.filtered is None:
+            res.filtered, res.samples = _timed(res, "samples", _samples_stage, direct, inp.sample_mask(),
+                                               res.ps, light_dirs, o.theta0_deg)
         write("samples")
         if "fit" not in stages:
             return []

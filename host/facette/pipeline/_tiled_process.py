@@ -4,18 +4,21 @@ A per-pixel method (`_tiles.TILED_METHODS`) gives each pixel's normal from that 
 alone, so the bands solved one after the other give the untiled normals. Two ways, chosen by
 the outputs asked for:
 
-- streamed (every output in STREAMED_OUTPUTS: normals, albedo, mask, height, mesh, report; a
-  scan directory or a DiLiGenT-style folder): the photographs are never held whole. A scan's
+- streamed (every output in STREAMED_OUTPUTS: all but ptm and rti; a scan directory or a
+  DiLiGenT-style folder): the photographs are never held whole. A scan's
   HDR images are read a window of scanlines at a time (OpenEXR's scanline reader), twice: once
   for the masks' two maps (the brightest value and the median over the lights, what
   `auto_masks` splits), once for photometric stereo; a DiLiGenT folder's PNGs are staged once
   to raw files (`_tiles._Staged`: PNG decodes whole images only) and read band by band. The
   quality counts (`check_samples`) add up over the bands and are judged after the bands (the
-  same verdict, later). What is kept at the image's size: the PS outputs (32 bytes/pixel),
+  same verdict, later). The reflectance samples (samples, brdf, gltf) are taken in each band
+  right after its photometric stereo (with its shadows), the bands' hemisphere sensors merged
+  (the same cells as untiled; the raw subset kept beside them is drawn band by band).
+  What is kept at the image's size: the PS outputs (32 bytes/pixel),
   the masks and, for a scan, the two maps (8 bytes/pixel); then the integration of heights
   runs on the whole float32 normal map as untiled.
-- in memory (an output that needs the images after photometric stereo: samples, brdf, ptm,
-  rti, gltf; or an RTI capture): the input is loaded whole as untiled; photometric stereo runs
+- in memory (an output that needs the images after photometric stereo: ptm, rti; or an RTI
+  capture): the input is loaded whole as untiled; photometric stereo runs
   over bands of it, which bounds its own working set only; a note says which outputs came from
   the whole images.
 
@@ -47,7 +50,7 @@ from facette.recon import PSResult, near_light_directions
 __all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "open_streamed", "ps_bands", "streamed_ps",
            "in_memory_ps"]
 
-STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "report")
+STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "gltf", "report")
 MEMORY_FLAGS_NOTE = ("--memory: the per-light shadow and specular flags are not kept (m bytes per pixel "
                      "each): the report leaves their share out and draws their maps empty")
 
@@ -220,9 +223,12 @@ def _maps_task(spec, r0, r1, flat):
     return r0, r1, np.fmax.reduce(g, axis=0), med, np.isnan(g).any(axis=0)
 
 
-def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in):
+def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None):
     """A band's photometric stereo: (r0, r1, PSResult without per-light flags or None when the
-    mask leaves the band out, its quality counts or None, read seconds, PS seconds)."""
+    mask leaves the band out, its quality counts or None, read seconds, PS seconds, its
+    reflectance samples or None). samples: {sample_mask: the band's, theta0_deg, total} to take
+    the band's samples (`_process.samples_sensor`: (HemisphereSensor, raw samples)) with the
+    shadows it found."""
     t0 = time.perf_counter()
     reader = _open(spec)
     try:
@@ -232,7 +238,7 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in):
     read_s = time.perf_counter() - t0
     counts = None if count_in is None else sample_counts(images, usable, count_in)
     if not mask.any():
-        return r0, r1, None, counts, read_s, 0.0
+        return r0, r1, None, counts, read_s, 0.0, None
     t0 = time.perf_counter()
     bag = dict(bag)
     dirs = bag.pop("light_dirs", None)          # far lights: (m, 3)
@@ -241,8 +247,13 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in):
         dirs, falloff = near_light_directions(positions, shape, pitch, rows=(r0, r1))
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
     part = photometric_stereo(images, dirs, method=method, options=dict(bag, mask=mask))
+    taken = None
+    if samples is not None:
+        from facette.pipeline._process import samples_sensor
+        taken = samples_sensor(images, samples["sample_mask"], part, dirs, samples["theta0_deg"], seed=r0,
+                               total=samples["total"], first_pixel=r0 * images.shape[2])
     part.shadow = part.specular = None         # m bytes per pixel each: not sent back
-    return r0, r1, part, counts, read_s, time.perf_counter() - t0
+    return r0, r1, part, counts, read_s, time.perf_counter() - t0, taken
 
 
 def _map(fn, calls, client=None, in_flight=None):
@@ -282,8 +293,15 @@ def _assemble(shape, method, results, flags_m=0):
                    residual=np.zeros((h, w), np.float32), skipped=np.zeros((h, w), bool),
                    method=PS_METHODS.canonical(method))
     info, pixels, counts, read_s, ps_s, weighted = {}, 0, None, 0.0, 0.0, {}
-    for r0, r1, part, band_counts, band_read, band_ps in results:
+    sensor, raws = None, []
+    for r0, r1, part, band_counts, band_read, band_ps, taken in results:
         read_s, ps_s = read_s + band_read, ps_s + band_ps
+        if taken is not None:
+            if sensor is None:
+                sensor = taken[0]
+            else:
+                sensor.merge(taken[0])
+            raws.append(taken[1])
         if band_counts is not None:
             counts = add_counts(counts, band_counts)
         if part is None:
@@ -300,6 +318,8 @@ def _assemble(shape, method, results, flags_m=0):
                 weighted[key] = weighted.get(key, 0.0) + float(value) * n
     info.update({key: total / max(pixels, 1) for key, total in weighted.items()})
     res.info = dict(info, method=res.method, pixels=pixels, read_s=read_s, ps_s=ps_s)
+    if sensor is not None:
+        res.info["samples"] = (sensor, raws)
     return res, counts
 
 
@@ -377,11 +397,11 @@ def ps_bands(read, shape, m, light_dirs, method, bag, mask, rows, flags=False, c
         read_s = time.perf_counter() - t0
         counts = None if count_in is None else sample_counts(band, usable, count_in[r0:r1])
         if not mask[r0:r1].any():
-            return r0, r1, None, counts, read_s, 0.0
+            return r0, r1, None, counts, read_s, 0.0, None
         t0 = time.perf_counter()
         dirs = light_dirs if np.ndim(light_dirs) == 2 else light_dirs[r0:r1]
         part = photometric_stereo(band, dirs, method=method, options=dict(bag, mask=mask[r0:r1]))
-        return r0, r1, part, counts, read_s, time.perf_counter() - t0
+        return r0, r1, part, counts, read_s, time.perf_counter() - t0, None
 
     spans = [b for b in _bands(h, rows) if count_in is not None or mask[b[0]:b[1]].any()]
     res, counts = _assemble(shape, method, (one(r0, r1) for r0, r1 in spans), m if flags else 0)
@@ -389,14 +409,17 @@ def ps_bands(read, shape, m, light_dirs, method, bag, mask, rows, flags=False, c
     return res, counts
 
 
-def streamed_ps(source, o, res, on_input=None, rows=None):
+def streamed_ps(source, o, res, on_input=None, rows=None, samples=False):
     """The load and photometric-stereo stages of `process` without the whole images: (PSInput
     with images=None, PSResult, light_dirs as `process` uses them (m, 3) or None with near
     lights, the brightest value over the lights or None). on_input(inp) is called once the
     input is known, before photometric stereo. The bands run here one after the other, or as
     tasks on the dask.distributed scheduler `o.scheduler` (its workers read the scan from its
-    path: they must see it). Fills res.inputs, res.timings load / ps, res.quality and the notes
-    (InsufficientData as untiled)."""
+    path: they must see it). samples: take the reflectance samples band by band too (into
+    res.filtered and res.samples; the raw subset's share drawn against m x the sample mask's
+    pixels, which the untiled run counts after photometric stereo, on its valid pixels only).
+    Fills res.inputs, res.timings load / ps, res.quality and the notes (InsufficientData as
+    untiled)."""
     t0 = time.perf_counter()
     work = Path(tempfile.mkdtemp(prefix="facette-tiles-"))
     client = None
@@ -422,10 +445,19 @@ def streamed_ps(source, o, res, on_input=None, rows=None):
                 bag["light_dirs"] = inp.light_dirs
             flat = getattr(bands, "flat", None)
             spec, obj = bands.spec(), inp.object_mask
+            smask = inp.sample_mask()
+            total = m * int(np.count_nonzero(smask))
+
+            def take(r0, r1):
+                return None if not samples else {"sample_mask": smask[r0:r1], "theta0_deg": o.theta0_deg,
+                                                 "total": total}
             calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
-                      inp.mask[r0:r1], obj[r0:r1]) for r0, r1 in _bands(h, n))
+                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1)) for r0, r1 in _bands(h, n))
             ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client))
             ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n)
+            taken = ps.info.pop("samples", None)
+            if samples:
+                res.filtered, res.samples = _samples_result(taken, o.theta0_deg)
         finally:
             bands.close()
     finally:
@@ -455,9 +487,25 @@ def in_memory_ps(images, light_dirs, o, bag, outputs, res, rows=None):
     whole = [x for x in outputs if x not in STREAMED_OUTPUTS] or ["the input (an RTI capture is read whole)"]
     if o.scheduler is not None:
         res.notes.append(f"--scheduler {o.scheduler}: not used, the images being held whole here (it runs the "
-                         "bands of --memory when every output is among normals, albedo, mask, height, mesh, report)")
+                         "bands of --memory when ptm and rti are not asked for)")
     res.notes.append(f"--memory {o.memory}: photometric stereo over {ps.info['tiles']} bands of {n} rows; the "
-                     f"images were loaded whole (untiled) for {', '.join(whole)}: the memory budget bounds "
-                     "photometric stereo only (ask for normals, albedo, mask, height, mesh, report alone to "
-                     "read the images band by band)")
+                     f"images were loaded whole (untiled) for {', '.join(whole)}, and every output computed from "
+                     "them: the memory budget bounds photometric stereo only (leave ptm and rti out of --outputs "
+                     "to read the images band by band)")
     return ps
+
+
+def _samples_result(taken, theta0_deg):
+    """(FilteredReflectance, raw samples) of the bands' (sensor, raw parts); empty when no band
+    had a pixel."""
+    from facette.reflect import HemisphereSensor, ReflectanceSamples
+    if taken is None:
+        sensor, raws = HemisphereSensor(theta0_deg, channels=3), []
+    else:
+        sensor, raws = taken
+    if not raws:
+        raws = [ReflectanceSamples(*(np.zeros((0, 3), np.float32),) * 3, np.zeros(0, np.int64),
+                                   np.zeros(0, np.int16))]
+    raw = raws[0] if len(raws) == 1 else ReflectanceSamples(
+        *(np.concatenate([getattr(q, k) for q in raws]) for k in ("s", "o", "f", "pixel", "light")))
+    return sensor.result(), raw

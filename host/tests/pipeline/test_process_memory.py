@@ -113,8 +113,31 @@ def test_outputs_that_need_the_images_say_they_were_computed_from_the_whole_imag
     tiled = process(scan, outputs=outputs, memory="1GB")
     _same(whole, tiled)
     note = [n for n in tiled.notes if n.startswith("--memory")]
-    assert len(note) == 1 and "loaded whole (untiled) for samples, ptm" in note[0]
-    assert tiled.filtered.count.sum() == whole.filtered.count.sum()        # the same shadows left out
+    assert len(note) == 1 and "loaded whole (untiled) for ptm" in note[0]
+    assert np.array_equal(tiled.filtered.count, whole.filtered.count)      # the same shadows left out
+    assert tiled.fit_errors["ptm_relative_rms"] == pytest.approx(whole.fit_errors["ptm_relative_rms"], rel=1e-6)
+
+
+@pytest.mark.parametrize("source", ["scan", "diligent"])
+def test_samples_and_brdf_taken_band_by_band_give_the_untiled_sensor_and_fit(request, tmp_path, small_bands,
+                                                                            monkeypatch, source):
+    src = request.getfixturevalue(source)
+    outputs = ["normals", "samples", "brdf", "gltf"]
+    whole = process(src, outputs=outputs, out_dir=tmp_path / "whole")
+    _never_whole(monkeypatch)
+    tiled = process(src, outputs=outputs, out_dir=tmp_path / "tiled", memory="1GB")
+    _same(whole, tiled)
+    assert whole.filtered.count.sum() > 1000
+    assert np.array_equal(tiled.filtered.count, whole.filtered.count)
+    filled = whole.filtered.count > 0
+    np.testing.assert_allclose(tiled.filtered.mean[filled], whole.filtered.mean[filled], rtol=1e-5)
+    # the raw subset is drawn band by band: about as many samples, from the same pixels' set
+    assert 0.8 < len(tiled.samples) / len(whole.samples) < 1.2
+    assert np.isin(tiled.samples.pixel, np.flatnonzero(whole.mask)).all()
+    assert tiled.brdf.params.keys() == whole.brdf.params.keys()
+    for key, value in whole.brdf.params.items():
+        np.testing.assert_allclose(tiled.brdf.params[key], value, rtol=1e-4)
+    assert (tmp_path / "tiled" / "model.glb").is_file() and (tmp_path / "tiled" / "brdf.json").is_file()
 
 
 def test_a_given_mask_is_used_in_bands(diligent, tmp_path, small_bands):
