@@ -16,8 +16,9 @@ each of these runs in a process of its own (peak memory = that child's max RSS, 
 
 With `--scan`, the slab is also written as a scan directory (hdr/light_XX.exr and _var.exr per
 light, uncompressed as the HDR merge writes them, scan.json with the lights and their
-intensities) and `facette process SCAN --outputs normals,height` runs untiled and with
-`--memory` on it: a second table (wall s, s/MP, peak, agreement).
+intensities) and `facette process SCAN --outputs normals,height` (or `--scan-outputs`, which
+must hold normals and height) runs untiled and with `--memory` on it: a second table (wall s,
+s/MP, peak, agreement; with brdf, the largest relative difference of the fitted parameters).
 
 With `--dask` (and --scan), the scan's `process --memory` runs again with its bands on a
 dask.distributed LocalCluster of 2 worker processes x 1 thread (`--scheduler`): wall s, s/MP,
@@ -206,7 +207,7 @@ def _slab_to_scan(folder, scan_dir):
     return scan_dir
 
 
-def scan_size(size, work, memory, method, untiled):
+def scan_size(size, work, memory, method, untiled, outputs="normals,height"):
     """The slab as a scan directory: untiled `process` against `process --memory`."""
     w, h = size
     folder = work / f"slab_{w}x{h}"
@@ -217,7 +218,7 @@ def scan_size(size, work, memory, method, untiled):
         _, row["gen_s"], row["gen_gb"] = _run_rss(_measured(SELF + ["--_scan", folder, scan]))
     else:
         row["gen_s"] = row["gen_gb"] = float("nan")
-    base = FACETTE + ["process", scan, "--outputs", "normals,height", "--method", method, "--overwrite", "-o"]
+    base = FACETTE + ["process", scan, "--outputs", outputs, "--method", method, "--overwrite", "-o"]
     out_u, out_m = work / f"scan_untiled_{w}x{h}", work / f"scan_memory_{w}x{h}"
     if untiled:
         stdout, row["untiled_s"], row["untiled_gb"] = _run_rss(_measured(base + [out_u]))
@@ -226,6 +227,11 @@ def scan_size(size, work, memory, method, untiled):
     row["mem_tiles"] = int(bands.group(1)) if bands else -1
     row["mem_deg"], row["mem_over"], row["mem_height"] = (
         _compare_process(out_u, out_m) if untiled else (float("nan"), -1, float("nan")))
+    row["brdf_rel"] = float("nan")
+    if untiled and (out_u / "brdf.json").is_file() and (out_m / "brdf.json").is_file():
+        a, b = (json.loads((d / "brdf.json").read_text())["parameters"] for d in (out_u, out_m))
+        row["brdf_rel"] = max(float(np.max(np.abs(np.asarray(b[k]) - np.asarray(a[k])) / np.abs(np.asarray(a[k]))))
+                              for k in a)
     return row
 
 
@@ -266,16 +272,17 @@ def scan_dask(row, size, work, memory, method, kill_after):
     return row
 
 
-def _print_scan(rows, memory):
-    print(f"scan directories (hdr/ EXR + _var.exr), process --outputs normals,height; --memory {memory}")
+def _print_scan(rows, memory, outputs):
+    print(f"scan directories (hdr/ EXR + _var.exr), process --outputs {outputs}; --memory {memory}")
     print(f"{'size':>12} {'MP':>6} | {'to scan s':>9} | {'untiled s':>9} {'s/MP':>5} {'GB':>5} | "
-          f"{'--memory s':>10} {'s/MP':>5} {'GB':>5} {'bands':>5} | {'max°':>8} {'px > 0.01°':>10} {'height/range':>12}")
+          f"{'--memory s':>10} {'s/MP':>5} {'GB':>5} {'bands':>5} | {'max°':>8} {'px > 0.01°':>10} {'height/range':>12} "
+          f"{'brdf rel':>8}")
     for r in rows:
         u = r.get("untiled_s", float("nan"))
         print(f"{r['size']:>12} {r['mp']:6.1f} | {r['gen_s']:9.1f} | {u:9.1f} {u / r['mp']:5.2f} "
               f"{r.get('untiled_gb', float('nan')):5.2f} | {r['mem_s']:10.1f} {r['mem_s'] / r['mp']:5.2f} "
               f"{r['mem_gb']:5.2f} {r['mem_tiles']:5d} | {r['mem_deg']:8.5f} {r['mem_over']:10d} "
-              f"{r['mem_height']:12.2e}", flush=True)
+              f"{r['mem_height']:12.2e} {r['brdf_rel']:8.1e}", flush=True)
     dask = [r for r in rows if "dask_s" in r]
     if dask:
         print("the same on a dask.distributed LocalCluster (2 worker processes x 1 thread); GB: the largest "
@@ -375,6 +382,8 @@ def main(argv=None):
     p.add_argument("--scan", action="store_true", help="also process the slab as a scan directory (EXR), "
                                                         "untiled and with --memory")
     p.add_argument("--only-scan", action="store_true", help="the scan directory's table alone")
+    p.add_argument("--scan-outputs", default="normals,height",
+                   help="the scan runs' --outputs (with normals and height; default normals,height)")
     p.add_argument("--dask", action="store_true", help="with --scan: the scan's --memory run again on a "
                                                         "LocalCluster of 2 workers x 1 thread")
     p.add_argument("--kill-worker", type=float, default=0.0, metavar="S",
@@ -398,11 +407,11 @@ def main(argv=None):
                 rows.append(one_size(size, work, args.memory, args.method, untiled))
                 _print(rows[-1:])
             if args.scan or args.only_scan:
-                scan_rows.append(scan_size(size, work, args.memory, args.method, untiled))
+                scan_rows.append(scan_size(size, work, args.memory, args.method, untiled, args.scan_outputs))
                 if args.dask:
                     scan_dask(scan_rows[-1], size, work, args.memory, args.method, args.kill_worker)
         if scan_rows:
-            _print_scan(scan_rows, args.memory)
+            _print_scan(scan_rows, args.memory, args.scan_outputs)
     return 0
 
 
