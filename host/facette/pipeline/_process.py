@@ -328,7 +328,8 @@ def _process(source, outputs, out_dir, o):
         res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
         res.object_mask = res.mask if inp.background_mask() is None else \
             res.mask & object_of(None, inp.mask, inp.material_mask, top=top)
-        res.notes.append(MEMORY_FLAGS_NOTE)
+        if "report" in outputs:
+            res.notes.append(MEMORY_FLAGS_NOTE)
         return _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options,
                         previous, t_all, cpu_all)
     t0 = time.perf_counter()

@@ -51,8 +51,9 @@ __all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "open_streame
            "in_memory_ps"]
 
 STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "gltf", "report")
-MEMORY_FLAGS_NOTE = ("--memory: the per-light shadow and specular flags are not kept (m bytes per pixel "
-                     "each): the report leaves their share out and draws their maps empty")
+MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (the photographs are not held) "
+                     "and, the per-light shadow and specular flags not being kept (m bytes per pixel each), "
+                     "leaves their share out and draws their maps empty")
 
 
 def check_memory_options(method, interreflections):

@@ -93,6 +93,7 @@ def test_diligent_folder_in_bands_gives_the_untiled_results(diligent, tmp_path, 
     assert record["options"]["memory"] == "1GB"
     assert "memory" not in json.loads((tmp_path / "whole" / "process.json").read_text())["options"]
     assert any("read band by band" in n for n in record["notes"])
+    assert any("report shows no mask over the photograph" in n for n in record["notes"])
     assert (tmp_path / "tiled" / "mesh.ply").is_file()
     assert "12 lights on 44 × 36 pixels" in (tmp_path / "tiled" / "report.html").read_text()
 
