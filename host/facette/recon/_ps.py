@@ -107,8 +107,7 @@ def near_light_directions(positions_mm, shape, pixel_pitch_mm, heights_mm=None, 
     positions_mm : (m, 3) light positions in the camera frame (origin on the optical axis
         in the object plane z = 0, which passes through the image centre).
     shape : (H, W); pixel_pitch_mm : object-side size of one pixel (mm).
-    heights_mm : optional (H, W) surface heights (default: the plane z = 0).
-    rows : optional (r0, r1): those rows of the image only (a band: heights_mm then (r1 - r0, W)).
+    heights_mm : optional surface heights (default: the plane z = 0); rows : optional (r0, r1), those rows only.
     Returns (dirs (H, W, m, 3) unit vectors towards each light, falloff (H, W, m)):
     falloff = |P|^2 / |P - X|^2, the irradiance relative to the one at the origin, so
     that intensities calibrated at the origin stay valid (divide images by it).
@@ -117,10 +116,9 @@ def near_light_directions(positions_mm, shape, pixel_pitch_mm, heights_mm=None, 
     if positions_mm.ndim != 2 or positions_mm.shape[1] != 3:
         raise ValueError(f"positions_mm must have shape (m, 3), got {positions_mm.shape}")
     h, w = shape
-    r0, r1 = (0, h) if rows is None else rows
     x = (np.arange(w) - (w - 1) / 2) * pixel_pitch_mm
-    y = -(np.arange(r0, r1) - (h - 1) / 2) * pixel_pitch_mm      # row 0 is the top, y points up
-    pts = np.zeros((r1 - r0, w, 3))
+    y = -(np.arange(*(rows or (0, h))) - (h - 1) / 2) * pixel_pitch_mm      # row 0 is the top, y points up
+    pts = np.zeros((y.size, w, 3))
     pts[..., 0] = x[None, :]
     pts[..., 1] = y[:, None]
     if heights_mm is not None:
