@@ -56,11 +56,12 @@ def register(sub):
     p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
                    help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all); only the "
                         "stages they need run")
-    p.add_argument("--method", default=d.method,
+    p.add_argument("--method", default=None,
                    choices=list(PS_METHODS),
                    help=f"photometric stereo (default {d.method}: robust Lambertian; li_alternating: "
                         "BRDF-aware, the LI model fitted per material and the normals re-estimated against "
-                        "it where the data show a lobe, better on real glossy photographs, 10-50x slower)")
+                        "it where the data show a lobe, better on real glossy photographs, 10-50x slower); "
+                        f"with --memory the default is {PS_DEFAULT}, a per-pixel method")
     p.add_argument("--init", default=None,
                    choices=[m for m in PS_METHODS if m != "li_alternating"],
                    help=f"initial normals of --method li_alternating (default its own, {PS_DEFAULT}; the "
@@ -149,12 +150,23 @@ def _capture(args):
             "reference": parse_box(args.reference) if args.reference else None}
 
 
+def _method(args):
+    """--method, or its default: PROCESS_DEFAULT, or with --memory PS_DEFAULT when the former needs
+    the whole image (li_alternating)."""
+    from facette.methods import PROCESS_DEFAULT, PS_DEFAULT
+    from facette.pipeline import WHOLE_IMAGE_METHODS
+
+    if args.method is not None:
+        return args.method
+    return PS_DEFAULT if args.memory and PROCESS_DEFAULT in WHOLE_IMAGE_METHODS else PROCESS_DEFAULT
+
+
 def options(args):
     """The ProcessOptions of parsed `facette process` arguments."""
     from facette.pipeline import ProcessOptions
 
     return ProcessOptions(
-        method=args.method, integration=args.integration, t_ombre=args.t_ombre, t_spec=args.t_spec,
+        method=_method(args), integration=args.integration, t_ombre=args.t_ombre, t_spec=args.t_spec,
         t_source=args.t_source, t_residual=args.t_residual, theta0_deg=args.theta0, mask=args.mask,
         pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light, mesh_step=args.mesh_step,
         ascii_ply=args.ascii_ply, fit_options={"model": args.brdf_model, "method": args.fit_method},
@@ -165,11 +177,15 @@ def options(args):
 
 
 def run(args):
+    from facette.methods import PROCESS_DEFAULT
     from facette.pipeline import process
 
     _check_out(args.out)
     res = process(args.source, outputs=args.outputs, out_dir=args.out, options=options(args))
     print_result(res)
+    if _method(args) != PROCESS_DEFAULT and args.method is None:
+        print(f"  note: --memory: photometric stereo with {_method(args)} (the default, {PROCESS_DEFAULT}, needs "
+              "the whole image; --method chooses another per-pixel one)")
     return 0
 
 

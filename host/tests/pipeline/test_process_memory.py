@@ -19,6 +19,7 @@ from facette.recon.synthetic import render, sphere_on_plane, thesis_light_direct
 L = thesis_light_directions()
 STREAMED = ["normals", "albedo", "mask", "height", "mesh", "report"]
 ROWS = 5
+M = "rank_trimmed"      # a per-pixel method (the process default, li_alternating, needs the whole image)
 
 
 def _angle_deg(a, b):
@@ -99,9 +100,9 @@ def test_diligent_folder_in_bands_gives_the_untiled_results(diligent, tmp_path, 
 
 
 def test_scan_directory_in_bands_gives_the_untiled_results(scan, tmp_path, small_bands, monkeypatch):
-    whole = process(scan, outputs=STREAMED, out_dir=tmp_path / "whole")
+    whole = process(scan, outputs=STREAMED, out_dir=tmp_path / "whole", method=M)
     _never_whole(monkeypatch)
-    tiled = process(scan, outputs=STREAMED, out_dir=tmp_path / "tiled", memory="1GB")
+    tiled = process(scan, outputs=STREAMED, out_dir=tmp_path / "tiled", memory="1GB", method=M)
     _same(whole, tiled)
     assert any("near lights" in n for n in tiled.notes)
     assert whole.errors and tiled.errors["normal_median_deg"] == pytest.approx(whole.errors["normal_median_deg"],
@@ -110,8 +111,8 @@ def test_scan_directory_in_bands_gives_the_untiled_results(scan, tmp_path, small
 
 def test_outputs_that_need_the_images_say_they_were_computed_from_the_whole_images(scan, tmp_path, small_bands):
     outputs = ["normals", "height", "samples", "ptm"]
-    whole = process(scan, outputs=outputs)
-    tiled = process(scan, outputs=outputs, memory="1GB")
+    whole = process(scan, outputs=outputs, method=M)
+    tiled = process(scan, outputs=outputs, memory="1GB", method=M)
     _same(whole, tiled)
     note = [n for n in tiled.notes if n.startswith("--memory")]
     assert len(note) == 1 and "loaded whole (untiled) for ptm" in note[0]
@@ -124,9 +125,9 @@ def test_samples_and_brdf_taken_band_by_band_give_the_untiled_sensor_and_fit(req
                                                                             monkeypatch, source):
     src = request.getfixturevalue(source)
     outputs = ["normals", "samples", "brdf", "gltf"]
-    whole = process(src, outputs=outputs, out_dir=tmp_path / "whole")
+    whole = process(src, outputs=outputs, out_dir=tmp_path / "whole", method=M)
     _never_whole(monkeypatch)
-    tiled = process(src, outputs=outputs, out_dir=tmp_path / "tiled", memory="1GB")
+    tiled = process(src, outputs=outputs, out_dir=tmp_path / "tiled", memory="1GB", method=M)
     _same(whole, tiled)
     assert whole.filtered.count.sum() > 1000
     assert np.array_equal(tiled.filtered.count, whole.filtered.count)
@@ -144,8 +145,8 @@ def test_samples_and_brdf_taken_band_by_band_give_the_untiled_sensor_and_fit(req
 def test_a_given_mask_is_used_in_bands(diligent, tmp_path, small_bands):
     mask = np.zeros((36, 44), bool)
     mask[6:30, 5:40] = True
-    whole = process(diligent, outputs=["normals"], mask=mask)
-    tiled = process(diligent, outputs=["normals"], mask=mask, memory="1GB")
+    whole = process(diligent, outputs=["normals"], mask=mask, method=M)
+    tiled = process(diligent, outputs=["normals"], mask=mask, memory="1GB", method=M)
     _same(whole, tiled)
     assert not tiled.mask[:6].any()
 
@@ -159,7 +160,7 @@ def test_a_whole_image_method_with_memory_is_refused_naming_the_per_pixel_ones(m
 
 def test_interreflections_with_memory_are_refused():
     with pytest.raises(ValueError, match="whole images"):
-        ProcessOptions(memory="2GB", interreflections=True)
+        ProcessOptions(memory="2GB", interreflections=True, method=M)
 
 
 @pytest.mark.parametrize("text", ["2 apples", "GB", "-1GB", "0", ""])
@@ -170,7 +171,7 @@ def test_a_budget_that_is_not_a_size_is_refused(text):
 
 def test_a_budget_too_small_for_the_image_says_how_much(diligent):
     with pytest.raises(ValueError, match="give at least"):
-        process(diligent, outputs=["normals"], memory="1MB")
+        process(diligent, outputs=["normals"], memory="1MB", method=M)
 
 
 def test_cli_memory(capsys, diligent, tmp_path):
@@ -186,6 +187,7 @@ def test_cli_memory(capsys, diligent, tmp_path):
                  "--memory", "512MB"])
     out = capsys.readouterr().out
     assert code == 0 and "read band by band" in out
+    assert "--memory: photometric stereo with rank_trimmed (the default, li_alternating, needs the whole" in out
     assert json.loads((tmp_path / "c" / "process.json").read_text())["options"]["memory"] == "512MB"
 
 
@@ -201,14 +203,15 @@ def cluster():
 def test_bands_on_a_dask_cluster_give_the_untiled_results(request, cluster, tmp_path, small_bands, monkeypatch,
                                                           source):
     src = request.getfixturevalue(source)
-    whole = process(src, outputs=["normals", "height"])
+    whole = process(src, outputs=["normals", "height"], method=M)
     _never_whole(monkeypatch)
     def bands_run():                     # _ps_task tasks the scheduler has seen finish (counts of transitions)
         prefix = cluster.scheduler.task_prefixes.get("ps_task")
         return 0 if prefix is None else prefix.state_counts.get("memory", 0)
 
     before = bands_run()
-    tiled = process(src, outputs=["normals", "height"], memory="1GB", scheduler=cluster.scheduler_address)
+    tiled = process(src, outputs=["normals", "height"], memory="1GB", scheduler=cluster.scheduler_address,
+                    method=M)
     _same(whole, tiled)
     assert bands_run() - before == tiled.ps.info["tiles"]
     assert any(f"on the scheduler {cluster.scheduler_address}" in n for n in tiled.notes)
