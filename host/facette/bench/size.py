@@ -7,7 +7,23 @@ each of these runs in a process of its own (peak memory = that child's max RSS, 
 - untiled: `facette process SLAB -o OUT --outputs normals,height` as a user runs it (every
   photograph held as float32, photometric stereo of the whole image, then the integration);
 - tiled: `pipeline.ps_tiled` with a memory budget (`--memory`, default 2GB), each band's normals
-  written to a .npy as it comes (nothing kept at the image's size), the same method.
+  written to a .npy as it comes (nothing kept at the image's size), the same method;
+- process --memory: `facette process SLAB -o OUT --outputs normals,height --memory 2GB` (the
+  photographs read band by band, photometric stereo over bands, the integration on the whole
+  float32 normal map): wall s, s/MP, peak, its bands, and its agreement with the untiled run
+  (largest angle between the normals, pixels over 0.01 deg, largest height difference over
+  the untiled heights' range on the mask; issue 26 asks 0.01 deg and 0.1 %).
+
+With `--scan`, the slab is also written as a scan directory (hdr/light_XX.exr and _var.exr per
+light, uncompressed as the HDR merge writes them, scan.json with the lights and their
+intensities) and `facette process SCAN --outputs normals,height` (or `--scan-outputs`, which
+must hold normals and height) runs untiled and with `--memory` on it: a second table (wall s,
+s/MP, peak, agreement; with brdf, the largest relative difference of the fitted parameters).
+
+With `--dask` (and --scan), the scan's `process --memory` runs again with its bands on a
+dask.distributed LocalCluster of 2 worker processes x 1 thread (`--scheduler`): wall s, s/MP,
+the driver's and the workers' peaks, the agreement with the untiled run; `--kill-worker S`
+kills one worker S seconds into that run (the scheduler runs its bands again elsewhere).
 
 Printed per size: generation time and peak; for both runs wall seconds, seconds per megapixel
 and peak memory (the untiled run also its load and ps stage times, the tiled one its staging
@@ -27,6 +43,7 @@ import argparse
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -145,6 +162,139 @@ def _compare(folder, tiled_npy, untiled_exr):
     return sums[0] / count, sums[1] / count, worst, over
 
 
+def _compare_process(untiled_dir, memory_dir):
+    """(largest angle, deg; pixels over AGREE_DEG; largest height difference / the untiled
+    heights' range) between `process --memory` and untiled `process`, where the untiled run has
+    a normal."""
+    worst, over = 0.0, 0
+    a, b = read_exr(Path(untiled_dir) / "normal.exr")[0], read_exr(Path(memory_dir) / "normal.exr")[0]
+    mask = np.linalg.norm(a, axis=-1) > 0.5
+    for r0 in range(0, mask.shape[0], BAND_ROWS):
+        sl = slice(r0, r0 + BAND_ROWS)
+        apart = _angles_deg(a[sl][mask[sl]], b[sl][mask[sl]])
+        worst = max(worst, float(apart.max(initial=0.0)))
+        over += int((apart > AGREE_DEG).sum())
+    del a, b
+    ha, hb = read_exr(Path(untiled_dir) / "height.exr")[0][..., 0], read_exr(Path(memory_dir) / "height.exr")[0][..., 0]
+    span = float(np.ptp(ha[mask])) if mask.any() else 0.0
+    return worst, over, float(np.abs(ha - hb)[mask].max(initial=0.0)) / span if span > 0 else float("nan")
+
+
+def _slab_to_scan(folder, scan_dir):
+    """The slab's DiLiGenT folder as a scan directory, one light at a time: radiance = PNG / 65535
+    (NaN where clipped), variance 1e-6 x radiance + 1e-9 (every sample above the noise)."""
+    from facette.io.diligent import read_diligent_lights
+    from facette.io.exr import write_exr
+    from facette.io.png import read_png
+    from facette.scan import ScanDirectory
+    folder, scan_dir = Path(folder), Path(scan_dir)
+    names, dirs, inten, _ = read_diligent_lights(folder)
+    (scan_dir / "hdr").mkdir(parents=True)
+    for i, name in enumerate(names):
+        raw = read_png(folder / name)
+        e = raw.astype(np.float32) / np.float32(65535)
+        e[raw >= 65535] = np.nan
+        del raw
+        write_exr(scan_dir / "hdr" / f"light_{i:02d}.exr", e, compression="none")
+        write_exr(scan_dir / "hdr" / f"light_{i:02d}_var.exr", np.nan_to_num(e, nan=np.inf) * 1e-6 + 1e-9,
+                  compression="none")
+        del e
+    lights = [{"index": i, "direction": dirs[i].tolist(), "position_mm": None, "intensity": inten[i].tolist()}
+              for i in range(len(names))]
+    sd = ScanDirectory(scan_dir)
+    sd.create(rig={"id": "synthetic"}, profile=None, pixel_pitch_mm=0.05, lights=lights, exposures=[], plan=None)
+    sd.save()
+    return scan_dir
+
+
+def scan_size(size, work, memory, method, untiled, outputs="normals,height"):
+    """The slab as a scan directory: untiled `process` against `process --memory`."""
+    w, h = size
+    folder = work / f"slab_{w}x{h}"
+    scan = work / f"scan_{w}x{h}"
+    row = dict(size=f"{w}x{h}", mp=w * h / 1e6)
+    if not (scan / "scan.json").is_file():
+        shutil.rmtree(scan, ignore_errors=True)
+        _, row["gen_s"], row["gen_gb"] = _run_rss(_measured(SELF + ["--_scan", folder, scan]))
+    else:
+        row["gen_s"] = row["gen_gb"] = float("nan")
+    base = FACETTE + ["process", scan, "--outputs", outputs, "--method", method, "--overwrite", "-o"]
+    out_u, out_m = work / f"scan_untiled_{w}x{h}", work / f"scan_memory_{w}x{h}"
+    if untiled:
+        stdout, row["untiled_s"], row["untiled_gb"] = _run_rss(_measured(base + [out_u]))
+    stdout, row["mem_s"], row["mem_gb"] = _run_rss(_measured(base + [out_m, "--memory", memory]))
+    bands = re.search(r"over (\d+) bands of (\d+) rows", stdout)
+    row["mem_tiles"] = int(bands.group(1)) if bands else -1
+    row["mem_deg"], row["mem_over"], row["mem_height"] = (
+        _compare_process(out_u, out_m) if untiled else (float("nan"), -1, float("nan")))
+    row["brdf_rel"] = float("nan")
+    if untiled and (out_u / "brdf.json").is_file() and (out_m / "brdf.json").is_file():
+        a, b = (json.loads((d / "brdf.json").read_text())["parameters"] for d in (out_u, out_m))
+        row["brdf_rel"] = max(float(np.max(np.abs(np.asarray(b[k]) - np.asarray(a[k])) / np.abs(np.asarray(a[k]))))
+                              for k in a)
+    return row
+
+
+def _dask_child(scan, out, memory, method, kill_after):
+    """`process --memory` of `scan` with its bands on a LocalCluster of 2 workers x 1 thread;
+    prints a JSON line: seconds, bands, the workers' max RSS (GB), killed (a worker was)."""
+    import resource
+    import signal
+    import threading
+
+    from dask.distributed import Client, LocalCluster
+
+    from facette.pipeline import process
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
+            Client(cluster) as client:
+        pids = sorted(client.run(os.getpid).values())
+        if kill_after > 0:
+            threading.Timer(kill_after, lambda: os.kill(pids[0], signal.SIGKILL)).start()
+        t0 = time.perf_counter()
+        res = process(scan, outputs=["normals", "height"], out_dir=out, method=method, memory=memory,
+                      scheduler=cluster.scheduler_address, overwrite=True)
+        seconds = time.perf_counter() - t0
+        rss = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6)
+        after = sorted(client.run(os.getpid).values())
+    print(json.dumps({"seconds": seconds, "bands": res.ps.info["tiles"], "workers_gb": sorted(rss.values()),
+                      "killed": pids != after}))
+
+
+def scan_dask(row, size, work, memory, method, kill_after):
+    w, h = size
+    out = work / f"scan_dask_{w}x{h}"
+    stdout, wall, gb = _run_rss(_measured(SELF + ["--_dask", work / f"scan_{w}x{h}", out, memory, method,
+                                                  str(kill_after)]))
+    info = json.loads(stdout.strip().splitlines()[-1])
+    row.update(dask_s=info["seconds"], dask_gb=gb, dask_workers_gb=max(info["workers_gb"]), dask_killed=info["killed"])
+    row["dask_deg"], row["dask_over"], row["dask_height"] = (
+        _compare_process(work / f"scan_untiled_{w}x{h}", out) if "untiled_s" in row else (float("nan"), -1, float("nan")))
+    return row
+
+
+def _print_scan(rows, memory, outputs):
+    print(f"scan directories (hdr/ EXR + _var.exr), process --outputs {outputs}; --memory {memory}")
+    print(f"{'size':>12} {'MP':>6} | {'to scan s':>9} | {'untiled s':>9} {'s/MP':>5} {'GB':>5} | "
+          f"{'--memory s':>10} {'s/MP':>5} {'GB':>5} {'bands':>5} | {'max°':>8} {'px > 0.01°':>10} {'height/range':>12} "
+          f"{'brdf rel':>8}")
+    for r in rows:
+        u = r.get("untiled_s", float("nan"))
+        print(f"{r['size']:>12} {r['mp']:6.1f} | {r['gen_s']:9.1f} | {u:9.1f} {u / r['mp']:5.2f} "
+              f"{r.get('untiled_gb', float('nan')):5.2f} | {r['mem_s']:10.1f} {r['mem_s'] / r['mp']:5.2f} "
+              f"{r['mem_gb']:5.2f} {r['mem_tiles']:5d} | {r['mem_deg']:8.5f} {r['mem_over']:10d} "
+              f"{r['mem_height']:12.2e} {r['brdf_rel']:8.1e}", flush=True)
+    dask = [r for r in rows if "dask_s" in r]
+    if dask:
+        print("the same on a dask.distributed LocalCluster (2 worker processes x 1 thread); GB: the largest "
+              "process of the run's tree (wait4), worker GB: the workers' own largest")
+        print(f"{'size':>12} | {'dask s':>7} {'s/MP':>5} {'GB':>5} {'worker GB':>9} {'killed':>6} | {'max°':>8} "
+              f"{'px > 0.01°':>10} {'height/range':>12}")
+        for r in dask:
+            print(f"{r['size']:>12} | {r['dask_s']:7.1f} {r['dask_s'] / r['mp']:5.2f} {r['dask_gb']:5.2f} "
+                  f"{r['dask_workers_gb']:9.2f} {str(r['dask_killed']):>6} | {r['dask_deg']:8.5f} {r['dask_over']:10d} "
+                  f"{r['dask_height']:12.2e}", flush=True)
+
+
 def one_size(size, work, memory, method, untiled):
     w, h = size
     mp = w * h / 1e6
@@ -164,6 +314,14 @@ def one_size(size, work, memory, method, untiled):
         row.update(untiled_s=wall, untiled_gb=gb, untiled_load=times.get("load", float("nan")),
                    untiled_ps=times.get("ps", float("nan")))
         exr = out / "normal.exr"
+    out_mem = work / f"memory_{w}x{h}"
+    stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", folder, "-o", out_mem, "--outputs", "normals,height",
+                                                     "--method", method, "--memory", memory, "--overwrite"]))
+    bands = re.search(r"over (\d+) bands of (\d+) rows", stdout)
+    row.update(mem_s=wall, mem_gb=gb, mem_tiles=int(bands.group(1)) if bands else -1,
+               mem_ps=_times(stdout).get("ps", float("nan")))
+    row["mem_deg"], row["mem_over"], row["mem_height"] = (
+        _compare_process(exr.parent, out_mem) if exr is not None else (float("nan"), -1, float("nan")))
     npy = work / f"tiled_{w}x{h}.npy"
     stdout, wall, gb = _run_rss(_measured(SELF + ["--_tiled", folder, npy, memory, method]), ALLOCATOR_ENV)
     info = json.loads(stdout.strip().splitlines()[-1])
@@ -178,7 +336,9 @@ def _header(memory, method):
           "s/MP = wall seconds per megapixel")
     print(f"{'size':>12} {'MP':>6} | {'gen s':>6} {'GB':>5} | {'untiled s':>9} {'s/MP':>5} {'GB':>5} "
           f"{'(load':>6} {'ps)':>5} | {'tiled s':>7} {'s/MP':>5} {'GB':>5} {'tiles':>5} {'(stage':>6} {'ps)':>5} | "
-          f"{'err° untiled':>12} {'tiled':>6} {'max° tiled-untiled':>18} {'px > 0.01°':>10}")
+          f"{'err° untiled':>12} {'tiled':>6} {'max° tiled-untiled':>18} {'px > 0.01°':>10} | "
+          f"{'process --memory s':>18} {'s/MP':>5} {'GB':>5} {'bands':>5} {'(ps)':>5} {'max°':>8} "
+          f"{'px > 0.01°':>10} {'height/range':>12}")
 
 
 def _print(rows):
@@ -189,7 +349,9 @@ def _print(rows):
               f"{r.get('untiled_load', float('nan')):6.1f} {r.get('untiled_ps', float('nan')):5.1f} | "
               f"{r['tiled_s']:7.1f} {r['tiled_s'] / r['mp']:5.2f} {r['tiled_gb']:5.2f} {r['tiles']:5d} "
               f"{r['tiled_stage']:6.1f} {r['tiled_ps']:5.1f} | "
-              f"{r['err_untiled']:12.3f} {r['err_tiled']:6.3f} {r['tiled_vs_untiled']:18.5f} {r['over']:10d}",
+              f"{r['err_untiled']:12.3f} {r['err_tiled']:6.3f} {r['tiled_vs_untiled']:18.5f} {r['over']:10d} | "
+              f"{r['mem_s']:18.1f} {r['mem_s'] / r['mp']:5.2f} {r['mem_gb']:5.2f} {r['mem_tiles']:5d} "
+              f"{r['mem_ps']:5.1f} {r['mem_deg']:8.5f} {r['mem_over']:10d} {r['mem_height']:12.2e}",
               flush=True)
 
 
@@ -199,6 +361,12 @@ def main(argv=None):
         return _rss_wrapper(argv[2:])
     if argv[:1] == ["--_generate"]:
         write_relief_capture(argv[1], int(argv[2]), int(argv[3]))
+        return 0
+    if argv[:1] == ["--_scan"]:
+        _slab_to_scan(argv[1], argv[2])
+        return 0
+    if argv[:1] == ["--_dask"]:
+        _dask_child(argv[1], argv[2], argv[3], argv[4], float(argv[5]))
         return 0
     if argv[:1] == ["--_tiled"]:
         _tiled_child(*argv[1:5])
@@ -211,19 +379,39 @@ def main(argv=None):
     p.add_argument("--no-untiled", action="store_true", help="skip the untiled `facette process`")
     p.add_argument("--untiled-max-mp", type=float, default=UNTILED_MAX_MP,
                    help=f"skip the untiled run above this size (default {UNTILED_MAX_MP:g} MP)")
+    p.add_argument("--scan", action="store_true", help="also process the slab as a scan directory (EXR), "
+                                                        "untiled and with --memory")
+    p.add_argument("--only-scan", action="store_true", help="the scan directory's table alone")
+    p.add_argument("--scan-outputs", default="normals,height",
+                   help="the scan runs' --outputs (with normals and height; default normals,height)")
+    p.add_argument("--dask", action="store_true", help="with --scan: the scan's --memory run again on a "
+                                                        "LocalCluster of 2 workers x 1 thread")
+    p.add_argument("--kill-worker", type=float, default=0.0, metavar="S",
+                   help="with --dask: kill one worker S seconds into the run (default: none)")
     p.add_argument("--keep", help="keep the captures and results in this folder (default: temporary); "
                                   "a slab already there is reused")
     args = p.parse_args(argv)
     sizes = [_size(s.strip()) for s in args.sizes.split(",") if s.strip()]
-    rows = []
-    _header(args.memory, args.method)
+    rows, scan_rows = [], []
+    if not args.only_scan:
+        _header(args.memory, args.method)
     with tempfile.TemporaryDirectory(prefix="facette-bench-size-") as tmp:
         work = Path(args.keep) if args.keep else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         for size in sizes:
             untiled = not args.no_untiled and size[0] * size[1] / 1e6 <= args.untiled_max_mp
-            rows.append(one_size(size, work, args.memory, args.method, untiled))
-            _print(rows[-1:])
+            if args.only_scan:
+                if not (work / f"slab_{size[0]}x{size[1]}" / "mask.png").is_file():
+                    _run_rss(_measured(SELF + ["--_generate", work / f"slab_{size[0]}x{size[1]}", *map(str, size)]))
+            else:
+                rows.append(one_size(size, work, args.memory, args.method, untiled))
+                _print(rows[-1:])
+            if args.scan or args.only_scan:
+                scan_rows.append(scan_size(size, work, args.memory, args.method, untiled, args.scan_outputs))
+                if args.dask:
+                    scan_dask(scan_rows[-1], size, work, args.memory, args.method, args.kill_worker)
+        if scan_rows:
+            _print_scan(scan_rows, args.memory, args.scan_outputs)
     return 0
 
 

@@ -56,11 +56,12 @@ def register(sub):
     p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
                    help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all); only the "
                         "stages they need run")
-    p.add_argument("--method", default=d.method,
+    p.add_argument("--method", default=None,
                    choices=list(PS_METHODS),
                    help=f"photometric stereo (default {d.method}: robust Lambertian; li_alternating: "
                         "BRDF-aware, the LI model fitted per material and the normals re-estimated against "
-                        "it where the data show a lobe, better on real glossy photographs, 10-50x slower)")
+                        "it where the data show a lobe, better on real glossy photographs, 10-50x slower); "
+                        f"with --memory the default is {PS_DEFAULT}, a per-pixel method")
     p.add_argument("--init", default=None,
                    choices=[m for m in PS_METHODS if m != "li_alternating"],
                    help=f"initial normals of --method li_alternating (default its own, {PS_DEFAULT}; the "
@@ -106,6 +107,13 @@ def register(sub):
                                     "(default: found in the photographs)")
     p.add_argument("--reference", help="RTI capture: x0,y0,x1,y1 (px) of a white or grey patch in every "
                                        "photograph; each photograph is divided by its level there")
+    p.add_argument("--memory", metavar="SIZE", default=d.memory,
+                   help="a memory budget such as 2GB, 512MB or 3GiB: photometric stereo runs over bands of "
+                        "rows in it (a per-pixel --method); without ptm and rti in --outputs the images are read band by "
+                        "band, never whole (default: untiled)")
+    p.add_argument("--scheduler", metavar="ADDRESS", default=d.scheduler,
+                   help="with --memory: a running dask.distributed scheduler, e.g. tcp://host:8786, whose workers "
+                        "run the bands (they must see the same paths; the same flag as facette batch)")
     p.add_argument("--hsh-order", type=int, default=d.hsh_order, choices=(2, 3),
                    help="hemispherical-harmonics order of relight.rti (2: 4 terms, 3: 9 terms)")
     p.add_argument("--rti-encoding", default=d.rti_encoding, choices=("srgb", "linear"),
@@ -142,26 +150,42 @@ def _capture(args):
             "reference": parse_box(args.reference) if args.reference else None}
 
 
+def _method(args):
+    """--method, or its default: PROCESS_DEFAULT, or with --memory PS_DEFAULT when the former needs
+    the whole image (li_alternating)."""
+    from facette.methods import PROCESS_DEFAULT, PS_DEFAULT
+    from facette.pipeline import WHOLE_IMAGE_METHODS
+
+    if args.method is not None:
+        return args.method
+    return PS_DEFAULT if args.memory and PROCESS_DEFAULT in WHOLE_IMAGE_METHODS else PROCESS_DEFAULT
+
+
 def options(args):
     """The ProcessOptions of parsed `facette process` arguments."""
     from facette.pipeline import ProcessOptions
 
     return ProcessOptions(
-        method=args.method, integration=args.integration, t_ombre=args.t_ombre, t_spec=args.t_spec,
+        method=_method(args), integration=args.integration, t_ombre=args.t_ombre, t_spec=args.t_spec,
         t_source=args.t_source, t_residual=args.t_residual, theta0_deg=args.theta0, mask=args.mask,
         pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light, mesh_step=args.mesh_step,
         ascii_ply=args.ascii_ply, fit_options={"model": args.brdf_model, "method": args.fit_method},
         hsh_order=args.hsh_order, rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
-        interreflections=args.interreflections, capture=_capture(args),
+        interreflections=args.interreflections, capture=_capture(args), memory=args.memory,
+        scheduler=args.scheduler,
         ps_options={"init": args.init} if args.init else None)     # li_alternating takes it, the others leave it
 
 
 def run(args):
+    from facette.methods import PROCESS_DEFAULT
     from facette.pipeline import process
 
     _check_out(args.out)
     res = process(args.source, outputs=args.outputs, out_dir=args.out, options=options(args))
     print_result(res)
+    if _method(args) != PROCESS_DEFAULT and args.method is None:
+        print(f"  note: --memory: photometric stereo with {_method(args)} (the default, {PROCESS_DEFAULT}, needs "
+              "the whole image; --method chooses another per-pixel one)")
     return 0
 
 

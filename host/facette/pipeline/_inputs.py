@@ -1,6 +1,5 @@
 """Inputs of `process`: a facette scan directory or a DiLiGenT-style folder."""
 import os
-import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -8,13 +7,11 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from facette.calib import ProfileError, ResolutionError, apply_flat_field, load, pitch_at_size
-from facette.errors import BadInputError
 from facette.io.diligent import is_diligent_dir, read_diligent
 from facette.io.png import read_mask
-from facette.pipeline._quality import MIN_LEVELS, usable_from_green
+from facette.pipeline._quality import MIN_LEVELS
 from facette.pipeline._rti_capture import is_rti_capture, read_rti_capture
-from facette.scan import MissingFrameWarning, ScanDirectory, merge_scan, stale_lights
+from facette.scan import ScanDirectory
 
 __all__ = ["PSInput", "load_input", "source_path", "auto_masks", "margin_of", "MARGIN_BORDER", "object_of",
            "OBJECT_OVER_TABLE"]
@@ -96,17 +93,25 @@ def auto_masks(images, min_contrast=4.0):
     that split is the median over the lights (highlights and shadows do not move it).
     """
     ch = images[..., 1] if images.shape[-1] == 3 else images.mean(axis=-1)
-    lum = np.nan_to_num(np.fmax.reduce(ch, axis=0), nan=0.0)   # NaN-ignoring max over the lights
-    sub = lum.ravel()[::7]                                   # a quantile needs no full sort
-    ref = float(np.quantile(sub, 0.99)) if sub.size else 0.0
-    if not ref > 0:
-        return np.zeros(lum.shape, bool), np.zeros(lum.shape, bool)
-    lit = lum > 0.02 * ref
+    lum = np.fmax.reduce(ch, axis=0)      # NaN-ignoring max over the lights
     from facette.pipeline._pixels_jit import median_over_lights
     med = np.empty(lum.shape, ch.dtype)  # pixels unknown under every light: NaN, dropped below
     half = lum.shape[0] // 2              # two halves of the rows on two threads (the kernel frees the GIL)
     with ThreadPoolExecutor(2) as pool:
         list(pool.map(lambda sl: median_over_lights(ch, med, sl), (slice(0, half), slice(half, None))))
+    return masks_from(lum, med, min_contrast)
+
+
+def masks_from(top, med, min_contrast=4.0):
+    """`auto_masks` from its two maps of the green channel over the lights, (H, W) each: `top`
+    the NaN-ignoring maximum, `med` the median of the known values (NaN where none); a tiled
+    reading computes them band by band (pipeline._tiled_process)."""
+    lum = np.nan_to_num(top, nan=0.0)
+    sub = lum.ravel()[::7]                                   # a quantile needs no full sort
+    ref = float(np.quantile(sub, 0.99)) if sub.size else 0.0
+    if not ref > 0:
+        return np.zeros(lum.shape, bool), np.zeros(lum.shape, bool)
+    lit = lum > 0.02 * ref
     ok = lit & np.isfinite(med) & (med > 0)
     if ok.sum() < 16:
         return lit, lit
@@ -127,17 +132,20 @@ def auto_masks(images, min_contrast=4.0):
     return lit, material
 
 
-def object_of(images, lit, material, factor=OBJECT_OVER_TABLE):
+def object_of(images, lit, material, factor=OBJECT_OVER_TABLE, top=None):
     """The object (H, W) bool: `material` (Otsu's bright class of `auto_masks`) grown into the
     lit pixels connected to it that are brighter, under their brightest light, than `factor`
     times the table's median (the dark rims and grooves of an object, which the median over the
-    lights puts on the table's side). `lit` itself when there is no table (material == lit)."""
+    lights puts on the table's side). `lit` itself when there is no table (material == lit).
+    top : that brightest value (H, W), NaN-ignoring maximum of the green channel over the lights,
+    when it is at hand (then `images` is not read and may be None)."""
     lit, material = np.asarray(lit, bool), np.asarray(material, bool)
     table = lit & ~material
     if not table.any() or not material.any():
         return material.copy()
-    ch = images[..., 1] if images.shape[-1] == 3 else images.mean(axis=-1)
-    top = np.fmax.reduce(ch, axis=0)                 # NaN-ignoring; all-NaN (saturated): NaN
+    if top is None:
+        ch = images[..., 1] if images.shape[-1] == 3 else images.mean(axis=-1)
+        top = np.fmax.reduce(ch, axis=0)             # NaN-ignoring; all-NaN (saturated): NaN
     floor = factor * float(np.median(np.nan_to_num(top[table], nan=0.0)))
     with np.errstate(invalid="ignore"):
         bright = lit & ((top > floor) | np.isnan(top))
@@ -164,198 +172,6 @@ def margin_of(lit, material):
     return bg
 
 
-def _unreadable(path, exc):
-    return ValueError(f"{path}: cannot read this HDR image ({exc}); delete {path.parent} to "
-                      "merge it again from raw/, or rescan that light")
-
-
-def _read_hdr_fast(scan_dir, light_ids, take_held=None):
-    """Read hdr/light_XX.exr (and _var.exr, for unknown values) into one preallocated array,
-    two files at a time. NaN where the variance is not finite (saturated in every frame).
-    A light merged during the scan and held by its `ScanDirectory` (`take_held`: its
-    `take_held_light`) is taken from memory, the same values as its files."""
-    import OpenEXR
-    paths = [(scan_dir / "hdr" / f"light_{i:02d}.exr", scan_dir / "hdr" / f"light_{i:02d}_var.exr")
-             for i in light_ids]
-    held = [take_held(i) if take_held is not None else None for i in light_ids]
-    if held[0] is not None:
-        h, w = held[0][1].shape
-    else:
-        try:
-            with OpenEXR.File(str(paths[0][0]), separate_channels=True) as f:
-                h, w = f.channels()["R"].pixels.shape
-        except Exception as exc:             # OpenEXR says only "file has 0 parts" and the like
-            raise _unreadable(paths[0][0], exc) from exc
-    images = np.empty((len(paths), h, w, 3), np.float32)
-    usable = np.empty((len(paths), h, w), bool)
-
-    def one(k):
-        try:
-            read_pair(k)
-        except BadInputError:             # already names the file and what to do
-            raise
-        except Exception as exc:
-            raise _unreadable(paths[k][0], exc) from exc
-
-    def read_pair(k):
-        img, var = paths[k]
-        if held[k] is not None and held[k][0].shape == (h, w, 3):
-            images[k], v_green = held[k]
-            held[k] = None                                   # freed as it is copied
-            bad = np.isnan(v_green)
-        else:
-            v_green, bad = read_files(k, img, var)
-            if v_green is None:        # radiance without its variance
-                return
-        images[k][bad] = np.nan
-        usable[k] = usable_from_green(images[k][..., 1], v_green)
-
-    def read_files(k, img, var):
-        """Read the pair into images[k]: (green variance, where the variance is not finite);
-        (None, None) for radiance without a variance file (usable[k] then set here)."""
-        try:
-            with OpenEXR.File(str(img), separate_channels=True) as f:
-                chans = f.channels()
-                for c, name in enumerate("RGB"):
-                    images[k, :, :, c] = chans[name].pixels
-        except Exception as exc:  # OpenEXR raises plain exceptions on damaged files
-            raise BadInputError(f"{img}: cannot read this HDR image ({exc})",
-                                hint="delete it: processing merges it again from raw/") from exc
-        if not var.is_file():      # radiance without its variance (made elsewhere): no noise
-            images[k][~np.isfinite(images[k]).all(axis=-1)] = np.nan
-            usable[k] = np.isfinite(images[k][..., 1]) & (images[k][..., 1] > 0)
-            return None, None
-        try:
-            with OpenEXR.File(str(var), separate_channels=True) as f:
-                v = [f.channels()[c].pixels for c in "RGB"]
-        except Exception as exc:
-            raise BadInputError(f"{var}: cannot read this HDR image ({exc})",
-                                hint="delete it: processing merges it again from raw/") from exc
-        # channel by channel (a reduction over the last axis of 3 is ~5x slower)
-        bad = ~(np.isfinite(v[0]) & np.isfinite(v[1]) & np.isfinite(v[2]))
-        fin = np.isfinite(images[k])
-        wild = ~(fin[..., 0] | fin[..., 1] | fin[..., 2]) & ~bad
-        if wild.any():
-            raise BadInputError(f"{img} has {int(wild.sum())} non-finite values (Inf or NaN) where "
-                                f"its variance {var.name} is finite: the file is damaged",
-                                hint="delete it: processing merges it again from raw/")
-        return v[1], bad
-
-    with ThreadPoolExecutor(2) as pool:
-        list(pool.map(one, range(len(paths))))
-    return images, usable
-
-
-def _load_hdr_images(scan_dir, data, take_held=None):
-    """(images, usable, lights, notes): hdr/ read, after merging again (under the directory's
-    lock) every light whose files are absent, made from other frames, or changed; the lights
-    `take_held` gives (see `_read_hdr_fast`) from memory."""
-    lights = sorted(data.lights, key=lambda l: int(l.index))
-    ids = data.frame_lights() or [int(l.index) for l in lights]
-    by_index = {int(l.index): l for l in lights}
-    unknown = [i for i in ids if i not in by_index]
-    if unknown:
-        raise BadInputError(f"{scan_dir / 'scan.json'} has frames for lights {unknown} that its "
-                            "'lights' list does not describe")
-    notes = list(stale_lights(scan_dir, data).values())
-    absent = [i for i in ids if not all((scan_dir / "hdr" / f"light_{i:02d}{x}.exr").is_file()
-                                        for x in ("", "_var"))]
-    if data.frames:
-        # merges only the lights whose HDR is missing or no longer matches its RAW frames or
-        # was changed since (nothing after a scan merged during acquisition); under the
-        # directory's lock when it will write (one writer: not while a scan runs)
-        sd = ScanDirectory(scan_dir)
-        if notes or absent:
-            try:
-                sd.lock()
-            except OSError as exc:       # read-only disk or folder: the scan, not the output
-                why = (f"lights {absent} have no HDR image in hdr/" if absent else "; ".join(notes[:2]))
-                raise BadInputError(f"the scan {scan_dir} cannot be written ({exc.strerror}) and its HDR images must "
-                                    f"be merged first: {why}",
-                                    hint="copy the scan to a disk you can write to (or make it writable), then "
-                                         "process the copy") from exc
-        try:
-            with warnings.catch_warnings():           # an incomplete scan is said once, not per light
-                warnings.simplefilter("ignore", MissingFrameWarning)
-                merge_scan(scan_dir)
-        finally:
-            sd.unlock()
-    images, usable = _read_hdr_fast(scan_dir, ids, take_held)
-    return images, usable, [by_index[i] for i in ids], notes
-
-
-def _load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None):
-    data = ScanDirectory(scan_dir).manifest      # a damaged scan.json is named (BadInputError)
-    expected = data.n_planned
-    # every (light, exposure) of the plan has a frame (scan.json's own "complete" flag is not
-    # set by every writer: a scan.json made by hand or by a tool has frames but no flag)
-    complete = len({(f.light, f.exposure) for f in data.frames}) >= expected
-    busy = None if complete else ScanDirectory(scan_dir).writer()
-    if busy and not allow_incomplete:
-        raise BadInputError(f"the scan {scan_dir} is being acquired by another facette process ({busy}): "
-                            f"{len(data.frames)} of {expected} frames so far",
-                            hint="wait for the scan to finish, then process it (or pass --allow-incomplete "
-                                 "to process what is there now)")
-    if not complete and not allow_incomplete:
-        raise BadInputError(f"the scan is incomplete ({len(data.frames)} of {expected} frames in "
-                            f"{scan_dir}): run the same scan command to resume",
-                            hint="or pass --allow-incomplete to process what is there (every output "
-                                 "then says so)")
-    images, usable, lights, hdr_notes = _load_hdr_images(scan_dir, data, take_held)
-    dirs = np.array([l.direction for l in lights], dtype=np.float64)
-    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    inten = np.array([l.intensity or [1.0, 1.0, 1.0] for l in lights], dtype=np.float64)
-    if np.any(inten <= 0):
-        raise ValueError(f"{scan_dir / 'scan.json'}: a light has a non-positive intensity; "
-                         "fix the calibration profile")
-    scale = data.radiometric_scale
-    if scale is not None:   # the Spectralon's absolute scale: images become radiance factors
-        inten = inten * np.asarray(scale, dtype=np.float64)[None, :]
-    m, h, w, c = images.shape
-    if images.flags.c_contiguous:   # a light's row as one (W·3) run: 7x faster than broadcasting (..., 3)
-        rows = images.reshape(m, h, w * c)                       # a view
-        for k in range(m):
-            rows[k] /= np.tile(inten[k].astype(np.float32), w)
-    else:
-        images /= inten[:, None, None, :].astype(np.float32)
-    profile_pitch, profile_notes = _apply_profile(images, data, scan_dir)
-    # the merge may have just run: its record (sensor used) is in scan.json as it is now
-    hdr = ScanDirectory(scan_dir).manifest.hdr
-    sensor_source = (hdr.sensor_source if hdr is not None else None) or ""
-    if sensor_source.startswith("nominal"):
-        hdr_notes.append(f"HDR merged with the {sensor_source}")
-    pos = [l.position_mm for l in lights]
-    positions = np.array(pos, dtype=np.float64) if all(p is not None for p in pos) else None
-    below = [int(l.index) for k, l in enumerate(lights)
-             if dirs[k, 2] < 0 or (positions is not None and positions[k, 2] < 0)]
-    if below:    # a profile measured wrong (or a light's sign flipped): said, not silently fitted
-        hdr_notes.append(f"light(s) {below} of scan.json lie below the horizon (z < 0 in the calibration "
-                         "profile's directions or positions): no such light can light a surface the camera "
-                         "sees, and the normals fitted with it err; check the profile (facette calibrate)")
-    pitch = pixel_pitch_mm or profile_pitch
-    if not pitch:
-        raise ValueError(f"{scan_dir / 'scan.json'} gives no pixel_pitch_mm; pass pixel_pitch_mm=")
-    truth = None
-    if data.truth and (scan_dir / data.truth).is_file():
-        with np.load(scan_dir / data.truth, allow_pickle=False) as z:
-            truth = {k: z[k] for k in z.files}
-    mask, material = auto_masks(images)
-    # the object: the lit pixels and those saturated under some light (which auto_masks, blind
-    # to unknown values, leaves out)
-    obj = mask | np.isnan(images[..., 1]).any(axis=0)
-    inp = PSInput(images, dirs, positions, mask, float(pitch), "scan", scan_dir, truth,
-                  material_mask=material, usable=usable, object_mask=obj)
-    if not complete:
-        inp.incomplete = f"{len(data.frames)} of {expected or '?'} frames"
-    inp.digest = _digest(sorted((f.file, "" if "sha256" in f.absent else f.sha256) for f in data.frames))
-    inp.notes.extend(profile_notes)
-    inp.notes.extend(hdr_notes)
-    if scale is None:
-        inp.notes.append("no radiometric scale in scan.json (profile without a Spectralon step): "
-                         "albedo and BRDF values are relative, K_d is not a reflectance")
-    return inp
-
-
 def _digest(items):
     import hashlib
 
@@ -366,59 +182,6 @@ def _file_stamps(folder):
     """(name, size, mtime_ns) of every file in a folder: what a DiLiGenT folder's images were."""
     return sorted((p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in Path(folder).iterdir()
                   if p.is_file())
-
-
-def _apply_profile(images, data, scan_dir):
-    """Apply the calibration profile the scan was taken with (the manifest's profile: id, sha256,
-    path, and the image size it was measured at) at the images' size: divide `images`
-    (m, H, W, 3) in place by its flat field, resampled if the scan reads the sensor at
-    another resolution, and give the pixel pitch at this size.
-
-    Returns (pixel_pitch_mm or None, notes). Raises ResolutionError (naming both sizes)
-    when the scan's size cannot be another resolution of the profile's camera setting."""
-    ref = data.profile
-    pitch = data.pixel_pitch_mm
-    size = (images.shape[2], images.shape[1])
-    if not ref:
-        return pitch, ["no calibration profile recorded: no flat-field correction"]
-    profile, why = None, None
-    if ref.get("path"):
-        try:
-            profile = load(ref["path"])
-        except ProfileError as exc:
-            why = f"the scan's profile could not be read ({exc})"
-        else:
-            if profile.sha256 != ref.get("sha256"):
-                why = (f"{ref['path']} changed since the scan (checksum {profile.sha256[:12]} != "
-                       f"{str(ref.get('sha256'))[:12]})")
-                profile = None
-    measured = ref.get("image_size_px") or (profile.measured_size() if profile else None)
-    notes = []
-    if pitch and measured and tuple(measured) != size:
-        try:
-            pitch = pitch_at_size(pitch, measured, size, f"profile {ref.get('id')}")
-        except ResolutionError as exc:
-            raise ResolutionError(f"{scan_dir}: {exc}") from None
-        notes.append(f"pixel pitch scaled from the profile's {measured[0]}×{measured[1]} px to "
-                     f"{size[0]}×{size[1]} px: {pitch:.5g} mm")
-    elif pitch and not measured:
-        notes.append(f"profile {ref.get('id')} records no image size: its pixel pitch is used "
-                     "as measured")
-    if profile is None:
-        notes.append(f"flat field not applied: {why or 'no profile path recorded'}")
-        return pitch, notes
-    if profile.flat_field is None:
-        notes.append(f"profile {profile.id} has no flat field: no flat-field correction")
-        return pitch, notes
-    at = profile.at_size(size)
-    images[0] = apply_flat_field(images[0], at.flat_field)      # checks the field
-    flat = np.asarray(at.flat_field, np.float32)
-    with ThreadPoolExecutor(2) as pool:        # in place (no full-size copy), on both cores
-        list(pool.map(lambda k: np.divide(images[k], flat, out=images[k]), range(1, images.shape[0])))
-    notes.append(f"flat field of profile {profile.id} applied"
-                 + ("" if at.flat_field is profile.flat_field else
-                    f" (resampled from {measured[0]}×{measured[1]} px)"))
-    return pitch, notes
 
 
 def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False, capture=None):
@@ -438,7 +201,8 @@ def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False, c
                                 "or a DiLiGenT-style folder (with filenames.txt)")
     if (path / "scan.json").is_file():
         take_held = source.take_held_light if isinstance(source, ScanDirectory) else None
-        inp = _load_scan(path, pixel_pitch_mm, allow_incomplete, take_held)
+        from facette.pipeline._scan_input import load_scan     # it reads PSInput from here
+        inp = load_scan(path, pixel_pitch_mm, allow_incomplete, take_held)
         if inp.incomplete:
             inp.notes.insert(0, f"the scan is incomplete ({inp.incomplete}): these results come from "
                                 "part of its data; run the same scan command to resume it")
@@ -461,12 +225,17 @@ def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False, c
                          "light_directions.txt (a DiLiGenT-style folder) nor photographs with an .lp "
                          "file (an RTI capture)")
     if mask is not None:
-        m = read_mask(mask) if isinstance(mask, (str, os.PathLike)) else np.asarray(mask, bool)
-        if m.shape != inp.mask.shape:
-            raise ValueError(f"the mask {mask if isinstance(mask, (str, os.PathLike)) else ''} is "
-                             f"{m.shape[1]}x{m.shape[0]} px, the images are {inp.mask.shape[1]}x"
-                             f"{inp.mask.shape[0]}: give a mask of the images' size")
-        inp.mask, inp.material_mask = m, None     # a given mask is the object: samples follow it
-        inp.object_mask = m
-        inp.mask_source = f"--mask {mask}" if isinstance(mask, (str, os.PathLike)) else "the given mask"
+        given_mask(inp, mask)
     return inp
+
+
+def given_mask(inp, mask):
+    """A mask given to `process` (array or PNG path) in place of the input's own."""
+    m = read_mask(mask) if isinstance(mask, (str, os.PathLike)) else np.asarray(mask, bool)
+    if m.shape != inp.mask.shape:
+        raise ValueError(f"the mask {mask if isinstance(mask, (str, os.PathLike)) else ''} is "
+                         f"{m.shape[1]}x{m.shape[0]} px, the images are {inp.mask.shape[1]}x"
+                         f"{inp.mask.shape[0]}: give a mask of the images' size")
+    inp.mask, inp.material_mask = m, None     # a given mask is the object: samples follow it
+    inp.object_mask = m
+    inp.mask_source = f"--mask {mask}" if isinstance(mask, (str, os.PathLike)) else "the given mask"

@@ -11,6 +11,7 @@ import numpy as np
 
 from facette.errors import BadInputError
 from facette.methods import PROCESS_DEFAULT, options_for
+from facette.pipeline._tiles import parse_memory
 from facette.recon import HSH_ORDERS, INTEGRATION_DEFAULT, INTEGRATION_METHODS, RTI_ENCODINGS
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import THETA0_DEG
@@ -82,6 +83,15 @@ class ProcessOptions:
                             "x1, y1)}; see pipeline._rti_capture.read_rti_capture; recorded only when given "
                             "(its values as text, a mask array left out)", record=False)
 
+    memory: str = _option(None, "a memory budget ('2GB', '512MB', '3GiB' or bytes): photometric stereo then runs "
+                          "over bands of rows in it (a per-pixel method only: pipeline._tiles.TILED_METHODS); with "
+                          "outputs that need no image after it (all but ptm and rti: the samples are taken band by band too) the "
+                          "images are read band by band, never whole; recorded only when given")
+
+    scheduler: str = _option(None, "with memory: the address of a dask.distributed scheduler (tcp://host:8786) whose "
+                             "workers run the bands (they must see the scan's path); None: here, one after the other",
+                             record=False)
+
     def __post_init__(self):
         # copies, so that a caller's dict changed later does not change these options
         object.__setattr__(self, "fit_options", dict(self.fit_options or {}))
@@ -96,6 +106,13 @@ class ProcessOptions:
             raise ValueError(f"hsh_order = {self.hsh_order}: choose one of {HSH_ORDERS}")
         INTEGRATION_METHODS.canonical(self.integration)        # ValueError naming the valid ones
         options_for(self.method, self.ps_bag())                # an unknown method or option: ValueError
+        if self.memory is not None:
+            from facette.pipeline._tiled_process import check_memory_options
+            parse_memory(self.memory)                           # '2 apples': ValueError
+            check_memory_options(self.method, self.interreflections)
+        elif self.scheduler is not None:
+            raise ValueError("--scheduler runs the bands of --memory on a Dask cluster: give --memory too "
+                             "(e.g. --memory 2GB), or leave --scheduler out")
 
     def ps_bag(self, **more):
         """The one bag of photometric-stereo options: the thresholds, then ps_options, then `more`."""
@@ -110,6 +127,8 @@ class ProcessOptions:
                 value = getattr(self, f.name)
                 if f.name == "mask":
                     value = str(value) if isinstance(value, (str, Path)) else None
+                if f.name == "memory" and value is None:
+                    continue     # recorded only when given: earlier runs' records stay comparable
                 out[f.name] = value
         said = {k: str(v) for k, v in (self.capture or {}).items() if v is not None and not isinstance(v, np.ndarray)}
         if said:                 # recorded only when given: earlier runs' records stay comparable

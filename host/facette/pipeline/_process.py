@@ -40,14 +40,15 @@ from facette.methods import PS_METHODS, options_for, photometric_stereo
 from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_from_height, MESH_MAX_SLOPE,
                            near_light_directions, fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION,
                            without_interreflections)
-from facette.reflect import HemisphereSensor, ReflectanceSamples, sample_grid
 from facette.pipeline._exports import fill_unfitted, gltf_inputs, gltf_material, hsh_order_for
 from facette.pipeline._inputs import load_input, object_of
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_capture import LP_NAME
+from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
 from facette.pipeline._quality import check_fit_cells, check_samples
 from facette.pipeline._report import report_fit_section, write_report
+from facette.pipeline._samples import _samples_stage  # bench/recon.py imports it from here too
 
 __all__ = ["OUTPUTS", "STAGES_FOR", "ProcessOptions", "ProcessResult", "process", "stages_needed"]
 
@@ -67,7 +68,6 @@ FILES = {"normals": "normal.exr", "albedo": "albedo.exr", "mask": "mask.png", "h
 SIM_INTERREFLECTIONS_NOTE = (
     "--interreflections on a simulated scan: the simulator renders no inter-reflections, so their removal "
     "takes away light that no wall gathered (errors against truth grow); leave it out for simulated scans")
-RAW_SAMPLES_KEPT = 200_000   # raw samples stored next to the filtered ones (a uniform subset)
 
 
 def stages_needed(outputs):
@@ -118,60 +118,6 @@ class ProcessResult:
     fit_errors: dict = field(default_factory=dict)
     quality: dict = field(default_factory=dict)
     interreflections: dict = None
-
-
-def _samples_stage(images, mask, ps, light_dirs, theta0_deg, chunk=131072, keep=RAW_SAMPLES_KEPT,
-                   seed=0, workers=2):
-    """Samples (eq 4.11) pixel block by pixel block into the hemisphere sensor, keeping a
-    uniform random subset of the raw samples. Shadows found by the PS stage are left out.
-    Blocks run on `workers` threads (numpy releases the GIL), each with its own sensor."""
-    m, h, w, c = images.shape
-    pix = np.flatnonzero((ps.valid & mask).ravel())
-    flat = images.reshape(m, h * w, c)
-    # each pixel's c floats as one opaque item: gathering pixels is then ~4x faster
-    flat = np.ascontiguousarray(flat)
-    items = flat.view(np.dtype((np.void, flat.itemsize * c))).reshape(m, h * w)
-    total = max(pix.size * m, 1)
-    shadow = ps.shadow.reshape(-1, m)
-    normals = ps.normal.reshape(-1, 3)
-    finite = bool(np.isfinite(images).all())          # one pass instead of one per block
-
-    def block(a):
-        sensor = HemisphereSensor(theta0_deg, channels=c)
-        rng = np.random.default_rng([seed, a])
-        p = pix[a:a + chunk]
-        s = light_dirs if light_dirs.ndim == 2 else light_dirs.reshape(h * w, m, 3)[p]
-        e = np.take(items, p, axis=1).view(flat.dtype).reshape(m, -1, c)
-        g = sample_grid(e, normals[p], s, shadow[p].T, check_finite=not finite)
-        sensor.add_grid(g["cos_s"], g["o_x"], g["o_y"], g["cos_o"], e, g["keep"], g["scale"])
-        # a uniform subset of the kept samples: draw grid positions, keep the kept ones
-        size = g["keep"].size
-        draw = rng.integers(0, size, int(np.ceil(size * min(1.0, keep / total))))
-        draw = np.unique(draw[g["keep"].ravel()[draw]])
-        li, pi_ = np.unravel_index(draw, g["keep"].shape)
-        cs = g["cos_s"][li, pi_]
-        s_t = np.stack([np.sqrt(np.maximum(1 - cs ** 2, 0)), np.zeros_like(cs), cs], axis=1)
-        o_t = np.stack([g["o_x"][li, pi_], g["o_y"][li, pi_], g["cos_o"][pi_]], axis=1)
-        f_t = e[li, pi_] * g["scale"][li, pi_][:, None]
-        return sensor, ReflectanceSamples(s_t.astype(np.float32), o_t.astype(np.float32),
-                                          f_t.astype(np.float32), p[pi_], li.astype(np.int16))
-
-    starts = range(0, pix.size, chunk)
-    if workers > 1 and len(starts) > 1:
-        with ThreadPoolExecutor(workers) as pool:
-            done = list(pool.map(block, starts))
-    else:
-        done = [block(a) for a in starts]
-    total_sensor = HemisphereSensor(theta0_deg, channels=c)
-    for sensor, _ in done:
-        total_sensor.merge(sensor)
-    parts = [smp for _, smp in done]
-    if not parts:
-        parts.append(ReflectanceSamples(*(np.zeros((0, 3), np.float32),) * 3,
-                                        np.zeros(0, np.int64), np.zeros(0, np.int16)))
-    raw = parts[0] if len(parts) == 1 else ReflectanceSamples(
-        *(np.concatenate([getattr(q, k) for q in parts]) for k in ("s", "o", "f", "pixel", "light")))
-    return total_sensor.result(), raw
 
 
 def _fit_stage(filtered, fit_options, brdf_aware=False, prefer="li"):
@@ -299,12 +245,29 @@ def _process(source, outputs, out_dir, o):
         # matplotlib takes ~0.5 s to import: let it load while the numbers are computed
         threading.Thread(target=preload, daemon=True).start()
 
+    def claim(inp):                    # before any work: the folder must take this run's files
+        return None if out_dir is None else claim_results(Path(out_dir), record_options, inp, o.overwrite,
+                                                          set(FILES.values()) | {LP_NAME}, o.mask)
+
+    if o.memory is not None and streamed(source, outputs):
+        # --memory, outputs that need no image after photometric stereo: the images are read band by
+        # band, never whole (pipeline._tiled_process); the stages after photometric stereo as untiled
+        claimed = {}
+        inp, ps, light_dirs, top = streamed_ps(source, o, res, lambda i: claimed.update(previous=claim(i)),
+                                               samples="samples" in stages)
+        previous, images, direct = claimed["previous"], None, None
+        res.ps = ps
+        res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
+        res.object_mask = res.mask if inp.background_mask() is None else \
+            res.mask & object_of(None, inp.mask, inp.material_mask, top=top)
+        if "report" in outputs:
+            res.notes.append(MEMORY_FLAGS_NOTE)
+        return _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options,
+                        previous, t_all, cpu_all)
     t0 = time.perf_counter()
     inp = load_input(source, mask=o.mask, pixel_pitch_mm=o.pixel_pitch_mm, allow_incomplete=o.allow_incomplete,
                      capture=o.capture)
-    if out_dir is not None:            # before any work: the folder must take this run's files
-        previous = claim_results(Path(out_dir), record_options, inp, o.overwrite, set(FILES.values()) | {LP_NAME},
-                                 o.mask)
+    previous = claim(inp)
     res.inputs = inp
     res.notes.extend(inp.notes)
     if o.interreflections and inp.truth is not None and "sensor" in inp.truth:   # the rig simulator's truth
@@ -333,7 +296,9 @@ def _process(source, outputs, out_dir, o):
     elif o.interreflections:
         direct, ps = _without_interreflections(res, images, light_dirs, inp.mask, o.saturation,
                                                method_name == "rank_trimmed")
-    if ps is None:
+    if ps is None and o.memory is not None:     # over bands of the images held whole
+        ps = in_memory_ps(direct, light_dirs, o, bag, outputs, res)
+    elif ps is None:
         ps = photometric_stereo(direct, light_dirs, method=o.method, options=bag)
     res.ps = ps
     res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
@@ -341,7 +306,13 @@ def _process(source, outputs, out_dir, o):
     res.object_mask = res.mask if inp.background_mask() is None else \
         res.mask & object_of(inp.images, inp.mask, inp.material_mask)
     res.timings["ps"] = time.perf_counter() - t0
+    return _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options, previous,
+                    t_all, cpu_all)
 
+
+def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options, previous,
+             t_all, cpu_all):
+    """The stages after photometric stereo, the checks against truth and the files."""
     drawn = {}         # report sections drawn by the concurrent stages
     if out_dir is not None:            # before the first file: whose files these will be
         mark_running(Path(out_dir), record_options, inp, [FILES[name] for name in outputs if name in FILES])
@@ -438,9 +409,11 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
 
     def reflectance():
         # the images as photometric stereo saw them (near lights: fall-off divided out; the
-        # direct light only when inter-reflections were removed: what the BRDF models)
-        res.filtered, res.samples = _timed(res, "samples", _samples_stage, direct, inp.sample_mask(),
-                                           res.ps, light_dirs, o.theta0_deg)
+        # direct light only when inter-reflections were removed: what the BRDF models);
+        # --memory: taken band by band with photometric stereo already
+        if res.filtered is None:
+            res.filtered, res.samples = _timed(res, "samples", _samples_stage, direct, inp.sample_mask(),
+                                               res.ps, light_dirs, o.theta0_deg)
         write("samples")
         if "fit" not in stages:
             return []

@@ -19,7 +19,8 @@ import numpy as np
 from facette.errors import InsufficientData
 
 __all__ = ["MIN_SNR", "MIN_LEVELS", "MIN_LIGHTS", "MIN_PIXEL_FRACTION", "MIN_FIT_CELLS",
-           "usable_from_variance", "usable_from_green", "check_samples", "check_fit_cells"]
+           "usable_from_variance", "usable_from_green", "check_samples", "check_fit_cells", "sample_counts",
+           "add_counts", "check_counts"]
 
 MIN_SNR = 3.0              # signal / noise standard deviation of a usable sample
 MIN_LEVELS = 2             # grey levels of a PNG above which a sample is not dark noise
@@ -55,13 +56,38 @@ def check_samples(images, usable, object_mask, mask_source, light_names=None):
     lit pixels plus those saturated under some light); mask_source : words for the mask
     ("mask.png", "--mask FILE", "the lit pixels"); light_names : m labels for notes.
     """
-    m = images.shape[0]
+    if images.shape[0] <= MIN_LIGHTS or not np.any(object_mask):    # said before any count
+        return check_counts({"m": images.shape[0], "object": int(np.count_nonzero(object_mask))}, mask_source)
+    return check_counts(sample_counts(images, usable, object_mask), mask_source, light_names)
+
+
+def sample_counts(images, usable, object_mask):
+    """The counts `check_samples` judges, over the object: {object, known (m,), usable (m,),
+    known_dark, enough} (pixels, known samples per light, usable samples per light, known
+    samples below the noise, pixels with MIN_LIGHTS usable lights). Counts of row bands add up
+    (`add_counts`) to those of the whole image."""
+    # counts over the object on the whole maps: no (m, n_obj) gathers (12 MP: 0.22 -> 0.14 s)
+    obj = np.asarray(object_mask, bool)
+    u = usable & obj                                                 # (m, H, W)
+    known = np.isfinite(images[..., 1 if images.shape[-1] > 1 else 0]) & obj
+    return {"m": images.shape[0], "object": int(obj.sum()), "known": np.count_nonzero(known, axis=(1, 2)),
+            "usable": np.count_nonzero(u, axis=(1, 2)), "known_dark": int(np.count_nonzero(known & ~u)),
+            "enough": int(np.count_nonzero(np.count_nonzero(u, axis=0) >= MIN_LIGHTS))}
+
+
+def add_counts(a, b):
+    """The `sample_counts` of two parts of an image together (a may be None)."""
+    return dict(b) if a is None else {k: (a[k] if k == "m" else a[k] + b[k]) for k in a}
+
+
+def check_counts(counts, mask_source, light_names=None):
+    """`check_samples` on its `sample_counts`: raise InsufficientData, or return (notes, summary)."""
+    m, n_obj = counts["m"], counts["object"]
     if m <= MIN_LIGHTS:
         raise InsufficientData(f"photometric stereo needs at least {MIN_LIGHTS + 1} lights ({MIN_LIGHTS} "
                                f"to solve, one more to check the fit); the data has {m}",
                                hint="capture with more lights (--lights)")
     names = light_names or [f"light {i}" for i in range(m)]
-    n_obj = int(object_mask.sum())
     if n_obj == 0:
         if mask_source == "the lit pixels":
             raise InsufficientData("no pixel of the images is lit: they are black under every light",
@@ -70,15 +96,11 @@ def check_samples(images, usable, object_mask, mask_source, light_names=None):
         raise InsufficientData(f"{mask_source} holds no pixel of the object (it is all zero)",
                                hint="draw the object in the mask (non-zero = object), or process "
                                     "without --mask")
-    # counts over the object on the whole maps: no (m, n_obj) gathers (12 MP: 0.22 -> 0.14 s)
-    obj = np.asarray(object_mask, bool)
-    u = usable & obj                                                 # (m, H, W)
-    known = np.isfinite(images[..., 1 if images.shape[-1] > 1 else 0]) & obj
-    known_per_light = np.count_nonzero(known, axis=(1, 2))
+    known_per_light = counts["known"]
     saturated = float(m * n_obj - known_per_light.sum()) / (m * n_obj)
-    dark = float(np.count_nonzero(known & ~u)) / (m * n_obj)
-    frac = float(np.count_nonzero(np.count_nonzero(u, axis=0) >= MIN_LIGHTS)) / n_obj
-    per_light = np.count_nonzero(u, axis=(1, 2)) / n_obj
+    dark = float(counts["known_dark"]) / (m * n_obj)
+    frac = float(counts["enough"]) / n_obj
+    per_light = counts["usable"] / n_obj
     summary = {"object_pixels": n_obj, "pixels_with_enough_lights": frac,
                "saturated_samples": saturated, "samples_below_noise": dark,
                "usable_per_light": [round(float(x), 4) for x in per_light],

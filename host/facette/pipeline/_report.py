@@ -446,7 +446,7 @@ def _height_unit(res):
 def _summary(res, viewer_note):
     inp, ps = res.inputs, res.ps
     h, w = res.normals.shape[:2]
-    m = inp.images.shape[0] if inp is not None and getattr(inp, "images", None) is not None else None
+    m = len(inp.light_dirs) if inp is not None and getattr(inp, "light_dirs", None) is not None else None
     valid = int(res.mask.sum())
     material = int((res.mask & inp.sample_mask()).sum()) if inp is not None else valid
     measured = (f"{fmt(m)} lights on {fmt(w)} × {fmt(h)} pixels"

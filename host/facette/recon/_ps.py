@@ -101,13 +101,13 @@ def _usable(values, saturation):
     return ok
 
 
-def near_light_directions(positions_mm, shape, pixel_pitch_mm, heights_mm=None):
+def near_light_directions(positions_mm, shape, pixel_pitch_mm, heights_mm=None, rows=None):
     """Per-pixel light directions and 1/r^2 fall-off for lights at finite distance.
 
     positions_mm : (m, 3) light positions in the camera frame (origin on the optical axis
         in the object plane z = 0, which passes through the image centre).
     shape : (H, W); pixel_pitch_mm : object-side size of one pixel (mm).
-    heights_mm : optional (H, W) surface heights (default: the plane z = 0).
+    heights_mm : optional surface heights (default: the plane z = 0); rows : optional (r0, r1), those rows only.
     Returns (dirs (H, W, m, 3) unit vectors towards each light, falloff (H, W, m)):
     falloff = |P|^2 / |P - X|^2, the irradiance relative to the one at the origin, so
     that intensities calibrated at the origin stay valid (divide images by it).
@@ -117,8 +117,8 @@ def near_light_directions(positions_mm, shape, pixel_pitch_mm, heights_mm=None):
         raise ValueError(f"positions_mm must have shape (m, 3), got {positions_mm.shape}")
     h, w = shape
     x = (np.arange(w) - (w - 1) / 2) * pixel_pitch_mm
-    y = -(np.arange(h) - (h - 1) / 2) * pixel_pitch_mm      # row 0 is the top, y points up
-    pts = np.zeros((h, w, 3))
+    y = -(np.arange(*(rows or (0, h))) - (h - 1) / 2) * pixel_pitch_mm      # row 0 is the top, y points up
+    pts = np.zeros((y.size, w, 3))
     pts[..., 0] = x[None, :]
     pts[..., 1] = y[:, None]
     if heights_mm is not None:

@@ -4,16 +4,26 @@ import re
 from facette.bench import size
 
 
+NUMBER = r"-?\d+\.\d+(?:e[+-]\d+)?|\b\d+\b"
+
+
 def test_tiny_slab_tiled_equals_untiled(tmp_path, capsys):
-    assert size.main(["--sizes", "64x48", "--memory", "1GB", "--keep", str(tmp_path)]) == 0
+    assert size.main(["--sizes", "64x48", "--memory", "1GB", "--keep", str(tmp_path), "--scan"]) == 0
     out = capsys.readouterr().out
-    row = next(line for line in out.splitlines() if line.strip().startswith("64x48"))
-    figures = [float(x) for x in re.findall(r"-?\d+\.\d+|\b\d+\b", row.split("|", 1)[1])]
-    gen_s, gen_gb, u_s, u_spm, u_gb, u_load, u_ps, t_s, t_spm, t_gb, tiles, t_stage, t_ps, err_u, err_t, worst, over = figures
+    slab, scan = [line for line in out.splitlines() if line.strip().startswith("64x48")]
+    figures = [float(x) for x in re.findall(NUMBER, slab.split("|", 1)[1])]
+    gen_s, gen_gb, u_s, u_spm, u_gb, u_load, u_ps, t_s, t_spm, t_gb, tiles, t_stage, t_ps, err_u, err_t, worst, over, \
+        m_s, m_spm, m_gb, m_bands, m_ps, m_deg, m_over, m_height = figures
     assert 0 < u_gb < 2 and 0 < t_gb < 2 and tiles == 1
     assert err_u == err_t and err_t < 5                     # the same normals, near the truth
     assert worst < 0.01 and over == 0                       # degrees, tiled against untiled
     assert (tmp_path / "untiled_64x48" / "normal.exr").is_file()
+    # process --memory against untiled process: normals and heights
+    assert 0 < m_gb < 2 and m_bands == 1 and m_deg < 0.01 and m_over == 0 and m_height <= 1e-3
+    # the slab as a scan directory: untiled and --memory process agree
+    s_gen, s_u, s_uspm, s_ugb, s_m, s_mspm, s_mgb, s_bands, s_deg, s_over, s_height, s_brdf = \
+        [float(x) if x != "nan" else float("nan") for x in re.findall(NUMBER + "|nan", scan.split("|", 1)[1])]
+    assert 0 < s_mgb < 2 and s_bands == 1 and s_deg < 0.01 and s_over == 0 and s_height <= 1e-3
 
 
 def test_sizes_by_name_or_width_and_height():

@@ -1,0 +1,391 @@
+"""`process(..., memory="2GB")` (`facette process --memory 2GB`): photometric stereo over row bands.
+
+A per-pixel method (`_tiles.TILED_METHODS`) gives each pixel's normal from that pixel's values
+alone, so the bands solved one after the other give the untiled normals. Two ways, chosen by
+the outputs asked for:
+
+- streamed (every output in STREAMED_OUTPUTS: all but ptm and rti; a scan directory or a
+  DiLiGenT-style folder): the photographs are never held whole. A scan's
+  HDR images are read a window of scanlines at a time (OpenEXR's scanline reader), twice: once
+  for the masks' two maps (the brightest value and the median over the lights, what
+  `auto_masks` splits), once for photometric stereo; a DiLiGenT folder's PNGs are staged once
+  to raw files (`_tiles._Staged`: PNG decodes whole images only) and read band by band. The
+  quality counts (`check_samples`) add up over the bands and are judged after the bands (the
+  same verdict, later). The reflectance samples (samples, brdf, gltf) are taken in each band
+  right after its photometric stereo (with its shadows), the bands' hemisphere sensors merged
+  (the same cells as untiled; the raw subset kept beside them is drawn band by band).
+  What is kept at the image's size: the PS outputs (32 bytes/pixel),
+  the masks and, for a scan, the two maps (8 bytes/pixel); then the integration of heights
+  runs on the whole float32 normal map as untiled.
+- in memory (an output that needs the images after photometric stereo: ptm, rti; or an RTI
+  capture): the input is loaded whole as untiled; photometric stereo runs
+  over bands of it, which bounds its own working set only; a note says which outputs came from
+  the whole images.
+
+The band height is `_tiles.rows_per_tile` of the budget (tests force a few rows). The streamed
+bands run here one after the other, or, with `scheduler` (`--scheduler tcp://host:8786`), as
+tasks on a dask.distributed cluster (`_maps_task`, `_ps_task`: each opens the files itself, so
+its workers must see the scan's path; a DiLiGenT folder's staged files are in a local temporary
+folder: workers on this machine only); at most twice the cluster's threads in flight, so that
+finished bands do not pile up; a band whose worker dies is run again by the scheduler.
+12 MP (`facette bench size --scan --dask`): see README ("Large captures").
+"""
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from facette.io.diligent import is_diligent_dir, read_diligent_lights
+from facette.io.png import read_mask
+from facette.methods import PS_METHODS, photometric_stereo
+from facette.pipeline._inputs import (NO_PITCH_NOTE, PSInput, _digest, _file_stamps, given_mask, masks_from,
+                                      source_path)
+from facette.pipeline._scan_input import merged_lights, profile_flat, scan_input, scan_lights, scan_manifest
+from facette.pipeline._bands import DiligentBands, ScanBands, open_bands
+from facette.pipeline._quality import add_counts, check_counts, sample_counts
+from facette.pipeline._samples import samples_sensor
+from facette.pipeline._tiles import FIELD_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, rows_per_tile
+from facette.recon import PSResult, near_light_directions
+
+__all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "open_streamed", "ps_bands", "streamed_ps",
+           "in_memory_ps"]
+
+STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "gltf", "report")
+MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (the photographs are not held) "
+                     "and, the per-light shadow and specular flags not being kept (m bytes per pixel each), "
+                     "leaves their share out and draws their maps empty")
+
+
+def check_memory_options(method, interreflections):
+    """ValueError unless `method` can run over bands and nothing asks for the whole images first."""
+    name = PS_METHODS.canonical(method)
+    if name not in TILED_METHODS:
+        why = WHOLE_IMAGE_METHODS.get(name, "it is not known to be per-pixel")
+        raise ValueError(f"--memory runs photometric stereo over bands of rows, which {name} cannot: {why}; "
+                         f"choose a per-pixel method ({', '.join(TILED_METHODS)}), or leave --memory out")
+    if interreflections:
+        raise ValueError("--interreflections needs the whole images at once (the light a surface gathers "
+                         "from itself comes from everywhere): leave --memory out to remove them")
+
+
+def streamed(source, outputs):
+    """True when `process` can run without the whole images: every output in STREAMED_OUTPUTS
+    and a scan directory or a DiLiGenT-style folder (an RTI capture is read whole)."""
+    if not set(outputs) <= set(STREAMED_OUTPUTS):
+        return False
+    try:
+        path = source_path(source)
+    except TypeError:
+        return False
+    return path.is_dir() and ((path / "scan.json").is_file() or is_diligent_dir(path))
+
+
+def _rows(w, h, m, memory, method, rows):
+    if rows is not None:
+        if int(rows) < 1:
+            raise ValueError(f"rows must be >= 1, got {rows}")
+        return int(rows)
+    return rows_per_tile(w, h, m, memory, method, tuple(FIELD_BYTES))
+
+
+def _maps_task(spec, r0, r1, flat):
+    """A band's part of the masks' maps: (r0, r1, brightest value, median over the lights,
+    unknown under some light) of the green channel."""
+    from facette.pipeline._pixels_jit import median_over_lights
+    reader = open_bands(spec)
+    try:
+        g = reader.read(r0, r1, flat)[0][..., 1]
+    finally:
+        reader.close()
+    med = np.empty(g.shape[1:], g.dtype)
+    median_over_lights(g, med, slice(0, r1 - r0))
+    return r0, r1, np.fmax.reduce(g, axis=0), med, np.isnan(g).any(axis=0)
+
+
+def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None):
+    """A band's photometric stereo: (r0, r1, PSResult without per-light flags or None when the
+    mask leaves the band out, its quality counts or None, read seconds, PS seconds, its
+    reflectance samples or None). samples: {sample_mask: the band's, theta0_deg, total} to take
+    the band's samples (`_samples.samples_sensor`: (HemisphereSensor, raw samples)) with the
+    shadows it found."""
+    t0 = time.perf_counter()
+    reader = open_bands(spec)
+    try:
+        images, usable = reader.read(r0, r1, flat)
+    finally:
+        reader.close()
+    read_s = time.perf_counter() - t0
+    counts = None if count_in is None else sample_counts(images, usable, count_in)
+    if not mask.any():
+        return r0, r1, None, counts, read_s, 0.0, None
+    t0 = time.perf_counter()
+    bag = dict(bag)
+    dirs = bag.pop("light_dirs", None)          # far lights: (m, 3)
+    if near is not None:
+        positions, shape, pitch = near
+        dirs, falloff = near_light_directions(positions, shape, pitch, rows=(r0, r1))
+        images = images / np.transpose(falloff, (2, 0, 1))[..., None]
+    part = photometric_stereo(images, dirs, method=method, options=dict(bag, mask=mask))
+    taken = None
+    if samples is not None:
+        taken = samples_sensor(images, samples["sample_mask"], part, dirs, samples["theta0_deg"], seed=r0,
+                               total=samples["total"], first_pixel=r0 * images.shape[2])
+    part.shadow = part.specular = None         # m bytes per pixel each: not sent back
+    return r0, r1, part, counts, read_s, time.perf_counter() - t0, taken
+
+
+def _map(fn, calls, client=None, in_flight=None):
+    """fn(*args) for each args of `calls`: here one after the other (none in flight beside the
+    one running), or as tasks on a dask.distributed `client`, at most `in_flight` at a time (default
+    twice its threads) so that finished bands do not pile up; results as they finish. A task
+    whose worker dies is run again by the scheduler elsewhere."""
+    if client is None:
+        for args in calls:
+            yield fn(*args)
+        return
+    from dask.distributed import as_completed
+    calls = iter(calls)
+    if in_flight is None:
+        in_flight = 2 * max(1, sum(client.nthreads().values()))
+    running = as_completed()
+    for args in calls:
+        running.add(client.submit(fn, *args, pure=False))
+        if running.count() >= in_flight:
+            break
+    for fut in running:
+        yield fut.result()
+        del fut
+        for args in calls:
+            running.add(client.submit(fn, *args, pure=False))
+            break
+
+
+def _assemble(shape, method, results, flags_m=0):
+    """The bands' results (`_ps_task`'s tuples) into one PSResult at the image's size, and the
+    quality counts summed. info: the first band's, its fractions (keys ending in _fraction)
+    weighted by the bands' pixels, and pixels, tiles, read_s, ps_s."""
+    h, w = shape
+    res = PSResult(normal=np.zeros((h, w, 3), np.float32), albedo=np.zeros((h, w, 3), np.float32),
+                   valid=np.zeros((h, w), bool), n_triplets=np.zeros((h, w), np.int16),
+                   shadow=np.zeros((h, w, flags_m), bool), specular=np.zeros((h, w, flags_m), bool),
+                   residual=np.zeros((h, w), np.float32), skipped=np.zeros((h, w), bool),
+                   method=PS_METHODS.canonical(method))
+    info, pixels, counts, read_s, ps_s, weighted = {}, 0, None, 0.0, 0.0, {}
+    sensor, raws = None, []
+    for r0, r1, part, band_counts, band_read, band_ps, taken in results:
+        read_s, ps_s = read_s + band_read, ps_s + band_ps
+        if taken is not None:
+            if sensor is None:
+                sensor = taken[0]
+            else:
+                sensor.merge(taken[0])
+            raws.append(taken[1])
+        if band_counts is not None:
+            counts = add_counts(counts, band_counts)
+        if part is None:
+            continue
+        for name in ("normal", "albedo", "valid", "n_triplets", "residual", "skipped"):
+            getattr(res, name)[r0:r1] = getattr(part, name)
+        if flags_m:
+            res.shadow[r0:r1], res.specular[r0:r1] = part.shadow, part.specular
+        n = int(part.info.get("pixels", part.valid.sum()))
+        pixels += n
+        info = info or dict(part.info)
+        for key, value in part.info.items():
+            if key.endswith("_fraction") and isinstance(value, (int, float)):
+                weighted[key] = weighted.get(key, 0.0) + float(value) * n
+    info.update({key: total / max(pixels, 1) for key, total in weighted.items()})
+    res.info = dict(info, method=res.method, pixels=pixels, read_s=read_s, ps_s=ps_s)
+    if sensor is not None:
+        res.info["samples"] = (sensor, raws)
+    return res, counts
+
+
+def _bands(h, rows):
+    return [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
+
+
+def open_streamed(source, o, work, rows=None, client=None):
+    """(PSInput with images=None and usable=None, band reader with .spec(), .read(r0, r1) and
+    .close(), the brightest value over the lights (H, W) or None, band rows) of a scan or a
+    DiLiGenT-style folder; a scan's masks' maps are read band by band (on `client` if given)."""
+    path = source_path(source)
+    if (path / "scan.json").is_file():
+        data, complete = scan_manifest(path, o.allow_incomplete)
+        ids, lights, hdr_notes = merged_lights(path, data)
+        dirs, inten, positions, light_notes = scan_lights(path, data, lights)
+        bands = ScanBands(path, ids, inten)
+        try:
+            h, w = bands.h, bands.w
+            pitch, profile_notes, bands.flat = profile_flat(data, path, (w, h))
+            if bands.flat is not None and bands.flat.shape != (h, w, 3):
+                raise ValueError(f"the flat field is {bands.flat.shape} but the images are {(h, w, 3)}: the profile "
+                                 "was made at another resolution; recalibrate at this one (facette calibrate)")
+            if bands.flat is not None and not (np.all(np.isfinite(bands.flat)) and np.all(bands.flat > 0)):
+                raise ValueError("the flat field has non-positive or non-finite values: the profile is damaged")
+            n = _rows(w, h, len(ids), o.memory, o.method, rows)
+            top, med = np.empty((h, w), np.float32), np.empty((h, w), np.float32)
+            unknown = np.zeros((h, w), bool)
+            flat = bands.flat
+            calls = [(bands.spec(), r0, r1, None if flat is None else flat[r0:r1]) for r0, r1 in _bands(h, n)]
+            for r0, r1, t, md, u in _map(_maps_task, calls, client):
+                top[r0:r1], med[r0:r1], unknown[r0:r1] = t, md, u
+            mask, material = masks_from(top, med)
+            del med
+            inp = scan_input(path, data, complete, None, dirs, positions, mask, material, None, mask | unknown,
+                             o.pixel_pitch_mm or pitch, hdr_notes, light_notes, profile_notes)
+        except BaseException:
+            bands.close()
+            raise
+    else:
+        names, dirs, inten, notes = read_diligent_lights(path)
+        bands = DiligentBands(path, names, inten, work)
+        h, w = bands.h, bands.w
+        n = _rows(w, h, len(names), o.memory, o.method, rows)
+        mask = read_mask(path / "mask.png") if (path / "mask.png").is_file() else np.ones((h, w), bool)
+        if mask.shape != (h, w):
+            raise ValueError(f"mask.png is {mask.shape[1]}x{mask.shape[0]}, images are {w}x{h}")
+        inp = PSInput(None, dirs, None, mask, float(o.pixel_pitch_mm or 1.0), "diligent", path, object_mask=mask,
+                      mask_source=f"{path / 'mask.png'}" if (path / "mask.png").is_file() else "the image")
+        inp.digest = _digest(_file_stamps(path))
+        inp.notes.extend(notes)
+        if o.pixel_pitch_mm is None:
+            inp.notes.append(NO_PITCH_NOTE)
+        top = None
+    if o.mask is not None:
+        given_mask(inp, o.mask)
+    return inp, bands, (None if o.mask is not None else top), n
+
+
+def ps_bands(read, shape, m, light_dirs, method, bag, mask, rows, flags=False, count_in=None):
+    """Photometric stereo of `method` over bands of `rows` rows, here.
+
+    read(r0, r1) -> (images (m, r1 - r0, W, C) as the method takes them, usable or None);
+    shape (H, W); light_dirs (m, 3) or (H, W, m, 3); bag: the options (its mask replaced by the
+    band's); mask (H, W) bool; flags: keep the (H, W, m) shadow and specular flags (else (H, W, 0));
+    count_in: (H, W) bool, the object over which the quality counts (`sample_counts`) are summed.
+    Returns (PSResult at the image's size, counts or None); info as `_assemble`'s, with tiles
+    and rows_per_tile.
+    """
+    h, w = shape
+
+    def one(r0, r1):
+        t0 = time.perf_counter()
+        band, usable = read(r0, r1)
+        read_s = time.perf_counter() - t0
+        counts = None if count_in is None else sample_counts(band, usable, count_in[r0:r1])
+        if not mask[r0:r1].any():
+            return r0, r1, None, counts, read_s, 0.0, None
+        t0 = time.perf_counter()
+        dirs = light_dirs if np.ndim(light_dirs) == 2 else light_dirs[r0:r1]
+        part = photometric_stereo(band, dirs, method=method, options=dict(bag, mask=mask[r0:r1]))
+        return r0, r1, part, counts, read_s, time.perf_counter() - t0, None
+
+    spans = [b for b in _bands(h, rows) if count_in is not None or mask[b[0]:b[1]].any()]
+    res, counts = _assemble(shape, method, (one(r0, r1) for r0, r1 in spans), m if flags else 0)
+    res.info.update(tiles=len(_bands(h, rows)), rows_per_tile=rows)
+    return res, counts
+
+
+def streamed_ps(source, o, res, on_input=None, rows=None, samples=False):
+    """The load and photometric-stereo stages of `process` without the whole images: (PSInput
+    with images=None, PSResult, light_dirs as `process` uses them (m, 3) or None with near
+    lights, the brightest value over the lights or None). on_input(inp) is called once the
+    input is known, before photometric stereo. The bands run here one after the other, or as
+    tasks on the dask.distributed scheduler `o.scheduler` (its workers read the scan from its
+    path: they must see it). samples: take the reflectance samples band by band too (into
+    res.filtered and res.samples; the raw subset's share drawn against m x the sample mask's
+    pixels, which the untiled run counts after photometric stereo, on its valid pixels only).
+    Fills res.inputs, res.timings load / ps, res.quality and the notes (InsufficientData as
+    untiled)."""
+    t0 = time.perf_counter()
+    work = Path(tempfile.mkdtemp(prefix="facette-tiles-"))
+    client = None
+    try:
+        if o.scheduler is not None:
+            from dask.distributed import Client
+            client = Client(o.scheduler)
+        inp, bands, top, n = open_streamed(source, o, work, rows, client)
+        try:
+            res.inputs = inp
+            res.notes.extend(inp.notes)
+            if on_input is not None:
+                on_input(inp)
+            res.timings["load"] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            h, w = inp.mask.shape
+            m = len(inp.light_dirs)
+            near = (o.near_light and inp.positions_mm is not None) or None
+            if near:
+                near = (np.asarray(inp.positions_mm), (h, w), inp.pixel_pitch_mm)
+            bag = o.ps_bag(saturation=o.saturation)
+            if near is None:
+                bag["light_dirs"] = inp.light_dirs
+            flat = getattr(bands, "flat", None)
+            spec, obj = bands.spec(), inp.object_mask
+            smask = inp.sample_mask()
+            total = m * int(np.count_nonzero(smask))
+
+            def take(r0, r1):
+                return None if not samples else {"sample_mask": smask[r0:r1], "theta0_deg": o.theta0_deg,
+                                                 "total": total}
+            calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
+                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1)) for r0, r1 in _bands(h, n))
+            ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client))
+            ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n)
+            taken = ps.info.pop("samples", None)
+            if samples:
+                res.filtered, res.samples = _samples_result(taken, o.theta0_deg)
+        finally:
+            bands.close()
+    finally:
+        if client is not None:
+            client.close()
+        shutil.rmtree(work, ignore_errors=True)
+    # the check's verdict (InsufficientData) as untiled, after the bands that counted
+    notes, res.quality = check_counts(counts if counts is not None else {"m": m, "object": 0}, inp.mask_source)
+    res.notes.extend(notes)
+    if near:
+        res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
+    where = f" as tasks on the scheduler {o.scheduler}" if o.scheduler is not None else ""
+    res.notes.append(f"--memory {o.memory}: photometric stereo over {ps.info['tiles']} bands of {n} rows{where}, "
+                     "the images read band by band (never held whole)")
+    res.timings["ps"] = time.perf_counter() - t0
+    return inp, ps, (None if near else inp.light_dirs), top
+
+
+def in_memory_ps(images, light_dirs, o, bag, outputs, res, rows=None):
+    """Photometric stereo over bands of images held whole (outputs that need them after it, or
+    an RTI capture): the PSResult, with the per-light flags (the samples leave shadows out)."""
+    m, h, w = images.shape[:3]
+    n = int(rows) if rows is not None else rows_per_tile(w, h, m, o.memory, o.method, tuple(FIELD_BYTES),
+                                                         per_light_flags=True)
+    ps, _ = ps_bands(lambda r0, r1: (images[:, r0:r1], None), (h, w), m, light_dirs, o.method, bag,
+                     bag["mask"], n, flags=True)
+    whole = [x for x in outputs if x not in STREAMED_OUTPUTS] or ["the input (an RTI capture is read whole)"]
+    if o.scheduler is not None:
+        res.notes.append(f"--scheduler {o.scheduler}: not used, the images being held whole here (it runs the "
+                         "bands of --memory when ptm and rti are not asked for)")
+    res.notes.append(f"--memory {o.memory}: photometric stereo over {ps.info['tiles']} bands of {n} rows; the "
+                     f"images were loaded whole (untiled) for {', '.join(whole)}, and every output computed from "
+                     "them: the memory budget bounds photometric stereo only (leave ptm and rti out of --outputs "
+                     "to read the images band by band)")
+    return ps
+
+
+def _samples_result(taken, theta0_deg):
+    """(FilteredReflectance, raw samples) of the bands' (sensor, raw parts); empty when no band
+    had a pixel."""
+    from facette.reflect import HemisphereSensor, ReflectanceSamples
+    if taken is None:
+        sensor, raws = HemisphereSensor(theta0_deg, channels=3), []
+    else:
+        sensor, raws = taken
+    if not raws:
+        raws = [ReflectanceSamples(*(np.zeros((0, 3), np.float32),) * 3, np.zeros(0, np.int64),
+                                   np.zeros(0, np.int16))]
+    raw = raws[0] if len(raws) == 1 else ReflectanceSamples(
+        *(np.concatenate([getattr(q, k) for q in raws]) for k in ("s", "o", "f", "pixel", "light")))
+    return sensor.result(), raw
