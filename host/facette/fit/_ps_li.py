@@ -50,8 +50,8 @@ import numpy as np
 from facette.brdf import kd_from_kappa, li_shading_terms
 from facette.recon import PSResult, ps_rank_trimmed, ps_woodham1980
 from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _run_blocks, _usable
-from ._li_model import (DIFFUSE, LAMBERTIAN_SIGMA, LI_VOLUME_MODEL, LOBE_MIN_GAIN, PROFILE_KEEP, PROFILE_TABLE_GRID,
-                        PROFILE_VALUES, _has_interface, _profile_lobe, fit_li_per_pixel_kd)
+from ._li_model import (DIFFUSE, LI_VOLUME_MODEL, PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model,
+                        fit_li_per_pixel_kd)
 from ._normals_li import RefineResult, refine_normals_li
 
 __all__ = ["ps_li_alternating"]
@@ -342,12 +342,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         return vm
 
     def choose_model(fsel, e_f):
-        # Round 1: lobe or none, and which diffuse part, by the trimmed profile cost of the fit
-        # pixels (`_profile_lobe`); the lobe must lower it by LOBE_MIN_GAIN against Lambert's.
-        # Then (σ, n_i) fitted from the best grid point on its best-explained pixels, warmed up
-        # (those pixels' normals against the fit, refit) until (σ, n_i) settle. The array code,
-        # channel by channel, on these pixels.
-        # the profile pixels: the fit pixels, fewer under many lights (PROFILE_VALUES values)
+        # Round 1 (`choose_material_model`): lobe or none, which diffuse part, and (σ, n_i), on the
+        # profile pixels: the fit pixels, fewer under many lights (PROFILE_VALUES values)
         fsel = fsel[np.sort(rng.choice(fsel.size, min(fsel.size, max(100, PROFILE_VALUES // m)), replace=False))]
         e_f = gather(fsel)
         l_f, ok_f = lights_of(fsel), all_ok[fsel]
@@ -362,43 +358,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
             return refine(fsel, sigma, n_i, engine=search_engine if search else warm_engine, vm=vm_,
                           table_grid=PROFILE_TABLE_GRID if search else None).normals
 
-        t_p = time.perf_counter()
-        best, lam, per_model, solves = _profile_lobe(e_f, l_f, ok_f, solve, diffuse_models)
-        gain = 1 - best["cost"] / max(lam["cost"], 1e-30)
-        name = {v: k for k, v in DIFFUSE.items()}.get(best["volume_model"], best["volume_model"])
-        choice = {"cost_lambertian": lam["cost"], "cost_lobe": best["cost"], "gain": gain,
-                  "profile_pixels": int(fsel.size), "profile_solves": solves,
-                  "profile_seconds": time.perf_counter() - t_p, "trimmed_to": PROFILE_KEEP, "grid_sigma": best["sigma"], "grid_n_i": best["n_i"],
-                  "cost_by_diffuse": {({v: k for k, v in DIFFUSE.items()}.get(k, k)): c for k, c in per_model.items()}}
-        if gain < LOBE_MIN_GAIN:
-            choice.update(model="lambertian", why=f"the best lobe (σ {best['sigma']:.3f}, n_i {best['n_i']:.2f}, "
-                          f"{name} diffuse) lowers the trimmed robust cost by {100 * gain:.1f} % only")
-            return dict(sigma=LAMBERTIAN_SIGMA, n_i=1.0, volume_model=diffuse_models[0]), 0, choice
-        # (σ, n_i) from the best point, on its re-solved normals, then warmed up (the normals
-        # re-solved against the fit, refit) until they settle, every profile pixel counted. Chosen on
-        # renders (mean normal error, the simulated scan + Mitsuba sphere paint 0.10, relief paints
-        # 0.10 and 0.05, satin sphere): this 0.38 / 0.48 / 0.58 / 0.87 / 1.95°; on the search's kept
-        # pixels only 0.38 / 0.40 / 0.81 / 0.88 / 2.39 (σ, n_i stuck near the grid: paint 0.10 gave
-        # 0.086, 1.386); starting from the initial normals 0.42 / 0.52 / 0.60 / 0.66 / 2.15.
-        vm_, n_f = best["volume_model"], best["normals"]
-        fit, warm = dict(sigma=best["sigma"], n_i=best["n_i"]), 0
-        while warm < 3:
-            warm += 1
-            prev = fit
-            fit = fit_li_per_pixel_kd(e_f, l_f, n_f, ok_f, x0=(prev["sigma"], prev["n_i"]), volume_model=vm_)
-            if not _has_interface(fit):
-                break
-            n_f = solve(fit["sigma"], fit["n_i"], vm_, search=False)
-            if abs(fit["sigma"] - prev["sigma"]) < 0.02 * prev["sigma"] and abs(fit["n_i"] - prev["n_i"]) < 0.005:
-                break
-        choice.update(lobe_sigma=fit["sigma"], lobe_n_i=fit["n_i"], diffuse=name)
-        if not _has_interface(fit):
-            choice.update(model="lambertian", why=f"the fit from the best grid point (σ {best['sigma']:.3f}, "
-                          f"n_i {best['n_i']:.2f}) ends at n_i {fit['n_i']:.3f}: no interface")
-            return dict(fit, sigma=LAMBERTIAN_SIGMA, n_i=1.0, volume_model=diffuse_models[0]), warm, choice
-        choice.update(model="lobe", why=f"a lobe (σ {fit['sigma']:.3f}, n_i {fit['n_i']:.3f}) with {name} diffuse "
-                      f"lowers the trimmed robust cost by {100 * gain:.0f} % against Lambert's")
-        return dict(fit, volume_model=vm_), warm, choice
+        return choose_material_model(e_f, l_f, ok_f, solve, diffuse_models)
 
     def lambertian_material(pix):
         # no interface: least squares over every light is the Lambertian answer where it explains
