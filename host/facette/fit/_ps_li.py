@@ -280,19 +280,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     def lights_of(sel):
         return s_all if s_all.ndim == 2 else s_all[sel]
 
-    # a second start per pixel: the half-vector of the light that most exceeds the Lambertian
-    # prediction (a highlight says where the normal is; from the initial solution alone)
-    lam_pred = (nrm @ s_all.T if s_all.ndim == 2 else np.einsum("nj,nmj->nm", nrm, s_all)) * \
-        (alb[:, channel] / np.pi)[:, None]
-    e_g = np.where(all_ok, flat[:, idx, channel].T, -np.inf)
-    excess = e_g - lam_pred
-    brightest = np.argmax(excess, axis=1)
-    mean_g = np.nanmean(np.where(all_ok, flat[:, idx, channel].T, np.nan), axis=1)
-    # the highlight start is tried where one light stands out (≥ 10 % of the pixel's mean value)
-    has_highlight = np.take_along_axis(excess, brightest[:, None], 1)[:, 0] > 0.1 * np.nan_to_num(mean_g)
-    half = s_all + np.float32([0, 0, 1])
-    half = (half / np.linalg.norm(half, axis=-1, keepdims=True)).astype(np.float32)
-    hl_start = half[brightest] if half.ndim == 2 else half[np.arange(idx.size), brightest]
+    has_highlight, hl_start = _highlight_starts(flat[:, idx, channel].T, all_ok, nrm, s_all, alb[:, channel])
 
     def refine(sel, sigma, n_i, first_round=True, engine=engine, step_tol=ROUND_STEP_TOL, vm=None, table_grid=None):
         # first round: the current normal and the highlight start; later rounds start from the
@@ -536,6 +524,22 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     }
     info["seconds"] = time.perf_counter() - t_start
     return res
+
+
+def _highlight_starts(values, usable, normals, lights, albedo):
+    """A second start per pixel: the half-vector of the light that most exceeds the Lambertian
+    prediction of the initial solution (a highlight says where the normal is), tried where that
+    light stands out (≥ 10 % of the pixel's mean value). values, usable : (N, m); normals (N, 3);
+    lights (m, 3) or (N, m, 3); albedo (N,). Returns (has_highlight (N,) bool, starts (N, 3))."""
+    lam_pred = (normals @ lights.T if lights.ndim == 2 else np.einsum("nj,nmj->nm", normals, lights)) * \
+        (albedo / np.pi)[:, None]
+    excess = np.where(usable, values, -np.inf) - lam_pred
+    brightest = np.argmax(excess, axis=1)
+    mean_v = np.nanmean(np.where(usable, values, np.nan), axis=1)
+    has_highlight = np.take_along_axis(excess, brightest[:, None], 1)[:, 0] > 0.1 * np.nan_to_num(mean_v)
+    half = lights + np.float32([0, 0, 1])
+    half = (half / np.linalg.norm(half, axis=-1, keepdims=True)).astype(np.float32)
+    return has_highlight, (half[brightest] if half.ndim == 2 else half[np.arange(len(normals)), brightest])
 
 
 def _bin_inputs(images, light_dirs, mask, f, saturation):
