@@ -112,20 +112,21 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True, vo
             _specular_into(A, cs, cs_c, co_c, sv, lit, sigma, n_i)
         return A, None
     # volume part: the angles (θ_s, θ_o, Δφ) in the local frame, from dot products
-    sin_s = np.sqrt(np.maximum(1 - cs_c * cs_c, 0))
-    sin_o = np.sqrt(np.maximum(1 - co_c * co_c, 0))
-    both = (sin_s > 1e-6) & (sin_o > 1e-6)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cphi = np.where(both, np.clip((sv - cs_c * co_c) / np.where(both, sin_s * sin_o, 1), -1, 1),
-                        np.float32(1))
-    ts, to = np.arccos(cs_c), np.arccos(co_c)
-    if volume_model == "lambert":
-        vol = np.ones_like(cs_c)
-    elif volume_model == "tables":
-        vol = volume_table_at(sig_v, n_i).at_angles(ts, to, np.arccos(cphi)).astype(np.float32)
+    if volume_model == "lambert":      # no angles needed: B = n·s
+        B = np.where(lit, cs_c, np.float32(0)).astype(np.float32)
     else:
-        vol = _volume_approx(ts, to, cs_c, co_c, cphi, sig_v, n_i)
-    B = np.where(lit, cs_c * vol, np.float32(0)).astype(np.float32)
+        sin_s = np.sqrt(np.maximum(1 - cs_c * cs_c, 0))
+        sin_o = np.sqrt(np.maximum(1 - co_c * co_c, 0))
+        both = (sin_s > 1e-6) & (sin_o > 1e-6)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cphi = np.where(both, np.clip((sv - cs_c * co_c) / np.where(both, sin_s * sin_o, 1), -1, 1),
+                            np.float32(1))
+        ts, to = np.arccos(cs_c), np.arccos(co_c)
+        if volume_model == "tables":
+            vol = volume_table_at(sig_v, n_i).at_angles(ts, to, np.arccos(cphi)).astype(np.float32)
+        else:
+            vol = _volume_approx(ts, to, cs_c, co_c, cphi, sig_v, n_i)
+        B = np.where(lit, cs_c * vol, np.float32(0)).astype(np.float32)
     if not specular or sigma < SIGMA_FLAT or n_i == 1.0:
         return np.zeros_like(B), B
     A = np.zeros_like(B)

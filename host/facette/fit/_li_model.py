@@ -57,6 +57,11 @@ PROFILE_TABLE_GRID = 65
 DIFFUSE = {"li": LI_VOLUME_MODEL, "lambert": "lambert"}
 
 
+def diffuse_name(volume_model):
+    """The DIFFUSE name ("li", "lambert") of a volume model, or the model itself (e.g. "approx")."""
+    return next((k for k, v in DIFFUSE.items() if v == volume_model), volume_model)
+
+
 def _relative_fit_values(e, usable):
     """Values, weights, the usable mask per channel and each pixel's mean value (the residuals'
     denominator) of `fit_li_per_pixel_kd` and `li_fit_cost`."""
@@ -165,9 +170,8 @@ def _profile_lobe(e, lights, usable, solve, volume_models):
     PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ; `solve(sigma, n_i, volume_model)` ->
     (N, 3)), each scored by the trimmed robust cost of the result (`_trimmed`: a pixel whose solve
     stopped in a wrong minimum does not decide the model).
-    Returns (best: dict(cost, volume_model, sigma, n_i, normals, kept), lambertian: dict(cost on
-    the best's kept pixels, normals, kept), {volume_model: its best trimmed cost}, the number of
-    solves)."""
+    Returns (best: dict(cost, volume_model, sigma, n_i, normals, kept), the Lambertian solution's
+    cost on the best's kept pixels, {volume_model: its best trimmed cost}, the number of solves)."""
     best, per_model, solves = None, {}, 0
 
     def score(sigma, n_i, vm):
@@ -189,7 +193,7 @@ def _profile_lobe(e, lights, usable, solve, volume_models):
     # drop the highlights, the very pixels that show a lobe (a glossy sphere's few % of pixels)
     n = solve(LAMBERTIAN_SIGMA, 1.0, volume_models[0])
     costs = _pixel_costs(e, lights, n, usable, LAMBERTIAN_SIGMA, 1.0, volume_models[0])
-    return best, dict(cost=float(costs[best["kept"]].sum()), normals=n, kept=best["kept"]), per_model, solves + 1
+    return best, float(costs[best["kept"]].sum()), per_model, solves + 1
 
 
 def _has_interface(fit):
@@ -212,14 +216,14 @@ def choose_material_model(e, lights, usable, solve, volume_models):
     """
     e_f, l_f, ok_f, diffuse_models = e, lights, usable, volume_models
     t_p = time.perf_counter()
-    best, lam, per_model, solves = _profile_lobe(e_f, l_f, ok_f, solve, diffuse_models)
-    gain = 1 - best["cost"] / max(lam["cost"], 1e-30)
-    name = {v: k for k, v in DIFFUSE.items()}.get(best["volume_model"], best["volume_model"])
-    choice = {"cost_lambertian": lam["cost"], "cost_lobe": best["cost"], "gain": gain,
+    best, lam_cost, per_model, solves = _profile_lobe(e_f, l_f, ok_f, solve, diffuse_models)
+    gain = 1 - best["cost"] / max(lam_cost, 1e-30)
+    name = diffuse_name(best["volume_model"])
+    choice = {"cost_lambertian": lam_cost, "cost_lobe": best["cost"], "gain": gain,
               "profile_pixels": int(len(e_f)), "profile_solves": solves,
               "profile_seconds": time.perf_counter() - t_p, "trimmed_to": PROFILE_KEEP,
               "grid_sigma": best["sigma"], "grid_n_i": best["n_i"],
-              "cost_by_diffuse": {({v: k for k, v in DIFFUSE.items()}.get(k, k)): c for k, c in per_model.items()}}
+              "cost_by_diffuse": {diffuse_name(k): c for k, c in per_model.items()}}
     if gain < LOBE_MIN_GAIN:
         choice.update(model="lambertian", why=f"the best lobe (σ {best['sigma']:.3f}, n_i {best['n_i']:.2f}, "
                       f"{name} diffuse) lowers the trimmed robust cost by {100 * gain:.1f} % only")

@@ -51,7 +51,7 @@ from facette.brdf import kd_from_kappa, li_shading_terms
 from facette.recon import PSResult, ps_rank_trimmed, ps_woodham1980
 from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _run_blocks, _usable
 from ._li_model import (DIFFUSE, LI_VOLUME_MODEL, PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model,
-                        fit_li_per_pixel_kd)
+                        diffuse_name, fit_li_per_pixel_kd)
 from ._normals_li import RefineResult, refine_normals_li
 
 __all__ = ["ps_li_alternating"]
@@ -283,12 +283,13 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
 
     has_highlight, hl_start = _highlight_starts(flat[:, idx, channel].T, all_ok, nrm, s_all, alb[:, channel])
 
-    def refine(sel, sigma, n_i, first_round=True, engine=engine, step_tol=ROUND_STEP_TOL, vm=None, table_grid=None):
+    def refine(sel, sigma, n_i, first_round=True, engine=engine, step_tol=ROUND_STEP_TOL, diffuse_vm=None,
+               table_grid=None):
         # first round: the current normal and the highlight start; later rounds start from the
         # previous round's normals, already near, so one start and fewer steps do. Pixel blocks
         # on WORKERS threads (numpy releases the GIL in its loops).
         out = {}
-        vm_ = vm_now() if vm is None else vm
+        vm_ = vm if diffuse_vm is None else diffuse_vm      # the current material's, unless given
 
         def block(a):
             sub = sel[a:a + (_BLOCK if s_all.ndim == 3 else _BLOCK_COMPILED)]
@@ -327,10 +328,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
             refined[lam_pix] = False
         return lobe, lam_ok, pix[~lam_ok & lobe]
 
-    def vm_now():
-        return vm
-
-    def choose_model(fsel, e_f):
+    def choose_model(fsel):
         # Round 1 (`choose_material_model`): lobe or none, which diffuse part, and (σ, n_i), on the
         # profile pixels: the fit pixels, fewer under many lights (PROFILE_VALUES values)
         fsel = fsel[np.sort(rng.choice(fsel.size, min(fsel.size, max(100, PROFILE_VALUES // m)), replace=False))]
@@ -344,7 +342,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         search_engine = "compiled" if engine == "auto" and s_all.ndim == 2 else warm_engine
 
         def solve(sigma, n_i, vm_, search=True):
-            return refine(fsel, sigma, n_i, engine=search_engine if search else warm_engine, vm=vm_,
+            return refine(fsel, sigma, n_i, engine=search_engine if search else warm_engine, diffuse_vm=vm_,
                           table_grid=PROFILE_TABLE_GRID if search else None).normals
 
         return choose_material_model(e_f, l_f, ok_f, solve, diffuse_models)
@@ -425,7 +423,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                 # a glossy sphere at 2144x1424 binned by 4 showed a 1.9 % gain (Lambertian), 67 % at
                 # 536x356 unbinned. So "no lobe" is asked again of full-size pixels.
                 fsel = np.sort(rng.choice(trust, min(fit_pixels, trust.size), replace=False))
-                fit, _, choice = choose_model(fsel, None)
+                fit, _, choice = choose_model(fsel)
                 if choice["model"] == "lobe":
                     full = fit
                     vm = fit["volume_model"]
@@ -449,13 +447,13 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
             if score is not None:   # later rounds: all but the worse-explained half of the re-estimated
                 trust = pix[score <= np.median(score[np.isfinite(score)])] if np.isfinite(score).any() else pix
             fsel = np.sort(rng.choice(trust, min(fit_pixels, trust.size), replace=False))
-            e_f = gather(fsel)
             warm, choice = 0, None
-            if rnd == 1:
-                fit, warm, choice = choose_model(fsel, e_f)
+            if rnd == 1:           # the model choice gathers its own (profile) pixels' values
+                fit, warm, choice = choose_model(fsel)
                 vm = fit["volume_model"]
             else:
-                fit = fit_li_per_pixel_kd(e_f, lights_of(fsel), nrm[fsel], all_ok[fsel], x0=x0, volume_model=vm)
+                fit = fit_li_per_pixel_kd(gather(fsel), lights_of(fsel), nrm[fsel], all_ok[fsel], x0=x0,
+                                          volume_model=vm)
             if not np.isfinite(fit["sigma"]):
                 mat.update(brdf_step=False, note=f"fit failed: {fit['message']}")
                 break
@@ -500,7 +498,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
             if med < tol_deg:
                 break
         mat.update(sigma=x0[0] if x0 else None, n_i=x0[1] if x0 else None, volume_model=vm,
-                   diffuse={v: k for k, v in DIFFUSE.items()}.get(vm, vm),
+                   diffuse=diffuse_name(vm),
                    pixels_refined=int(refined[pix].sum()), seconds=time.perf_counter() - t_reg)
         # K_d of the pixels that kept their Lambertian solution: ρ/π = κ × I at normal incidence
         keep = pix[~refined[pix]]
