@@ -12,12 +12,20 @@ __all__ = ["fresnel_dielectric", "r_e_molenaar1999", "r_i_simonot2009", "check_n
 _MOLENAAR_MIN_EXCESS = 0.05
 
 
+N_I_MAX = 100.0
+
+
 def check_n_i(n_i):
-    """Return n_i as a float after checking 1 ≤ n_i ≤ 10 (relative index of a dielectric)."""
+    """Return n_i as a float after checking 1 ≤ n_i ≤ N_I_MAX (relative index of the interface).
+
+    Dielectrics lie in [1, 2.5] (the LI fits' range). Larger indices stand for a metal's lobe
+    beside a Lambertian part (facette.fit: diffuse "lambert"): a real index of the same reflectance
+    at normal incidence, F0 = ((n − 1)/(n + 1))² (0.5 at n 5.8, 0.9 at n 38), whose Fresnel factor
+    is as flat as a conductor's away from grazing angles."""
     n = float(n_i)
-    if not np.isfinite(n) or n < 1.0 or n > 10.0:
+    if not np.isfinite(n) or n < 1.0 or n > N_I_MAX:
         raise ValueError(f"n_i = {n_i!r}: the relative refractive index must be a finite number in "
-                         "[1, 10] (1 = no interface; the fits use [1, 2.5])")
+                         f"[1, {N_I_MAX:g}] (1 = no interface; dielectrics [1, 2.5], larger: a metal's lobe)")
     return n
 
 
@@ -85,7 +93,7 @@ def r_e_molenaar1999(n_i):
 
     Parameters
     ----------
-    n_i : float in [1, 10].
+    n_i : float in [1, N_I_MAX].
 
     Returns
     -------

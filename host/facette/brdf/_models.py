@@ -124,7 +124,7 @@ def brdf_li(s, o, kd, sigma, n_i, distribution="beckmann", masking="smith", volu
     s, o : (..., 3) unit vectors, local frame (n = +z).
     kd : float or (C,) in [0, 1], substrate reflectance per channel.
     sigma : float ≥ 0 (fits use [0, 2]) or (σ_x, σ_y) for an anisotropic Beckmann/GGX.
-    n_i : float in [1, 10] (fits use [1, 2.5]), relative index of the interface.
+    n_i : float in [1, 100] (dielectric fits use [1, 2.5]), relative index of the interface.
     distribution : "beckmann" | "ggx" | "gaussian".   masking : "smith" | "vcavity".
     volume : "quadrature" (reference) | "monte_carlo" | "table" | "approx".
     interreflection : "auto" (V-cavity two-bounce term added when σ ≥ 0.2 and masking is

@@ -70,7 +70,7 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True, vo
     normals : (N, 3) float unit vectors (camera frame, z towards the camera).
     lights : (m, 3) unit vectors towards the lights, or (N, m, 3) per pixel (near lights).
     sigma : Beckmann roughness (RMS slope) ≥ 0; below 1e-9 the lobe is a Dirac: A = 0.
-    n_i : relative index in [1, 10]; 1 means no interface (A = 0, B the rough-Lambert term).
+    n_i : relative index in [1, 100] (facette.brdf._fresnel.check_n_i); 1 means no interface (A = 0, B the rough-Lambert term).
     specular : False gives A = 0 (the volume part only).
     volume : False skips the volume part and returns B = None (the specular lobe only, the cheap
         part: it is evaluated on the pairs near the lobe alone).

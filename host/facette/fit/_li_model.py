@@ -15,9 +15,15 @@ from scipy.optimize import least_squares
 
 from facette.brdf import li_kd_from_kappa, li_shading_terms
 
-__all__ = ["choose_material_model", "fit_li_per_pixel_kd", "li_fit_cost", "LI_FIT_BOUNDS", "LI_VOLUME_MODEL", "DIFFUSE", "LOBE_MIN_GAIN"]
+__all__ = ["choose_material_model", "fit_bounds", "METAL_FIT_BOUNDS", "fit_li_per_pixel_kd", "li_fit_cost", "LI_FIT_BOUNDS", "LI_VOLUME_MODEL", "DIFFUSE", "LOBE_MIN_GAIN"]
 
 LI_FIT_BOUNDS = ((1e-3, 1.0), (1.0, 2.5))   # σ, n_i (σ ≤ 1: beyond it no lobe is left to see)
+# Beside a Lambertian part the lobe may be a metal's: its index then stands for the conductor's
+# reflectance at normal incidence (facette.brdf._fresnel.check_n_i; aluminium ~38, gold ~10-20 in
+# green). At the true normals of Mitsuba's roughconductor spheres this model fits σ 0.150 (gold,
+# α 0.15) and 0.300 (aluminium, α 0.3) and the per-pixel solve from the truth stays within 0.5 and
+# 0.04°; the LI substrate (n_i ≤ 2.5) fits 0.194 / 0.396 and moves them by 3.5 and 23°.
+METAL_FIT_BOUNDS = ((1e-3, 1.0), (1.0, 100.0))
 LAMBERTIAN_N_I = 1.02      # a fitted n_i below this: no interface, the BRDF step is skipped
 LAMBERTIAN_SIGMA = LI_FIT_BOUNDS[0][0]    # the model without interface (n_i = 1): Lambert
 # a lobe must lower the trimmed profile cost this much against Lambert's (Mitsuba renders: plaster
@@ -47,6 +53,10 @@ LI_VOLUME_MODEL = "tables"
 PROFILE_SIGMAS = (0.02, 0.035, 0.05, 0.08, 0.13, 0.2, 0.3, 0.5)
 PROFILE_N_I0 = 1.3
 PROFILE_N_IS = (1.1, 1.2, 1.45, 1.7, 2.0)
+# beside a Lambertian part also a metal's lobe (F0 0.25, 0.5, 0.77, 0.9), σ searched at a metal's
+# index too (its lobe is 10-20x a dielectric's: the σ that fits best at PROFILE_N_I0 says nothing of it)
+PROFILE_N_IS_METAL = (3.0, 6.0, 15.0, 40.0)
+PROFILE_N_I0_METAL = 15.0
 PROFILE_KEEP = 0.8
 PROFILE_VALUES = 12_000
 PROFILE_TABLE_GRID = 65
@@ -101,7 +111,13 @@ def li_fit_cost(e, lights, normals, usable, sigma, n_i, f_scale=0.05, volume_mod
                          f_scale)
 
 
-def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_nfev=40, bounds=LI_FIT_BOUNDS,
+def fit_bounds(volume_model):
+    """The (σ, n_i) bounds of the fits with this diffuse part: a metal's index only beside a
+    Lambertian part (the LI substrate's tables stop at n_i 2.5)."""
+    return METAL_FIT_BOUNDS if volume_model == "lambert" else LI_FIT_BOUNDS
+
+
+def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_nfev=40, bounds=None,
                         volume_model=LI_VOLUME_MODEL):
     """(σ, n_i) shared by all pixels, K_d per pixel and channel, from image values.
 
@@ -111,13 +127,14 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
         of three fixed starts and x0.
     f_scale : soft-L1 scale on the relative residual (0.05: 5 % misfits count fully,
         larger ones linearly).
-    bounds : ((σ_min, σ_max), (n_i_min, n_i_max)), within LI_FIT_BOUNDS (a narrower n_i range
-        above 1 asks for the best solution with a lobe).
+    bounds : ((σ_min, σ_max), (n_i_min, n_i_max)), within `fit_bounds(volume_model)` (the default;
+        a narrower n_i range above 1 asks for the best solution with a lobe).
     volume_model : the volume part's evaluation (facette.brdf.li_shading_terms; LI_VOLUME_MODEL).
     Returns dict(sigma, n_i, kd (N, C), kappa (N, C), cost, n_values, seconds, success).
     Residual per value: (E − A − B κ) / (the pixel's mean value).
     """
     t0 = time.perf_counter()
+    bounds = fit_bounds(volume_model) if bounds is None else bounds
     e0, w, sel, den = _relative_fit_values(e, usable)
     lo, hi = np.array([b[0] for b in bounds], float), np.array([b[1] for b in bounds], float)
     if not np.all(lo < hi):
@@ -138,7 +155,7 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
     best = None
     for x in starts:
         r = least_squares(fun, x, bounds=(lo, hi), loss="soft_l1", f_scale=f_scale, diff_step=1e-3,
-                          max_nfev=max_nfev, x_scale=np.array([0.05, 0.1]))
+                          max_nfev=max_nfev, x_scale=np.array([0.05, 0.1 * max(1.0, x[1] - 1)]))
         if best is None or r.cost < best.cost:
             best = r
     k, _ = _kd_and_residuals(e0, w, den, normals, lights, best.x[0], best.x[1], volume_model)
@@ -170,30 +187,43 @@ def _profile_lobe(e, lights, usable, solve, volume_models):
     PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ; `solve(sigma, n_i, volume_model)` ->
     (N, 3)), each scored by the trimmed robust cost of the result (`_trimmed`: a pixel whose solve
     stopped in a wrong minimum does not decide the model).
-    Returns (best: dict(cost, volume_model, sigma, n_i, normals, kept), the Lambertian solution's
-    cost on the best's kept pixels, {volume_model: its best trimmed cost}, the number of solves)."""
-    best, per_model, solves = None, {}, 0
+    Returns (best: dict(cost, gain, volume_model, sigma, n_i, normals, kept): the dielectric or the
+    metal candidate, whichever lowers the Lambertian cost more; the best dielectric candidate (the
+    same dict, or None); the Lambertian solution's cost on the best's kept pixels,
+    {volume_model: its best trimmed cost}, the number of solves)."""
+    best, per_model, solves = {}, {}, 0     # best: {is a metal's lobe: the best such candidate}
 
     def score(sigma, n_i, vm):
-        nonlocal best, solves
+        nonlocal solves
         n = solve(sigma, n_i, vm)
         solves += 1
         cost, kept = _trimmed(_pixel_costs(e, lights, n, usable, sigma, n_i, vm))
         per_model[vm] = min(per_model.get(vm, np.inf), cost)
-        if best is None or cost < best["cost"]:
-            best = dict(cost=cost, volume_model=vm, sigma=sigma, n_i=n_i, normals=n, kept=kept)
+        metal = is_metal(n_i)
+        if metal not in best or cost < best[metal]["cost"]:
+            best[metal] = dict(cost=cost, volume_model=vm, sigma=sigma, n_i=n_i, normals=n, kept=kept)
         return cost
 
     for vm in volume_models:
-        costs = [score(sigma, PROFILE_N_I0, vm) for sigma in PROFILE_SIGMAS]
-        sigma = PROFILE_SIGMAS[int(np.argmin(costs))]
-        for n_i in PROFILE_N_IS:
-            score(sigma, n_i, vm)
+        starts = (PROFILE_N_I0,) + ((PROFILE_N_I0_METAL,) if vm == "lambert" else ())
+        costs = {(sigma, n0): score(sigma, n0, vm) for n0 in starts for sigma in PROFILE_SIGMAS}
+        sigma, n0 = min(costs, key=costs.get)
+        n_is = PROFILE_N_IS + (PROFILE_N_IS_METAL if vm == "lambert" else ())
+        for n_i in n_is:
+            if n_i != n0:
+                score(sigma, n_i, vm)
     # the Lambertian solution scored on the best lobe's kept pixels: trimmed on its own, it would
     # drop the highlights, the very pixels that show a lobe (a glossy sphere's few % of pixels)
     n = solve(LAMBERTIAN_SIGMA, 1.0, volume_models[0])
     costs = _pixel_costs(e, lights, n, usable, LAMBERTIAN_SIGMA, 1.0, volume_models[0])
-    return best, float(costs[best["kept"]].sum()), per_model, solves + 1
+    for b in best.values():
+        b["gain"] = 1 - b["cost"] / max(float(costs[b["kept"]].sum()), 1e-30)
+        b["cost_lambertian"] = float(costs[b["kept"]].sum())
+    # a metal's lobe only where it gains more against Lambert's than the best dielectric's (each on
+    # its own kept pixels: a metal's global search fits the pixels it keeps at any (σ, n_i))
+    top = best[True] if True in best and (False not in best or best[True]["gain"] > best[False]["gain"]) \
+        else best[False]
+    return top, best.get(False), top["cost_lambertian"], per_model, solves + 1
 
 
 def _has_interface(fit):
@@ -202,6 +232,28 @@ def _has_interface(fit):
     seen (DiLiGenT buddha and cat on 12 lights fit σ < 0.01, n_i 1.07–1.11, and the BRDF step still
     takes their error from 13.8° to 11.1° and 8.6° to 7.2°)."""
     return bool(np.isfinite(fit["sigma"]) and fit["n_i"] >= LAMBERTIAN_N_I)
+
+
+def is_metal(n_i):
+    """Whether an index is a metal's lobe (above the dielectrics' range, see METAL_FIT_BOUNDS)."""
+    return n_i > LI_FIT_BOUNDS[1][1]
+
+
+def _warm_up(e, lights, usable, solve, best):
+    """(fit, refits): (σ, n_i) fitted from a grid point on its re-solved normals, the normals
+    re-solved against the fit and refit until they settle (at most 3 refits)."""
+    vm_, n_f = best["volume_model"], best["normals"]
+    fit, warm = dict(sigma=best["sigma"], n_i=best["n_i"]), 0
+    while warm < 3:
+        warm += 1
+        prev = fit
+        fit = fit_li_per_pixel_kd(e, lights, n_f, usable, x0=(prev["sigma"], prev["n_i"]), volume_model=vm_)
+        if not _has_interface(fit):
+            break
+        n_f = solve(fit["sigma"], fit["n_i"], vm_, search=False)
+        if abs(fit["sigma"] - prev["sigma"]) < 0.02 * prev["sigma"] and abs(fit["n_i"] - prev["n_i"]) < 0.005:
+            break
+    return fit, warm
 
 
 def choose_material_model(e, lights, usable, solve, volume_models):
@@ -216,7 +268,7 @@ def choose_material_model(e, lights, usable, solve, volume_models):
     """
     e_f, l_f, ok_f, diffuse_models = e, lights, usable, volume_models
     t_p = time.perf_counter()
-    best, lam_cost, per_model, solves = _profile_lobe(e_f, l_f, ok_f, solve, diffuse_models)
+    best, dielectric, lam_cost, per_model, solves = _profile_lobe(e_f, l_f, ok_f, solve, diffuse_models)
     gain = 1 - best["cost"] / max(lam_cost, 1e-30)
     name = diffuse_name(best["volume_model"])
     choice = {"cost_lambertian": lam_cost, "cost_lobe": best["cost"], "gain": gain,
@@ -234,17 +286,16 @@ def choose_material_model(e, lights, usable, solve, volume_models):
     # 0.10 and 0.05, satin sphere): this 0.38 / 0.48 / 0.58 / 0.87 / 1.95°; on the search's kept
     # pixels only 0.38 / 0.40 / 0.81 / 0.88 / 2.39 (σ, n_i stuck near the grid: paint 0.10 gave
     # 0.086, 1.386); starting from the initial normals 0.42 / 0.52 / 0.60 / 0.66 / 2.15.
-    vm_, n_f = best["volume_model"], best["normals"]
-    fit, warm = dict(sigma=best["sigma"], n_i=best["n_i"]), 0
-    while warm < 3:
-        warm += 1
-        prev = fit
-        fit = fit_li_per_pixel_kd(e_f, l_f, n_f, ok_f, x0=(prev["sigma"], prev["n_i"]), volume_model=vm_)
-        if not _has_interface(fit):
-            break
-        n_f = solve(fit["sigma"], fit["n_i"], vm_, search=False)
-        if abs(fit["sigma"] - prev["sigma"]) < 0.02 * prev["sigma"] and abs(fit["n_i"] - prev["n_i"]) < 0.005:
-            break
+    fit, warm = _warm_up(e_f, l_f, ok_f, solve, best)
+    if is_metal(best["n_i"]) and not is_metal(fit["n_i"]) and dielectric is not None:
+        # a metal's lobe won the grid, but its fit ends at a dielectric's index: the metal's global
+        # search found the normals, not the model (Mitsuba satin sphere: lambert, n_i 40 -> 1.57,
+        # 2.84° against 1.95° from the best dielectric point); the best dielectric point instead
+        choice.update(metal_fit_n_i=fit["n_i"], grid_sigma=dielectric["sigma"], grid_n_i=dielectric["n_i"])
+        best, name = dielectric, diffuse_name(dielectric["volume_model"])
+        fit, more = _warm_up(e_f, l_f, ok_f, solve, best)
+        warm += more
+    vm_ = best["volume_model"]
     choice.update(lobe_sigma=fit["sigma"], lobe_n_i=fit["n_i"], diffuse=name)
     if not _has_interface(fit):
         choice.update(model="lambertian", why=f"the fit from the best grid point (σ {best['sigma']:.3f}, "

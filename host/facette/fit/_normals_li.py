@@ -18,6 +18,8 @@ import numpy as np
 from facette.brdf import kd_from_kappa, li_shading_terms
 from facette.brdf._fresnel import check_n_i
 
+from ._orientation import search_start
+
 __all__ = ["refine_normals_li", "RefineResult", "CAST_SHADOW_RATIO"]
 
 CAST_SHADOW_RATIO = 0.25   # observed / predicted (green) below this: a cast shadow, left out
@@ -74,7 +76,7 @@ ENGINES = ("auto", "compiled", "arrays")
 
 def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12, kappa=None,
                       extra_starts=None, extra_rows=None, engine="auto", step_tol=STEP_TOL,
-                      volume_model="approx", table_grid=None):
+                      volume_model="approx", table_grid=None, search=False):
     """Robust per-pixel normals and K_d against the LI model of given (σ, n_i); see
     `_refine_one_start` for the arguments. extra_starts : optional (K, N, 3) other starting
     normals (e.g. the half-vector of a pixel's brightest light: a highlight says where the normal
@@ -93,6 +95,9 @@ def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12
         tables; facette.brdf.li_shading_terms), or "lambert".
     table_grid : the compiled engine's table of the volume part, points per axis (default
         TABLE_GRID of facette.fit._normals_li_jit, 257); a coarser one costs less to build.
+    search : also search the visible hemisphere for a start where the given normal explains the
+        pixel poorly (facette.fit._orientation; distant lights): that candidate replaces the
+        first extra start on the pixels where it explains them better than the given normal.
     """
     if engine not in ENGINES:
         raise ValueError(f"engine = {engine!r}: choose one of {', '.join(ENGINES)}")
@@ -101,6 +106,9 @@ def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12
     if engine == "compiled" and not fits_compiled:
         raise ValueError("engine = 'compiled' takes distant lights (m, 3), at most one extra start "
                          "and no starting kappa; use engine='arrays' for the others")
+    if search and np.ndim(lights) == 2:
+        extra_starts, extra_rows = _with_search_start(e, lights, normals, sigma, n_i, usable, volume_model,
+                                                      extra_starts, extra_rows)
     if engine != "arrays" and fits_compiled:
         return _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_starts, extra_rows,
                                 step_tol, volume_model, table_grid)
@@ -128,6 +136,22 @@ def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12
     return best
 
 
+def _with_search_start(e, lights, normals, sigma, n_i, usable, volume_model, extra_starts, extra_rows):
+    """(extra_starts, extra_rows) with the hemisphere search's start in the first extra start's
+    place where it explains the pixel better than the given normal (`refine_normals_li`)."""
+    e3 = np.asarray(e, np.float32)
+    ok = np.ones(e3.shape[:2], bool) if usable is None else np.asarray(usable, bool)
+    st, better = search_start(e3, lights, ok, sigma, n_i, volume_model, normals)
+    if not better.any():
+        return extra_starts, extra_rows
+    n_pix = len(st)
+    if extra_starts is None or len(extra_starts) == 0:
+        return [st], better
+    first = np.where(better[:, None], st, np.asarray(extra_starts[0], np.float32))
+    rows = np.ones(n_pix, bool) if extra_rows is None else np.asarray(extra_rows, bool)
+    return [first, *list(extra_starts)[1:]], rows | better
+
+
 def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12, kappa=None, scale=None,
                       volume_model="approx"):
     """Robust per-pixel normals and K_d against the LI model of given (σ, n_i).
@@ -135,7 +159,7 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
     e : (N, m, C) float image values divided by each light's intensity (NaN: missing).
     lights : (m, 3) unit vectors towards the lights, or (N, m, 3) per pixel (near lights).
     normals : (N, 3) unit starting normals (camera frame).
-    sigma, n_i : the material's LI parameters (Beckmann σ ≥ 0, n_i in [1, 10]).
+    sigma, n_i : the material's LI parameters (Beckmann σ ≥ 0, n_i in [1, 100]).
     usable : (N, m) bool, values allowed in the fit (default: finite values); saturated values
         should be False here.
     iterations : Levenberg–Marquardt steps (each: one model evaluation over the N pixels and two of
