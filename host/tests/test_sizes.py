@@ -16,7 +16,7 @@ LONG_FILES = {"pipeline/_report.py": 624, "pipeline/_process.py": 564,
               "recon/_ps.py": 518}
 LONG_FUNCTIONS = {"fit/_normals_li_jit.py _solve_one": 143,
                   "recon/_interreflect.py remove_interreflections": 139,
-                  "fit/_normals_li.py _refine_one_start": 134, "bench/brdf.py bench_volume": 127,
+                  "bench/brdf.py bench_volume": 127,
                   "recon/_ps_robust.py ps_rank_trimmed": 117, "hdr/_bracket.py plan_adaptive": 106}
 
 
