@@ -6,7 +6,7 @@ import time
 import numpy as np
 
 from ._normals_li import refine_normals_li
-from ._ps_li_pixels import BLOCK, BLOCK_COMPILED, angle_deg, concatenate
+from ._ps_li_pixels import BLOCK, BLOCK_COMPILED, angle_deg, join_blocks
 
 FINE_START_DEG = 5.0       # the fine round starts from the initial normal where the coarse one is this far
 FINE_STEP_TOL = 1e-3       # rad (0.06°): full-size steps stop below this (errors are ~1°)
@@ -69,7 +69,7 @@ def fine_round(px, coarse, pix, x0, steps, rounds_log):
             out.append(refine_normals_li(px.gather(sub), px.lights_of(sub), up[sub], sigma, n_i,
                                          usable=px.all_ok[sub], iterations=steps, step_tol=FINE_STEP_TOL,
                                          engine=px.settings.engine, volume_model=px.vm))
-        rr = concatenate(out)
+        rr = join_blocks(out)
         mean_its = float(np.average([getattr(p, "mean_iterations", p.iterations) for p in out],
                                     weights=[len(p.normals) for p in out]))
         change = angle_deg(rr.normals, up[todo])

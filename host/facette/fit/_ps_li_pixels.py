@@ -33,7 +33,7 @@ def angle_deg(a, b):
     return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1, 1)))
 
 
-def concatenate(parts):
+def join_blocks(parts):
     """One RefineResult of the solves of consecutive pixel blocks."""
     return RefineResult(**{k: np.concatenate([getattr(p, k) for p in parts]) for k in _FIELDS})
 
@@ -144,7 +144,7 @@ class Pixels:
                 block(a)
         else:
             _run_blocks(block, range(0, sel.size, BLOCK))
-        return concatenate([out[a] for a in sorted(out)])
+        return join_blocks([out[a] for a in sorted(out)])
 
     def split_levels(self, pix, sigma, n_i):
         """(lobe, lam_ok, todo) of the pixels `pix`: the BRDF-aware step where the lobe matters
