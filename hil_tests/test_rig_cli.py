@@ -10,7 +10,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 FACETTE = [sys.executable, "-m", "facette.cli.main"]
 
@@ -148,41 +147,27 @@ def test_sim_stops_and_says_so_when_its_firmware_process_dies(tmp_path):
             f.close()
 
 
-def _tmpfs(point, kbytes):
-    point.mkdir()
-    run = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={kbytes}k", "tmpfs", str(point)],
-                         capture_output=True, text=True)
-    if run.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here ({run.stderr.strip()}): the cross-filesystem and full-disk "
-                    "scan needs root or CAP_SYS_ADMIN")
-    return point
-
-
-def test_a_scan_across_filesystems_stops_on_a_full_disk_and_resumes_once_space_is_freed(tmp_path):
+def test_a_scan_across_filesystems_stops_on_a_full_disk_and_resumes_once_space_is_freed(small_disk):
     """The simulator's camera folder on one tmpfs ($TMPDIR), the scan on another, too small for it:
     frames cross filesystems (copy, then rename), the full disk stops the scan (exit 1, the disk
     named), and the same command finishes it once the disk is larger; every frame matches scan.json."""
-    camera_tmp = _tmpfs(tmp_path / "tmp", 64 * 1024)
-    disk = _tmpfs(tmp_path / "disk", 200)
-    try:
-        cmd = FACETTE + ["scan", "--sim", "--press-button", "--no-process", "--quiet", "--raw-size", "128x96",
-                         "--exposures", "1/5,1/50", "--lights", "0,1,2,3,4,5", str(disk / "scan")]
-        env = {**os.environ, "TMPDIR": str(camera_tmp)}
-        full = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
-        assert full.returncode == 1, full.stderr
-        assert f"(mounted at {disk}) is full" in full.stderr and "the scan resumes where it stopped" in full.stderr
-        assert "Traceback" not in full.stderr and "bug" not in full.stderr
-        kept = json.loads((disk / "scan" / "scan.json").read_text())["frames"]
-        assert 0 < len(kept) < 12
-        subprocess.run(["mount", "-o", "remount,size=8m", str(disk)], check=True)
-        again = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
-        assert again.returncode == 0, again.stderr
-        m = json.loads((disk / "scan" / "scan.json").read_text())
-        assert m["complete"] and len(m["frames"]) == 12
-        assert {f["file"]: f["sha256"] for f in kept}.items() <= {f["file"]: f["sha256"] for f in m["frames"]}.items()
-        for f in m["frames"]:
-            assert hashlib.sha256((disk / "scan" / f["file"]).read_bytes()).hexdigest() == f["sha256"]
-        assert not list((disk / "scan").rglob("*.partial"))
-    finally:
-        for point in (disk, camera_tmp):
-            subprocess.run(["umount", "-l", str(point)], capture_output=True)
+    camera_tmp = small_disk(64 * 1024, "tmp")     # the fixture (conftest.py) unmounts them after
+    disk = small_disk(200, "disk")
+    cmd = FACETTE + ["scan", "--sim", "--press-button", "--no-process", "--quiet", "--raw-size", "128x96",
+                     "--exposures", "1/5,1/50", "--lights", "0,1,2,3,4,5", str(disk / "scan")]
+    env = {**os.environ, "TMPDIR": str(camera_tmp)}
+    full = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    assert full.returncode == 1, full.stderr
+    assert f"(mounted at {disk}) is full" in full.stderr and "the scan resumes where it stopped" in full.stderr
+    assert "Traceback" not in full.stderr and "bug" not in full.stderr
+    kept = json.loads((disk / "scan" / "scan.json").read_text())["frames"]
+    assert 0 < len(kept) < 12
+    subprocess.run(["mount", "-o", "remount,size=8m", str(disk)], check=True)
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    assert again.returncode == 0, again.stderr
+    m = json.loads((disk / "scan" / "scan.json").read_text())
+    assert m["complete"] and len(m["frames"]) == 12
+    assert {f["file"]: f["sha256"] for f in kept}.items() <= {f["file"]: f["sha256"] for f in m["frames"]}.items()
+    for f in m["frames"]:
+        assert hashlib.sha256((disk / "scan" / f["file"]).read_bytes()).hexdigest() == f["sha256"]
+    assert not list((disk / "scan").rglob("*.partial"))

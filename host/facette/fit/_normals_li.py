@@ -169,48 +169,17 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
     kept; saturated, missing or shadowed ones are not) keeps its starting normal, K_d from the
     kept values (0 if none) and rel_residual 1.
     """
-    scale_given = scale
-    e = np.asarray(e, dtype=np.float32)
-    if e.ndim == 2:
-        e = e[..., None]
-    if e.ndim != 3:
-        raise ValueError(f"e must have shape (N, m) or (N, m, C), got {e.shape}")
-    n_pix, m, c = e.shape
-    s_shape = np.shape(lights)
-    if s_shape not in ((m, 3), (n_pix, m, 3)):
-        raise ValueError(f"lights must have shape ({m}, 3) or ({n_pix}, {m}, 3) for {n_pix} pixels and "
-                         f"{m} lights, got {s_shape}")
-    if np.shape(normals) != (n_pix, 3):
-        raise ValueError(f"normals must have shape ({n_pix}, 3), got {np.shape(normals)}")
-    n = _unit(np.asarray(normals, dtype=np.float32).reshape(n_pix, 3))
-    s = np.asarray(lights, dtype=np.float32)
+    rescale = scale is None
+    e, s, n = _checked(e, lights, normals)
+    n_pix = e.shape[0]
     finite = np.all(np.isfinite(e), axis=2)
     ok = finite if usable is None else (np.asarray(usable, bool) & finite)
     e = np.where(ok[..., None], e, np.float32(0))
     evals = 0
     a, b = li_shading_terms(n, s, sigma, n_i, volume_model=volume_model)
     evals += 1
-    w0 = ok.astype(np.float32)
-    k = _kappa(e, a, b, w0) if kappa is None else np.asarray(kappa, np.float32)
-    pred = a[..., None] + b[..., None] * k[:, None, :]
-    g_ch = 1 if c == 3 else 0
-    cast = ok & (e[..., g_ch] < CAST_SHADOW_RATIO * pred[..., g_ch]) & \
-        (pred[..., g_ch] > 0.05 * np.max(pred[..., g_ch], axis=1, keepdims=True))
-    keep = ok & ~cast
+    keep, kw, mean_e, k, r, scale = _robust_start(e, a, b, ok, kappa, scale)
     active = keep.sum(1) >= 3
-    kw = keep.astype(np.float32)
-    mean_e = np.sum(kw[..., None] * e, axis=(1, 2)) / np.maximum(kw.sum(1) * c, 1)
-    k = _kappa(e, a, b, kw)
-    r = (e - a[..., None] - b[..., None] * k[:, None, :]) * kw[..., None]
-    # robust κ at the starting normal first (IRLS, no new model evaluation): an outlier absorbed
-    # into κ would spread its residual over every light and pull the normal
-    for _ in range(3):
-        sc = _cauchy_scale(r, keep, mean_e) if scale is None else scale
-        k = _kappa(e, a, b, kw[..., None] / (1 + (r / sc) ** 2))
-        r = (e - a[..., None] - b[..., None] * k[:, None, :]) * kw[..., None]
-    if scale is None:   # fixed per pixel for every start, so that the costs compare
-        scale = _cauchy_scale(r, keep, mean_e)
-    rescale = scale_given is None
 
     def cost_of(r_, sc):
         return np.sum(np.log1p((r_ / sc) ** 2) * kw[..., None], axis=(1, 2))
@@ -229,45 +198,9 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
         idx = np.flatnonzero(active)
         if idx.size == 0:
             break
-        ni, si = n[idx], (s if s.ndim == 2 else s[idx])
-        t1, t2 = _tangents(ni)
-        ei, kwi, ki = e[idx], kw[idx], k[idx]
-        pred0 = a[idx][..., None] + b[idx][..., None] * ki[:, None, :]
-        r0 = (ei - pred0) * kwi[..., None]
-        # IRLS weights of the Cauchy loss: ρ'(r)/r ∝ 1 / (1 + (r/c)²)
-        wr = kwi[..., None] / (1 + (r0 / scale[idx]) ** 2)
-        # Jacobian: the lobe A by forward differences (it varies fast, and is cheap: only the pairs
-        # near the lobe are evaluated); the volume part B = (n·s) I with I taken as locally
-        # constant, dB/dt ≈ (B / n·s)(s·t). The cost and κ are always evaluated exactly, so this
-        # changes the path, not the minimum.
-        cs_i = ni @ si.T if si.ndim == 2 else np.einsum("nj,nmj->nm", ni, si)
-        b_over = np.where(cs_i > 1e-4, b[idx] / np.maximum(cs_i, 1e-4), 0)
-        jac = []
-        for t in (t1, t2):
-            au, _ = li_shading_terms(_unit(ni + STEP_FD * t), si, sigma, n_i, volume=False)
-            st = t @ si.T if si.ndim == 2 else np.einsum("nj,nmj->nm", t, si)
-            jac.append(((au - a[idx]) / STEP_FD)[..., None] + (b_over * st)[..., None] * ki[:, None, :])
-        evals += 2
-        ju, jv = jac
-        huu = np.sum(wr * ju * ju, axis=(1, 2))
-        hvv = np.sum(wr * jv * jv, axis=(1, 2))
-        huv = np.sum(wr * ju * jv, axis=(1, 2))
-        gu = np.sum(wr * ju * r0, axis=(1, 2))
-        gv = np.sum(wr * jv * r0, axis=(1, 2))
-        li = lam[idx]
-        huu_d, hvv_d = huu * (1 + li) + 1e-20, hvv * (1 + li) + 1e-20
-        det = huu_d * hvv_d - huv * huv
-        det = np.where(np.abs(det) > 1e-30, det, 1e-30)
-        du = (hvv_d * gu - huv * gv) / det
-        dv = (huu_d * gv - huv * gu) / det
-        step = np.sqrt(du * du + dv * dv)
-        shrink = np.minimum(1, MAX_STEP / np.maximum(step, 1e-12))
-        cand = _unit(ni + (du * shrink)[:, None] * t1 + (dv * shrink)[:, None] * t2)
-        ac, bc = li_shading_terms(cand, si, sigma, n_i, volume_model=volume_model)
-        evals += 1
-        kc = _kappa(ei, ac, bc, wr)
-        rc = (ei - ac[..., None] - bc[..., None] * kc[:, None, :]) * kwi[..., None]
-        cc = np.sum(np.log1p((rc / scale[idx]) ** 2) * kwi[..., None], axis=(1, 2))
+        cand, ac, bc, kc, cc, moved = _lm_step(e[idx], kw[idx], n[idx], (s if s.ndim == 2 else s[idx]), a[idx],
+                                               b[idx], k[idx], scale[idx], lam[idx], sigma, n_i, volume_model)
+        evals += 3     # the lobe twice (the Jacobian), the model once (the candidate)
         better = cc <= cost[idx]
         acc = idx[better]
         n[acc], a[acc], b[acc], k[acc], cost[acc] = cand[better], ac[better], bc[better], kc[better], cc[better]
@@ -275,7 +208,7 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
         lam[idx[~better]] *= 10
         # converged: the accepted step is below 0.01° or the damping says no step helps
         done = np.zeros(n_pix, bool)
-        done[acc] = (step * shrink)[better] < 2e-4
+        done[acc] = moved[better] < 2e-4
         done[idx[~better]] = lam[idx[~better]] > 1e3
         active &= ~done
     r = (e - a[..., None] - b[..., None] * k[:, None, :]) * kw[..., None]
@@ -286,6 +219,94 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
     rel[keep.sum(1) < 3] = 1
     return RefineResult(normals=n, kappa=k, kd=kd_from_kappa(k, n_i, volume_model), used=keep, cost=cost,
                         rel_residual=rel, iterations=it, evaluations=evals, scale=scale)
+
+
+def _checked(e, lights, normals):
+    """(e (N, m, C) float32, lights float32, normals (N, 3) unit float32) of `_refine_one_start`'s
+    arguments; ValueError for a shape that does not fit."""
+    e = np.asarray(e, dtype=np.float32)
+    if e.ndim == 2:
+        e = e[..., None]
+    if e.ndim != 3:
+        raise ValueError(f"e must have shape (N, m) or (N, m, C), got {e.shape}")
+    n_pix, m, c = e.shape
+    s_shape = np.shape(lights)
+    if s_shape not in ((m, 3), (n_pix, m, 3)):
+        raise ValueError(f"lights must have shape ({m}, 3) or ({n_pix}, {m}, 3) for {n_pix} pixels and "
+                         f"{m} lights, got {s_shape}")
+    if np.shape(normals) != (n_pix, 3):
+        raise ValueError(f"normals must have shape ({n_pix}, 3), got {np.shape(normals)}")
+    n = _unit(np.asarray(normals, dtype=np.float32).reshape(n_pix, 3))
+    return e, np.asarray(lights, dtype=np.float32), n
+
+
+def _robust_start(e, a, b, ok, kappa, scale):
+    """At the starting normal (model terms a, b): the values kept (usable, not a cast shadow),
+    κ fitted robustly, and the Cauchy scale per pixel (`scale` when given).
+    Returns (keep (N, m), its weights kw, mean kept value (N,), κ (N, C), the residuals (N, m, C)
+    and the scale)."""
+    c = e.shape[2]
+    w0 = ok.astype(np.float32)
+    k = _kappa(e, a, b, w0) if kappa is None else np.asarray(kappa, np.float32)
+    pred = a[..., None] + b[..., None] * k[:, None, :]
+    g_ch = 1 if c == 3 else 0
+    cast = ok & (e[..., g_ch] < CAST_SHADOW_RATIO * pred[..., g_ch]) & \
+        (pred[..., g_ch] > 0.05 * np.max(pred[..., g_ch], axis=1, keepdims=True))
+    keep = ok & ~cast
+    kw = keep.astype(np.float32)
+    mean_e = np.sum(kw[..., None] * e, axis=(1, 2)) / np.maximum(kw.sum(1) * c, 1)
+    k = _kappa(e, a, b, kw)
+    r = (e - a[..., None] - b[..., None] * k[:, None, :]) * kw[..., None]
+    # robust κ at the starting normal first (IRLS, no new model evaluation): an outlier absorbed
+    # into κ would spread its residual over every light and pull the normal
+    for _ in range(3):
+        sc = _cauchy_scale(r, keep, mean_e) if scale is None else scale
+        k = _kappa(e, a, b, kw[..., None] / (1 + (r / sc) ** 2))
+        r = (e - a[..., None] - b[..., None] * k[:, None, :]) * kw[..., None]
+    if scale is None:   # fixed per pixel for every start, so that the costs compare
+        scale = _cauchy_scale(r, keep, mean_e)
+    return keep, kw, mean_e, k, r, scale
+
+
+def _lm_step(ei, kwi, ni, si, ai, bi, ki, scale_i, li, sigma, n_i, volume_model):
+    """One Levenberg–Marquardt step of the active pixels (their values, weights, normals, lights,
+    model terms, κ, Cauchy scale, damping). Returns the candidate (normals, A, B, κ, robust cost)
+    and the length of the step taken (rad)."""
+    t1, t2 = _tangents(ni)
+    pred0 = ai[..., None] + bi[..., None] * ki[:, None, :]
+    r0 = (ei - pred0) * kwi[..., None]
+    # IRLS weights of the Cauchy loss: ρ'(r)/r ∝ 1 / (1 + (r/c)²)
+    wr = kwi[..., None] / (1 + (r0 / scale_i) ** 2)
+    # Jacobian: the lobe A by forward differences (it varies fast, and is cheap: only the pairs
+    # near the lobe are evaluated); the volume part B = (n·s) I with I taken as locally
+    # constant, dB/dt ≈ (B / n·s)(s·t). The cost and κ are always evaluated exactly, so this
+    # changes the path, not the minimum.
+    cs_i = ni @ si.T if si.ndim == 2 else np.einsum("nj,nmj->nm", ni, si)
+    b_over = np.where(cs_i > 1e-4, bi / np.maximum(cs_i, 1e-4), 0)
+    jac = []
+    for t in (t1, t2):
+        au, _ = li_shading_terms(_unit(ni + STEP_FD * t), si, sigma, n_i, volume=False)
+        st = t @ si.T if si.ndim == 2 else np.einsum("nj,nmj->nm", t, si)
+        jac.append(((au - ai) / STEP_FD)[..., None] + (b_over * st)[..., None] * ki[:, None, :])
+    ju, jv = jac
+    huu = np.sum(wr * ju * ju, axis=(1, 2))
+    hvv = np.sum(wr * jv * jv, axis=(1, 2))
+    huv = np.sum(wr * ju * jv, axis=(1, 2))
+    gu = np.sum(wr * ju * r0, axis=(1, 2))
+    gv = np.sum(wr * jv * r0, axis=(1, 2))
+    huu_d, hvv_d = huu * (1 + li) + 1e-20, hvv * (1 + li) + 1e-20
+    det = huu_d * hvv_d - huv * huv
+    det = np.where(np.abs(det) > 1e-30, det, 1e-30)
+    du = (hvv_d * gu - huv * gv) / det
+    dv = (huu_d * gv - huv * gu) / det
+    step = np.sqrt(du * du + dv * dv)
+    shrink = np.minimum(1, MAX_STEP / np.maximum(step, 1e-12))
+    cand = _unit(ni + (du * shrink)[:, None] * t1 + (dv * shrink)[:, None] * t2)
+    ac, bc = li_shading_terms(cand, si, sigma, n_i, volume_model=volume_model)
+    kc = _kappa(ei, ac, bc, wr)
+    rc = (ei - ac[..., None] - bc[..., None] * kc[:, None, :]) * kwi[..., None]
+    cc = np.sum(np.log1p((rc / scale_i) ** 2) * kwi[..., None], axis=(1, 2))
+    return cand, ac, bc, kc, cc, step * shrink
 
 
 def _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_starts, extra_rows, step_tol,

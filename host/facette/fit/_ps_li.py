@@ -42,83 +42,33 @@ their chromaticity and log Lambertian albedo (the initial solution's), each regi
 min_region_fraction of the pixels; each region gets its own (σ, n_i), and two regions whose fits
 agree (|Δσ| < 15 % and |Δn_i| < 0.03) are merged back. `info["materials"]` lists each region's
 parameters and pixel count.
+
+Code: this module holds the public function and the rounds of one material (`_fit_material`,
+`_rounds`); the valid pixels' state and the per-pixel steps (levels, solve, model choice) are in
+`_ps_li_pixels` (`Pixels`), coarse-to-fine (binning, upsampling, the full-size round) in
+`_ps_li_coarse`.
 """
 import time
 
 import numpy as np
 
 from facette.brdf import kd_from_kappa, li_shading_terms
-from facette.recon import PSResult, ps_rank_trimmed, ps_woodham1980
-from facette.recon._ps import T_RESIDUAL, _check_inputs, _pixel_dirs, _run_blocks, _usable
-from ._li_model import (DIFFUSE, LI_VOLUME_MODEL, PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model,
-                        diffuse_name, fit_li_per_pixel_kd)
-from ._normals_li import RefineResult, refine_normals_li
+from facette.recon import PSResult, ps_rank_trimmed
+from facette.recon._ps import T_RESIDUAL, _check_inputs
+from ._li_model import DIFFUSE, LI_VOLUME_MODEL, diffuse_name, fit_li_per_pixel_kd
+from ._ps_li_coarse import bin_inputs, coarse_factor, material_from_coarse
+from ._ps_li_pixels import Pixels, Settings, angle_deg
 
 __all__ = ["ps_li_alternating"]
 
-LOBE_TAN = 2.5             # a light is inside the lobe when tan θ_h < LOBE_TAN σ (D > 0.2 % of its peak)
 COARSE_PIXELS = 250_000    # above this many valid pixels the alternation runs coarse-to-fine
-FINE_START_DEG = 5.0       # the fine round starts from the initial normal where the coarse one is this far
-FINE_STEP_TOL = 1e-3       # rad (0.06°): full-size steps stop below this (errors are ~1°)
-ROUND_STEP_TOL = 1e-3      # rad (0.06°): a pixel's solve stops below this step in the rounds too
 SETTLED_SIGMA = 0.05       # a later round's refit within 5 % of σ and 0.01 of n_i: no new re-estimate
 SETTLED_N_I = 0.01
-_BLOCK = 32768             # pixels per block of the per-pixel solve (array code, two threads)
-_BLOCK_COMPILED = 262144   # pixels per call of the compiled solve (it threads inside)
 
 
 def _settled(prev, new):
     """Whether a refit (σ, n_i) is within SETTLED_SIGMA (relative) and SETTLED_N_I of the previous."""
     return abs(new[0] - prev[0]) <= SETTLED_SIGMA * max(prev[0], 1e-3) and abs(new[1] - prev[1]) <= SETTLED_N_I
-
-
-def _angle_deg(a, b):
-    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1, 1)))
-
-
-def _in_lobe(normals, lights, sigma):
-    """(N,) True where some light is inside the fitted lobe (tan θ_h < LOBE_TAN σ)."""
-    v = np.float32([0, 0, 1])
-    h = lights + v
-    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
-    ch = normals @ h.T if h.ndim == 2 else np.einsum("nj,nmj->nm", normals, h)
-    # tan θ_h < k  ⟺  cos² θ_h > 1 / (1 + k²) (for cos θ_h > 0): no square root per pair
-    k2 = np.float32((LOBE_TAN * sigma) ** 2)
-    return np.any(ch > np.float32(np.sqrt(1 / (1 + k2))), axis=1)
-
-
-def _lambertian_correction(normals, lights, sigma, n_i, volume_model, grid=65):
-    """(N, 3) corrected normals for pixels outside the lobe, from least-squares normals.
-
-    Outside the specular lobe the model is E ≈ B(n, s) κ, whose least-squares (Lambertian)
-    normal n_LS(n) differs from n by a smooth bias (the Fresnel transmissions of the volume
-    part, eq 3.15, tilt it by up to a few degrees at oblique normals). That bias depends on the
-    normal alone (κ cancels), so it is tabulated once per (σ, n_i) on a grid of normals and
-    interpolated: n ≈ n_LS + (n_grid − n_LS(n_grid)) at n_grid = n_LS. Cost: grid² pixels, not N.
-    lights : (m, 3), or (N, m, 3) whose mean direction is used (near lights vary little).
-    """
-    s = lights if lights.ndim == 2 else lights.mean(axis=0)
-    s = s / np.linalg.norm(s, axis=1, keepdims=True)
-    u = np.linspace(-1, 1, grid, dtype=np.float32)
-    gx, gy = np.meshgrid(u, u)
-    r2 = gx * gx + gy * gy
-    inside = r2 < 0.995
-    gn = np.stack([gx, gy, np.sqrt(np.maximum(1 - r2, 0))], axis=-1).reshape(-1, 3)
-    gn[~inside.ravel()] = [0, 0, 1]
-    _, b = li_shading_terms(gn, s, sigma, n_i, specular=False, volume_model=volume_model)
-    g = b @ np.linalg.pinv(s).T.astype(np.float32)                 # least squares of the model's values
-    n_ls = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-12)
-    delta = (gn - n_ls).reshape(grid, grid, 3)
-    delta[~inside] = 0
-    # bilinear lookup at each pixel's own (least-squares) normal
-    fx = np.clip((normals[:, 0] + 1) / 2 * (grid - 1), 0, grid - 1.001)
-    fy = np.clip((normals[:, 1] + 1) / 2 * (grid - 1), 0, grid - 1.001)
-    ix, iy = fx.astype(int), fy.astype(int)
-    wx, wy = (fx - ix)[:, None], (fy - iy)[:, None]
-    d = ((1 - wx) * (1 - wy) * delta[iy, ix] + wx * (1 - wy) * delta[iy, ix + 1]
-         + (1 - wx) * wy * delta[iy + 1, ix] + wx * wy * delta[iy + 1, ix + 1])
-    out = normals + d
-    return (out / np.linalg.norm(out, axis=1, keepdims=True)).astype(np.float32)
 
 
 def _regions(albedo, n_pix, materials, min_fraction, seed):
@@ -207,7 +157,40 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     """
     t_start = time.perf_counter()
     images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
-    m, h, w, c = images.shape
+    diffuse_models = _check_options(rounds, init, highlight_start, diffuse, volume_model)
+    f = coarse_factor(int(mask.sum()), coarse_pixels, materials)
+    coarse = None if f is None else _coarse_pass(
+        images, light_dirs, mask, f, saturation, channel=channel, init=init, rounds=rounds, tol_deg=tol_deg,
+        fit_pixels=fit_pixels, t_residual=t_residual, iterations=iterations, seed=seed, init_options=init_options,
+        engine=engine, volume_model=volume_model, highlight_start=highlight_start, diffuse=diffuse)
+    base = init(images, light_dirs, mask=mask, channel=channel, saturation=saturation, **dict(init_options or {}))
+    t_init = time.perf_counter() - t_start
+    res = _result_from(base, images.shape[1:3])
+    info = res.info = {"init": base.method, "rounds": [], "materials": [],
+                       "pixels": int(np.count_nonzero(base.valid))}
+    if info["pixels"] == 0:
+        info["levels"] = {"init": {"pixels": 0, "seconds": t_init}}
+        return res
+    settings = Settings(iterations=iterations, fine_iterations=fine_iterations, fit_pixels=fit_pixels,
+                        t_residual=t_residual, engine=engine, highlight_start=highlight_start,
+                        diffuse_models=diffuse_models)
+    px = Pixels.start(images, light_dirs, mask, channel, saturation, base, init, settings, seed)
+    labels, info["regions_found_by"] = _regions(px.alb, px.idx.size, materials, min_region_fraction, seed)
+    if coarse is not None:
+        info["coarse"] = {k: coarse.info[k] for k in ("factor", "pixels", "seconds", "cpu_seconds", "rounds")}
+    mats, t_brdf = [], 0.0
+    for region in range(int(labels.max()) + 1):
+        t_reg = time.perf_counter()
+        mats.append(_fit_material(px, np.flatnonzero(labels == region), region, coarse, rounds, tol_deg,
+                                  info["rounds"]))
+        t_brdf += time.perf_counter() - t_reg
+    _finish(res, px, mats, t_init, t_brdf)
+    info["seconds"] = time.perf_counter() - t_start
+    return res
+
+
+def _check_options(rounds, init, highlight_start, diffuse, volume_model):
+    """ValueError / TypeError for an option out of range; the diffuse parts (volume models) to try."""
     if rounds < 1:
         raise ValueError(f"rounds = {rounds}: give at least 1 fit / re-estimate round")
     if not callable(init):      # a name is looked up by facette.methods, the layer above
@@ -219,373 +202,143 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         raise ValueError(f"diffuse = {diffuse!r}: choose 'auto', {', '.join(repr(k) for k in DIFFUSE)}")
     diffuse_models = tuple(dict.fromkeys([volume_model if k == "li" else DIFFUSE[k] for k in
                                           (("li", "lambert") if diffuse == "auto" else (diffuse,))]))
-    vm = diffuse_models[0]      # the current material's diffuse part (read by the steps below)
     if init is ps_li_alternating:
         raise ValueError("init = 'li_alternating': the initial normals must come from another method "
                          "(hierarchical_tautzia2016, woodham1980, rpca_wu2010, ...)")
-    coarse = None
-    n_valid_in = int(mask.sum())
-    if coarse_pixels and materials in (1, None) and n_valid_in > coarse_pixels:
-        f = int(np.ceil(np.sqrt(n_valid_in / coarse_pixels)))
-        ci, cl, cm = _bin_inputs(images, light_dirs, mask, f, saturation)
-        t_c, c_c = time.perf_counter(), time.process_time()
-        coarse = ps_li_alternating(ci, cl, mask=cm, channel=channel, saturation=None, init=init,
-                                   rounds=rounds, tol_deg=tol_deg, fit_pixels=fit_pixels,
-                                   t_residual=t_residual, iterations=iterations, materials=1,
-                                   seed=seed, init_options=init_options, coarse_pixels=None,
-                                   engine=engine, volume_model=volume_model, highlight_start=highlight_start,
-                                   diffuse=diffuse)
-        coarse.info["factor"] = f
-        coarse.info["seconds"] = time.perf_counter() - t_c
-        coarse.info["cpu_seconds"] = time.process_time() - c_c
-    opts = dict(init_options or {})
-    base = init(images, light_dirs, mask=mask, channel=channel, saturation=saturation, **opts)
-    t_init = time.perf_counter() - t_start
-    res = PSResult(normal=base.normal.copy(), albedo=base.albedo.copy(), valid=base.valid.copy(),
-                   n_triplets=base.n_triplets, shadow=base.shadow.copy(), specular=base.specular.copy(),
-                   residual=base.residual.copy(), skipped=np.ones((h, w), bool), method="li_alternating")
-    idx = np.flatnonzero(base.valid.ravel())
-    info = {"init": base.method, "rounds": [], "materials": [], "pixels": int(idx.size)}
-    res.info = info
-    if idx.size == 0:
-        info["levels"] = {"init": {"pixels": 0, "seconds": t_init}}
-        return res
-    flat = images.reshape(m, h * w, c)
-    s_all = _pixel_dirs(light_dirs, idx)                          # (m, 3) or (N, m, 3)
-    nrm = base.normal.reshape(-1, 3)[idx].astype(np.float32)
-    nrm0 = nrm.copy()
-    # the Lambertian level: least squares over every light (its residual decides which pixels it
-    # explains; the init's own residual is on the lights that method kept, and its normal would
-    # bias the tabulated correction, which models least squares over every light)
-    ls = base if init is ps_woodham1980 else \
-        ps_woodham1980(images, light_dirs, mask=mask, channel=channel, saturation=saturation)
-    nrm_ls = ls.normal.reshape(-1, 3)[idx].astype(np.float32)
-    resid_ls = np.where(ls.valid.reshape(-1)[idx], ls.residual.reshape(-1)[idx], np.inf)
-    alb = base.albedo.reshape(-1, c)[idx]
-    g_ok = _usable(flat[:, idx, channel], saturation).T            # (N, m)
-    all_ok = np.all(np.isfinite(flat[:, idx, :]), axis=2).T & g_ok
-    resid0 = base.residual.reshape(-1)[idx]
-    rng = np.random.default_rng(seed)
-    labels, how = _regions(alb, idx.size, materials, min_region_fraction, seed)
-    info["regions_found_by"] = how
-    kd = np.zeros((idx.size, c), np.float32)
-    refined = np.zeros(idx.size, bool)
-    shadow_new = base.shadow.reshape(-1, m)[idx].copy()
-    rel = resid0.copy()
-    t_brdf = 0.0
-    mats = []
+    return diffuse_models
 
-    def gather(sel):
-        return np.ascontiguousarray(np.transpose(flat[:, idx[sel], :], (1, 0, 2)), dtype=np.float32)
 
-    def lights_of(sel):
-        return s_all if s_all.ndim == 2 else s_all[sel]
+def _coarse_pass(images, light_dirs, mask, f, saturation, **options):
+    """The whole alternation on the images binned f × f (one material, never coarse-to-fine again):
+    its PSResult, with "factor", "seconds" and "cpu_seconds" in its info."""
+    ci, cl, cm = bin_inputs(images, light_dirs, mask, f, saturation)
+    t_c, c_c = time.perf_counter(), time.process_time()
+    coarse = ps_li_alternating(ci, cl, mask=cm, saturation=None, materials=1, coarse_pixels=None, **options)
+    coarse.info["factor"] = f
+    coarse.info["seconds"] = time.perf_counter() - t_c
+    coarse.info["cpu_seconds"] = time.process_time() - c_c
+    return coarse
 
-    has_highlight, hl_start = _highlight_starts(flat[:, idx, channel].T, all_ok, nrm, s_all, alb[:, channel])
 
-    def refine(sel, sigma, n_i, first_round=True, engine=engine, step_tol=ROUND_STEP_TOL, diffuse_vm=None,
-               table_grid=None):
-        # first round: the current normal and the highlight start; later rounds start from the
-        # previous round's normals, already near, so one start and fewer steps do. Pixel blocks
-        # on WORKERS threads (numpy releases the GIL in its loops).
-        out = {}
-        vm_ = vm if diffuse_vm is None else diffuse_vm      # the current material's, unless given
+def _result_from(base, shape):
+    """The PSResult to fill: the initial solution's arrays (copies), every pixel skipped so far."""
+    return PSResult(normal=base.normal.copy(), albedo=base.albedo.copy(), valid=base.valid.copy(),
+                    n_triplets=base.n_triplets, shadow=base.shadow.copy(), specular=base.specular.copy(),
+                    residual=base.residual.copy(), skipped=np.ones(shape, bool), method="li_alternating")
 
-        def block(a):
-            sub = sel[a:a + (_BLOCK if s_all.ndim == 3 else _BLOCK_COMPILED)]
-            if first_round:
-                # the highlight start doubles the cost where it is tried (most pixels under 96 lights):
-                # on every pixel only with highlight_start="all" (module doc)
-                hl = has_highlight[sub] if (highlight_start == "all" or sel.size <= 4 * fit_pixels) \
-                    else np.zeros(sub.size, bool)
-                out[a] = refine_normals_li(gather(sub), lights_of(sub), nrm[sub], sigma, n_i,
-                                           usable=all_ok[sub], iterations=iterations,
-                                           extra_starts=[hl_start[sub]] if hl.any() else None, extra_rows=hl,
-                                           engine=engine, volume_model=vm_, step_tol=step_tol, table_grid=table_grid)
-            else:
-                out[a] = refine_normals_li(gather(sub), lights_of(sub), nrm[sub], sigma, n_i,
-                                           usable=all_ok[sub], iterations=max(2, iterations // 2), engine=engine,
-                                           volume_model=vm_, step_tol=step_tol)
 
-        if s_all.ndim == 2:
-            # the compiled per-pixel solve runs its own threads: blocks in turn (memory only)
-            for a in range(0, sel.size, _BLOCK_COMPILED):
-                block(a)
-        else:
-            _run_blocks(block, range(0, sel.size, _BLOCK))
-        parts = [out[a] for a in sorted(out)]
-        return RefineResult(**{k: np.concatenate([getattr(p, k) for p in parts])
-                               for k in ("normals", "kd", "used", "rel_residual")})
+def _fit_material(px, pix, region, coarse, rounds, tol_deg, rounds_log):
+    """One material (the pixels `pix` of one region): its rounds, or after a coarse pass its
+    full-size step; then K_d of the pixels that kept their Lambertian solution. Returns its entry
+    of info["materials"]."""
+    t_reg = time.perf_counter()
+    mat = {"region": region, "pixels": int(pix.size), "brdf_step": True}
+    trust = pix[px.nrm[pix, 2] > 0.3]
+    if trust.size < 10:
+        trust = pix
+    if trust.size >= 20:     # round 1 draws from the brighter half: the better signal to noise
+        a_t = px.alb[trust, px.channel]
+        trust = trust[a_t >= np.median(a_t)]
+    px.vm = px.settings.diffuse_models[0]
+    if coarse is not None:
+        x0 = material_from_coarse(px, coarse, pix, trust, mat, rounds_log)
+    else:
+        x0 = _rounds(px, pix, trust, region, mat, int(rounds), tol_deg, rounds_log)
+    mat.update(sigma=x0[0] if x0 else None, n_i=x0[1] if x0 else None, volume_model=px.vm,
+               diffuse=diffuse_name(px.vm),
+               pixels_refined=int(px.refined[pix].sum()), seconds=time.perf_counter() - t_reg)
+    # K_d of the pixels that kept their Lambertian solution: ρ/π = κ × I at normal incidence
+    keep = pix[~px.refined[pix]]
+    if keep.size and x0 is not None and x0[1] >= 1.0:
+        _, b0 = li_shading_terms(np.float32([[0, 0, 1]]), np.float32([[0, 0, 1]]), x0[0], x0[1],
+                                 volume_model=px.vm)
+        px.kd[keep] = kd_from_kappa(px.alb[keep] / np.pi / max(float(b0[0, 0]), 1e-6), x0[1], px.vm)
+    elif keep.size:
+        px.kd[keep] = np.clip(px.alb[keep], 0, 1)
+    return mat
 
-    def split_levels(pix, sigma, n_i):
-        # the BRDF-aware step where the lobe matters; the rest keeps the initial solution (its
-        # shadow test) unless least squares already explained it (then corrected here)
-        lobe = _in_lobe(nrm0[pix], lights_of(pix), sigma) | has_highlight[pix]
-        lam_ok = (resid_ls[pix] < t_residual) & all_ok[pix].all(1) & ~lobe
-        lam_pix = pix[lam_ok]
-        if lam_pix.size:
-            nrm[lam_pix] = _lambertian_correction(nrm_ls[lam_pix], lights_of(lam_pix), sigma, n_i, vm)
-            refined[lam_pix] = False
-        return lobe, lam_ok, pix[~lam_ok & lobe]
 
-    def choose_model(fsel):
-        # Round 1 (`choose_material_model`): lobe or none, which diffuse part, and (σ, n_i), on the
-        # profile pixels: the fit pixels, fewer under many lights (PROFILE_VALUES values)
-        fsel = fsel[np.sort(rng.choice(fsel.size, min(fsel.size, max(100, PROFILE_VALUES // m)), replace=False))]
-        e_f = gather(fsel)
-        l_f, ok_f = lights_of(fsel), all_ok[fsel]
-        warm_engine = "arrays" if engine == "auto" else engine
-        # the search's solves: the compiled engine where it applies (distant lights), on a coarse
-        # table of the volume part (PROFILE_TABLE_GRID), converged, with the highlight start (one
-        # start and half the steps moved the simulated scan's choice from σ 0.050, n_i 1.20 to
-        # 0.035, 1.30: 0.38° -> 0.62°)
-        search_engine = "compiled" if engine == "auto" and s_all.ndim == 2 else warm_engine
-
-        def solve(sigma, n_i, vm_, search=True):
-            return refine(fsel, sigma, n_i, engine=search_engine if search else warm_engine, diffuse_vm=vm_,
-                          table_grid=PROFILE_TABLE_GRID if search else None).normals
-
-        return choose_material_model(e_f, l_f, ok_f, solve, diffuse_models)
-
-    def lambertian_material(pix):
-        # no interface: least squares over every light is the Lambertian answer where it explains
-        # the pixel (every light usable, residual < t_residual); a robust init's trimming only adds
-        # noise there (Mitsuba plaster relief: least squares 1.41°, rank_trimmed 1.54°)
-        lam = pix[(resid_ls[pix] < t_residual) & all_ok[pix].all(1)]
-        nrm[lam] = nrm_ls[lam]
-        return int(lam.size)
-
-    def store(todo, rr):
-        nrm[todo] = rr.normals
-        kd[todo] = rr.kd
-        refined[todo] = True
-        rel[todo] = rr.rel_residual
-        shadow_new[todo] = all_ok[todo] & ~rr.used
-
-    def _fine_round(x0, pix, steps=None):
-        # full size after the coarse pass: (σ, n_i) kept, a few steps from the upsampled normal
+def _rounds(px, pix, trust, region, mat, rounds, tol_deg, rounds_log):
+    """Steps 2–4 of the module doc for one material: round 1 chooses the model and fits it, each
+    round re-estimates the pixels that need it, later rounds refit on the better-explained half.
+    Appends each round to `rounds_log`, updates `mat`; returns the last (σ, n_i) or None."""
+    x0, score = None, None
+    for rnd in range(1, rounds + 1):
         t_r, c_r = time.perf_counter(), time.process_time()
-        sigma, n_i = x0
-        up = _upsample_normals(coarse.normal, (h, w), coarse.info["factor"]).reshape(-1, 3)[idx]
-        # at a silhouette the upsampled normal blends the object's rim with the table's, and a few
-        # steps do not bring it back (the simulated 12 MP scan: a 3° ring round its sphere, heights
-        # 0.45 mm off); where it is > FINE_START_DEG from the pixel's own initial normal, that is the start
-        up = np.where((_angle_deg(up, nrm0) > FINE_START_DEG)[:, None], nrm0, up)
-        lobe, lam_ok, todo = split_levels(pix, sigma, n_i)
+        if score is not None:   # later rounds: all but the worse-explained half of the re-estimated
+            trust = pix[score <= np.median(score[np.isfinite(score)])] if np.isfinite(score).any() else pix
+        fsel = px.draw(trust)
+        warm, choice = 0, None
+        if rnd == 1:           # the model choice gathers its own (profile) pixels' values
+            fit, warm, choice = px.choose_model(fsel)
+            px.vm = fit["volume_model"]
+        else:
+            fit = fit_li_per_pixel_kd(px.gather(fsel), px.lights_of(fsel), px.nrm[fsel], px.all_ok[fsel], x0=x0,
+                                      volume_model=px.vm)
+        if not np.isfinite(fit["sigma"]):
+            mat.update(brdf_step=False, note=f"fit failed: {fit['message']}")
+            break
+        settled = x0 is not None and rnd > 1 and _settled(x0, (fit["sigma"], fit["n_i"]))
+        x0 = (fit["sigma"], fit["n_i"])
+        round_info = {"material": region, "round": rnd, "sigma": fit["sigma"], "n_i": fit["n_i"],
+                      "fit_pixels": int(fsel.size), "warm_up_refits": warm}
+        if settled:
+            # the refit on the re-estimated normals barely moved the model: re-estimating every
+            # pixel against it again would move them by less than the noise (module doc)
+            round_info.update(pixels_refined=0, median_change_deg=0.0, stopped="(σ, n_i) settled",
+                              seconds=time.perf_counter() - t_r, cpu_seconds=time.process_time() - c_r)
+            rounds_log.append(round_info)
+            break
+        if choice is not None:
+            round_info["model_choice"] = choice
+            mat["model_choice"] = choice
+        if choice is not None and choice["model"] == "lambertian":
+            n_ls = px.lambertian_material(pix)
+            round_info.update(pixels_refined=0, pixels_lambertian=n_ls, median_change_deg=0.0,
+                              seconds=time.perf_counter() - t_r)
+            rounds_log.append(round_info)
+            mat.update(brdf_step=False, note=f"Lambertian-like ({choice['why']}): BRDF step skipped, "
+                       "least squares where it explains the pixel, the initial normals elsewhere")
+            break
+        lobe, lam_ok, todo = px.split_levels(pix, fit["sigma"], fit["n_i"])
         change = np.zeros(0)
         if todo.size:
-            out = []
-            for a in range(0, todo.size, _BLOCK_COMPILED if s_all.ndim == 2 else _BLOCK):
-                sub = todo[a:a + (_BLOCK_COMPILED if s_all.ndim == 2 else _BLOCK)]
-                out.append(refine_normals_li(gather(sub), lights_of(sub), up[sub], sigma, n_i,
-                                             usable=all_ok[sub], iterations=steps or fine_iterations,
-                                             step_tol=FINE_STEP_TOL, engine=engine, volume_model=vm))
-            rr = RefineResult(**{k: np.concatenate([getattr(p, k) for p in out])
-                                 for k in ("normals", "kd", "used", "rel_residual")})
-            mean_its = float(np.average([getattr(p, "mean_iterations", p.iterations) for p in out],
-                                        weights=[len(p.normals) for p in out]))
-            change = _angle_deg(rr.normals, up[todo])
-            store(todo, rr)
-        info["rounds"].append({"material": 0, "round": "full size", "sigma": sigma, "n_i": n_i,
-                               "pixels_refined": int(todo.size), "pixels_lambertian": int(lam_ok.sum()),
-                               "pixels_initial_kept": int((~lam_ok & ~lobe).sum()),
-                               "median_change_deg": float(np.median(change)) if change.size else 0.0,
-                               "mean_change_deg": float(change.mean()) if change.size else 0.0,
-                               "mean_iterations": mean_its if todo.size else 0.0,
-                               "seconds": time.perf_counter() - t_r,
-                               "cpu_seconds": time.process_time() - c_r})
+            rr = px.refine(todo, fit["sigma"], fit["n_i"], first_round=not px.refined[todo].all())
+            change = angle_deg(rr.normals, px.nrm[todo])
+            px.store(todo, rr)
+        score = np.full(pix.size, np.inf, np.float32)     # Lambertian-level pixels: not for the fit
+        score[~lam_ok & lobe] = px.rel[todo]
+        med = float(np.median(change)) if change.size else 0.0
+        round_info.update(pixels_refined=int(todo.size), pixels_lambertian=int(lam_ok.sum()),
+                          pixels_initial_kept=int((~lam_ok & ~lobe).sum()),
+                          median_change_deg=med,
+                          mean_change_deg=float(change.mean()) if change.size else 0.0,
+                          seconds=time.perf_counter() - t_r, cpu_seconds=time.process_time() - c_r)
+        rounds_log.append(round_info)
+        if med < tol_deg:
+            break
+    return x0
 
-    if coarse is not None:
-        info["coarse"] = {"factor": coarse.info["factor"], "pixels": coarse.info["pixels"],
-                          "seconds": coarse.info["seconds"],
-                          "cpu_seconds": coarse.info["cpu_seconds"], "rounds": coarse.info["rounds"]}
-    for region in range(int(labels.max()) + 1):
-        t_reg = time.perf_counter()
-        pix = np.flatnonzero(labels == region)
-        x0 = None
-        mat = {"region": region, "pixels": int(pix.size), "brdf_step": True}
-        trust = pix[nrm[pix, 2] > 0.3]
-        if trust.size < 10:
-            trust = pix
-        if trust.size >= 20:     # round 1 draws from the brighter half: the better signal to noise
-            a_t = alb[trust, channel]
-            trust = trust[a_t >= np.median(a_t)]
-        score = None
-        vm = diffuse_models[0]
-        if coarse is not None:
-            cmat = coarse.info["materials"][0] if coarse.info.get("materials") else {"brdf_step": False}
-            vm = cmat.get("volume_model", vm)
-            if "model_choice" in cmat:     # made on the coarse images: say so at full size too
-                mat["model_choice"] = dict(cmat["model_choice"], made_on="the coarse pass")
-            full = None
-            if not cmat.get("brdf_step") or cmat.get("sigma") is None:
-                # binning smears a sharp highlight over its block, and the lobe no longer fits it:
-                # a glossy sphere at 2144x1424 binned by 4 showed a 1.9 % gain (Lambertian), 67 % at
-                # 536x356 unbinned. So "no lobe" is asked again of full-size pixels.
-                fsel = np.sort(rng.choice(trust, min(fit_pixels, trust.size), replace=False))
-                fit, _, choice = choose_model(fsel)
-                if choice["model"] == "lobe":
-                    full = fit
-                    vm = fit["volume_model"]
-                    mat["model_choice"] = dict(choice, made_on="full-size pixels (the coarse pass found no lobe)")
-            if full is not None:
-                x0 = (full["sigma"], full["n_i"])
-                _fine_round(x0, pix, steps=iterations)   # the coarse normals are Lambertian ones: converge
-            elif not cmat.get("brdf_step") or cmat.get("sigma") is None:
-                mat.update(brdf_step=False, note="coarse pass: " + cmat.get("note", "no BRDF step"))
-                lambertian_material(pix)
-                if cmat.get("sigma") is not None:
-                    x0 = (cmat["sigma"], cmat["n_i"])
-            else:
-                x0 = (cmat["sigma"], cmat["n_i"])
-                _fine_round(x0, pix)
-            rounds_here = 0
-        else:
-            rounds_here = int(rounds)
-        for rnd in range(1, rounds_here + 1):
-            t_r, c_r = time.perf_counter(), time.process_time()
-            if score is not None:   # later rounds: all but the worse-explained half of the re-estimated
-                trust = pix[score <= np.median(score[np.isfinite(score)])] if np.isfinite(score).any() else pix
-            fsel = np.sort(rng.choice(trust, min(fit_pixels, trust.size), replace=False))
-            warm, choice = 0, None
-            if rnd == 1:           # the model choice gathers its own (profile) pixels' values
-                fit, warm, choice = choose_model(fsel)
-                vm = fit["volume_model"]
-            else:
-                fit = fit_li_per_pixel_kd(gather(fsel), lights_of(fsel), nrm[fsel], all_ok[fsel], x0=x0,
-                                          volume_model=vm)
-            if not np.isfinite(fit["sigma"]):
-                mat.update(brdf_step=False, note=f"fit failed: {fit['message']}")
-                break
-            settled = x0 is not None and rnd > 1 and _settled(x0, (fit["sigma"], fit["n_i"]))
-            x0 = (fit["sigma"], fit["n_i"])
-            round_info = {"material": region, "round": rnd, "sigma": fit["sigma"], "n_i": fit["n_i"],
-                          "fit_pixels": int(fsel.size), "warm_up_refits": warm}
-            if settled:
-                # the refit on the re-estimated normals barely moved the model: re-estimating every
-                # pixel against it again would move them by less than the noise (module doc)
-                round_info.update(pixels_refined=0, median_change_deg=0.0, stopped="(σ, n_i) settled",
-                                  seconds=time.perf_counter() - t_r, cpu_seconds=time.process_time() - c_r)
-                info["rounds"].append(round_info)
-                break
-            if choice is not None:
-                round_info["model_choice"] = choice
-                mat["model_choice"] = choice
-            if choice is not None and choice["model"] == "lambertian":
-                n_ls = lambertian_material(pix)
-                round_info.update(pixels_refined=0, pixels_lambertian=n_ls, median_change_deg=0.0,
-                                  seconds=time.perf_counter() - t_r)
-                info["rounds"].append(round_info)
-                mat.update(brdf_step=False, note=f"Lambertian-like ({choice['why']}): BRDF step skipped, "
-                           "least squares where it explains the pixel, the initial normals elsewhere")
-                break
-            lobe, lam_ok, todo = split_levels(pix, fit["sigma"], fit["n_i"])
-            change = np.zeros(0)
-            if todo.size:
-                rr = refine(todo, fit["sigma"], fit["n_i"], first_round=not refined[todo].all())
-                change = _angle_deg(rr.normals, nrm[todo])
-                store(todo, rr)
-            sc = np.full(pix.size, np.inf, np.float32)     # Lambertian-level pixels: not for the fit
-            sc[~lam_ok & lobe] = rel[todo]
-            score = sc
-            med = float(np.median(change)) if change.size else 0.0
-            round_info.update(pixels_refined=int(todo.size), pixels_lambertian=int(lam_ok.sum()),
-                              pixels_initial_kept=int((~lam_ok & ~lobe).sum()),
-                              median_change_deg=med,
-                              mean_change_deg=float(change.mean()) if change.size else 0.0,
-                              seconds=time.perf_counter() - t_r, cpu_seconds=time.process_time() - c_r)
-            info["rounds"].append(round_info)
-            if med < tol_deg:
-                break
-        mat.update(sigma=x0[0] if x0 else None, n_i=x0[1] if x0 else None, volume_model=vm,
-                   diffuse=diffuse_name(vm),
-                   pixels_refined=int(refined[pix].sum()), seconds=time.perf_counter() - t_reg)
-        # K_d of the pixels that kept their Lambertian solution: ρ/π = κ × I at normal incidence
-        keep = pix[~refined[pix]]
-        if keep.size and x0 is not None and x0[1] >= 1.0:
-            _, b0 = li_shading_terms(np.float32([[0, 0, 1]]), np.float32([[0, 0, 1]]), x0[0], x0[1],
-                                     volume_model=vm)
-            kd[keep] = kd_from_kappa(alb[keep] / np.pi / max(float(b0[0, 0]), 1e-6), x0[1], vm)
-        elif keep.size:
-            kd[keep] = np.clip(alb[keep], 0, 1)
-        t_brdf += time.perf_counter() - t_reg
-        mats.append(mat)
-    info["materials"] = _merge_agreeing(mats)
-    _scatter_rows(res.normal, idx, nrm)
-    _scatter_rows(res.albedo, idx, kd)
-    _scatter_rows(res.shadow, idx, shadow_new)
-    _scatter_rows(res.residual, idx, rel)
+
+def _finish(res, px, mats, t_init, t_brdf):
+    """The valid pixels' normals, K_d, shadows, residuals written into `res` (the pixels the
+    BRDF-aware step solved are not skipped and have no light eliminated as specular); the
+    materials (agreeing regions merged) and the levels into its info."""
+    res.info["materials"] = _merge_agreeing(mats)
+    _scatter_rows(res.normal, px.idx, px.nrm)
+    _scatter_rows(res.albedo, px.idx, px.kd)
+    _scatter_rows(res.shadow, px.idx, px.shadow)
+    _scatter_rows(res.residual, px.idx, px.rel)
     sk = res.skipped.reshape(-1)
     sk[:] = False
-    sk[idx] = ~refined
-    spec = res.specular.reshape(-1, m)
-    spec[idx[refined]] = False     # the model explains the highlights: no light eliminated
-    info["levels"] = {
-        "init": {"method": base.method, "pixels": int(idx.size), "seconds": t_init},
-        "lambertian": {"pixels": int((~refined).sum())},
-        "brdf_aware": {"pixels": int(refined.sum()), "seconds": t_brdf},
+    sk[px.idx] = ~px.refined
+    spec = res.specular.reshape(-1, res.specular.shape[-1])
+    spec[px.idx[px.refined]] = False     # the model explains the highlights: no light eliminated
+    res.info["levels"] = {
+        "init": {"method": res.info["init"], "pixels": int(px.idx.size), "seconds": t_init},
+        "lambertian": {"pixels": int((~px.refined).sum())},
+        "brdf_aware": {"pixels": int(px.refined.sum()), "seconds": t_brdf},
     }
-    info["seconds"] = time.perf_counter() - t_start
-    return res
-
-
-def _highlight_starts(values, usable, normals, lights, albedo):
-    """A second start per pixel: the half-vector of the light that most exceeds the Lambertian
-    prediction of the initial solution (a highlight says where the normal is), tried where that
-    light stands out (≥ 10 % of the pixel's mean value). values, usable : (N, m); normals (N, 3);
-    lights (m, 3) or (N, m, 3); albedo (N,). Returns (has_highlight (N,) bool, starts (N, 3))."""
-    lam_pred = (normals @ lights.T if lights.ndim == 2 else np.einsum("nj,nmj->nm", normals, lights)) * \
-        (albedo / np.pi)[:, None]
-    excess = np.where(usable, values, -np.inf) - lam_pred
-    brightest = np.argmax(excess, axis=1)
-    mean_v = np.nanmean(np.where(usable, values, np.nan), axis=1)
-    has_highlight = np.take_along_axis(excess, brightest[:, None], 1)[:, 0] > 0.1 * np.nan_to_num(mean_v)
-    half = lights + np.float32([0, 0, 1])
-    half = (half / np.linalg.norm(half, axis=-1, keepdims=True)).astype(np.float32)
-    return has_highlight, (half[brightest] if half.ndim == 2 else half[np.arange(len(normals)), brightest])
-
-
-def _bin_inputs(images, light_dirs, mask, f, saturation):
-    """Images (m, H, W, C), directions and mask binned by f × f blocks (H, W padded up).
-
-    A binned value is the mean of the block's masked, finite (and, with `saturation`, unsaturated)
-    values; NaN where fewer than half the block's pixels are such. The binned mask: at least half
-    the block's pixels masked. Per-pixel directions: the block mean, renormalised."""
-    m, h, w, c = images.shape
-    hc, wc = -(-h // f), -(-w // f)
-
-    from ._normals_li_jit import bin_images   # numba loads only when li_alternating runs
-
-    msk = np.pad(mask, [(0, hc * f - h), (0, wc * f - w)])
-    cmask = msk.reshape(hc, f, wc, f).sum((1, 3)) * 2 >= f * f
-    out = bin_images(images, mask, f, saturation)
-    if light_dirs.ndim == 2:
-        dirs = light_dirs
-    else:
-        ld = np.pad(light_dirs, [(0, hc * f - h), (0, wc * f - w), (0, 0), (0, 0)], mode="edge")
-        dirs = ld.reshape(hc, f, wc, f, m, 3).mean((1, 3))
-        dirs = (dirs / np.linalg.norm(dirs, axis=-1, keepdims=True)).astype(np.float32)
-    return out, dirs, cmask
-
-
-def _upsample_normals(coarse, shape, f):
-    """(H, W, 3) unit normals bilinearly interpolated from the (hc, wc, 3) coarse normals (cell
-    centres); coarse pixels without a normal take their nearest valid neighbour's first."""
-    from scipy.ndimage import distance_transform_edt, map_coordinates
-    valid = np.linalg.norm(coarse, axis=-1) > 0.5
-    if not valid.any():
-        return np.zeros(shape + (3,), np.float32)
-    if not valid.all():
-        _, (iy, ix) = distance_transform_edt(~valid, return_indices=True)
-        coarse = coarse[iy, ix]
-    h, w = shape
-    yy = (np.arange(h, dtype=np.float32) + 0.5) / f - 0.5
-    xx = (np.arange(w, dtype=np.float32) + 0.5) / f - 0.5
-    gy, gx = np.meshgrid(yy, xx, indexing="ij")
-    out = np.stack([map_coordinates(coarse[..., k], [gy, gx], order=1, mode="nearest")
-                    for k in range(3)], -1)
-    ln = np.linalg.norm(out, axis=-1, keepdims=True)
-    return np.where(ln > 1e-6, out / np.maximum(ln, 1e-6), np.float32([0, 0, 1])).astype(np.float32)
 
 
 def _merge_agreeing(mats):
@@ -614,4 +367,3 @@ def _merge_agreeing(mats):
 def _scatter_rows(arr, idx, values):
     flat = arr.reshape((-1,) + arr.shape[2:])
     flat[idx] = values
-

@@ -1,0 +1,259 @@
+"""The valid pixels of one `ps_li_alternating` call and the per-pixel steps of its rounds.
+
+`Pixels` holds what the steps read (each valid pixel's values, lights, initial and least-squares
+solutions, highlight start) and what they update (normals, K_d, residuals, shadows, which pixels
+the BRDF-aware step solved); `Settings` the call's options the steps read. The steps:
+
+- `split_levels`: which pixels need the BRDF-aware step (a light inside the fitted lobe, or a
+  highlight); the rest keep the initial solution, or least squares where it explains them,
+  corrected for the model's bias (`_lambertian_correction`);
+- `refine`: the BRDF-aware per-pixel solve (facette.fit.refine_normals_li) in blocks;
+- `choose_model`: round 1's model choice on profile pixels (facette.fit._li_model);
+- `lambertian_material`: a material without a lobe;
+- `store`: a solve's results written back.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from facette.brdf import li_shading_terms
+from facette.recon import ps_woodham1980
+from facette.recon._ps import _pixel_dirs, _run_blocks, _usable
+from ._li_model import PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model
+from ._normals_li import RefineResult, refine_normals_li
+
+LOBE_TAN = 2.5             # a light is inside the lobe when tan θ_h < LOBE_TAN σ (D > 0.2 % of its peak)
+ROUND_STEP_TOL = 1e-3      # rad (0.06°): a pixel's solve stops below this step in the rounds too
+BLOCK = 32768              # pixels per block of the per-pixel solve (array code, two threads)
+BLOCK_COMPILED = 262144    # pixels per call of the compiled solve (it threads inside)
+_FIELDS = ("normals", "kd", "used", "rel_residual")
+
+
+def angle_deg(a, b):
+    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1, 1)))
+
+
+def join_blocks(parts):
+    """One RefineResult of the solves of consecutive pixel blocks."""
+    return RefineResult(**{k: np.concatenate([getattr(p, k) for p in parts]) for k in _FIELDS})
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The options of `ps_li_alternating` that the per-pixel steps read (its docstring)."""
+    iterations: int
+    fine_iterations: int
+    fit_pixels: int
+    t_residual: float
+    engine: str
+    highlight_start: str
+    diffuse_models: tuple      # the volume models the model choice tries, the first the default
+
+
+@dataclass
+class Pixels:
+    """The N valid pixels (flat indices `idx` into H × W) of one call and their state."""
+    settings: Settings
+    shape: tuple               # (H, W)
+    channel: int               # the channel the shadow and highlight tests read
+    flat: np.ndarray           # (m, H·W, C) the images
+    idx: np.ndarray            # (N,) flat indices of the valid pixels
+    s_all: np.ndarray          # (m, 3) or (N, m, 3) light directions
+    all_ok: np.ndarray         # (N, m) usable: finite in every channel, unsaturated
+    alb: np.ndarray            # (N, C) the initial solution's albedo
+    nrm0: np.ndarray           # (N, 3) the initial normals
+    nrm_ls: np.ndarray         # (N, 3) least squares over every light
+    resid_ls: np.ndarray       # (N,) its relative residual (inf where it has none)
+    has_highlight: np.ndarray  # (N,) bool: a light stands out above the Lambertian prediction
+    hl_start: np.ndarray       # (N, 3) the half-vector of that light (a second start)
+    rng: np.random.Generator   # draws the fit and profile pixels
+    nrm: np.ndarray            # (N, 3) current normals
+    kd: np.ndarray             # (N, C) K_d of the pixels solved so far
+    refined: np.ndarray        # (N,) bool: solved by the BRDF-aware step
+    shadow: np.ndarray         # (N, m) lights left out
+    rel: np.ndarray            # (N,) relative residual
+    vm: str = ""               # the current material's diffuse part (volume model)
+
+    @classmethod
+    def start(cls, images, light_dirs, mask, channel, saturation, base, init, settings, seed):
+        """The valid pixels of `base` (the initial solution, a PSResult), with least squares."""
+        m, h, w, c = images.shape
+        idx = np.flatnonzero(base.valid.ravel())
+        flat = images.reshape(m, h * w, c)
+        s_all = _pixel_dirs(light_dirs, idx)                          # (m, 3) or (N, m, 3)
+        nrm = base.normal.reshape(-1, 3)[idx].astype(np.float32)
+        # the Lambertian level: least squares over every light (its residual decides which pixels it
+        # explains; the init's own residual is on the lights that method kept, and its normal would
+        # bias the tabulated correction, which models least squares over every light)
+        ls = base if init is ps_woodham1980 else \
+            ps_woodham1980(images, light_dirs, mask=mask, channel=channel, saturation=saturation)
+        alb = base.albedo.reshape(-1, c)[idx]
+        g_ok = _usable(flat[:, idx, channel], saturation).T            # (N, m)
+        all_ok = np.all(np.isfinite(flat[:, idx, :]), axis=2).T & g_ok
+        has_highlight, hl_start = _highlight_starts(flat[:, idx, channel].T, all_ok, nrm, s_all, alb[:, channel])
+        return cls(settings=settings, shape=(h, w), channel=channel, flat=flat, idx=idx, s_all=s_all,
+                   all_ok=all_ok, alb=alb, nrm0=nrm.copy(), nrm_ls=ls.normal.reshape(-1, 3)[idx].astype(np.float32),
+                   resid_ls=np.where(ls.valid.reshape(-1)[idx], ls.residual.reshape(-1)[idx], np.inf),
+                   has_highlight=has_highlight, hl_start=hl_start, rng=np.random.default_rng(seed), nrm=nrm,
+                   kd=np.zeros((idx.size, c), np.float32), refined=np.zeros(idx.size, bool),
+                   shadow=base.shadow.reshape(-1, m)[idx].copy(), rel=base.residual.reshape(-1)[idx].copy(),
+                   vm=settings.diffuse_models[0])
+
+    def gather(self, sel):
+        """(n, m, C) float32 values of the pixels `sel` (indices into the N)."""
+        return np.ascontiguousarray(np.transpose(self.flat[:, self.idx[sel], :], (1, 0, 2)), dtype=np.float32)
+
+    def lights_of(self, sel):
+        return self.s_all if self.s_all.ndim == 2 else self.s_all[sel]
+
+    def draw(self, trust):
+        """Sorted fit pixels: `fit_pixels` of `trust` (all if fewer), drawn without replacement."""
+        return np.sort(self.rng.choice(trust, min(self.settings.fit_pixels, trust.size), replace=False))
+
+    def refine(self, sel, sigma, n_i, first_round=True, engine=None, step_tol=ROUND_STEP_TOL, diffuse_vm=None,
+               table_grid=None):
+        """RefineResult of the pixels `sel` solved against (σ, n_i).
+
+        First round: the current normal and the highlight start; later rounds start from the
+        previous round's normals, already near, so one start and fewer steps do. Pixel blocks on
+        WORKERS threads (numpy releases the GIL in its loops)."""
+        st = self.settings
+        engine = st.engine if engine is None else engine
+        vm = self.vm if diffuse_vm is None else diffuse_vm      # the current material's, unless given
+        out = {}
+
+        def block(a):
+            sub = sel[a:a + (BLOCK if self.s_all.ndim == 3 else BLOCK_COMPILED)]
+            e, lights, ok = self.gather(sub), self.lights_of(sub), self.all_ok[sub]
+            if first_round:
+                # the highlight start doubles the cost where it is tried (most pixels under 96 lights):
+                # on every pixel only with highlight_start="all" (module doc of _ps_li)
+                hl = self.has_highlight[sub] if (st.highlight_start == "all" or sel.size <= 4 * st.fit_pixels) \
+                    else np.zeros(sub.size, bool)
+                out[a] = refine_normals_li(e, lights, self.nrm[sub], sigma, n_i, usable=ok, iterations=st.iterations,
+                                           extra_starts=[self.hl_start[sub]] if hl.any() else None, extra_rows=hl,
+                                           engine=engine, volume_model=vm, step_tol=step_tol, table_grid=table_grid)
+            else:
+                out[a] = refine_normals_li(e, lights, self.nrm[sub], sigma, n_i, usable=ok,
+                                           iterations=max(2, st.iterations // 2), engine=engine,
+                                           volume_model=vm, step_tol=step_tol)
+
+        if self.s_all.ndim == 2:
+            # the compiled per-pixel solve runs its own threads: blocks in turn (memory only)
+            for a in range(0, sel.size, BLOCK_COMPILED):
+                block(a)
+        else:
+            _run_blocks(block, range(0, sel.size, BLOCK))
+        return join_blocks([out[a] for a in sorted(out)])
+
+    def split_levels(self, pix, sigma, n_i):
+        """(lobe, lam_ok, todo) of the pixels `pix`: the BRDF-aware step where the lobe matters
+        (`todo`); the rest keeps the initial solution (its shadow test) unless least squares
+        already explained it (`lam_ok`: then corrected here)."""
+        lobe = _in_lobe(self.nrm0[pix], self.lights_of(pix), sigma) | self.has_highlight[pix]
+        lam_ok = (self.resid_ls[pix] < self.settings.t_residual) & self.all_ok[pix].all(1) & ~lobe
+        lam_pix = pix[lam_ok]
+        if lam_pix.size:
+            self.nrm[lam_pix] = _lambertian_correction(self.nrm_ls[lam_pix], self.lights_of(lam_pix), sigma, n_i,
+                                                       self.vm)
+            self.refined[lam_pix] = False
+        return lobe, lam_ok, pix[~lam_ok & lobe]
+
+    def choose_model(self, fsel):
+        """Round 1 (`choose_material_model`): lobe or none, which diffuse part, and (σ, n_i), on the
+        profile pixels: the fit pixels, fewer under many lights (PROFILE_VALUES values)."""
+        m = self.flat.shape[0]
+        fsel = fsel[np.sort(self.rng.choice(fsel.size, min(fsel.size, max(100, PROFILE_VALUES // m)),
+                                            replace=False))]
+        engine = self.settings.engine
+        warm_engine = "arrays" if engine == "auto" else engine
+        # the search's solves: the compiled engine where it applies (distant lights), on a coarse
+        # table of the volume part (PROFILE_TABLE_GRID), converged, with the highlight start (one
+        # start and half the steps moved the simulated scan's choice from σ 0.050, n_i 1.20 to
+        # 0.035, 1.30: 0.38° -> 0.62°)
+        search_engine = "compiled" if engine == "auto" and self.s_all.ndim == 2 else warm_engine
+
+        def solve(sigma, n_i, vm, search=True):
+            return self.refine(fsel, sigma, n_i, engine=search_engine if search else warm_engine, diffuse_vm=vm,
+                               table_grid=PROFILE_TABLE_GRID if search else None).normals
+
+        return choose_material_model(self.gather(fsel), self.lights_of(fsel), self.all_ok[fsel], solve,
+                                     self.settings.diffuse_models)
+
+    def lambertian_material(self, pix):
+        """Pixels of `pix` given least squares (a material without an interface); their count."""
+        # least squares over every light is the Lambertian answer where it explains the pixel (every
+        # light usable, residual < t_residual); a robust init's trimming only adds noise there
+        # (Mitsuba plaster relief: least squares 1.41°, rank_trimmed 1.54°)
+        lam = pix[(self.resid_ls[pix] < self.settings.t_residual) & self.all_ok[pix].all(1)]
+        self.nrm[lam] = self.nrm_ls[lam]
+        return int(lam.size)
+
+    def store(self, todo, rr):
+        """The BRDF-aware solve `rr` of the pixels `todo` written back."""
+        self.nrm[todo] = rr.normals
+        self.kd[todo] = rr.kd
+        self.refined[todo] = True
+        self.rel[todo] = rr.rel_residual
+        self.shadow[todo] = self.all_ok[todo] & ~rr.used
+
+
+def _in_lobe(normals, lights, sigma):
+    """(N,) True where some light is inside the fitted lobe (tan θ_h < LOBE_TAN σ)."""
+    v = np.float32([0, 0, 1])
+    h = lights + v
+    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
+    ch = normals @ h.T if h.ndim == 2 else np.einsum("nj,nmj->nm", normals, h)
+    # tan θ_h < k  ⟺  cos² θ_h > 1 / (1 + k²) (for cos θ_h > 0): no square root per pair
+    k2 = np.float32((LOBE_TAN * sigma) ** 2)
+    return np.any(ch > np.float32(np.sqrt(1 / (1 + k2))), axis=1)
+
+
+def _lambertian_correction(normals, lights, sigma, n_i, volume_model, grid=65):
+    """(N, 3) corrected normals for pixels outside the lobe, from least-squares normals.
+
+    Outside the specular lobe the model is E ≈ B(n, s) κ, whose least-squares (Lambertian)
+    normal n_LS(n) differs from n by a smooth bias (the Fresnel transmissions of the volume
+    part, eq 3.15, tilt it by up to a few degrees at oblique normals). That bias depends on the
+    normal alone (κ cancels), so it is tabulated once per (σ, n_i) on a grid of normals and
+    interpolated: n ≈ n_LS + (n_grid − n_LS(n_grid)) at n_grid = n_LS. Cost: grid² pixels, not N.
+    lights : (m, 3), or (N, m, 3) whose mean direction is used (near lights vary little).
+    """
+    s = lights if lights.ndim == 2 else lights.mean(axis=0)
+    s = s / np.linalg.norm(s, axis=1, keepdims=True)
+    u = np.linspace(-1, 1, grid, dtype=np.float32)
+    gx, gy = np.meshgrid(u, u)
+    r2 = gx * gx + gy * gy
+    inside = r2 < 0.995
+    gn = np.stack([gx, gy, np.sqrt(np.maximum(1 - r2, 0))], axis=-1).reshape(-1, 3)
+    gn[~inside.ravel()] = [0, 0, 1]
+    _, b = li_shading_terms(gn, s, sigma, n_i, specular=False, volume_model=volume_model)
+    g = b @ np.linalg.pinv(s).T.astype(np.float32)                 # least squares of the model's values
+    n_ls = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-12)
+    delta = (gn - n_ls).reshape(grid, grid, 3)
+    delta[~inside] = 0
+    # bilinear lookup at each pixel's own (least-squares) normal
+    fx = np.clip((normals[:, 0] + 1) / 2 * (grid - 1), 0, grid - 1.001)
+    fy = np.clip((normals[:, 1] + 1) / 2 * (grid - 1), 0, grid - 1.001)
+    ix, iy = fx.astype(int), fy.astype(int)
+    wx, wy = (fx - ix)[:, None], (fy - iy)[:, None]
+    d = ((1 - wx) * (1 - wy) * delta[iy, ix] + wx * (1 - wy) * delta[iy, ix + 1]
+         + (1 - wx) * wy * delta[iy + 1, ix] + wx * wy * delta[iy + 1, ix + 1])
+    out = normals + d
+    return (out / np.linalg.norm(out, axis=1, keepdims=True)).astype(np.float32)
+
+
+def _highlight_starts(values, usable, normals, lights, albedo):
+    """A second start per pixel: the half-vector of the light that most exceeds the Lambertian
+    prediction of the initial solution (a highlight says where the normal is), tried where that
+    light stands out (≥ 10 % of the pixel's mean value). values, usable : (N, m); normals (N, 3);
+    lights (m, 3) or (N, m, 3); albedo (N,). Returns (has_highlight (N,) bool, starts (N, 3))."""
+    lam_pred = (normals @ lights.T if lights.ndim == 2 else np.einsum("nj,nmj->nm", normals, lights)) * \
+        (albedo / np.pi)[:, None]
+    excess = np.where(usable, values, -np.inf) - lam_pred
+    brightest = np.argmax(excess, axis=1)
+    mean_v = np.nanmean(np.where(usable, values, np.nan), axis=1)
+    has_highlight = np.take_along_axis(excess, brightest[:, None], 1)[:, 0] > 0.1 * np.nan_to_num(mean_v)
+    half = lights + np.float32([0, 0, 1])
+    half = (half / np.linalg.norm(half, axis=-1, keepdims=True)).astype(np.float32)
+    return has_highlight, (half[brightest] if half.ndim == 2 else half[np.arange(len(normals)), brightest])

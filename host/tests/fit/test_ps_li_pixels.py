@@ -1,0 +1,90 @@
+"""The per-pixel steps of ps_li_alternating (facette.fit._ps_li_pixels): which lights are in the
+lobe, the highlight starts, the Lambertian level's correction, and the state's pixel levels."""
+import numpy as np
+
+from facette.brdf import li_shading_terms
+from facette.fit._ps_li_pixels import (LOBE_TAN, Pixels, Settings, _highlight_starts, _in_lobe,
+                                       _lambertian_correction, angle_deg)
+from facette.recon import ps_woodham1980
+from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
+
+
+def _unit(v):
+    v = np.asarray(v, np.float32)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def test_a_light_is_in_the_lobe_when_its_half_vector_is_within_lobe_tan_sigma():
+    n = np.float32([[0, 0, 1]])
+    # a light 60° off the view: half-vector 30° off the normal, tan 30° = 0.577
+    lights = _unit([[np.sin(np.radians(60)), 0, np.cos(np.radians(60))]])
+    assert not _in_lobe(n, lights, 0.5 / LOBE_TAN)[0]
+    assert _in_lobe(n, lights, 0.6 / LOBE_TAN)[0]
+    # per-pixel lights (N, m, 3): the same answer per pixel
+    per_pixel = np.stack([lights, _unit([[0, 0, 1]])])            # (2, 1, 3)
+    np.testing.assert_array_equal(_in_lobe(np.repeat(n, 2, 0), per_pixel, 0.1), [False, True])
+
+
+def test_the_highlight_start_is_the_half_vector_of_the_light_above_the_lambertian_prediction():
+    lights = _unit([[0.5, 0, 1], [-0.5, 0, 1], [0, 0.5, 1], [0, -0.5, 1]])
+    normals = np.tile(np.float32([0, 0, 1]), (3, 1))
+    albedo = np.float32([1, 1, 1])
+    values = (normals @ lights.T) / np.pi
+    values[1, 2] += 0.5 * values[1].mean()          # a highlight under light 2 at pixel 1
+    values[2, 3] += 0.05 * values[2].mean()         # too small to stand out (< 10 % of the mean)
+    has, start = _highlight_starts(values.astype(np.float32), np.ones_like(values, bool), normals, lights, albedo)
+    np.testing.assert_array_equal(has, [False, True, False])
+    np.testing.assert_allclose(start[1], _unit(lights[2] + [0, 0, 1]), atol=1e-6)
+
+
+def test_the_lambertian_correction_removes_the_volume_parts_bias_from_least_squares():
+    rng = np.random.default_rng(0)
+    truth = _unit(np.c_[rng.uniform(-0.6, 0.6, (200, 2)), np.ones(200)])
+    lights = thesis_light_directions().astype(np.float32)
+    _, b = li_shading_terms(truth, lights, 0.1, 1.5, specular=False, volume_model="approx")
+    g = np.linalg.lstsq(lights, b.T, rcond=None)[0].T          # least squares of the model's values
+    n_ls = _unit(g)
+    fixed = _lambertian_correction(n_ls, lights, 0.1, 1.5, "approx")
+    before, after = angle_deg(n_ls, truth), angle_deg(fixed, truth)
+    assert before.max() > 0.5 and after.max() < 0.25 * before.max(), (before.max(), after.max())
+    np.testing.assert_allclose(np.linalg.norm(fixed, axis=1), 1, atol=1e-6)
+
+
+def _pixels(material="glossy", seed=0, fit_pixels=50):
+    sc = sphere_on_plane(40, 40)
+    lights = thesis_light_directions()
+    im = render(sc, lights, material, noise=0.002, rng=np.random.default_rng(1))
+    base = ps_woodham1980(im, lights, mask=sc.mask)
+    settings = Settings(iterations=8, fine_iterations=2, fit_pixels=fit_pixels, t_residual=0.05, engine="arrays",
+                        highlight_start="all", diffuse_models=("approx",))
+    return Pixels.start(im.astype(np.float32), lights, sc.mask, 1, None, base, ps_woodham1980, settings, seed), base
+
+
+def test_the_state_starts_from_the_initial_solution_of_every_valid_pixel():
+    px, base = _pixels()
+    np.testing.assert_array_equal(px.idx, np.flatnonzero(base.valid.ravel()))
+    np.testing.assert_array_equal(px.nrm, base.normal.reshape(-1, 3)[px.idx])
+    assert px.nrm is not px.nrm0 and px.shape == (40, 40) and px.vm == "approx"
+    assert not px.refined.any() and px.gather(np.arange(3)).shape == (3, len(thesis_light_directions()), 3)
+
+
+def test_fit_pixels_are_drawn_sorted_without_repeats_and_reproducibly():
+    px, _ = _pixels(seed=3)
+    trust = np.arange(0, 400, 2)
+    a = px.draw(trust)
+    assert a.size == 50 and np.all(np.diff(a) > 0) and np.isin(a, trust).all()
+    assert px.draw(trust[:20]).size == 20                        # fewer than fit_pixels: all of them
+    np.testing.assert_array_equal(_pixels(seed=3)[0].draw(trust), a)
+
+
+def test_pixels_outside_the_lobe_that_least_squares_explains_take_the_lambertian_level():
+    px, _ = _pixels("matte")
+    pix = np.arange(px.idx.size)
+    before = px.nrm.copy()
+    lobe, lam_ok, todo = px.split_levels(pix, 0.05, 1.2)
+    assert lam_ok.sum() > 0.5 * pix.size                           # a matte scene: least squares explains most
+    assert not (lam_ok & lobe).any()
+    np.testing.assert_array_equal(todo, pix[~lam_ok & lobe])
+    assert not px.refined[pix[lam_ok]].any()
+    np.testing.assert_array_equal(px.nrm[~lam_ok], before[~lam_ok])    # the others keep their normal
+    assert np.any(px.nrm[lam_ok] != before[lam_ok])                # corrected (n_i 1.2 tilts them)
