@@ -19,7 +19,7 @@ import numpy as np
 from facette.brdf import li_shading_terms
 from facette.recon import ps_woodham1980
 from facette.recon._ps import _pixel_dirs, _run_blocks, _usable
-from ._li_model import PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model
+from ._li_model import PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model, is_metal
 from ._normals_li import RefineResult, refine_normals_li
 
 LOBE_TAN = 2.5             # a light is inside the lobe when tan θ_h < LOBE_TAN σ (D > 0.2 % of its peak)
@@ -114,8 +114,10 @@ class Pixels:
                table_grid=None):
         """RefineResult of the pixels `sel` solved against (σ, n_i).
 
-        First round: the current normal and the highlight start; later rounds start from the
-        previous round's normals, already near, so one start and fewer steps do. Pixel blocks on
+        First round: the current normal and the highlight start, and for a metal's lobe a search of
+        the hemisphere where the current normal explains the pixel poorly (facette.fit._orientation:
+        a metal has no diffuse part, so the Lambertian initial normals say nothing there); later
+        rounds start from the previous round's normals, already near, so one start and fewer steps do. Pixel blocks on
         WORKERS threads (numpy releases the GIL in its loops)."""
         st = self.settings
         engine = st.engine if engine is None else engine
@@ -132,7 +134,8 @@ class Pixels:
                     else np.zeros(sub.size, bool)
                 out[a] = refine_normals_li(e, lights, self.nrm[sub], sigma, n_i, usable=ok, iterations=st.iterations,
                                            extra_starts=[self.hl_start[sub]] if hl.any() else None, extra_rows=hl,
-                                           engine=engine, volume_model=vm, step_tol=step_tol, table_grid=table_grid)
+                                           engine=engine, volume_model=vm, step_tol=step_tol, table_grid=table_grid,
+                                           search=is_metal(n_i))
             else:
                 out[a] = refine_normals_li(e, lights, self.nrm[sub], sigma, n_i, usable=ok,
                                            iterations=max(2, st.iterations // 2), engine=engine,
