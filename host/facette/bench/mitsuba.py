@@ -198,7 +198,7 @@ def main(argv=None):
         if time.perf_counter() - t > 1:
             print(f"  (rendered {label} in {time.perf_counter() - t:.0f} s)")
         sel = binary_erosion(d["mask"], iterations=1)
-        ls_mean = None
+        ls_mean, ls_normal = None, None
         for method, ir, name in variants:
             try:
                 r, dt = run_ps(d, method, args.init, ir)
@@ -206,7 +206,8 @@ def main(argv=None):
                 print(f"{label:34s} {name:30s}   n/a ({exc})"[:140], flush=True)
                 continue
             e = angular_errors(r.normal, d["normals"], sel)
-            ls_mean = e.mean() if name == "woodham1980" else ls_mean
+            if name == "woodham1980":
+                ls_mean, ls_normal = e.mean(), r.normal
             extra = ""
             if method == "li_alternating":
                 rounds = r.info.get("rounds", [])
@@ -225,8 +226,16 @@ def main(argv=None):
                 extra += f"  K_d/true median {np.median(kd_est[ok] / kd_true[ok]):.3f}"
             if method == "li_alternating" or ir:
                 if ls_mean is None:     # least squares not among --methods: for the ratio only
-                    ls_mean = angular_errors(run_ps(d, "woodham1980")[0].normal, d["normals"], sel).mean()
+                    ls_normal = run_ps(d, "woodham1980")[0].normal
+                    ls_mean = angular_errors(ls_normal, d["normals"], sel).mean()
                 extra += f"  ({e.mean() / ls_mean:.2f}× least squares)"
+            seen = sel & r.valid
+            if seen.sum() < sel.sum() and seen.any():
+                # a pixel no light lights above the noise (a sharp metal) has no normal: counted at its
+                # fill value above, and here the pixels that have one, beside least squares' there
+                extra += (f"  valid {100 * seen.sum() / sel.sum():.0f} %: {angular_errors(r.normal, d['normals'], seen).mean():.2f}°"
+                          + ("" if ls_normal is None else
+                             f" (least squares {angular_errors(ls_normal, d['normals'], seen).mean():.2f}°)"))
             print(f"{label:34s} {name:30s} {e.mean():6.2f} {np.median(e):7.2f} {np.percentile(e, 95):6.2f} "
                   f"{dt:6.2f}  {extra}", flush=True)
             if shape == THESIS_SHAPE and not tex and near is None:

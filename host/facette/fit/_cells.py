@@ -10,7 +10,7 @@ import numpy as np
 
 from ._fit import fit_brdf
 
-__all__ = ["cell_spread_directions", "fit_hemisphere_cells", "fit_cells_verdict", "FITS_RELATIVE_RMS", "VERDICT_MODELS"]
+__all__ = ["cell_spread_directions", "fit_hemisphere_cells", "fit_cells_verdict", "FITS_RELATIVE_RMS", "VERDICT_MODELS", "METAL_N_I_MAX"]
 
 # The verdict of `fit_cells_verdict`: a material fits when the best model's relative RMS error on
 # the hemisphere cells is at most FITS_RELATIVE_RMS. Chosen on renders, ours and Mitsuba's
@@ -19,9 +19,11 @@ __all__ = ["cell_spread_directions", "fit_hemisphere_cells", "fit_cells_verdict"
 # Cook-Torrance fitted to Cook-Torrance (textured K_d, near lights read as distant), 0.26; the
 # metallic paint 0.58-0.62 and the gold relief 0.82-0.90 whatever the normals. Between 0.26 and 0.58.
 FITS_RELATIVE_RMS = 0.35
-# The dielectric models tried, in turn: the thesis's LI (a substrate under the interface) and
-# Cook–Torrance (a Lambertian term beside the lobe).
-VERDICT_MODELS = ("li", "cook_torrance")
+# The models tried, in turn: the thesis's LI (a substrate under the interface), Cook–Torrance (a
+# Lambertian term beside the lobe) and "metal": Cook–Torrance with a metal's lobe (its index up to
+# METAL_N_I_MAX, a real index of the metal's F0; the result's model is "cook_torrance", n_i > 2.5).
+VERDICT_MODELS = ("li", "cook_torrance", "metal")
+METAL_N_I_MAX = 100.0
 
 
 def cell_spread_directions(edges, counts, cells, k=4):
@@ -84,9 +86,16 @@ def fit_cells_verdict(filtered, prefer="li", models=VERDICT_MODELS, **options):
     tried, best = [], None
     for model in order:
         opts = dict(options, **({"volume": volume} if model == "li" and volume else {}))
-        res = fit_hemisphere_cells(filtered, model=model, **opts)
+        if model == "metal":
+            res = fit_hemisphere_cells(filtered, model="cook_torrance", n_i_max=METAL_N_I_MAX, **opts)
+            if res.success:
+                res.selection = list(res.selection) + [
+                    f"a metal's lobe: n_i {res.params['n_i']:.3g} stands for F0 "
+                    f"{((res.params['n_i'] - 1) / (res.params['n_i'] + 1)) ** 2:.2f} (facette.brdf._fresnel.check_n_i)"]
+        else:
+            res = fit_hemisphere_cells(filtered, model=model, **opts)
         rms = res.error.get("relative_rms") if res.success and res.error else None
-        tried.append({"model": res.model, "relative_rms": rms, "parameters": res.params,
+        tried.append({"model": model if model == "metal" else res.model, "relative_rms": rms, "parameters": res.params,
                       "success": res.success, "seconds": res.time_s})
         if res.success and (best is None or rms < best.error["relative_rms"]):
             best = res

@@ -225,32 +225,35 @@ def _default_volume_options(volume, options):
     return options
 
 
-def _make_model(model, data, distribution, masking, volume, interreflection, volume_options, n_paths=256):
+def _make_model(model, data, distribution, masking, volume, interreflection, volume_options, n_paths=256,
+                n_i_max=None):
     return FitModel(model, data.s, data.o, data.channels, distribution, masking, volume, interreflection,
-                    _default_volume_options(volume, volume_options or {}), n_paths, data.o_spread)
+                    _default_volume_options(volume, volume_options or {}), n_paths, data.o_spread, n_i_max)
 
 
 def fit_least_squares(s, o, values, model="li", distribution="beckmann", masking="smith", volume="quadrature",
                       interreflection=False, counts=None, weighting="relative", specular_weight=1.0,
                       specular_cone_deg=10.0, n_starts=6, x0=None, volume_options=None, max_nfev=200,
-                      reweight_passes=2, o_spread=None):
+                      reweight_passes=2, o_spread=None, n_i_max=None):
     """Bounded least squares (scipy ``least_squares``, TRF) from ``n_starts`` starts; the best kept.
 
     Starts: a grid over σ ∈ {0.05, 0.15, 0.4, 0.8} × n_i ∈ {1.15, 1.5} (first n_starts of it) with
     K_d from the median value; ``x0`` (a parameter vector, see FitModel) is tried first if given.
+    n_i_max : Cook–Torrance only, a metal's lobe: n_i up to this (the starts then at n_i 15 and 3,
+        F0 0.77 and 0.25).
     With the "relative" weighting, ``reweight_passes`` further solves take the weights from the
     previous solution's prediction (iteratively reweighted least squares).
     Returns a FitResult (success False with the reason when it fails).
     """
     t0 = time.perf_counter()
     data = prepare_samples(s, o, values, counts, weighting, specular_weight, specular_cone_deg, o_spread)
-    fm = _make_model(model, data, distribution, masking, volume, interreflection, volume_options)
+    fm = _make_model(model, data, distribution, masking, volume, interreflection, volume_options, n_i_max=n_i_max)
     bad = _check_enough(fm, data, "least_squares", t0)
     if bad:
         return bad
     lo, hi = fm.bounds()
     kd0 = _kd_guess(fm, data)
-    grid = [(sg, n) for sg in (0.15, 0.05, 0.4, 0.8) for n in (1.5, 1.15)]
+    grid = [(sg, n) for sg in (0.15, 0.05, 0.4, 0.8) for n in ((15.0, 3.0) if n_i_max else (1.5, 1.15))]
     starts = [] if x0 is None else [np.clip(np.asarray(x0, float), lo, hi)]
     for sg, n in grid[:max(1, int(n_starts))]:
         shared = {"li": [sg, n], "cook_torrance": [sg, n], "oren_nayar": [sg], "lambert": []}[fm.name]
@@ -414,7 +417,7 @@ def fit_brdf(s, o, values, model="li", method="least_squares", distribution="bec
             notes.append(f"n_i = {n:.4f} ± {dn:.2g} ≈ 1: no interface needed, trying simpler models")
             simpler = ["oren_nayar", "lambert"] if model == "li" else ["lambert"]
             for alt in simpler:
-                r2 = fitter(s, o, values, alt, **common, **options)
+                r2 = fitter(s, o, values, alt, **common, **{k: v for k, v in options.items() if k != "n_i_max"})
                 if r2.success and r2.error["relative_rms"] <= res.error["relative_rms"] * (1 + rel_error_tolerance) + 1e-12:
                     notes.append(f"{alt} kept: relative RMS {r2.error['relative_rms']:.4g} vs "
                                  f"{res.error['relative_rms']:.4g} for {res.model}")

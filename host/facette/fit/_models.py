@@ -23,8 +23,13 @@ class FitModel:
     """One model with fixed options, evaluated on fixed sample directions s, o (N, 3)."""
 
     def __init__(self, name, s, o, channels, distribution="beckmann", masking="smith", volume="quadrature",
-                 interreflection=False, volume_options=None, n_paths=256, o_spread=None):
+                 interreflection=False, volume_options=None, n_paths=256, o_spread=None, n_i_max=None):
         name = MODELS.canonical(name)
+        # a metal's lobe (Cook–Torrance only): n_i up to n_i_max, a real index of the metal's F0
+        # (facette.brdf._fresnel.check_n_i)
+        if n_i_max is not None and name != "cook_torrance":
+            raise ValueError(f"n_i_max applies to Cook–Torrance (a metal's lobe beside a Lambertian part), not {name!r}")
+        self.n_i_max = n_i_max
         if name == "li" and volume == "table":
             raise ValueError("volume='table' builds a table for every (σ, n_i) the fit visits (seconds each): "
                              "use volume='quadrature' (default, coarse nodes) or 'approx' to fit")
@@ -66,7 +71,7 @@ class FitModel:
         for nm in self.names:
             key = "kd" if nm.startswith("kd") else nm
             lo.append(BOUNDS[key][0])
-            hi.append(BOUNDS[key][1])
+            hi.append(self.n_i_max if key == "n_i" and self.n_i_max is not None else BOUNDS[key][1])
         return np.array(lo), np.array(hi)
 
     def split(self, p):

@@ -9,6 +9,7 @@ import warnings
 import numpy as np
 from scipy.ndimage import uniform_filter
 
+from facette.fit import LI_FIT_BOUNDS
 from facette.recon import hsh_basis
 from facette.recon import srgb_encode as srgb_transfer
 
@@ -170,7 +171,7 @@ def gltf_material(res):
         if res.mask.any() else 1.0
     if top > 1.0:
         notes.append(f"glTF base colour: albedo divided by {top:.3g} (its 99.5th percentile) to fit [0, 1]")
-    r, ior = None, None
+    r, ior, metal_f0 = None, None, None
     fit = res.brdf
     params = getattr(fit, "params", None) or {}
     if fit is not None and getattr(fit, "success", False) and "sigma" in params and \
@@ -178,17 +179,33 @@ def gltf_material(res):
         dist = getattr(fit, "distribution", None) or "beckmann"
         r = float(gltf_roughness(float(np.mean(params["sigma"])), dist))
         ior = params.get("n_i")
-        notes.append(f"glTF roughness = sqrt(sigma) = {r:.3g} (sigma = {float(np.mean(params['sigma'])):.3g}, "
-                     f"{dist}); metallic 0" + (f"; IOR = n_i = {ior:.3g}" if ior else ""))
+        what = f"glTF roughness = sqrt(sigma) = {r:.3g} (sigma = {float(np.mean(params['sigma'])):.3g}, {dist}); "
+        if ior is not None and ior > LI_FIT_BOUNDS[1][1]:
+            # a metal's lobe: its index stands for the metal's F0 (no dielectric's IOR); glTF's metal
+            # has no diffuse part, so a lobe weaker than the diffuse part (a metallic paint) stays
+            # a dielectric of the same roughness
+            f0 = ((ior - 1) / (ior + 1)) ** 2
+            kd = float(np.mean(params.get("kd", 0.0)))
+            ior = None
+            if f0 > kd:
+                metal_f0 = f0
+                notes.append(what + f"metallic 1, base colour F0 = {f0:.2f} (a metal's lobe, n_i "
+                             f"{params['n_i']:.3g}; K_d {kd:.2f} dropped)")
+            else:
+                notes.append(what + f"metallic 0, no IOR: a metal's lobe (F0 {f0:.2f}) beside a stronger "
+                             f"diffuse part (K_d {kd:.2f}), which glTF's metal cannot hold")
+        else:
+            notes.append(what + "metallic 0" + (f"; IOR = n_i = {ior:.3g}" if ior else ""))
     else:
         notes.append("glTF roughness 1 (no successful microfacet BRDF fit to take sigma from)")
-    return {"top": top, "r": r, "ior": ior}, notes
+    return {"top": top, "r": r, "ior": ior, "metal_f0": metal_f0}, notes
 
 
 def gltf_inputs(res, step, material=None):
     """Keyword arguments of `facette.io.gltf.write_glb` for a `ProcessResult` with a mesh,
     and notes for the report. The roughness texture carries √σ on the material the BRDF was
-    fitted to and 1 elsewhere; metallic is 0 (a dielectric); the LI n_i becomes the IOR.
+    fitted to and 1 elsewhere; metallic is 0 (a dielectric: the LI n_i becomes the IOR) unless the
+    fit is a metal's lobe stronger than its diffuse part (`gltf_material`).
     material : `gltf_material(res)`'s dict when already made (its notes are then not repeated)."""
     notes = []
     if material is None:
@@ -204,12 +221,17 @@ def gltf_inputs(res, step, material=None):
     if material["top"] > 1.0:
         albedo = albedo / np.float32(material["top"])
     rough = np.ones((h, w))
+    fitted = res.inputs.sample_mask() & res.mask
     if material["r"] is not None:
-        rough[res.inputs.sample_mask() & res.mask] = material["r"]
+        rough[fitted] = material["r"]
     ior = material["ior"]
     mr = np.zeros((h, w, 3), np.uint8)
     mr[..., 0] = 255                                        # unused (occlusion lives elsewhere)
     mr[..., 1] = np.round(rough * 255).astype(np.uint8)     # roughness
+    if material.get("metal_f0") is not None:                # metallic in B; a metal's colour is its F0
+        mr[..., 2] = np.where(fitted, 255, 0).astype(np.uint8)
+        albedo = albedo.copy()
+        albedo[fitted] = np.float32(material["metal_f0"])
     return dict(vertices_mm=verts, faces=faces, normals=normals, tangents=vertex_tangents(normals),
                 uv=uv, base_color=srgb_encode(albedo),
                 normal_map=tangent_space_normal_map(res.normals, res.height, res.mask, pitch, step),
