@@ -95,6 +95,17 @@ def run_ps(d, method, init=None, interreflections=False):
     return r, time.perf_counter() - t
 
 
+def _valid_note(r, d, sel, ls_normal):
+    """Where a method leaves pixels without a normal (no light reaches them above the noise, as on
+    a sharp metal), its error on the pixels that have one, beside least squares' there."""
+    seen = sel & r.valid
+    if seen.sum() == sel.sum() or not seen.any():
+        return ""
+    return (f"  valid {100 * seen.sum() / sel.sum():.0f} %: {angular_errors(r.normal, d['normals'], seen).mean():.2f}°"
+            + ("" if ls_normal is None else
+               f" (least squares {angular_errors(ls_normal, d['normals'], seen).mean():.2f}°)"))
+
+
 def _verdict(fit):
     """The fitted model, its relative RMS and the verdict over every model tried, in one line."""
     if fit is None:
@@ -206,8 +217,7 @@ def main(argv=None):
                 print(f"{label:34s} {name:30s}   n/a ({exc})"[:140], flush=True)
                 continue
             e = angular_errors(r.normal, d["normals"], sel)
-            if name == "woodham1980":
-                ls_mean, ls_normal = e.mean(), r.normal
+            ls_mean, ls_normal = (e.mean(), r.normal) if name == "woodham1980" else (ls_mean, ls_normal)
             extra = ""
             if method == "li_alternating":
                 rounds = r.info.get("rounds", [])
@@ -229,13 +239,7 @@ def main(argv=None):
                     ls_normal = run_ps(d, "woodham1980")[0].normal
                     ls_mean = angular_errors(ls_normal, d["normals"], sel).mean()
                 extra += f"  ({e.mean() / ls_mean:.2f}× least squares)"
-            seen = sel & r.valid
-            if seen.sum() < sel.sum() and seen.any():
-                # a pixel no light lights above the noise (a sharp metal) has no normal: counted at its
-                # fill value above, and here the pixels that have one, beside least squares' there
-                extra += (f"  valid {100 * seen.sum() / sel.sum():.0f} %: {angular_errors(r.normal, d['normals'], seen).mean():.2f}°"
-                          + ("" if ls_normal is None else
-                             f" (least squares {angular_errors(ls_normal, d['normals'], seen).mean():.2f}°)"))
+            extra += _valid_note(r, d, sel, ls_normal)
             print(f"{label:34s} {name:30s} {e.mean():6.2f} {np.median(e):7.2f} {np.percentile(e, 95):6.2f} "
                   f"{dt:6.2f}  {extra}", flush=True)
             if shape == THESIS_SHAPE and not tex and near is None:

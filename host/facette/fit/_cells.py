@@ -9,8 +9,9 @@ model), which removes that bias (see ``facette bench brdf``, part 3).
 import numpy as np
 
 from ._fit import fit_brdf
+from ._li_model import is_metal
 
-__all__ = ["cell_spread_directions", "fit_hemisphere_cells", "fit_cells_verdict", "FITS_RELATIVE_RMS", "VERDICT_MODELS", "METAL_N_I_MAX"]
+__all__ = ["cell_spread_directions", "fit_hemisphere_cells", "fit_cells_verdict", "FITS_RELATIVE_RMS", "VERDICT_MODELS", "METAL_N_I_MAX", "preferred_model"]
 
 # The verdict of `fit_cells_verdict`: a material fits when the best model's relative RMS error on
 # the hemisphere cells is at most FITS_RELATIVE_RMS. Chosen on renders, ours and Mitsuba's
@@ -24,6 +25,15 @@ FITS_RELATIVE_RMS = 0.35
 # METAL_N_I_MAX, a real index of the metal's F0; the result's model is "cook_torrance", n_i > 2.5).
 VERDICT_MODELS = ("li", "cook_torrance", "metal")
 METAL_N_I_MAX = 100.0
+
+
+def preferred_model(material):
+    """The model `fit_cells_verdict` tries first, from photometric stereo's choice for a material
+    (an entry of li_alternating's `info["materials"]`): "metal" where it found a metal's lobe,
+    Cook–Torrance where a Lambertian diffuse part, the thesis's LI otherwise."""
+    if material.get("diffuse") == "lambert":
+        return "metal" if is_metal(material.get("n_i", 1.0)) else "cook_torrance"
+    return "li"
 
 
 def cell_spread_directions(edges, counts, cells, k=4):

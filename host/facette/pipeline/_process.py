@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from facette.fit import LI_FIT_BOUNDS, fit_cells_verdict, ps_li_without_interreflections
+from facette.fit import fit_cells_verdict, preferred_model, ps_li_without_interreflections
 from facette.errors import BadInputError
 from facette.io.atomic import atomic_path, write_text_atomic
 from facette.io.exr import write_exr
@@ -120,15 +120,6 @@ class ProcessResult:
     interreflections: dict = None
 
 
-def _preferred_model(material):
-    """The BRDF model tried first, from photometric stereo's choice for its largest material
-    (`info["materials"]` of li_alternating): "metal" where it found a metal's lobe, Cook–Torrance
-    where a Lambertian diffuse part, the thesis's LI otherwise."""
-    if material.get("diffuse") == "lambert":
-        return "metal" if material.get("n_i", 1.0) > LI_FIT_BOUNDS[1][1] else "cook_torrance"
-    return "li"
-
-
 def _fit_stage(filtered, fit_options, brdf_aware=False, prefer="li"):
     """BRDF identification on the hemisphere sensor's cells (facette.fit.fit_hemisphere_cells:
     the model averaged over each cell, which removes the lobe-widening bias of fitting cell
@@ -140,8 +131,7 @@ def _fit_stage(filtered, fit_options, brdf_aware=False, prefer="li"):
     with rank_trimmed's, whose normal error dominates, tables are better on two scenes and worse
     on two (satin 1.157 / 1.443 → 0.824 / 1.277) for 0.4-1.4 s more, so approx stays there.
     fit_options={"volume": ...} chooses ("quadrature": the reference, ~15× slower).
-    The model: `prefer` first (`_preferred_model`: a metal's lobe or Cook–Torrance where
-    li_alternating chose a Lambertian diffuse part), the other models too when it is off by more
+    The model: `prefer` first (facette.fit.preferred_model), the others too when it is off by more
     than facette.fit.FITS_RELATIVE_RMS, and a verdict either way (facette.fit.fit_cells_verdict);
     fit_options={"model": ...} fits that one.
     Returns (FitResult or None, note)."""
@@ -431,7 +421,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
         main = max(mats, key=lambda q: q.get("pixels", 0))
         res.brdf, note = _timed(res, "fit", _fit_stage, res.filtered, dict(o.fit_options),
                                 res.ps.method == "li_alternating",
-                                _preferred_model(main))
+                                preferred_model(main))
         write("brdf")
         if out is not None and "report" in outputs:
             # matplotlib holds the GIL: drawn here, it runs beside numpy stages that let it go
