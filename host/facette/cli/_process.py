@@ -45,7 +45,7 @@ def register(sub):
     from facette.brdf import MODELS
     from facette.fit import METHODS
     from facette.methods import PS_DEFAULT, PS_METHODS
-    from facette.pipeline import OUTPUTS, ProcessOptions
+    from facette.pipeline import CHANNELS, OUTPUTS, ProcessOptions
     from facette.recon import INTEGRATION_METHODS
     d = ProcessOptions()            # the defaults: defined once, there
     p = sub.add_parser("process", help="process a scan, a DiLiGenT-style folder or an RTI capture",
@@ -66,6 +66,10 @@ def register(sub):
                    choices=[m for m in PS_METHODS if m != "li_alternating"],
                    help=f"initial normals of --method li_alternating (default its own, {PS_DEFAULT}; the "
                         "hierarchy is better on satins); the other methods take none")
+    p.add_argument("--channels", default=d.channels, choices=list(CHANNELS),
+                   help=f"colour channels the normals are solved on (default {d.channels}: R, G, B weighted by "
+                        "mean/variance, the noise estimated from the images; mean; green, the thesis's); "
+                        "the albedo stays per channel")
     p.add_argument("--interreflections", action="store_true",
                    help="take the light a concave matte surface gathers from itself out of the images "
                         "first (craters, grooves, a vase's neck; needs a reflectance-calibrated scan); with "
@@ -172,7 +176,7 @@ def options(args):
         ascii_ply=args.ascii_ply, fit_options={"model": args.brdf_model, "method": args.fit_method},
         hsh_order=args.hsh_order, rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
         interreflections=args.interreflections, capture=_capture(args), memory=args.memory,
-        scheduler=args.scheduler,
+        scheduler=args.scheduler, channels=args.channels,
         ps_options={"init": args.init} if args.init else None)     # li_alternating takes it, the others leave it
 
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from facette.errors import BadInputError
 from facette.methods import PROCESS_DEFAULT, options_for
+from facette.pipeline._channels import CHANNELS, CHANNELS_DEFAULT
 from facette.pipeline._tiles import parse_memory
 from facette.recon import HSH_ORDERS, INTEGRATION_DEFAULT, INTEGRATION_METHODS, RTI_ENCODINGS
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
@@ -48,6 +49,10 @@ class ProcessOptions:
                                "table's lean is taken from it and out of its slopes only), frankot_chellappa1988 "
                                "(the thesis's, needs it too), simchony1990 or least_squares (on the mask only)",
                                report=True)
+    channels: str = _option(CHANNELS_DEFAULT, "the colour channels the normals are solved on (pipeline._channels): "
+                            "weighted (default: R, G, B weighted by mean/variance, one weight per channel, the "
+                            "variance estimated from the images), mean (of R, G, B) or green (the thesis's); "
+                            "the albedo stays per channel; with --memory: green", report=True)
     t_ombre: float = _option(T_OMBRE, "shadow angle threshold, rad (ps_hierarchical_tautzia2016)", report=True)
     t_spec: float = _option(T_SPEC, "specular variance threshold (ps_hierarchical_tautzia2016)", report=True)
     t_source: float = _option(T_SOURCE, "max |entry| of a triplet's inverse (ps_hierarchical_tautzia2016)",
@@ -104,6 +109,8 @@ class ProcessOptions:
             raise BadInputError(f"mesh_step must be >= 1 pixel, got {self.mesh_step}")
         if self.hsh_order not in HSH_ORDERS:
             raise ValueError(f"hsh_order = {self.hsh_order}: choose one of {HSH_ORDERS}")
+        if self.channels not in CHANNELS:
+            raise BadInputError(f"channels must be one of {', '.join(CHANNELS)}, got {self.channels!r}")
         INTEGRATION_METHODS.canonical(self.integration)        # ValueError naming the valid ones
         options_for(self.method, self.ps_bag())                # an unknown method or option: ValueError
         if self.memory is not None:
