@@ -144,12 +144,15 @@ def subset_folder(folder, select, dest):
     return dest
 
 
-def process_normals(folder, name, init=None):
+def process_normals(folder, name, init=None, channels=None):
     """(normals (H, W, 3), mask, wall seconds) of facette.pipeline.process on folder, method
-    `name` (a name ending in IR_SUFFIX: `run_ps` on the images process reads, see the module doc)."""
+    `name` (a name ending in IR_SUFFIX: `run_ps` on the images process reads, see the module doc);
+    `channels`: process's (None: its default)."""
     from facette.pipeline import load_input, process
     method = base_method(name)
     opts = {"ps_options": {"init": init}} if init and PS_METHODS.canonical(method) == "li_alternating" else {}
+    if channels is not None:
+        opts["channels"] = channels
     t = time.perf_counter()
     if name != method:
         inp = load_input(folder)
@@ -159,7 +162,7 @@ def process_normals(folder, name, init=None):
     return res.normals, res.inputs.mask, time.perf_counter() - t
 
 
-def run_object(folder, truth_path, methods, lights, init=None):
+def run_object(folder, truth_path, methods, lights, init=None, channels=None):
     import tempfile
     select = None
     if lights == "12":
@@ -176,7 +179,7 @@ def run_object(folder, truth_path, methods, lights, init=None):
     with tempfile.TemporaryDirectory() as tmp:
         src = folder if select is None else subset_folder(folder, select, Path(tmp) / Path(folder).name)
         for name in methods:
-            normal, mask, dt = process_normals(src, name, init)
+            normal, mask, dt = process_normals(src, name, init, channels)
             e = angular_errors(normal, truth, mask)
             rows.append((name, float(e.mean()), float(np.median(e)), dt))
     return rows, t_read, data
@@ -273,6 +276,8 @@ def main(argv=None):
                         f"{IR_SUFFIX} removes the inter-reflections first")
     p.add_argument("--init", default=None,
                    help="initial normals of li_alternating (e.g. rpca_wu2010; default: its own)")
+    p.add_argument("--channels", default=None, choices=["green", "mean", "weighted"],
+                   help="the channels process solves the normals on (default: process's own)")
     p.add_argument("--speed", action="store_true", help="also time each method at 2144x1424 x 12")
     p.add_argument("--no-real", action="store_true", help="skip the DiLiGenT tables")
     p.add_argument("--trim-study", action="store_true",
@@ -295,7 +300,7 @@ def main(argv=None):
         for lights in args.lights or ["all", "12"]:
             results = []
             for folder, truth_path in scored:
-                rows, t_read, data = run_object(folder, truth_path, methods, lights, args.init)
+                rows, t_read, data = run_object(folder, truth_path, methods, lights, args.init, args.channels)
                 key = f"{folder.parent.name}/{object_name(folder)} {data.bit_depth}-bit"
                 m = len(data.names)
                 results.append((key, int(data.mask.sum()), m, rows))

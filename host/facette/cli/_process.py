@@ -67,8 +67,9 @@ def register(sub):
                    help=f"initial normals of --method li_alternating (default its own, {PS_DEFAULT}; the "
                         "hierarchy is better on satins); the other methods take none")
     p.add_argument("--channels", default=d.channels, choices=list(CHANNELS),
-                   help=f"colour channels the normals are solved on (default {d.channels}: R, G, B weighted by "
-                        "mean/variance, the noise estimated from the images; mean; green, the thesis's); "
+                   help=f"colour channels the normals are solved on (default {d.channels}, chosen on renders: mean "
+                        "of R, G, B; weighted: by mean/variance, the noise estimated from the images; green, "
+                        "the thesis's); "
                         "the albedo stays per channel")
     p.add_argument("--interreflections", action="store_true",
                    help="take the light a concave matte surface gathers from itself out of the images "

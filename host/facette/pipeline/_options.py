@@ -50,8 +50,9 @@ class ProcessOptions:
                                "(the thesis's, needs it too), simchony1990 or least_squares (on the mask only)",
                                report=True)
     channels: str = _option(CHANNELS_DEFAULT, "the colour channels the normals are solved on (pipeline._channels): "
-                            "weighted (default: R, G, B weighted by mean/variance, one weight per channel, the "
-                            "variance estimated from the images), mean (of R, G, B) or green (the thesis's); "
+                            "mean (default: of R, G, B; chosen on renders, pipeline._channels.CHANNELS_DEFAULT), "
+                            "weighted (R, G, B weighted by mean/variance, one weight per channel, the variance "
+                            "estimated from the images) or green (the thesis's); "
                             "the albedo stays per channel; with --memory: green", report=True)
     t_ombre: float = _option(T_OMBRE, "shadow angle threshold, rad (ps_hierarchical_tautzia2016)", report=True)
     t_spec: float = _option(T_SPEC, "specular variance threshold (ps_hierarchical_tautzia2016)", report=True)

@@ -8,8 +8,9 @@ from facette.methods import PROCESS_DEFAULT, options_for
 from facette.pipeline import ProcessOptions
 
 # process.json's options, the same keys as before ProcessOptions existed (a folder made then is
-# still recognised as made with the same options)
-RECORDED = ["method", "integration", "t_ombre", "t_spec", "t_source", "t_residual", "theta0_deg", "rti_encoding",
+# still recognised as made with the same options), and "channels" since the normals' channels became a
+# choice (the default changed from green to the mean: a folder of green normals is not this run's)
+RECORDED = ["method", "integration", "channels", "t_ombre", "t_spec", "t_source", "t_residual", "theta0_deg", "rti_encoding",
             "mask",
             "pixel_pitch_mm", "near_light", "mesh_step", "saturation", "fit_options", "ps_options", "hsh_order",
             "interreflections"]
@@ -18,8 +19,9 @@ RECORDED = ["method", "integration", "t_ombre", "t_spec", "t_source", "t_residua
 def test_recorded_and_reported_fields_and_defaults():
     o = ProcessOptions()
     assert list(o.recorded()) == RECORDED and o.recorded()["mask"] is None
-    assert list(o.reported()) == ["method", "integration", "t_ombre", "t_spec", "t_source", "t_residual",
+    assert list(o.reported()) == ["method", "integration", "channels", "t_ombre", "t_spec", "t_source", "t_residual",
                                   "theta0_deg", "rti_encoding"]
+    assert o.channels == "mean"
     assert o.method == PROCESS_DEFAULT == "li_alternating" and o.fit_options == {} and o.ps_options == {} and o.near_light
     assert replace(o, mask="m.png").recorded()["mask"] == "m.png"       # a path is recorded, an array not
     for name in RECORDED + ["ascii_ply", "allow_incomplete", "overwrite"]:
