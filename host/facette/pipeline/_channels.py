@@ -23,10 +23,12 @@ missing or saturated there: a light saturated in red is not used for a weighted 
 The default ("mean") was chosen on Mitsuba renders with the camera's noise added (`facette bench
 channels`; never on DiLiGenT): see CHANNELS_DEFAULT.
 """
+from dataclasses import replace
+
 import numpy as np
 
-__all__ = ["CHANNELS", "CHANNELS_DEFAULT", "SOLVE_CHANNEL", "channel_weights", "noise_variance",
-           "with_solve_channel"]
+__all__ = ["CHANNELS", "CHANNELS_DEFAULT", "SOLVE_CHANNEL", "channel_weights", "images_for_solve", "noise_variance",
+           "results_in_rgb", "with_solve_channel"]
 
 CHANNELS = ("green", "mean", "weighted")
 # The default, chosen on renders (`facette bench channels`: 9 Mitsuba scenes, textured and coloured
@@ -151,3 +153,39 @@ def with_solve_channel(images, weights, saturation=None):
             bad |= ch >= saturation
     solve[bad] = np.nan
     return out
+
+
+def images_for_solve(images, mask, options, bag, notes):
+    """(images the normals are solved on, {"channels": the choice applied, "weights": [w_R, w_G, w_B]}).
+
+    options : `process`'s (its channels, saturation, memory, interreflections); bag : the
+    methods' options (its "channel" set to SOLVE_CHANNEL when one is appended); notes : a list
+    the notes are appended to. `images` itself for "green", for images that are not RGB, and with
+    --memory or --interreflections (the choice was not measured there: green, with a note); else
+    R, G, B with the reduced channel appended (`with_solve_channel`).
+    """
+    channels = options.channels
+    if images.ndim != 4 or images.shape[-1] != 3:
+        return images, {"channels": "single", "weights": None}
+    green_with = "--memory" if options.memory else "--interreflections" if options.interreflections else None
+    if channels != "green" and green_with:
+        notes.append(f"channels: {channels} asked; with {green_with} the normals are solved on green")
+    if channels == "green" or green_with:
+        return images, {"channels": "green", "weights": [0.0, 1.0, 0.0]}
+    weights, note = channel_weights(images, mask, channels)
+    if note:
+        notes.append(note)
+    bag["channel"] = SOLVE_CHANNEL
+    return (with_solve_channel(images, weights, options.saturation),
+            {"channels": channels, "weights": [round(float(x), 4) for x in weights]})
+
+
+def results_in_rgb(ps, direct, solve_in, images, used):
+    """(PSResult, direct images) of a solve on `images_for_solve`'s `solve_in`: the albedo's R, G, B
+    only, ps.info["channels"] = `used`; `direct` (the images the method saw, the inter-reflections
+    removed) without the appended channel (`images` when it is `solve_in`)."""
+    if solve_in is not images:
+        ps = replace(ps, albedo=np.ascontiguousarray(ps.albedo[..., :3]), info=dict(ps.info))
+        direct = images if direct is solve_in else np.ascontiguousarray(direct[..., :3])
+    ps.info["channels"] = used
+    return ps, direct

@@ -41,7 +41,7 @@ from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_fro
                            near_light_directions, fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION,
                            without_interreflections)
 from facette.pipeline._exports import fill_unfitted, gltf_inputs, gltf_material, hsh_order_for
-from facette.pipeline._channels import SOLVE_CHANNEL, channel_weights, with_solve_channel
+from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.pipeline._inputs import load_input, object_of
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
@@ -53,22 +53,19 @@ from facette.pipeline._samples import _samples_stage  # bench/recon.py imports i
 
 __all__ = ["OUTPUTS", "STAGES_FOR", "ProcessOptions", "ProcessResult", "process", "stages_needed"]
 
-OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf",
-           "report")
+OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
 STAGES_FOR = {
     "normals": ("load", "ps"), "albedo": ("load", "ps"), "mask": ("load", "ps"),
     "height": ("load", "ps", "integrate"), "mesh": ("load", "ps", "integrate", "mesh"),
     "samples": ("load", "ps", "samples"), "brdf": ("load", "ps", "samples", "fit"),
     "ptm": ("load", "ps", "ptm"), "rti": ("load", "ps", "hsh"),
-    "gltf": ("load", "ps", "integrate", "mesh", "samples", "fit"),
-    "report": ("load", "ps"),
+    "gltf": ("load", "ps", "integrate", "mesh", "samples", "fit"), "report": ("load", "ps"),
 }
 FILES = {"normals": "normal.exr", "albedo": "albedo.exr", "mask": "mask.png", "height": "height.exr",
          "mesh": "mesh.ply", "samples": "samples.npz", "brdf": "brdf.json", "ptm": "relight.ptm",
          "rti": "relight.rti", "gltf": "model.glb", "report": "report.html"}
-SIM_INTERREFLECTIONS_NOTE = (
-    "--interreflections on a simulated scan: the simulator renders no inter-reflections, so their removal "
-    "takes away light that no wall gathered (errors against truth grow); leave it out for simulated scans")
+SIM_INTERREFLECTIONS_NOTE = ("--interreflections on a simulated scan: the simulator renders no inter-reflections, so "
+                             "their removal takes away light that no wall gathered (errors against truth grow); leave it out for simulated scans")
 
 
 def stages_needed(outputs):
@@ -96,9 +93,7 @@ class ProcessResult:
     facette.recon PTMFit, hsh an HSHFit, or None; fit_errors {name: value}: relative RMS of
     the PTM / HSH relighting against the (fall-off corrected) HDR images on the object (above
     0.5 Mpx, on an even sample of rows: `recon.RELIGHT_ERROR_PIXELS`); interreflections the
-    figures of `without_interreflections` when it was asked for, else None; ps_channels
-    {"channels": the choice applied, "weights": [w_R, w_G, w_B]} of the normal solve
-    (pipeline._channels).
+    figures of `without_interreflections` when it was asked for, else None.
     """
     normals: np.ndarray = None
     albedo: np.ndarray = None
@@ -121,7 +116,6 @@ class ProcessResult:
     fit_errors: dict = field(default_factory=dict)
     quality: dict = field(default_factory=dict)
     interreflections: dict = None
-    ps_channels: dict = None
 
 
 def _fit_stage(filtered, fit_options, brdf_aware=False, prefer="li"):
@@ -292,7 +286,7 @@ def _process(source, outputs, out_dir, o):
     # one bag of options for whichever method: each takes its own (facette.methods)
     bag = o.ps_bag(mask=inp.mask, saturation=o.saturation)
     method_name = PS_METHODS.canonical(o.method)
-    solve_in = _solve_images(res, images, inp.mask, o, c, bag)
+    solve_in, used = images_for_solve(images, inp.mask, o, bag, res.notes)     # the channels the normals see
     direct, ps = solve_in, None
     if o.interreflections and method_name == "li_alternating":
         # glossy walls mirror each other: a second removal with li's lobe (facette.fit._ps_li_ir)
@@ -305,9 +299,7 @@ def _process(source, outputs, out_dir, o):
         ps = in_memory_ps(direct, light_dirs, o, bag, outputs, res)
     elif ps is None:
         ps = photometric_stereo(direct, light_dirs, method=o.method, options=bag)
-    if solve_in is not images:          # the solve's channel appended: the results keep R, G, B
-        ps = _rgb_only(ps)
-        direct = images if direct is solve_in else np.ascontiguousarray(direct[..., :c])
+    ps, direct = results_in_rgb(ps, direct, solve_in, images, used)
     res.ps = ps
     res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
     # mask.png: the object, without the dark table or cloth around it (when one surrounds it)
@@ -350,32 +342,6 @@ def _timed(res, name, fn, *args):
     out = fn(*args)
     res.timings[name] = time.perf_counter() - t0
     return out
-
-
-def _solve_images(res, images, mask, o, c, bag):
-    """The images the normals are solved on: `images` itself for green (or not RGB, --memory or
-    --interreflections),
-    else R, G, B and the reduced channel appended, `bag`'s channel set to it (pipeline._channels);
-    the weights and their note into `res`."""
-    if c != 3 or o.channels == "green":
-        res.ps_channels = {"channels": "green", "weights": [0.0, 1.0, 0.0] if c == 3 else None}
-        return images
-    if o.memory is not None or o.interreflections:     # not measured there: the methods' own green
-        res.ps_channels = {"channels": "green", "weights": [0.0, 1.0, 0.0]}
-        res.notes.append(f"channels: {o.channels} asked; with {'--memory' if o.memory else '--interreflections'} "
-                         "the normals are solved on green")
-        return images
-    weights, note = channel_weights(images, mask, o.channels)
-    res.ps_channels = {"channels": o.channels, "weights": [round(float(x), 4) for x in weights]}
-    if note:
-        res.notes.append(note)
-    bag["channel"] = SOLVE_CHANNEL
-    return with_solve_channel(images, weights, o.saturation)
-
-
-def _rgb_only(ps):
-    """`ps` with its albedo's R, G, B only (the appended solve channel dropped)."""
-    return replace(ps, albedo=np.ascontiguousarray(ps.albedo[..., :3]))
 
 
 def _without_interreflections(res, images, light_dirs, mask, saturation, reuse):

@@ -141,7 +141,7 @@ def write_record(out, options, inp, res, previous=None):
            "outputs": list(res.options.get("outputs", [])),
            "files": sorted(Path(p).name for p in res.files.values()),
            "quality": _plain(res.quality), "notes": list(res.notes),
-           "ps_channels": _plain(getattr(res, "ps_channels", None)),
+           "ps_channels": _plain(res.ps.info.get("channels") if res.ps is not None else None),
            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
     if previous and previous.get("inputs") == inp.digest and previous.get("options") == rec["options"]:
         # the same run with other outputs: its files stay valid beside these

@@ -96,7 +96,7 @@ def test_process_records_the_channels_and_keeps_albedo_per_colour(tmp_path):
         rec = json.loads((out / "process.json").read_text())
         assert rec["options"]["channels"] == choice and rec["ps_channels"]["channels"] == choice
     assert res["weighted"].albedo.shape == scene.normals.shape        # R, G, B, the solve channel dropped
-    assert res["weighted"].ps_channels["weights"][0] > res["weighted"].ps_channels["weights"][1]
+    assert res["weighted"].ps.info["channels"]["weights"][0] > res["weighted"].ps.info["channels"]["weights"][1]
     assert any(n.startswith("channels: normals on") for n in res["weighted"].notes)
     err = {c: float(np.mean(angular_error_deg(r.normals, scene.normals, scene.mask & r.mask))) for c, r in res.items()}
     assert err["weighted"] < err["green"], err
