@@ -23,6 +23,7 @@ missing or saturated there: a light saturated in red is not used for a weighted 
 The default ("mean") was chosen on Mitsuba renders with the camera's noise added (`facette bench
 channels`; never on DiLiGenT): see CHANNELS_DEFAULT.
 """
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 
 import numpy as np
@@ -136,22 +137,12 @@ def with_solve_channel(images, weights, saturation=None):
     NaN on the solve's channel where any channel with a weight > 0 is not finite or (when
     `saturation` is given) >= saturation: such a light is not used for that pixel's normal.
     """
-    images = np.asarray(images)
+    from facette.pipeline._pixels_jit import append_weighted     # numba: loaded on first use
+    images = np.ascontiguousarray(images, dtype=np.float32)
     m, h, w, c = images.shape
     out = np.empty((m, h, w, c + 1), np.float32)
-    out[..., :c] = images
-    solve = out[..., c]
-    solve[...] = 0
-    bad = np.zeros((m, h, w), bool)
-    for k in range(c):
-        if weights[k] == 0:
-            continue
-        ch = images[..., k]
-        solve += np.float32(weights[k]) * ch
-        bad |= ~np.isfinite(ch)
-        if saturation is not None:
-            bad |= ch >= saturation
-    solve[bad] = np.nan
+    with ThreadPoolExecutor(2) as pool:      # the kernel gives the GIL up: lights on two threads
+        list(pool.map(lambda k: append_weighted(images, weights, saturation, out, slice(k, k + 1)), range(m)))
     return out
 
 
