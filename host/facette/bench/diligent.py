@@ -6,7 +6,8 @@ repository, or `../../shared/data` from a git worktree; a folder holds filenames
 Every figure is `facette process`'s (facette.pipeline.process on the folder, outputs=["normals"],
 the method by --methods): the user's path, with the channels, the usable-value test and the mask
 process uses (the RGB images divided by the light intensities, saturated values missing; the
-Lambertian methods solve on green, li_alternating on the channels' mean with K_d per channel).
+normals solved on the channels process chooses, by default the mean of R, G, B, `--channels`
+to choose another: pipeline._channels; the albedo, li_alternating's K_d, per channel).
 The time is process's wall time for the normals (reading included); `facette process` with every
 output adds the integration, BRDF fit, PTM/HSH and report. Rows of a name ending in "+ir" are
 NOT process's (process refuses to remove inter-reflections from an albedo that is not a
