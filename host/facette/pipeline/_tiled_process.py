@@ -334,7 +334,10 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False):
             calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
                       inp.mask[r0:r1], obj[r0:r1], take(r0, r1)) for r0, r1 in _bands(h, n))
             ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client))
-            ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n)
+            ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n,
+                           channels={"channels": "green", "weights": [0.0, 1.0, 0.0]})   # pipeline._channels
+            if o.channels != "green":
+                res.notes.append(f"channels: {o.channels} asked; with --memory the normals are solved on green")
             taken = ps.info.pop("samples", None)
             if samples:
                 res.filtered, res.samples = _samples_result(taken, o.theta0_deg)

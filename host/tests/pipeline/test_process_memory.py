@@ -107,6 +107,7 @@ def test_scan_directory_in_bands_gives_the_untiled_results(scan, tmp_path, small
     whole = process(scan, channels=WHOLE_CHANNELS, outputs=STREAMED, out_dir=tmp_path / "whole", method=M)
     _never_whole(monkeypatch)
     tiled = process(scan, outputs=STREAMED, out_dir=tmp_path / "tiled", memory="1GB", method=M)
+    assert tiled.ps.info["channels"]["channels"] == "green" and any("with --memory" in n for n in tiled.notes)
     _same(whole, tiled)
     assert any("near lights" in n for n in tiled.notes)
     assert whole.errors and tiled.errors["normal_median_deg"] == pytest.approx(whole.errors["normal_median_deg"],
