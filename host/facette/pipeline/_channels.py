@@ -1,6 +1,6 @@
 """Which colour channels the normal solve sees: green, the mean of R, G, B, or their noise-weighted sum.
 
-    channel_weights(images, mask, channels="weighted", variance=None) -> (weights (3,) or None, note)
+    channel_weights(images, mask, channels="mean", variance=None) -> (weights (3,) or None, note)
     with_solve_channel(images, weights, saturation=None) -> (m, H, W, 4) images, the solve's channel last
 
 Every photometric-stereo method solves its normals on one channel (`channel`) and fits the albedo
@@ -15,7 +15,8 @@ each method keeps its albedo per colour (the fourth is dropped from the result).
   pixel: a dielectric's lobe is white, sum_c w_c = 1 keeps its amplitude one number over the
   pixels, as li_alternating's fit shares it). var_c is the given variance per channel, else it
   is estimated from the images themselves (`noise_variance`); when that fails the weights are
-  the mean's, with a note.
+  the mean's, with a note. `process` always estimates it: the scan's _var.exr files are not read
+  for it (the HDR merge held in memory during a scan keeps the green variance only).
 
 A pixel's light is missing (NaN) on the solve's channel when any channel with a weight > 0 is
 missing or saturated there: a light saturated in red is not used for a weighted normal.
