@@ -37,7 +37,7 @@ CHANNELS = ("green", "mean", "weighted")
 # albedos, the sensor's noise added; mean error over the scenes, 2 seeds): the mean beats green for
 # every method and noise level (rank_trimmed 4.84 -> 4.48 deg at 3000 e-, 4.21 -> 4.10 at 20000 e-,
 # 4.04 -> 4.00 without added noise; least squares 8.73 -> 8.29, 8.54 -> 8.17, 8.48 -> 8.14;
-# li_alternating 2.52 -> 2.41 at 3000 e-), and the weighted sum with its noise estimated from the images
+# li_alternating 1.73 -> 1.63 at 3000 e-), and the weighted sum with its noise estimated from the images
 # does not beat the mean (rank_trimmed 4.46 / 4.14 / 4.19, least squares 8.39 / 8.33 / 8.70): with
 # the renders' equal channel sensitivities the weights are near (1, 2, 1) / 4, and the estimate goes
 # wrong on noise that is not the sensor's (Monte Carlo). "weighted" stays an option for a camera
