@@ -98,14 +98,15 @@ def fit_cells_verdict(filtered, prefer="li", models=VERDICT_MODELS, **options):
         opts = dict(options, **({"volume": volume} if model == "li" and volume else {}))
         if model == "metal":
             res = fit_hemisphere_cells(filtered, model="cook_torrance", n_i_max=METAL_N_I_MAX, **opts)
-            if res.success:
+            if res.success and res.model == "cook_torrance":     # not a simpler model fit_brdf kept
                 res.selection = list(res.selection) + [
                     f"a metal's lobe: n_i {res.params['n_i']:.3g} stands for F0 "
                     f"{((res.params['n_i'] - 1) / (res.params['n_i'] + 1)) ** 2:.2f} (facette.brdf._fresnel.check_n_i)"]
         else:
             res = fit_hemisphere_cells(filtered, model=model, **opts)
         rms = res.error.get("relative_rms") if res.success and res.error else None
-        tried.append({"model": model if model == "metal" else res.model, "relative_rms": rms, "parameters": res.params,
+        name = "metal" if model == "metal" and res.model == "cook_torrance" else res.model
+        tried.append({"model": name, "relative_rms": rms, "parameters": res.params,
                       "success": res.success, "seconds": res.time_s})
         if res.success and (best is None or rms < best.error["relative_rms"]):
             best = res

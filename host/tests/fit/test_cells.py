@@ -63,3 +63,21 @@ def test_li_fit_on_cook_torrance_cells_finds_the_lobe():
     assert 1.12 < res.params["n_i"] < 1.28
     unbalanced = fit_hemisphere_cells(filt, specular_weight=1.0, **opts)
     assert unbalanced.params["n_i"] < 1.05  # the failure the balance removes
+
+
+def test_the_verdict_asked_for_a_metal_on_a_matte_material_keeps_the_simpler_model():
+    # a metal's lobe tried first (photometric stereo's choice) on Lambertian cells: the fit finds no
+    # interface and keeps Lambert, and the verdict lists it under the model it is, not as a metal
+    from facette.fit import fit_cells_verdict
+    rng = np.random.default_rng(1)
+    sensor = reflect.HemisphereSensor(5.0, channels=1)
+    for ts in np.radians([20, 40]):
+        n = 20_000
+        s = np.broadcast_to([np.sin(ts), 0.0, np.cos(ts)], (n, 3))
+        z = rng.random(n)
+        phi = 2 * np.pi * rng.random(n)
+        o = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], axis=1)
+        sensor.add(s, o, np.full((n, 1), 0.6 / np.pi))
+    res = fit_cells_verdict(sensor.result(), prefer="metal", n_starts=2)
+    assert res.success and res.verdict == "fits" and res.model == "lambert", res.models_tried
+    assert res.models_tried[0]["model"] == "lambert"
