@@ -218,7 +218,9 @@ def scan_size(size, work, memory, method, untiled, outputs="normals,height"):
         _, row["gen_s"], row["gen_gb"] = _run_rss(_measured(SELF + ["--_scan", folder, scan]))
     else:
         row["gen_s"] = row["gen_gb"] = float("nan")
-    base = FACETTE + ["process", scan, "--outputs", outputs, "--method", method, "--overwrite", "-o"]
+    # green, as --memory solves (its bands read one channel): the two runs compared like with like
+    base = FACETTE + ["process", scan, "--outputs", outputs, "--method", method, "--channels", "green",
+                      "--overwrite", "-o"]
     out_u, out_m = work / f"scan_untiled_{w}x{h}", work / f"scan_memory_{w}x{h}"
     if untiled:
         stdout, row["untiled_s"], row["untiled_gb"] = _run_rss(_measured(base + [out_u]))
@@ -309,7 +311,7 @@ def one_size(size, work, memory, method, untiled):
         out = work / f"untiled_{w}x{h}"
         stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", folder, "-o", out, "--outputs",
                                                          "normals,height", "--method", method,
-                                                         "--overwrite"]))
+                                                         "--channels", "green", "--overwrite"]))
         times = _times(stdout)
         row.update(untiled_s=wall, untiled_gb=gb, untiled_load=times.get("load", float("nan")),
                    untiled_ps=times.get("ps", float("nan")))
