@@ -187,9 +187,9 @@ def _profile_lobe(e, lights, usable, solve, volume_models):
     PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ; `solve(sigma, n_i, volume_model)` ->
     (N, 3)), each scored by the trimmed robust cost of the result (`_trimmed`: a pixel whose solve
     stopped in a wrong minimum does not decide the model).
-    Returns (best: dict(cost, gain, volume_model, sigma, n_i, normals, kept): the dielectric or the
-    metal candidate, whichever lowers the Lambertian cost more; the best dielectric candidate (the
-    same dict, or None); the Lambertian solution's cost on the best's kept pixels,
+    Returns (best: dict(cost, cost_lambertian: the Lambertian solution's cost on its kept pixels,
+    gain, volume_model, sigma, n_i, normals, kept): the dielectric or the metal candidate, whichever
+    lowers the Lambertian cost more; the best dielectric candidate (the same dict, or None);
     {volume_model: its best trimmed cost}, the number of solves)."""
     best, per_model, solves = {}, {}, 0     # best: {is a metal's lobe: the best such candidate}
 
@@ -217,13 +217,13 @@ def _profile_lobe(e, lights, usable, solve, volume_models):
     n = solve(LAMBERTIAN_SIGMA, 1.0, volume_models[0])
     costs = _pixel_costs(e, lights, n, usable, LAMBERTIAN_SIGMA, 1.0, volume_models[0])
     for b in best.values():
-        b["gain"] = 1 - b["cost"] / max(float(costs[b["kept"]].sum()), 1e-30)
         b["cost_lambertian"] = float(costs[b["kept"]].sum())
+        b["gain"] = 1 - b["cost"] / max(b["cost_lambertian"], 1e-30)
     # a metal's lobe only where it gains more against Lambert's than the best dielectric's (each on
     # its own kept pixels: a metal's global search fits the pixels it keeps at any (σ, n_i))
     top = best[True] if True in best and (False not in best or best[True]["gain"] > best[False]["gain"]) \
         else best[False]
-    return top, best.get(False), top["cost_lambertian"], per_model, solves + 1
+    return top, best.get(False), per_model, solves + 1
 
 
 def _has_interface(fit):
@@ -268,33 +268,33 @@ def choose_material_model(e, lights, usable, solve, volume_models):
     """
     e_f, l_f, ok_f, diffuse_models = e, lights, usable, volume_models
     t_p = time.perf_counter()
-    best, dielectric, lam_cost, per_model, solves = _profile_lobe(e_f, l_f, ok_f, solve, diffuse_models)
-    gain = 1 - best["cost"] / max(lam_cost, 1e-30)
-    name = diffuse_name(best["volume_model"])
-    choice = {"cost_lambertian": lam_cost, "cost_lobe": best["cost"], "gain": gain,
-              "profile_pixels": int(len(e_f)), "profile_solves": solves,
+    best, dielectric, per_model, solves = _profile_lobe(e_f, l_f, ok_f, solve, diffuse_models)
+    choice = {"profile_pixels": int(len(e_f)), "profile_solves": solves,
               "profile_seconds": time.perf_counter() - t_p, "trimmed_to": PROFILE_KEEP,
-              "grid_sigma": best["sigma"], "grid_n_i": best["n_i"],
               "cost_by_diffuse": {diffuse_name(k): c for k, c in per_model.items()}}
-    if gain < LOBE_MIN_GAIN:
-        choice.update(model="lambertian", why=f"the best lobe (σ {best['sigma']:.3f}, n_i {best['n_i']:.2f}, "
-                      f"{name} diffuse) lowers the trimmed robust cost by {100 * gain:.1f} % only")
-        return dict(sigma=LAMBERTIAN_SIGMA, n_i=1.0, volume_model=diffuse_models[0]), 0, choice
     # (σ, n_i) from the best point, on its re-solved normals, then warmed up (the normals
     # re-solved against the fit, refit) until they settle, every profile pixel counted. Chosen on
     # renders (mean normal error, the simulated scan + Mitsuba sphere paint 0.10, relief paints
     # 0.10 and 0.05, satin sphere): this 0.38 / 0.48 / 0.58 / 0.87 / 1.95°; on the search's kept
     # pixels only 0.38 / 0.40 / 0.81 / 0.88 / 2.39 (σ, n_i stuck near the grid: paint 0.10 gave
     # 0.086, 1.386); starting from the initial normals 0.42 / 0.52 / 0.60 / 0.66 / 2.15.
-    fit, warm = _warm_up(e_f, l_f, ok_f, solve, best)
-    if is_metal(best["n_i"]) and not is_metal(fit["n_i"]) and dielectric is not None:
+    fit, warm = _warm_up(e_f, l_f, ok_f, solve, best) if best["gain"] >= LOBE_MIN_GAIN else (None, 0)
+    if fit is not None and is_metal(best["n_i"]) and not is_metal(fit["n_i"]) and dielectric is not None:
         # a metal's lobe won the grid, but its fit ends at a dielectric's index: the metal's global
         # search found the normals, not the model (Mitsuba satin sphere: lambert, n_i 40 -> 1.57,
-        # 2.84° against 1.95° from the best dielectric point); the best dielectric point instead
-        choice.update(metal_fit_n_i=fit["n_i"], grid_sigma=dielectric["sigma"], grid_n_i=dielectric["n_i"])
-        best, name = dielectric, diffuse_name(dielectric["volume_model"])
-        fit, more = _warm_up(e_f, l_f, ok_f, solve, best)
+        # 2.84° against 1.95° from the best dielectric point); the best dielectric point instead,
+        # held to the same bar
+        choice["metal_fit_n_i"] = fit["n_i"]
+        best = dielectric
+        fit, more = _warm_up(e_f, l_f, ok_f, solve, best) if best["gain"] >= LOBE_MIN_GAIN else (None, 0)
         warm += more
+    gain, name = best["gain"], diffuse_name(best["volume_model"])
+    choice.update(cost_lambertian=best["cost_lambertian"], cost_lobe=best["cost"], gain=gain,
+                  grid_sigma=best["sigma"], grid_n_i=best["n_i"])
+    if fit is None:
+        choice.update(model="lambertian", why=f"the best lobe (σ {best['sigma']:.3f}, n_i {best['n_i']:.2f}, "
+                      f"{name} diffuse) lowers the trimmed robust cost by {100 * gain:.1f} % only")
+        return dict(sigma=LAMBERTIAN_SIGMA, n_i=1.0, volume_model=diffuse_models[0]), warm, choice
     vm_ = best["volume_model"]
     choice.update(lobe_sigma=fit["sigma"], lobe_n_i=fit["n_i"], diffuse=name)
     if not _has_interface(fit):
