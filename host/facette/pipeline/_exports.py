@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 from scipy.ndimage import uniform_filter
 
-from facette.fit import LI_FIT_BOUNDS
+from facette.fit import is_metal
 from facette.recon import hsh_basis
 from facette.recon import srgb_encode as srgb_transfer
 
@@ -180,7 +180,7 @@ def gltf_material(res):
         r = float(gltf_roughness(float(np.mean(params["sigma"])), dist))
         ior = params.get("n_i")
         what = f"glTF roughness = sqrt(sigma) = {r:.3g} (sigma = {float(np.mean(params['sigma'])):.3g}, {dist}); "
-        if ior is not None and ior > LI_FIT_BOUNDS[1][1]:
+        if ior is not None and is_metal(ior):
             # a metal's lobe: its index stands for the metal's F0 (no dielectric's IOR); glTF's metal
             # has no diffuse part, so a lobe weaker than the diffuse part (a metallic paint) stays
             # a dielectric of the same roughness
@@ -230,8 +230,7 @@ def gltf_inputs(res, step, material=None):
     mr[..., 1] = np.round(rough * 255).astype(np.uint8)     # roughness
     if material.get("metal_f0") is not None:                # metallic in B; a metal's colour is its F0
         mr[..., 2] = np.where(fitted, 255, 0).astype(np.uint8)
-        albedo = albedo.copy()
-        albedo[fitted] = np.float32(material["metal_f0"])
+        albedo[fitted] = np.float32(material["metal_f0"])     # albedo is this function's own copy
     return dict(vertices_mm=verts, faces=faces, normals=normals, tangents=vertex_tangents(normals),
                 uv=uv, base_color=srgb_encode(albedo),
                 normal_map=tangent_space_normal_map(res.normals, res.height, res.mask, pitch, step),

@@ -53,21 +53,51 @@ def cache(tmp_path_factory):
     return tmp_path_factory.mktemp("mitsuba")
 
 
-def test_the_pipeline_fits_a_metallic_paint_as_a_metal_lobe_and_exports_it(cache, tmp_path):
-    # Mitsuba's blend of a copper roughconductor (α 0.2) and a diffuse base: photometric stereo finds
-    # a metal's lobe, so the BRDF fit tries "metal" first; it fits where li and Cook–Torrance did not
-    import pygltflib
-
+def _process_render(material, cache, tmp_path):
+    """`process` (normals, brdf, gltf) of a Mitsuba sphere written as a DiLiGenT-style folder."""
     from facette.io.diligent import write_diligent
     from facette.pipeline import ProcessOptions, process
-    d = render_scene("sphere", "metallic_paint", size=64, spp=16, cache_dir=cache)
+    d = render_scene("sphere", material, size=64, spp=16, cache_dir=cache)
     im = d["images"]
     k = 60000.0 / float(np.nanmax(im))
-    folder = tmp_path / "metallic_paint"
+    folder = tmp_path / material
     write_diligent(folder, np.clip(np.round(im * k), 0, 65535).astype(np.uint16), d["light_dirs"],
                    np.full((len(im), 3), k / 65535.0), d["mask"])
     res = process(folder, outputs=["normals", "brdf", "gltf"], out_dir=tmp_path / "out",
                   options=ProcessOptions(method="li_alternating"))
+    return d, res
+
+
+def _metallic_texture(glb_path, tmp_path):
+    """The metallic channel (B) of the .glb's metallicRoughness texture, as written."""
+    import pygltflib
+
+    from facette.io.png import read_png
+    doc = pygltflib.GLTF2().load(str(glb_path))
+    tex = doc.materials[0].pbrMetallicRoughness.metallicRoughnessTexture.index
+    view = doc.bufferViews[doc.images[doc.textures[tex].source].bufferView]
+    png = tmp_path / "mr.png"
+    png.write_bytes(doc.binary_blob()[view.byteOffset:view.byteOffset + view.byteLength])
+    return read_png(png)[..., 2], doc
+
+
+def test_a_bare_metal_exports_as_glTF_metal_that_the_khronos_validator_accepts(cache, tmp_path, khronos_validate):
+    # Mitsuba aluminium (roughconductor, no diffuse part): the fit is a metal's lobe, and the glTF
+    # material is metallic (1 on the fitted pixels) with no dielectric's IOR
+    d, res = _process_render("aluminium", cache, tmp_path)
+    assert res.brdf.models_tried[0]["model"] == "metal" and res.brdf.params["n_i"] > 2.5, res.brdf.models_tried
+    glb = tmp_path / "out" / "model.glb"
+    report = khronos_validate(glb)
+    assert report["issues"]["numErrors"] == 0, report["issues"]["messages"]
+    metallic, doc = _metallic_texture(glb, tmp_path)
+    assert metallic.max() == 255 and metallic.min() == 0    # metal where fitted, 0 elsewhere
+    assert "KHR_materials_ior" not in (doc.extensionsUsed or [])
+
+
+def test_the_pipeline_fits_a_metallic_paint_as_a_metal_lobe_and_exports_it(cache, tmp_path, khronos_validate):
+    # Mitsuba's blend of a copper roughconductor (α 0.2) and a diffuse base: photometric stereo finds
+    # a metal's lobe, so the BRDF fit tries "metal" first; it fits where li and Cook–Torrance did not
+    d, res = _process_render("metallic_paint", cache, tmp_path)
     mat = res.ps.info["materials"][0]
     assert mat["diffuse"] == "lambert" and mat["n_i"] > 2.5, mat["model_choice"]
     fit = res.brdf
@@ -76,5 +106,11 @@ def test_the_pipeline_fits_a_metallic_paint_as_a_metal_lobe_and_exports_it(cache
     sel = binary_erosion(d["mask"]) & res.ps.valid
     err = np.degrees(np.arccos(np.clip(np.sum(res.ps.normal * d["normals"], -1), -1, 1)))[sel]
     assert err.mean() < 3.0
-    glb = pygltflib.GLTF2().load(str(tmp_path / "out" / "model.glb"))
-    assert "KHR_materials_ior" not in (glb.extensionsUsed or [])   # no dielectric's IOR for a metal's lobe
+    # glTF's metal has no diffuse part: metallic where the lobe's F0 outweighs the mean K_d (here
+    # F0 ~0.3 against K_d ~0.25, half the base's: the blend's weight), a dielectric otherwise; no IOR
+    glb = tmp_path / "out" / "model.glb"
+    assert khronos_validate(glb)["issues"]["numErrors"] == 0
+    metallic, doc = _metallic_texture(glb, tmp_path)
+    n = fit.params["n_i"]
+    assert (metallic.max() == 255) == (((n - 1) / (n + 1)) ** 2 > np.mean(fit.params["kd"]))
+    assert "KHR_materials_ior" not in (doc.extensionsUsed or [])
