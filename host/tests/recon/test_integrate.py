@@ -205,3 +205,46 @@ def test_mesh_leaves_out_the_curtain_down_a_silhouette():
     za = v_all[f_all][..., 2]
     spanning = int(((za.max(axis=1) - za.min(axis=1)) > 0).sum())
     assert spanning > 0 and f.shape[0] == f_all.shape[0] - spanning    # the wall's faces only
+
+
+@pytest.mark.parametrize("rows", [1, 7, 1000])
+def test_dct_solve_in_bands_and_float32_is_the_least_squares_heights(monkeypatch, rows):
+    """The DCT Poisson solve builds its divergence a band of rows at a time in float32 (for
+    100 MP maps): any band height gives the heights of the same equations solved exactly in
+    float64 by the sparse least squares on the full grid, to 1e-5 of their range."""
+    import facette.recon._integrate as integ
+    monkeypatch.setattr(integ, "SLOPE_BAND_ROWS", rows)
+    rng = np.random.default_rng(3)
+    n, _ = surface_normals(lambda x, y: bump(x, y, a=5.0, s=6.0), h=37, w=53)
+    n = n + rng.normal(0, 0.05, n.shape)           # not integrable: the least-squares answer matters
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    want = integrate_least_squares(n, 0.2)
+    got = integrate_simchony1990(n, 0.2)
+    assert got.dtype == np.float32
+    assert np.abs(got - want).max() < 1e-5 * np.ptp(want)
+
+
+@pytest.mark.parametrize("rows", [3, 1000])
+def test_flat_margin_lean_taken_in_bands_as_over_the_whole_image(monkeypatch, rows):
+    """The margin's mean slope is summed band by band: the same heights as the slopes with
+    that mean removed at once, integrated whole (the least squares on the full grid)."""
+    import facette.recon._integrate as integ
+    monkeypatch.setattr(integ, "SLOPE_BAND_ROWS", rows)
+    h, w = 40, 50
+    n, _ = surface_normals(lambda x, y: bump(x, y, a=2.0, s=5.0), h=h, w=w)
+    tilt = np.array([0.05, -0.03, 1.0])
+    bg = np.zeros((h, w), bool)
+    bg[:, :8] = bg[:, -8:] = True
+    n[bg] = tilt / np.linalg.norm(tilt)              # a leaning table around the bump
+    bg_big = np.zeros((h * 10, w * 10), bool)        # MIN_BACKGROUND_PIXELS: upsample the scene
+    big = np.repeat(np.repeat(n, 10, 0), 10, 1)
+    bg_big[:] = np.repeat(np.repeat(bg, 10, 0), 10, 1)
+    got = integrate_poisson_flat_margin(big, 1.0, background=bg_big)
+    gx, gy = normals_to_gradients(big)
+    gy = -gy
+    gx[bg_big] -= gx[bg_big].mean()
+    gy[bg_big] -= gy[bg_big].mean()
+    # the same slopes as a normal map (n ∝ (-p, -q, 1)) integrated whole
+    fixed = np.dstack([-gx, gy, np.ones_like(gx)])
+    want = integrate_least_squares(fixed / np.linalg.norm(fixed, axis=-1, keepdims=True), 1.0)
+    assert np.abs(got - want).max() < 1e-4 * np.ptp(want)
