@@ -35,3 +35,41 @@ def keep_freed_memory():
           mallopt(_M_TRIM_THRESHOLD, 2**31 - 1),
           mallopt(_M_TOP_PAD, 64 << 20)]     # the heap grows 64 MB at a time
     return all(ok)
+
+
+def disk_array(shape, dtype, folder=None):
+    """A zero-filled array kept in a temporary file (a numpy memmap) rather than in memory: the
+    full-size maps of a `--memory` run, written and read a band at a time. The file has no name
+    (it is gone when the array is), in `folder` or the temporary directory."""
+    import tempfile
+
+    import numpy as np
+    size = int(np.prod(shape)) * np.dtype(dtype).itemsize
+    if size == 0:
+        return np.zeros(shape, dtype)
+    with tempfile.TemporaryFile(dir=folder) as fh:     # the map keeps the file open on its own
+        try:
+            # the blocks taken now: a map over a sparse file would crash (SIGBUS) on a full disk
+            os.posix_fallocate(fh.fileno(), 0, size)
+        except OSError as exc:
+            where = folder or tempfile.gettempdir()
+            raise OSError(exc.errno, f"no room for a {size / 1e9:.2f} GB map in {where} ({exc.strerror}): "
+                                     "free disk space there, or set TMPDIR to a disk that has it") from exc
+        return np.memmap(fh, dtype=dtype, mode="r+", shape=tuple(shape))
+
+
+def release(array):
+    """Hand a disk array's pages back to the kernel (written out first): what was read or
+    written of it stops counting in this process's memory until it is touched again. Nothing
+    for an array in memory, or a view of part of one."""
+    import mmap
+
+    import numpy as np
+    base = array
+    while base is not None and not isinstance(base, np.memmap):
+        base = getattr(base, "base", None)
+    raw = getattr(base, "_mmap", None)
+    if raw is None:
+        return
+    raw.flush()
+    raw.madvise(mmap.MADV_DONTNEED)

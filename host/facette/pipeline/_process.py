@@ -393,7 +393,8 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
         margin = None if bg is None or INTEGRATION_METHODS.canonical(integration) != "poisson_flat_margin" \
             else flat_margin(bg & res.mask, res.mask.shape)
         hgt = _timed(res, "integrate", integrate, res.normals, inp.pixel_pitch_mm, mk, integration, margin)
-        res.height = np.where(res.mask, hgt, 0.0).astype(np.float32)
+        hgt[~res.mask] = 0.0                  # in place: 0.4 GB at 100 MP
+        res.height = hgt
         notes = [] if margin is None else [
             f"heights: the table's lean (its mean slope over the {int(margin.sum())} background pixels) "
             "taken out of the background's slopes only, the object's integrated as measured"]

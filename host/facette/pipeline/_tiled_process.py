@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from facette._memory import disk_array, release
 from facette.io.diligent import is_diligent_dir, read_diligent_lights
 from facette.io.png import read_mask
 from facette.methods import PS_METHODS, photometric_stereo
@@ -56,6 +57,11 @@ STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "b
 MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (the photographs are not held) "
                      "and, the per-light shadow and specular flags not being kept (m bytes per pixel each), "
                      "leaves their share out and draws their maps empty")
+
+
+# the PS outputs a streamed run keeps on disk (`_memory.disk_array`): 30 of their 32 bytes per
+# pixel, 3 GB at 100 MP; written band by band, read band by band by the writers and the heights
+ON_DISK = ("normal", "albedo", "n_triplets", "residual")
 
 
 def check_memory_options(method, interreflections):
@@ -87,7 +93,8 @@ def _rows(w, h, m, memory, method, rows):
         if int(rows) < 1:
             raise ValueError(f"rows must be >= 1, got {rows}")
         return int(rows)
-    return rows_per_tile(w, h, m, memory, method, tuple(FIELD_BYTES))
+    # the ON_DISK maps are not held: the budget is shared by the bands and the rest
+    return rows_per_tile(w, h, m, memory, method, tuple(k for k in FIELD_BYTES if k not in ON_DISK))
 
 
 def _maps_task(spec, r0, r1, flat):
@@ -162,15 +169,19 @@ def _map(fn, calls, client=None, in_flight=None):
             break
 
 
-def _assemble(shape, method, results, flags_m=0):
+def _assemble(shape, method, results, flags_m=0, on_disk=False):
     """The bands' results (`_ps_task`'s tuples) into one PSResult at the image's size, and the
     quality counts summed. info: the first band's, its fractions (keys ending in _fraction)
-    weighted by the bands' pixels, and pixels, tiles, read_s, ps_s."""
+    weighted by the bands' pixels, and pixels, tiles, read_s, ps_s. on_disk: the ON_DISK maps
+    in temporary files, their pages handed back after each band."""
     h, w = shape
-    res = PSResult(normal=np.zeros((h, w, 3), np.float32), albedo=np.zeros((h, w, 3), np.float32),
-                   valid=np.zeros((h, w), bool), n_triplets=np.zeros((h, w), np.int16),
+
+    def field(name, tail, dtype):
+        return disk_array((h, w) + tail, dtype) if on_disk and name in ON_DISK else np.zeros((h, w) + tail, dtype)
+    res = PSResult(normal=field("normal", (3,), np.float32), albedo=field("albedo", (3,), np.float32),
+                   valid=np.zeros((h, w), bool), n_triplets=field("n_triplets", (), np.int16),
                    shadow=np.zeros((h, w, flags_m), bool), specular=np.zeros((h, w, flags_m), bool),
-                   residual=np.zeros((h, w), np.float32), skipped=np.zeros((h, w), bool),
+                   residual=field("residual", (), np.float32), skipped=np.zeros((h, w), bool),
                    method=PS_METHODS.canonical(method))
     info, pixels, counts, read_s, ps_s, weighted = {}, 0, None, 0.0, 0.0, {}
     sensor, raws = None, []
@@ -188,6 +199,7 @@ def _assemble(shape, method, results, flags_m=0):
             continue
         for name in ("normal", "albedo", "valid", "n_triplets", "residual", "skipped"):
             getattr(res, name)[r0:r1] = getattr(part, name)
+            release(getattr(res, name))
         if flags_m:
             res.shadow[r0:r1], res.specular[r0:r1] = part.shadow, part.specular
         n = int(part.info.get("pixels", part.valid.sum()))
@@ -333,7 +345,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False):
                                                  "total": total}
             calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
                       inp.mask[r0:r1], obj[r0:r1], take(r0, r1)) for r0, r1 in _bands(h, n))
-            ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client))
+            ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client), on_disk=True)
             ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n,
                            channels={"channels": "green", "weights": [0.0, 1.0, 0.0]})   # pipeline._channels
             if o.channels != "green":
