@@ -28,3 +28,32 @@ print(ok, np._core.multiarray._get_madvise_hugepage(), resource.getrusage(resour
                          env=env, check=True).stdout.split()
     assert out[0] == "True" and out[1] == "False"
     assert int(out[2]) < 100           # 1 GB of fresh 4 KiB pages would be 262144 faults (0 measured)
+
+
+def _resident_kb():
+    with open("/proc/self/status") as fh:
+        return next(int(line.split()[1]) for line in fh if line.startswith("VmRSS:"))
+
+
+@pytest.mark.skipif(platform.system() != "Linux", reason="reads /proc/self/status")
+def test_a_disk_array_keeps_what_was_written_and_its_pages_leave_memory():
+    """`disk_array` + `release`: 256 MB written band by band stays readable after each band's
+    pages are handed back, and the process holds far less than the array at the end."""
+    import numpy as np
+    from facette._memory import disk_array, release
+    a = disk_array((4096, 8192, 2), np.float32)            # 256 MB
+    start = _resident_kb()
+    for r0 in range(0, 4096, 512):
+        a[r0:r0 + 512] = r0
+        release(a)
+    assert _resident_kb() - start < 64 * 1024              # well under the 256 MB written
+    assert a[0, 0, 0] == 0 and a[4095, 8191, 1] == 3584 and a[1000, 5, 0] == 512
+    release(np.zeros(3))                                   # an array in memory: nothing to do
+
+
+def test_a_disk_array_on_a_full_disk_says_where_and_what_to_do(small_disk):
+    import numpy as np
+    from facette._memory import disk_array
+    disk = small_disk(1024)
+    with pytest.raises(OSError, match="no room for a 0.02 GB map in .*disk0 .*No space left.*TMPDIR"):
+        disk_array((2000, 1000, 3), np.float32, folder=disk)
