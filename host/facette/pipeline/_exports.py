@@ -9,15 +9,21 @@ import warnings
 import numpy as np
 from scipy.ndimage import uniform_filter
 
+from facette._memory import release
 from facette.fit import is_metal
 from facette.recon import hsh_basis
 from facette.recon import srgb_encode as srgb_transfer
 
 __all__ = ["hsh_order_for", "fill_unfitted", "gltf_roughness", "srgb_encode", "vertex_normals", "vertex_tangents",
-           "tangent_space_normal_map", "gltf_material", "gltf_inputs"]
+           "tangent_space_normal_map", "gltf_material", "gltf_inputs", "GLTF_TEXTURE_MAX",
+           "texture_step", "block_means"]
 
 ROWS = 64                  # image rows of the normal map made at a time
 PTM_TERMS = 6
+# The glTF's textures are at most this many texels on their long side: a 100 MP map is a
+# 0.3 GB texture few viewers load (WebGL's usual limit is 16384, phones' 4096-8192), and the
+# full-size maps are beside it (normal.exr, albedo.exr). A 12 MP scan's keep its full size.
+GLTF_TEXTURE_MAX = 8192
 
 
 def hsh_order_for(n_lights, asked):
@@ -166,9 +172,14 @@ def gltf_material(res):
     the report lists the notes while `gltf_inputs` builds the arrays): a dict with the
     albedo's scale `top`, the roughness `r` (None: 1 everywhere) and the `ior`, and notes."""
     notes = []
-    albedo = res.albedo
-    top = float(np.percentile(np.nan_to_num(np.asarray(albedo[res.mask], float)), 99.5)) \
-        if res.mask.any() else 1.0
+    f = texture_step(res.mask.shape)          # every f-th row and column: the same distribution
+    albedo, mask = res.albedo[::f, ::f], res.mask[::f, ::f]
+    top = float(np.percentile(np.nan_to_num(np.asarray(albedo[mask], float)), 99.5)) if mask.any() else 1.0
+    release(res.albedo)
+    if f > 1:
+        h, w = res.mask.shape
+        notes.append(f"glTF textures {-(-w // f)} x {-(-h // f)} (block means of {f} x {f} pixels; the "
+                     "full-size maps are normal.exr and albedo.exr)")
     if top > 1.0:
         notes.append(f"glTF base colour: albedo divided by {top:.3g} (its 99.5th percentile) to fit [0, 1]")
     r, ior, metal_f0 = None, None, None
@@ -214,18 +225,29 @@ def gltf_inputs(res, step, material=None):
     if len(faces) == 0:
         raise ValueError("the mesh has no triangles (is the mask empty?); nothing to export as glTF")
     h, w = res.mask.shape
+    f = texture_step((h, w))
     pitch = res.inputs.pixel_pitch_mm
-    uv = np.stack([(verts[:, 0] / pitch + 0.5) / w, (-verts[:, 1] / pitch + 0.5) / h], axis=1)
+    # texel j covers pixels [j f, (j + 1) f): pixel x's centre at u = (x + 0.5) / (f · texels)
+    th, tw = -(-h // f), -(-w // f)
+    uv = np.stack([(verts[:, 0] / pitch + 0.5) / (f * tw), (-verts[:, 1] / pitch + 0.5) / (f * th)], axis=1)
     normals = vertex_normals(verts, faces)
-    albedo = np.nan_to_num(np.asarray(res.albedo, np.float32))
+    fitted_px = res.inputs.sample_mask() & res.mask
+    if f == 1:
+        albedo, mask, fitted = np.nan_to_num(np.asarray(res.albedo, np.float32)), res.mask, fitted_px
+        normal_map = tangent_space_normal_map(res.normals, res.height, mask, pitch, step)
+    else:
+        (albedo, n_small, height), count = block_means((res.albedo, res.normals, res.height), res.mask, f)
+        mask = count > 0
+        fitted = block_means((), fitted_px, f)[1] * 2 > np.maximum(count, 1)   # most of the block
+        n_small /= np.maximum(np.linalg.norm(n_small, axis=-1, keepdims=True), np.float32(1e-12))
+        normal_map = tangent_space_normal_map(n_small, height[..., 0], mask, pitch * f, max(1, round(step / f)))
     if material["top"] > 1.0:
         albedo = albedo / np.float32(material["top"])
-    rough = np.ones((h, w))
-    fitted = res.inputs.sample_mask() & res.mask
+    rough = np.ones(mask.shape, np.float32)
     if material["r"] is not None:
         rough[fitted] = material["r"]
     ior = material["ior"]
-    mr = np.zeros((h, w, 3), np.uint8)
+    mr = np.zeros(mask.shape + (3,), np.uint8)
     mr[..., 0] = 255                                        # unused (occlusion lives elsewhere)
     mr[..., 1] = np.round(rough * 255).astype(np.uint8)     # roughness
     if material.get("metal_f0") is not None:                # metallic in B; a metal's colour is its F0
@@ -233,6 +255,35 @@ def gltf_inputs(res, step, material=None):
         albedo[fitted] = np.float32(material["metal_f0"])     # albedo is this function's own copy
     return dict(vertices_mm=verts, faces=faces, normals=normals, tangents=vertex_tangents(normals),
                 uv=uv, base_color=srgb_encode(albedo),
-                normal_map=tangent_space_normal_map(res.normals, res.height, res.mask, pitch, step),
+                normal_map=normal_map,
                 metallic_roughness=mr, ior=None if ior is None else float(ior),
                 extras={"scan_incomplete": res.inputs.incomplete} if res.inputs.incomplete else None), notes
+
+
+def texture_step(shape):
+    """Pixels per glTF texel along each side: 1 up to GLTF_TEXTURE_MAX on the long side."""
+    return max(1, -(-max(shape) // GLTF_TEXTURE_MAX))
+
+
+def block_means(maps, mask, f, rows=None):
+    """The means over the `mask`ed pixels of each f x f block (the last ones may be smaller) of
+    each of `maps` ((H, W) or (H, W, C); kept on disk or not, read a band at a time): (list of
+    (ceil(H/f), ceil(W/f), C) float32 arrays, 0 where a block has no masked pixel; the masked
+    pixels per block)."""
+    h, w = mask.shape
+    starts = np.arange(0, w, f)
+    rows = rows or f * max(1, (16 << 20) // (w * 12 * f))   # ~16 MB of float32 RGB per band
+    out = [np.zeros((-(-h // f), len(starts), 1 if m.ndim == 2 else m.shape[2]), np.float32) for m in maps]
+    count = np.zeros((-(-h // f), len(starts)), np.int64)
+    for r0 in range(0, h, rows):
+        r1 = min(h, r0 + rows)
+        mk = np.asarray(mask[r0:r1])
+        b0, rstarts = r0 // f, np.arange(0, r1 - r0, f)
+        count[b0:b0 + len(rstarts)] = np.add.reduceat(np.add.reduceat(mk.astype(np.int64), starts, 1), rstarts, 0)
+        for a, o in zip(maps, out):
+            band = np.nan_to_num(np.asarray(a[r0:r1], np.float32).reshape(r1 - r0, w, -1)) * mk[..., None]
+            o[b0:b0 + len(rstarts)] = np.add.reduceat(np.add.reduceat(band, starts, 1), rstarts, 0)
+            release(a)
+    for o in out:
+        o /= np.maximum(count, 1)[..., None]
+    return out, count

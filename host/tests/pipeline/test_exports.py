@@ -155,3 +155,55 @@ def test_outputs_of_an_incomplete_scan_say_so_in_their_own_metadata(tmp_path):
     assert glb.asset.extras == {"scan_incomplete": "12 of 24 frames"}
     assert json.loads((out / "process.json").read_text())["scan_incomplete"] == "12 of 24 frames"
     assert res.inputs.incomplete
+
+
+def test_block_means_of_ragged_blocks_and_masked_pixels():
+    """`block_means`: each f x f block's mean over its masked pixels (the last row and column of
+    blocks smaller), read in bands of any multiple of f rows, 0 where a block has none."""
+    from facette.pipeline._exports import block_means
+    rng = np.random.default_rng(1)
+    a = rng.random((11, 13, 3)).astype(np.float32)
+    mask = rng.random((11, 13)) > 0.3
+    mask[:3, :3] = False                                    # a block with no masked pixel
+    for rows in (3, 6, 99):
+        (got,), count = block_means((a,), mask, 3, rows=rows)
+        assert got.shape == (4, 5, 3) and count.shape == (4, 5)
+        for i in range(4):
+            for j in range(5):
+                sel = mask[3 * i:3 * i + 3, 3 * j:3 * j + 3]
+                assert count[i, j] == sel.sum()
+                want = a[3 * i:3 * i + 3, 3 * j:3 * j + 3][sel].mean(0) if sel.any() else 0
+                np.testing.assert_allclose(got[i, j], want, rtol=1e-6)
+
+
+def test_gltf_textures_of_a_large_scan_are_block_means_and_validate(tmp_path, capsys, khronos_validate,
+                                                                    monkeypatch):
+    """Above GLTF_TEXTURE_MAX texels (here forced to 16) model.glb's textures are the maps'
+    block means at a viewer's size, the mesh's UVs land on them, the file validates, and the
+    report's notes say so."""
+    import io
+
+    import pygltflib
+    from PIL import Image
+
+    import facette.pipeline._exports as exports
+    monkeypatch.setattr(exports, "GLTF_TEXTURE_MAX", 16)
+    sc = sphere_on_plane(32, 40)
+    _write_scan(tmp_path / "scan", sc, render(sc, L, "matte"), pitch=0.1)
+    assert main(["process", str(tmp_path / "scan"), "-o", str(tmp_path / "o"), "--brdf-model", "lambert",
+                 "--outputs", "normals,albedo,height,mesh,gltf,brdf,samples"]) == 0
+    assert "glTF textures 14 x 11 (block means of 3 x 3 pixels" in capsys.readouterr().out
+    glb = tmp_path / "o" / "model.glb"
+    assert khronos_validate(glb)["issues"]["numErrors"] == 0
+    g = pygltflib.GLTF2().load(str(glb))
+    blob = g.binary_blob()
+    sizes = set()
+    for image in g.images:
+        view = g.bufferViews[image.bufferView]
+        sizes.add(Image.open(io.BytesIO(blob[view.byteOffset:view.byteOffset + view.byteLength])).size)
+    assert sizes == {(14, 11)}
+    acc = g.accessors[g.meshes[0].primitives[0].attributes.TEXCOORD_0]
+    view = g.bufferViews[acc.bufferView]
+    uv = np.frombuffer(blob, np.float32, acc.count * 2, view.byteOffset + (acc.byteOffset or 0)).reshape(-1, 2)
+    # the sphere's vertices sit inside the image: their texels inside the 14 x 11 texture
+    assert uv.min() > 0 and uv.max() < 1 and np.ptp(uv[:, 0]) > 0.3
