@@ -73,3 +73,17 @@ def release(array):
         return
     raw.flush()
     raw.madvise(mmap.MADV_DONTNEED)
+
+
+def masked_values(array, mask, rows=1024):
+    """array[mask], read a band of rows at a time: a disk array is never brought into memory
+    whole (a 100 MP residual map is 0.4 GB), only the values kept."""
+    import numpy as np
+    out = np.empty(int(np.count_nonzero(mask)), array.dtype)
+    k = 0
+    for r0 in range(0, mask.shape[0], rows):
+        part = array[r0:r0 + rows][mask[r0:r0 + rows]]
+        out[k:k + part.size] = part
+        k += part.size
+        release(array)
+    return out

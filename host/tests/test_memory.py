@@ -57,3 +57,15 @@ def test_a_disk_array_on_a_full_disk_says_where_and_what_to_do(small_disk):
     disk = small_disk(1024)
     with pytest.raises(OSError, match="no room for a 0.02 GB map in .*disk0 .*No space left.*TMPDIR"):
         disk_array((2000, 1000, 3), np.float32, folder=disk)
+
+
+def test_masked_values_of_a_disk_array_by_bands_equal_the_mask_taken_at_once():
+    import numpy as np
+    from facette._memory import disk_array, masked_values
+    rng = np.random.default_rng(0)
+    a = disk_array((37, 23), np.float32)
+    a[:] = rng.random((37, 23))
+    mask = rng.random((37, 23)) > 0.4
+    for rows in (1, 5, 100):
+        np.testing.assert_array_equal(masked_values(a, mask, rows=rows), np.asarray(a)[mask])
+    assert masked_values(a, np.zeros((37, 23), bool)).size == 0

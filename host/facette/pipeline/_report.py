@@ -15,6 +15,7 @@ import warnings
 
 import numpy as np
 
+from facette._memory import masked_values
 from facette.io.atomic import write_text_atomic
 from facette.fit import FitModel, cell_spread_directions
 from facette.pipeline._inputs import NO_PITCH_NOTE
@@ -467,7 +468,8 @@ def _summary(res, viewer_note):
         if "height_rms_mm" in e:
             good.append(f"heights within {fmt(e['height_rms_mm'], 2)} mm RMS")
     if ps is not None and valid:
-        good.append(f"photometric-stereo residual {_pct(float(np.median(ps.residual[res.mask])))} (median; "
+        residual = float(np.median(masked_values(ps.residual, res.mask)))    # a disk array: by bands
+        good.append(f"photometric-stereo residual {_pct(residual)} (median; "
                     "0 is a perfect Lambertian fit)")
     fit = res.brdf
     if fit is not None and getattr(fit, "params", None):
