@@ -9,10 +9,11 @@ each of these runs in a process of its own (peak memory = that child's max RSS, 
 - tiled: `pipeline.ps_tiled` with a memory budget (`--memory`, default 2GB), each band's normals
   written to a .npy as it comes (nothing kept at the image's size), the same method;
 - process --memory: `facette process SLAB -o OUT --outputs normals,height --memory 2GB` (the
-  photographs read band by band, photometric stereo over bands, the integration on the whole
-  float32 normal map): wall s, s/MP, peak, its bands, and its agreement with the untiled run
-  (largest angle between the normals, pixels over 0.01 deg, largest height difference over
-  the untiled heights' range on the mask; issue 26 asks 0.01 deg and 0.1 %).
+  photographs read band by band, photometric stereo over bands, its maps kept in temporary
+  files, the heights' divergence built band by band and solved as one float32 array): wall s,
+  s/MP, peak, its bands, and its agreement with the untiled run (largest angle between the
+  normals, pixels over 0.01 deg, largest height difference over the untiled heights' range on
+  the mask; issue 26 asks 0.01 deg and 0.1 %).
 
 With `--scan`, the slab is also written as a scan directory (hdr/light_XX.exr and _var.exr per
 light, uncompressed as the HDR merge writes them, scan.json with the lights and their

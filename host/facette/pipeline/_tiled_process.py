@@ -14,9 +14,12 @@ the outputs asked for:
   same verdict, later). The reflectance samples (samples, brdf, gltf) are taken in each band
   right after its photometric stereo (with its shadows), the bands' hemisphere sensors merged
   (the same cells as untiled; the raw subset kept beside them is drawn band by band).
-  What is kept at the image's size: the PS outputs (32 bytes/pixel),
-  the masks and, for a scan, the two maps (8 bytes/pixel); then the integration of heights
-  runs on the whole float32 normal map as untiled.
+  What is kept at the image's size: in memory the masks, the valid and skipped flags (2 bytes
+  per pixel) and, for a scan, the brightest value (4 bytes/pixel); in temporary files
+  (`_memory.disk_array`, ON_DISK) the normal, albedo, residual and triplet maps (30 bytes/pixel),
+  written as the bands come and read a band at a time by the EXR writers, the heights (whose
+  divergence is built band by band, `recon._integrate`), the glTF's textures (block means at
+  most 8192 texels wide) and the report.
 - in memory (an output that needs the images after photometric stereo: ptm, rti; or an RTI
   capture): the input is loaded whole as untiled; photometric stereo runs
   over bands of it, which bounds its own working set only; a note says which outputs came from
