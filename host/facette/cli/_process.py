@@ -114,7 +114,7 @@ def register(sub):
                                        "photograph; each photograph is divided by its level there")
     p.add_argument("--memory", metavar="SIZE", default=d.memory,
                    help="a memory budget such as 2GB, 512MB or 3GiB: photometric stereo runs over bands of "
-                        "rows in it (a per-pixel --method); without ptm and rti in --outputs the images are read band by "
+                        "rows in it (a per-pixel --method); a scan's or DiLiGenT folder's images are read band by "
                         "band, never whole (default: untiled)")
     p.add_argument("--scheduler", metavar="ADDRESS", default=d.scheduler,
                    help="with --memory: a running dask.distributed scheduler, e.g. tcp://host:8786, whose workers "

@@ -25,8 +25,8 @@ import numpy as np
 from facette.errors import BadInputError
 from facette.io.atomic import atomic_path
 
-__all__ = ["write_ptm_lrgb", "quantize_scale_bias", "column_range", "read_ptm", "PTMFile",
-           "ptm_weights", "FULL"]
+__all__ = ["write_ptm_lrgb", "write_ptm_lrgb_rows", "ptm_rgb_bytes", "quantize_scale_bias", "scale_bias_of_range",
+           "column_range", "read_ptm", "PTMFile", "ptm_weights", "FULL"]
 
 ROWS = 64                  # image rows quantized at a time
 FULL = 255.0               # the luminance every reader takes as full brightness
@@ -51,8 +51,13 @@ def quantize_scale_bias(coeffs):
     """Per-coefficient scale (float) and integer bias in [0, 255] so that every value of
     coeffs (N, 6) is within half a step of some byte: a = (byte - bias) · scale.
     Returns (scale (6,), bias (6,) int)."""
-    lo, hi = column_range(coeffs)
-    lo, hi = np.minimum(lo.astype(np.float64), 0.0), np.maximum(hi.astype(np.float64), 0.0)
+    return scale_bias_of_range(*column_range(coeffs))
+
+
+def scale_bias_of_range(lo, hi):
+    """`quantize_scale_bias` of coefficients whose per-coefficient minimum is lo (6,) and
+    maximum hi (6,) (the same answer from the range alone: a file written band by band)."""
+    lo, hi = np.minimum(np.asarray(lo).astype(np.float64), 0.0), np.maximum(np.asarray(hi).astype(np.float64), 0.0)
     span = np.where(hi - lo > 0, hi - lo, 1.0)
     bias = np.clip(np.round(-lo / span * 255.0), 0, 255).astype(int)
     # the scale that fits both ends once the zero is on an integer byte
@@ -82,25 +87,51 @@ def write_ptm_lrgb(path, coeffs, rgb):
     if not (np.isfinite(coeffs).all() and np.isfinite(rgb).all()):
         raise ValueError("PTM coefficients and colours must be finite (set unfitted pixels to 0)")
     h, w, _ = coeffs.shape
-    scale, bias = quantize_scale_bias(coeffs.reshape(-1, 6))
+    return write_ptm_lrgb_rows(path, w, h, column_range(coeffs.reshape(-1, 6)), lambda r0, r1: coeffs[r0:r1],
+                               lambda r0, r1: rgb[r0:r1])
+
+
+def ptm_rgb_bytes(rgb):
+    """The stored colour bytes (..., 3) uint8 of display colours in [0, 1] (clipped)."""
+    return np.clip(np.round(np.asarray(rgb, dtype=np.float64) * 255.0), 0, 255).astype(np.uint8)
+
+
+def write_ptm_lrgb_rows(path, width, height, coeff_range, coeff_rows, rgb_rows):
+    """`write_ptm_lrgb` band by band: the same bytes without the whole arrays.
+
+    coeff_range : (lo (6,), hi (6,)), the coefficients' minimum and maximum over every pixel
+    (`column_range`); coeff_rows(r0, r1) -> (r1 - r0, W, 6) float, the coefficients of image
+    rows r0..r1 (row 0 = top); rgb_rows(r0, r1) -> (r1 - r0, W, 3): display colours in [0, 1]
+    or their bytes (uint8, `ptm_rgb_bytes`). They are asked for bottom band first, twice (the
+    file holds every coefficient, then every colour, bottom row first).
+    """
+    h, w = int(height), int(width)
+    lo, hi = (np.asarray(x) for x in coeff_range)
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+        raise ValueError("PTM coefficients and colours must be finite (set unfitted pixels to 0)")
+    scale, bias = scale_bias_of_range(lo, hi)
     scale = scale * FULL                  # byte units: the range of L·255
-    q = np.empty(coeffs.shape, np.uint8)
-    for r in range(0, h, ROWS):          # by rows, in place: no full-size float64 temporaries
-        x = coeffs[r:r + ROWS].astype(np.float64)
-        x *= FULL
-        x /= scale
-        x += bias
-        np.round(x, out=x)
-        q[r:r + ROWS] = np.clip(x, 0, 255, out=x)
-    c = np.clip(np.round(rgb * 255.0), 0, 255).astype(np.uint8)
     header = ("PTM_1.2\nPTM_FORMAT_LRGB\n"
               f"{w}\n{h}\n"          # separate lines: legal (§2.3) and what every reader takes
               + " ".join(f"{s:.9g}" for s in scale) + "\n"
               + " ".join(str(int(b)) for b in bias) + "\n")
-    with atomic_path(path, needed=len(header) + q.nbytes + c.nbytes) as tmp, open(tmp, "wb") as out:
+    bottom_up = [(max(0, r1 - ROWS), r1) for r1 in range(h, 0, -ROWS)]
+    with atomic_path(path, needed=len(header) + 9 * w * h) as tmp, open(tmp, "wb") as out:
         out.write(header.encode("ascii"))
-        out.write(q[::-1].tobytes())           # bottom row first
-        out.write(c[::-1].tobytes())
+        for r0, r1 in bottom_up:         # by rows, in place: no full-size float64 temporaries
+            x = np.asarray(coeff_rows(r0, r1)).astype(np.float64)
+            x *= FULL
+            x /= scale
+            x += bias
+            np.round(x, out=x)
+            out.write(np.clip(x, 0, 255, out=x).astype(np.uint8)[::-1].tobytes())   # bottom row first
+        for r0, r1 in bottom_up:
+            c = np.asarray(rgb_rows(r0, r1))
+            if c.dtype != np.uint8:
+                if not np.isfinite(c).all():
+                    raise ValueError("PTM coefficients and colours must be finite (set unfitted pixels to 0)")
+                c = ptm_rgb_bytes(c)
+            out.write(c[::-1].tobytes())
     return {"scale": [float(s) for s in scale], "bias": [int(b) for b in bias]}
 
 

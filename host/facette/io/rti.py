@@ -20,7 +20,7 @@ from facette.errors import BadInputError
 from facette.io.atomic import atomic_path
 from facette.io.ptm import column_range
 
-__all__ = ["write_hsh_rti", "read_hsh_rti", "HSHFile", "hsh_weights"]
+__all__ = ["write_hsh_rti", "write_hsh_rti_rows", "read_hsh_rti", "HSHFile", "hsh_weights"]
 
 HSH_FILE_TYPE = 3          # RTIViewer's file types: 1 PTM, 2 spherical harmonics, 3 HSH
 HSH_BASIS_TYPE = 2
@@ -40,31 +40,41 @@ def write_hsh_rti(path, coeffs, comments=()):
         coeffs = coeffs.astype(np.float64)
     if coeffs.ndim != 4 or coeffs.shape[2] != 3 or coeffs.shape[3] not in (4, 9) or 0 in coeffs.shape:
         raise ValueError(f"HSH coefficients must have shape (H, W, 3, 4 or 9), got {coeffs.shape}")
+    h, w, _, t = coeffs.shape
+    return write_hsh_rti_rows(path, w, h, column_range(coeffs.reshape(-1, t)), lambda r0, r1: coeffs[r0:r1],
+                              comments)
+
+
+def write_hsh_rti_rows(path, width, height, coeff_range, coeff_rows, comments=()):
+    """`write_hsh_rti` band by band: the same bytes without the whole array.
+
+    coeff_range : (lo (T,), hi (T,)), each term's minimum and maximum over every pixel and
+    channel (`column_range` of the (H·W·3, T) coefficients, in their dtype); coeff_rows(r0, r1)
+    -> (r1 - r0, W, 3, T) float, image rows r0..r1 (row 0 = top), asked for top band first.
+    """
     comments = [str(c) for c in comments]
     if any("\n" in c or "\r" in c for c in comments):
         raise ValueError("an .rti comment is one line")
-    h, w, _, t = coeffs.shape
-    terms = coeffs.reshape(-1, t)
-    lo, hi = column_range(terms)
+    h, w = int(height), int(width)
+    lo, hi = (np.asarray(x) for x in coeff_range)
+    t = lo.size
     if not (np.isfinite(lo).all() and np.isfinite(hi).all()):   # NaN and ±inf reach min or max
         raise ValueError("HSH coefficients must be finite (set unfitted pixels to 0)")
     scale = np.where(hi > lo, hi - lo, 1.0).astype("<f4")
     bias = lo.astype("<f4")
-    q = np.empty(coeffs.shape, np.uint8)
-    for r in range(0, h, ROWS):          # by rows, in place: no full-size float64 temporaries
-        x = coeffs[r:r + ROWS].astype(np.float64)
-        x -= bias
-        x /= scale
-        x *= 255.0
-        np.round(x, out=x)
-        q[r:r + ROWS] = np.clip(x, 0, 255, out=x)
     header = ("#HSH1.2\n" + "".join(f"# {c}\n" for c in comments)
               + f"{HSH_FILE_TYPE}\n{w} {h} 3\n{t} {HSH_BASIS_TYPE} 1\n")
-    with atomic_path(path, needed=len(header) + q.nbytes + 8 * t) as tmp, open(tmp, "wb") as out:
+    with atomic_path(path, needed=len(header) + 3 * t * w * h + 8 * t) as tmp, open(tmp, "wb") as out:
         out.write(header.encode("utf-8"))
         out.write(scale.tobytes())
         out.write(bias.tobytes())
-        out.write(q.tobytes())           # top row first; per pixel R terms, G, B
+        for r in range(0, h, ROWS):      # by rows, in place: no full-size float64 temporaries
+            x = np.asarray(coeff_rows(r, min(h, r + ROWS))).astype(np.float64)
+            x -= bias
+            x /= scale
+            x *= 255.0
+            np.round(x, out=x)
+            out.write(np.clip(x, 0, 255, out=x).astype(np.uint8).tobytes())   # top row first; R terms, G, B
     return {"scale": [float(s) for s in scale], "bias": [float(b) for b in bias]}
 
 

@@ -14,9 +14,9 @@ from facette.fit import is_metal
 from facette.recon import hsh_basis
 from facette.recon import srgb_encode as srgb_transfer
 
-__all__ = ["hsh_order_for", "fill_unfitted", "gltf_roughness", "srgb_encode", "vertex_normals", "vertex_tangents",
-           "tangent_space_normal_map", "gltf_material", "gltf_inputs", "GLTF_TEXTURE_MAX",
-           "texture_step", "block_means"]
+__all__ = ["hsh_order_for", "fill_unfitted", "fill_left", "unfitted_verdict", "gltf_roughness", "srgb_encode",
+           "vertex_normals", "vertex_tangents", "tangent_space_normal_map", "gltf_material", "gltf_inputs",
+           "GLTF_TEXTURE_MAX", "texture_step", "block_means"]
 
 ROWS = 64                  # image rows of the normal map made at a time
 PTM_TERMS = 6
@@ -50,8 +50,15 @@ def fill_unfitted(fit, images, mask, name):
     name : the file name for the note. Returns (write, note): write False when no masked
     pixel could be fitted (the file would say nothing: it is not written)."""
     mask = np.asarray(mask, bool)
-    left = mask & ~np.asarray(fit.valid, bool)
-    n_left, n_mask = int(left.sum()), int(mask.sum())
+    write, note = unfitted_verdict(fit, int((mask & ~np.asarray(fit.valid, bool)).sum()), int(mask.sum()), name)
+    if write:
+        fill_left(fit, images, mask)
+    return write, note
+
+
+def unfitted_verdict(fit, n_left, n_mask, name):
+    """`fill_unfitted`'s (write, note) for n_left of n_mask masked pixels left out by the fit
+    (the counts of a whole image, or summed over its bands)."""
     ptm = fit.coeffs.ndim == 3
     terms = PTM_TERMS if ptm else fit.coeffs.shape[-1]
     if n_mask == 0 or n_left == n_mask:
@@ -59,6 +66,20 @@ def fill_unfitted(fit, images, mask, name):
                        f"{'PTM' if ptm else 'HSH'} fit needs")
     if n_left == 0:
         return True, None
+    return True, (f"{name}: {n_left} of {n_mask} masked pixels ({n_left / n_mask:.1%}) have fewer than "
+                  f"{terms} usable lights; they keep their mean value (no relighting there)")
+
+
+def fill_left(fit, images, mask):
+    """`fill_unfitted`'s filling of the masked pixels the fit left out, in place, whatever their
+    share (a band of an image: the verdict waits for every band). Returns (left out, masked)."""
+    mask = np.asarray(mask, bool)
+    left = mask & ~np.asarray(fit.valid, bool)
+    n_left, n_mask = int(left.sum()), int(mask.sum())
+    ptm = fit.coeffs.ndim == 3
+    terms = PTM_TERMS if ptm else fit.coeffs.shape[-1]
+    if n_left == 0:
+        return n_left, n_mask
     vals = np.asarray(images)[:, left].astype(np.float64) / fit.white      # (m, n, 3), as fitted
     if getattr(fit, "encoding", "linear") == "srgb":                         # the displayed values
         vals = srgb_transfer(np.clip(vals, 0.0, 1.0))
@@ -76,8 +97,7 @@ def fill_unfitted(fit, images, mask, name):
             coeffs = np.zeros((n_left, 3, terms), fit.coeffs.dtype)
             coeffs[:, :, 0] = mean / y00
     fit.coeffs[left] = coeffs
-    return True, (f"{name}: {n_left} of {n_mask} masked pixels ({n_left / n_mask:.1%}) have fewer than "
-                  f"{terms} usable lights; they keep their mean value (no relighting there)")
+    return n_left, n_mask
 
 
 def gltf_roughness(sigma, distribution="beckmann"):

@@ -90,9 +90,9 @@ class ProcessOptions:
                             "(its values as text, a mask array left out)", record=False)
 
     memory: str = _option(None, "a memory budget ('2GB', '512MB', '3GiB' or bytes): photometric stereo then runs "
-                          "over bands of rows in it (a per-pixel method only: pipeline._tiles.TILED_METHODS); with "
-                          "outputs that need no image after it (all but ptm and rti: the samples are taken band by band too) the "
-                          "images are read band by band, never whole; recorded only when given")
+                          "over bands of rows in it (a per-pixel method only: pipeline._tiles.TILED_METHODS); a scan's or "
+                          "a DiLiGenT folder's images are read band by band, never whole (the samples, PTM and HSH fits "
+                          "too); recorded only when given")
 
     scheduler: str = _option(None, "with memory: the address of a dask.distributed scheduler (tcp://host:8786) whose "
                              "workers run the bands (they must see the scan's path); None: here, one after the other",

@@ -38,13 +38,13 @@ from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
 from facette.methods import PS_METHODS, options_for, photometric_stereo
 from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_from_height, MESH_MAX_SLOPE,
-                           near_light_directions, fit_hsh, fit_ptm_lrgb, fit_relight_error, IR_MAX_FRACTION,
-                           without_interreflections)
-from facette.pipeline._exports import fill_unfitted, gltf_inputs, gltf_material, hsh_order_for
+                           near_light_directions, IR_MAX_FRACTION, without_interreflections)
+from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.pipeline._inputs import load_input, object_of
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
+from facette.pipeline._rti_bands import relight_bands, relight_stage
 from facette.pipeline._rti_capture import LP_NAME
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
 from facette.pipeline._quality import check_fit_cells, check_samples
@@ -250,18 +250,25 @@ def _process(source, outputs, out_dir, o):
     if o.memory is not None and streamed(source, outputs):
         # --memory, outputs that need no image after photometric stereo: the images are read band by
         # band, never whole (pipeline._tiled_process); the stages after photometric stereo as untiled
-        claimed = {}
+        claimed, banded = {}, []
+
+        def fits(inp, ps, top, read, rows):     # ptm, rti: fitted over the same bands (pipeline._rti_bands)
+            _streamed_result(res, inp, ps, top)
+            banded.append(relight_bands(read, res.object_mask, outputs, o, rows, len(inp.light_dirs)))
         inp, ps, light_dirs, top = streamed_ps(source, o, res, lambda i: claimed.update(previous=claim(i)),
-                                               samples="samples" in stages)
+                                               samples="samples" in stages,
+                                               relight=fits if {"ptm", "rti"} & set(outputs) else None)
         previous, images, direct = claimed["previous"], None, None
-        res.ps = ps
-        res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
-        res.object_mask = res.mask if inp.background_mask() is None else \
-            res.mask & object_of(None, inp.mask, inp.material_mask, top=top)
+        if res.ps is None:
+            _streamed_result(res, inp, ps, top)
         if "report" in outputs:
             res.notes.append(MEMORY_FLAGS_NOTE)
-        return _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options,
-                        previous, t_all, cpu_all)
+        try:
+            return _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options,
+                            previous, t_all, cpu_all, relight=banded[0] if banded else None)
+        finally:
+            for b in banded:
+                b.close()
     t0 = time.perf_counter()
     inp = load_input(source, mask=o.mask, pixel_pitch_mm=o.pixel_pitch_mm, allow_incomplete=o.allow_incomplete,
                      capture=o.capture)
@@ -310,13 +317,23 @@ def _process(source, outputs, out_dir, o):
                     t_all, cpu_all)
 
 
+def _streamed_result(res, inp, ps, top):
+    """res.ps, normals, albedo, mask and object mask of photometric stereo over bands (`streamed_ps`)."""
+    res.ps = ps
+    res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
+    res.object_mask = res.mask if inp.background_mask() is None else \
+        res.mask & object_of(None, inp.mask, inp.material_mask, top=top)
+
+
 def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options, previous,
-             t_all, cpu_all):
-    """The stages after photometric stereo, the checks against truth and the files."""
+             t_all, cpu_all, relight=None):
+    """The stages after photometric stereo, the checks against truth and the files (relight:
+    the fits of pipeline._rti_bands, when --memory made them over bands)."""
     drawn = {}         # report sections drawn by the concurrent stages
     if out_dir is not None:            # before the first file: whose files these will be
         mark_running(Path(out_dir), record_options, inp, [FILES[name] for name in outputs if name in FILES])
-    res.notes.extend(_after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, drawn))
+    res.notes.extend(_after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, drawn,
+                               relight=relight))
     if res.ptm is not None or res.hsh is not None:
         res.notes.append("relight.ptm / relight.rti: " + (
             "sRGB display values (what RTIViewer and Relight show, as photographed; --rti-encoding "
@@ -374,7 +391,7 @@ def _note_interreflections(res, info, seconds):
                          "then li_alternating again")
 
 
-def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, drawn, workers=2):
+def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, drawn, workers=2, relight=None):
     """The stages after photometric stereo, which depend on it only and not on each other,
     concurrently on `workers` threads (numpy, scipy's FFT and the file writers release the
     GIL): heights -> mesh, samples -> BRDF fit, PTM, HSH; each writes its files as soon as it
@@ -384,7 +401,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
     out = None if out_dir is None else Path(out_dir)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-    write = _writers(res, out, outputs, o.ascii_ply)
+    write = _writers(res, out, outputs, o.ascii_ply, relight)
 
     def shape():
         mk = res.mask if integration == "least_squares" else None
@@ -429,30 +446,10 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
             drawn["fit"] = _timed(res, "report_fit", report_fit_section, res)
         return [note] if note else []
 
-    def ptm():
-        t0 = time.perf_counter()
-        res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.object_mask, encoding=o.rti_encoding)
-        ok, note = fill_unfitted(res.ptm, images, res.object_mask, FILES["ptm"])   # never a blank file
+    def relit(name):      # relight.ptm, relight.rti (pipeline._rti_bands: whole images, or bands with --memory)
+        ok, notes = relight_stage(name, res, images, light_dirs, o, relight)
         if ok:
-            res.fit_errors["ptm_relative_rms"] = fit_relight_error(res.ptm, images, light_dirs, res.object_mask)
-        res.timings["ptm"] = time.perf_counter() - t0
-        if ok:
-            write("ptm")
-        return [note] if note else []
-
-    def hsh():
-        t0 = time.perf_counter()
-        order, note = hsh_order_for(len(images), o.hsh_order)
-        notes = [note] if note else []
-        if order is not None:
-            res.hsh = fit_hsh(images, light_dirs, order=order, mask=res.object_mask,
-                              encoding=o.rti_encoding)
-            ok, note = fill_unfitted(res.hsh, images, res.object_mask, FILES["rti"])
-            notes += [note] if note else []
-            if ok:
-                res.fit_errors["hsh_relative_rms"] = fit_relight_error(res.hsh, images, light_dirs, res.object_mask)
-                write("rti")
-        res.timings["hsh"] = time.perf_counter() - t0
+            write(name)
         return notes
 
     def maps():
@@ -460,7 +457,8 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
             write(name)
         return []
 
-    tasks = [(reflectance, "samples" in stages), (hsh, "hsh" in stages), (ptm, "ptm" in stages),
+    tasks = [(reflectance, "samples" in stages), (lambda: relit("rti"), "hsh" in stages),
+             (lambda: relit("ptm"), "ptm" in stages),
              (shape, "integrate" in stages), (maps, out is not None)]
     t0 = time.perf_counter()
     with ThreadPoolExecutor(workers) as pool:
@@ -471,8 +469,9 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
     return notes
 
 
-def _writers(res, out, outputs, ascii_ply):
-    """write(output): write that output's file into `out` if it was asked for (None: nothing)."""
+def _writers(res, out, outputs, ascii_ply, relight=None):
+    """write(output): write that output's file into `out` if it was asked for (None: nothing);
+    relight.ptm and .rti from the spill of `relight` (pipeline._rti_bands) when there is one."""
     meta = {"software": "facette", "source": str(res.inputs.source),
             "method": res.options["method"], "frame": "camera: x right, y up, z towards the camera"}
     if res.inputs.incomplete:
@@ -513,8 +512,9 @@ def _writers(res, out, outputs, ascii_ply):
         "mesh": lambda p: write_ply(p, *res.mesh, binary=not ascii_ply, comment=comment),
         "samples": samples,
         "brdf": lambda p: write_text_atomic(p, brdf_text()) if res.brdf is not None else None,
-        "ptm": lambda p: write_ptm_lrgb(p, res.ptm.coeffs, res.ptm.rgb),
-        "rti": lambda p: write_hsh_rti(p, res.hsh.coeffs, _rti_comments(res)),
+        "ptm": relight.write_ptm if relight else lambda p: write_ptm_lrgb(p, res.ptm.coeffs, res.ptm.rgb),
+        "rti": lambda p: (relight.write_rti if relight else lambda q, c: write_hsh_rti(q, res.hsh.coeffs, c))(
+            p, _rti_comments(res)),
     }
 
     def write(output):

@@ -4,7 +4,7 @@ A per-pixel method (`_tiles.TILED_METHODS`) gives each pixel's normal from that 
 alone, so the bands solved one after the other give the untiled normals. Two ways, chosen by
 the outputs asked for:
 
-- streamed (every output in STREAMED_OUTPUTS: all but ptm and rti; a scan directory or a
+- streamed (every output in STREAMED_OUTPUTS, which is all of them; a scan directory or a
   DiLiGenT-style folder): the photographs are never held whole. A scan's
   HDR images are read a window of scanlines at a time (OpenEXR's scanline reader), twice: once
   for the masks' two maps (the brightest value and the median over the lights, what
@@ -14,14 +14,17 @@ the outputs asked for:
   same verdict, later). The reflectance samples (samples, brdf, gltf) are taken in each band
   right after its photometric stereo (with its shadows), the bands' hemisphere sensors merged
   (the same cells as untiled; the raw subset kept beside them is drawn band by band).
+  relight.ptm and relight.rti are fitted over the bands once photometric stereo is done, with
+  the same reader (`_rti_bands`: one pass for their white, one for the fits, the files written
+  from a scratch spill; the bytes of the untiled files).
   What is kept at the image's size: in memory the masks, the valid and skipped flags (2 bytes
   per pixel) and, for a scan, the brightest value (4 bytes/pixel); in temporary files
   (`_memory.disk_array`, ON_DISK) the normal, albedo, residual and triplet maps (30 bytes/pixel),
   written as the bands come and read a band at a time by the EXR writers, the heights (whose
   divergence is built band by band, `recon._integrate`), the glTF's textures (block means at
   most 8192 texels wide) and the report.
-- in memory (an output that needs the images after photometric stereo: ptm, rti; or an RTI
-  capture): the input is loaded whole as untiled; photometric stereo runs
+- in memory (an RTI capture, or outputs outside STREAMED_OUTPUTS): the input is loaded whole as
+  untiled; photometric stereo runs
   over bands of it, which bounds its own working set only; a note says which outputs came from
   the whole images.
 
@@ -49,6 +52,7 @@ from facette.pipeline._inputs import (NO_PITCH_NOTE, PSInput, _digest, _file_sta
 from facette.pipeline._scan_input import merged_lights, profile_flat, scan_input, scan_lights, scan_manifest
 from facette.pipeline._bands import DiligentBands, ScanBands, open_bands
 from facette.pipeline._quality import add_counts, check_counts, sample_counts
+from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
 from facette.pipeline._tiles import FIELD_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, rows_per_tile
 from facette.recon import PSResult, near_light_directions
@@ -56,7 +60,7 @@ from facette.recon import PSResult, near_light_directions
 __all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "open_streamed", "ps_bands", "streamed_ps",
            "in_memory_ps"]
 
-STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "gltf", "report")
+STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
 MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (the photographs are not held) "
                      "and, the per-light shadow and specular flags not being kept (m bytes per pixel each), "
                      "leaves their share out and draws their maps empty")
@@ -304,7 +308,7 @@ def ps_bands(read, shape, m, light_dirs, method, bag, mask, rows, flags=False, c
     return res, counts
 
 
-def streamed_ps(source, o, res, on_input=None, rows=None, samples=False):
+def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight=None):
     """The load and photometric-stereo stages of `process` without the whole images: (PSInput
     with images=None, PSResult, light_dirs as `process` uses them (m, 3) or None with near
     lights, the brightest value over the lights or None). on_input(inp) is called once the
@@ -314,7 +318,10 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False):
     res.filtered and res.samples; the raw subset's share drawn against m x the sample mask's
     pixels, which the untiled run counts after photometric stereo, on its valid pixels only).
     Fills res.inputs, res.timings load / ps, res.quality and the notes (InsufficientData as
-    untiled)."""
+    untiled). relight(inp, ps, top, read, rows): called once photometric stereo is done, before
+    the band reader closes, with read(r0, r1) -> (images, light directions) of a band
+    (`_rti_bands.band_reader`) and the bands' rows (the PTM / HSH fits, `_rti_bands.relight_bands`);
+    its time is not photometric stereo's."""
     t0 = time.perf_counter()
     work = Path(tempfile.mkdtemp(prefix="facette-tiles-"))
     client = None
@@ -356,6 +363,10 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False):
             taken = ps.info.pop("samples", None)
             if samples:
                 res.filtered, res.samples = _samples_result(taken, o.theta0_deg)
+            if relight is not None:          # ptm, rti: fitted over the same bands (pipeline._rti_bands)
+                t1 = time.perf_counter()
+                relight(inp, ps, top, band_reader(bands, near, None if near else inp.light_dirs), n)
+                t0 += time.perf_counter() - t1
         finally:
             bands.close()
     finally:
@@ -385,11 +396,10 @@ def in_memory_ps(images, light_dirs, o, bag, outputs, res, rows=None):
     whole = [x for x in outputs if x not in STREAMED_OUTPUTS] or ["the input (an RTI capture is read whole)"]
     if o.scheduler is not None:
         res.notes.append(f"--scheduler {o.scheduler}: not used, the images being held whole here (it runs the "
-                         "bands of --memory when ptm and rti are not asked for)")
+                         "bands of --memory of a scan directory or a DiLiGenT folder)")
     res.notes.append(f"--memory {o.memory}: photometric stereo over {ps.info['tiles']} bands of {n} rows; the "
                      f"images were loaded whole (untiled) for {', '.join(whole)}, and every output computed from "
-                     "them: the memory budget bounds photometric stereo only (leave ptm and rti out of --outputs "
-                     "to read the images band by band)")
+                     "them: the memory budget bounds photometric stereo only")
     return ps
 
 

@@ -21,9 +21,9 @@ from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
                          flat_margin, MIN_BACKGROUND_PIXELS)
 from ._interreflect import (remove_interreflections, without_interreflections, IR_GRID, IR_MAX_FRACTION,
                             IR_PASSES, IR_SKIP_P95)
-from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, fit_relight_error, relight_ptm,
-                   relight_hsh, relight_error, HSH_ORDERS, RELIGHT_ERROR_PIXELS, RTI_ENCODINGS,
-                   srgb_encode, srgb_decode, display_ptm, display_hsh)
+from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, fit_relight_error,
+                   relight_error_parts, relight_ptm, relight_hsh, relight_error, HSH_ORDERS, RELIGHT_ERROR_PIXELS,
+                   RTI_ENCODINGS, srgb_encode, srgb_decode, display_ptm, display_hsh)
 
 __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
            "ps_rank_trimmed", "ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "triplet_inverses",
@@ -32,7 +32,7 @@ __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca
            "integrate_poisson_flat_margin", "integrate_least_squares", "integrate", "INTEGRATION_DEFAULT",
            "INTEGRATION_METHODS", "mesh_from_height", "MESH_MAX_SLOPE", "flat_margin", "MIN_BACKGROUND_PIXELS",
            "ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh", "relight_ptm",
-           "relight_hsh", "relight_error", "fit_relight_error", "HSH_ORDERS", "RTI_ENCODINGS",
+           "relight_hsh", "relight_error", "fit_relight_error", "relight_error_parts", "HSH_ORDERS", "RTI_ENCODINGS",
            "srgb_encode", "srgb_decode", "display_ptm", "display_hsh",
            "RELIGHT_ERROR_PIXELS", "remove_interreflections", "without_interreflections", "IR_GRID", "IR_MAX_FRACTION", "IR_PASSES",
            "IR_SKIP_P95"]

@@ -22,8 +22,8 @@ import numpy as np
 from facette.io.ptm import ptm_weights
 
 __all__ = ["ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh",
-           "relight_ptm", "relight_hsh", "relight_error", "fit_relight_error", "HSH_ORDERS",
-           "RTI_ENCODINGS", "srgb_encode", "srgb_decode", "display_ptm", "display_hsh"]
+           "relight_ptm", "relight_hsh", "relight_error", "fit_relight_error", "relight_error_parts",
+           "HSH_ORDERS", "RTI_ENCODINGS", "srgb_encode", "srgb_decode", "display_ptm", "display_hsh"]
 
 # How the fitted values are encoded: "srgb", the display values RTIViewer shows as they are
 # (RTIBuilder fits sRGB photographs), or "linear": values proportional to the radiance
@@ -459,21 +459,25 @@ RELIGHT_ERROR_PIXELS = 1 << 19
 
 
 def fit_relight_error(fit, images, light_dirs, mask, rows=2, workers=2, max_pixels=RELIGHT_ERROR_PIXELS):
-    """`relight_error` of a `PTMFit` or `HSHFit` (relight_ptm / relight_hsh), the same sums
-    taken `rows` image rows at a time on `workers` threads: a block's coefficients stay in
-    the cache for every light instead of streaming the whole fit once per light.
+    """`relight_error` of a `PTMFit` or `HSHFit`, its sums taken `rows` image rows at a time on
+    `workers` threads (a block's coefficients stay in the cache for every light); maps of more
+    than `max_pixels` pixels summed over every k-th block of rows (the smallest k that keeps
+    ≤ max_pixels: an even sample of the whole map), `None`: every row."""
+    h, w = np.shape(mask)[:2]
+    step = rows if max_pixels is None else rows * max(1, -(-h * w // max_pixels))
+    num, den = (sum(x) for x in zip(*relight_error_parts(fit, images, light_dirs, mask, range(0, h, step), rows,
+                                                         workers)))
+    return float(np.sqrt(num / den)) if den > 0 else float("nan")
 
-    Maps of more than `max_pixels` pixels are summed over every k-th block of rows (k the
-    smallest step that keeps ≤ max_pixels), an even sample of the whole map; `None` sums
-    every row."""
-    relight = relight_ptm if isinstance(fit, PTMFit) else relight_hsh
+
+def relight_error_parts(fit, images, light_dirs, mask, starts, rows=2, workers=2):
+    """[(Σ |render - image|², Σ |image|²) of image rows a..a+rows for a in starts], the sums
+    `fit_relight_error` adds up (in that order), here of arrays that may be a band of rows."""
+    ptm = isinstance(fit, PTMFit)
+    relight = relight_ptm if ptm else relight_hsh
     d_all = np.asarray(light_dirs, float)
-    images = np.asarray(images)
-    mask = np.asarray(mask, bool)
-
-    if d_all.ndim == 2:       # far lights: every light of a block in one matrix product
-        ptm = isinstance(fit, PTMFit)
-        basis = ptm_basis(d_all) if ptm else hsh_basis(d_all, fit.order)      # (m, T)
+    images, mask = np.asarray(images), np.asarray(mask, bool)
+    basis = (ptm_basis(d_all) if ptm else hsh_basis(d_all, fit.order)) if d_all.ndim == 2 else None  # far: (m, T)
 
     def part(r):
         sl = slice(r, r + rows)
@@ -493,8 +497,4 @@ def fit_relight_error(fit, images, light_dirs, mask, rows=2, workers=2, max_pixe
         sub = replace(fit, **arrays)
         return _error_sums(lambda q: relight(sub, q), images[:, sl], np.moveaxis(d_all[sl], 2, 0), mask[sl])
 
-    h, w = mask.shape
-    step = rows if max_pixels is None else rows * max(1, -(-h * w // max_pixels))
-    sums = _run(part, range(0, h, step), workers)
-    num, den = (sum(x) for x in zip(*sums))
-    return float(np.sqrt(num / den)) if den > 0 else float("nan")
+    return _run(part, starts, workers)

@@ -114,13 +114,14 @@ def test_scan_directory_in_bands_gives_the_untiled_results(scan, tmp_path, small
                                                                                abs=1e-4)
 
 
-def test_outputs_that_need_the_images_say_they_were_computed_from_the_whole_images(scan, tmp_path, small_bands):
+def test_ptm_with_the_samples_is_fitted_over_bands_too(scan, tmp_path, small_bands, monkeypatch):
     outputs = ["normals", "height", "samples", "ptm"]
     whole = process(scan, channels=WHOLE_CHANNELS, outputs=outputs, method=M)
+    _never_whole(monkeypatch)
     tiled = process(scan, outputs=outputs, memory="1GB", method=M)
     _same(whole, tiled)
     note = [n for n in tiled.notes if n.startswith("--memory")]
-    assert len(note) == 1 and "loaded whole (untiled) for ptm" in note[0]
+    assert len(note) == 1 and "never held whole" in note[0]
     assert np.array_equal(tiled.filtered.count, whole.filtered.count)      # the same shadows left out
     assert tiled.fit_errors["ptm_relative_rms"] == pytest.approx(whole.fit_errors["ptm_relative_rms"], rel=1e-6)
 

@@ -1,0 +1,348 @@
+"""`process`'s ptm and hsh stages (`relight_stage`), and with --memory their fits over row bands.
+
+The PTM and HSH fits are per pixel once their scale `white` is known, and `white` is the 99th
+percentile of the masked values over the whole image; the files' quantisation needs each
+coefficient's range over the whole image before the first byte. So, after photometric stereo
+(the object mask it gives sets `white`), with the band reader it used (`relight_bands`):
+
+1. a first pass over the bands keeps the count of the values that set `white` and their top
+   (1 - 0.99) share (`_TopValues`: at most 1 % of m x the masked pixels), which gives the same
+   percentile as the untiled `_top_percentile`, exactly;
+2. a second pass fits each band (`fit_ptm_lrgb`, `fit_hsh` with that white), fills what the fit
+   left out (`fill_left`, the verdict of `fill_unfitted` on the counts of every band), adds the
+   band's part of the relighting error (`relight_error_parts`, the rows the untiled error samples)
+   and spills the float32 coefficients (and the PTM's colour bytes) to a scratch file, keeping
+   their range;
+3. the files are written from the spill, band by band (`write_ptm_lrgb_rows`,
+   `write_hsh_rti_rows`): the bytes of the untiled writer.
+
+Kept at the image's size: nothing; `ProcessResult.ptm` / `.hsh` are every `stride`-th pixel of the
+fits (at most PREVIEW_PIXELS; nothing in the report reads them). On disk while it runs: 27 bytes
+per pixel for the PTM, 12 x order² for the HSH (order 3: 135 bytes per pixel together, 13.5 GB at
+100 MP), in the system's temporary folder, removed by `close`.
+"""
+import tempfile
+import time
+from math import gcd
+from pathlib import Path
+
+import numpy as np
+
+from facette.io.ptm import column_range, ptm_rgb_bytes, write_ptm_lrgb_rows
+from facette.io.rti import write_hsh_rti_rows
+from facette.methods import PS_METHODS
+from facette.pipeline._exports import fill_left, fill_unfitted, hsh_order_for, unfitted_verdict
+from facette.pipeline._tiles import BYTES_PER_PIXEL_LIGHT as PS_BYTES_PER_PIXEL_LIGHT
+from facette.recon import _rti as fit_blocks        # its _BLOCK: the pixels solved together
+from facette.recon import (HSHFit, PTMFit, RELIGHT_ERROR_PIXELS, fit_hsh, fit_ptm_lrgb, fit_relight_error,
+                           near_light_directions, relight_error_parts)
+
+__all__ = ["RelightBands", "relight_bands", "relight_stage", "band_reader", "relight_rows", "PREVIEW_PIXELS"]
+
+PREVIEW_PIXELS = 1 << 20        # pixels of the fits kept in ProcessResult.ptm / .hsh at most
+WHITE_PERCENTILE = 99.0         # fit_ptm_lrgb's and fit_hsh's default
+# A fit band's working set per pixel (near lights, both fits): per light the float32 images, their
+# float64 copy divided by the fall-off, the fall-off, the directions (float64 x 3) and the PTM's
+# luminance (76 bytes), per pixel the PTM's colour and coefficients and the HSH's (~170 bytes)
+BYTES_PER_PIXEL_LIGHT, BYTES_PER_PIXEL = 80, 200
+FILE_NAMES = {"ptm": "relight.ptm", "rti": "relight.rti"}      # pipeline._process.FILES's
+
+
+def relight_rows(ps_rows, width, lights, method):
+    """Rows of a fit band with the working set of a photometric-stereo band of `ps_rows` rows
+    (`_tiles.BYTES_PER_PIXEL_LIGHT` of `method`), even (the relighting error samples pairs of
+    rows), >= 2."""
+    per_light = PS_BYTES_PER_PIXEL_LIGHT.get(PS_METHODS.canonical(method), max(PS_BYTES_PER_PIXEL_LIGHT.values()))
+    budget = int(ps_rows) * int(width) * int(lights) * per_light
+    rows = budget // (int(width) * (BYTES_PER_PIXEL_LIGHT * int(lights) + BYTES_PER_PIXEL))
+    return max(2, int(rows) // 2 * 2)
+
+
+def _aligned(rows, width):
+    """(rows of the fit bands, True when they start on the fits' blocks of pixels): the band
+    height made a multiple of the rows after which a band starts on a block (`recon._rti._BLOCK`
+    pixels, counted from the image's first), so that each band's blocks are the untiled fit's
+    and their float32 products the same sums: the untiled file's bytes. When that unit is
+    taller than `rows` (an image width with few factors of 2: 8192 rows for an odd width),
+    `rows` as they are (False)."""
+    unit = fit_blocks._BLOCK // gcd(fit_blocks._BLOCK, int(width))
+    unit *= 2 if unit % 2 else 1                  # and even: the relighting error's pairs of rows
+    if unit > rows:
+        return rows, False
+    return rows // unit * unit, True
+
+
+def band_reader(bands, near, light_dirs):
+    """read(r0, r1) -> (images (m, r1 - r0, W, 3) as the fits take them, light directions): a
+    band reader's (`_bands`) images, divided by the near lights' fall-off with their per-pixel
+    directions (near: (positions (m, 3), (H, W), pixel pitch) or None: `light_dirs` (m, 3))."""
+    def read(r0, r1):
+        images, _ = bands.read(r0, r1)
+        if near is None:
+            return images, light_dirs
+        positions, shape, pitch = near
+        dirs, falloff = near_light_directions(positions, shape, pitch, rows=(r0, r1))
+        return images / np.transpose(falloff, (2, 0, 1))[..., None], dirs
+    return read
+
+
+class _TopValues:
+    """The count of a stream of values and its top share, enough for its `percentile` (numpy's
+    linear method) exactly: the values at or above rank floor(q (n - 1)) of n <= `most`."""
+
+    def __init__(self, percentile, most):
+        self.percentile = percentile
+        self.q = np.true_divide(percentile, 100)
+        self.keep = int(np.ceil((1 - self.q) * most)) + 2
+        self.n, self.top, self.floor = 0, None, None
+
+    def add(self, values):
+        self.n += values.size
+        if self.floor is not None:
+            values = values[values >= self.floor]
+        top = values.copy() if self.top is None else np.concatenate([self.top, values])
+        if top.size > self.keep:
+            top = np.partition(top, top.size - self.keep)[top.size - self.keep:]
+            self.floor = top.min()
+        self.top = top
+
+    def value(self):
+        """As recon._rti._top_percentile: 1.0 when there is no value."""
+        if self.n == 0:
+            return 1.0
+        vi = self.q * (self.n - 1)
+        lo = int(np.floor(vi))
+        hi = min(lo + 1, self.n - 1)
+        off = self.n - self.top.size
+        part = np.partition(self.top, [lo - off, hi - off])
+        pair = np.array([part[lo - off], part[hi - off]])
+        return float(np.quantile(pair, float(vi - lo)))
+
+
+def _white_values(images, sel, ptm, hsh):
+    """The band's values that set the PTM's white (the luminance as fit_ptm_lrgb projects it) and
+    the HSH's (the brightest channel), finite, > 0 and masked; None for a fit not asked for."""
+    from facette.recon._rti_jit import ptm_colour_block     # numba loads only when this runs
+    m, b, w, _ = images.shape
+    n = b * w
+    flat = images.reshape(m, n, 3)
+    sel = sel.reshape(-1)
+    out = [None, None]
+    if ptm:
+        rgb, peak, lum = np.empty((n, 3)), np.empty(n), np.empty((m, n))
+        block = fit_blocks._BLOCK
+        for a in range(0, n, block):
+            ptm_colour_block(flat[:, a:a + block], rgb, peak, lum, a)
+        with np.errstate(invalid="ignore"):
+            ok = lum > 0
+        out[0] = lum[ok & sel[None]]
+    if hsh:
+        fin = np.isfinite(flat)
+        ok = fin[..., 0] & fin[..., 1] & fin[..., 2] & sel[None]
+        top = np.maximum(np.maximum(flat[..., 0], flat[..., 1]), flat[..., 2])
+        out[1] = top[ok & (top > 0)]
+    return out
+
+
+class _Spill:
+    """A fit's float32 coefficients (H, W, *tail) written band after band to a raw file, their
+    range over every pixel (`column_range` of (·, T)), the counts of `fill_left`, the relighting
+    error's parts and every `stride`-th pixel of the fit (the preview)."""
+
+    def __init__(self, path, width, tail, stride):
+        self.path, self.width, self.tail, self.stride = Path(path), width, tuple(tail), stride
+        self.file = open(self.path, "wb")
+        self.lo = self.hi = None
+        self.left = self.masked = 0
+        self.parts, self.preview = [], []
+
+    def add(self, r0, fit, counts, parts):
+        coeffs = np.ascontiguousarray(fit.coeffs, np.float32)
+        self.file.write(coeffs.tobytes())
+        lo, hi = column_range(coeffs.reshape(-1, self.tail[-1]))
+        self.lo = lo if self.lo is None else np.minimum(self.lo, lo)
+        self.hi = hi if self.hi is None else np.maximum(self.hi, hi)
+        self.left, self.masked = self.left + counts[0], self.masked + counts[1]
+        self.parts.extend(parts)
+        rows = [r - r0 for r in range(-(-r0 // self.stride) * self.stride, r0 + len(coeffs), self.stride)]
+        self.preview.append({k: getattr(fit, k)[rows, ::self.stride] for k in ("coeffs", "rgb", "valid")
+                             if hasattr(fit, k)})
+
+    def rows(self, r0, r1):
+        per_row = self.width * int(np.prod(self.tail))
+        return np.fromfile(self.path, np.float32, (r1 - r0) * per_row, offset=4 * r0 * per_row).reshape(
+            (r1 - r0, self.width) + self.tail)
+
+    def joined(self, name):
+        return np.concatenate([p[name] for p in self.preview])
+
+    def error(self):
+        if not self.parts:
+            return float("nan")
+        num, den = (sum(x) for x in zip(*self.parts))
+        return float(np.sqrt(num / den)) if den > 0 else float("nan")
+
+
+class RelightBands:
+    """The banded fits of `relight_bands`: ptm, hsh (`PTMFit`, `HSHFit` of every `stride`-th
+    pixel, or None), ok {"ptm", "rti": the file can be written}, notes {"ptm", "rti": [...]},
+    fit_errors, timings; `write_ptm(path)`, `write_rti(path, comments)` write the files from the
+    spill; `close()` removes it."""
+
+    def __init__(self, shape, stride):
+        self.shape, self.stride = shape, stride
+        # removed by close(), or when this object is collected (an error before close)
+        self._scratch = tempfile.TemporaryDirectory(prefix="facette-relight-")
+        self.work = Path(self._scratch.name)
+        self.ptm = self.hsh = None
+        self.ok, self.notes, self.fit_errors, self.timings = {}, {"ptm": [], "rti": []}, {}, {}
+        self.spills, self.rgb_path = {}, None
+
+    def write_ptm(self, path):
+        h, w = self.shape
+        s = self.spills["ptm"]
+        s.file.close()
+        rgb = lambda r0, r1: np.fromfile(self.rgb_path, np.uint8, (r1 - r0) * w * 3, offset=3 * r0 * w).reshape(
+            r1 - r0, w, 3)
+        return write_ptm_lrgb_rows(path, w, h, (s.lo, s.hi), s.rows, rgb)
+
+    def write_rti(self, path, comments):
+        h, w = self.shape
+        s = self.spills["rti"]
+        s.file.close()
+        return write_hsh_rti_rows(path, w, h, (s.lo, s.hi), s.rows, comments)
+
+    def close(self):
+        for s in self.spills.values():
+            s.file.close()
+        self._scratch.cleanup()
+
+
+def relight_bands(read, mask, outputs, o, ps_rows, lights):
+    """relight.ptm and relight.rti fitted over bands (`relight_rows` of photometric stereo's
+    `ps_rows` rows), as `process`'s ptm and hsh stages fit them on the whole images.
+
+    read(r0, r1) -> (images (m, r1 - r0, W, 3), light directions (m, 3) or (r1 - r0, W, m, 3))
+    (`band_reader`); mask (H, W) bool, the object mask (sets white, fill_unfitted's pixels, the
+    relighting error's); outputs: what `process` was asked for (ptm, rti); o: ProcessOptions
+    (method, rti_encoding, hsh_order); lights: m. Returns a `RelightBands` (close it), or None when
+    neither ptm nor rti is asked for."""
+    want_ptm = "ptm" in outputs
+    order, order_note = hsh_order_for(lights, o.hsh_order) if "rti" in outputs else (None, None)
+    if not want_ptm and "rti" not in outputs:
+        return None
+    h, w = mask.shape
+    rows, aligned = _aligned(relight_rows(ps_rows, w, lights, o.method), w)
+    spans = [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
+    stride = max(1, int(np.ceil(np.sqrt(h * w / PREVIEW_PIXELS))))
+    out = RelightBands((h, w), stride)
+    if order_note:
+        out.notes["rti"].append(order_note)
+    if not aligned:
+        out.notes["ptm" if want_ptm else "rti"].append(
+            f"relight.ptm / relight.rti: fitted over bands of {rows} rows that do not start on the fit's blocks of "
+            f"{fit_blocks._BLOCK} pixels (the image is {w} pixels wide): a coefficient may differ from the "
+            "untiled file's by one quantisation step (float32 products summed in another order)")
+    try:
+        t0 = time.perf_counter()
+        most = lights * int(np.count_nonzero(mask))
+        tops = [_TopValues(WHITE_PERCENTILE, most) if want else None for want in (want_ptm, order is not None)]
+        for r0, r1 in spans:
+            for top, values in zip(tops, _white_values(read(r0, r1)[0], mask[r0:r1], *(t is not None for t in tops))):
+                if top is not None:
+                    top.add(values)
+        whites = [None if t is None else t.value() for t in tops]
+        out.timings["relight_white"] = time.perf_counter() - t0
+        _fit_pass(out, read, mask, spans, whites, order, o.rti_encoding, lights)
+        _verdicts(out, order, whites, o.rti_encoding)
+    except BaseException:
+        out.close()
+        raise
+    return out
+
+
+def _fit_pass(out, read, mask, spans, whites, order, encoding, lights):
+    """Each band fitted, filled, its error's parts summed and spilled (`_Spill`)."""
+    h, w = out.shape
+    step = 2 * max(1, -(-h * w // RELIGHT_ERROR_PIXELS))        # fit_relight_error's sample of rows
+    if whites[0] is not None:
+        out.spills["ptm"] = _Spill(out.work / "ptm.f32", w, (6,), out.stride)
+        out.rgb_path = out.work / "ptm_rgb.u8"
+        rgb_file = open(out.rgb_path, "wb")
+    if whites[1] is not None:
+        out.spills["rti"] = _Spill(out.work / "hsh.f32", w, (3, order * order), out.stride)
+    seconds = {"read": 0.0, "ptm": 0.0, "hsh": 0.0}
+    try:
+        for r0, r1 in spans:
+            t0 = time.perf_counter()
+            images, dirs = read(r0, r1)
+            band = mask[r0:r1]
+            starts = [a - r0 for a in range(-(-r0 // step) * step, r1, step)]
+            t1 = time.perf_counter()
+            seconds["read"] += t1 - t0
+            if whites[0] is not None:
+                fit = fit_ptm_lrgb(images, dirs, mask=band, white=whites[0], encoding=encoding)
+                counts = fill_left(fit, images, band)
+                out.spills["ptm"].add(r0, fit, counts, relight_error_parts(fit, images, dirs, band, starts))
+                rgb_file.write(ptm_rgb_bytes(fit.rgb).tobytes())
+                del fit
+                t2 = time.perf_counter()
+                seconds["ptm"] += t2 - t1
+                t1 = t2
+            if whites[1] is not None:
+                fit = fit_hsh(images, dirs, order=order, mask=band, white=whites[1], encoding=encoding)
+                counts = fill_left(fit, images, band)
+                out.spills["rti"].add(r0, fit, counts, relight_error_parts(fit, images, dirs, band, starts))
+                del fit
+                seconds["hsh"] += time.perf_counter() - t1
+    finally:
+        if whites[0] is not None:
+            rgb_file.close()
+    out.timings.update(relight_read=seconds["read"], ptm=seconds["ptm"], hsh=seconds["hsh"])
+
+
+def _verdicts(out, order, whites, encoding):
+    """The previews, `fill_unfitted`'s verdicts and notes, and the relighting errors."""
+    if whites[0] is not None:
+        s = out.spills["ptm"]
+        out.ptm = PTMFit(s.joined("coeffs"), s.joined("rgb"), whites[0], s.joined("valid"), encoding)
+        out.ok["ptm"], note = unfitted_verdict(out.ptm, s.left, s.masked, FILE_NAMES["ptm"])
+        out.notes["ptm"] += [note] if note else []
+        if out.ok["ptm"]:
+            out.fit_errors["ptm_relative_rms"] = s.error()
+    if whites[1] is not None:
+        s = out.spills["rti"]
+        out.hsh = HSHFit(s.joined("coeffs"), order, whites[1], s.joined("valid"), encoding)
+        out.ok["rti"], note = unfitted_verdict(out.hsh, s.left, s.masked, FILE_NAMES["rti"])
+        out.notes["rti"] += [note] if note else []
+        if out.ok["rti"]:
+            out.fit_errors["hsh_relative_rms"] = s.error()
+
+
+def relight_stage(name, res, images, light_dirs, o, banded=None):
+    """`process`'s ptm (name "ptm") or hsh ("rti") stage: res.ptm or res.hsh, res.fit_errors,
+    res.timings, on the images (m, H, W, 3) as fitted with their light directions, or taken from
+    `banded` (a `RelightBands`, --memory). Returns (the file can be written, notes)."""
+    if banded is not None:
+        setattr(res, "ptm" if name == "ptm" else "hsh", banded.ptm if name == "ptm" else banded.hsh)
+        res.timings.update(banded.timings)
+        res.fit_errors.update(banded.fit_errors)
+        return banded.ok.get(name, False), banded.notes[name]
+    t0 = time.perf_counter()
+    if name == "ptm":
+        res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.object_mask, encoding=o.rti_encoding)
+        ok, note = fill_unfitted(res.ptm, images, res.object_mask, FILE_NAMES["ptm"])   # never a blank file
+        if ok:
+            res.fit_errors["ptm_relative_rms"] = fit_relight_error(res.ptm, images, light_dirs, res.object_mask)
+        res.timings["ptm"] = time.perf_counter() - t0
+        return ok, [note] if note else []
+    order, note = hsh_order_for(len(images), o.hsh_order)
+    notes, ok = [note] if note else [], False
+    if order is not None:
+        res.hsh = fit_hsh(images, light_dirs, order=order, mask=res.object_mask, encoding=o.rti_encoding)
+        ok, note = fill_unfitted(res.hsh, images, res.object_mask, FILE_NAMES["rti"])
+        notes += [note] if note else []
+        if ok:
+            res.fit_errors["hsh_relative_rms"] = fit_relight_error(res.hsh, images, light_dirs, res.object_mask)
+    res.timings["hsh"] = time.perf_counter() - t0
+    return ok, notes

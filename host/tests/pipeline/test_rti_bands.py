@@ -1,0 +1,109 @@
+"""`process --memory` with ptm and rti (pipeline._rti_bands): relight.ptm and relight.rti fitted
+over bands of two rows are the untiled files byte for byte, for a scan directory (near lights,
+HDR with variances, values unknown) and a DiLiGenT-style folder, in both encodings, without the
+whole images ever loaded; the reference-format readers read them; the white level's percentile
+from the bands' top values is numpy's."""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from facette.pipeline import process
+from facette.pipeline import _rti_bands
+from facette.pipeline._rti_bands import _TopValues
+from facette.recon import _rti as rti_fit
+from test_process_memory import M, WHOLE_CHANNELS, _never_whole, diligent, scan, small_bands  # noqa: F401
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "io"))
+from rti_spec_readers import hsh_colour, ptm_colour, read_hsh, read_ptm  # noqa: E402
+
+OUTPUTS = ["normals", "mask", "ptm", "rti"]
+
+
+def _both(request, tmp_path, monkeypatch, source, encoding, rows, block):
+    """(untiled result, --memory result) with fit bands of `rows` rows and the fits' blocks of
+    `block` pixels (None: as shipped)."""
+    if block is not None:
+        monkeypatch.setattr(rti_fit, "_BLOCK", block)
+    src = request.getfixturevalue(source)
+    whole = process(src, channels=WHOLE_CHANNELS, outputs=OUTPUTS, out_dir=tmp_path / "whole", method=M,
+                    rti_encoding=encoding)
+    _never_whole(monkeypatch)
+    monkeypatch.setattr(_rti_bands, "relight_rows", lambda *a: rows)
+    tiled = process(src, outputs=OUTPUTS, out_dir=tmp_path / "tiled", method=M, memory="1GB", rti_encoding=encoding)
+    assert tiled.ps.info["tiles"] > 1 and not any("loaded whole" in n for n in tiled.notes)
+    return whole, tiled
+
+
+# bands of 8 rows on blocks of 16 pixels: a band starts on a block (44 and 46 pixels wide); the
+# scan's near lights solve each pixel on its own (no shared product): bands of 2 rows off the blocks too
+@pytest.mark.parametrize("source,encoding,rows,block", [("scan", "srgb", 2, None), ("scan", "linear", 8, 16),
+                                                        ("diligent", "srgb", 8, 16), ("diligent", "linear", 8, 16)])
+def test_relight_files_over_bands_are_the_untiled_bytes(request, tmp_path, small_bands, monkeypatch, source,
+                                                         encoding, rows, block):
+    whole, tiled = _both(request, tmp_path, monkeypatch, source, encoding, rows, block)
+    for name in ("relight.ptm", "relight.rti"):
+        a, b = (tmp_path / "whole" / name).read_bytes(), (tmp_path / "tiled" / name).read_bytes()
+        assert len(a) == len(b) and a == b, name
+    assert tiled.fit_errors == whole.fit_errors and set(whole.fit_errors) == {"ptm_relative_rms",
+                                                                              "hsh_relative_rms"}
+    assert tiled.ptm.white == whole.ptm.white and tiled.hsh.white == whole.hsh.white
+    np.testing.assert_array_equal(tiled.ptm.coeffs, whole.ptm.coeffs)          # stride 1 at this size
+    np.testing.assert_array_equal(tiled.hsh.coeffs, whole.hsh.coeffs)
+    notes = [n for n in tiled.notes if "relight" in n and "do not start on the fit's blocks" not in n]
+    assert notes == [n for n in whole.notes if "relight" in n]
+    assert not list(Path(tmp_path / "tiled").glob(".*partial"))
+
+
+def test_bands_off_the_fits_blocks_say_so_and_differ_by_a_step_at_most(request, tmp_path, small_bands,
+                                                                       monkeypatch):
+    whole, tiled = _both(request, tmp_path, monkeypatch, "diligent", "srgb", 2, None)
+    assert any("do not start on the fit's blocks of 8192 pixels" in n for n in tiled.notes)
+    for name in ("relight.ptm", "relight.rti"):
+        a, b = (tmp_path / "whole" / name).read_bytes(), (tmp_path / "tiled" / name).read_bytes()
+        assert len(a) == len(b)
+    pw, pt = read_ptm(tmp_path / "whole" / "relight.ptm"), read_ptm(tmp_path / "tiled" / "relight.ptm")
+    hw, ht = read_hsh(tmp_path / "whole" / "relight.rti"), read_hsh(tmp_path / "tiled" / "relight.rti")
+    np.testing.assert_allclose(pt["scale"], pw["scale"], rtol=1e-5)
+    np.testing.assert_allclose(ht["scale"], hw["scale"], rtol=1e-5)
+    # one quantisation step (scale, scale / 255) and the range's float32 wobble at most
+    assert np.all(np.abs(pt["coeffs"] - pw["coeffs"]) <= 1.01 * pw["scale"])
+    assert np.all(np.abs(ht["coeffs"] - hw["coeffs"]) <= 1.01 * hw["scale"] / 255)
+    assert tiled.fit_errors == pytest.approx(whole.fit_errors, rel=1e-5)
+
+
+def test_the_reference_readers_read_the_banded_files(scan, tmp_path, small_bands):
+    res = process(scan, outputs=OUTPUTS, out_dir=tmp_path, method=M, memory="1GB", rti_encoding="linear")
+    ptm, rti = read_ptm(tmp_path / "relight.ptm"), read_hsh(tmp_path / "relight.rti")
+    h, w = res.mask.shape
+    assert (ptm["height"], ptm["width"]) == (h, w) and (rti["height"], rti["width"]) == (h, w)
+    sel = res.object_mask
+    light = np.array([0.3, 0.2, 0.93])
+    light /= np.linalg.norm(light)
+    for shown in (ptm_colour(ptm, light), hsh_colour(rti, light)):
+        assert shown.shape == (h, w, 3) and np.isfinite(shown).all()
+        assert shown[sel].mean() > 0.02            # the object is lit, not a blank file
+
+
+def test_relight_scratch_is_removed(scan, tmp_path, small_bands, monkeypatch):
+    made = []
+    real = _rti_bands.RelightBands.__init__
+
+    def spy(self, *a):
+        real(self, *a)
+        made.append(self.work)
+    monkeypatch.setattr(_rti_bands.RelightBands, "__init__", spy)
+    process(scan, outputs=["ptm"], out_dir=tmp_path, method=M, memory="1GB")
+    assert len(made) == 1 and not made[0].exists() and (tmp_path / "relight.ptm").is_file()
+
+
+@pytest.mark.parametrize("n,chunks", [(1, 1), (7, 3), (5000, 13), (5000, 1)])
+def test_top_values_give_numpys_percentile(n, chunks):
+    rng = np.random.default_rng(n)
+    values = np.round(rng.gamma(2.0, size=n), 2).astype(np.float32)        # ties included
+    top = _TopValues(99.0, n + 17)
+    for part in np.array_split(values, chunks):
+        top.add(part)
+    assert top.value() == float(np.percentile(values, 99.0)) and top.top.size <= top.keep
+    assert _TopValues(99.0, 10).value() == 1.0
