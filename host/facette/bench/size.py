@@ -19,7 +19,8 @@ With `--scan`, the slab is also written as a scan directory (hdr/light_XX.exr an
 light, uncompressed as the HDR merge writes them, scan.json with the lights and their
 intensities) and `facette process SCAN --outputs normals,height` (or `--scan-outputs`, which
 must hold normals and height) runs untiled and with `--memory` on it: a second table (wall s,
-s/MP, peak, agreement; with brdf, the largest relative difference of the fitted parameters).
+s/MP, peak, agreement; with brdf, the largest relative difference of the fitted parameters; with
+ptm and rti, whether relight.ptm / relight.rti are the same bytes: "=" or the bytes that differ).
 
 With `--dask` (and --scan), the scan's `process --memory` runs again with its bands on a
 dask.distributed LocalCluster of 2 worker processes x 1 thread (`--scheduler`): wall s, s/MP,
@@ -235,7 +236,20 @@ def scan_size(size, work, memory, method, untiled, outputs="normals,height"):
         a, b = (json.loads((d / "brdf.json").read_text())["parameters"] for d in (out_u, out_m))
         row["brdf_rel"] = max(float(np.max(np.abs(np.asarray(b[k]) - np.asarray(a[k])) / np.abs(np.asarray(a[k]))))
                               for k in a)
+    row["relight"] = _same_relight(out_u, out_m) if untiled else "-"
     return row
+
+
+def _same_relight(out_u, out_m):
+    """relight.ptm and relight.rti of both runs: "=" the same bytes, else the bytes that differ
+    ("-": neither file)."""
+    said = []
+    for name in ("relight.ptm", "relight.rti"):
+        if (out_u / name).is_file() and (out_m / name).is_file():
+            a, b = (np.fromfile(d / name, np.uint8) for d in (out_u, out_m))
+            said.append("=" if a.size == b.size and np.array_equal(a, b) else
+                        str(int(np.count_nonzero(a != b)) if a.size == b.size else "size"))
+    return "/".join(said) or "-"
 
 
 def _dask_child(scan, out, memory, method, kill_after):
@@ -279,13 +293,13 @@ def _print_scan(rows, memory, outputs):
     print(f"scan directories (hdr/ EXR + _var.exr), process --outputs {outputs}; --memory {memory}")
     print(f"{'size':>12} {'MP':>6} | {'to scan s':>9} | {'untiled s':>9} {'s/MP':>5} {'GB':>5} | "
           f"{'--memory s':>10} {'s/MP':>5} {'GB':>5} {'bands':>5} | {'max°':>8} {'px > 0.01°':>10} {'height/range':>12} "
-          f"{'brdf rel':>8}")
+          f"{'brdf rel':>8} {'ptm/rti':>7}")
     for r in rows:
         u = r.get("untiled_s", float("nan"))
         print(f"{r['size']:>12} {r['mp']:6.1f} | {r['gen_s']:9.1f} | {u:9.1f} {u / r['mp']:5.2f} "
               f"{r.get('untiled_gb', float('nan')):5.2f} | {r['mem_s']:10.1f} {r['mem_s'] / r['mp']:5.2f} "
               f"{r['mem_gb']:5.2f} {r['mem_tiles']:5d} | {r['mem_deg']:8.5f} {r['mem_over']:10d} "
-              f"{r['mem_height']:12.2e} {r['brdf_rel']:8.1e}", flush=True)
+              f"{r['mem_height']:12.2e} {r['brdf_rel']:8.1e} {r.get('relight', '-'):>7}", flush=True)
     dask = [r for r in rows if "dask_s" in r]
     if dask:
         print("the same on a dask.distributed LocalCluster (2 worker processes x 1 thread); GB: the largest "

@@ -89,8 +89,8 @@ class ProcessResult:
     mesh (vertices, faces) or None; filtered `FilteredReflectance` or None; samples raw
     `ReflectanceSamples` subset or None; brdf a facette.fit FitResult or None; ps the full `PSResult`;
     timings {stage: seconds}; files {output: path}; errors {name: value} against the
-    scan's truth.npz when present (angular error in degrees, height RMS in mm); ptm a
-    facette.recon PTMFit, hsh an HSHFit, or None; fit_errors {name: value}: relative RMS of
+    scan's truth.npz when present (angular error in degrees, height RMS in mm); ptm a PTMFit, hsh
+    an HSHFit (--memory: every k-th pixel, _rti_bands) or None; fit_errors {name: value}: rel. RMS of
     the PTM / HSH relighting against the (fall-off corrected) HDR images on the object (above
     0.5 Mpx, on an even sample of rows: `recon.RELIGHT_ERROR_PIXELS`); interreflections the
     figures of `without_interreflections` when it was asked for, else None.

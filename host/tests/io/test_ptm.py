@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from facette.errors import BadInputError
-from facette.io.ptm import column_range, quantize_scale_bias, read_ptm as read_ptm_pkg, write_ptm_lrgb
+from facette.io.ptm import (column_range, ptm_rgb_bytes, quantize_scale_bias, read_ptm as read_ptm_pkg, write_ptm_lrgb,
+                            write_ptm_lrgb_rows)
 from facette.recon import display_ptm, fit_ptm_lrgb, ptm_basis
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 from rti_spec_readers import (RTI_REFERENCE, asymmetric_scene, check_upright, needs_reference, ptm_colour,
@@ -136,3 +137,27 @@ def test_hp_sample_ptm_decodes_in_byte_units_and_lit_from_the_right():
     yy, xx = np.mgrid[0:512, 0:512]
     assert np.corrcoef(ptm.coeffs[..., 3][lit], xx[lit])[0, 1] > 0.2
     assert np.corrcoef(ptm.coeffs[..., 4][lit], -yy[lit])[0, 1] > 0.2
+
+
+def test_rows_form_writes_the_same_bytes_asking_bottom_band_first(tmp_path):
+    rng = np.random.default_rng(3)
+    h, w = 150, 13                                          # 3 writer bands of 64 rows, the last short
+    coeffs = rng.normal(0, 0.3, (h, w, 6)).astype(np.float32)
+    rgb = rng.uniform(0, 1, (h, w, 3))
+    whole = write_ptm_lrgb(tmp_path / "a.ptm", coeffs, rgb)
+    asked = []
+
+    def rows(r0, r1):
+        asked.append((r0, r1))
+        return coeffs[r0:r1]
+    banded = write_ptm_lrgb_rows(tmp_path / "b.ptm", w, h, column_range(coeffs.reshape(-1, 6)), rows,
+                                 lambda r0, r1: ptm_rgb_bytes(rgb[r0:r1]))       # colours as bytes
+    assert banded == whole and (tmp_path / "a.ptm").read_bytes() == (tmp_path / "b.ptm").read_bytes()
+    assert asked == [(86, 150), (22, 86), (0, 22)]
+
+
+def test_rows_form_refuses_a_range_that_is_not_finite(tmp_path):
+    with pytest.raises(ValueError, match="finite"):
+        write_ptm_lrgb_rows(tmp_path / "a.ptm", 2, 2, (np.full(6, np.nan), np.zeros(6)),
+                            lambda r0, r1: np.zeros((r1 - r0, 2, 6)), lambda r0, r1: np.zeros((r1 - r0, 2, 3)))
+    assert not any(tmp_path.iterdir())

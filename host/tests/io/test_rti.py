@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from facette.errors import BadInputError
-from facette.io.rti import hsh_weights as hsh_weights_pkg, read_hsh_rti, write_hsh_rti
+from facette.io.rti import hsh_weights as hsh_weights_pkg, read_hsh_rti, write_hsh_rti, write_hsh_rti_rows
 from facette.recon import display_hsh, fit_hsh, hsh_basis
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 from rti_spec_readers import (RTI_REFERENCE, asymmetric_scene, check_upright, hsh_colour, hsh_weights,
@@ -123,3 +123,19 @@ def test_rtibuilder_files_decode_upright(name):
     yy = np.mgrid[0:rti.height, 0:rti.width][0]
     cy = yy[lit].mean()
     assert np.median(ratio_y[lit & (yy < cy)]) > np.median(ratio_y[lit & (yy > cy)])
+
+
+def test_rows_form_writes_the_same_bytes_asking_top_band_first(tmp_path):
+    rng = np.random.default_rng(4)
+    h, w = 130, 7
+    coeffs = rng.normal(0, 0.2, (h, w, 3, 9)).astype(np.float32)
+    whole = write_hsh_rti(tmp_path / "a.rti", coeffs, ["c"])
+    asked = []
+
+    def rows(r0, r1):
+        asked.append((r0, r1))
+        return coeffs[r0:r1]
+    lo, hi = coeffs.reshape(-1, 9).min(axis=0), coeffs.reshape(-1, 9).max(axis=0)
+    assert write_hsh_rti_rows(tmp_path / "b.rti", w, h, (lo, hi), rows, ["c"]) == whole
+    assert (tmp_path / "a.rti").read_bytes() == (tmp_path / "b.rti").read_bytes()
+    assert asked == [(0, 64), (64, 128), (128, 130)]
