@@ -58,15 +58,17 @@ def relight_rows(ps_rows, width, lights, method):
     return max(2, int(rows) // 2 * 2)
 
 
-def _aligned(rows, width):
+def _aligned(rows, width, height):
     """(rows of the fit bands, True when they start on the fits' blocks of pixels): the band
     height made a multiple of the rows after which a band starts on a block (`recon._rti._BLOCK`
     pixels, counted from the image's first), so that each band's blocks are the untiled fit's
     and their float32 products the same sums: the untiled file's bytes. When that unit is
     taller than `rows` (an image width with few factors of 2: 8192 rows for an odd width),
-    `rows` as they are (False)."""
+    `rows` as they are (False), unless one band holds the image."""
     unit = fit_blocks._BLOCK // gcd(fit_blocks._BLOCK, int(width))
     unit *= 2 if unit % 2 else 1                  # and even: the relighting error's pairs of rows
+    if rows >= height:
+        return rows, True
     if unit > rows:
         return rows, False
     return rows // unit * unit, True
@@ -232,7 +234,7 @@ def relight_bands(read, mask, outputs, o, ps_rows, lights):
     if not want_ptm and "rti" not in outputs:
         return None
     h, w = mask.shape
-    rows, aligned = _aligned(relight_rows(ps_rows, w, lights, o.method), w)
+    rows, aligned = _aligned(relight_rows(ps_rows, w, lights, o.method), w, h)
     spans = [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
     stride = max(1, int(np.ceil(np.sqrt(h * w / PREVIEW_PIXELS))))
     out = RelightBands((h, w), stride)
