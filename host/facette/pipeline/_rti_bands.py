@@ -11,23 +11,23 @@ coefficient's range over the whole image before the first byte. So, after photom
 2. a second pass fits each band (`fit_ptm_lrgb`, `fit_hsh` with that white), fills what the fit
    left out (`fill_left`, the verdict of `fill_unfitted` on the counts of every band), adds the
    band's part of the relighting error (`relight_error_parts`, the rows the untiled error samples)
-   and spills the float32 coefficients (and the PTM's colour bytes) to a scratch file, keeping
-   their range;
+   and spills the float32 coefficients (and the PTM's colour bytes) to temporary files
+   (`_memory.disk_array`, pages handed back after each band), keeping their range;
 3. the files are written from the spill, band by band (`write_ptm_lrgb_rows`,
    `write_hsh_rti_rows`): the bytes of the untiled writer.
 
-Kept at the image's size: nothing; `ProcessResult.ptm` / `.hsh` are every `stride`-th pixel of the
-fits (at most PREVIEW_PIXELS; nothing in the report reads them). On disk while it runs: 27 bytes
-per pixel for the PTM, 12 x order² for the HSH (order 3: 135 bytes per pixel together, 13.5 GB at
-100 MP), in the system's temporary folder, removed by `close`.
+Kept in memory at the image's size: nothing; `ProcessResult.ptm` / `.hsh` are every `stride`-th
+pixel of the fits (at most PREVIEW_PIXELS; nothing in the report reads them). On disk while it
+runs: 27 bytes per pixel for the PTM, 12 x order² for the HSH (order 3: 135 bytes per pixel
+together, 13.5 GB at 100 MP), in the temporary folder (TMPDIR), taken before the first band (a
+full disk is said at once), gone with `close`.
 """
-import tempfile
 import time
 from math import gcd
-from pathlib import Path
 
 import numpy as np
 
+from facette._memory import disk_array, release
 from facette.io.ptm import column_range, ptm_rgb_bytes, write_ptm_lrgb_rows
 from facette.io.rti import write_hsh_rti_rows
 from facette.methods import PS_METHODS
@@ -147,21 +147,23 @@ def _white_values(images, sel, ptm, hsh):
 
 
 class _Spill:
-    """A fit's float32 coefficients (H, W, *tail) written band after band to a raw file, their
-    range over every pixel (`column_range` of (·, T)), the counts of `fill_left`, the relighting
-    error's parts and every `stride`-th pixel of the fit (the preview)."""
+    """A fit's float32 coefficients (H, W, *tail) written band after band into a temporary file
+    (`_memory.disk_array`, its pages handed back after each band), their range over every pixel
+    (`column_range` of (·, T)), the counts of `fill_left`, the relighting error's parts and every
+    `stride`-th pixel of the fit (the preview)."""
 
-    def __init__(self, path, width, tail, stride):
-        self.path, self.width, self.tail, self.stride = Path(path), width, tuple(tail), stride
-        self.file = open(self.path, "wb")
+    def __init__(self, shape, tail, stride):
+        self.data = disk_array(tuple(shape) + tuple(tail), np.float32)
+        self.tail, self.stride = tuple(tail), stride
         self.lo = self.hi = None
         self.left = self.masked = 0
         self.parts, self.preview = [], []
 
     def add(self, r0, fit, counts, parts):
-        coeffs = np.ascontiguousarray(fit.coeffs, np.float32)
-        self.file.write(coeffs.tobytes())
-        lo, hi = column_range(coeffs.reshape(-1, self.tail[-1]))
+        coeffs = fit.coeffs
+        self.data[r0:r0 + len(coeffs)] = coeffs
+        release(self.data)
+        lo, hi = column_range(np.ascontiguousarray(coeffs, np.float32).reshape(-1, self.tail[-1]))
         self.lo = lo if self.lo is None else np.minimum(self.lo, lo)
         self.hi = hi if self.hi is None else np.maximum(self.hi, hi)
         self.left, self.masked = self.left + counts[0], self.masked + counts[1]
@@ -171,9 +173,10 @@ class _Spill:
                              if hasattr(fit, k)})
 
     def rows(self, r0, r1):
-        per_row = self.width * int(np.prod(self.tail))
-        return np.fromfile(self.path, np.float32, (r1 - r0) * per_row, offset=4 * r0 * per_row).reshape(
-            (r1 - r0, self.width) + self.tail)
+        """Rows r0..r1 of the coefficients, a copy in memory (the file's pages handed back)."""
+        band = np.array(self.data[r0:r1])
+        release(self.data)
+        return band
 
     def joined(self, name):
         return np.concatenate([p[name] for p in self.preview])
@@ -189,35 +192,32 @@ class RelightBands:
     """The banded fits of `relight_bands`: ptm, hsh (`PTMFit`, `HSHFit` of every `stride`-th
     pixel, or None), ok {"ptm", "rti": the file can be written}, notes {"ptm", "rti": [...]},
     fit_errors, timings; `write_ptm(path)`, `write_rti(path, comments)` write the files from the
-    spill; `close()` removes it."""
+    spill (temporary files without a name, gone with this object or at `close()`)."""
 
     def __init__(self, shape, stride):
         self.shape, self.stride = shape, stride
-        # removed by close(), or when this object is collected (an error before close)
-        self._scratch = tempfile.TemporaryDirectory(prefix="facette-relight-")
-        self.work = Path(self._scratch.name)
         self.ptm = self.hsh = None
         self.ok, self.notes, self.fit_errors, self.timings = {}, {"ptm": [], "rti": []}, {}, {}
-        self.spills, self.rgb_path = {}, None
+        self.spills, self.rgb = {}, None
 
     def write_ptm(self, path):
         h, w = self.shape
         s = self.spills["ptm"]
-        s.file.close()
-        rgb = lambda r0, r1: np.fromfile(self.rgb_path, np.uint8, (r1 - r0) * w * 3, offset=3 * r0 * w).reshape(
-            r1 - r0, w, 3)
+
+        def rgb(r0, r1):
+            band = np.array(self.rgb[r0:r1])
+            release(self.rgb)
+            return band
         return write_ptm_lrgb_rows(path, w, h, (s.lo, s.hi), s.rows, rgb)
 
     def write_rti(self, path, comments):
         h, w = self.shape
         s = self.spills["rti"]
-        s.file.close()
         return write_hsh_rti_rows(path, w, h, (s.lo, s.hi), s.rows, comments)
 
     def close(self):
-        for s in self.spills.values():
-            s.file.close()
-        self._scratch.cleanup()
+        """The temporary files go (their space is given back once nothing maps them)."""
+        self.spills, self.rgb = {}, None
 
 
 def relight_bands(read, mask, outputs, o, ps_rows, lights):
@@ -268,38 +268,34 @@ def _fit_pass(out, read, mask, spans, whites, order, encoding, lights):
     h, w = out.shape
     step = 2 * max(1, -(-h * w // RELIGHT_ERROR_PIXELS))        # fit_relight_error's sample of rows
     if whites[0] is not None:
-        out.spills["ptm"] = _Spill(out.work / "ptm.f32", w, (6,), out.stride)
-        out.rgb_path = out.work / "ptm_rgb.u8"
-        rgb_file = open(out.rgb_path, "wb")
+        out.spills["ptm"] = _Spill((h, w), (6,), out.stride)
+        out.rgb = disk_array((h, w, 3), np.uint8)
     if whites[1] is not None:
-        out.spills["rti"] = _Spill(out.work / "hsh.f32", w, (3, order * order), out.stride)
+        out.spills["rti"] = _Spill((h, w), (3, order * order), out.stride)
     seconds = {"read": 0.0, "ptm": 0.0, "hsh": 0.0}
-    try:
-        for r0, r1 in spans:
-            t0 = time.perf_counter()
-            images, dirs = read(r0, r1)
-            band = mask[r0:r1]
-            starts = [a - r0 for a in range(-(-r0 // step) * step, r1, step)]
-            t1 = time.perf_counter()
-            seconds["read"] += t1 - t0
-            if whites[0] is not None:
-                fit = fit_ptm_lrgb(images, dirs, mask=band, white=whites[0], encoding=encoding)
-                counts = fill_left(fit, images, band)
-                out.spills["ptm"].add(r0, fit, counts, relight_error_parts(fit, images, dirs, band, starts))
-                rgb_file.write(ptm_rgb_bytes(fit.rgb).tobytes())
-                del fit
-                t2 = time.perf_counter()
-                seconds["ptm"] += t2 - t1
-                t1 = t2
-            if whites[1] is not None:
-                fit = fit_hsh(images, dirs, order=order, mask=band, white=whites[1], encoding=encoding)
-                counts = fill_left(fit, images, band)
-                out.spills["rti"].add(r0, fit, counts, relight_error_parts(fit, images, dirs, band, starts))
-                del fit
-                seconds["hsh"] += time.perf_counter() - t1
-    finally:
+    for r0, r1 in spans:
+        t0 = time.perf_counter()
+        images, dirs = read(r0, r1)
+        band = mask[r0:r1]
+        starts = [a - r0 for a in range(-(-r0 // step) * step, r1, step)]
+        t1 = time.perf_counter()
+        seconds["read"] += t1 - t0
         if whites[0] is not None:
-            rgb_file.close()
+            fit = fit_ptm_lrgb(images, dirs, mask=band, white=whites[0], encoding=encoding)
+            counts = fill_left(fit, images, band)
+            out.spills["ptm"].add(r0, fit, counts, relight_error_parts(fit, images, dirs, band, starts))
+            out.rgb[r0:r1] = ptm_rgb_bytes(fit.rgb)
+            release(out.rgb)
+            del fit
+            t2 = time.perf_counter()
+            seconds["ptm"] += t2 - t1
+            t1 = t2
+        if whites[1] is not None:
+            fit = fit_hsh(images, dirs, order=order, mask=band, white=whites[1], encoding=encoding)
+            counts = fill_left(fit, images, band)
+            out.spills["rti"].add(r0, fit, counts, relight_error_parts(fit, images, dirs, band, starts))
+            del fit
+            seconds["hsh"] += time.perf_counter() - t1
     out.timings.update(relight_read=seconds["read"], ptm=seconds["ptm"], hsh=seconds["hsh"])
 
 

@@ -86,18 +86,6 @@ def test_the_reference_readers_read_the_banded_files(scan, tmp_path, small_bands
         assert shown[sel].mean() > 0.02            # the object is lit, not a blank file
 
 
-def test_relight_scratch_is_removed(scan, tmp_path, small_bands, monkeypatch):
-    made = []
-    real = _rti_bands.RelightBands.__init__
-
-    def spy(self, *a):
-        real(self, *a)
-        made.append(self.work)
-    monkeypatch.setattr(_rti_bands.RelightBands, "__init__", spy)
-    process(scan, outputs=["ptm"], out_dir=tmp_path, method=M, memory="1GB")
-    assert len(made) == 1 and not made[0].exists() and (tmp_path / "relight.ptm").is_file()
-
-
 @pytest.mark.parametrize("n,chunks", [(1, 1), (7, 3), (5000, 13), (5000, 1)])
 def test_top_values_give_numpys_percentile(n, chunks):
     rng = np.random.default_rng(n)
