@@ -13,6 +13,7 @@ from facette.pipeline import process
 from facette.pipeline import _rti_bands
 from facette.pipeline._rti_bands import _TopValues
 from facette.recon import _rti as rti_fit
+from test_exports import _diligent
 from test_process_memory import M, WHOLE_CHANNELS, _never_whole, diligent, scan, small_bands  # noqa: F401
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "io"))
@@ -71,6 +72,23 @@ def test_bands_off_the_fits_blocks_say_so_and_differ_by_a_step_at_most(request, 
     assert np.all(np.abs(pt["coeffs"] - pw["coeffs"]) <= 1.01 * pw["scale"])
     assert np.all(np.abs(ht["coeffs"] - hw["coeffs"]) <= 1.01 * hw["scale"] / 255)
     assert tiled.fit_errors == pytest.approx(whole.fit_errors, rel=1e-5)
+
+
+@pytest.mark.parametrize("lights,saturate", [(12, (slice(10, 14), slice(14, 18), range(7))), (6, None)])
+def test_unfitted_pixels_and_a_lower_hsh_order_over_bands_as_untiled(tmp_path, small_bands, monkeypatch, lights,
+                                                                    saturate):
+    """5 usable lights on a patch (kept at their mean, counted over the bands); 6 lights: HSH order 2."""
+    folder = _diligent(tmp_path / "dil", lights, saturate)
+    monkeypatch.setattr(rti_fit, "_BLOCK", 16)
+    whole = process(folder, channels=WHOLE_CHANNELS, outputs=OUTPUTS, out_dir=tmp_path / "whole", method=M)
+    monkeypatch.setattr(_rti_bands, "relight_rows", lambda *a: 8)      # 32 pixels wide: on the blocks
+    tiled = process(folder, outputs=OUTPUTS, out_dir=tmp_path / "tiled", method=M, memory="1GB")
+    said = [n for n in whole.notes if n.startswith("relight.")]
+    assert said and said == [n for n in tiled.notes if n.startswith("relight.")]
+    assert any(("16 of" in n and "fewer than 6 usable lights" in n) if saturate else "HSH order 2" in n
+               for n in said)
+    for name in ("relight.ptm", "relight.rti"):
+        assert (tmp_path / "whole" / name).read_bytes() == (tmp_path / "tiled" / name).read_bytes(), name
 
 
 def test_the_reference_readers_read_the_banded_files(scan, tmp_path, small_bands):
