@@ -328,7 +328,7 @@ def _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_s
     extra = None if extra_starts is None or len(extra_starts) == 0 else np.asarray(extra_starts[0])
     nrm, k, used, cost, rel, its = refine_distant_compiled(
         e, lights, normals, sigma, n_i, ok, iterations, extra_start=extra, extra_rows=extra_rows,
-        cast_ratio=CAST_SHADOW_RATIO, floor=SCALE_FLOOR, step_fd=STEP_FD, max_step=MAX_STEP,
+        cast_ratio=CAST_SHADOW_RATIO, floor=SCALE_FLOOR, max_step=MAX_STEP,
         step_tol=step_tol, volume_model=volume_model,
         table=None if table_grid is None else volume_table(lights, sigma, n_i, grid=table_grid, volume_model=volume_model))
     return RefineResult(normals=nrm, kappa=k, kd=kd_from_kappa(k, n_i, volume_model), used=used, cost=cost,

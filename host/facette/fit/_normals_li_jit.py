@@ -4,7 +4,11 @@ The same robust Levenberg–Marquardt as facette.fit._normals_li (its module doc
 parameterisation, κ per channel in closed form at every step, Cauchy loss with a per-pixel scale
 re-estimated at steps 3 and 6, cast shadows and unusable values left out, a second start kept
 where its robust cost is lower), written as one loop per pixel instead of whole-array passes, so
-that a pixel costs a few microseconds and stops as soon as it has converged.
+that a pixel costs a few microseconds and stops as soon as it has converged. One difference: the
+lobe's Jacobian is analytic (`_model` returns dA/dt with A), where the array code takes forward
+differences, two more evaluations of the lobe per step (DiLiGenT cat, 96 lights, its 44 312 pixels
+of round 1 on one thread: 4.66 -> 2.62 CPU s for 8000 of them, the same mean number of steps;
+normals within 0.02° at the 90th percentile, 0.04° at the 99th, 0.6° at most; cat 5.632 -> 5.635°).
 
 The model values: the specular lobe A (eq 3.10) is evaluated exactly per pixel and light (the
 Fresnel factor F(s·h) is one number per distant light); the volume part B(n, s_i) (eq 3.15, by the
@@ -23,7 +27,7 @@ import numpy as np
 from numba import njit, prange
 
 from facette.brdf import fresnel_dielectric, li_shading_terms
-from facette.brdf._lobe_jit import beckmann_d, smith_g1_beckmann as _g1
+from facette.brdf._lobe_jit import beckmann_d
 
 __all__ = ["volume_table", "refine_distant_compiled", "bin_images", "TABLE_GRID"]
 
@@ -64,9 +68,32 @@ def _volume_table(lights, sigma, n_i, grid, volume_model):
     return np.ascontiguousarray(b)
 
 
+_SQRT_PI = math.sqrt(math.pi)
+
+
 @njit(cache=True)
-def _model(nx, ny, nz, s, sh, fres, btab, sigma, spec, a_out, b_out, with_b=True):
-    """A and B for one normal and every light into a_out, b_out (m,); with_b False: A only."""
+def _g1_dlog(c, sigma):
+    """(Smith G_1 for Beckmann at cosine c, the same bits as `smith_g1_beckmann`; d ln G_1 / dc)."""
+    if c <= 0.0:
+        return 0.0, 0.0
+    if c > 1.0:
+        c = 1.0
+    sn = math.sqrt(max(1.0 - c * c, 0.0))
+    if sn <= 0.0:
+        return 1.0, 0.0
+    a = c / (sigma * sn)
+    ex = math.exp(-a * a)
+    lam = 0.5 * (ex / (a * _SQRT_PI) - math.erfc(a))
+    g = 1.0 / (1.0 + lam)
+    # dΛ/da = −e^(−a²) / (2√π a²), da/dc = 1 / (σ sin³): d ln G_1/dc = G_1 e^(−a²) σ / (2√π c² sin)
+    return g, g * ex * sigma / (2.0 * _SQRT_PI * c * c * sn)
+
+
+@njit(cache=True)
+def _model(nx, ny, nz, s, sh, fres, btab, sigma, spec, a_out, b_out, pa_out, qa_out):
+    """A and B for one normal and every light into a_out, b_out (m,), and A's derivative along a
+    tangent t of the normal as dA/dt = pa_out (s·t) + qa_out t_z (eq 3.10 differentiated: D through
+    cos θ_h = n·h, G_1 through n·s and n·z, 1 / (4 n·z))."""
     m = s.shape[0]
     g = btab.shape[0]
     # bilinear position in the B table (same for every light)
@@ -79,24 +106,31 @@ def _model(nx, ny, nz, s, sh, fres, btab, sigma, spec, a_out, b_out, with_b=True
     wx = fx - ix
     wy = fy - iy
     co = min(max(nz, 0.0), 1.0)
-    g1o = _g1(co, sigma) if spec else 0.0
+    g1o, dg1o = _g1_dlog(co, sigma) if spec else (0.0, 0.0)
+    qo = dg1o - 1.0 / co if co > 0.0 else 0.0
     s2 = sigma * sigma
     for i in range(m):
+        a_out[i] = 0.0
+        pa_out[i] = 0.0
+        qa_out[i] = 0.0
         cs = nx * s[i, 0] + ny * s[i, 1] + nz * s[i, 2]
         if cs <= 0.0 or nz <= 0.0:
-            a_out[i] = 0.0
             b_out[i] = 0.0
             continue
-        if with_b:
-            b_out[i] = ((1 - wx) * (1 - wy) * btab[iy, ix, i] + wx * (1 - wy) * btab[iy, ix + 1, i]
-                        + (1 - wx) * wy * btab[iy + 1, ix, i] + wx * wy * btab[iy + 1, ix + 1, i])
-        a_out[i] = 0.0
+        b_out[i] = ((1 - wx) * (1 - wy) * btab[iy, ix, i] + wx * (1 - wy) * btab[iy, ix + 1, i]
+                    + (1 - wx) * wy * btab[iy + 1, ix, i] + wx * wy * btab[iy + 1, ix + 1, i])
         if spec:
             csc = min(cs, 1.0)
             ch = min(max((cs + co) / (2.0 * sh[i]), 0.0), 1.0)
             ch2 = ch * ch
             if 1.0 - ch2 < 16.0 * s2 * ch2 and ch2 > 0.0:
-                a_out[i] = fres[i] * beckmann_d(ch2, s2) * _g1(csc, sigma) * g1o / (4.0 * co)
+                g1s, dg1s = _g1_dlog(csc, sigma)
+                av = fres[i] * beckmann_d(ch2, s2) * g1s * g1o / (4.0 * co)
+                a_out[i] = av
+                # d ln D / d cos θ_h = 2 / (σ² cos³ θ_h) − 4 / cos θ_h; d cos θ_h = (s·t + t_z) / (2 sh)
+                dd = (2.0 / (s2 * ch2 * ch) - 4.0 / ch) / (2.0 * sh[i])
+                pa_out[i] = av * (dd + dg1s)
+                qa_out[i] = av * (dd + qo)
 
 
 @njit(cache=True)
@@ -148,17 +182,17 @@ def _cost(r, keep, sc):
 
 @njit(cache=True)
 def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, cast_ratio,
-               floor, step_fd, max_step, step_tol, ws):
+               floor, max_step, step_tol, ws):
     """One start for one pixel. Returns (nx, ny, nz, cost, scale, rel, n_kept, iterations);
     κ in ws.k, the kept flags in ws.keep."""
-    (a, b, au, ac, bc, k, kc, r, rc, wr, ju, jv, keep, buf, w0) = ws
+    (a, b, pa, ac, bc, k, kc, r, rc, wr, ju, jv, keep, buf, w0, qa, pc, qc) = ws
     m, c = e.shape
     nl = math.sqrt(n0[0] ** 2 + n0[1] ** 2 + n0[2] ** 2)
     if nl > 1e-12:
         nx, ny, nz = n0[0] / nl, n0[1] / nl, n0[2] / nl
     else:
         nx, ny, nz = 0.0, 0.0, 1.0
-    _model(nx, ny, nz, s, sh, fres, btab, sigma, spec, a, b)
+    _model(nx, ny, nz, s, sh, fres, btab, sigma, spec, a, b, pa, qa)
     for i in range(m):
         for ch in range(c):
             w0[i, ch] = 1.0 if ok[i] else 0.0
@@ -218,22 +252,18 @@ def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, 
             for ch in range(c):
                 q = r[i, ch] / scale
                 wr[i, ch] = (1.0 if keep[i] else 0.0) / (1.0 + q * q)
-        # Jacobian: the lobe by forward differences, the volume part as (B / n·s)(s·t) κ
+        # Jacobian: the lobe's analytic derivative (`_model`), the volume part as (B / n·s)(s·t) κ
         for tt in range(2):
             if tt == 0:
                 tx, ty, tz = t1x, t1y, t1z
             else:
                 tx, ty, tz = t2x, t2y, t2z
-            px, py, pz = nx + step_fd * tx, ny + step_fd * ty, nz + step_fd * tz
-            pl = math.sqrt(px * px + py * py + pz * pz)
             jj = ju if tt == 0 else jv
-            if spec:
-                _model(px / pl, py / pl, pz / pl, s, sh, fres, btab, sigma, spec, au, bc, False)
             for i in range(m):
                 cs = nx * s[i, 0] + ny * s[i, 1] + nz * s[i, 2]
                 bo = b[i] / max(cs, 1e-4) if cs > 1e-4 else 0.0
                 st = tx * s[i, 0] + ty * s[i, 1] + tz * s[i, 2]
-                da = (au[i] - a[i]) / step_fd if spec else 0.0
+                da = pa[i] * st + qa[i] * tz
                 for ch in range(c):
                     jj[i, ch] = da + bo * st * k[ch]
         huu = hvv = huv = gu = gv = 0.0
@@ -262,7 +292,7 @@ def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, 
             cx, cy, cz = cx / cl, cy / cl, cz / cl
         else:
             cx, cy, cz = 0.0, 0.0, 1.0
-        _model(cx, cy, cz, s, sh, fres, btab, sigma, spec, ac, bc)
+        _model(cx, cy, cz, s, sh, fres, btab, sigma, spec, ac, bc, pc, qc)
         _kappa(e, ac, bc, wr, kc)
         _resid(e, ac, bc, kc, keep, rc)
         cc = _cost(rc, keep, scale)
@@ -271,6 +301,8 @@ def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, 
             for i in range(m):
                 a[i] = ac[i]
                 b[i] = bc[i]
+                pa[i] = pc[i]
+                qa[i] = qc[i]
             for ch in range(c):
                 k[ch] = kc[ch]
             lam = max(lam / 3, 1e-4)
@@ -294,16 +326,16 @@ def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, 
 
 @njit(cache=True)
 def _workspace(m, c):
-    # a, b, au, ac, bc, k, kc, r, rc, wr, ju, jv, keep, buf, w0 (the order `_solve_one` unpacks)
+    # a, b, pa, ac, bc, k, kc, r, rc, wr, ju, jv, keep, buf, w0, qa, pc, qc (the order `_solve_one` unpacks)
     return (np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m),
             np.empty(c), np.empty(c), np.empty((m, c)), np.empty((m, c)), np.empty((m, c)),
             np.empty((m, c)), np.empty((m, c)), np.empty(m, np.bool_), np.empty(m * c),
-            np.empty((m, c)))
+            np.empty((m, c)), np.empty(m), np.empty(m), np.empty(m))
 
 
 @njit(cache=True, parallel=True)
 def _refine_all(e, ok, n0, n1, has1, s, sh, fres, btab, sigma, spec, iterations, cast_ratio,
-                floor, step_fd, max_step, step_tol, out_n, out_k, out_used, out_cost, out_rel, out_it, chunk):
+                floor, max_step, step_tol, out_n, out_k, out_used, out_cost, out_rel, out_it, chunk):
     n_pix, m, c = e.shape
     n_chunks = (n_pix + chunk - 1) // chunk
     for q in prange(n_chunks):
@@ -321,7 +353,7 @@ def _refine_all(e, ok, n0, n1, has1, s, sh, fres, btab, sigma, spec, iterations,
                     tot += e[p, i, ch]
                 em[i, 0] = tot / c
             r1 = _solve_one(em, ok[p], n0[p], s, sh, fres, btab, sigma, spec, iterations, -1.0,
-                            cast_ratio, floor, step_fd, max_step, step_tol, ws)
+                            cast_ratio, floor, max_step, step_tol, ws)
             bx, by, bz, bcost, bscale, brel, bkeep, bit = r1
             keep_best[:] = ws[12]
             a_best[:] = ws[0]
@@ -329,7 +361,7 @@ def _refine_all(e, ok, n0, n1, has1, s, sh, fres, btab, sigma, spec, iterations,
             k_mean = ws[5][0]
             if has1[p] and bkeep >= 3:
                 r2 = _solve_one(em, ok[p], n1[p], s, sh, fres, btab, sigma, spec, iterations, bscale,
-                                cast_ratio, floor, step_fd, max_step, step_tol, ws)
+                                cast_ratio, floor, max_step, step_tol, ws)
                 if r2[3] < bcost:
                     bx, by, bz, bcost, _, brel, bkeep, it2 = r2
                     bit = max(bit, it2)
@@ -356,7 +388,7 @@ def _refine_all(e, ok, n0, n1, has1, s, sh, fres, btab, sigma, spec, iterations,
 
 
 def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_start=None,
-                            extra_rows=None, cast_ratio=0.25, floor=0.03, step_fd=1e-3, max_step=0.15,
+                            extra_rows=None, cast_ratio=0.25, floor=0.03, max_step=0.15,
                             step_tol=2e-4, table=None, volume_model="approx", chunk=CHUNK):
     """Arrays in as `refine_normals_li` (distant lights (m, 3) only, at most one extra start);
     step_tol : rad, a pixel stops once an accepted step is below it.
@@ -386,7 +418,7 @@ def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, 
     out_rel = np.empty(n_pix)
     out_it = np.empty(n_pix, np.int32)
     _refine_all(e, ok, n0, n1, has1, s, sh, fres, btab, sig, spec, int(iterations), cast_ratio, floor,
-                step_fd, max_step, float(step_tol), out_n, out_k, out_used, out_cost, out_rel, out_it, int(chunk))
+                max_step, float(step_tol), out_n, out_k, out_used, out_cost, out_rel, out_it, int(chunk))
     return (out_n.astype(np.float32), out_k.astype(np.float32), out_used, out_cost,
             out_rel.astype(np.float32), out_it)
 

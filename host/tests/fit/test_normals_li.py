@@ -87,6 +87,39 @@ def test_volume_table_matches_the_direct_evaluation():
     assert np.median(rel) < 2e-4 and np.percentile(rel, 99) < 5e-3
 
 
+def test_the_compiled_lobe_derivative_matches_central_differences():
+    # the per-pixel solve's Jacobian of the lobe A (eq 3.10) is analytic (`_model`'s pa, qa):
+    # dA/dt = pa (s·t) + qa t_z along a tangent t of the normal; central differences of A agree
+    from facette.brdf import fresnel_dielectric
+    from facette.fit._normals_li_jit import _model
+    rng = np.random.default_rng(5)
+    s = RIG.astype(np.float64)
+    sh = np.sqrt((1 + s[:, 2]) / 2)
+    m = len(s)
+    btab = np.zeros((5, 5, m))
+    out = [np.empty(m) for _ in range(4)]
+    lo, hi = [np.empty(m) for _ in range(4)], [np.empty(m) for _ in range(4)]
+    checked = 0
+    for sigma, n_i in ((0.05, 1.5), (0.2, 1.3), (0.4, 1.45)):
+        fres = fresnel_dielectric(sh, n_i).astype(np.float64)
+        for _ in range(40):
+            n = np.array([*rng.normal(0, 0.4, 2), 1.0])
+            n /= np.linalg.norm(n)
+            t = np.cross(n, rng.normal(size=3))
+            t /= np.linalg.norm(t)
+            _model(*n, s, sh, fres, btab, sigma, True, *out)
+            h = 1e-6
+            for sign, buf in ((1, hi), (-1, lo)):
+                p = n + sign * h * t
+                _model(*(p / np.linalg.norm(p)), s, sh, fres, btab, sigma, True, *buf)
+            fd = (hi[0] - lo[0]) / (2 * h)
+            analytic = out[2] * (s @ t) + out[3] * t[2]
+            lit = out[0] > 1e-3 * out[0].max()      # away from the lobe's cut-off
+            np.testing.assert_allclose(analytic[lit], fd[lit], rtol=1e-4, atol=1e-6 * out[0].max())
+            checked += lit.sum()
+    assert checked > 200
+
+
 def test_compiled_engine_refuses_what_it_cannot_do():
     normals, kd, e = _scene(n=10)
     lights = np.broadcast_to(RIG, (10, 12, 3)).astype(np.float32)
