@@ -61,11 +61,11 @@ def _volume_table(lights, sigma, n_i, grid, volume_model):
     r2 = gx * gx + gy * gy
     inside = r2 < 1
     nz = np.sqrt(np.maximum(1 - r2, 0))
-    gn = np.stack([gx, gy, nz], -1).reshape(-1, 3).astype(np.float32)
-    _, b = li_shading_terms(gn, lights, sigma, n_i, specular=False, volume_model=volume_model)
-    b = b.astype(np.float32).reshape(grid, grid, -1)
-    b[~inside] = 0
-    return np.ascontiguousarray(b)
+    gn = np.stack([gx, gy, nz], -1)[inside].astype(np.float32)
+    # the disk's normals only (π/4 of the grid; the values are per normal, the same bits)
+    b = np.zeros((grid, grid, len(lights)), np.float32)
+    b[inside] = li_shading_terms(gn, lights, sigma, n_i, specular=False, volume_model=volume_model)[1]
+    return b
 
 
 _SQRT_PI = math.sqrt(math.pi)
