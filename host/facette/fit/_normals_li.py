@@ -111,7 +111,7 @@ def refine_normals_li(e, lights, normals, sigma, n_i, usable=None, iterations=12
                                                       extra_starts, extra_rows)
     if engine != "arrays" and fits_compiled:
         return _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_starts, extra_rows,
-                                step_tol, volume_model, table_grid)
+                                step_tol, volume_model, table_grid, second_above=0.0 if search else None)
     first = _refine_one_start(e, lights, normals, sigma, n_i, usable, iterations, kappa,
                               volume_model=volume_model)
     if extra_starts is None or len(extra_starts) == 0:
@@ -310,7 +310,7 @@ def _lm_step(ei, kwi, ni, si, ai, bi, ki, scale_i, li, sigma, n_i, volume_model)
 
 
 def _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_starts, extra_rows, step_tol,
-                     volume_model, table_grid=None):
+                     volume_model, table_grid=None, second_above=None):
     from ._normals_li_jit import refine_distant_compiled, volume_table
     e = np.asarray(e, np.float32)
     if e.ndim == 2:
@@ -329,7 +329,7 @@ def _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_s
     nrm, k, used, cost, rel, its = refine_distant_compiled(
         e, lights, normals, sigma, n_i, ok, iterations, extra_start=extra, extra_rows=extra_rows,
         cast_ratio=CAST_SHADOW_RATIO, floor=SCALE_FLOOR, max_step=MAX_STEP,
-        step_tol=step_tol, volume_model=volume_model,
+        step_tol=step_tol, volume_model=volume_model, second_above=second_above,
         table=None if table_grid is None else volume_table(lights, sigma, n_i, grid=table_grid, volume_model=volume_model))
     return RefineResult(normals=nrm, kappa=k, kd=kd_from_kappa(k, n_i, volume_model), used=used, cost=cost,
                         rel_residual=rel, iterations=int(its.max()) if its.size else 0,
