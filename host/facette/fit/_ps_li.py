@@ -303,9 +303,7 @@ def _rounds(px, pix, trust, region, mat, rounds, tol_deg, rounds_log):
         lobe, lam_ok, todo = px.split_levels(pix, fit["sigma"], fit["n_i"])
         change = np.zeros(0)
         if todo.size:
-            # a pixel solved in an earlier round starts from its normal; one new to the step gets
-            # round 1's starts (all of them again, as before, took cat 96 lights 20 CPU s more)
-            rr = px.refine(todo, fit["sigma"], fit["n_i"], first_round=~px.refined[todo])
+            rr = px.refine(todo, fit["sigma"], fit["n_i"], first_round=not px.refined[todo].all())
             change = angle_deg(rr.normals, px.nrm[todo])
             px.store(todo, rr)
         score = np.full(pix.size, np.inf, np.float32)     # Lambertian-level pixels: not for the fit

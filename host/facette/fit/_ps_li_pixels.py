@@ -117,9 +117,7 @@ class Pixels:
         First round: the current normal and the highlight start, and for a metal's lobe a search of
         the hemisphere where the current normal explains the pixel poorly (facette.fit._orientation:
         a metal has no diffuse part, so the Lambertian initial normals say nothing there); later
-        rounds start from the previous round's normals, already near, so one start and fewer steps do.
-        first_round : bool, or (len(sel),) bool per pixel (a later round: True for the pixels new to
-        the BRDF step, which get the first round's starts). Pixel blocks on
+        rounds start from the previous round's normals, already near, so one start and fewer steps do. Pixel blocks on
         WORKERS threads (numpy releases the GIL in its loops)."""
         st = self.settings
         engine = st.engine if engine is None else engine
@@ -143,18 +141,6 @@ class Pixels:
                                            iterations=max(2, st.iterations // 2), engine=engine,
                                            volume_model=vm, step_tol=step_tol)
 
-        if not isinstance(first_round, bool):
-            # a later round: pixels solved before start from their own normal (one start, fewer
-            # steps), pixels new to the BRDF step get the first round's starts
-            first_round = np.asarray(first_round, bool)
-            if first_round.all() or not first_round.any():
-                return self.refine(sel, sigma, n_i, bool(first_round.all()), engine, step_tol, diffuse_vm, table_grid)
-            new = self.refine(sel[first_round], sigma, n_i, True, engine, step_tol, diffuse_vm, table_grid)
-            old = self.refine(sel[~first_round], sigma, n_i, False, engine, step_tol, diffuse_vm, table_grid)
-            order = np.argsort(np.concatenate([np.flatnonzero(first_round), np.flatnonzero(~first_round)]),
-                               kind="stable")
-            both = join_blocks([new, old])
-            return RefineResult(**{k: getattr(both, k)[order] for k in _FIELDS})
         if self.s_all.ndim == 2:
             # the compiled per-pixel solve runs its own threads: blocks in turn (memory only)
             for a in range(0, sel.size, BLOCK_COMPILED):
