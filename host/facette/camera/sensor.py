@@ -182,6 +182,37 @@ class SensorModel:
         np.clip(dn, 0, self.white_level_dn, out=dn)
         return dn.astype(np.uint16)
 
+    def expose_charge_rows(self, photo_electrons_rows, shape, t_s, rng=None, band_rows=256):
+        """`expose_charge` of a mosaic of `shape` (H, W) given a band of rows at a time:
+        `photo_electrons_rows(r0, r1)` returns rows r0..r1 of the mean electrons (r0, r1 even
+        but for the last band). The noise is drawn in the order `expose_charge` draws it (all
+        the shot noise, then all the read noise), so that the same `rng` gives the same
+        frame; held meanwhile: the clipped electron counts (uint16 when the full well fits,
+        the frame's own array). Returns the uint16 array, DN."""
+        rng = np.random.default_rng(rng)
+        hh, ww = (int(v) for v in shape)
+        step = max(2, int(band_rows) // 2 * 2)
+        counts = np.empty((hh, ww), np.uint16 if self.full_well_e <= 0xFFFF else np.uint32)
+        for r0 in range(0, hh, step):
+            mean_e = np.asarray(photo_electrons_rows(r0, min(r0 + step, hh)), dtype=np.float64)
+            if mean_e.shape != (min(r0 + step, hh) - r0, ww):
+                raise ValueError(f"rows {r0}.. of the electrons have shape {mean_e.shape}; expected "
+                                 f"{(min(r0 + step, hh) - r0, ww)}")
+            if not np.all(np.isfinite(mean_e)) or np.any(mean_e < 0):
+                raise ValueError("photo-electron counts must be finite and >= 0")
+            electrons = rng.poisson(mean_e + self.dark_current_e_per_s * t_s).astype(np.float64)
+            counts[r0:r0 + step] = np.minimum(electrons, self.full_well_e)
+        out = counts if counts.dtype == np.uint16 else np.empty((hh, ww), np.uint16)
+        for r0 in range(0, hh, step):
+            electrons = counts[r0:r0 + step].astype(np.float64)
+            if self.read_noise_e > 0:
+                electrons += rng.normal(0.0, self.read_noise_e, size=electrons.shape)
+            dn = self.black_level_dn + electrons / self.gain_e_per_dn
+            np.rint(dn, out=dn)
+            np.clip(dn, 0, self.white_level_dn, out=dn)
+            out[r0:r0 + step] = dn.astype(np.uint16)
+        return out
+
     # -- profile I/O --------------------------------------------------------
     def to_profile_dict(self):
         """Plain dict for the calibration profile's `sensor` section (all fields)."""

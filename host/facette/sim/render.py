@@ -20,7 +20,8 @@ from scipy.ndimage import maximum_filter
 
 from facette.brdf import get as brdf_get
 
-__all__ = ["radiance_per_led", "brdf_function", "cast_shadow_visibility", "to_local"]
+__all__ = ["radiance_per_led", "radiance_rows", "led_reach", "brdf_function", "cast_shadow_visibility",
+           "ray_reach", "merge_reach", "shadow_window", "to_local"]
 
 
 def brdf_function(name):
@@ -51,9 +52,72 @@ def cast_shadow_visibility(height_mm, pixel_pitch_mm, s):
     log2(steps) passes instead of one pass per step; per-pixel directions (near LEDs) march on.
     """
     hgt = np.asarray(height_mm, float)
+    return _visibility(hgt, pixel_pitch_mm, s, ray_reach(hgt, pixel_pitch_mm, s))
+
+
+def ray_reach(height_mm, pixel_pitch_mm, s, shape=None):
+    """What a shadow march of the whole image needs to know of it: (relief mm, steps, lowest
+    rise mm per step) for direction(s) `s` ((3,), or per pixel (h, W, 3) for some rows of an
+    image of `shape` (H, W), default the height field's). Per-pixel directions given a band at
+    a time combine with `merge_reach`."""
+    hgt = np.asarray(height_mm, float)
+    hh, ww = shape if shape is not None else hgt.shape
+    s = np.asarray(s, float)
+    horiz = np.hypot(s[..., 0], s[..., 1])
+    ok = horiz > 1e-9
+    if not ok.any():
+        return (float(hgt.max() - hgt.min()), 0, np.inf)
+    rise = pixel_pitch_mm * s[..., 2] / np.maximum(horiz, 1e-12)
+    return (float(hgt.max() - hgt.min()), (hh, ww), float(np.min(s[..., 2][ok] / horiz[ok])),
+            float(np.min(rise[ok])))
+
+
+def merge_reach(parts, relief):
+    """`ray_reach` of the whole from those of its bands (the relief of the whole given)."""
+    parts = [p for p in parts if p[1] != 0]
+    if not parts:
+        return (relief, 0, np.inf)
+    return (relief, parts[0][1], min(p[2] for p in parts), min(p[3] for p in parts))
+
+
+def _n_steps(reach, pixel_pitch_mm):
+    relief, shape, tan_elev = reach[0], reach[1], reach[2]
+    if shape == 0:
+        return 0
+    n_steps = int(np.ceil(relief / max(pixel_pitch_mm * tan_elev, 1e-9))) + 1
+    return min(n_steps, shape[0] + shape[1])
+
+
+def shadow_window(rows, n_rows, reach, pixel_pitch_mm, s):
+    """Rows (a, b) of the height field whose shadow march gives, on rows r0..r1, what the march
+    of the whole gives: the band and the rows its rays read (for one direction `s`, towards the
+    light only; per-pixel directions both ways)."""
+    r0, r1 = rows
+    steps = _n_steps(reach, pixel_pitch_mm)
+    if steps == 0:
+        return r0, r1
+    s = np.asarray(s, float)
+    if s.ndim == 1:
+        horiz = float(np.hypot(s[0], s[1]))
+        dr = -s[1] / max(horiz, 1e-12)
+        doubled = 1
+        while doubled < steps - NEAR_STEPS:
+            doubled *= 2
+        # the doubling reads up to `doubled` steps ahead, each bilinear read one row more
+        reach_rows = int(np.ceil((NEAR_STEPS + doubled + 2) * abs(dr))) + 2 * int(np.log2(doubled)) + 8
+        before, after = (2, reach_rows) if dr >= 0 else (reach_rows, 2)
+    else:
+        before = after = steps + 2 * NEAR_STEPS + 8
+    return max(r0 - before, 0), min(r1 + after, n_rows)
+
+
+def _visibility(hgt, pixel_pitch_mm, s, reach):
+    """`cast_shadow_visibility` of `hgt` (some rows of an image) with the `ray_reach` of the
+    whole image: equal to the whole's on the rows of `shadow_window`."""
     hh, ww = hgt.shape
     shared = np.ndim(s) == 1
-    s = np.broadcast_to(np.asarray(s, float), (hh, ww, 3))
+    # one direction: its steps worked out once (the same arithmetic as per pixel)
+    s = np.asarray(s, float).reshape(1, 1, 3) if shared else np.broadcast_to(s, (hh, ww, 3))
     horiz = np.hypot(s[..., 0], s[..., 1])
     vis = np.ones((hh, ww))
     ok = horiz > 1e-9
@@ -62,9 +126,8 @@ def cast_shadow_visibility(height_mm, pixel_pitch_mm, s):
     step_c = np.where(ok, s[..., 0] / np.maximum(horiz, 1e-12), 0.0)
     step_r = np.where(ok, -s[..., 1] / np.maximum(horiz, 1e-12), 0.0)   # y up, rows down
     rise = pixel_pitch_mm * s[..., 2] / np.maximum(horiz, 1e-12)          # mm per pixel step
-    relief = hgt.max() - hgt.min()
-    n_steps = int(np.ceil(relief / max(pixel_pitch_mm * np.min(s[..., 2][ok] / horiz[ok]), 1e-9))) + 1
-    n_steps = min(n_steps, hh + ww)
+    relief = reach[0]
+    n_steps = _n_steps(reach, pixel_pitch_mm)
     top = hgt + 1e-3 * max(relief, 1e-6)          # the ray must clear the start by this
     if shared:
         # one direction: a step is the same offset for every pixel, read as shifted slices
@@ -76,19 +139,19 @@ def cast_shadow_visibility(height_mm, pixel_pitch_mm, s):
             far = _highest_ahead(hgt, dr, dc, up, n_steps - NEAR_STEPS)
             blocked |= _shifted(far, NEAR_STEPS * dr, NEAR_STEPS * dc) - NEAR_STEPS * up > top
     else:
-        blocked = _march(hgt, top, step_r, step_c, rise, ok, n_steps)
-    vis[blocked & ok] = 0.0
+        blocked = _march(hgt, top, step_r, step_c, rise, ok, n_steps, reach[3])
+    vis[blocked & np.broadcast_to(ok, (hh, ww))] = 0.0
     return vis
 
 
-def _march(hgt, top, step_r, step_c, rise, ok, n_steps):
+def _march(hgt, top, step_r, step_c, rise, ok, n_steps, lowest_rise):
     """Shadowed pixels for per-pixel directions: the near steps read between pixels where
     something within their reach stands above the first step, the rest the nearest pixel."""
     hh, ww = hgt.shape
     rows, cols = np.mgrid[0:hh, 0:ww].astype(float)
     blocked = np.zeros((hh, ww), bool)
     reach = maximum_filter(hgt, size=2 * NEAR_STEPS + 3, mode="nearest")
-    near = np.flatnonzero(ok & (reach - np.min(rise[ok]) > top))
+    near = np.flatnonzero(ok & (reach - lowest_rise > top))
     r0, c0 = rows.flat[near], cols.flat[near]
     sr, sc, up, start = step_r.flat[near], step_c.flat[near], rise.flat[near], top.flat[near]
     hit = np.zeros(near.size, bool)
@@ -149,6 +212,9 @@ def _shifted(field, dr, dc):
                 continue
             part = np.full((hh, ww), _OUTSIDE)
             r, c = ir + a, ic + b
+            if abs(r) >= hh or abs(c) >= ww:      # read wholly off the grid
+                out += wa * wb * part
+                continue
             src = field[max(r, 0):hh + min(r, 0), max(c, 0):ww + min(c, 0)]
             part[max(-r, 0):hh - max(r, 0), max(-c, 0):ww - max(c, 0)] = src
             out += wa * wb * part
@@ -168,37 +234,88 @@ def radiance_per_led(scene, leds, electrons_per_mA_s=20.0, shadows=True):
 
     Returns
     -------
-    ndarray (m, H, W, 3) float64, e- per mA·µs, >= 0
+    ndarray (m, H, W, 3) float64, e- per mA·µs, >= 0 (`radiance_rows` gives any band of rows
+    of one LED's, equal to the same rows of this)
     """
+    _check_scale(electrons_per_mA_s)
+    out = np.zeros((len(leds), *scene.shape, 3))
+    for i in range(len(leds)):
+        reach = led_reach(scene.height_mm, scene.pixel_pitch_mm, leds, i) if shadows else None
+        out[i] = radiance_rows(scene, leds, i, 0, scene.height_mm, reach, electrons_per_mA_s)
+    return out
+
+
+def _check_scale(electrons_per_mA_s):
     if not electrons_per_mA_s > 0:
         raise ValueError(f"electrons_per_mA_s must be > 0, got {electrons_per_mA_s}")
-    fn = brdf_function(scene.brdf["model"])
-    params = dict(scene.brdf.get("params", {}))
-    n = scene.normals
-    hh, ww = scene.shape
+
+
+def _points(height_mm, pixel_pitch_mm, r0, r1):
+    """(rows, W, 3) surface points, mm, of rows r0..r1 of the height field (as
+    `Scene.coordinates_mm` places the pixel centres)."""
+    hh, ww = height_mm.shape
+    x = (np.arange(ww) - (ww - 1) / 2.0) * pixel_pitch_mm
+    y = ((hh - 1) / 2.0 - np.arange(r0, r1)) * pixel_pitch_mm
+    x, y = np.meshgrid(x, y)
+    return np.stack([x, y, height_mm[r0:r1]], axis=-1)
+
+
+def _near_rays(leds, i, points):
+    """(directions towards near LED i, (d0 / r)² fall-off) at `points` (..., 3) mm."""
+    v = leds.positions_mm[i] - points
+    r = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / r, (leds.distance_mm / r[..., 0]) ** 2
+
+
+def led_reach(height_mm, pixel_pitch_mm, leds, i, band_rows=None):
+    """`ray_reach` of LED i over the whole height field (H, W); a near LED's per-pixel
+    directions are made `band_rows` rows at a time (None: all at once)."""
+    hgt = np.asarray(height_mm, float)
+    if leds.positions_mm is None:
+        return ray_reach(hgt, pixel_pitch_mm, leds.directions[i])
+    hh = hgt.shape[0]
+    step = hh if band_rows is None else max(int(band_rows), 1)
+    parts = []
+    for r0 in range(0, hh, step):
+        s, _ = _near_rays(leds, i, _points(hgt, pixel_pitch_mm, r0, min(r0 + step, hh)))
+        parts.append(ray_reach(hgt[r0:r0 + step], pixel_pitch_mm, s, shape=hgt.shape))
+    return merge_reach(parts, float(hgt.max() - hgt.min()))
+
+
+def radiance_rows(band, leds, i, row0, height_mm, reach, electrons_per_mA_s=20.0):
+    """Photo-electrons per (mA·µs) of LED i on the rows of `band`, a `Scene` of rows
+    row0.. of a scene whose whole height field is `height_mm` (H, W): (rows, W, 3) float64,
+    >= 0, equal to the same rows of `radiance_per_led`'s. `reach`: the LED's `led_reach` over
+    the whole height field, or None for no cast shadows."""
+    _check_scale(electrons_per_mA_s)
+    hgt = np.asarray(height_mm, float)
+    fn = brdf_function(band.brdf["model"])
+    params = dict(band.brdf.get("params", {}))
+    n = band.normals
+    pitch = band.pixel_pitch_mm
+    rows = (row0, row0 + band.shape[0])
     o_loc = to_local(np.broadcast_to([0.0, 0.0, 1.0], n.shape), n)
-    x, y = scene.coordinates_mm()
-    points = np.stack([x, y, scene.height_mm], axis=-1)
     k = electrons_per_mA_s * np.pi * 1e-6
-    out = np.zeros((len(leds), hh, ww, 3))
-    for i in range(len(leds)):
-        if leds.positions_mm is not None:
-            v = leds.positions_mm[i] - points
-            r = np.linalg.norm(v, axis=-1, keepdims=True)
-            s = v / r
-            falloff = (leds.distance_mm / r[..., 0]) ** 2
-        else:
-            s = np.broadcast_to(leds.directions[i], n.shape)
-            falloff = 1.0
-        s_loc = to_local(s, n)
-        # K_d enters linearly for Lambert and Cook–Torrance: evaluate at K_d = 0 and 1
-        # and mix per pixel with the albedo map (approximate for the LI model).
-        f0 = np.asarray(fn(s_loc, o_loc, kd=[0.0], **params))[..., 0]
-        f1 = np.asarray(fn(s_loc, o_loc, kd=[1.0], **params))[..., 0]
-        f = f0[..., None] + scene.albedo * (f1 - f0)[..., None]
-        cos = np.clip(s_loc[..., 2], 0.0, None)
+    if leds.positions_mm is not None:
+        s, falloff = _near_rays(leds, i, _points(hgt, pitch, *rows))
+    else:
+        s = np.broadcast_to(leds.directions[i], n.shape)
+        falloff = 1.0
+    s_loc = to_local(s, n)
+    # K_d enters linearly for Lambert and Cook–Torrance: evaluate at K_d = 0 and 1
+    # and mix per pixel with the albedo map (approximate for the LI model).
+    f0 = np.asarray(fn(s_loc, o_loc, kd=[0.0], **params))[..., 0]
+    f1 = np.asarray(fn(s_loc, o_loc, kd=[1.0], **params))[..., 0]
+    f = f0[..., None] + band.albedo * (f1 - f0)[..., None]
+    del f0, f1, o_loc
+    cos = np.clip(s_loc[..., 2], 0.0, None)
+    vis = 1.0
+    if reach is not None:
         # a distant LED's one direction (not its broadcast): the shadows' fast path
-        ray = s if leds.positions_mm is not None else leds.directions[i]
-        vis = cast_shadow_visibility(scene.height_mm, scene.pixel_pitch_mm, ray) if shadows else 1.0
-        out[i] = k * leds.intensities[i] * (f * (cos * vis * falloff)[..., None])
+        ray = leds.directions[i] if leds.positions_mm is None else None
+        a, b = shadow_window(rows, hgt.shape[0], reach, pitch, ray if ray is not None else s)
+        if ray is None:
+            ray = s if (a, b) == rows else _near_rays(leds, i, _points(hgt, pitch, a, b))[0]
+        vis = _visibility(hgt[a:b], pitch, ray, reach)[rows[0] - a:rows[1] - a]
+    out = k * leds.intensities[i] * (f * (cos * vis * falloff)[..., None])
     return np.clip(np.nan_to_num(out, nan=0.0, posinf=0.0), 0.0, None)

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from facette.camera.sensor import DEFAULT_SENSOR, bayer_mosaic_rggb
+from facette.sim.bands import RadianceOnDisk, band_rows_for
 from facette.sim.dng import write_dng
 
 __all__ = ["RigSimulator", "SimCamera", "Faults", "SideChannelError"]
@@ -85,14 +86,15 @@ class SimCamera:
     """A Bayer RGGB 14-bit camera that writes DNG files into `folder`.
 
     Its optics are the per-LED electron maps of `facette.sim.render.radiance_per_led`
-    (m, H, W, 3) e- per mA·µs; a frame exposed to charges Q_i (mA·µs) of each LED
+    (m, H, W, 3) e- per mA·µs (an array, or a `RadianceOnDisk`: then each frame is made a band of
+    rows at a time, the same frame); a frame exposed to charges Q_i (mA·µs) of each LED
     collects Σ_i Q_i · radiance[i] electrons (plus dark current over the window).
     """
 
     def __init__(self, folder, radiance, sensor=None, iso=400, seed=0, prefix="DSC_"):
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
-        self.radiance = np.asarray(radiance, dtype=np.float64)
+        self.radiance = radiance if isinstance(radiance, RadianceOnDisk) else np.asarray(radiance, dtype=np.float64)
         self.sensor = sensor if sensor is not None else DEFAULT_SENSOR.at_iso(iso)
         self.iso = int(iso)
         self.rng = np.random.default_rng(seed)
@@ -110,8 +112,14 @@ class SimCamera:
         """Take one frame; `charges_mA_us` : (m,) LED current × time inside the window.
         Returns the path written."""
         q = np.asarray(charges_mA_us, dtype=np.float64)
-        electrons = np.tensordot(q, self.radiance, axes=(0, 0))          # (H, W, 3)
-        mosaic = self.sensor.expose_charge(bayer_mosaic_rggb(electrons), max(t_s, 1e-6), self.rng)
+        if isinstance(self.radiance, RadianceOnDisk):   # a band of rows at a time, the same frame
+            _, hh, ww, _ = self.radiance.shape
+            mosaic = self.sensor.expose_charge_rows(
+                lambda r0, r1: bayer_mosaic_rggb(self.radiance.electrons(q, r0 // 2, r1 // 2)),
+                (2 * hh, 2 * ww), max(t_s, 1e-6), self.rng, band_rows=2 * band_rows_for(ww))
+        else:
+            electrons = np.tensordot(q, self.radiance, axes=(0, 0))          # (H, W, 3)
+            mosaic = self.sensor.expose_charge(bayer_mosaic_rggb(electrons), max(t_s, 1e-6), self.rng)
         self.count += 1
         path = self.folder / f"{self.prefix}{self.count:04d}.dng"
         write_dng(path, mosaic, self.sensor.black_level_dn, self.sensor.white_level_dn,

@@ -15,7 +15,7 @@ import json
 
 import numpy as np
 
-__all__ = ["Scene", "make_scene", "SCENES", "BRDF_PRESETS", "normals_from_height"]
+__all__ = ["Scene", "SceneSpec", "make_scene", "scene_spec", "SCENES", "BRDF_PRESETS", "normals_from_height"]
 
 
 @dataclasses.dataclass
@@ -192,6 +192,8 @@ def make_scene(name="plaque_sphere", shape=(48, 64), pixel_pitch_mm=None, seed=0
     0.21 mm with the sphere's analytic normals at the pixel centres, which are vertical at its
     rim where the sampled heights step down by several pixels' worth).
     Each pixel is still rendered as one facet: radiance is not averaged over sub-pixel normals.
+    The scene of a large grid can be made a band of rows at a time (`SceneSpec.rows`), each
+    band equal to the same rows of the whole.
 
     Parameters
     ----------
@@ -207,6 +209,59 @@ def make_scene(name="plaque_sphere", shape=(48, 64), pixel_pitch_mm=None, seed=0
     supersample : int >= 1 or None, sub-samples per pixel side; None: enough for a
         sub-sample spacing of at most FOOTPRINT_STEP_MM (at most MAX_SUPERSAMPLE).
     """
+    spec = scene_spec(name, shape, pixel_pitch_mm, seed, brdf, supersample)
+    return spec.rows(0, spec.shape[0])
+
+
+@dataclasses.dataclass(frozen=True)
+class SceneSpec:
+    """What `make_scene` builds, without building it: any band of rows of the scene on demand
+    (`rows`), equal to the same rows of the whole. `shape` (H, W), `pixel_pitch_mm`, `brdf` and
+    `name` as in `Scene`; `supersample` the sub-samples per pixel side, `seed` the random parts'."""
+    name: str
+    shape: tuple
+    pixel_pitch_mm: float
+    brdf: dict
+    supersample: int
+    seed: int
+
+    def brdf_json(self):
+        """The BRDF as a JSON string (truth.npz `brdf`, docs/scan-format.md)."""
+        return json.dumps({**self.brdf, "kd": "albedo (per pixel)"}, sort_keys=True)
+
+    def rows(self, r0, r1):
+        """The `Scene` of pixel rows r0..r1 (r1 excluded) of the whole scene."""
+        h, w = self.shape
+        if not 0 <= r0 < r1 <= h:
+            raise ValueError(f"rows {r0}..{r1} are not inside the scene's {h} rows")
+        k, pitch = self.supersample, self.pixel_pitch_mm
+        # the random parts draw a fixed count of numbers whatever the grid: the same per band
+        rng = np.random.default_rng(self.seed)
+        # the surface at the corners of a k×k sub-grid of every pixel (its edges included)
+        sub = pitch / k
+        xs = (np.arange(w * k + 1) - w * k / 2.0) * sub
+        ys = (h * k / 2.0 - np.arange(r0 * k, r1 * k + 1)) * sub
+        x, y = np.meshgrid(xs, ys)
+        height, inside, albedo = _surface(self.name, x, y, w * pitch, h * pitch, rng)
+        del x, y
+        # the mean slope over a pixel is the difference of its edges' mean heights over its size
+        # (exact for the interpolated surface, however steep inside: the sphere's rim included)
+        vertical, horizontal = _edge_means(height, k)
+        slope_x = (vertical[:, 1:] - vertical[:, :-1]) / pitch
+        slope_y = (horizontal[:-1] - horizontal[1:]) / pitch          # row 0 is the top: y up
+        del vertical, horizontal
+        normals = np.stack([-slope_x, -slope_y, np.ones_like(slope_x)], axis=-1)
+        normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
+        return Scene(_trapezoid_mean(height, k), normals,
+                     _trapezoid_mean(inside.astype(np.float64), k) >= 0.5,
+                     _trapezoid_mean(albedo, k), pitch,
+                     {"model": self.brdf["model"], "params": dict(self.brdf.get("params", {}))},
+                     name=self.name)
+
+
+def scene_spec(name="plaque_sphere", shape=(48, 64), pixel_pitch_mm=None, seed=0, brdf=None,
+               supersample=None):
+    """The `SceneSpec` of `make_scene` with these arguments (checked here)."""
     if name not in SCENES:
         raise ValueError(f"unknown scene {name!r}; choose one of {sorted(SCENES)}")
     h, w = (int(v) for v in shape)
@@ -227,28 +282,8 @@ def make_scene(name="plaque_sphere", shape=(48, 64), pixel_pitch_mm=None, seed=0
             raise ValueError(f"unknown BRDF preset {key!r}; choose one of {sorted(BRDF_PRESETS)} "
                              "or give {'model': ..., 'params': {...}}")
         brdf = BRDF_PRESETS[key]
-    rng = np.random.default_rng(seed)
-    scene = Scene(np.zeros((h, w)), np.zeros((h, w, 3)), np.zeros((h, w), bool),
-                  np.zeros((h, w, 3)), pitch,
-                  {"model": brdf["model"], "params": dict(brdf.get("params", {}))},
-                  name=name)
-    # the surface at the corners of a k×k sub-grid of every pixel (its edges included)
-    sub = pitch / k
-    xs = (np.arange(w * k + 1) - w * k / 2.0) * sub
-    ys = (h * k / 2.0 - np.arange(h * k + 1)) * sub
-    x, y = np.meshgrid(xs, ys)
-    height, inside, albedo = _surface(name, x, y, w * pitch, h * pitch, rng)
-    # the mean slope over a pixel is the difference of its edges' mean heights over its size
-    # (exact for the interpolated surface, however steep inside: the sphere's rim included)
-    vertical, horizontal = _edge_means(height, k)
-    slope_x = (vertical[:, 1:] - vertical[:, :-1]) / pitch
-    slope_y = (horizontal[:-1] - horizontal[1:]) / pitch          # row 0 is the top: y up
-    normals = np.stack([-slope_x, -slope_y, np.ones_like(slope_x)], axis=-1)
-    scene.normals = normals / np.linalg.norm(normals, axis=-1, keepdims=True)
-    scene.height_mm = _trapezoid_mean(height, k)
-    scene.mask = _trapezoid_mean(inside.astype(np.float64), k) >= 0.5
-    scene.albedo = _trapezoid_mean(albedo, k)
-    return scene
+    return SceneSpec(name, (h, w), pitch, {"model": brdf["model"], "params": dict(brdf.get("params", {}))},
+                     k, int(seed))
 
 
 SCENES = ("plaque_sphere", "plaque", "sphere", "plane")

@@ -2,23 +2,29 @@
 from __future__ import annotations
 
 import json
+import shutil
 import tempfile
 import threading
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from facette.sim.bands import TRUTH_ARRAYS, render_to_disk
 from facette.sim.device_process import SimulatedDevice
 from facette.sim.lights import thesis_leds
 from facette.sim.render import radiance_per_led
 from facette.sim.rig import Faults, RigSimulator, SimCamera
-from facette.sim.scene import make_scene
+from facette.sim.scene import scene_spec
 from facette.camera.sensor import DEFAULT_SENSOR
 
 __all__ = ["SimulatedRig", "DEFAULT_RAW_SHAPE"]
 
 DEFAULT_RAW_SHAPE = (96, 128)   # (rows, columns) of the RAW mosaic; HDR/truth are half that
+RADIANCE_IN_MEMORY_BYTES = 2**30
+"""The largest radiance (m × H × W × 3 float64) rendered whole and held in memory; above it the
+rig renders a band of rows at a time to disk (about 3 MP of half-size pixels, 12 LEDs)."""
 
 
 class SimulatedRig:
@@ -42,12 +48,16 @@ class SimulatedRig:
     max_unclaimed : int or None, see RigSimulator (default 1: the next shot waits until the
         host took the previous file, which makes runs deterministic; a host collects the files;
         None for a simulator nobody takes files from)
+    render_rows : int or None, render the scene and the LEDs `render_rows` rows at a time
+        into WORKDIR/radiance (`facette.sim.bands`: the same frames, in bounded memory; the
+        folder holds m × H × W × 24 bytes, 7.3 GB at 11648×8736 RAW); None: whole in memory
+        when the radiance takes at most RADIANCE_IN_MEMORY_BYTES, else in bands
     """
 
     def __init__(self, scene="plaque_sphere", raw_shape=DEFAULT_RAW_SHAPE, pixel_pitch_mm=None, brdf=None,
                  near=False, direction_error_deg=0.5, intensity_error=0.05, sensor=None,
                  electrons_per_mA_s=20.0, faults=None, speed=2000.0, workdir=None, seed=0, shadows=True,
-                 max_unclaimed=1):
+                 max_unclaimed=1, render_rows=None):
         rows, cols = (int(v) for v in raw_shape)
         if rows % 2 or cols % 2 or rows < 22 or cols < 22:
             raise ValueError(f"raw_shape must be even and at least 22×22 (a DNG limit), got {raw_shape}")
@@ -58,10 +68,18 @@ class SimulatedRig:
         self.workdir = Path(workdir)
         self.camera_dir = self.workdir / "camera"
         self.faults = Faults.parse(faults) if isinstance(faults, str) or faults is None else faults
-        self.scene = make_scene(scene, (rows // 2, cols // 2), pixel_pitch_mm, seed=seed, brdf=brdf)
+        spec = scene_spec(scene, (rows // 2, cols // 2), pixel_pitch_mm, seed=seed, brdf=brdf)
         self.leds = thesis_leds(direction_error_deg, intensity_error, near=near, seed=seed + 1)
         self.sensor = sensor or DEFAULT_SENSOR
-        self.radiance = radiance_per_led(self.scene, self.leds, electrons_per_mA_s, shadows=shadows)
+        whole_bytes = len(self.leds) * spec.shape[0] * spec.shape[1] * 3 * 8
+        self.banded = render_rows is not None or whole_bytes > RADIANCE_IN_MEMORY_BYTES
+        if self.banded:   # the scene made and rendered a band of rows at a time, kept on disk
+            self.scene = spec
+            self.radiance = render_to_disk(self.workdir / "radiance", spec, self.leds, electrons_per_mA_s,
+                                           shadows=shadows, band_rows=render_rows)
+        else:
+            self.scene = spec.rows(0, spec.shape[0])
+            self.radiance = radiance_per_led(self.scene, self.leds, electrons_per_mA_s, shadows=shadows)
         self.device = SimulatedDevice(speed=speed, side=True, workdir=self.workdir / "device", link=True)
         self.max_unclaimed = max_unclaimed
         self.power_cycles = 0
@@ -115,10 +133,18 @@ class SimulatedRig:
     # -- truth ---------------------------------------------------------------------------
     def truth(self):
         """The simulator's truth at the HDR (half-size) resolution (truth.npz in docs/scan-format.md)."""
+        return {**self._truth_maps(), **self._truth_lights()}
+
+    def _truth_maps(self):
+        if self.banded:
+            return {name: np.load(self.radiance.folder / f"truth_{name}.npy") for name in TRUTH_ARRAYS}
         s = self.scene
         return {"normals": s.normals.astype(np.float32), "height_mm": s.height_mm.astype(np.float32),
-                "mask": s.mask, "albedo": s.albedo.astype(np.float32),
-                "light_dirs": self.leds.directions.astype(np.float64),
+                "mask": s.mask, "albedo": s.albedo.astype(np.float32)}
+
+    def _truth_lights(self):
+        s = self.scene
+        return {"light_dirs": self.leds.directions.astype(np.float64),
                 "light_intensity": self.leds.intensities.astype(np.float64),
                 "light_positions_mm": (self.leds.positions_mm if self.leds.positions_mm is not None
                                        else np.full((len(self.leds), 3), np.nan)),
@@ -128,16 +154,27 @@ class SimulatedRig:
 
     def save_truth(self, directory, channels=None):
         """Write truth.npz into `directory`. `channels` : LED channel of each scan light
-        (light_dirs/light_intensity then follow the scan's light order)."""
-        t = self.truth()
+        (light_dirs/light_intensity then follow the scan's light order). A rig rendered in
+        bands copies its truth files into the archive, never holding them."""
+        t = self._truth_lights()
         if channels is not None:
             idx = np.asarray(list(channels), int)
             for k in ("light_dirs", "light_intensity", "light_positions_mm"):
                 t[k] = t[k][idx]
         path = Path(directory) / "truth.npz"
         tmp = path.with_name(".truth.npz.partial")
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **t)
+        if not self.banded:
+            with open(tmp, "wb") as fh:
+                np.savez(fh, **self._truth_maps(), **t)
+        else:
+            with zipfile.ZipFile(tmp, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
+                for name in TRUTH_ARRAYS:
+                    with open(self.radiance.folder / f"truth_{name}.npy", "rb") as src, \
+                            zf.open(f"{name}.npy", "w", force_zip64=True) as dst:
+                        shutil.copyfileobj(src, dst, 16 * 2**20)
+                for name, value in t.items():
+                    with zf.open(f"{name}.npy", "w", force_zip64=True) as dst:
+                        np.lib.format.write_array(dst, np.asanyarray(value), allow_pickle=False)
         tmp.replace(path)
         return path
 
