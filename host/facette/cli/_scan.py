@@ -11,7 +11,7 @@ import threading
 import time
 from pathlib import Path
 
-from facette.cli._process import PROCESS_FIT_OPTIONS, print_result
+from facette.cli._process import PROCESS_FIT_OPTIONS, _outputs, print_result
 
 DEFAULT_SIM_PROFILE = "calibration/profiles/sim-default"
 
@@ -151,6 +151,13 @@ def register(sub):
     btn.add_argument("--press-button", action="store_true", help="simulated rig: press its button")
     btn.add_argument("--hid-button", metavar="VID:PID", help="wait for a USB HID button (hidapi) to start")
     p.add_argument("--no-process", action="store_true", help="acquire only")
+    p.add_argument("--memory", metavar="SIZE", help="a memory budget such as 2GB: each light's HDR is written "
+                   "to hdr/ and not kept in memory, and the processing after the last frame runs as "
+                   "`facette process --memory SIZE` does (bands of rows, a per-pixel method; default outputs: "
+                   "those that stream, all but ptm and rti)")
+    p.add_argument("--outputs", type=_outputs, help="what the processing after the last frame writes: a "
+                   "comma-separated subset of facette process --outputs (default: all; with --memory all but "
+                   "ptm and rti)")
     p.add_argument("--scene", default="plaque_sphere", help="simulated object (plaque_sphere, plaque, sphere, plane)")
     p.add_argument("--raw-size", type=_shape, default=SIM_RAW_SIZE, metavar="WxH",
                    help=f"simulated RAW size (default {SIM_RAW_SIZE_TEXT})")
@@ -167,8 +174,14 @@ def _connect(args):
     import facette
 
     if args.sim:
+        # with a memory budget the simulator renders in bands too (it shares this process)
+        bands = {}
+        if args.memory:
+            from facette.sim.bands import band_rows_for
+
+            bands["render_rows"] = band_rows_for(args.raw_size[1] // 2)
         return facette.connect("sim", scene=args.scene, raw_shape=args.raw_size, near=args.near,
-                               brdf=args.brdf, faults=args.faults or None, speed=args.speed)
+                               brdf=args.brdf, faults=args.faults or None, speed=args.speed, **bands)
     from facette.cli._camera_options import real_rig_camera
 
     camera = real_rig_camera(args, Path(args.directory) / ".camera")
@@ -183,18 +196,31 @@ def _preload_processing():
     preload()
 
 
-def _process(scan):
+def _process(scan, memory=None, outputs=None):
     """Run the processing chain on the scan just taken (the `ScanDirectory` `run_scan` returned,
-    with the lights it merged held in memory), with `facette process`'s defaults, into
+    with the lights it merged held in memory unless a `memory` budget was given), with `facette
+    process`'s defaults (and, with `memory`, those of `facette process --memory`), into
     SCAN/results; prints what `facette process` prints. Returns the results folder."""
-    from facette.pipeline import process
+    from facette.methods import PROCESS_DEFAULT, PS_DEFAULT
+    from facette.pipeline import WHOLE_IMAGE_METHODS, process
+    from facette.pipeline._tiled_process import STREAMED_OUTPUTS
 
     out = scan.path / "results"
+    kw = {}
+    if memory:
+        kw = {"memory": memory, "outputs": list(outputs or STREAMED_OUTPUTS)}
+        if PROCESS_DEFAULT in WHOLE_IMAGE_METHODS:
+            kw["method"] = PS_DEFAULT
+    elif outputs:
+        kw["outputs"] = list(outputs)
     try:
-        res = process(scan, out_dir=out, fit_options=dict(PROCESS_FIT_OPTIONS))
+        res = process(scan, out_dir=out, fit_options=dict(PROCESS_FIT_OPTIONS), **kw)
     finally:
         scan.release_held_lights()
     print_result(res)
+    if "method" in kw:
+        print(f"  note: --memory: photometric stereo with {PS_DEFAULT} (the default, {PROCESS_DEFAULT}, "
+              "needs the whole image)")
     return out
 
 
@@ -220,6 +246,13 @@ def _check_arguments(args):
     if not args.sim and not args.device:
         raise SystemExit("say which rig: --sim, or --device PORT (e.g. /dev/ttyACM0, socket://host:5020)")
     _check_directory(args.directory)
+    if args.memory:
+        from facette.pipeline._tiles import parse_memory
+
+        try:
+            parse_memory(args.memory)
+        except ValueError as exc:
+            raise SystemExit(f"--memory: {exc}") from None
     profile = args.profile
     if profile is None and args.sim:
         from facette._data import sim_profile_dir
@@ -259,7 +292,7 @@ def run(args):
             scan = rig.scan(args.directory, profile=profile, exposures=args.exposures, lights=args.lights,
                             light_current_mA=args.current, mode=args.mode, button=button,
                             progress=not args.quiet, merge_hdr=not args.no_process,
-                            hold_hdr=not args.no_process)
+                            hold_hdr=not args.no_process and not args.memory)
         except ScanError as exc:
             st = rig.device.stats
             if st["timeouts"]:
@@ -280,7 +313,7 @@ def run(args):
               f"boots {sim_summary['boots']}, link {link}")
     try:
         if not args.no_process:
-            out = _process(scan)
+            out = _process(scan, args.memory, args.outputs)
             print(f"processing: facette process → {out}")
     finally:   # also when the processing stops: the scan is there
         print(f"results: {os.path.abspath(scan.path)}", flush=True)

@@ -21,10 +21,16 @@ TRUTH_ARRAYS = {"normals": (np.float32, 3), "height_mm": (np.float32, 0), "mask"
 """The per-pixel arrays of truth.npz written beside the radiance: dtype and channels (0: none)."""
 
 
-def band_rows_for(width, budget_bytes=256 * 2**20):
-    """Rows per band so that one band of float64 RGB (the renderer holds a few tens of these)
-    takes about `budget_bytes` / 32: at least 8 rows, even."""
-    rows = int(budget_bytes // 32 // (max(int(width), 1) * 3 * 8))
+BAND_PIXELS = 1_500_000
+"""Half-size pixels in a band: the renderer holds about 0.4 GB per band of these (the BRDF's
+temporaries) and its cast shadows read a halo of rows beyond it (~1000 rows at 11648x8736
+RAW under the thesis LEDs), so a thinner band recomputes more halo for less memory."""
+
+
+def band_rows_for(width, pixels=BAND_PIXELS):
+    """Rows per band of about `pixels` half-size pixels for an image `width` wide: at least
+    8 rows, even."""
+    rows = int(pixels // max(int(width), 1))
     return max(8, rows // 2 * 2)
 
 
