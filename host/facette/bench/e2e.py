@@ -29,7 +29,17 @@ a quarter of the thesis camera, 1072x712; `--full` adds the full 4288x2848. At t
 the fixed thesis bracket (`--exposures thesis`) runs too, for its rig time and shadow SNR
 beside the adaptive plan's. Medians over `--runs` runs.
 
+Large captures: `--memory 2GB` runs `facette scan --sim --memory 2GB` (the simulator renders in
+bands, each light's HDR is written and not held, the processing after the last frame runs as
+`facette process --memory` does), `--outputs` chooses what it writes, and `--scan-only` leaves
+out the runs beside it (merge alone, process alone, rig apart: minutes at 100 MP). E.g. the
+one-button scan of a 100 MP camera and the thesis camera with and without a budget:
+
+    facette bench e2e --sizes 11648x8736 --memory 2GB --outputs normals,height --scan-only --no-fixed
+    facette bench e2e --sizes 4288x2848 [--memory 2GB] --outputs normals,height --scan-only --no-fixed
+
 Usage: facette bench e2e [--sizes default,1072x712,128x96] [--full] [--runs N] [--keep DIR]
+                         [--memory SIZE] [--outputs LIST] [--scan-only]
 """
 from __future__ import annotations
 
@@ -126,7 +136,8 @@ def _scan_height_errors(scan_dir, results="results"):
     with np.load(scan_dir / "truth.npz") as z:
         truth = {"height_mm": z["height_mm"], "mask": z["mask"]}
     h = read_exr(scan_dir / results / "height.exr")[0][..., 0]
-    return height_errors(truth, h, read_mask(scan_dir / results / "mask.png"))
+    mask = scan_dir / results / "mask.png"        # left out by --outputs normals,height
+    return height_errors(truth, h, read_mask(mask) if mask.is_file() else np.isfinite(h))
 
 
 def _results_written(results):
@@ -176,13 +187,18 @@ def rig_apart_run(size, work):
     return {"rig_apart_gb": rss, "rig_apart_ready_s": _ready_s(d / "scan")}
 
 
-def one_run(size, work, exposures=None, rig_apart=True):
+def one_run(size, work, exposures=None, rig_apart=True, memory=None, outputs=None, scan_only=False):
     """Figures of one scan at `size` ("WxH", or "default": the command's own) in a new folder
-    under `work`."""
+    under `work` (`memory`, `outputs`: the scan command's --memory and --outputs; `scan_only`:
+    without the merge alone, the process alone and the rig apart)."""
     d = Path(tempfile.mkdtemp(prefix=f"e2e-{size}-", dir=work)) / "scan"
     cmd = FACETTE + ["scan", "--sim", "--press-button", "--quiet"] + _size_args(size) + [str(d)]
     if exposures:
         cmd[-1:-1] = ["--exposures", exposures]
+    if memory:
+        cmd[-1:-1] = ["--memory", memory]
+    if outputs:
+        cmd[-1:-1] = ["--outputs", outputs]
     out, wall, rss, end, _ = _run_rss(cmd)
     data = read_scan_manifest(d)
     merge_s = sum(r.seconds() for r in data.hdr.lights) if data.hdr is not None else 0.0
@@ -193,6 +209,19 @@ def one_run(size, work, exposures=None, rig_apart=True):
     # the RAW mosaic is twice the HDR grid
     label = f"{2 * w}x{2 * h} (default)" if size == "default" else size
     shadow, mid, clipped = _snr(d)
+    row = {"size": label + (f" --memory {memory}" if memory else ""),
+           "bracket": (data.bracketing or {}).get("name"),
+           "frames": len(data.frames), "rig_s": data.rig_time_s, "wall_s": wall, "merge_s": merge_s,
+           "recon_s": times.get("ps", np.nan) + times.get("integrate", np.nan),
+           "fit_s": times.get("fit", np.nan), "ready_s": _ready_s(d),
+           "exit_s": (end - _journal_last_frame(d)).total_seconds(), "peak_gb": rss,
+           "shadow_db": shadow, "mid_db": mid, "clipped": clipped,
+           "height_rms_mm": global_, "height_rms_px": global_ / pitch,
+           "height_rms_object_mm": per_object, "pitch_mm": pitch}
+    if scan_only:
+        return {**row, **{k: np.nan for k in ("merge_alone_s", "merge_alone_cpu_s", "merge_alone_gb",
+                                              "process_cpu_s", "process_s", "process_gb",
+                                              "rig_apart_gb", "rig_apart_ready_s")}}
     # The merge alone, all lights, in a fresh process; then `facette process` alone.
     # with the `facette` command's allocator settings, as the merge runs inside the command
     code = ("from facette._memory import keep_freed_memory; keep_freed_memory(); "
@@ -202,17 +231,9 @@ def one_run(size, work, exposures=None, rig_apart=True):
     p_out, p_wall, p_rss, _, p_cpu = _run_rss(FACETTE + ["process", str(d), "-o", str(d / "results2")])
     apart = rig_apart_run(size, work) if rig_apart and not exposures else \
         {"rig_apart_gb": np.nan, "rig_apart_ready_s": np.nan}
-    return {"size": label, "bracket": (data.bracketing or {}).get("name"),
-            "frames": len(data.frames), "rig_s": data.rig_time_s, "wall_s": wall,
-            "merge_s": merge_s, "merge_alone_s": float(m_out.split()[-1]), "merge_alone_cpu_s": m_cpu,
-            "merge_alone_gb": m_rss, "process_cpu_s": p_cpu,
-            "recon_s": times.get("ps", np.nan) + times.get("integrate", np.nan),
-            "fit_s": times.get("fit", np.nan), "process_s": p_wall, "process_gb": p_rss,
-            "ready_s": _ready_s(d),
-            "exit_s": (end - _journal_last_frame(d)).total_seconds(), "peak_gb": rss,
-            "shadow_db": shadow, "mid_db": mid, "clipped": clipped,
-            "height_rms_mm": global_, "height_rms_px": global_ / pitch,
-            "height_rms_object_mm": per_object, "pitch_mm": pitch, **apart}
+    return {**row, "merge_alone_s": float(m_out.split()[-1]), "merge_alone_cpu_s": m_cpu,
+            "merge_alone_gb": m_rss, "process_cpu_s": p_cpu, "process_s": p_wall, "process_gb": p_rss,
+            **apart}
 
 
 COLUMNS = [("size", "size", "s"), ("bracket", "bracket", "s"), ("frames", "frames", "d"),
@@ -256,6 +277,10 @@ def main(argv=None):
     p.add_argument("--keep", help="keep the scans in this folder (default: a temporary one)")
     p.add_argument("--no-rig-apart", action="store_true",
                    help="skip the second scan with the simulated rig in a process of its own")
+    p.add_argument("--memory", help="the scan command's --memory (e.g. 2GB): bands, HDR not held")
+    p.add_argument("--outputs", help="the scan command's --outputs (e.g. normals,height)")
+    p.add_argument("--scan-only", action="store_true",
+                   help="only the scan command: no merge alone, process alone or rig apart")
     args = p.parse_args(argv)
     sizes = [s.strip() for s in args.sizes.split(",") if s.strip()] + ([FULL] if args.full else [])
     for s in sizes:
@@ -270,7 +295,8 @@ def main(argv=None):
     for size, exposures in jobs:
         runs = []
         for k in range(max(1, args.runs)):
-            runs.append(one_run(size, work, exposures, rig_apart=not args.no_rig_apart))
+            runs.append(one_run(size, work, exposures, rig_apart=not args.no_rig_apart, memory=args.memory,
+                                outputs=args.outputs, scan_only=args.scan_only))
             if args.runs > 1:
                 print(f"  run {k + 1}:", flush=True)
                 _print(runs[-1:])
