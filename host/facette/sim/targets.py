@@ -113,6 +113,9 @@ def show_target(sim, kind, fault=None, **kw):
     """
     if fault not in (None, *TARGET_FAULTS):
         raise ValueError(f"unknown target fault {fault!r}; choose one of {', '.join(TARGET_FAULTS)}")
+    if getattr(sim, "banded", False):
+        raise ValueError("calibration targets are shown on a simulated rig rendered whole; this one renders "
+                         "in bands (a large --raw-size): calibrate at a smaller size")
     radiance, scene = render_target(sim, "none" if fault == "missing" else kind, **kw)
     if not hasattr(sim, "_calib_original"):
         sim._calib_original = sim.camera.radiance

@@ -169,3 +169,29 @@ def test_the_scan_command_does_not_import_the_command_line_entry():
     names = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
     names |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
     assert "facette.cli.main" not in names and "facette.cli" not in names
+
+
+def test_a_scan_with_a_memory_budget_processes_as_process_memory_does(monkeypatch, tmp_path, capsys):
+    """`facette scan --memory 2GB` hands the budget on: a per-pixel method, the outputs that
+    stream (or those asked for), the same fit options as ever."""
+    import facette.pipeline
+    from facette.pipeline._tiled_process import STREAMED_OUTPUTS
+    from facette.scan import ScanDirectory
+
+    calls = []
+    monkeypatch.setattr(facette.pipeline, "process", lambda source, **kw: calls.append(kw) or "result")
+    monkeypatch.setattr(_scan, "print_result", lambda res: None)
+    sd = ScanDirectory(tmp_path / "s")
+    _scan._process(sd, memory="2GB")
+    _scan._process(sd, memory="2GB", outputs=["normals", "height"])
+    assert calls[0]["memory"] == "2GB" and calls[0]["outputs"] == list(STREAMED_OUTPUTS)
+    assert "ptm" not in calls[0]["outputs"] and calls[0]["method"] == "rank_trimmed"
+    assert calls[1]["outputs"] == ["normals", "height"]
+    assert calls[0]["fit_options"] == dict(_scan.PROCESS_FIT_OPTIONS)
+    assert "--memory: photometric stereo with rank_trimmed" in capsys.readouterr().out
+
+
+def test_a_memory_budget_that_is_not_a_size_is_refused_before_the_rig_starts(no_rig, capsys, tmp_path):
+    code, err = _cli(capsys, "scan", "--sim", "--memory", "2 apples", tmp_path / "s")
+    assert code == 2 and "--memory" in err and "2GB" in err, err
+    assert not (tmp_path / "s").exists()
