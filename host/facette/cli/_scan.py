@@ -166,6 +166,9 @@ def register(sub):
                    "sigma 0.05, n_i 1.2), bust (sigma 0.1, n_i 1.3) or lambert")
     p.add_argument("--faults", default="", help="simulated faults, e.g. 'biterr=1e-3,reset_at_shot=5'")
     p.add_argument("--speed", type=_positive(float), default=2000.0, help="simulated device clock (× real time)")
+    p.add_argument("--sim-workdir", metavar="DIR", help="the simulated rig's folder (camera, device flash, and "
+                   "the radiance it renders in bands: a later scan of the same scene and size reuses it); "
+                   "default: a temporary one")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -180,6 +183,8 @@ def _connect(args):
             from facette.sim.bands import band_rows_for
 
             bands["render_rows"] = band_rows_for(args.raw_size[1] // 2)
+        if args.sim_workdir:
+            bands["workdir"] = args.sim_workdir
         return facette.connect("sim", scene=args.scene, raw_shape=args.raw_size, near=args.near,
                                brdf=args.brdf, faults=args.faults or None, speed=args.speed, **bands)
     from facette.cli._camera_options import real_rig_camera

@@ -8,18 +8,24 @@ every light (what the device's registers run in one scan).
 """
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 
 from facette.camera.raw import read_raw
 from facette.hdr import as_sensor, plan_adaptive
 
-__all__ = ["meter_and_plan", "object_mask", "METER_DIR", "METER_TIME_US"]
+__all__ = ["meter_and_plan", "object_mask", "sampled_for_plan", "METER_DIR", "METER_TIME_US", "METER_PIXELS"]
 
 METER_DIR = "meter"
 # The thesis bracket's shortest exposure (1/30 s): a glossy highlight at 500 mA holds there.
 METER_TIME_US = 33_333
 # Metering again this much shorter when a highlight clipped, at most this often.
 _SHORTER, _RETRIES = 8, 3
+METER_PIXELS = 4_000_000
+"""Half-size pixels of a metering frame kept for the plan: a larger frame (a RAW over 16 MP) is
+kept every k-th row and column (12 lights at 11648x8736 held whole are 7.3 GB), its highlights
+exactly (`sampled_for_plan`)."""
 
 
 def object_mask(meterings, background_fraction=0.1):
@@ -40,6 +46,23 @@ def object_mask(meterings, background_fraction=0.1):
 
 def _clipped(frame, sat, fraction=1e-4):
     return float(np.mean(frame.peak >= 0.95 * sat)) > fraction
+
+
+def sampled_for_plan(image, pixels=METER_PIXELS):
+    """(image (H, W, 3) as the plan sees it, k): the frame itself when it has at most `pixels`
+    pixels (k = 1), else every k-th row and column of it, except that a k×k block whose
+    brightest value reaches half the frame's brightest keeps its brightest values (the plan
+    must see the highlights it keeps from clipping, which a sample could step over)."""
+    hh, ww = image.shape[:2]
+    k = int(np.ceil(np.sqrt(hh * ww / pixels))) if hh * ww > pixels else 1
+    if k == 1:
+        return image, 1
+    hb, wb = hh // k, ww // k
+    out = np.array(image[:hb * k:k, :wb * k:k], dtype=image.dtype)
+    blocks = image[:hb * k, :wb * k].reshape(hb, k, wb, k, -1).max(axis=(1, 3))
+    bright = blocks.max(axis=-1) >= 0.5 * float(blocks.max())
+    out[bright] = blocks[bright]
+    return out, k
 
 
 def meter_and_plan(scan, directory, light_current_mA, mode, sensor=None, *, button=None,
@@ -78,18 +101,25 @@ def meter_and_plan(scan, directory, light_current_mA, mode, sensor=None, *, butt
         dirs.append(name)
         rig_s += sd.manifest.rig_time_s
         frames = sorted(sd.manifest.frames, key=lambda f: int(f.light))
-        meters = [(read_raw(sd.path / f.file), (int(f.time_us), int(f.current_set_mA)))
-                  for f in frames]
-        if not any(_clipped(m, sat) for m, _ in meters) or attempt == _RETRIES:
+        meters, clipped = [], False
+        for f in frames:      # one frame decoded at a time: only what the plan needs is kept
+            raw = read_raw(sd.path / f.file)
+            clipped = clipped or _clipped(raw, sat)
+            meters.append((sampled_for_plan(raw.image), (int(f.time_us), int(f.current_set_mA))))
+            del raw
+        if not clipped or attempt == _RETRIES:
             break
         t_us = max(100, t_us // _SHORTER)
-    images = [m.image for m, _ in meters]
+    images = [m for (m, _), _ in meters]
+    step = meters[0][0][1]
+    meters = [(m, e) for (m, _), e in meters]
     mask = object_mask(images)
-    plan = plan_adaptive(images, [e for _, e in meters], sensor, mask, target_snr_db=target_snr_db,
+    # as frames (an .image), so that the plan reads the float32 values without a float64 copy
+    plan = plan_adaptive([SimpleNamespace(image=m) for m in images], [e for _, e in meters], sensor, mask, target_snr_db=target_snr_db,
                          shadow_percentile=shadow_percentile, mode=mode, light_current_mA=int(np.max(light_current_mA)), shared=True)
     record = {"name": "adaptive", "target_snr_db": float(target_snr_db),
               "shadow_percentile": float(shadow_percentile), "meter_dirs": dirs,
               "meter_exposure_us": t_us, "meter_rig_time_s": round(rig_s, 6),
-              "object_pixels": int(mask.sum()), "predicted": plan.predicted,
+              "object_pixels": int(mask.sum()) * step * step, "predicted": plan.predicted,
               "planned_rig_time_s": round(plan.rig_time_s(), 3)}
     return plan, record

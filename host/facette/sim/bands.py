@@ -10,6 +10,9 @@ any rows of a frame from those files (`SimCamera` exposes a frame band by band).
 """
 from __future__ import annotations
 
+import dataclasses
+import json
+
 import numpy as np
 
 from facette.sim.render import led_reach, radiance_rows
@@ -76,12 +79,40 @@ class RadianceOnDisk:
         return np.tensordot(q[lit], np.stack([self.rows(i, r0, r1) for i in lit]), axes=(0, 0))
 
 
+def _stamp(spec, leds, electrons_per_mA_s, shadows):
+    """What a render depends on, as JSON: the same stamp, the same files."""
+    return json.dumps({"format": 1, "scene": dataclasses.asdict(spec), "leds": leds.truth_dict(),
+                       "distance_mm": leds.distance_mm, "electrons_per_mA_s": float(electrons_per_mA_s),
+                       "shadows": bool(shadows)}, sort_keys=True)
+
+
+def _rendered(folder, disk, stamp):
+    """True when `folder` holds a finished render of `stamp` (render.json written last)."""
+    try:
+        if (folder / RENDER_STAMP).read_text() != stamp:
+            return False
+    except OSError:
+        return False
+    size = disk.shape[1] * disk.shape[2] * 3 * 8
+    return all(disk.path(i).is_file() and disk.path(i).stat().st_size >= size for i in range(disk.shape[0])) \
+        and all((folder / f"truth_{name}.npy").is_file() for name in TRUTH_ARRAYS)
+
+
+RENDER_STAMP = "render.json"
+
+
 def render_to_disk(folder, spec, leds, electrons_per_mA_s=20.0, shadows=True, band_rows=None):
     """Render every LED of `leds` on the scene of `spec` (a `facette.sim.scene.SceneSpec`) into
     `folder`, `band_rows` rows at a time (None: `band_rows_for` the width): led_XX.npy
-    (`RadianceOnDisk`) and truth_<name>.npy (`TRUTH_ARRAYS`). Returns the `RadianceOnDisk`."""
+    (`RadianceOnDisk`) and truth_<name>.npy (`TRUTH_ARRAYS`), then render.json, what the render
+    depends on. Returns the `RadianceOnDisk`. A folder that already holds the same render (its
+    render.json) is used as it is: at 11648x8736 the render takes half an hour on two cores."""
     folder.mkdir(parents=True, exist_ok=True)
     hh, ww = spec.shape
+    stamp = _stamp(spec, leds, electrons_per_mA_s, shadows)
+    if _rendered(folder, RadianceOnDisk(folder, len(leds), (hh, ww)), stamp):
+        return RadianceOnDisk(folder, len(leds), (hh, ww))
+    (folder / RENDER_STAMP).unlink(missing_ok=True)
     step = int(band_rows) if band_rows else band_rows_for(ww)
     height = np.empty((hh, ww))
     for r0 in range(0, hh, step):    # the whole height field: the shadows' rays read it
@@ -105,4 +136,5 @@ def render_to_disk(folder, spec, leds, electrons_per_mA_s=20.0, shadows=True, ba
     finally:
         for fh in [*files, *truth.values()]:
             fh.close()
+    (folder / RENDER_STAMP).write_text(stamp)
     return disk

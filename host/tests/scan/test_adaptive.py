@@ -20,3 +20,19 @@ def test_object_mask_is_everything_when_nothing_stands_out():
     flat = [np.full((20, 20, 3), 100.0)]
     assert object_mask(flat).all()
     assert object_mask([np.zeros((20, 20, 3))]).all()       # black metering: plan_adaptive says why
+
+
+def test_a_large_metering_frame_is_sampled_with_its_highlights_kept():
+    from facette.scan.adaptive import sampled_for_plan
+
+    rng = np.random.default_rng(0)
+    img = rng.uniform(10, 20, (60, 90, 3)).astype(np.float32)
+    img[31, 44] = (900.0, 1000.0, 800.0)             # a one-pixel highlight off the sample grid
+    same, k = sampled_for_plan(img, pixels=60 * 90)
+    assert k == 1 and same is img                    # small enough: the frame itself
+    out, k = sampled_for_plan(img, pixels=600)
+    assert k == 3 and out.shape == (20, 30, 3) and out.dtype == np.float32
+    assert out.max() == 1000.0 and np.array_equal(out[10, 14], [900.0, 1000.0, 800.0])
+    dim = np.ones((20, 30), bool)
+    dim[10, 14] = False
+    assert np.array_equal(out[dim], img[::3, ::3][dim])   # elsewhere: the frame's own pixels

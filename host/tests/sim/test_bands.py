@@ -63,3 +63,14 @@ def test_band_rows_for_a_100_mp_raw_keeps_a_band_small():
     rows = band_rows_for(5824)
     assert rows % 2 == 0 and 200 <= rows <= 300
     assert band_rows_for(1_000_000) == 8
+
+
+def test_a_folder_that_holds_the_same_render_is_used_as_it_is(tmp_path):
+    spec, leds = scene_spec("plaque_sphere", (24, 32)), thesis_leds()
+    first = render_to_disk(tmp_path, spec, leds, band_rows=8).rows(2, 0, 24)
+    stamp = (tmp_path / "led_00.npy").stat().st_mtime_ns
+    again = render_to_disk(tmp_path, spec, leds, band_rows=6)
+    assert (tmp_path / "led_00.npy").stat().st_mtime_ns == stamp             # not rendered again
+    assert np.array_equal(again.rows(2, 0, 24), first)
+    render_to_disk(tmp_path, spec, leds, electrons_per_mA_s=40.0, band_rows=8)   # another render
+    np.testing.assert_allclose(RadianceOnDisk(tmp_path, 12, (24, 32)).rows(2, 0, 24), 2 * first, rtol=1e-12)
