@@ -154,10 +154,10 @@ def register(sub):
     p.add_argument("--memory", metavar="SIZE", help="a memory budget such as 2GB: each light's HDR is written "
                    "to hdr/ and not kept in memory, and the processing after the last frame runs as "
                    "`facette process --memory SIZE` does (bands of rows, a per-pixel method; default outputs: "
-                   "those that stream, all but ptm and rti)")
+                   "those that stream)")
     p.add_argument("--outputs", type=_outputs, help="what the processing after the last frame writes: a "
-                   "comma-separated subset of facette process --outputs (default: all; with --memory all but "
-                   "ptm and rti)")
+                   "comma-separated subset of facette process --outputs (default: all; with --memory those "
+                   "that stream)")
     p.add_argument("--scene", default="plaque_sphere", help="simulated object (plaque_sphere, plaque, sphere, plane)")
     p.add_argument("--raw-size", type=_shape, default=SIM_RAW_SIZE, metavar="WxH",
                    help=f"simulated RAW size (default {SIM_RAW_SIZE_TEXT})")

@@ -185,7 +185,7 @@ def test_a_scan_with_a_memory_budget_processes_as_process_memory_does(monkeypatc
     _scan._process(sd, memory="2GB")
     _scan._process(sd, memory="2GB", outputs=["normals", "height"])
     assert calls[0]["memory"] == "2GB" and calls[0]["outputs"] == list(STREAMED_OUTPUTS)
-    assert "ptm" not in calls[0]["outputs"] and calls[0]["method"] == "rank_trimmed"
+    assert calls[0]["method"] == "rank_trimmed"
     assert calls[1]["outputs"] == ["normals", "height"]
     assert calls[0]["fit_options"] == dict(_scan.PROCESS_FIT_OPTIONS)
     assert "--memory: photometric stereo with rank_trimmed" in capsys.readouterr().out
