@@ -87,3 +87,16 @@ def masked_values(array, mask, rows=1024):
         k += part.size
         release(array)
     return out
+
+
+def decimated(array, step, rows=256):
+    """A copy of array[::step, ::step], read `rows` of its rows at a time: from a disk array a
+    strided read would still bring nearly every page in (the kernel maps the pages around
+    each one it faults), so its pages are handed back after each band."""
+    import numpy as np
+    out = np.empty((len(range(0, array.shape[0], step)), len(range(0, array.shape[1], step)))
+                   + array.shape[2:], array.dtype)
+    for k in range(0, out.shape[0], rows):
+        out[k:k + rows] = array[k * step:(k + rows) * step:step, ::step]
+        release(array)
+    return out

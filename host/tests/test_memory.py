@@ -69,3 +69,13 @@ def test_masked_values_of_a_disk_array_by_bands_equal_the_mask_taken_at_once():
     for rows in (1, 5, 100):
         np.testing.assert_array_equal(masked_values(a, mask, rows=rows), np.asarray(a)[mask])
     assert masked_values(a, np.zeros((37, 23), bool)).size == 0
+
+
+def test_decimated_equals_the_strided_view_for_any_band():
+    import numpy as np
+    from facette._memory import decimated, disk_array
+    a = disk_array((23, 17, 3), np.float32)
+    a[:] = np.arange(a.size, dtype=np.float32).reshape(a.shape)
+    for step in (1, 2, 5, 30):
+        for rows in (1, 3, 256):
+            np.testing.assert_array_equal(decimated(a, step, rows=rows), np.asarray(a)[::step, ::step])

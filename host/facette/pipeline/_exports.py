@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 from scipy.ndimage import uniform_filter
 
-from facette._memory import release
+from facette._memory import decimated, release
 from facette.fit import is_metal
 from facette.recon import hsh_basis
 from facette.recon import srgb_encode as srgb_transfer
@@ -184,6 +184,7 @@ def tangent_space_normal_map(normals, height_mm, mask, pixel_pitch_mm, step=1):
         ts = np.where(ok[..., None], ts, up)
         ts /= np.maximum(np.sqrt((ts * ts).sum(-1, keepdims=True)), np.float32(1e-12))
         out[sl] = np.round((ts + 1) * np.float32(127.5)).clip(0, 255)
+        release(normals)                             # a disk map: its pages handed back
     return out
 
 
@@ -193,9 +194,8 @@ def gltf_material(res):
     albedo's scale `top`, the roughness `r` (None: 1 everywhere) and the `ior`, and notes."""
     notes = []
     f = texture_step(res.mask.shape)          # every f-th row and column: the same distribution
-    albedo, mask = res.albedo[::f, ::f], res.mask[::f, ::f]
+    albedo, mask = decimated(res.albedo, f), res.mask[::f, ::f]
     top = float(np.percentile(np.nan_to_num(np.asarray(albedo[mask], float)), 99.5)) if mask.any() else 1.0
-    release(res.albedo)
     if f > 1:
         h, w = res.mask.shape
         notes.append(f"glTF textures {-(-w // f)} x {-(-h // f)} (block means of {f} x {f} pixels; the "

@@ -15,7 +15,7 @@ import warnings
 
 import numpy as np
 
-from facette._memory import masked_values
+from facette._memory import decimated, masked_values
 from facette.io.atomic import write_text_atomic
 from facette.fit import FitModel, cell_spread_directions
 from facette.pipeline._inputs import NO_PITCH_NOTE
@@ -575,17 +575,17 @@ def write_report(res, path, fit_html=None):
         fit_html = report_fit_section(res)
     figs = []
     st = max(1, int(np.ceil(max(res.normals.shape[:2]) / 800)))   # pictures need no more
-    n, mask, ps = res.normals[::st, ::st], res.mask[::st, ::st], res.ps
+    n, mask, ps = decimated(res.normals, st), res.mask[::st, ::st], res.ps    # disk maps: by bands
     figs.append(_map("Normal map ((n+1)/2 as RGB)", np.where(mask[..., None], (n + 1) / 2, 0)))
-    albedo = res.albedo[::st, ::st]
+    albedo = decimated(res.albedo, st)
     top = float(np.percentile(albedo[mask], 99)) if mask.any() else 1.0
     figs.append(_map("Albedo (scaled to the 99th percentile)", np.clip(albedo / max(top, 1e-12), 0, 1)))
-    resid = np.where(mask, ps.residual[::st, ::st], np.nan)
+    resid = np.where(mask, decimated(ps.residual, st), np.nan)
     figs.append(_map("Least-squares relative residual (confidence: low is Lambertian)", resid,
                      cmap="magma", vmin=0,
                      vmax=max(float(np.nanpercentile(resid, 99)) if mask.any() else 1, 1e-6)))
     if ps.method.startswith("hierarchical"):
-        figs.append(_map("Triplets kept", np.where(mask, ps.n_triplets[::st, ::st], np.nan),
+        figs.append(_map("Triplets kept", np.where(mask, decimated(ps.n_triplets, st), np.nan),
                          cmap="viridis"))
         figs.append(_map("Lights flagged as shadow",
                          np.where(mask, ps.shadow[::st, ::st].sum(-1), np.nan), cmap="Reds",

@@ -13,6 +13,7 @@ import numpy as np
 
 import facette.brdf as brdf
 from facette._data import package_text
+from facette._memory import decimated
 from facette.pipeline._relight import (BACKGROUND, DEFAULT_LIGHT, default_exposure, kd_map_from_albedo,
                                        viewer_model, volume_table)
 from facette.recon import MESH_MAX_SLOPE
@@ -45,20 +46,20 @@ def viewer_data(normals, mask, fit, albedo=None, kd_map=None, height=None, pitch
     cannot be drawn (see `viewer_model`).
     """
     m = viewer_model(fit)
-    normals = np.asarray(normals, dtype=np.float64)
     mask = np.asarray(mask, dtype=bool)
-    if normals.ndim != 3 or normals.shape[2] != 3 or mask.shape != normals.shape[:2]:
-        raise ValueError(f"normals must be (H, W, 3) and mask (H, W); got {normals.shape} and {mask.shape}")
+    if np.ndim(normals) != 3 or np.shape(normals)[2] != 3 or mask.shape != np.shape(normals)[:2]:
+        raise ValueError(f"normals must be (H, W, 3) and mask (H, W); got {np.shape(normals)} and {mask.shape}")
     st = max(1, int(np.ceil(max(mask.shape) / max_side)))
-    n, mk = normals[::st, ::st], mask[::st, ::st]
+    # decimated before any copy (a 100 MP map in float64 would be 2.4 GB), by bands
+    n, mk = decimated(np.asarray(normals), st).astype(np.float64), mask[::st, ::st]
     if kd_map is None:
         if albedo is None:
             kd = np.broadcast_to(m.kd, mk.shape + m.kd.shape) * mk[..., None]
         else:
             mat = None if material_mask is None else np.asarray(material_mask, bool)[::st, ::st]
-            kd = kd_map_from_albedo(np.asarray(albedo)[::st, ::st], mk, m.kd, mat)
+            kd = kd_map_from_albedo(decimated(np.asarray(albedo), st), mk, m.kd, mat)
     else:
-        kd = np.clip(np.asarray(kd_map, dtype=float)[::st, ::st], 0, 1)
+        kd = np.clip(np.asarray(kd_map[::st, ::st], dtype=float), 0, 1)
     kd = np.atleast_3d(kd)
     if kd.shape[2] == 1:
         kd = np.repeat(kd, 3, axis=2)
@@ -87,7 +88,7 @@ def viewer_data(normals, mask, fit, albedo=None, kd_map=None, height=None, pitch
         "mesh": None,
     }
     if height is not None:
-        hgt = np.asarray(height, dtype=np.float64)[::st, ::st]
+        hgt = np.asarray(height[::st, ::st], dtype=np.float64)
         ms = max(1, int(np.ceil(max(hgt.shape) / MESH_MAX_SIDE)))
         # NaN outside the mask: the 3D view draws no triangle there (no curtains down the silhouette)
         grid = np.where(mk, hgt, np.nan)[::ms, ::ms]
