@@ -161,17 +161,25 @@ def tangent_space_normal_map(normals, height_mm, mask, pixel_pitch_mm, step=1):
     `step` px: N = (-h_x, -h_y, 1)/|.|, T = (1, 0, h_x)/|.|, B = N × T; the texel is
     (n·T, n·B, n·N) mapped to (x + 1)/2 · 255, and (0, 0, 1) outside the mask.
     """
-    hgt = np.where(mask, np.asarray(height_mm, np.float64), 0.0)
-    if step > 1:
-        hgt = uniform_filter(hgt, size=step, mode="nearest")
-    gy, gx = (g.astype(np.float32) for g in np.gradient(hgt, pixel_pitch_mm))
-    out = np.empty(hgt.shape + (3,), np.uint8)
+    h = mask.shape[0]
+    out = np.empty(mask.shape + (3,), np.uint8)
     up = np.array([0.0, 0.0, 1.0], np.float32)
-    # float32 by rows, channel by channel: 8-bit texels need no more (12 MP: 0.2 s, 0.6 before;
-    # 1 texel value in 10⁵ moves by one step)
-    for r in range(0, hgt.shape[0], ROWS):
+    halo = step + 2          # rows the smoothing and the gradient reach beyond a band
+    # by bands of ROWS rows with their halo (a 50 MP height map in float64 and its two gradients
+    # held whole were 1.6 GB); float32 by rows, channel by channel: 8-bit texels need no more
+    # (12 MP: 0.2 s, 0.6 before; 1 texel value in 10⁵ moves by one step)
+    for r in range(0, h, ROWS):
+        a, b = max(0, r - halo), min(h, r + ROWS + halo)
+        hgt = np.where(mask[a:b], np.asarray(height_mm[a:b], np.float64), 0.0)
+        if step > 1:
+            hgt = uniform_filter(hgt, size=step, mode="nearest")
+        if hgt.shape[0] > 1:
+            gy, gx = (g[r - a:r - a + ROWS].astype(np.float32) for g in np.gradient(hgt, pixel_pitch_mm))
+        else:                # a one-row image: no slope across its rows
+            gx = np.gradient(hgt, pixel_pitch_mm, axis=1).astype(np.float32)
+            gy = np.zeros_like(gx)
         sl = slice(r, r + ROWS)
-        hx, hy = gx[sl], -gy[sl]                     # image rows go down, y goes up
+        hx, hy = gx, -gy                             # image rows go down, y goes up
         inv_n = 1 / np.sqrt(hx * hx + hy * hy + 1)   # N = (-hx, -hy, 1)·inv_n
         inv_t = 1 / np.sqrt(hx * hx + 1)             # T = (1, 0, hx)·inv_t
         n = np.asarray(normals[sl], np.float32)
@@ -252,8 +260,8 @@ def gltf_inputs(res, step, material=None):
     uv = np.stack([(verts[:, 0] / pitch + 0.5) / (f * tw), (-verts[:, 1] / pitch + 0.5) / (f * th)], axis=1)
     normals = vertex_normals(verts, faces)
     fitted_px = res.inputs.sample_mask() & res.mask
-    if f == 1:
-        albedo, mask, fitted = np.nan_to_num(np.asarray(res.albedo, np.float32)), res.mask, fitted_px
+    if f == 1:              # full size: the maps as they are (on disk with --memory), read by bands
+        albedo, mask, fitted = res.albedo, res.mask, fitted_px
         normal_map = tangent_space_normal_map(res.normals, res.height, mask, pitch, step)
     else:
         (albedo, n_small, height), count = block_means((res.albedo, res.normals, res.height), res.mask, f)
@@ -261,20 +269,26 @@ def gltf_inputs(res, step, material=None):
         fitted = block_means((), fitted_px, f)[1] * 2 > np.maximum(count, 1)   # most of the block
         n_small /= np.maximum(np.linalg.norm(n_small, axis=-1, keepdims=True), np.float32(1e-12))
         normal_map = tangent_space_normal_map(n_small, height[..., 0], mask, pitch * f, max(1, round(step / f)))
-    if material["top"] > 1.0:
-        albedo = albedo / np.float32(material["top"])
-    rough = np.ones(mask.shape, np.float32)
-    if material["r"] is not None:
-        rough[fitted] = material["r"]
     ior = material["ior"]
     mr = np.zeros(mask.shape + (3,), np.uint8)
     mr[..., 0] = 255                                        # unused (occlusion lives elsewhere)
-    mr[..., 1] = np.round(rough * 255).astype(np.uint8)     # roughness
-    if material.get("metal_f0") is not None:                # metallic in B; a metal's colour is its F0
+    mr[..., 1] = 255                                        # roughness 1 where no fit says otherwise
+    if material["r"] is not None:
+        mr[..., 1][fitted] = np.round(np.float32(material["r"]) * 255).astype(np.uint8)
+    metal = material.get("metal_f0") is not None            # metallic in B; a metal's colour is its F0
+    if metal:
         mr[..., 2] = np.where(fitted, 255, 0).astype(np.uint8)
-        albedo[fitted] = np.float32(material["metal_f0"])     # albedo is this function's own copy
+    base = np.empty(mask.shape + (3,), np.uint8)
+    for r0 in range(0, base.shape[0], ROWS):                # no full-size float copy of the albedo
+        band = np.nan_to_num(np.asarray(albedo[r0:r0 + ROWS], np.float32))
+        if material["top"] > 1.0:
+            band /= np.float32(material["top"])
+        if metal:
+            band[fitted[r0:r0 + ROWS]] = np.float32(material["metal_f0"])
+        base[r0:r0 + ROWS] = srgb_encode(band)
+        release(albedo)
     return dict(vertices_mm=verts, faces=faces, normals=normals, tangents=vertex_tangents(normals),
-                uv=uv, base_color=srgb_encode(albedo),
+                uv=uv, base_color=base,
                 normal_map=normal_map,
                 metallic_roughness=mr, ior=None if ior is None else float(ior),
                 extras={"scan_incomplete": res.inputs.incomplete} if res.inputs.incomplete else None), notes

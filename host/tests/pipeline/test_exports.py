@@ -207,3 +207,38 @@ def test_gltf_textures_of_a_large_scan_are_block_means_and_validate(tmp_path, ca
     uv = np.frombuffer(blob, np.float32, acc.count * 2, view.byteOffset + (acc.byteOffset or 0)).reshape(-1, 2)
     # the sphere's vertices sit inside the image: their texels inside the 14 x 11 texture
     assert uv.min() > 0 and uv.max() < 1 and np.ptp(uv[:, 0]) > 0.3
+
+
+def _normal_map_whole(normals, height, mask, pitch, step):
+    """The tangent-space normal map of the formula in one pass over the whole image (the reference
+    the band-wise form must give byte for byte)."""
+    from scipy.ndimage import uniform_filter
+    hgt = np.where(mask, height.astype(np.float64), 0.0)
+    if step > 1:
+        hgt = uniform_filter(hgt, size=step, mode="nearest")
+    gy, gx = (g.astype(np.float32) for g in np.gradient(hgt, pitch))
+    hx, hy = gx, -gy
+    inv_n, inv_t = 1 / np.sqrt(hx * hx + hy * hy + 1), 1 / np.sqrt(hx * hx + 1)
+    nx, ny, nz = (normals[..., k].astype(np.float32) for k in range(3))
+    ts = np.stack([(nx + nz * hx) * inv_t, (-nx * hy * hx + ny * (hx * hx + 1) + nz * hy) * inv_n * inv_t,
+                   (-nx * hx - ny * hy + nz) * inv_n], -1)
+    ok = mask & (nx * nx + ny * ny + nz * nz > 0.25)
+    ts = np.where(ok[..., None], ts, np.array([0, 0, 1], np.float32))
+    ts /= np.maximum(np.sqrt((ts * ts).sum(-1, keepdims=True)), np.float32(1e-12))
+    return np.round((ts + 1) * np.float32(127.5)).clip(0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("step", [1, 2, 7])
+def test_normal_map_by_bands_equals_the_whole_image_formula(step):
+    from facette.pipeline._exports import ROWS, tangent_space_normal_map
+    rng = np.random.default_rng(step)
+    h, w = 3 * ROWS + 5, 41                       # bands, a ragged last one, halos across each seam
+    height = np.cumsum(rng.normal(size=(h, w)), 0).astype(np.float32)
+    n = rng.normal(size=(h, w, 3)).astype(np.float32)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    mask = rng.random((h, w)) > 0.1
+    np.testing.assert_array_equal(tangent_space_normal_map(n, height, mask, 0.05, step),
+                                  _normal_map_whole(n, height, mask, 0.05, step))
+    # one row: flat across rows, the slope along it (the whole-image gradient cannot be taken)
+    one = tangent_space_normal_map(n[:1], height[:1], mask[:1], 0.05, step)
+    assert one.shape == (1, w, 3) and one.dtype == np.uint8
