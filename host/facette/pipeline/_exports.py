@@ -24,6 +24,7 @@ PTM_TERMS = 6
 # 0.3 GB texture few viewers load (WebGL's usual limit is 16384, phones' 4096-8192), and the
 # full-size maps are beside it (normal.exr, albedo.exr). A 12 MP scan's keep its full size.
 GLTF_TEXTURE_MAX = 8192
+SCALE_PIXELS = 16e6         # pixels the base colour's scale (a percentile of the albedo) is taken from
 
 
 def hsh_order_for(n_lights, asked):
@@ -201,9 +202,16 @@ def gltf_material(res):
     the report lists the notes while `gltf_inputs` builds the arrays): a dict with the
     albedo's scale `top`, the roughness `r` (None: 1 everywhere) and the `ior`, and notes."""
     notes = []
-    f = texture_step(res.mask.shape)          # every f-th row and column: the same distribution
-    albedo, mask = decimated(res.albedo, f), res.mask[::f, ::f]
-    top = float(np.percentile(np.nan_to_num(np.asarray(albedo[mask], float)), 99.5)) if mask.any() else 1.0
+    f = texture_step(res.mask.shape)
+    # the scale from every st-th row and column (the same distribution), of at most ~SCALE_PIXELS:
+    # a 50 MP albedo's masked values in float64 and the percentile's copies were 4 GB
+    st = max(f, int(np.ceil(np.sqrt(res.mask.size / SCALE_PIXELS))))
+    albedo, mask = decimated(res.albedo, st), res.mask[::st, ::st]
+    top = 1.0
+    if mask.any():
+        vals = np.nan_to_num(albedo[mask].astype(np.float64), copy=False)
+        del albedo
+        top = float(np.percentile(vals, 99.5, overwrite_input=True))
     if f > 1:
         h, w = res.mask.shape
         notes.append(f"glTF textures {-(-w // f)} x {-(-h // f)} (block means of {f} x {f} pixels; the "
@@ -308,12 +316,12 @@ def block_means(maps, mask, f, rows=None):
     starts = np.arange(0, w, f)
     rows = rows or f * max(1, (16 << 20) // (w * 12 * f))   # ~16 MB of float32 RGB per band
     out = [np.zeros((-(-h // f), len(starts), 1 if m.ndim == 2 else m.shape[2]), np.float32) for m in maps]
-    count = np.zeros((-(-h // f), len(starts)), np.int64)
+    count = np.zeros((-(-h // f), len(starts)), np.int32)
     for r0 in range(0, h, rows):
         r1 = min(h, r0 + rows)
         mk = np.asarray(mask[r0:r1])
         b0, rstarts = r0 // f, np.arange(0, r1 - r0, f)
-        count[b0:b0 + len(rstarts)] = np.add.reduceat(np.add.reduceat(mk.astype(np.int64), starts, 1), rstarts, 0)
+        count[b0:b0 + len(rstarts)] = np.add.reduceat(np.add.reduceat(mk.astype(np.int32), starts, 1), rstarts, 0)
         for a, o in zip(maps, out):
             band = np.nan_to_num(np.asarray(a[r0:r1], np.float32).reshape(r1 - r0, w, -1)) * mk[..., None]
             o[b0:b0 + len(rstarts)] = np.add.reduceat(np.add.reduceat(band, starts, 1), rstarts, 0)

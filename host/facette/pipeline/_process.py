@@ -223,9 +223,8 @@ def process(source, outputs=None, out_dir=None, options=None, **overrides):
     interval = sys.getswitchinterval()
     sys.setswitchinterval(min(interval, 0.0005))
     try:
-        # the stages run on threads of their own: BLAS keeps to one thread per caller (its own
-        # threads on top of ours oversubscribe the cores: a 6x12 by 12x32768 product took 7 ms
-        # instead of 0.2 ms on a busy 2-core machine)
+        # the stages run on threads of their own: BLAS keeps to one thread per caller (its threads on top
+        # of ours oversubscribe the cores: a 6x12 by 12x32768 product took 7 ms, not 0.2, on 2 busy cores)
         with threadpool_limits(limits=1, user_api="blas"):
             return _process(source, outputs, out_dir, options)
     finally:
@@ -237,8 +236,7 @@ def _process(source, outputs, out_dir, o):
     stages = stages_needed(outputs)
     res = ProcessResult(options=dict(o.reported(), outputs=outputs))
     record_options = o.recorded()
-    t_all = time.perf_counter()
-    cpu_all = time.process_time()
+    t_all, cpu_all = time.perf_counter(), time.process_time()
     if out_dir is not None and "report" in outputs:
         # matplotlib takes ~0.5 s to import: let it load while the numbers are computed
         threading.Thread(target=preload, daemon=True).start()
@@ -332,8 +330,9 @@ def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, 
     drawn = {}         # report sections drawn by the concurrent stages
     if out_dir is not None:            # before the first file: whose files these will be
         mark_running(Path(out_dir), record_options, inp, [FILES[name] for name in outputs if name in FILES])
+    # --memory: the stages after photometric stereo one at a time (100 MP: 4.0 GB two at once)
     res.notes.extend(_after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, drawn,
-                               relight=relight))
+                               workers=1 if o.memory else 2, relight=relight))
     if res.ptm is not None or res.hsh is not None:
         res.notes.append("relight.ptm / relight.rti: " + (
             "sRGB display values (what RTIViewer and Relight show, as photographed; --rti-encoding "
@@ -344,7 +343,7 @@ def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, 
     res.timings["total_compute"] = time.perf_counter() - t_all
     if out_dir is not None:
         t0 = time.perf_counter()
-        _write_last(res, Path(out_dir), outputs, drawn)
+        _write_last(res, Path(out_dir), outputs, drawn, one_at_a_time=o.memory is not None)
         if inp.lights_file is not None:       # the sphere's lights, beside the results (never the input)
             res.files["lp"] = str(write_lp(Path(out_dir) / LP_NAME, *inp.lights_file))
         write_record(Path(out_dir), record_options, inp, res, previous)
@@ -393,10 +392,9 @@ def _note_interreflections(res, info, seconds):
 
 def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, drawn, workers=2, relight=None):
     """The stages after photometric stereo, which depend on it only and not on each other,
-    concurrently on `workers` threads (numpy, scipy's FFT and the file writers release the
-    GIL): heights -> mesh, samples -> BRDF fit, PTM, HSH; each writes its files as soon as it
-    is done; `drawn` receives the report sections they draw; `o` the ProcessOptions. Returns the
-    notes, in the order of the stages (whatever order they finish in)."""
+    concurrently on `workers` threads (numpy, scipy's FFT and the file writers release the GIL):
+    heights -> mesh, samples -> BRDF fit, PTM, HSH; each writes its files as soon as it is done; `drawn`
+    receives the report sections they draw; `o` the ProcessOptions. The notes, in the stages' order."""
     integration, mesh_step = o.integration, o.mesh_step
     out = None if out_dir is None else Path(out_dir)
     if out is not None:
@@ -536,9 +534,9 @@ def _rti_comments(res):
     return lines
 
 
-def _write_last(res, out, outputs, drawn):
-    """What needs every stage: model.glb (mesh and BRDF), made and written on a thread while
-    the report (matplotlib, main thread only) is drawn; then the list of files written."""
+def _write_last(res, out, outputs, drawn, one_at_a_time=False):
+    """What needs every stage: model.glb (mesh and BRDF), made and written on a thread while the report
+    (matplotlib, main thread only) is drawn (before it, one_at_a_time); then the list of files written."""
     with ThreadPoolExecutor(1) as pool:
         future = None
         if "gltf" in outputs:
@@ -553,6 +551,8 @@ def _write_last(res, out, outputs, drawn):
                     res.timings["write_gltf"] = time.perf_counter() - t0
 
                 future = pool.submit(glb)
+                if one_at_a_time:
+                    future.result()
             else:
                 res.notes.append("gltf: the mesh has no triangles (empty mask); model.glb not written")
         if "report" in outputs:
