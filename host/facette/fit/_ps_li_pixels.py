@@ -166,6 +166,7 @@ class Pixels:
         """Round 1 (`choose_material_model`): lobe or none, which diffuse part, and (σ, n_i), on the
         profile pixels: the fit pixels, fewer under many lights (PROFILE_VALUES values)."""
         m = self.flat.shape[0]
+        fit_sel = fsel
         fsel = fsel[np.sort(self.rng.choice(fsel.size, min(fsel.size, max(100, PROFILE_VALUES // m)),
                                             replace=False))]
         engine = self.settings.engine
@@ -176,12 +177,18 @@ class Pixels:
         # 0.035, 1.30: 0.38° -> 0.62°)
         search_engine = "compiled" if engine == "auto" and self.s_all.ndim == 2 else warm_engine
 
-        def solve(sigma, n_i, vm, search=True):
-            return self.refine(fsel, sigma, n_i, engine=search_engine if search else warm_engine, diffuse_vm=vm,
-                               table_grid=PROFILE_TABLE_GRID if search else None).normals
+        def solve_on(sel):
+            def solve(sigma, n_i, vm, search=True):
+                return self.refine(sel, sigma, n_i, engine=search_engine if search else warm_engine, diffuse_vm=vm,
+                                   table_grid=PROFILE_TABLE_GRID if search else None).normals
+            return solve
 
-        return choose_material_model(self.gather(fsel), self.lights_of(fsel), self.all_ok[fsel], solve,
-                                     self.settings.diffuse_models)
+        # under many lights the profile is a sample of the fit pixels: the chosen lobe's gain is
+        # measured again on all of them (`choose_material_model`'s check)
+        check = None if fit_sel.size == fsel.size else \
+            (self.gather(fit_sel), self.lights_of(fit_sel), self.all_ok[fit_sel], solve_on(fit_sel))
+        return choose_material_model(self.gather(fsel), self.lights_of(fsel), self.all_ok[fsel], solve_on(fsel),
+                                     self.settings.diffuse_models, check=check)
 
     def lambertian_material(self, pix):
         """Pixels of `pix` given least squares (a material without an interface); their count."""

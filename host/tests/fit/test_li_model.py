@@ -1,0 +1,44 @@
+"""Round 1's model choice (facette.fit._li_model.choose_material_model): the gain measured again on
+the fit pixels when the profile is only a sample of them."""
+import numpy as np
+
+from facette.fit._li_model import LOBE_MIN_GAIN, choose_material_model
+from facette.fit._normals_li import refine_normals_li
+from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
+
+
+def _pixels(material, lights, sc, rng):
+    im = render(sc, lights, material, noise=0.003, rng=rng)         # (m, H, W, 3)
+    sel = sc.mask & (sc.normals[..., 2] > 0.3)
+    e = np.transpose(im[:, sel], (1, 0, 2)).astype(np.float32)      # (N, m, 3)
+    return e, np.isfinite(e).all(2), sc.normals[sel].astype(np.float64)
+
+
+def _solver(e, lights, usable, n0):
+    def solve(sigma, n_i, vm, search=True):
+        return refine_normals_li(e, lights, n0, sigma, n_i, usable=usable, iterations=12, volume_model=vm,
+                                 engine="compiled", table_grid=65).normals
+    return solve
+
+
+def test_the_bar_decides_on_the_check_pixels_when_the_profile_is_a_sample():
+    # a glossy sphere (Cook–Torrance σ 0.05, n_i 1.2) whose profile sample happens to hold none of
+    # its highlights (the pixels where no light exceeds the matte rendering by 2 % of their mean):
+    # alone it says no lobe; its candidates measured again on every pixel clear the bar, and the
+    # choice says on how many pixels
+    lights = thesis_light_directions()
+    sc = sphere_on_plane(40, 40)
+    e_m, _, _ = _pixels("matte", lights, sc, np.random.default_rng(1))
+    e, ok, n = _pixels("glossy", lights, sc, np.random.default_rng(0))
+    excess = (e - e_m * e.mean() / e_m.mean()).max(axis=(1, 2)) / e.mean(axis=(1, 2))
+    p = excess < 0.02
+    assert 0.9 * len(e) < p.sum() < len(e)
+    models = ("tables", "lambert")
+    _, _, alone = choose_material_model(e[p], lights, ok[p], _solver(e[p], lights, ok[p], n[p]), models)
+    assert alone["model"] == "lambertian" and alone["gain"] < LOBE_MIN_GAIN and "gain_pixels" not in alone
+    fit, _, checked = choose_material_model(e[p], lights, ok[p], _solver(e[p], lights, ok[p], n[p]), models,
+                                            check=(e, lights, ok, _solver(e, lights, ok, n)))
+    assert checked["gain_pixels"] == len(e) and checked["profile_gain"] < LOBE_MIN_GAIN, checked
+    assert checked["model"] == "lobe" and checked["gain"] > 3 * LOBE_MIN_GAIN, checked
+    # (σ, n_i) are then warmed up on the profile pixels (later rounds refit on the fit pixels)
+    assert np.isfinite(fit["sigma"]) and fit["n_i"] > 1.0, fit
