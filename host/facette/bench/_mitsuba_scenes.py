@@ -43,6 +43,12 @@ MATERIALS = {
     "aluminium": {"type": "roughconductor", "conductor": "Al", "alpha": 0.3},
     "metallic_paint": {"type": "metallic_paint", "conductor": "Cu", "alpha": 0.2, "weight": 0.5},
     "rough_plastic": {"sigma": 0.40, "n_i": 1.50},
+    # weak gloss (a worn glaze, a waxed or partly varnished surface: the highlight a fraction of a
+    # dielectric's, roughplastic's specular_reflectance < 1), for the lobe-or-not choice between
+    # matte and glossy: no LI (σ, n_i) renders them exactly
+    "glaze_0.10": {"sigma": 0.10, "n_i": 1.50, "specular": 0.25},
+    "glaze_0.20": {"sigma": 0.20, "n_i": 1.50, "specular": 0.35},
+    "glaze_0.05": {"sigma": 0.05, "n_i": 1.50, "specular": 0.1},
 }
 # scenes of those materials (shape, material, textured): `facette bench peers --mitsuba`
 NON_LI_SCENES = [("sphere", "gold", False), ("sphere", "aluminium", False),
@@ -133,7 +139,8 @@ def _bsdf(mi, material, kd_img):
         return {"type": "blendbsdf", "weight": spec["weight"],
                 "bsdf_0": {"type": "diffuse", "reflectance": tex}, "bsdf_1": metal}
     return {"type": "roughplastic", "distribution": "beckmann", "alpha": spec["sigma"],
-            "int_ior": spec["n_i"], "ext_ior": 1.0, "nonlinear": True, "diffuse_reflectance": tex}
+            "int_ior": spec["n_i"], "ext_ior": 1.0, "nonlinear": True, "diffuse_reflectance": tex,
+            **({"specular_reflectance": spec["specular"]} if "specular" in spec else {})}
 
 
 def render_scene(shape="sphere", material="paint_0.10", size=128, spp=64, kd=(0.6, 0.5, 0.4),
