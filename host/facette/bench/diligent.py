@@ -23,7 +23,8 @@ at phi 30, 90, ..., 330 and 30 deg at phi 0, 60, ..., 300; one light each, by an
 assignment on the angle). (process reads them from a temporary DiLiGenT-style folder
 of links to the chosen images.) --speed times each method at 2144x1424 x 12 lights (a rendered
 sphere on a plane), in seconds and seconds per megapixel. --trim-study sweeps the trim of
-`ps_rank_trimmed` and chooses it leaving one object out at a time.
+`ps_rank_trimmed` and chooses it leaving one object out at a time. --seeds N runs the default
+over N draws of its fit and profile pixels: a model choice that a draw decides shows there.
 """
 import argparse
 import os
@@ -215,6 +216,24 @@ def print_table(results, methods, lights):
           "and medians, total time)")
 
 
+def seed_study(objects, seeds):
+    """The default's errors over `seeds` draws of its fit and profile pixels (ps_options seed), all
+    lights, through `process`: how much one draw moves the model choice and the normals."""
+    from facette.pipeline import process
+    print(f"\n-- li_alternating over {seeds} seeds of its pixel draws (all lights): mean error (deg) "
+          "min / median / max, seeds that took the lobe, seconds (median)")
+    for folder, truth_path in objects:
+        truth, errs, lobes, secs = np.load(truth_path), [], 0, []
+        for seed in range(seeds):
+            t = time.perf_counter()
+            res = process(folder, outputs=["normals"], method="li_alternating", ps_options={"seed": seed})
+            secs.append(time.perf_counter() - t)
+            errs.append(float(angular_errors(res.normals, truth, res.inputs.mask).mean()))
+            lobes += res.ps.info["materials"][0].get("model_choice", {}).get("model") == "lobe"
+        print(f"{folder.parent.name + '/' + object_name(folder):26s} {min(errs):6.2f} {np.median(errs):6.2f} "
+              f"{max(errs):6.2f}   lobe {lobes}/{seeds}   {np.median(secs):6.1f} s", flush=True)
+
+
 def speed(methods, size=SPEED_SIZE):
     """Seconds and seconds per megapixel of each method at size x 12 rig lights."""
     h, w = size
@@ -279,6 +298,8 @@ def main(argv=None):
                    help="initial normals of li_alternating (e.g. rpca_wu2010; default: its own)")
     p.add_argument("--channels", default=None, choices=["green", "mean", "weighted"],
                    help="the channels process solves the normals on (default: process's own)")
+    p.add_argument("--seeds", type=int, default=0,
+                   help="also run li_alternating over this many seeds of its pixel draws (all lights)")
     p.add_argument("--speed", action="store_true", help="also time each method at 2144x1424 x 12")
     p.add_argument("--no-real", action="store_true", help="skip the DiLiGenT tables")
     p.add_argument("--trim-study", action="store_true",
@@ -307,6 +328,8 @@ def main(argv=None):
                 results.append((key, int(data.mask.sum()), m, rows))
                 print(f"  {key}: {m} lights, read in {t_read:.1f} s", file=sys.stderr, flush=True)
             print_table(results, methods, lights)
+        if args.seeds:
+            seed_study(scored, args.seeds)
         if args.trim_study:
             trim_study([(f, t) for f, t in scored if f.parent.name == "diligent_crop8"])
     if args.speed:
