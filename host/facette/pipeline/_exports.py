@@ -269,37 +269,48 @@ def gltf_inputs(res, step, material=None):
     normals = vertex_normals(verts, faces)
     fitted_px = res.inputs.sample_mask() & res.mask
     if f == 1:              # full size: the maps as they are (on disk with --memory), read by bands
-        albedo, mask, fitted = res.albedo, res.mask, fitted_px
+        mask, fitted = res.mask, fitted_px
+        base = _base_colour(res.albedo, fitted, material)
         normal_map = tangent_space_normal_map(res.normals, res.height, mask, pitch, step)
-    else:
-        (albedo, n_small, height), count = block_means((res.albedo, res.normals, res.height), res.mask, f)
+    else:                   # block means, one texture made before the next's (100 MP: 0.7 GB at once)
+        (albedo,), count = block_means((res.albedo,), res.mask, f)
         mask = count > 0
         fitted = block_means((), fitted_px, f)[1] * 2 > np.maximum(count, 1)   # most of the block
+        del fitted_px, count
+        base = _base_colour(albedo, fitted, material)
+        del albedo
+        (n_small, height), _ = block_means((res.normals, res.height), res.mask, f)
         n_small /= np.maximum(np.linalg.norm(n_small, axis=-1, keepdims=True), np.float32(1e-12))
         normal_map = tangent_space_normal_map(n_small, height[..., 0], mask, pitch * f, max(1, round(step / f)))
+        del n_small, height
     ior = material["ior"]
     mr = np.zeros(mask.shape + (3,), np.uint8)
     mr[..., 0] = 255                                        # unused (occlusion lives elsewhere)
     mr[..., 1] = 255                                        # roughness 1 where no fit says otherwise
     if material["r"] is not None:
         mr[..., 1][fitted] = np.round(np.float32(material["r"]) * 255).astype(np.uint8)
-    metal = material.get("metal_f0") is not None            # metallic in B; a metal's colour is its F0
-    if metal:
+    if material.get("metal_f0") is not None:                # metallic in B; a metal's colour is its F0
         mr[..., 2] = np.where(fitted, 255, 0).astype(np.uint8)
-    base = np.empty(mask.shape + (3,), np.uint8)
-    for r0 in range(0, base.shape[0], ROWS):                # no full-size float copy of the albedo
-        band = np.nan_to_num(np.asarray(albedo[r0:r0 + ROWS], np.float32))
-        if material["top"] > 1.0:
-            band /= np.float32(material["top"])
-        if metal:
-            band[fitted[r0:r0 + ROWS]] = np.float32(material["metal_f0"])
-        base[r0:r0 + ROWS] = srgb_encode(band)
-        release(albedo)
     return dict(vertices_mm=verts, faces=faces, normals=normals, tangents=vertex_tangents(normals),
                 uv=uv, base_color=base,
                 normal_map=normal_map,
                 metallic_roughness=mr, ior=None if ior is None else float(ior),
                 extras={"scan_incomplete": res.inputs.incomplete} if res.inputs.incomplete else None), notes
+
+
+def _base_colour(albedo, fitted, material):
+    """(H, W, 3) uint8 sRGB base colour of `albedo` (in memory or on disk) scaled by the material's
+    top, F0 on the `fitted` texels of a metal; a band of rows at a time (no full-size float copy)."""
+    base = np.empty(albedo.shape[:2] + (3,), np.uint8)
+    for r0 in range(0, base.shape[0], ROWS):
+        band = np.nan_to_num(np.asarray(albedo[r0:r0 + ROWS], np.float32))
+        if material["top"] > 1.0:
+            band /= np.float32(material["top"])
+        if material.get("metal_f0") is not None:
+            band[fitted[r0:r0 + ROWS]] = np.float32(material["metal_f0"])
+        base[r0:r0 + ROWS] = srgb_encode(band)
+        release(albedo)
+    return base
 
 
 def texture_step(shape):
