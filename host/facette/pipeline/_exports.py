@@ -19,6 +19,7 @@ __all__ = ["hsh_order_for", "fill_unfitted", "fill_left", "unfitted_verdict", "g
            "GLTF_TEXTURE_MAX", "texture_step", "block_means"]
 
 ROWS = 64                  # image rows of the normal map made at a time
+TEXEL_ROWS = 512           # texel rows of block-mean textures made at a time
 PTM_TERMS = 6
 # The glTF's textures are at most this many texels on their long side: a 100 MP map is a
 # 0.3 GB texture few viewers load (WebGL's usual limit is 16384, phones' 4096-8192), and the
@@ -272,17 +273,8 @@ def gltf_inputs(res, step, material=None):
         mask, fitted = res.mask, fitted_px
         base = _base_colour(res.albedo, fitted, material)
         normal_map = tangent_space_normal_map(res.normals, res.height, mask, pitch, step)
-    else:                   # block means, one texture made before the next's (100 MP: 0.7 GB at once)
-        (albedo,), count = block_means((res.albedo,), res.mask, f)
-        mask = count > 0
-        fitted = block_means((), fitted_px, f)[1] * 2 > np.maximum(count, 1)   # most of the block
-        del fitted_px, count
-        base = _base_colour(albedo, fitted, material)
-        del albedo
-        (n_small, height), _ = block_means((res.normals, res.height), res.mask, f)
-        n_small /= np.maximum(np.linalg.norm(n_small, axis=-1, keepdims=True), np.float32(1e-12))
-        normal_map = tangent_space_normal_map(n_small, height[..., 0], mask, pitch * f, max(1, round(step / f)))
-        del n_small, height
+    else:
+        mask, fitted, base, normal_map = _block_textures(res, fitted_px, f, material, pitch, step)
     ior = material["ior"]
     mr = np.zeros(mask.shape + (3,), np.uint8)
     mr[..., 0] = 255                                        # unused (occlusion lives elsewhere)
@@ -296,6 +288,32 @@ def gltf_inputs(res, step, material=None):
                 normal_map=normal_map,
                 metallic_roughness=mr, ior=None if ior is None else float(ior),
                 extras={"scan_incomplete": res.inputs.incomplete} if res.inputs.incomplete else None), notes
+
+
+def _block_textures(res, fitted_px, f, material, pitch, step):
+    """(texel mask, fitted texels, base colour, normal map) of the maps' f x f block means, made a
+    band of TEXEL_ROWS texel rows at a time (the normal map's band with the halo its smoothing and
+    gradient reach; the same bytes as whole): 100 MP held 0.7 GB of float block means at once."""
+    h, w = res.mask.shape
+    th, tw = -(-h // f), -(-w // f)
+    mask, fitted = np.zeros((th, tw), bool), np.zeros((th, tw), bool)
+    base, normal_map = np.empty((th, tw, 3), np.uint8), np.empty((th, tw, 3), np.uint8)
+    step_t = max(1, round(step / f))
+    halo = step_t + 2
+    for t0 in range(0, th, TEXEL_ROWS):
+        t1 = min(th, t0 + TEXEL_ROWS)
+        a, b = max(0, t0 - halo), min(th, t1 + halo)
+        rows = slice(a * f, b * f)
+        (albedo, n_small, height), count = block_means((res.albedo[rows], res.normals[rows], res.height[rows]),
+                                                       res.mask[rows], f)
+        inner = slice(t0 - a, t1 - a)
+        m = count > 0
+        mask[t0:t1] = m[inner]
+        fitted[t0:t1] = (block_means((), fitted_px[rows], f)[1] * 2 > np.maximum(count, 1))[inner]  # most of the block
+        base[t0:t1] = _base_colour(albedo[inner], fitted[t0:t1], material)
+        n_small /= np.maximum(np.linalg.norm(n_small, axis=-1, keepdims=True), np.float32(1e-12))
+        normal_map[t0:t1] = tangent_space_normal_map(n_small, height[..., 0], m, pitch * f, step_t)[inner]
+    return mask, fitted, base, normal_map
 
 
 def _base_colour(albedo, fitted, material):

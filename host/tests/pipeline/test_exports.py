@@ -242,3 +242,21 @@ def test_normal_map_by_bands_equals_the_whole_image_formula(step):
     # one row: flat across rows, the slope along it (the whole-image gradient cannot be taken)
     one = tangent_space_normal_map(n[:1], height[:1], mask[:1], 0.05, step)
     assert one.shape == (1, w, 3) and one.dtype == np.uint8
+
+
+@pytest.mark.parametrize("mesh_step", [1, 5])
+def test_block_mean_textures_by_texel_bands_give_the_same_model_glb(tmp_path, monkeypatch, mesh_step):
+    """The block-mean textures (a map over GLTF_TEXTURE_MAX texels, here 16) made two texel rows
+    at a time, seams and the normal map's halo included, write the same model.glb as in one band."""
+    import facette.pipeline._exports as exports
+    monkeypatch.setattr(exports, "GLTF_TEXTURE_MAX", 16)
+    sc = sphere_on_plane(32, 40)
+    _write_scan(tmp_path / "scan", sc, render(sc, L, "glossy"), pitch=0.1)
+    glbs = []
+    for rows in (10 ** 6, 2):
+        monkeypatch.setattr(exports, "TEXEL_ROWS", rows)
+        out = tmp_path / f"o{rows}"
+        assert main(["process", str(tmp_path / "scan"), "-o", str(out), "--method", "rank_trimmed",
+                     "--mesh-step", str(mesh_step), "--outputs", "normals,albedo,height,mesh,gltf,brdf,samples"]) == 0
+        glbs.append((out / "model.glb").read_bytes())
+    assert glbs[0] == glbs[1]
