@@ -468,7 +468,7 @@ def _summary(res, viewer_note):
         if "height_rms_mm" in e:
             good.append(f"heights within {fmt(e['height_rms_mm'], 2)} mm RMS")
     if ps is not None and valid:
-        residual = float(np.median(masked_values(ps.residual, res.mask)))    # a disk array: by bands
+        residual = float(np.median(masked_values(ps.residual, res.mask), overwrite_input=True))  # by bands, no copy
         good.append(f"photometric-stereo residual {_pct(residual)} (median; "
                     "0 is a perfect Lambertian fit)")
     fit = res.brdf
