@@ -304,12 +304,13 @@ def _block_textures(res, fitted_px, f, material, pitch, step):
         t1 = min(th, t0 + TEXEL_ROWS)
         a, b = max(0, t0 - halo), min(th, t1 + halo)
         rows = slice(a * f, b * f)
-        (albedo, n_small, height), count = block_means((res.albedo[rows], res.normals[rows], res.height[rows]),
-                                                       res.mask[rows], f)
+        # the fitted pixels as one more map: its block mean > 1/2 is "most of the block" (fitted ⊂ mask)
+        (albedo, n_small, height, share), count = block_means(
+            (res.albedo[rows], res.normals[rows], res.height[rows], fitted_px[rows]), res.mask[rows], f)
         inner = slice(t0 - a, t1 - a)
         m = count > 0
         mask[t0:t1] = m[inner]
-        fitted[t0:t1] = (block_means((), fitted_px[rows], f)[1] * 2 > np.maximum(count, 1))[inner]  # most of the block
+        fitted[t0:t1] = share[inner, :, 0] > 0.5
         base[t0:t1] = _base_colour(albedo[inner], fitted[t0:t1], material)
         n_small /= np.maximum(np.linalg.norm(n_small, axis=-1, keepdims=True), np.float32(1e-12))
         normal_map[t0:t1] = tangent_space_normal_map(n_small, height[..., 0], m, pitch * f, step_t)[inner]
