@@ -26,6 +26,9 @@ OBJECT_OVER_TABLE = 2.0
 # this share of the lit pixels on the image's border.
 MARGIN_BORDER = 0.9
 
+# `masks_from` reads its two maps this many rows at a time
+MASK_ROWS = 512
+
 
 @dataclass
 class PSInput:
@@ -102,21 +105,39 @@ def auto_masks(images, min_contrast=4.0):
     return masks_from(lum, med, min_contrast)
 
 
-def masks_from(top, med, min_contrast=4.0):
+def masks_from(top, med, min_contrast=4.0, rows=MASK_ROWS):
     """`auto_masks` from its two maps of the green channel over the lights, (H, W) each: `top`
     the NaN-ignoring maximum, `med` the median of the known values (NaN where none); a tiled
-    reading computes them band by band (pipeline._tiled_process)."""
-    lum = np.nan_to_num(top, nan=0.0)
-    sub = lum.ravel()[::7]                                   # a quantile needs no full sort
+    reading computes them band by band (pipeline._tiled_process). Read `rows` rows at a time:
+    besides the two masks nothing is made at the image's size (at 100 MP the whole-image
+    temporaries were ~1.7 GB on top of the two maps); the same masks for any `rows`."""
+    h = top.shape[0]
+    bands = [slice(r0, r0 + rows) for r0 in range(0, h, rows)]
+    sub = np.nan_to_num(top.ravel()[::7], nan=0.0)            # a quantile needs no full sort
     ref = float(np.quantile(sub, 0.99)) if sub.size else 0.0
     if not ref > 0:
-        return np.zeros(lum.shape, bool), np.zeros(lum.shape, bool)
-    lit = lum > 0.02 * ref
-    ok = lit & np.isfinite(med) & (med > 0)
-    if ok.sum() < 16:
+        return np.zeros(top.shape, bool), np.zeros(top.shape, bool)
+    lit = np.empty(top.shape, bool)
+    lo, hi, n_ok = None, None, 0
+
+    def log_ok(b):        # log of the median where it is known and positive on a lit pixel
+        with np.errstate(invalid="ignore"):
+            ok = lit[b] & np.isfinite(med[b]) & (med[b] > 0)
+        return ok, np.log(med[b][ok])
+    for b in bands:
+        with np.errstate(invalid="ignore"):
+            lit[b] = np.nan_to_num(top[b], nan=0.0) > 0.02 * ref
+        ok, logl = log_ok(b)
+        if logl.size:
+            lo = logl.min() if lo is None else min(lo, logl.min())
+            hi = logl.max() if hi is None else max(hi, logl.max())
+            n_ok += logl.size
+    if n_ok < 16:
         return lit, lit
-    logl = np.log(med[ok])
-    hist, edges = np.histogram(logl, bins=256)
+    hist, edges = 0, None            # np.histogram(all, 256) has the range (min, max): same bins
+    for b in bands:
+        part, edges = np.histogram(log_ok(b)[1], bins=256, range=(lo, hi))
+        hist = hist + part
     w0 = np.cumsum(hist)                                     # Otsu: maximise the between-class variance
     w1 = w0[-1] - w0
     centres = 0.5 * (edges[1:] + edges[:-1])
@@ -127,8 +148,10 @@ def masks_from(top, med, min_contrast=4.0):
     k = int(np.argmax(between))
     if between[k] <= 0 or m1[k] - m0[k] < np.log(min_contrast):
         return lit, lit
-    material = np.zeros(lum.shape, bool)
-    material[ok] = logl > edges[k + 1]
+    material = np.zeros(top.shape, bool)
+    for b in bands:
+        ok, logl = log_ok(b)
+        material[b][ok] = logl > edges[k + 1]
     return lit, material
 
 

@@ -75,3 +75,44 @@ def test_object_takes_its_dark_rim_and_leaves_the_table_and_its_specks():
     obj = object_of(img, lit, material)
     np.testing.assert_array_equal(obj, disc)
     assert object_of(img, lit, lit).all()        # no table: every lit pixel
+
+
+def _masks_whole(top, med, min_contrast=4.0):
+    """masks_from as it was written over whole images (before it read bands of rows)."""
+    lum = np.nan_to_num(top, nan=0.0)
+    ref = float(np.quantile(lum.ravel()[::7], 0.99))
+    lit = lum > 0.02 * ref
+    ok = lit & np.isfinite(med) & (med > 0)
+    logl = np.log(med[ok])
+    hist, edges = np.histogram(logl, bins=256)
+    w0 = np.cumsum(hist)
+    w1 = w0[-1] - w0
+    s0 = np.cumsum(hist * 0.5 * (edges[1:] + edges[:-1]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        m0, m1 = s0 / w0, (s0[-1] - s0) / w1
+        between = np.where((w0 > 0) & (w1 > 0), w0 * w1 * (m0 - m1) ** 2, -1.0)
+    k = int(np.argmax(between))
+    if between[k] <= 0 or m1[k] - m0[k] < np.log(min_contrast):
+        return lit, lit
+    material = np.zeros(lum.shape, bool)
+    material[ok] = logl > edges[k + 1]
+    return lit, material
+
+
+def test_masks_from_bands_of_rows_give_the_whole_images_masks():
+    from facette.pipeline._inputs import masks_from
+    rng = np.random.default_rng(3)
+    yy, xx = np.mgrid[:97, :61]
+    disc = (yy - 48) ** 2 + (xx - 30) ** 2 < 28 ** 2
+    med = np.where(disc, rng.uniform(0.2, 0.6, disc.shape), rng.uniform(0.01, 0.03, disc.shape)).astype(np.float32)
+    top = (med * rng.uniform(1.5, 3.0, med.shape)).astype(np.float32)
+    top[:3, :5] = np.nan                   # saturated under some light
+    med[10:12] = np.nan                    # unknown under every light
+    med[20, :7] = 0.0
+    top[90:] = 0.0                         # unlit rows
+    lit_w, mat_w = _masks_whole(top, med)
+    assert mat_w.any() and (lit_w & ~mat_w).any()       # a split was made: the bins matter
+    for rows in (1, 7, 512):
+        lit, material = masks_from(top, med, rows=rows)
+        np.testing.assert_array_equal(lit, lit_w)
+        np.testing.assert_array_equal(material, mat_w)
