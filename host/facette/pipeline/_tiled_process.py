@@ -54,7 +54,7 @@ from facette.pipeline._bands import DiligentBands, ScanBands, open_bands
 from facette.pipeline._quality import add_counts, check_counts, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
-from facette.pipeline._tiles import FIELD_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, rows_per_tile
+from facette.pipeline._tiles import FIELD_BYTES, PROCESS_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, rows_per_tile
 from facette.recon import PSResult, near_light_directions
 
 __all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "open_streamed", "ps_bands", "streamed_ps",
@@ -69,6 +69,11 @@ MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (th
 # the PS outputs a streamed run keeps on disk (`_memory.disk_array`): 30 of their 32 bytes per
 # pixel, 3 GB at 100 MP; written band by band, read band by band by the writers and the heights
 ON_DISK = ("normal", "albedo", "n_triplets", "residual")
+# a scan's maps held in memory at the image's size besides the mask and the flags that
+# `rows_per_tile` counts, at their most (bytes per pixel): the brightest value (float32, kept for
+# the outputs) with, while the masks are made, the median (float32) and the unknown pixels, and
+# later the material, object and sample masks (1 byte each); a DiLiGenT folder holds its mask only
+SCAN_MAPS_BYTES = 9
 
 
 def check_memory_options(method, interreflections):
@@ -95,13 +100,15 @@ def streamed(source, outputs):
     return path.is_dir() and ((path / "scan.json").is_file() or is_diligent_dir(path))
 
 
-def _rows(w, h, m, memory, method, rows):
+def _rows(w, h, m, memory, method, rows, maps_bytes):
     if rows is not None:
         if int(rows) < 1:
             raise ValueError(f"rows must be >= 1, got {rows}")
         return int(rows)
-    # the ON_DISK maps are not held: the budget is shared by the bands and the rest
-    return rows_per_tile(w, h, m, memory, method, tuple(k for k in FIELD_BYTES if k not in ON_DISK))
+    # the budget is the whole process's: the bands get what the libraries and the maps this run
+    # holds at the image's size (maps_bytes per pixel) leave; the ON_DISK maps are not held
+    return rows_per_tile(w, h, m, memory, method, tuple(k for k in FIELD_BYTES if k not in ON_DISK),
+                         held=PROCESS_BYTES + maps_bytes * w * h)
 
 
 def _maps_task(spec, r0, r1, flat):
@@ -244,7 +251,7 @@ def open_streamed(source, o, work, rows=None, client=None):
                                  "was made at another resolution; recalibrate at this one (facette calibrate)")
             if bands.flat is not None and not (np.all(np.isfinite(bands.flat)) and np.all(bands.flat > 0)):
                 raise ValueError("the flat field has non-positive or non-finite values: the profile is damaged")
-            n = _rows(w, h, len(ids), o.memory, o.method, rows)
+            n = _rows(w, h, len(ids), o.memory, o.method, rows, SCAN_MAPS_BYTES)
             top, med = np.empty((h, w), np.float32), np.empty((h, w), np.float32)
             unknown = np.zeros((h, w), bool)
             flat = bands.flat
@@ -262,7 +269,7 @@ def open_streamed(source, o, work, rows=None, client=None):
         names, dirs, inten, notes = read_diligent_lights(path)
         bands = DiligentBands(path, names, inten, work)
         h, w = bands.h, bands.w
-        n = _rows(w, h, len(names), o.memory, o.method, rows)
+        n = _rows(w, h, len(names), o.memory, o.method, rows, 0)
         mask = read_mask(path / "mask.png") if (path / "mask.png").is_file() else np.ones((h, w), bool)
         if mask.shape != (h, w):
             raise ValueError(f"mask.png is {mask.shape[1]}x{mask.shape[0]}, images are {w}x{h}")

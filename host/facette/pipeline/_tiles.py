@@ -22,7 +22,7 @@ from facette.io.png import png_size, read_mask, read_png
 from facette.methods import PS_DEFAULT, PS_METHODS
 from facette.recon import PSResult
 
-__all__ = ["WHOLE_IMAGE_METHODS", "TILED_METHODS", "FIELD_BYTES", "parse_memory", "rows_per_tile", "ps_tiled"]
+__all__ = ["WHOLE_IMAGE_METHODS", "TILED_METHODS", "FIELD_BYTES", "PROCESS_BYTES", "parse_memory", "rows_per_tile", "ps_tiled"]
 
 # Methods that need every pixel at once, and why: they cannot run over tiles.
 WHOLE_IMAGE_METHODS = {
@@ -39,6 +39,10 @@ WHOLE_IMAGE_METHODS = {
 BYTES_PER_PIXEL_LIGHT = {"woodham1980": 40, "rank_trimmed": 48, "hierarchical_tautzia2016": 66,
                          "bipolynomial_shi2014": 52, "bivariate_ikehata2014": 66}
 BAND_FIXED_BYTES = 256 * 2 ** 20
+# The `facette` command's own resident memory once photometric stereo has run (Python, numpy,
+# scipy, numba and its compiled kernels, OpenEXR): 0.45 GB on the DiLiGenT cat crop with
+# --memory; a `process --memory` counts it in its budget (the process's, not only the bands')
+PROCESS_BYTES = 450 * 10 ** 6
 # Bytes per pixel of each output `ps_tiled` can keep at the image's size.
 FIELD_BYTES = {"normal": 12, "albedo": 12, "valid": 1, "residual": 4, "n_triplets": 2, "skipped": 1}
 MIN_ROWS = 1
@@ -65,12 +69,14 @@ def parse_memory(text):
 
 
 def rows_per_tile(width, height, lights, memory, method=PS_DEFAULT, keep=tuple(FIELD_BYTES),
-                  per_light_flags=False):
+                  per_light_flags=False, held=0):
     """Rows of a band so that `ps_tiled` stays within `memory` (bytes, or a text for
     `parse_memory`). Staging (one decoded photograph and its RGB copy, 12 bytes per pixel at 16
-    bits) comes first; then the outputs kept whole (`keep`, FIELD_BYTES each, and 2 x lights
-    bytes per pixel with `per_light_flags`), the mask, the band's fixed part and the band's rows,
-    each the method's BYTES_PER_PIXEL_LIGHT x lights x width bytes.
+    bits) comes first; then `held` (bytes the caller holds besides: the process's libraries and
+    its maps at the image's size, so that the budget is the whole process's), the outputs kept
+    whole (`keep`, FIELD_BYTES each, and 2 x lights bytes per pixel with `per_light_flags`), the
+    mask, the band's fixed part and the band's rows, each the method's BYTES_PER_PIXEL_LIGHT x
+    lights x width bytes.
 
     Raises ValueError when even one row does not fit."""
     memory = parse_memory(memory)
@@ -79,14 +85,15 @@ def rows_per_tile(width, height, lights, memory, method=PS_DEFAULT, keep=tuple(F
     per_out = sum(FIELD_BYTES[k] for k in keep) + (2 * lights if per_light_flags else 0)
     pixels = width * height
     staging = pixels * (3 * 2 * 2 + 1)
-    fixed = pixels * (per_out + 1) + BAND_FIXED_BYTES
+    fixed = int(held) + pixels * (per_out + 1) + BAND_FIXED_BYTES
     per_pixel_light = BYTES_PER_PIXEL_LIGHT.get(PS_METHODS.canonical(method),
                                                 max(BYTES_PER_PIXEL_LIGHT.values()))
     per_row = width * lights * per_pixel_light
     if memory < staging or memory - fixed < per_row * MIN_ROWS:
         need = max(staging, fixed + per_row * MIN_ROWS) / 1e9
+        besides = f" ({held / 1e9:.2f} GB held besides: libraries and maps)" if held else ""
         raise ValueError(f"{memory / 1e9:.2f} GB cannot hold the outputs kept of a {width}x{height} "
-                         f"image and one band of {lights} lights: give at least {need:.2f} GB, or "
+                         f"image and one band of {lights} lights{besides}: give at least {need:.2f} GB, or "
                          "keep fewer outputs")
     return int(max(MIN_ROWS, min(height, (memory - fixed) // per_row)))
 

@@ -86,6 +86,17 @@ def test_rows_per_tile_follow_the_budget():
     assert rows_per_tile(11648, 8736, 12, "2GB", keep=()) >= 1
 
 
+def test_what_the_process_holds_besides_comes_out_of_the_bands():
+    w, h = 4288, 2848
+    alone = rows_per_tile(w, h, 12, "2GB", keep=())
+    held = 450e6 + 9 * w * h                                      # libraries and a scan's maps
+    besides = rows_per_tile(w, h, 12, "2GB", keep=(), held=held)
+    per_row = w * 12 * 48                                         # rank_trimmed's band bytes per row
+    assert besides < alone and abs((alone - besides) * per_row - held) < 2 * per_row
+    with pytest.raises(ValueError, match="held besides"):
+        rows_per_tile(w, h, 12, "2GB", keep=(), held=1.9e9)
+
+
 def test_a_budget_too_small_or_a_bad_request_is_said_before_any_work(folder):
     with pytest.raises(ValueError, match="give at least"):
         ps_tiled(folder, method="woodham1980", memory=1000)
