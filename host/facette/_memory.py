@@ -90,13 +90,16 @@ def masked_values(array, mask, rows=1024):
 
 
 def decimated(array, step, rows=256):
-    """A copy of array[::step, ::step], read `rows` of its rows at a time: from a disk array a
-    strided read would still bring nearly every page in (the kernel maps the pages around
-    each one it faults), so its pages are handed back after each band."""
+    """A copy of array[::step, ::step], read about `rows` rows of `array` at a time: from a disk
+    array a strided read would still bring nearly every page in (the kernel maps the pages around
+    each one it faults), so its pages are handed back after each band. The band counts the
+    array's rows, not the copy's: 256 rows of the copy at step 15 were 3840 of a 100 MP normal
+    map, 0.54 GB brought in before the pages went back."""
     import numpy as np
     out = np.empty((len(range(0, array.shape[0], step)), len(range(0, array.shape[1], step)))
                    + array.shape[2:], array.dtype)
-    for k in range(0, out.shape[0], rows):
-        out[k:k + rows] = array[k * step:(k + rows) * step:step, ::step]
+    per_band = max(1, int(rows) // step)               # rows of the copy per band
+    for k in range(0, out.shape[0], per_band):
+        out[k:k + per_band] = array[k * step:(k + per_band) * step:step, ::step]
         release(array)
     return out

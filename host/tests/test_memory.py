@@ -79,3 +79,21 @@ def test_decimated_equals_the_strided_view_for_any_band():
     for step in (1, 2, 5, 30):
         for rows in (1, 3, 256):
             np.testing.assert_array_equal(decimated(a, step, rows=rows), np.asarray(a)[::step, ::step])
+
+
+def test_decimated_brings_in_about_rows_of_the_array_at_a_time(monkeypatch):
+    import numpy as np
+    from facette import _memory
+    a = _memory.disk_array((600, 8, 3), np.float32)
+    spans = []
+    monkeypatch.setattr(_memory, "release", lambda array: spans.append(None))
+    real = type(a).__getitem__
+
+    def spy(self, key):
+        if isinstance(key, tuple) and isinstance(key[0], slice):
+            spans.append(min(key[0].stop, self.shape[0]) - key[0].start)
+        return real(self, key)
+    monkeypatch.setattr(type(a), "__getitem__", spy)
+    _memory.decimated(a, 15, rows=60)
+    read = [s for s in spans if s is not None]
+    assert read and max(read) <= 60 and len(read) == 10      # 600 rows, 60 (4 of the copy's) a band
