@@ -97,8 +97,9 @@ def test_the_compiled_lobe_derivative_matches_central_differences():
     sh = np.sqrt((1 + s[:, 2]) / 2)
     m = len(s)
     btab = np.zeros((5, 5, m))
-    out = [np.empty(m) for _ in range(4)]
-    lo, hi = [np.empty(m) for _ in range(4)], [np.empty(m) for _ in range(4)]
+    every = np.arange(m)
+    out = [np.empty(m) for _ in range(5)]
+    lo, hi = [np.empty(m) for _ in range(5)], [np.empty(m) for _ in range(5)]
     checked = 0
     for sigma, n_i in ((0.05, 1.5), (0.2, 1.3), (0.4, 1.45)):
         fres = fresnel_dielectric(sh, n_i).astype(np.float64)
@@ -107,11 +108,11 @@ def test_the_compiled_lobe_derivative_matches_central_differences():
             n /= np.linalg.norm(n)
             t = np.cross(n, rng.normal(size=3))
             t /= np.linalg.norm(t)
-            _model(*n, s, sh, fres, btab, sigma, True, *out)
+            _model(*n, s, sh, fres, btab, sigma, True, every, m, *out)
             h = 1e-6
             for sign, buf in ((1, hi), (-1, lo)):
                 p = n + sign * h * t
-                _model(*(p / np.linalg.norm(p)), s, sh, fres, btab, sigma, True, *buf)
+                _model(*(p / np.linalg.norm(p)), s, sh, fres, btab, sigma, True, every, m, *buf)
             fd = (hi[0] - lo[0]) / (2 * h)
             analytic = out[2] * (s @ t) + out[3] * t[2]
             lit = out[0] > 1e-3 * out[0].max()      # away from the lobe's cut-off
@@ -194,3 +195,38 @@ def test_compiled_engine_same_result_on_one_thread_and_on_all():
         for a, b in zip(serial, other):
             np.testing.assert_array_equal(a, b)
     assert np.median(_err(serial[0], normals)) < 0.05   # and it did solve something
+
+
+def test_compiled_solve_equals_the_all_lights_reference_bit_for_bit():
+    # the kernel evaluates only the kept lights (packed to the front): a light left out weighed 0
+    # in every sum, so the result must be that of evaluating every light (li_solve_reference),
+    # to the last bit, also for unusable values, cast shadows, too few lights and no light at all
+    from facette.brdf import fresnel_dielectric
+    from facette.fit._normals_li_jit import _refine_all, volume_table
+    from li_solve_reference import refine_reference
+    sigma, n_i = 0.25, 1.45
+    normals, kd, e = _scene(n=24, sigma=sigma, n_i=n_i, seed=7)
+    rng = np.random.default_rng(8)
+    e = e * rng.uniform(0.9, 1.1, e.shape).astype(np.float32)
+    ok = rng.random(e.shape[:2]) > 0.25          # a quarter of the values unusable
+    ok[0] = False                                # no usable light
+    ok[1, 2:] = False                            # two lights: too few
+    e[2:12:2, 4] *= 0.05                         # cast shadows
+    e[3:12:2, 6] *= 3.0                          # outliers
+    e = np.where(ok[..., None], e, 0).astype(np.float32)   # as refine_distant_compiled hands them
+    s = RIG.astype(np.float64)
+    sh = np.sqrt(np.maximum((1 + s[:, 2]) / 2, 1e-12))
+    fres = fresnel_dielectric(sh, n_i).astype(np.float64)
+    btab = volume_table(RIG, sigma, n_i, grid=33)
+    n0 = _perturb(normals, 6).astype(np.float64)
+    n1 = _perturb(normals, 3, seed=2).astype(np.float64)
+    has1 = np.arange(len(e)) % 2 == 0            # a second start on every other pixel
+    args = (e, ok, n0, n1, has1, s, sh, fres, btab, sigma, True, 24, 0.25, 0.03, 0.15, 2e-4, 0.0)
+    out = (np.empty((len(e), 3)), np.empty((len(e), 3)), np.empty(e.shape[:2], bool), np.empty(len(e)),
+           np.empty(len(e)), np.empty(len(e), np.int32))
+    _refine_all(*args, *out, 5)
+    ref = refine_reference(*args)
+    for name, got, want in zip(("normals", "kappa", "used", "cost", "rel", "iterations"), out, ref):
+        np.testing.assert_array_equal(got, want, err_msg=name)
+    assert not out[2][0].any() and out[4][0] == 1.0 and out[5][0] == 0     # no light: the start kept
+    assert (out[5][2:] > 0).all() and (ok & ~out[2]).any()                 # the others solved, shadows out
