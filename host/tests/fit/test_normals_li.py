@@ -87,6 +87,22 @@ def test_volume_table_matches_the_direct_evaluation():
     assert np.median(rel) < 2e-4 and np.percentile(rel, 99) < 5e-3
 
 
+def test_volume_table_in_blocks_equals_one_evaluation_of_the_whole_disk():
+    # the table is evaluated TABLE_BLOCK normals at a time on threads: not a bit may change
+    from facette.fit._normals_li_jit import TABLE_BLOCK, _volume_table
+    grid = 81
+    u = np.linspace(-1, 1, grid)
+    gx, gy = np.meshgrid(u, u)
+    inside = gx * gx + gy * gy < 1
+    gn = np.stack([gx, gy, np.sqrt(np.maximum(1 - gx * gx - gy * gy, 0))], -1)[inside].astype(np.float32)
+    assert len(gn) > 3 * TABLE_BLOCK
+    for volume_model in ("approx", "tables"):
+        tab = _volume_table(RIG, 0.15, 1.4, grid, volume_model)
+        _, whole = li_shading_terms(gn, RIG, 0.15, 1.4, specular=False, volume_model=volume_model)
+        np.testing.assert_array_equal(tab[inside], whole)
+        assert not tab[~inside].any()
+
+
 def test_the_compiled_lobe_derivative_matches_central_differences():
     # the per-pixel solve's Jacobian of the lobe A (eq 3.10) is analytic (`_model`'s pa, qa):
     # dA/dt = pa (s·t) + qa t_z along a tangent t of the normal; central differences of A agree
