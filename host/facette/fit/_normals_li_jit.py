@@ -33,6 +33,7 @@ machine code next to this file (__pycache__), later processes load it in well un
 """
 import math
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -42,7 +43,7 @@ from facette.recon._ps import _run_blocks
 
 __all__ = ["volume_table", "refine_distant_compiled", "bin_images", "TABLE_GRID"]
 
-CHUNK = 256               # pixels per work item of the threaded per-pixel loop
+CHUNK = 256               # pixels per work item of the threaded per-pixel loop (at most)
 TABLE_GRID = 257           # grid points per axis of the B table over nx, ny ∈ [−1, 1]
 TABLE_BLOCK = 1024         # normals per block of the table's evaluation (~100 k values with 96 lights)
 # The extra start is tried where the first leaves a relative RMS residual ≥ this. 0: everywhere.
@@ -455,6 +456,8 @@ def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, 
     chunk : pixels per work item of the threaded loop (numba prange over chunks, as many threads
         as numba's NUMBA_NUM_THREADS, by default os.cpu_count()); each pixel is solved alone, so
         the result does not depend on it nor on the thread count (tests/fit/test_normals_li.py).
+        Fewer pixels than four chunks per thread get smaller chunks: the model choice's solves
+        of 125 profile pixels were one chunk, one thread.
     Returns (normals (N, 3) f32, kappa (N, C) f32, used (N, m), cost (N,), rel (N,) f32,
     iterations (N,) int32)."""
     e = np.asarray(e, np.float32)
@@ -478,8 +481,9 @@ def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, 
     out_rel = np.empty(n_pix)
     out_it = np.empty(n_pix, np.int32)
     second_above = SECOND_START_ABOVE if second_above is None else second_above
+    chunk = max(1, min(int(chunk), -(-n_pix // (4 * numba.get_num_threads()))))
     _refine_all(e, ok, n0, n1, has1, s, sh, fres, btab, sig, spec, int(iterations), cast_ratio, floor,
-                max_step, float(step_tol), float(second_above), out_n, out_k, out_used, out_cost, out_rel, out_it, int(chunk))
+                max_step, float(step_tol), float(second_above), out_n, out_k, out_used, out_cost, out_rel, out_it, chunk)
     return (out_n.astype(np.float32), out_k.astype(np.float32), out_used, out_cost,
             out_rel.astype(np.float32), out_it)
 
