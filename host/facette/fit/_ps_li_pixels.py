@@ -258,12 +258,8 @@ def _highlight_starts(values, usable, normals, lights, albedo):
     prediction of the initial solution (a highlight says where the normal is), tried where that
     light stands out (≥ 10 % of the pixel's mean value). values, usable : (N, m); normals (N, 3);
     lights (m, 3) or (N, m, 3); albedo (N,). Returns (has_highlight (N,) bool, starts (N, 3))."""
-    lam_pred = (normals @ lights.T if lights.ndim == 2 else np.einsum("nj,nmj->nm", normals, lights)) * \
-        (albedo / np.pi)[:, None]
-    excess = np.where(usable, values, -np.inf) - lam_pred
-    brightest = np.argmax(excess, axis=1)
-    mean_v = np.nanmean(np.where(usable, values, np.nan), axis=1)
-    has_highlight = np.take_along_axis(excess, brightest[:, None], 1)[:, 0] > 0.1 * np.nan_to_num(mean_v)
+    from ._ps_li_pixels_jit import brightest_excess     # numba loads only when li_alternating runs
+    has_highlight, brightest = brightest_excess(values, usable, normals, lights, albedo / np.pi)
     half = lights + np.float32([0, 0, 1])
     half = (half / np.linalg.norm(half, axis=-1, keepdims=True)).astype(np.float32)
     return has_highlight, (half[brightest] if half.ndim == 2 else half[np.arange(len(normals)), brightest])

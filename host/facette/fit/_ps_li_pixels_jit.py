@@ -1,0 +1,57 @@
+"""Compiled per-pixel pass of `facette.fit._ps_li_pixels` (numba, cache=True): the highlight start
+of each valid pixel, one loop over its lights instead of five whole-array passes (the Lambertian
+prediction, the excess, its argmax, the mean of the usable values and the test). At 2144×1424 × 12
+lights the array form took 6.4 s of `Pixels.start`'s 12.3 s over its two calls.
+
+    brightest_excess(values, usable, normals, lights, albedo_pi) -> (has_highlight (N,), brightest (N,))
+
+Arithmetic in float64 where the array form mixes float32 and float64: the two agree but for a pixel
+whose excess sits within rounding of the 10 % test (tests/fit/test_ps_li_pixels_jit.py).
+"""
+import math
+
+import numpy as np
+from numba import njit, prange
+
+__all__ = ["brightest_excess"]
+
+
+@njit(cache=True, parallel=True)
+def _brightest_excess(values, usable, normals, lights, albedo_pi, has_out, brightest_out):
+    n_pix, m = values.shape
+    for p in prange(n_pix):
+        nx, ny, nz = float(normals[p, 0]), float(normals[p, 1]), float(normals[p, 2])
+        best = -np.inf
+        best_i = 0
+        total = 0.0
+        count = 0
+        for i in range(m):
+            lam = (nx * lights[p, i, 0] + ny * lights[p, i, 1] + nz * lights[p, i, 2]) * albedo_pi[p]
+            if usable[p, i]:
+                excess = values[p, i] - lam
+                total += values[p, i]
+                count += 1
+            else:
+                excess = -np.inf - lam
+            # np.argmax: the first largest, and a NaN wins (the first NaN)
+            if i == 0 or (not math.isnan(best) and (excess > best or math.isnan(excess))):
+                best = excess
+                best_i = i
+        mean = np.float32(total / count) if count else np.float32(0.0)
+        has_out[p] = best > np.float32(0.1) * mean
+        brightest_out[p] = best_i
+
+
+def brightest_excess(values, usable, normals, lights, albedo_pi):
+    """values, usable : (N, m); normals : (N, 3); lights : (m, 3) or (N, m, 3); albedo_pi : (N,)
+    the initial albedo over π. Returns (has_highlight (N,) bool: the light of largest excess over
+    the Lambertian prediction exceeds it by ≥ 10 % of the pixel's mean usable value; brightest (N,)
+    int64: that light (0 where no light is usable))."""
+    n_pix, m = values.shape
+    lights = np.asarray(lights)
+    if lights.ndim == 2:     # one direction per light: the same row for every pixel (no copy)
+        lights = np.broadcast_to(lights, (n_pix, m, 3))
+    has = np.empty(n_pix, bool)
+    brightest = np.empty(n_pix, np.int64)
+    _brightest_excess(values, np.asarray(usable, bool), normals, lights, np.asarray(albedo_pi), has, brightest)
+    return has, brightest
