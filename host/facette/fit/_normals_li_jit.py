@@ -83,16 +83,18 @@ def _volume_table(lights, sigma, n_i, grid, volume_model):
     inside = r2 < 1
     nz = np.sqrt(np.maximum(1 - r2, 0))
     gn = np.stack([gx, gy, nz], -1)[inside].astype(np.float32)
-    # the disk's normals only (π/4 of the grid; the values are per normal, the same bits), in
-    # blocks of TABLE_BLOCK normals on two threads: the whole disk's float32 temporaries (~20 MB
-    # each at 257² × 96 lights) missed the caches (DiLiGenT reading's table: 0.35 of the time)
+    # the disk's normals only (π/4 of the grid; the values are per normal, the same bits); a large
+    # disk in blocks of TABLE_BLOCK normals on two threads: its float32 temporaries (~20 MB each at
+    # 257² × 96 lights) missed the caches (DiLiGenT reading, in `process`: 0.73 of the time). A
+    # small one (the model choice's 65² grid) at once: threads and blocks cost it more than they save
     b_disk = np.empty((len(gn), len(lights)), np.float32)
+    block_size = TABLE_BLOCK if len(gn) > 4 * TABLE_BLOCK else len(gn)
 
     def block(a):
-        b_disk[a:a + TABLE_BLOCK] = li_shading_terms(gn[a:a + TABLE_BLOCK], lights, sigma, n_i, specular=False,
-                                                     volume_model=volume_model)[1]
+        b_disk[a:a + block_size] = li_shading_terms(gn[a:a + block_size], lights, sigma, n_i, specular=False,
+                                                    volume_model=volume_model)[1]
 
-    _run_blocks(block, range(0, len(gn), TABLE_BLOCK))
+    _run_blocks(block, range(0, len(gn), max(block_size, 1)))
     b = np.zeros((grid, grid, len(lights)), np.float32)
     b[inside] = b_disk
     return b
