@@ -37,6 +37,32 @@ def keep_freed_memory():
     return all(ok)
 
 
+def hand_back():
+    """Give the heap's free pages back to the kernel now (glibc's malloc_trim): with
+    `keep_freed_memory` nothing goes back on its own, so a stage's freed temporaries stay in the
+    process's memory and the next stage's come on top of them wherever they do not fit the holes.
+    `process --memory` calls it between its stages (one call each: the faults of the next stage
+    are the price, not one per array); 100 MP, every output: 2.95 GB without, see README.
+    True when glibc took it, False elsewhere."""
+    try:
+        trim = ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):      # not glibc
+        return False
+    trim.argtypes, trim.restype = [ctypes.c_size_t], ctypes.c_int
+    trim(0)
+    return True
+
+
+def handing_back(fn):
+    """fn (no arguments) then `hand_back`, as one function returning fn's result."""
+    def run():
+        try:
+            return fn()
+        finally:
+            hand_back()
+    return run
+
+
 def disk_array(shape, dtype, folder=None):
     """A zero-filled array kept in a temporary file (a numpy memmap) rather than in memory: the
     full-size maps of a `--memory` run, written and read a band at a time. The file has no name

@@ -97,3 +97,24 @@ def test_decimated_brings_in_about_rows_of_the_array_at_a_time(monkeypatch):
     _memory.decimated(a, 15, rows=60)
     read = [s for s in spans if s is not None]
     assert read and max(read) <= 60 and len(read) == 10      # 600 rows, 60 (4 of the copy's) a band
+
+
+def test_hand_back_gives_the_freed_heap_back_to_the_kernel():
+    import subprocess
+    import sys
+    code = """
+import numpy as np
+from facette._memory import keep_freed_memory, hand_back
+assert keep_freed_memory()
+rss = lambda: int(open('/proc/self/statm').read().split()[1]) * 4096
+parts = [np.ones(5_000_000) for _ in range(8)]      # 320 MB from the heap
+pin = np.ones(10)                                    # the heap's top stays in use
+before = rss()
+del parts
+kept = rss()
+assert hand_back()
+print(before - kept, kept - rss())
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    still, given = map(int, out.split())
+    assert still < 20e6 < 300e6 < given          # kept after the frees, gone after hand_back

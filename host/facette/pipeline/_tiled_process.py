@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facette._memory import disk_array, release
+from facette._memory import disk_array, hand_back, release
 from facette.io.diligent import is_diligent_dir, read_diligent_lights
 from facette.io.png import read_mask
 from facette.methods import PS_METHODS, photometric_stereo
@@ -69,11 +69,12 @@ MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (th
 # the PS outputs a streamed run keeps on disk (`_memory.disk_array`): 30 of their 32 bytes per
 # pixel, 3 GB at 100 MP; written band by band, read band by band by the writers and the heights
 ON_DISK = ("normal", "albedo", "n_triplets", "residual")
-# a scan's maps held in memory at the image's size besides the mask and the flags that
-# `rows_per_tile` counts, at their most (bytes per pixel): the brightest value (float32, kept for
-# the outputs) with, while the masks are made, the median (float32) and the unknown pixels, and
-# later the material, object and sample masks (1 byte each); a DiLiGenT folder holds its mask only
-SCAN_MAPS_BYTES = 9
+# a scan's maps held in memory at the image's size besides the mask and the two flags that
+# `rows_per_tile` counts, at their most (bytes per pixel): while the bands run, the brightest value
+# (float32, kept for the outputs) and the material, object and sample masks (1 byte each); before,
+# while the masks' maps are read, the brightest value, the median (float32) and the unknown pixels
+# (6); a DiLiGenT folder holds its mask only
+SCAN_MAPS_BYTES = 7
 
 
 def check_memory_options(method, interreflections):
@@ -260,6 +261,7 @@ def open_streamed(source, o, work, rows=None, client=None):
                 top[r0:r1], med[r0:r1], unknown[r0:r1] = t, md, u
             mask, material = masks_from(top, med)
             del med
+            hand_back()                     # the maps' bands and the median: not under the bands
             inp = scan_input(path, data, complete, None, dirs, positions, mask, material, None, mask | unknown,
                              o.pixel_pitch_mm or pitch, hdr_notes, light_notes, profile_notes)
         except BaseException:
@@ -363,6 +365,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
             calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
                       inp.mask[r0:r1], obj[r0:r1], take(r0, r1)) for r0, r1 in _bands(h, n))
             ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client), on_disk=True)
+            hand_back()                     # the bands' heap: not under the stages after them
             ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n,
                            channels={"channels": "green", "weights": [0.0, 1.0, 0.0]})   # pipeline._channels
             if o.channels != "green":
@@ -373,6 +376,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
             if relight is not None:          # ptm, rti: fitted over the same bands (pipeline._rti_bands)
                 t1 = time.perf_counter()
                 relight(inp, ps, top, band_reader(bands, near, None if near else inp.light_dirs), n)
+                hand_back()
                 t0 += time.perf_counter() - t1
         finally:
             bands.close()
