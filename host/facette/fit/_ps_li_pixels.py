@@ -11,6 +11,8 @@ the BRDF-aware step solved); `Settings` the call's options the steps read. The s
 - `choose_model`: round 1's model choice on profile pixels (facette.fit._li_model);
 - `lambertian_material`: a material without a lobe;
 - `store`: a solve's results written back.
+
+`Pixels.start`'s highlight test runs compiled, one loop per pixel (`_ps_li_pixels_jit`).
 """
 from dataclasses import dataclass
 
