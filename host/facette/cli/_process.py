@@ -113,9 +113,10 @@ def register(sub):
     p.add_argument("--reference", help="RTI capture: x0,y0,x1,y1 (px) of a white or grey patch in every "
                                        "photograph; each photograph is divided by its level there")
     p.add_argument("--memory", metavar="SIZE", default=d.memory,
-                   help="a memory budget such as 2GB, 512MB or 3GiB: photometric stereo runs over bands of "
-                        "rows in it (a per-pixel --method); a scan's or DiLiGenT folder's images are read band by "
-                        "band, never whole (default: untiled)")
+                   help="a memory budget such as 2GB or 3GiB for the whole process: photometric stereo runs over "
+                        "bands of rows in what the libraries (0.45 GB) and the maps kept at the image's size leave "
+                        "(a per-pixel --method); a scan's or DiLiGenT folder's images are read band by band, never "
+                        "whole (default: untiled)")
     p.add_argument("--scheduler", metavar="ADDRESS", default=d.scheduler,
                    help="with --memory: a running dask.distributed scheduler, e.g. tcp://host:8786, whose workers "
                         "run the bands (they must see the same paths; the same flag as facette batch)")
