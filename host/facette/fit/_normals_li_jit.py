@@ -41,7 +41,7 @@ from facette.brdf import fresnel_dielectric, li_shading_terms
 from facette.brdf._lobe_jit import beckmann_d
 from facette.recon._ps import _run_blocks
 
-__all__ = ["volume_table", "refine_distant_compiled", "bin_images", "TABLE_GRID"]
+__all__ = ["volume_table", "refine_distant_compiled", "TABLE_GRID"]
 
 CHUNK = 256               # pixels per work item of the threaded per-pixel loop (at most)
 TABLE_GRID = 257           # grid points per axis of the B table over nx, ny ∈ [−1, 1]
@@ -271,8 +271,7 @@ def _solve_one(e_all, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_
     for i in range(m):
         p = a[i] + b[i] * k
         pmax = max(pmax, p)
-    n = 0
-    sum_e = 0.0
+    n, sum_e = 0, 0.0
     for i in range(m):
         p = a[i] + b[i] * k
         if ok[i] and not (e_all[i] < cast_ratio * p and p > 0.05 * pmax):
@@ -488,32 +487,3 @@ def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, 
                 max_step, float(step_tol), float(second_above), out_n, out_k, out_used, out_cost, out_rel, out_it, chunk)
     return (out_n.astype(np.float32), out_k.astype(np.float32), out_used, out_cost,
             out_rel.astype(np.float32), out_it)
-
-
-@njit(cache=True, parallel=True)
-def _bin_kernel(images, mask, f, saturation, out):
-    m, h, w, c = images.shape
-    hc, wc = out.shape[1], out.shape[2]
-    for i in prange(m):
-        for by in range(hc):
-            for bx in range(wc):
-                for ch in range(c):
-                    tot = 0.0
-                    cnt = 0
-                    for y in range(by * f, min((by + 1) * f, h)):
-                        for x in range(bx * f, min((bx + 1) * f, w)):
-                            v = images[i, y, x, ch]
-                            if mask[y, x] and math.isfinite(v) and v < saturation:
-                                tot += v
-                                cnt += 1
-                    out[i, by, bx, ch] = tot / cnt if 2 * cnt >= f * f else np.nan
-
-
-def bin_images(images, mask, f, saturation=None):
-    """(m, ceil(H/f), ceil(W/f), C) float32 block means of the masked, finite values below
-    `saturation` of (m, H, W, C) images; NaN where fewer than half the block's f × f pixels count."""
-    m, h, w, c = images.shape
-    out = np.empty((m, -(-h // f), -(-w // f), c), np.float32)
-    _bin_kernel(images, np.ascontiguousarray(mask, bool), int(f),
-                np.inf if saturation is None else float(saturation), out)
-    return out

@@ -93,7 +93,7 @@ def bin_inputs(images, light_dirs, mask, f, saturation):
     m, h, w, c = images.shape
     hc, wc = -(-h // f), -(-w // f)
 
-    from ._normals_li_jit import bin_images   # numba loads only when li_alternating runs
+    from ._bin_jit import bin_images   # numba loads only when li_alternating runs
 
     msk = np.pad(mask, [(0, hc * f - h), (0, wc * f - w)])
     cmask = msk.reshape(hc, f, wc, f).sum((1, 3)) * 2 >= f * f

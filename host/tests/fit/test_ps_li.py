@@ -57,7 +57,7 @@ def test_coarse_to_fine_keeps_the_accuracy_of_the_full_solve(cache):
 
 
 def test_binning_averages_the_usable_values_only():
-    from facette.fit._normals_li_jit import bin_images
+    from facette.fit._bin_jit import bin_images
     im = np.arange(2 * 4 * 6, dtype=np.float32).reshape(2, 4, 6, 1)
     im[0, 0, 0, 0] = np.nan                       # missing
     im[1, 1, 1, 0] = 100.0                        # saturated (level 90 below)
