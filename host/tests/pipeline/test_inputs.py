@@ -77,28 +77,6 @@ def test_object_takes_its_dark_rim_and_leaves_the_table_and_its_specks():
     assert object_of(img, lit, lit).all()        # no table: every lit pixel
 
 
-def _masks_whole(top, med, min_contrast=4.0):
-    """masks_from as it was written over whole images (before it read bands of rows)."""
-    lum = np.nan_to_num(top, nan=0.0)
-    ref = float(np.quantile(lum.ravel()[::7], 0.99))
-    lit = lum > 0.02 * ref
-    ok = lit & np.isfinite(med) & (med > 0)
-    logl = np.log(med[ok])
-    hist, edges = np.histogram(logl, bins=256)
-    w0 = np.cumsum(hist)
-    w1 = w0[-1] - w0
-    s0 = np.cumsum(hist * 0.5 * (edges[1:] + edges[:-1]))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        m0, m1 = s0 / w0, (s0[-1] - s0) / w1
-        between = np.where((w0 > 0) & (w1 > 0), w0 * w1 * (m0 - m1) ** 2, -1.0)
-    k = int(np.argmax(between))
-    if between[k] <= 0 or m1[k] - m0[k] < np.log(min_contrast):
-        return lit, lit
-    material = np.zeros(lum.shape, bool)
-    material[ok] = logl > edges[k + 1]
-    return lit, material
-
-
 def test_masks_from_bands_of_rows_give_the_whole_images_masks():
     from facette.pipeline._inputs import masks_from
     rng = np.random.default_rng(3)
@@ -110,7 +88,7 @@ def test_masks_from_bands_of_rows_give_the_whole_images_masks():
     med[10:12] = np.nan                    # unknown under every light
     med[20, :7] = 0.0
     top[90:] = 0.0                         # unlit rows
-    lit_w, mat_w = _masks_whole(top, med)
+    lit_w, mat_w = masks_from(top, med, rows=top.shape[0])     # one band: the whole images' formula
     assert mat_w.any() and (lit_w & ~mat_w).any()       # a split was made: the bins matter
     for rows in (1, 7, 512):
         lit, material = masks_from(top, med, rows=rows)
