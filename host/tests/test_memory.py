@@ -99,7 +99,7 @@ def test_decimated_brings_in_about_rows_of_the_array_at_a_time(monkeypatch):
     assert read and max(read) <= 60 and len(read) == 10      # 600 rows, 60 (4 of the copy's) a band
 
 
-def test_hand_back_gives_the_freed_heap_back_to_the_kernel():
+def test_hand_back_gives_the_freed_heap_back_near_the_budget():
     import subprocess
     import sys
     code = """
@@ -111,8 +111,9 @@ parts = [np.ones(5_000_000) for _ in range(8)]      # 320 MB from the heap
 pin = np.ones(10)                                    # the heap's top stays in use
 before = rss()
 del parts
+assert not hand_back(budget=10 * rss())              # far below its budget: kept for reuse
 kept = rss()
-assert hand_back()
+assert hand_back(budget=rss())                       # at its budget: given back
 print(before - kept, kept - rss())
 """
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout

@@ -98,6 +98,11 @@ class ProcessOptions:
                              "workers run the bands (they must see the scan's path); None: here, one after the other",
                              record=False)
 
+    @property
+    def memory_bytes(self):
+        """The memory budget in bytes, or None."""
+        return None if self.memory is None else parse_memory(self.memory)
+
     def __post_init__(self):
         # copies, so that a caller's dict changed later does not change these options
         object.__setattr__(self, "fit_options", dict(self.fit_options or {}))

@@ -344,7 +344,7 @@ def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, 
     res.timings["total_compute"] = time.perf_counter() - t_all
     if out_dir is not None:
         t0 = time.perf_counter()
-        _write_last(res, Path(out_dir), outputs, drawn, one_at_a_time=o.memory is not None)
+        _write_last(res, Path(out_dir), outputs, drawn, budget=o.memory_bytes)
         if inp.lights_file is not None:       # the sphere's lights, beside the results (never the input)
             res.files["lp"] = str(write_lp(Path(out_dir) / LP_NAME, *inp.lights_file))
         write_record(Path(out_dir), record_options, inp, res, previous)
@@ -459,7 +459,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
     tasks = [(reflectance, "samples" in stages), (lambda: relit("rti"), "hsh" in stages),
              (lambda: relit("ptm"), "ptm" in stages),
              (shape, "integrate" in stages), (maps, out is not None)]
-    tasks = [(handing_back(fn) if workers == 1 else fn, w) for fn, w in tasks]  # --memory: heap back after each
+    tasks = [(handing_back(fn, o.memory_bytes) if o.memory else fn, w) for fn, w in tasks]  # heap back
     t0 = time.perf_counter()
     with ThreadPoolExecutor(workers) as pool:
         futures = [pool.submit(fn) for fn, wanted in tasks if wanted]
@@ -534,9 +534,9 @@ def _rti_comments(res):
     return lines
 
 
-def _write_last(res, out, outputs, drawn, one_at_a_time=False):
+def _write_last(res, out, outputs, drawn, budget=None):
     """What needs every stage: model.glb (mesh and BRDF), made and written on a thread while the report
-    (matplotlib, main thread only) is drawn (before it, one_at_a_time); then the list of files written."""
+    (matplotlib, main thread only) is drawn (before it, with a --memory budget); then the list of files written."""
     with ThreadPoolExecutor(1) as pool:
         future = None
         if "gltf" in outputs:
@@ -550,8 +550,8 @@ def _write_last(res, out, outputs, drawn, one_at_a_time=False):
                     write_glb(out / FILES["gltf"], **kwargs)
                     res.timings["write_gltf"] = time.perf_counter() - t0
 
-                future = pool.submit(handing_back(glb) if one_at_a_time else glb)
-                if one_at_a_time:
+                future = pool.submit(handing_back(glb, budget) if budget else glb)
+                if budget:
                     future.result()
             else:
                 res.notes.append("gltf: the mesh has no triangles (empty mask); model.glb not written")

@@ -54,7 +54,8 @@ from facette.pipeline._bands import DiligentBands, ScanBands, open_bands
 from facette.pipeline._quality import add_counts, check_counts, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
-from facette.pipeline._tiles import FIELD_BYTES, PROCESS_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, rows_per_tile
+from facette.pipeline._tiles import (FIELD_BYTES, PROCESS_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, parse_memory,
+                                     rows_per_tile)
 from facette.recon import PSResult, near_light_directions
 
 __all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "open_streamed", "ps_bands", "streamed_ps",
@@ -261,7 +262,7 @@ def open_streamed(source, o, work, rows=None, client=None):
                 top[r0:r1], med[r0:r1], unknown[r0:r1] = t, md, u
             mask, material = masks_from(top, med)
             del med
-            hand_back()                     # the maps' bands and the median: not under the bands
+            hand_back(parse_memory(o.memory))   # the maps' bands and the median: not under the bands
             inp = scan_input(path, data, complete, None, dirs, positions, mask, material, None, mask | unknown,
                              o.pixel_pitch_mm or pitch, hdr_notes, light_notes, profile_notes)
         except BaseException:
@@ -365,7 +366,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
             calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
                       inp.mask[r0:r1], obj[r0:r1], take(r0, r1)) for r0, r1 in _bands(h, n))
             ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client), on_disk=True)
-            hand_back()                     # the bands' heap: not under the stages after them
+            hand_back(parse_memory(o.memory))   # the bands' heap: not under the stages after them
             ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n,
                            channels={"channels": "green", "weights": [0.0, 1.0, 0.0]})   # pipeline._channels
             if o.channels != "green":
@@ -376,7 +377,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
             if relight is not None:          # ptm, rti: fitted over the same bands (pipeline._rti_bands)
                 t1 = time.perf_counter()
                 relight(inp, ps, top, band_reader(bands, near, None if near else inp.light_dirs), n)
-                hand_back()
+                hand_back(parse_memory(o.memory))
                 t0 += time.perf_counter() - t1
         finally:
             bands.close()
