@@ -54,8 +54,7 @@ from facette.pipeline._bands import DiligentBands, ScanBands, open_bands
 from facette.pipeline._quality import add_counts, check_counts, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
-from facette.pipeline._tiles import (FIELD_BYTES, PROCESS_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, parse_memory,
-                                     rows_per_tile)
+from facette.pipeline._tiles import FIELD_BYTES, PROCESS_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, rows_per_tile
 from facette.recon import PSResult, near_light_directions
 
 __all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "open_streamed", "ps_bands", "streamed_ps",
@@ -72,7 +71,7 @@ MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (th
 ON_DISK = ("normal", "albedo", "n_triplets", "residual")
 # a scan's maps held in memory at the image's size besides the mask and the two flags that
 # `rows_per_tile` counts, at their most (bytes per pixel): while the bands run, the brightest value
-# (float32, kept for the outputs) and the material, object and sample masks (1 byte each); before,
+# (float32, until the object mask is made) and the material, object and sample masks (1 byte each); before,
 # while the masks' maps are read, the brightest value, the median (float32) and the unknown pixels
 # (6); a DiLiGenT folder holds its mask only
 SCAN_MAPS_BYTES = 7
@@ -262,7 +261,7 @@ def open_streamed(source, o, work, rows=None, client=None):
                 top[r0:r1], med[r0:r1], unknown[r0:r1] = t, md, u
             mask, material = masks_from(top, med)
             del med
-            hand_back(parse_memory(o.memory))   # the maps' bands and the median: not under the bands
+            hand_back(o.memory_bytes)   # the maps' bands and the median: not under the bands
             inp = scan_input(path, data, complete, None, dirs, positions, mask, material, None, mask | unknown,
                              o.pixel_pitch_mm or pitch, hdr_notes, light_notes, profile_notes)
         except BaseException:
@@ -366,7 +365,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
             calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
                       inp.mask[r0:r1], obj[r0:r1], take(r0, r1)) for r0, r1 in _bands(h, n))
             ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client), on_disk=True)
-            hand_back(parse_memory(o.memory))   # the bands' heap: not under the stages after them
+            hand_back(o.memory_bytes)   # the bands' heap: not under the stages after them
             ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n,
                            channels={"channels": "green", "weights": [0.0, 1.0, 0.0]})   # pipeline._channels
             if o.channels != "green":
@@ -377,7 +376,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
             if relight is not None:          # ptm, rti: fitted over the same bands (pipeline._rti_bands)
                 t1 = time.perf_counter()
                 relight(inp, ps, top, band_reader(bands, near, None if near else inp.light_dirs), n)
-                hand_back(parse_memory(o.memory))
+                hand_back(o.memory_bytes)
                 t0 += time.perf_counter() - t1
         finally:
             bands.close()
