@@ -58,9 +58,9 @@ def register(sub):
                         "stages they need run")
     p.add_argument("--method", default=None,
                    choices=list(PS_METHODS),
-                   help=f"photometric stereo (default {d.method}: robust Lambertian; li_alternating: "
-                        "BRDF-aware, the LI model fitted per material and the normals re-estimated against "
-                        "it where the data show a lobe, better on real glossy photographs, 10-50x slower); "
+                   help=f"photometric stereo (default {d.method}: BRDF-aware, the LI model fitted per "
+                        "material and the normals re-estimated against it where the data show a lobe; "
+                        f"{PS_DEFAULT}: robust Lambertian, a few times faster); "
                         f"with --memory the default is {PS_DEFAULT}, a per-pixel method")
     p.add_argument("--init", default=None,
                    choices=[m for m in PS_METHODS if m != "li_alternating"],

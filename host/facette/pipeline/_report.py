@@ -11,7 +11,6 @@ import html
 import io
 import json
 import math
-import warnings
 
 import numpy as np
 
@@ -537,11 +536,14 @@ def _mask_overlay(res, st):
     obj = getattr(res, "object_mask", None)
     if obj is None or res.inputs is None or res.inputs.images is None:
         return None
+    from facette.pipeline._pixels_jit import median_over_lights   # numba: loaded on first use
     obj = obj[::st, ::st]
-    with np.errstate(invalid="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)          # all-NaN (saturated) pixels
-        photo = np.nanmedian(res.inputs.images[:, ::st, ::st], axis=0)
-    photo = np.nan_to_num(photo, nan=1.0)
+    # np.nanmedian's own loop took 9 s of a 40 s run on the 16-bit DiLiGenT ball (612x512x96)
+    ims = res.inputs.images[:, ::st, ::st]
+    flat = ims.reshape(ims.shape[:2] + (-1,))
+    photo = np.empty(flat.shape[1:], flat.dtype)
+    median_over_lights(flat, photo, slice(None))
+    photo = np.nan_to_num(photo.reshape(ims.shape[1:]), nan=1.0)         # NaN: saturated everywhere
     top = float(np.percentile(photo[obj], 99)) if obj.any() else float(np.max(photo) or 1.0)
     rgb = srgb_encode(photo / max(top, 1e-12))
     out = np.where(obj[..., None], rgb, 0.35 * rgb + np.array([0.0, 0.05, 0.25]))

@@ -482,14 +482,20 @@ def relight_error_parts(fit, images, light_dirs, mask, starts, rows=2, workers=2
     def part(r):
         sl = slice(r, r + rows)
         if d_all.ndim == 2:
+            # the masked pixels only: rendering and decoding the whole band cost 20x the time on
+            # the 16-bit DiLiGenT ball, whose object is 5 % of the image
             m, n_terms = basis.shape
-            img = images[:, sl]                                              # (m, r, W, 3)
-            pred = basis @ fit.coeffs[sl].reshape(-1, n_terms).T              # (m, r·W[·3])
+            px = np.flatnonzero(mask[sl])
+            if px.size == 0:
+                return 0.0, 0.0
+            img = images[:, sl].reshape(m, -1, 3)[:, px]                      # (m, k, 3)
+            coeffs = fit.coeffs[sl].reshape(mask[sl].size, -1)[px]            # (k, 6) or (k, 3·T)
+            pred = basis @ coeffs.reshape(-1, n_terms).T                      # (m, k[·3])
             np.clip(pred, 0, None, out=pred)
             if ptm:
-                pred = pred[..., None] * fit.rgb[sl].reshape(1, -1, 3)
+                pred = pred[..., None] * fit.rgb[sl].reshape(-1, 3)[px][None]
             pred = _to_images(fit, pred).reshape(img.shape)
-            sel = (mask[sl] & _all3(np.isfinite(img)))[..., None]
+            sel = _all3(np.isfinite(img))[..., None]
             diff = np.where(sel, pred - img, 0.0).ravel()
             x = np.where(sel, img, np.zeros((), img.dtype)).astype(np.float64).ravel()
             return float(diff @ diff), float(x @ x)
