@@ -10,7 +10,7 @@ import math
 
 from numba import njit
 
-__all__ = ["smith_g1_beckmann", "beckmann_d", "fresnel_dielectric_scalar"]
+__all__ = ["smith_g1_beckmann", "beckmann_d", "fresnel_dielectric_scalar", "li_specular_beckmann_smith"]
 
 _SQRT_PI = math.sqrt(math.pi)
 
@@ -47,3 +47,27 @@ def fresnel_dielectric_scalar(c, eta):
     gmc = eta / gpc
     a = gmc / gpc
     return 0.5 * a * a * (1.0 + ((c * gpc - 1.0) / (c * gmc + 1.0)) ** 2)
+
+
+@njit(cache=True, nogil=True)
+def li_specular_beckmann_smith(s, o, sigma, eta, out):
+    """`facette.brdf.li_specular` (eq 3.10) for Beckmann D and Smith G (eq 3.18, 3.20), isotropic
+    σ > 0, over the rows of s, o (N, 3) unit vectors; eta = n_i² − 1; out (N,). One pass with no
+    temporaries: the BRDF fit evaluates it on every sample and cell direction at each step."""
+    s2 = sigma * sigma
+    for i in range(s.shape[0]):
+        out[i] = 0.0
+        sz, oz = s[i, 2], o[i, 2]
+        if sz <= 0.0 or oz <= 0.0:
+            continue
+        hx, hy, hz = s[i, 0] + o[i, 0], s[i, 1] + o[i, 1], sz + oz
+        hn = math.sqrt(hx * hx + hy * hy + hz * hz)
+        sm = (s[i, 0] * hx + s[i, 1] * hy + sz * hz) / hn
+        om = (o[i, 0] * hx + o[i, 1] * hy + oz * hz) / hn
+        if sm <= 0.0 or om <= 0.0:
+            continue
+        d = beckmann_d((hz / hn) ** 2, s2)
+        if not d > 0.0:
+            continue
+        g = smith_g1_beckmann(sz, sigma) * smith_g1_beckmann(oz, sigma)
+        out[i] = fresnel_dielectric_scalar(min(sm, 1.0), eta) * d * g / (4.0 * sz * oz)
