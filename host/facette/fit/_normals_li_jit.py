@@ -38,6 +38,7 @@ import numpy as np
 from numba import njit, prange
 
 from facette.brdf import fresnel_dielectric, li_shading_terms
+from facette._select_jit import median_in_place as _median_in_place
 from facette.brdf._lobe_jit import beckmann_d
 from facette.recon._ps import _run_blocks
 
@@ -183,47 +184,6 @@ def _kappa(e, a, b, w, n):
 def _residuals(e, a, b, k, n, r_out):
     for t in range(n):
         r_out[t] = e[t] - a[t] - b[t] * k
-
-
-@njit(cache=True)
-def _kth_smallest(v, n, kth):
-    """The kth smallest of v[:n] (quickselect; v reordered so that v[:kth] hold smaller or equal ones)."""
-    lo = 0
-    hi = n - 1
-    while lo < hi:
-        pivot = v[(lo + hi) // 2]
-        i = lo
-        j = hi
-        while i <= j:
-            while v[i] < pivot:
-                i += 1
-            while v[j] > pivot:
-                j -= 1
-            if i <= j:
-                v[i], v[j] = v[j], v[i]
-                i += 1
-                j -= 1
-        if kth <= j:
-            hi = j
-        elif kth >= i:
-            lo = i
-        else:
-            return v[kth]
-    return v[kth]
-
-
-@njit(cache=True)
-def _median_in_place(v, n):
-    """np.median of v[:n] (the same value: the middle one or the mean of the two), without
-    np.median's copy; v reordered."""
-    half = n >> 1
-    upper = _kth_smallest(v, n, half)
-    if n & 1:
-        return upper
-    lower = v[0]             # the largest of the half below
-    for i in range(1, half):
-        lower = max(lower, v[i])
-    return (lower + upper) / 2
 
 
 @njit(cache=True)

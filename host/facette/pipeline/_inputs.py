@@ -1,6 +1,5 @@
 """Inputs of `process`: a facette scan directory or a DiLiGenT-style folder."""
 import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -99,9 +98,7 @@ def auto_masks(images, min_contrast=4.0):
     lum = np.fmax.reduce(ch, axis=0)      # NaN-ignoring max over the lights
     from facette.pipeline._pixels_jit import median_over_lights
     med = np.empty(lum.shape, ch.dtype)  # pixels unknown under every light: NaN, dropped below
-    half = lum.shape[0] // 2              # two halves of the rows on two threads (the kernel frees the GIL)
-    with ThreadPoolExecutor(2) as pool:
-        list(pool.map(lambda sl: median_over_lights(ch, med, sl), (slice(0, half), slice(half, None))))
+    median_over_lights(ch, med, slice(None), workers=2)
     return masks_from(lum, med, min_contrast)
 
 

@@ -8,6 +8,8 @@ callers can run them on row blocks on their own threads.
 import numpy as np
 from numba import njit
 
+from facette._select_jit import median_in_place
+
 __all__ = ["append_weighted", "median_over_lights", "usable_green"]
 
 
@@ -15,32 +17,30 @@ __all__ = ["append_weighted", "median_over_lights", "usable_green"]
 def _median_rows(a, out, r0, r1):
     m = a.shape[0]
     buf = np.empty(m, a.dtype)
-    two = a.dtype.type(2)
     for i in range(r0, r1):
         for j in range(a.shape[2]):
             k = 0
-            for li in range(m):          # the known values, insertion-sorted as they come
+            for li in range(m):          # the known values, then a quickselect among them
                 v = a[li, i, j]
-                if v != v:
-                    continue
-                p = k
-                while p > 0 and buf[p - 1] > v:
-                    buf[p] = buf[p - 1]
-                    p -= 1
-                buf[p] = v
-                k += 1
-            if k == 0:
-                out[i, j] = np.nan
-            else:
-                out[i, j] = (buf[(k - 1) // 2] + buf[k // 2]) / two
+                if v == v:
+                    buf[k] = v
+                    k += 1
+            out[i, j] = np.nan if k == 0 else median_in_place(buf, k)
 
 
-def median_over_lights(a, out, rows):
+def median_over_lights(a, out, rows, workers=1):
     """out[rows] = np.nanmedian(a[:, rows], axis=0), the same float values (the middle of the k
     known values, the mean of the two middle ones for even k, in a's dtype); NaN where no value
-    is known. a : (m, H, W) float (any strides); out : (H, W) of a's dtype; rows : a slice."""
+    is known. a : (m, H, W) float (any strides); out : (H, W) of a's dtype; rows : a slice;
+    workers : threads, each on its share of the rows (the kernel frees the GIL)."""
     r0, r1, _ = rows.indices(a.shape[1])
-    _median_rows(a, out, r0, r1)
+    if workers <= 1 or r1 - r0 < 2 * workers:
+        _median_rows(a, out, r0, r1)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+    cuts = np.linspace(r0, r1, workers + 1).astype(int)
+    with ThreadPoolExecutor(workers) as pool:
+        list(pool.map(lambda k: _median_rows(a, out, cuts[k], cuts[k + 1]), range(workers)))
 
 
 @njit(cache=True, nogil=True)

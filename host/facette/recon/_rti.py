@@ -474,7 +474,6 @@ def relight_error_parts(fit, images, light_dirs, mask, starts, rows=2, workers=2
     """[(Σ |render - image|², Σ |image|²) of image rows a..a+rows for a in starts], the sums
     `fit_relight_error` adds up (in that order), here of arrays that may be a band of rows."""
     ptm = isinstance(fit, PTMFit)
-    relight = relight_ptm if ptm else relight_hsh
     d_all = np.asarray(light_dirs, float)
     images, mask = np.asarray(images), np.asarray(mask, bool)
     basis = (ptm_basis(d_all) if ptm else hsh_basis(d_all, fit.order)) if d_all.ndim == 2 else None  # far: (m, T)
@@ -482,16 +481,11 @@ def relight_error_parts(fit, images, light_dirs, mask, starts, rows=2, workers=2
     def part(r):
         sl = slice(r, r + rows)
         if d_all.ndim == 2:
-            # the masked pixels only: rendering and decoding the whole band cost 20x the time on
-            # the 16-bit DiLiGenT ball, whose object is 5 % of the image
-            m, n_terms = basis.shape
-            px = np.flatnonzero(mask[sl])
-            if px.size == 0:
-                return 0.0, 0.0
+            # the masked pixels only (the 16-bit DiLiGenT ball's object is 5 % of its image)
+            m, n_terms, px = *basis.shape, np.flatnonzero(mask[sl])
             img = images[:, sl].reshape(m, -1, 3)[:, px]                      # (m, k, 3)
             coeffs = fit.coeffs[sl].reshape(mask[sl].size, -1)[px]            # (k, 6) or (k, 3·T)
-            pred = basis @ coeffs.reshape(-1, n_terms).T                      # (m, k[·3])
-            np.clip(pred, 0, None, out=pred)
+            pred = np.clip(basis @ coeffs.reshape(-1, n_terms).T, 0, None)   # (m, k[·3])
             if ptm:
                 pred = pred[..., None] * fit.rgb[sl].reshape(-1, 3)[px][None]
             pred = _to_images(fit, pred).reshape(img.shape)
@@ -500,7 +494,7 @@ def relight_error_parts(fit, images, light_dirs, mask, starts, rows=2, workers=2
             x = np.where(sel, img, np.zeros((), img.dtype)).astype(np.float64).ravel()
             return float(diff @ diff), float(x @ x)
         arrays = {k: getattr(fit, k)[sl] for k in ("coeffs", "valid", "rgb") if hasattr(fit, k)}
-        sub = replace(fit, **arrays)
+        sub, relight = replace(fit, **arrays), (relight_ptm if ptm else relight_hsh)
         return _error_sums(lambda q: relight(sub, q), images[:, sl], np.moveaxis(d_all[sl], 2, 0), mask[sl])
 
     return _run(part, starts, workers)

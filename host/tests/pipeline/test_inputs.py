@@ -41,13 +41,14 @@ def test_compiled_median_and_usable_test_give_numpys_values():
     from facette.pipeline._pixels_jit import median_over_lights
     from facette.pipeline._quality import MIN_SNR, usable_from_green
     rng = np.random.default_rng(3)
-    for m in (1, 2, 5, 12):                      # odd and even counts of known values
+    for m in (1, 2, 5, 12, 96):                  # odd and even counts of known values; a dome's 96
         ch = rng.normal(size=(m, 30, 20, 3)).astype(np.float32)[..., 1]     # strided, as in auto_masks
         ch[rng.random(ch.shape) < 0.3] = np.nan
         ch[:, 0, 0] = np.nan                                                 # unknown under every light
+        ch[:, 1, 1] = 0.25                                                   # ties
         out = np.full(ch.shape[1:], -1.0, np.float32)
         median_over_lights(ch, out, slice(0, 12))
-        median_over_lights(ch, out, slice(12, None))
+        median_over_lights(ch, out, slice(12, None), workers=3)              # rows shared by threads
         with warnings.catch_warnings():                  # "All-NaN slice"
             warnings.simplefilter("ignore", RuntimeWarning)
             np.testing.assert_array_equal(out, np.nanmedian(ch, axis=0))

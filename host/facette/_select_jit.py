@@ -1,0 +1,51 @@
+"""Order statistics in compiled loops (numba), shared by the kernels that need a median without
+a copy or a sort: the per-pixel LI solve (facette.fit._normals_li_jit) and the median over the
+lights of `process`'s loading and report (facette.pipeline._pixels_jit).
+
+numba's cache keys a kernel on its own file: after editing this one, clear the callers'
+__pycache__/*.nbc so that they recompile with it.
+"""
+from numba import njit
+
+__all__ = ["kth_smallest", "median_in_place"]
+
+
+@njit(cache=True)
+def kth_smallest(v, n, kth):
+    """The kth smallest of v[:n] (quickselect; v reordered so that v[:kth] hold smaller or equal ones)."""
+    lo = 0
+    hi = n - 1
+    while lo < hi:
+        pivot = v[(lo + hi) // 2]
+        i = lo
+        j = hi
+        while i <= j:
+            while v[i] < pivot:
+                i += 1
+            while v[j] > pivot:
+                j -= 1
+            if i <= j:
+                v[i], v[j] = v[j], v[i]
+                i += 1
+                j -= 1
+        if kth <= j:
+            hi = j
+        elif kth >= i:
+            lo = i
+        else:
+            return v[kth]
+    return v[kth]
+
+
+@njit(cache=True)
+def median_in_place(v, n):
+    """np.median of v[:n] (the same value: the middle one or the mean of the two), without
+    np.median's copy; v reordered."""
+    half = n >> 1
+    upper = kth_smallest(v, n, half)
+    if n & 1:
+        return upper
+    lower = v[0]             # the largest of the half below
+    for i in range(1, half):
+        lower = max(lower, v[i])
+    return (lower + upper) / 2
