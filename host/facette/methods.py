@@ -11,6 +11,7 @@ and nothing adds to the table later (`Registry.fixed`: `PS_METHODS.add` raises).
     rank_trimmed                        recon: per-pixel trimmed least squares (the default)
     bipolynomial_shi2014 (st14)         recon: bi-polynomial reflectance (Shi et al. 2014)
     bivariate_ikehata2014 (ia14)        recon: constrained bivariate regression (Ikehata, Aizawa 2014)
+    consensus_higo2010 (hm10)           recon: consensus of order and visibility constraints (Higo et al. 2010)
     li_alternating (brdf_li)            fit: normals and the LI model in alternation
 
 **Options.** A method's options are the keyword parameters of its function, after
@@ -38,8 +39,8 @@ from types import MappingProxyType
 
 from facette._registry import Registry
 from facette.fit import ps_li_alternating
-from facette.recon import (ps_bipolynomial_shi2014, ps_bivariate_ikehata2014, ps_hierarchical_tautzia2016,
-                           ps_rank_trimmed, ps_rpca_wu2010, ps_woodham1980)
+from facette.recon import (ps_bipolynomial_shi2014, ps_bivariate_ikehata2014, ps_consensus_higo2010,
+                           ps_hierarchical_tautzia2016, ps_rank_trimmed, ps_rpca_wu2010, ps_woodham1980)
 
 __all__ = ["PS_METHODS", "PS_DEFAULT", "PROCESS_DEFAULT", "METHOD_OPTIONS", "ALL_OPTIONS", "SAME_MEANING", "options_for",
            "photometric_stereo"]
@@ -51,6 +52,7 @@ PS_METHODS = Registry.fixed("photometric-stereo method", {
     "rank_trimmed": (ps_rank_trimmed, ()),
     "bipolynomial_shi2014": (ps_bipolynomial_shi2014, ("st14",)),
     "bivariate_ikehata2014": (ps_bivariate_ikehata2014, ("ia14",)),
+    "consensus_higo2010": (ps_consensus_higo2010, ("hm10",)),
     "li_alternating": (ps_li_alternating, ("brdf_li",)),
 })
 

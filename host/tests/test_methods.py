@@ -13,7 +13,7 @@ from facette.recon import ps_hierarchical_tautzia2016, ps_rank_trimmed, ps_woodh
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
 EVERY_METHOD = ["woodham1980", "hierarchical_tautzia2016", "rpca_wu2010", "rank_trimmed", "bipolynomial_shi2014",
-                "bivariate_ikehata2014", "li_alternating"]
+                "bivariate_ikehata2014", "consensus_higo2010", "li_alternating"]
 THRESHOLDS = {"t_ombre": 1.2, "t_spec": 0.3, "t_source": 8.0, "t_residual": 0.05}
 
 

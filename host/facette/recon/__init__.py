@@ -3,7 +3,7 @@
 Photometric stereo (thesis §4.2.1): `ps_woodham1980`, `ps_hierarchical_tautzia2016`; robust
 methods for real photographs: `ps_rpca_wu2010` (low-rank recovery), `ps_rank_trimmed` (per-pixel
 trimmed least squares); published peers for general isotropic BRDFs: `ps_bipolynomial_shi2014`,
-`ps_bivariate_ikehata2014`; each called directly here, and by name through `facette.methods` (the one
+`ps_bivariate_ikehata2014`, `ps_consensus_higo2010`; each called directly here, and by name through `facette.methods` (the one
 table of photometric-stereo methods, with fit's li_alternating). Integration: `integrate_poisson_flat_margin`
 (the default), `integrate_frankot_chellappa1988` (the thesis's), `integrate_simchony1990`, `integrate_least_squares`,
 dispatched by `integrate(..., method=)`.
@@ -15,6 +15,7 @@ Relighting functions for RTI (PTM, Malzbender 2001; hemispherical harmonics, Gau
 from ._ps import PSResult, ps_woodham1980, ps_hierarchical_tautzia2016, triplet_inverses, near_light_directions
 from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed
 from ._ps_peers import ps_bipolynomial_shi2014, ps_bivariate_ikehata2014   # published peers
+from ._ps_consensus import ps_consensus_higo2010
 from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
                          integrate_simchony1990, integrate_poisson_flat_margin, integrate_least_squares,
                          integrate, INTEGRATION_DEFAULT, INTEGRATION_METHODS, mesh_from_height, MESH_MAX_SLOPE,
@@ -26,7 +27,8 @@ from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, 
                    RTI_ENCODINGS, srgb_encode, srgb_decode, display_ptm, display_hsh)
 
 __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
-           "ps_rank_trimmed", "ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "triplet_inverses",
+           "ps_rank_trimmed", "ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "ps_consensus_higo2010",
+           "triplet_inverses",
            "near_light_directions",
            "normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
            "integrate_poisson_flat_margin", "integrate_least_squares", "integrate", "INTEGRATION_DEFAULT",
