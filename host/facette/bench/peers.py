@@ -5,7 +5,8 @@ diligent` finds them, the same grey input): per object and method the mean angul
 the run time, and for the peers the figure their paper reports on that object (Shi et al.'s
 DiLiGenT table, all 96 lights, full 16-bit images; `facette.bench.diligent.PUBLISHED_OTHERS`).
 Methods: least squares, rank_trimmed (the default), li_alternating (the BRDF-aware solve) and
-the peers of `facette.recon._ps_peers` (ST14 bi-polynomial, IA14 bivariate regression).
+the peers of `facette.recon._ps_peers` (ST14 bi-polynomial, IA14 bivariate regression) and
+`facette.recon._ps_consensus` (HM10 consensus; no paper figure printed: see PUBLISHED_OTHERS).
 
 Then (unless --no-mitsuba) Mitsuba 3 renders of materials the LI model does not cover
 (`facette.bench._mitsuba_scenes.NON_LI_SCENES`: gold and aluminium `roughconductor`, a metallic
@@ -29,16 +30,18 @@ from facette.bench.mitsuba import angular_errors as _angles
 from facette.bench.mitsuba import run_ps as mitsuba_run_ps
 from facette.methods import PS_METHODS
 
-METHODS = ("woodham1980", "rank_trimmed", "li_alternating", "bipolynomial_shi2014", "bivariate_ikehata2014")
+METHODS = ("woodham1980", "rank_trimmed", "li_alternating", "bipolynomial_shi2014", "bivariate_ikehata2014",
+           "consensus_higo2010")
 LIT_SHARE = 0.01       # a pixel whose brightest value is below this share of the scene's is dark
 PAPER_OBJECTS = ("ball", "cat", "pot2", "buddha", "reading")    # the order of PUBLISHED_OTHERS
-PAPER_OF = {"bipolynomial_shi2014": "Shi 2014 bi-polynomial", "bivariate_ikehata2014": "Ikehata 2014 bivariate"}
+PAPER_OF = {"bipolynomial_shi2014": "Shi 2014 bi-polynomial", "bivariate_ikehata2014": "Ikehata 2014 bivariate",
+            "consensus_higo2010": "Higo 2010 consensus"}
 
 
 def paper_figure(method, obj):
     """The paper's mean error (deg) for a peer on a DiLiGenT object, or None."""
     key = PAPER_OF.get(PS_METHODS.canonical(method)) if method in PS_METHODS else None
-    if key is None or obj not in PAPER_OBJECTS:
+    if key not in PUBLISHED_OTHERS or obj not in PAPER_OBJECTS:      # HM10's: not verified
         return None
     return PUBLISHED_OTHERS[key][PAPER_OBJECTS.index(obj)]
 

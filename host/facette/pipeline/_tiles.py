@@ -36,8 +36,10 @@ WHOLE_IMAGE_METHODS = {
 # tracemalloc peaks on the relief slab (bench/_large.py), 12 lights, 512k-pixel bands:
 # woodham1980 38.5, rank_trimmed 43, hierarchical 62, st14 48 (at 131k pixels 39, 59, 148, 53:
 # the block-wise stages hold a fixed part, BAND_FIXED_BYTES), rounded up; others: the largest.
+# consensus_higo2010 39.5 (131k pixels: 39.8; the same measure gave woodham1980 38.6, st14 47.4):
+# its kernel holds blocks of 1024 pixels only
 BYTES_PER_PIXEL_LIGHT = {"woodham1980": 40, "rank_trimmed": 48, "hierarchical_tautzia2016": 66,
-                         "bipolynomial_shi2014": 52, "bivariate_ikehata2014": 66}
+                         "bipolynomial_shi2014": 52, "bivariate_ikehata2014": 66, "consensus_higo2010": 42}
 BAND_FIXED_BYTES = 256 * 2 ** 20
 # The `facette` command's own resident memory once photometric stereo has run (Python, numpy,
 # scipy, numba and its compiled kernels, OpenEXR): 0.45 GB on the DiLiGenT cat crop with
@@ -48,7 +50,7 @@ FIELD_BYTES = {"normal": 12, "albedo": 12, "valid": 1, "residual": 4, "n_triplet
 MIN_ROWS = 1
 # The per-pixel methods: a pixel's normal from its own values only (tests check each tiled).
 TILED_METHODS = ("woodham1980", "hierarchical_tautzia2016", "rank_trimmed", "bipolynomial_shi2014",
-                 "bivariate_ikehata2014")
+                 "bivariate_ikehata2014", "consensus_higo2010")
 
 _UNITS = {"": 1, "B": 1, "K": 1e3, "KB": 1e3, "M": 1e6, "MB": 1e6, "G": 1e9, "GB": 1e9,
           "KIB": 2 ** 10, "MIB": 2 ** 20, "GIB": 2 ** 30}
