@@ -56,9 +56,10 @@ def _violations(n0, n1, n2, ls, hs, k, starts, dark, n_dark, pairs, t_shadow, w_
 
 
 @njit(cache=True, nogil=True)
-def _sort_pixel(e, lit, ok, p, tie, order, vals, starts, shadowed):
+def _sort_pixel(e, lit, ok, p, tie, ratio, order, vals, starts, shadowed):
     """The pixel's lit lights by decreasing value (order, vals), for each the first rank that is
-    darker by more than tie (starts), and its dark usable lights. Returns (k lit, n dark)."""
+    darker by more than tie and by more than the factor 1 + ratio (starts), and its dark usable
+    lights. Returns (k lit, n dark)."""
     m = e.shape[1]
     k = 0
     n_shadow = 0
@@ -79,7 +80,7 @@ def _sort_pixel(e, lit, ok, p, tie, order, vals, starts, shadowed):
     for r in range(k):
         if s <= r:
             s = r + 1
-        while s < k and vals[s] >= vals[r] - tie:
+        while s < k and vals[s] >= min(vals[r] - tie, vals[r] / (1.0 + ratio)):
             s += 1
         starts[r] = s
     return k, n_shadow
@@ -105,15 +106,15 @@ def _step(n0, n1, n2, d, c):
 
 
 @njit(cache=True, nogil=True)
-def consensus_block(e, lit, ok, peak, lights, halves, cands, steps, pairs, tie_share,
+def consensus_block(e, lit, ok, ref, lights, halves, cands, steps, pairs, tie_share, tie_ratio,
                     t_shadow, w_nl, margin, moves, out_n, out_v, out_votes):
     """Each pixel's normal by consensus over candidates, coarse to fine.
 
     e : (N, m) values; lit, ok : (N, m) bool (lit: above the shadow threshold; ok: usable);
-    peak : (N,) the pixel's brightest usable value; lights, halves : (m, 3) unit l and h;
+    ref : (N,) the pixel's reference level (ties: tie_share x ref); lights, halves : (m, 3);
     cands : (C, 3) the coarse candidates; steps : (S,) angles (rad) of the local search,
     decreasing; pairs : each lit light is compared with the next `pairs` lights darker than it
-    by more than tie_share x peak; moves : at most this many moves per step.
+    by more than tie_share x ref and by more than the factor 1 + tie_ratio; moves : at most this many moves per step.
     A candidate is contradicted once by each pair (brighter r, darker s) with n·l_r < n·l_s and
     n·h_r < n·h_s, w_nl times by each pair with n·l_r < n·l_s but n·h_r >= n·h_s (a specular lobe
     could give it), once by each lit light with n·l <= 0 and each dark one with n·l > t_shadow;
@@ -132,7 +133,8 @@ def consensus_block(e, lit, ok, peak, lights, halves, cands, steps, pairs, tie_s
     hs = np.empty((m, 3))
     dark = np.empty((m, 3))
     for p in range(n_pix):
-        k, n_sh = _sort_pixel(e, lit, ok, p, tie_share * peak[p], order, vals, starts, shadowed)
+        k, n_sh = _sort_pixel(e, lit, ok, p, tie_share * ref[p], tie_ratio, order, vals, starts,
+                              shadowed)
         for r in range(k):
             ls[r] = lights[order[r]]
             hs[r] = halves[order[r]]
