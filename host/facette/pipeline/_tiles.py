@@ -36,7 +36,7 @@ WHOLE_IMAGE_METHODS = {
 # tracemalloc peaks on the relief slab (bench/_large.py), 12 lights, 512k-pixel bands:
 # woodham1980 38.5, rank_trimmed 43, hierarchical 62, st14 48 (at 131k pixels 39, 59, 148, 53:
 # the block-wise stages hold a fixed part, BAND_FIXED_BYTES), rounded up; others: the largest.
-# consensus_higo2010 39.5 (131k pixels: 39.8; the same measure gave woodham1980 38.6, st14 47.4):
+# consensus_higo2010 40.5 (131k pixels: 40.5; the same measure gave woodham1980 38.6, st14 47.4):
 # its kernel holds blocks of 1024 pixels only
 BYTES_PER_PIXEL_LIGHT = {"woodham1980": 40, "rank_trimmed": 48, "hierarchical_tautzia2016": 66,
                          "bipolynomial_shi2014": 52, "bivariate_ikehata2014": 66, "consensus_higo2010": 42}
