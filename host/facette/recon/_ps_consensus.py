@@ -29,9 +29,11 @@ Where a light pair has the same angle to the view (l·v), n·h orders as n·l: t
 constraints are sharp for any lobe.
 
 How far this follows the paper (read before quoting a figure): the search corpus available when
-this was written held neither the paper's text beyond its abstract nor code implementing it; the
-constraints above are reconstructed from the abstract, no equation number is given, and every
-parameter is ours, chosen on our own synthetic spheres, never on DiLiGenT (see the constants).
+this was written held neither the paper nor code implementing it; the constraints above are
+reconstructed from the abstract as remembered and the method's common description, no equation
+number is given, and every parameter is ours, chosen on our own synthetic renders, never on
+DiLiGenT (the study note at the end of the module). Isotropy read as the BRDF's symmetry about
+the plane of n and v (as Alldrin and Kriegman 2007 use it) is not what is used here.
 In particular the paper's sampling of candidate normals, its thresholds and how it combines the
 n·l and n·h constraints are not known here. The DiLiGenT table's HM10 figures could not be read
 either, so `facette bench peers` prints none beside this method.
@@ -42,8 +44,7 @@ intensity; `PSResult`. Distant lights only, light_dirs (m, 3).
 """
 import numpy as np
 
-from ._ps import _albedo, _run_blocks, _scatter
-from ._ps import _usable
+from ._ps import _albedo, _run_blocks, _scatter, _usable
 from ._ps_peers import T_SHADOW, VIEW, _distant_start
 
 __all__ = ["ps_consensus_higo2010", "hemisphere_directions", "HM10_PAIRS", "HM10_DIFFUSE_WEIGHT",
@@ -55,7 +56,7 @@ HM10_PAIRS = 8              # each lit light is compared with this many next dar
 HM10_DIFFUSE_WEIGHT = 0.1   # weight of a pair ordered against n·l but as n·h (a lobe could give it)
 HM10_MARGIN = 0.005         # a pair ordered as n by less than this (cosines) counts in part
 HM10_REF_SHARE = 0.1        # the reference level: the value this share down a pixel's usable ones
-HM10_TIE_RATIO = 0.02        # values within this relative difference are not ordered (lights' gains)
+HM10_TIE_RATIO = 0.02       # values within this relative difference are not ordered (lights' gains)
 HM10_TIE = 0.002            # values closer than this share of the reference level are not ordered
 COARSE_CANDIDATES = 80      # directions over the visible hemisphere (about 16° apart)
 STEPS_DEG = (8.0, 4.0, 2.0, 1.0, 0.5, 0.25)   # the pattern search's steps
