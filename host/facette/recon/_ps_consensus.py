@@ -44,8 +44,8 @@ intensity; `PSResult`. Distant lights only, light_dirs (m, 3).
 """
 import numpy as np
 
-from ._ps import _albedo, _run_blocks, _scatter, _usable
-from ._ps_peers import T_SHADOW, VIEW, _distant_start
+from ._ps import _albedo, _run_blocks, _usable
+from ._ps_peers import T_SHADOW, VIEW, _distant_start, _fill
 
 __all__ = ["ps_consensus_higo2010", "hemisphere_directions", "HM10_PAIRS", "HM10_DIFFUSE_WEIGHT",
            "HM10_MARGIN", "HM10_REF_SHARE", "HM10_TIE_RATIO", "HM10_TIE", "COARSE_CANDIDATES", "STEPS_DEG"]
@@ -186,11 +186,7 @@ def ps_consensus_higo2010(images, light_dirs, mask=None, channel=None, saturatio
     ok, e, lit, ref = _lit_and_level(e, saturation, t_shadow)
     normal, found, resid = _solve(e, ok, lit, ref, light_dirs, options)
     rho = _albedo(e_all, light_dirs, normal, lit, idx=sub)
-    _scatter(res, idx, "normal", normal.T)
-    _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
-    _scatter(res, idx, "valid", found)
-    _scatter(res, idx, "shadow", (ok & ~lit & found).T)
-    _scatter(res, idx, "residual", resid)
+    _fill(res, idx, normal, rho, found, ok, lit, resid)
     return res
 
 

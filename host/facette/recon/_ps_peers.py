@@ -78,6 +78,16 @@ def _distant_start(images, light_dirs, mask, channel, name):
     return (images, light_dirs, res) + tuple(_gather(images, mask, channel))
 
 
+def _fill(res, idx, normal, rho, found, ok, lit, resid):
+    """The found pixels' results scattered into `res`: normal (3, N), albedo, valid, the usable
+    unlit lights as shadows, residual."""
+    _scatter(res, idx, "normal", normal.T)
+    _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
+    _scatter(res, idx, "valid", found)
+    _scatter(res, idx, "shadow", (ok & ~lit & found).T)
+    _scatter(res, idx, "residual", resid)
+
+
 def _lit_values(e, saturation, t_shadow):
     """(ok, e, lit): the usable values, e with the others set to 0, and `_lit_mask`."""
     ok = _usable(e, saturation)
@@ -259,12 +269,8 @@ def ps_bipolynomial_shi2014(images, light_dirs, mask=None, channel=None, saturat
     _run_blocks(block, range(0, n_pix, _CHUNK))
     normal = np.where(found, normal, np.float32(0))
     rho = _albedo(e_all, light_dirs, normal, keep & ok, idx=sub)
-    _scatter(res, idx, "normal", normal.T)
-    _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
-    _scatter(res, idx, "valid", found)
-    _scatter(res, idx, "shadow", (ok & ~lit & found).T)
+    _fill(res, idx, normal, rho, found, ok, lit, resid)
     _scatter(res, idx, "specular", (lit & ~keep & found).T)
-    _scatter(res, idx, "residual", resid)
     res.info["iterations"] = int(max(iters)) if iters else 0
     return res
 
@@ -415,11 +421,7 @@ def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, satura
 
     _run_blocks(block, range(0, n_pix, _CHUNK))
     rho = _albedo(e_all, light_dirs, normal, lit, idx=sub)
-    _scatter(res, idx, "normal", normal.T)
-    _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
-    _scatter(res, idx, "valid", found)
-    _scatter(res, idx, "shadow", (ok & ~lit & found).T)
-    _scatter(res, idx, "residual", resid)
+    _fill(res, idx, normal, rho, found, ok, lit, resid)
     res.info["non_monotone"] = float(non_mono.sum() / max(found.sum(), 1))
     return res
 

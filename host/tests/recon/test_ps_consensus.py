@@ -7,33 +7,8 @@ import pytest
 from facette.methods import PS_METHODS, photometric_stereo
 from facette.recon import ps_consensus_higo2010, ps_woodham1980
 
-
-def _lights(m=32, seed=3):
-    """m directions within 10-60° of the view (as DiLiGenT's)."""
-    rng = np.random.default_rng(seed)
-    th = np.arccos(rng.uniform(np.cos(np.radians(60)), np.cos(np.radians(10)), m))
-    ph = rng.uniform(0, 2 * np.pi, m)
-    return np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)
-
-
-def _sphere(size=48):
-    y, x = np.mgrid[1:-1:size * 1j, -1:1:size * 1j]
-    r2 = x * x + y * y
-    mask = r2 < 0.9 ** 2
-    n = np.stack([x, y, np.sqrt(np.clip(1 - r2, 0, 1))], -1)
-    return np.where(mask[..., None], n, 0), mask
-
-
-def _blinn_phong(n, lights, kd=0.5, ks=0.6, shininess=40.0, noise=0.0, seed=0):
-    """(m, H, W) (kd/π) (n·l)_+ + ks (n·h)^s (n·l)_+, camera along +z."""
-    h = lights + np.array([0, 0, 1.0])
-    h /= np.linalg.norm(h, axis=1, keepdims=True)
-    nl = np.clip(np.einsum("hwk,mk->mhw", n, lights), 0, None)
-    nh = np.clip(np.einsum("hwk,mk->mhw", n, h), 0, None)
-    img = kd / np.pi * nl + ks * nh ** shininess * nl
-    if noise:
-        img *= 1 + noise * np.random.default_rng(seed).standard_normal(img.shape)
-    return img.astype(np.float32)
+from peer_scenes import blinn_phong, sphere
+from peer_scenes import lights as scene_lights
 
 
 def _errors(res, n, sel):
@@ -42,9 +17,9 @@ def _errors(res, n, sel):
 
 
 def test_lambertian_sphere_within_a_degree_and_a_half():
-    n, mask = _sphere()
-    lights = _lights()
-    res = ps_consensus_higo2010(_blinn_phong(n, lights, ks=0.0), lights, mask=mask)
+    n, mask = sphere(48)
+    lights = scene_lights(32)
+    res = ps_consensus_higo2010(blinn_phong(n, lights, ks=0.0), lights, mask=mask)
     assert res.valid[mask].all()
     err = _errors(res, n, mask)
     assert err.mean() < 1.5 and np.percentile(err, 95) < 3.5, (err.mean(), np.percentile(err, 95))   # 1.0, 2.6
@@ -53,9 +28,9 @@ def test_lambertian_sphere_within_a_degree_and_a_half():
 
 
 def test_glossy_sphere_far_better_than_least_squares():
-    n, mask = _sphere()
-    lights = _lights()
-    img = _blinn_phong(n, lights, noise=0.005)
+    n, mask = sphere(48)
+    lights = scene_lights(32)
+    img = blinn_phong(n, lights, noise=0.005)
     ls = _errors(ps_woodham1980(img, lights, mask=mask), n, mask).mean()
     res = photometric_stereo(img, lights, method="hm10", mask=mask)
     err = _errors(res, n, mask).mean()
@@ -66,9 +41,9 @@ def test_glossy_sphere_far_better_than_least_squares():
 def test_only_the_order_of_the_values_counts():
     """An increasing response (a gamma, a scale) gives the same normals: the method orders the
     values and compares each with the pixel's brightest."""
-    n, mask = _sphere(24)
-    lights = _lights()
-    img = _blinn_phong(n, lights)
+    n, mask = sphere(24)
+    lights = scene_lights(32)
+    img = blinn_phong(n, lights)
     linear = ps_consensus_higo2010(img, lights, mask=mask)
     exact = {"t_shadow": 0.0, "tie_share": 0.0, "tie_ratio": 0.0}    # thresholds on values: none
     encoded = ps_consensus_higo2010(3.0 * img ** 0.8, lights, mask=mask, **exact)
@@ -78,9 +53,9 @@ def test_only_the_order_of_the_values_counts():
 
 
 def test_black_saturated_shadowed_and_barely_lit_pixels():
-    n, mask = _sphere(16)
-    lights = _lights(30)
-    img = _blinn_phong(n, lights)
+    n, mask = sphere(16)
+    lights = scene_lights(30)
+    img = blinn_phong(n, lights)
     m = len(img)
     img[:, 3, 8] = 0.0                                          # black everywhere
     img[:, 8, 3] = 20.0                                         # saturated everywhere
@@ -100,16 +75,16 @@ def test_black_saturated_shadowed_and_barely_lit_pixels():
 
 
 def test_empty_mask_gives_an_empty_result():
-    n, _ = _sphere(8)
-    lights = _lights(8)
-    res = ps_consensus_higo2010(_blinn_phong(n, lights), lights, mask=np.zeros((8, 8), bool))
+    n, _ = sphere(8)
+    lights = scene_lights(8)
+    res = ps_consensus_higo2010(blinn_phong(n, lights), lights, mask=np.zeros((8, 8), bool))
     assert not res.valid.any() and res.info["pixels"] == 0
 
 
 def test_refuses_near_lights_too_few_lights_and_bad_options():
-    n, mask = _sphere(8)
-    lights = _lights(8)
-    img = _blinn_phong(n, lights)
+    n, mask = sphere(8)
+    lights = scene_lights(8)
+    img = blinn_phong(n, lights)
     with pytest.raises(ValueError, match="distant lights.*ps_rank_trimmed"):
         ps_consensus_higo2010(img, np.broadcast_to(lights, (8, 8, 8, 3)), mask=mask)
     with pytest.raises(ValueError, match="at least 4 lights"):

@@ -5,35 +5,10 @@ import pytest
 
 from facette.methods import PS_METHODS, photometric_stereo
 
+from peer_scenes import blinn_phong, sphere
+from peer_scenes import lights as scene_lights
+
 PEERS = ("bipolynomial_shi2014", "bivariate_ikehata2014")
-
-
-def _lights(m=40, seed=3):
-    """m directions over the upper hemisphere within 60° of the view (as DiLiGenT's)."""
-    rng = np.random.default_rng(seed)
-    th = np.arccos(rng.uniform(np.cos(np.radians(60)), np.cos(np.radians(10)), m))
-    ph = rng.uniform(0, 2 * np.pi, m)
-    return np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)
-
-
-def _sphere(size=40):
-    y, x = np.mgrid[1:-1:size * 1j, -1:1:size * 1j]
-    r2 = x * x + y * y
-    mask = r2 < 0.9 ** 2
-    n = np.stack([x, y, np.sqrt(np.clip(1 - r2, 0, 1))], -1)
-    return np.where(mask[..., None], n, 0), mask
-
-
-def _blinn_phong(n, lights, kd=0.5, ks=0.6, shininess=40.0, noise=0.0, seed=0):
-    """(m, H, W) E = (kd/π) (n·l)_+ + ks (n·h)^s (n·l)_+ (a Blinn-Phong lobe), camera along +z."""
-    h = lights + np.array([0, 0, 1.0])
-    h /= np.linalg.norm(h, axis=1, keepdims=True)
-    nl = np.clip(np.einsum("hwk,mk->mhw", n, lights), 0, None)
-    nh = np.clip(np.einsum("hwk,mk->mhw", n, h), 0, None)
-    img = kd / np.pi * nl + ks * nh ** shininess * nl
-    if noise:
-        img *= 1 + noise * np.random.default_rng(seed).standard_normal(img.shape)
-    return img.astype(np.float32)
 
 
 def _mean_error(res, n, mask):
@@ -43,9 +18,9 @@ def _mean_error(res, n, mask):
 
 @pytest.mark.parametrize("method", PEERS)
 def test_peer_recovers_glossy_sphere_better_than_least_squares(method):
-    n, mask = _sphere()
-    lights = _lights()
-    img = _blinn_phong(n, lights, noise=0.005)
+    n, mask = sphere()
+    lights = scene_lights()
+    img = blinn_phong(n, lights, noise=0.005)
     ls = _mean_error(photometric_stereo(img, lights, method="woodham1980", mask=mask), n, mask)
     res = photometric_stereo(img, lights, method=method, mask=mask)
     err = _mean_error(res, n, mask)
@@ -56,9 +31,9 @@ def test_peer_recovers_glossy_sphere_better_than_least_squares(method):
 
 @pytest.mark.parametrize("method", PEERS)
 def test_peer_is_exact_on_lambertian(method):
-    n, mask = _sphere(24)
-    lights = _lights(24)
-    img = _blinn_phong(n, lights, ks=0.0)
+    n, mask = sphere(24)
+    lights = scene_lights(24)
+    img = blinn_phong(n, lights, ks=0.0)
     res = photometric_stereo(img, lights, method=method, mask=mask)
     # pixels whose lit lights are too few for the model are not valid; the others are exact
     assert res.valid[mask].mean() > 0.9
@@ -68,9 +43,9 @@ def test_peer_is_exact_on_lambertian(method):
 
 @pytest.mark.parametrize("method", PEERS)
 def test_peer_black_saturated_and_shadowed_pixels(method):
-    n, mask = _sphere(16)
-    lights = _lights(30)
-    img = _blinn_phong(n, lights)
+    n, mask = sphere(16)
+    lights = scene_lights(30)
+    img = blinn_phong(n, lights)
     img[:, 3, 8] = 0.0                                 # black everywhere
     img[:, 8, 3] = np.nan                              # saturated (missing) everywhere
     img[:20, 8, 8] = 0.0                               # shadowed under most lights
@@ -89,9 +64,9 @@ def test_peer_black_saturated_and_shadowed_pixels(method):
 def test_peer_metal_without_diffuse_part_gives_finite_output(method):
     """A mirror-like lobe and no diffuse part (a metal): most pixels are black under every
     light; the output stays finite, unit normals where valid, zero where not."""
-    n, mask = _sphere(24)
-    lights = _lights(24)
-    img = _blinn_phong(n, lights, kd=0.0, ks=1.0, shininess=200.0)
+    n, mask = sphere(24)
+    lights = scene_lights(24)
+    img = blinn_phong(n, lights, kd=0.0, ks=1.0, shininess=200.0)
     res = photometric_stereo(img, lights, method=method, mask=mask)
     assert np.all(np.isfinite(res.normal)) and np.all(np.isfinite(res.albedo))
     norms = np.linalg.norm(res.normal, axis=-1)
@@ -100,9 +75,9 @@ def test_peer_metal_without_diffuse_part_gives_finite_output(method):
 
 @pytest.mark.parametrize("method", PEERS)
 def test_peer_refuses_near_lights_and_bad_options(method):
-    n, mask = _sphere(8)
-    lights = _lights(8)
-    img = _blinn_phong(n, lights)
+    n, mask = sphere(8)
+    lights = scene_lights(8)
+    img = blinn_phong(n, lights)
     per_pixel = np.broadcast_to(lights, (8, 8, 8, 3))
     with pytest.raises(ValueError, match="distant lights"):
         photometric_stereo(img, per_pixel, method=method, mask=mask)
@@ -116,9 +91,9 @@ def test_peers_are_registered_with_short_names():
 
 
 def test_empty_mask_gives_an_empty_result():
-    n, _ = _sphere(8)
-    lights = _lights(8)
-    img = _blinn_phong(n, lights)
+    n, _ = sphere(8)
+    lights = scene_lights(8)
+    img = blinn_phong(n, lights)
     for method in PEERS:
         res = photometric_stereo(img, lights, method=method, mask=np.zeros((8, 8), bool))
         assert not res.valid.any()
