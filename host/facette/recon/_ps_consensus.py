@@ -191,7 +191,7 @@ def ps_consensus_higo2010(images, light_dirs, mask=None, channel=None, saturatio
 
 
 # Study note (December 2026): the four HM10_* values were chosen on our own renders only, never on
-# DiLiGenT: 96 lights 10-60° from the view (tests/recon/test_ps_consensus.py's `_lights(96)`),
+# DiLiGenT: 96 lights 10-60° from the view (tests/recon/peer_scenes.py's `lights(96)`),
 # 0.5 % noise; a 64 px Blinn-Phong sphere (Lambertian; ks 0.6 at shininess 10, 40, 150) and the
 # Cook-Torrance sphere on a plane of facette.recon.synthetic (matte, satin, glossy; cast shadows).
 # Mean angular error over the seven, degrees:
