@@ -104,9 +104,8 @@ def test_hand_back_gives_the_freed_heap_back_near_the_budget():
     import sys
     code = """
 import numpy as np
-from facette._memory import keep_freed_memory, hand_back
+from facette._memory import keep_freed_memory, hand_back, resident_bytes as rss
 assert keep_freed_memory()
-rss = lambda: int(open('/proc/self/statm').read().split()[1]) * 4096
 parts = [np.ones(5_000_000) for _ in range(8)]      # 320 MB from the heap
 pin = np.ones(10)                                    # the heap's top stays in use
 before = rss()

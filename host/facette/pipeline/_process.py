@@ -459,10 +459,9 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
     tasks = [(reflectance, "samples" in stages), (lambda: relit("rti"), "hsh" in stages),
              (lambda: relit("ptm"), "ptm" in stages),
              (shape, "integrate" in stages), (maps, out is not None)]
-    tasks = [(handing_back(fn, o.memory_bytes) if o.memory else fn, w) for fn, w in tasks]  # heap back
-    t0 = time.perf_counter()
+    t0, budget = time.perf_counter(), o.memory_bytes     # with a budget, the heap back after each stage
     with ThreadPoolExecutor(workers) as pool:
-        futures = [pool.submit(fn) for fn, wanted in tasks if wanted]
+        futures = [pool.submit(handing_back(fn, budget) if budget else fn) for fn, wanted in tasks if wanted]
         # in the order of `tasks` whatever finished first; re-raises a stage's error here
         notes = [n for f in futures for n in f.result()]
     res.timings["after_ps"] = time.perf_counter() - t0
