@@ -303,7 +303,7 @@ def _rounds(px, pix, trust, region, mat, rounds, tol_deg, rounds_log):
         lobe, lam_ok, todo = px.split_levels(pix, fit["sigma"], fit["n_i"])
         change = np.zeros(0)
         if todo.size:
-            rr = px.refine(todo, fit["sigma"], fit["n_i"], first_round=not px.refined[todo].all())
+            rr = px.refine_round(todo, fit["sigma"], fit["n_i"])
             change = angle_deg(rr.normals, px.nrm[todo])
             px.store(todo, rr)
         score = np.full(pix.size, np.inf, np.float32)     # Lambertian-level pixels: not for the fit

@@ -88,3 +88,19 @@ def test_pixels_outside_the_lobe_that_least_squares_explains_take_the_lambertian
     assert not px.refined[pix[lam_ok]].any()
     np.testing.assert_array_equal(px.nrm[~lam_ok], before[~lam_ok])    # the others keep their normal
     assert np.any(px.nrm[lam_ok] != before[lam_ok])                # corrected (n_i 1.2 tilts them)
+
+
+def test_a_later_round_gives_the_first_rounds_starts_only_to_pixels_new_to_the_brdf_step():
+    px, _ = _pixels()
+    todo = np.arange(0, 300, 3)
+    px.refined[todo[::2]] = True                     # half of them were solved in an earlier round
+    mixed = px.refine_round(todo, 0.1, 1.5)
+    new, old = todo[1::2], todo[::2]
+    alone_new = px.refine(new, 0.1, 1.5, first_round=True)
+    alone_old = px.refine(old, 0.1, 1.5, first_round=False)
+    # each pixel's answer is its group's, in the order of `todo`
+    np.testing.assert_array_equal(mixed.normals[1::2], alone_new.normals)
+    np.testing.assert_array_equal(mixed.normals[::2], alone_old.normals)
+    np.testing.assert_array_equal(mixed.used[1::2], alone_new.used)
+    # the first round's highlight start changes some answers: the two forms are not the same solve
+    assert np.any(px.refine(old, 0.1, 1.5, first_round=True).normals != alone_old.normals)
