@@ -11,7 +11,7 @@ from ._microfacet import (DISTRIBUTIONS, MASKINGS, SIGMA_FLAT, distribution_d, g
                           gaussian_norm_rational_tsb2014, masking_g, microfacet_quadrature,
                           sample_microfacet_normals, smith_g1)
 from ._models import (INTERREFLECTION_MIN_SIGMA, MODELS, brdf_li, cook_torrance1982, get, lambert,
-                      li_kd_factor, li_specular, li_volume, oren_nayar1994)
+                      li_kd_factor, li_specular, li_volume, oren_nayar1994, prepare_directions)
 from ._volume import (VOLUME_METHODS, VolumeTable, build_volume_table, volume_integral,
                       volume_integral_approx, volume_integral_monte_carlo, volume_integral_quadrature,
                       volume_integral_table)
@@ -23,7 +23,7 @@ __all__ = [
     "DISTRIBUTIONS", "MASKINGS", "SIGMA_FLAT", "distribution_d", "gaussian_norm_exact", "gaussian_norm_rational_tsb2014",
     "masking_g", "microfacet_quadrature", "sample_microfacet_normals", "smith_g1",
     "INTERREFLECTION_MIN_SIGMA", "MODELS", "brdf_li", "cook_torrance1982", "get", "lambert", "li_kd_factor",
-    "li_specular", "li_volume", "oren_nayar1994",
+    "li_specular", "li_volume", "oren_nayar1994", "prepare_directions",
     "VOLUME_METHODS", "VolumeTable", "build_volume_table", "volume_integral", "volume_integral_approx",
     "volume_integral_monte_carlo", "volume_integral_quadrature", "volume_integral_table",
     "interreflection_integral_vcavity", "interreflection_mixed_integral_vcavity", "interreflection_vcavity",

@@ -11,7 +11,7 @@ columns of the Jacobian for K_d — costs a multiply-add.
 import numpy as np
 
 from facette.brdf import (MODELS, interreflection_integral_vcavity, interreflection_mixed_integral_vcavity, li_specular,
-                          oren_nayar1994, r_i_simonot2009, volume_integral)
+                          oren_nayar1994, prepare_directions, r_i_simonot2009, volume_integral)
 
 __all__ = ["FitModel", "BOUNDS"]
 
@@ -47,6 +47,8 @@ class FitModel:
             # specular lobe varies inside a 2–6° cell; the volume parts are taken at the centre.
             self.s, self.o = s[:, None, :], o_spread
         self.up = self._mean((self.s[..., 2] > 0) & (self.o[..., 2] > 0))
+        # the lobe's directions unit and broadcast once, not at each of the fit's evaluations
+        self._s_unit, self._o_unit = (np.ascontiguousarray(a) for a in prepare_directions(self.s, self.o))
         self._cache = {}
         self.n_evaluations = 0
         if name in ("li", "cook_torrance"):
@@ -85,7 +87,8 @@ class FitModel:
         if key in self._cache:
             return self._cache[key]
         self.n_evaluations += 1
-        spec = self._mean(li_specular(self.s, self.o, sigma, n_i, self.distribution, self.masking))
+        spec = self._mean(li_specular(self._s_unit, self._o_unit, sigma, n_i, self.distribution, self.masking,
+                                       prepared=True))
         parts = {"spec": spec}
         if self.name == "li":
             parts["I"] = self.up * volume_integral(self.s_c, self.o_c, sigma, n_i, self.distribution,

@@ -289,3 +289,6 @@ def test_compiled_beckmann_smith_lobe_equals_the_array_form(sigma, n_i):
     assert np.isfinite(got).all()
     assert np.array_equal(got > 0, ref > 0)
     np.testing.assert_allclose(got, ref, rtol=1e-9, atol=0)
+    # prepared=True (the BRDF fit's directions, normalised once): the same values, bit for bit
+    np.testing.assert_array_equal(B.li_specular(su, ou, sigma, n_i, prepared=True), got)
+

@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 
 import facette.brdf as B
+from facette.brdf import li_specular
 from facette.fit import FitResult, fit_brdf, fit_genetic, fit_least_squares
+from facette.fit._models import FitModel
 
 
 def random_pairs(n, seed=0):
@@ -182,3 +184,14 @@ def test_interreflection_term_is_kept_when_the_data_needs_it():
     assert r.params["sigma"] == pytest.approx(0.4, rel=0.02)
     np.testing.assert_allclose(r.params["kd"], [0.4, 0.8], rtol=0.02)
     assert json.loads(r.to_json())["interreflection"] is True
+
+
+def test_the_brdf_fits_model_evaluates_the_lobe_on_directions_normalised_once():
+    """FitModel keeps the cell directions unit and broadcast (s (N, 1, 3) against o (N, K, 3)):
+    its lobe equals li_specular on the raw, unnormalised directions."""
+    rng = np.random.default_rng(5)
+    s = np.abs(rng.normal(size=(50, 3))) * 3.0                 # not unit: the model normalises
+    o_spread = np.abs(rng.normal(size=(50, 4, 3))) * 0.5
+    m = FitModel("li", s, s, 3, o_spread=o_spread)
+    want = li_specular(s[:, None, :], o_spread, 0.2, 1.4).mean(axis=1)
+    np.testing.assert_allclose(m._parts(0.2, 1.4)["spec"], want, rtol=1e-12)
