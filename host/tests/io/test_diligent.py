@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from facette.io.diligent import is_diligent_dir, read_diligent, write_diligent
+from facette.io.png import write_png
 
 
 def test_diligent_folder_roundtrip_divides_by_intensities(tmp_path):
@@ -79,3 +80,14 @@ def test_lights_all_below_or_from_one_direction_are_refused(tmp_path):
     column = np.stack([np.zeros(6), np.sin(t), np.cos(t)], axis=1)
     with pytest.raises(BadInputError, match="the 6 lights lie in one plane through the object"):
         read_diligent(_folder_with_lights(tmp_path / "c", column))
+
+
+def test_an_image_of_another_size_is_refused_by_name(tmp_path):
+    """The images are decoded on two threads: the size check still stops the read and names the file."""
+    imgs = np.full((6, 4, 5, 3), 1000, np.uint16)
+    dirs = np.tile([0.0, 0.0, 1.0], (6, 1)) + np.eye(6, 3) * 0.3
+    write_diligent(tmp_path, imgs, dirs / np.linalg.norm(dirs, axis=1, keepdims=True))
+    names = (tmp_path / "filenames.txt").read_text().split()
+    write_png(tmp_path / names[4], np.zeros((3, 5, 3), np.uint16))
+    with pytest.raises(ValueError, match=f"{names[4]} is 5x3, {names[0]} is 5x4"):
+        read_diligent(tmp_path)
