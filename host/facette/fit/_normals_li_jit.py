@@ -39,7 +39,7 @@ from numba import njit, prange
 
 from facette.brdf import fresnel_dielectric, li_shading_terms
 from facette._select_jit import median_in_place as _median_in_place
-from facette.brdf._lobe_jit import beckmann_d
+from facette.brdf._lobe_jit import G1_ONE_ABOVE, beckmann_d
 from facette.recon._ps import _run_blocks
 
 __all__ = ["volume_table", "refine_distant_compiled", "TABLE_GRID"]
@@ -115,6 +115,8 @@ def _g1_dlog(c, sigma):
     if sn <= 0.0:
         return 1.0, 0.0
     a = c / (sigma * sn)
+    if a > G1_ONE_ABOVE:        # G_1 = 1.0 exactly, its derivative < 1e-16 (`_lobe_jit`)
+        return 1.0, 0.0
     ex = math.exp(-a * a)
     lam = 0.5 * (ex / (a * _SQRT_PI) - math.erfc(a))
     g = 1.0 / (1.0 + lam)

@@ -292,3 +292,23 @@ def test_compiled_beckmann_smith_lobe_equals_the_array_form(sigma, n_i):
     # prepared=True (the BRDF fit's directions, normalised once): the same values, bit for bit
     np.testing.assert_array_equal(B.li_specular(su, ou, sigma, n_i, prepared=True), got)
 
+
+
+@pytest.mark.parametrize("sigma", [0.01, 0.1, 0.3, 1.0, 2.0])
+def test_the_compiled_smith_g1_skips_its_exp_and_erfc_only_where_they_give_one(sigma):
+    """smith_g1_beckmann returns 1.0 without exp and erfc above a = G1_ONE_ABOVE: there the full
+    formula gives 1.0 to the last bit too; the per-pixel solve's d ln G_1 is then < 1e-16."""
+    import math
+    from facette.brdf._lobe_jit import G1_ONE_ABOVE, smith_g1_beckmann
+    from facette.fit._normals_li_jit import _g1_dlog
+    for c in np.linspace(1e-4, 1 - 1e-9, 3001):
+        sn = math.sqrt(1 - c * c)
+        a = c / (sigma * sn)
+        full = 1.0 / (1.0 + 0.5 * (math.exp(-a * a) / (a * math.sqrt(math.pi)) - math.erfc(a)))
+        assert smith_g1_beckmann(c, sigma) == full
+        g, dlog = _g1_dlog(c, sigma)
+        assert g == full
+        if a > G1_ONE_ABOVE:
+            assert full == 1.0
+            # the derivative the full form would give: G_1 e^(−a²) σ / (2√π c² sin)
+            assert dlog == 0.0 and math.exp(-a * a) * sigma / (2 * math.sqrt(math.pi) * c * c * sn) < 1e-14
