@@ -37,10 +37,10 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from facette._select_jit import median_in_place
+from facette._threads import run_blocks
 from facette.brdf import fresnel_dielectric, li_shading_terms
-from facette._select_jit import median_in_place as _median_in_place
 from facette.brdf._lobe_jit import G1_ONE_ABOVE, beckmann_d
-from facette.recon._ps import _run_blocks
 
 __all__ = ["volume_table", "refine_distant_compiled", "TABLE_GRID"]
 
@@ -95,7 +95,7 @@ def _volume_table(lights, sigma, n_i, grid, volume_model):
         b_disk[a:a + block_size] = li_shading_terms(gn[a:a + block_size], lights, sigma, n_i, specular=False,
                                                     volume_model=volume_model)[1]
 
-    _run_blocks(block, range(0, len(gn), max(block_size, 1)))
+    run_blocks(block, range(0, len(gn), max(block_size, 1)))
     b = np.zeros((grid, grid, len(lights)), np.float32)
     b[inside] = b_disk
     return b
@@ -192,7 +192,7 @@ def _residuals(e, a, b, k, n, r_out):
 def _scale(r, n, mean_e, buf, floor):
     for t in range(n):
         buf[t] = abs(r[t])
-    med = _median_in_place(buf, n) if n > 0 else 0.0
+    med = median_in_place(buf, n) if n > 0 else 0.0
     return max(max(1.4826 * med, floor * mean_e), 1e-12)
 
 

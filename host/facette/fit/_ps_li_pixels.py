@@ -18,9 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from facette._threads import run_blocks
 from facette.brdf import li_shading_terms
 from facette.recon import ps_woodham1980
-from facette.recon._ps import _pixel_dirs, _run_blocks, _usable
+from facette.recon._ps import _pixel_dirs, _usable
 from ._li_model import PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model, is_metal
 from ._normals_li import RefineResult, refine_normals_li
 
@@ -148,7 +149,7 @@ class Pixels:
             for a in range(0, sel.size, BLOCK_COMPILED):
                 block(a)
         else:
-            _run_blocks(block, range(0, sel.size, BLOCK))
+            run_blocks(block, range(0, sel.size, BLOCK))
         return join_blocks([out[a] for a in sorted(out)])
 
     def refine_round(self, todo, sigma, n_i):

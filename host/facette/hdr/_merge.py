@@ -32,12 +32,12 @@ Sample exclusion and documented results at the edges (both methods):
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
 from facette._registry import Registry
+from facette._threads import run_blocks
 from facette.camera.sensor import SensorModel
 
 __all__ = ["HDRResult", "merge", "merge_inverse_variance", "merge_debevec1997", "MERGE_METHODS",
@@ -310,13 +310,7 @@ def _run_blocks(block_fn, frames, exposures, sensor, times_s, peaks, n_photosite
         rad[sl], var[sl], n_used[sl], all_sat[sl] = block_fn(sensor, frames, pk, bad, k, t, n_ph,
                                                              sat_signal, sl, **kw)
 
-    threads = n_workers(workers, len(blocks))
-    if threads == 1:
-        for sl in blocks:
-            one(sl)
-    else:
-        with ThreadPoolExecutor(threads) as pool:
-            list(pool.map(one, blocks))
+    run_blocks(one, blocks, n_workers(workers, len(blocks)))
     return HDRResult(radiance=rad, variance=var, n_used=n_used, saturated=all_sat, method=method)
 
 

@@ -4,19 +4,17 @@ A folder holds `filenames.txt` (one image file per line), `light_directions.txt`
 vector per line, camera frame x right, y up, z towards the camera), `light_intensities.txt`
 (R G B per line; images are divided by them), `mask.png`, and 16-bit PNG images.
 """
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from facette._threads import run_blocks
 from facette.errors import BadInputError
 from facette.io.png import read_mask, read_png, write_png, write_mask
 
 __all__ = ["DiligentData", "is_diligent_dir", "read_diligent", "read_diligent_lights", "png_radiance",
            "write_diligent"]
-
-READ_THREADS = 2       # images decoded at once
 
 
 @dataclass
@@ -155,9 +153,8 @@ def read_diligent(folder, dtype=np.float32, select=None):
         png_radiance(arr, inten[i], images[i])
 
     # the PNG decoder gives the GIL up: two images at once (the 16-bit ball, 96 × 612×512:
-    # 2.4 s of its `process` read one by one)
-    with ThreadPoolExecutor(READ_THREADS) as pool:
-        list(pool.map(one, range(m)))
+    # 1.39 -> 0.87 s)
+    run_blocks(one, range(m))
     mask_path = folder / "mask.png"
     mask = read_mask(mask_path) if mask_path.is_file() else np.ones((h, w), bool)
     if mask.shape != (h, w):

@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from facette._select_jit import median_in_place
+from facette._threads import run_blocks
 
 __all__ = ["append_weighted", "median_over_lights", "usable_green"]
 
@@ -34,13 +35,9 @@ def median_over_lights(a, out, rows, workers=1):
     is known. a : (m, H, W) float (any strides); out : (H, W) of a's dtype; rows : a slice;
     workers : threads, each on its share of the rows (the kernel frees the GIL)."""
     r0, r1, _ = rows.indices(a.shape[1])
-    if workers <= 1 or r1 - r0 < 2 * workers:
-        _median_rows(a, out, r0, r1)
-        return
-    from concurrent.futures import ThreadPoolExecutor
-    cuts = np.linspace(r0, r1, workers + 1).astype(int)
-    with ThreadPoolExecutor(workers) as pool:
-        list(pool.map(lambda k: _median_rows(a, out, cuts[k], cuts[k + 1]), range(workers)))
+    parts = workers if r1 - r0 >= 2 * workers else 1
+    cuts = np.linspace(r0, r1, parts + 1).astype(int)
+    run_blocks(lambda k: _median_rows(a, out, cuts[k], cuts[k + 1]), range(parts), parts)
 
 
 @njit(cache=True, nogil=True)

@@ -5,12 +5,12 @@ directions are unit vectors from the surface towards the light, in that frame.
 Images are linear radiance already divided by each light's intensity, so that a
 Lambertian surface of reflectance rho gives E_i = (rho / pi) s_i . n  (thesis eq 4.3).
 """
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from itertools import combinations
 
 import numpy as np
 
+from facette._threads import run_blocks
 from facette.errors import InsufficientData
 
 __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "triplet_inverses",
@@ -132,19 +132,7 @@ def near_light_directions(positions_mm, shape, pixel_pitch_mm, heights_mm=None, 
 
 # ----------------------------------------------------------------------------- least squares
 
-WORKERS = 2   # threads for independent pixel blocks (numpy releases the GIL in its loops)
 
-
-def _run_blocks(fn, starts, workers=None):
-    """Call fn(start) for each block start, on threads; blocks write disjoint slices."""
-    workers = WORKERS if workers is None else workers
-    starts = list(starts)
-    if workers > 1 and len(starts) > 1:
-        with ThreadPoolExecutor(workers) as pool:
-            list(pool.map(fn, starts))
-    else:
-        for a in starts:
-            fn(a)
 
 def _ls_normals(e, s, ok):
     """Least squares g = argmin ||W (E - S g)|| per pixel (light-major layout).
@@ -206,7 +194,7 @@ def _albedo(e_all, s, n, keep, chunk=262144, idx=None):
             num = np.sum(np.where(w, eb[:, :, ch], np.float32(0)) * sn_w, axis=0)
             out[sl, ch] = np.where(good, np.pi * num / np.where(good, den, 1.0), 0.0)
 
-    _run_blocks(block, range(0, n.shape[1], chunk))
+    run_blocks(block, range(0, n.shape[1], chunk))
     return out
 
 
@@ -269,7 +257,7 @@ def _ls_stage(e, s, ok, chunk=262144):
         resid[sl] = np.where(fb & (e_norm > 0), r, np.inf)
         found[sl] = fb
 
-    _run_blocks(block, range(0, n_pix, chunk))
+    run_blocks(block, range(0, n_pix, chunk))
     return n, found, resid
 
 
@@ -503,7 +491,7 @@ def ps_hierarchical_tautzia2016(images, light_dirs, mask=None, channel=None, sat
                                                 t_ombre, t_spec, t_source)
         normal[:, sel], n_trip[sel], shadow[sel], specular[sel], found[sel] = nb.T, cb, shb, spb, fb
 
-    _run_blocks(block, range(0, rest.size, chunk))
+    run_blocks(block, range(0, rest.size, chunk))
     keep = ok & ~shadow.T & ~specular.T
     rho = _albedo(e_all, s, normal, keep, idx=sub)
     _scatter(res, idx, "normal", normal.T)

@@ -44,7 +44,9 @@ intensity; `PSResult`. Distant lights only, light_dirs (m, 3).
 """
 import numpy as np
 
-from ._ps import _albedo, _run_blocks, _usable
+from facette._threads import run_blocks
+
+from ._ps import _albedo, _usable
 from ._ps_peers import T_SHADOW, VIEW, _distant_start, _fill
 
 __all__ = ["ps_consensus_higo2010", "hemisphere_directions", "HM10_PAIRS", "HM10_DIFFUSE_WEIGHT",
@@ -138,7 +140,7 @@ def _solve(e, ok, lit, ref, light_dirs, options):
         found[sl] = fin
         resid[sl] = np.where(fin, viol / np.maximum(votes, 1), 0.0)
 
-    _run_blocks(block, range(0, n_pix, _CHUNK))
+    run_blocks(block, range(0, n_pix, _CHUNK))
     return normal, found, resid
 
 

@@ -37,8 +37,9 @@ from math import comb
 
 import numpy as np
 
-from ._ps import (_albedo, _check_inputs, _empty_result, _gather, _run_blocks, _scatter,
-                  _usable)
+from facette._threads import run_blocks
+
+from ._ps import _albedo, _check_inputs, _empty_result, _gather, _scatter, _usable
 from ._ps_robust import _unit, _wls
 
 __all__ = ["ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "T_SHADOW", "DROP_BRIGHT"]
@@ -266,7 +267,7 @@ def ps_bipolynomial_shi2014(images, light_dirs, mask=None, channel=None, saturat
         ynorm = np.sqrt(np.sum((y / scale) ** 2 * wt, axis=1))
         resid[cols] = np.sqrt(cost) / np.maximum(ynorm, 1e-30)
 
-    _run_blocks(block, range(0, n_pix, _CHUNK))
+    run_blocks(block, range(0, n_pix, _CHUNK))
     normal = np.where(found, normal, np.float32(0))
     rho = _albedo(e_all, light_dirs, normal, keep & ok, idx=sub)
     _fill(res, idx, normal, rho, found, ok, lit, resid)
@@ -419,7 +420,7 @@ def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, satura
         resid[sl] = np.where(fin, cost / np.maximum(np.trace(ll, axis1=1, axis2=2), 1e-30), 0)
         non_mono[sl] = dec & fin
 
-    _run_blocks(block, range(0, n_pix, _CHUNK))
+    run_blocks(block, range(0, n_pix, _CHUNK))
     rho = _albedo(e_all, light_dirs, normal, lit, idx=sub)
     _fill(res, idx, normal, rho, found, ok, lit, resid)
     res.info["non_monotone"] = float(non_mono.sum() / max(found.sum(), 1))

@@ -20,8 +20,10 @@ towards the camera; images linear, divided by each light's intensity; `PSResult`
 """
 import numpy as np
 
+from facette._threads import run_blocks
+
 from ._ps import (PSResult, _albedo, _check_inputs, _empty_result, _gather, _ls_normals,
-                  _pixel_dirs, _run_blocks, _scatter, _shading, _usable)
+                  _pixel_dirs, _scatter, _shading, _usable)
 
 __all__ = ["ps_rpca_wu2010", "ps_rank_trimmed", "TRIM", "MIN_KEEP", "NOISE", "T_SHADOW_RPCA"]
 
@@ -215,7 +217,7 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         below[:, sl] = okb & ((sn <= 0) | (eb < SHADOW_BELOW * pred))
         above[:, sl] = okb & ~kb & (eb > SPECULAR_ABOVE * pred) & (sn > 0)
 
-    _run_blocks(block, range(0, n_pix, _CHUNK))
+    run_blocks(block, range(0, n_pix, _CHUNK))
     rho = _albedo(e_all, s, normal, keep & ok, idx=sub)
     _scatter(res, idx, "normal", normal.T)
     _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))

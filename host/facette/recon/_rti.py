@@ -13,12 +13,12 @@ of a block at once (batched normal equations), with far lights (m, 3) or per-pix
 directions (H, W, m, 3). Missing values (NaN) and lights at or below the horizon are left out.
 Terms the lights cannot tell apart get (nearly) the minimum-norm solution (Tikhonov, `_RCOND`).
 """
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from math import factorial, pi, sqrt
 
 import numpy as np
 
+from facette._threads import run_blocks
 from facette.io.ptm import ptm_weights
 
 __all__ = ["ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh",
@@ -238,17 +238,8 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
             coeffs[sl][~ok] = 0.0
         valid[sl] = ok
 
-    _run(block, range(0, h * w, _BLOCK), workers)
+    run_blocks(block, range(0, h * w, _BLOCK), workers)
     return coeffs, valid
-
-
-def _run(fn, starts, workers=2):
-    """[fn(a) for a in starts] on `workers` threads (blocks write disjoint slices)."""
-    starts = list(starts)
-    if workers > 1 and len(starts) > 1:
-        with ThreadPoolExecutor(workers) as pool:
-            return list(pool.map(fn, starts))
-    return [fn(a) for a in starts]
 
 
 def _all3(a):
@@ -263,7 +254,7 @@ def _top_percentile(select, starts, percentile, stride=37):
     needed; a second pass keeps the values above that bound and counts those below. The full
     set is used when the bound does not hold (never seen: the sample has ~1e5 values).
     1.0 when there is no value."""
-    first = _run(lambda a: (lambda v: (v.size, v[::stride].copy()))(select(a)), starts)
+    first = run_blocks(lambda a: (lambda v: (v.size, v[::stride].copy()))(select(a)), starts)
     n = sum(k for k, _ in first)
     if n == 0:
         return 1.0
@@ -273,7 +264,7 @@ def _top_percentile(select, starts, percentile, stride=37):
     lo = int(np.floor(vi))
     hi = min(lo + 1, n - 1)
     bound = np.percentile(sample, max(percentile - 1.0, 0.0)) if sample.size > 1000 else -np.inf
-    second = _run(lambda a: (lambda v: (int((v < bound).sum()), v[v >= bound]))(select(a)), starts)
+    second = run_blocks(lambda a: (lambda v: (int((v < bound).sum()), v[v >= bound]))(select(a)), starts)
     below = sum(k for k, _ in second)
     if below > lo:                                      # the bound was too high: every value
         return float(np.percentile(np.concatenate([select(a) for a in starts]), percentile))
@@ -315,7 +306,7 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
         return lb[ok if sel is None else ok & sel[None, a:a + _BLOCK]]
 
     sel = None if mask is None else np.asarray(mask, bool).reshape(-1)
-    _run(colour, range(0, h * w, _BLOCK))
+    run_blocks(colour, range(0, h * w, _BLOCK))
     if white is None:
         white = _top_percentile(known_lum, range(0, h * w, _BLOCK), white_percentile)
     if not white > 0:
@@ -325,7 +316,7 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
         from facette.recon._rti_jit import srgb_lum_block, srgb_table
         rgb = srgb_encode(rgb)
         scale, lut = 1.0, srgb_table()
-        _run(lambda a: srgb_lum_block(flat[:, a:a + _BLOCK], rgb, lum, a, 1.0 / white, lut),
+        run_blocks(lambda a: srgb_lum_block(flat[:, a:a + _BLOCK], rgb, lum, a, 1.0 / white, lut),
              range(0, h * w, _BLOCK))
     lum_img = lum.reshape(m, h, w, 1)
 
@@ -494,7 +485,8 @@ def relight_error_parts(fit, images, light_dirs, mask, starts, rows=2, workers=2
             x = np.where(sel, img, np.zeros((), img.dtype)).astype(np.float64).ravel()
             return float(diff @ diff), float(x @ x)
         arrays = {k: getattr(fit, k)[sl] for k in ("coeffs", "valid", "rgb") if hasattr(fit, k)}
-        sub, relight = replace(fit, **arrays), (relight_ptm if ptm else relight_hsh)
+        sub = replace(fit, **arrays)
+        relight = relight_ptm if ptm else relight_hsh
         return _error_sums(lambda q: relight(sub, q), images[:, sl], np.moveaxis(d_all[sl], 2, 0), mask[sl])
 
-    return _run(part, starts, workers)
+    return run_blocks(part, starts, workers)
