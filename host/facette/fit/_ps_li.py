@@ -53,7 +53,7 @@ import time
 import numpy as np
 
 from facette.brdf import kd_from_kappa, li_shading_terms
-from facette.recon import PSResult, ps_rank_trimmed
+from facette.recon import PSResult, dark_offsets, ps_rank_trimmed
 from facette.recon._ps import T_RESIDUAL, _check_inputs
 from ._li_model import DIFFUSE, LI_VOLUME_MODEL, diffuse_name, fit_li_per_pixel_kd
 from ._ps_li_coarse import bin_inputs, coarse_factor, material_from_coarse
@@ -61,6 +61,7 @@ from ._ps_li_pixels import Pixels, Settings, angle_deg
 
 __all__ = ["ps_li_alternating"]
 
+DARK_NEGLIGIBLE = 1e-3    # a dark level below 0.1 % of the lit median is left in the images
 COARSE_PIXELS = 250_000    # above this many valid pixels the alternation runs coarse-to-fine
 SETTLED_SIGMA = 0.05       # a later round's refit within 5 % of σ and 0.01 of n_i: no new re-estimate
 SETTLED_N_I = 0.01
@@ -99,7 +100,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                       t_residual=T_RESIDUAL, iterations=24, materials=1, min_region_fraction=0.05,
                       seed=0, init_options=None, coarse_pixels=COARSE_PIXELS, fine_iterations=2,
                       engine="auto", volume_model=LI_VOLUME_MODEL, highlight_start="all",
-                      diffuse="auto"):
+                      diffuse="auto", dark_offset="auto"):
     """BRDF-aware photometric stereo with the LI model (module doc).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m ≥ 4.
@@ -149,6 +150,9 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         (Lambertian, no transmission: Cook–Torrance) or "auto" (default): per material, the one
         whose best lobe has the lower trimmed profile cost on the fit pixels (DIFFUSE,
         `_profile_lobe`; info["materials"][k]["diffuse"] and its "model_choice").
+    dark_offset : "auto" (default): each photograph's dark level (facette.recon.dark_offsets, on the
+        initial normals) taken out of the images and the initial solution solved again, since the
+        model predicts 0 there (`_without_dark_level`, info["dark_offset"]); "none": the images as given.
     Returns a `PSResult` (method "li_alternating"): albedo is K_d (a reflectance, per channel);
     info holds "rounds" (per round: σ, n_i, pixels fitted and re-estimated, median change,
     seconds), "materials" (per region: σ, n_i, pixel count, whether the BRDF step ran) and
@@ -157,17 +161,21 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     """
     t_start = time.perf_counter()
     images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
-    diffuse_models = _check_options(rounds, init, highlight_start, diffuse, volume_model)
+    diffuse_models = _check_options(rounds, init, highlight_start, diffuse, volume_model, dark_offset)
+    init_options = dict(init_options or {})
+    base = init(images, light_dirs, mask=mask, channel=channel, saturation=saturation, **init_options)
+    images, base, dark = _without_dark_level(images, light_dirs, mask, channel, saturation, base, init,
+                                             init_options) if dark_offset == "auto" else (images, base, None)
+    t_init = time.perf_counter() - t_start
     f = coarse_factor(int(mask.sum()), coarse_pixels, materials)
     coarse = None if f is None else _coarse_pass(
         images, light_dirs, mask, f, saturation, channel=channel, init=init, rounds=rounds, tol_deg=tol_deg,
         fit_pixels=fit_pixels, t_residual=t_residual, iterations=iterations, seed=seed, init_options=init_options,
-        engine=engine, volume_model=volume_model, highlight_start=highlight_start, diffuse=diffuse)
-    base = init(images, light_dirs, mask=mask, channel=channel, saturation=saturation, **dict(init_options or {}))
-    t_init = time.perf_counter() - t_start
+        engine=engine, volume_model=volume_model, highlight_start=highlight_start, diffuse=diffuse,
+        dark_offset="none")
     res = _result_from(base, images.shape[1:3])
     info = res.info = {"init": base.method, "rounds": [], "materials": [],
-                       "pixels": int(np.count_nonzero(base.valid))}
+                       "pixels": int(np.count_nonzero(base.valid)), **({"dark_offset": dark} if dark else {})}
     if info["pixels"] == 0:
         info["levels"] = {"init": {"pixels": 0, "seconds": t_init}}
         return res
@@ -189,7 +197,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     return res
 
 
-def _check_options(rounds, init, highlight_start, diffuse, volume_model):
+def _check_options(rounds, init, highlight_start, diffuse, volume_model, dark_offset):
     """ValueError / TypeError for an option out of range; the diffuse parts (volume models) to try."""
     if rounds < 1:
         raise ValueError(f"rounds = {rounds}: give at least 1 fit / re-estimate round")
@@ -198,6 +206,8 @@ def _check_options(rounds, init, highlight_start, diffuse, volume_model):
                         "facette.methods.photometric_stereo(..., method='li_alternating', init=NAME)")
     if highlight_start not in ("all", "subsample"):
         raise ValueError(f"highlight_start = {highlight_start!r}: choose 'all' or 'subsample'")
+    if dark_offset not in ("auto", "none"):
+        raise ValueError(f"dark_offset = {dark_offset!r}: choose 'auto' or 'none'")
     if diffuse not in ("auto", *DIFFUSE):
         raise ValueError(f"diffuse = {diffuse!r}: choose 'auto', {', '.join(repr(k) for k in DIFFUSE)}")
     diffuse_models = tuple(dict.fromkeys([volume_model if k == "li" else DIFFUSE[k] for k in
@@ -206,6 +216,22 @@ def _check_options(rounds, init, highlight_start, diffuse, volume_model):
         raise ValueError("init = 'li_alternating': the initial normals must come from another method "
                          "(hierarchical_tautzia2016, woodham1980, rpca_wu2010, ...)")
     return diffuse_models
+
+
+def _without_dark_level(images, light_dirs, mask, channel, saturation, base, init, init_options):
+    """(images, initial solution, info) with each photograph's dark level taken out (module
+    facette.recon._dark), or the inputs as they are when it is below DARK_NEGLIGIBLE of the lit
+    pixels' median (no copy of the images). Saturated values stay as they are (still saturated)."""
+    offsets, dark = dark_offsets(images, light_dirs, base.normal, base.valid, saturation)
+    dark["applied"] = bool(dark["relative"] >= DARK_NEGLIGIBLE)
+    if not dark["applied"]:
+        return images, base, dark
+    lowered = images - offsets[:, None, None, :]          # one copy of the images (NaN stays NaN)
+    np.maximum(lowered, 0, out=lowered)
+    if saturation is not None:
+        np.copyto(lowered, images, where=images >= saturation)
+    base = init(lowered, light_dirs, mask=mask, channel=channel, saturation=saturation, **init_options)
+    return lowered, base, dark
 
 
 def _coarse_pass(images, light_dirs, mask, f, saturation, **options):

@@ -39,7 +39,7 @@ from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
 from facette.methods import PS_METHODS, options_for, photometric_stereo
 from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_from_height, MESH_MAX_SLOPE,
-                           near_light_directions, IR_MAX_FRACTION, without_interreflections)
+                           near_light_directions, IR_MAX_FRACTION, without_interreflections, dark_level_notes)
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.pipeline._inputs import load_input, object_of
@@ -307,6 +307,7 @@ def _process(source, outputs, out_dir, o):
         ps = photometric_stereo(direct, light_dirs, method=o.method, options=bag)
     ps, direct = results_in_rgb(ps, direct, solve_in, images, used)
     res.ps = ps
+    res.notes.extend(dark_level_notes(ps.info.get("dark_offset")))
     res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
     # mask.png: the object, without the dark table or cloth around it (when one surrounds it)
     res.object_mask = res.mask if inp.background_mask() is None else \
@@ -482,7 +483,7 @@ def _writers(res, out, outputs, ascii_ply, relight=None):
         if "materials" in ps_info:   # BRDF-aware photometric stereo: its own per-region fits
             doc = json.loads(text)
             doc["photometric_stereo"] = {k: ps_info[k] for k in ("materials", "levels", "rounds",
-                                                                 "regions_found_by") if k in ps_info}
+                                                                 "regions_found_by", "dark_offset") if k in ps_info}
             text = json.dumps(doc, indent=2)
         if res.inputs.incomplete:
             text = json.dumps({**json.loads(text), "scan_incomplete": res.inputs.incomplete}, indent=2)

@@ -228,6 +228,8 @@ def test_brdf_aware_method_writes_its_materials_into_brdf_json(tmp_path):
     assert abs(ps["materials"][0]["sigma"] - 0.1) < 0.04
     assert set(ps["levels"]) == {"init", "lambertian", "brdf_aware"}
     assert ps["levels"]["brdf_aware"]["pixels"] > 0
+    # a render has no dark level (facette.recon.dark_offsets): nothing taken out, nothing said
+    assert ps["dark_offset"]["applied"] is False and not any("dark level" in n for n in res.notes)
     albedo, _ = read_exr(tmp_path / "out" / "albedo.exr")
     np.testing.assert_allclose(np.median(albedo[res.mask], axis=0), d["params"]["kd"], rtol=0.1)
     # after BRDF-aware normals the fit evaluates the volume part as they did (eq 3.15 by tables),
