@@ -28,7 +28,8 @@ grazing and its axial lights), and the others' would be the wrong one. Never neg
 """
 import numpy as np
 
-__all__ = ["dark_offsets", "dark_level_notes", "DARK_BELOW", "DARK_MIN_PIXELS", "DARK_QUANTILE", "DARK_UNIFORM", "DARK_MAX_RELATIVE"]
+__all__ = ["dark_offsets", "dark_level_notes", "DARK_BELOW", "DARK_MIN_PIXELS", "DARK_QUANTILE", "DARK_UNIFORM",
+           "DARK_MAX_RELATIVE"]
 
 DARK_BELOW = -0.2        # n · s below this: attached shadow even with ~12° of normal error
 DARK_MIN_PIXELS = 50     # fewer dark pixels than this in a photograph: no offset taken out of it
