@@ -114,6 +114,11 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True, vo
     # volume part: the angles (θ_s, θ_o, Δφ) in the local frame, from dot products
     if volume_model == "lambert":      # no angles needed: B = n·s
         B = np.where(lit, cs_c, np.float32(0)).astype(np.float32)
+    elif volume_model == "tables":     # angles, table and product in one compiled pass
+        from ._volume_jit import volume_terms_tables     # numba loads only when the tables are used
+        B = np.empty(cs.shape, np.float32)
+        volume_terms_tables(cs, co[:, 0], np.broadcast_to(sv, cs.shape), *volume_table_at(sig_v, n_i).kernel_arrays(),
+                            B)
     else:
         sin_s = np.sqrt(np.maximum(1 - cs_c * cs_c, 0))
         sin_o = np.sqrt(np.maximum(1 - co_c * co_c, 0))
@@ -121,11 +126,7 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True, vo
         with np.errstate(divide="ignore", invalid="ignore"):
             cphi = np.where(both, np.clip((sv - cs_c * co_c) / np.where(both, sin_s * sin_o, 1), -1, 1),
                             np.float32(1))
-        ts, to = np.arccos(cs_c), np.arccos(co_c)
-        if volume_model == "tables":
-            vol = volume_table_at(sig_v, n_i).at_angles(ts, to, np.arccos(cphi)).astype(np.float32)
-        else:
-            vol = _volume_approx(ts, to, cs_c, co_c, cphi, sig_v, n_i)
+        vol = _volume_approx(np.arccos(cs_c), np.arccos(co_c), cs_c, co_c, cphi, sig_v, n_i)
         B = np.where(lit, cs_c * vol, np.float32(0)).astype(np.float32)
     if not specular or sigma < SIGMA_FLAT or n_i == 1.0:
         return np.zeros_like(B), B

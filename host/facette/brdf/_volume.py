@@ -179,6 +179,11 @@ class VolumeTable:
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(den > 0, num / np.where(den > 0, den, 1), 0).astype(dt, copy=False)
 
+    def kernel_arrays(self):
+        """(values raveled, θ nodes, 1 / cell widths, cos θ nodes, n_φ, 1 / Δφ step) in float64:
+        what the compiled evaluation (facette.brdf._volume_jit) reads."""
+        return (*self._arrays(np.float64), self.values.shape[2], 1 / np.radians(self.step_deg))
+
     def _arrays(self, dt):
         """(values raveled, θ nodes, 1 / cell widths, cos θ nodes) in dtype dt, made once."""
         key = np.dtype(dt).name
@@ -269,9 +274,12 @@ def _quadrature_all_pairs(s, o, sigma, n, distribution, n_theta, n_phi):
     one matrix product over the nodes (the same sum, ~100× faster for a table)."""
     m, w = microfacet_quadrature(sigma, distribution, int(n_theta), int(n_phi))
 
-    def side(u):
-        um = np.maximum(u @ m.T, 0.0)
-        return (1.0 - fresnel_dielectric(um, n)) * um
+    from ._volume_jit import transmitted_cosines     # numba loads only when a table is built
+
+    def side(u):        # (1 − F(u·m)) (u·m)⁺ for every u and node m
+        out = np.empty((len(u), len(m)))
+        transmitted_cosines(np.ascontiguousarray(u, float), np.ascontiguousarray(m, float), (n - 1.0) * (n + 1.0), out)
+        return out
 
     a, b = side(s), side(o)
     g_s = np.where(s[:, 2] > 0, smith_g1(s, sigma, distribution) / np.maximum(s[:, 2], 1e-300), 0.0)

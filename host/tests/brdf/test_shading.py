@@ -124,3 +124,32 @@ def test_factored_table_build_equals_the_quadrature():
         ref = tabulate_isotropic(lambda s, o: volume_integral_quadrature(s, o, sigma, n_i, "beckmann", "smith", 12, 16),
                                  10.0, None, 2)
         np.testing.assert_allclose(fast.values, ref.values, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("sigma,n_i", [(0.1, 1.3), (0.3, 1.5), (0.02, 1.05)])
+def test_compiled_tables_volume_equals_the_table_interpolated_from_the_angles(sigma, n_i):
+    # li_shading_terms' tables volume part runs compiled (facette.brdf._volume_jit); the array form
+    # is VolumeTable.at_angles on the angles from the dot products: equal to float32 rounding, on
+    # the edges too (normal at the view, light at the normal, behind, grazing)
+    from facette.brdf._volume import volume_table_at
+    rng = np.random.default_rng(3)
+    n = rng.normal(size=(3000, 3))
+    n[:, 2] = np.abs(n[:, 2]) * 0.8 - 0.1                 # some facing away from the camera
+    n[:3] = [[0, 0, 1], [1, 0, 1e-7], [0.6, 0, 0.8]]
+    n = (n / np.linalg.norm(n, axis=1, keepdims=True)).astype(np.float32)
+    s = _random_normals(40, rng)
+    s[0], s[1] = [0, 0, 1], [0.6, 0, 0.8]                 # along the view; along the third normal
+    s = s.astype(np.float32)
+    _, b = li_shading_terms(n, s, sigma, n_i, volume_model="tables")
+    cs, co = n @ s.T, n[:, 2:3]
+    cs_c, co_c = np.clip(cs, 0, 1), np.clip(co, 0, 1)
+    sin_s, sin_o = np.sqrt(1 - cs_c ** 2), np.sqrt(1 - co_c ** 2)
+    both = (sin_s > 1e-6) & (sin_o > 1e-6)
+    cphi = np.where(both, np.clip((s[None, :, 2] - cs_c * co_c) / np.where(both, sin_s * sin_o, 1), -1, 1), 1)
+    vol = volume_table_at(sigma, n_i).at_angles(np.arccos(cs_c), np.arccos(co_c), np.arccos(cphi))
+    ref = np.where((cs > 0) & (co > 0), cs_c * vol, 0)
+    assert b.dtype == np.float32 and np.all(b[(cs <= 0) | (co <= 0)] == 0)
+    np.testing.assert_allclose(b, ref, rtol=5e-5, atol=1e-7)
+    # per-pixel lights (near lights): the same values
+    _, b_pp = li_shading_terms(n, np.broadcast_to(s, (len(n),) + s.shape).copy(), sigma, n_i, volume_model="tables")
+    np.testing.assert_allclose(b_pp, b, rtol=1e-5, atol=1e-6)     # n·s by einsum there: float32 rounding
