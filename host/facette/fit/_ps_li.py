@@ -7,7 +7,10 @@ as `photometric_stereo(method="li_alternating")`.
 
     ps_li_alternating(images, light_dirs, ...) -> PSResult
 
-1. Robust initial normals (the thesis's hierarchical elimination by default).
+1. Robust initial normals (`init`: rank_trimmed by default). Each photograph's
+   dark level (black level, ambient light: what pixels read with their light behind them,
+   facette.recon.dark_offsets, on these normals) is taken out of the images the next steps read:
+   the model predicts 0 there (`dark_offset`).
 2. Fit the LI model's shared (σ, n_i) on the pixels whose normals are most trustworthy, with
    K_d per pixel and channel solved in closed form for every (σ, n_i) (variable projection:
    E = A + B κ is linear in κ, facette.brdf.li_shading_terms), robust loss (soft-L1 on the

@@ -36,6 +36,7 @@ DARK_MIN_PIXELS = 50     # fewer dark pixels than this in a photograph: no offse
 DARK_QUANTILE = 25       # percentile of the dark pixels' readings taken as the level (a floor)
 DARK_UNIFORM = 0.5       # ... when it is at least this fraction of their median (one common level)
 DARK_MAX_RELATIVE = 0.05  # ... and at most this fraction of the lit pixels' median (else: not a pedestal)
+LIT_SAMPLE = 2000         # lit pixels (n · s > 0.5) whose median that is compared with, at most
 
 
 def dark_offsets(images, light_dirs, normals, valid, saturation=None):
@@ -60,20 +61,29 @@ def dark_offsets(images, light_dirs, normals, valid, saturation=None):
         dots = np.einsum("nk,nmk->nm", n, light_dirs.reshape(-1, m, 3)[idx].astype(np.float64))
     flat = images.reshape(m, h * w, c)
     lit_med = np.full((m, c), np.nan)
-    for k in range(m):
-        v = flat[k, idx, :]
+
+    def readable(k, rows):     # the values of photograph k at those valid pixels, finite and unsaturated
+        v = flat[k, idx[rows], :]
         ok = np.all(np.isfinite(v), axis=1)
         if saturation is not None:
             ok &= np.all(v < saturation, axis=1)
-        dark, lit = ok & (dots[:, k] < DARK_BELOW), ok & (dots[:, k] > 0.5)
-        if dark.sum() < DARK_MIN_PIXELS or not lit.any():
+        return v[ok]
+
+    for k in range(m):
+        rows = np.flatnonzero(dots[:, k] < DARK_BELOW)
+        dark = readable(k, rows) if rows.size >= DARK_MIN_PIXELS else rows
+        lit = np.flatnonzero(dots[:, k] > 0.5)
+        if len(dark) < DARK_MIN_PIXELS or lit.size == 0:
             continue
-        low, mid = np.percentile(v[dark], [DARK_QUANTILE, 50], axis=0)
-        lit_med[k] = np.median(v[lit], axis=0)
+        lit = readable(k, lit[::max(1, lit.size // LIT_SAMPLE)])     # a median to compare with: a sample does
+        if len(lit) == 0:
+            continue
+        low, mid = np.percentile(dark, [DARK_QUANTILE, 50], axis=0)
+        lit_med[k] = np.median(lit, axis=0)
         common = low >= DARK_UNIFORM * mid
         small = low <= DARK_MAX_RELATIVE * lit_med[k]
         offsets[k] = np.where(common & small, np.maximum(low, 0), 0)
-        info["pixels"] += int(dark.sum())
+        info["pixels"] += len(dark)
         info["spread"] += int((~common & (mid > 0)).sum())
         info["too_high"] += int((common & ~small).sum())
     have = offsets.any(axis=1)
