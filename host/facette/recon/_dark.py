@@ -71,7 +71,9 @@ def dark_offsets(images, light_dirs, normals, valid, saturation=None):
 
     for k in range(m):
         rows = np.flatnonzero(dots[:, k] < DARK_BELOW)
-        dark = readable(k, rows) if rows.size >= DARK_MIN_PIXELS else rows
+        if rows.size < DARK_MIN_PIXELS:
+            continue
+        dark = readable(k, rows)
         lit = np.flatnonzero(dots[:, k] > 0.5)
         if len(dark) < DARK_MIN_PIXELS or lit.size == 0:
             continue
