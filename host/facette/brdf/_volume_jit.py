@@ -51,7 +51,7 @@ def _cell(th, inv, cosn, x):
     return i, f, (1.0 - f) * cosn[i] + f * cosn[i + 1]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)      # its callers run it on pixel blocks in threads
 def volume_terms_tables(cs, co, sv, flat, th, inv, cosn, nph, inv_step, out):
     """out (N, m) float32 ← B = (n·s) I for cs = n·s (N, m), co = n·v (N,), sv = s·v (N, m)
     (a broadcast view is fine); 0 where n·s ≤ 0 or n·v ≤ 0 (or NaN). The table: `flat` its
