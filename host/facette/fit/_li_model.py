@@ -65,13 +65,6 @@ PROFILE_TABLE_GRID = 65
 # material gets is its fit pixels' profile cost (`diffuse="auto"`), never a fixed choice: the
 # simulated rig renders Cook–Torrance, Mitsuba's roughplastic a layered (LI-like) material.
 DIFFUSE = {"li": LI_VOLUME_MODEL, "lambert": "lambert"}
-# The diffuse part beside a dielectric's lobe stays the LI's (the thesis's substrate, with its
-# Fresnel transmissions) unless Lambert's lowers the trimmed profile cost by more than this. On
-# the Mitsuba bench's 20 distant-light scenes at 256 spp Lambert's won by 4.0-67 % where it won
-# (relief gold 4.0 %, metallic paint 13 %, rough plastic 67 %) and the LI's by 1.2 % to 75x: no
-# choice changes. The relief in paint 0.08 at 1024 spp tied (Lambert's 0.09 % lower) and took
-# Lambert's: 1.084° of normal error against 0.570° with the LI's (inter-reflections removed).
-DIFFUSE_MARGIN = 0.02
 
 
 def diffuse_name(volume_model):
@@ -232,17 +225,11 @@ def _pick(candidates):
     """(the candidate the bar decides on, the best dielectric one or None) of `_profile_lobe`'s:
     a metal's lobe only where it gains more against Lambert's than the best dielectric's (each on
     its own kept pixels: a metal's global search fits the pixels it keeps at any (σ, n_i)); of the
-    diffuse parts, the lower trimmed cost, the LI's unless Lambert's is lower by more than
-    DIFFUSE_MARGIN."""
+    diffuse parts, the lower trimmed cost."""
     def top(metal):
         c = [b for (m, _), b in candidates.items() if m == metal]
         return min(c, key=lambda b: b["cost"]) if c else None
     metal, dielectric = top(True), top(False)
-    if dielectric is not None and dielectric["volume_model"] == DIFFUSE["lambert"]:
-        li = [b for (m, vm), b in candidates.items() if not m and vm != DIFFUSE["lambert"]]
-        li = min(li, key=lambda b: b["cost"]) if li else None
-        if li is not None and dielectric["cost"] > (1 - DIFFUSE_MARGIN) * li["cost"]:
-            dielectric = li
     if metal is not None and (dielectric is None or metal["gain"] > dielectric["gain"]):
         return metal, dielectric
     return dielectric, dielectric

@@ -42,24 +42,3 @@ def test_the_bar_decides_on_the_check_pixels_when_the_profile_is_a_sample():
     assert checked["model"] == "lobe" and checked["gain"] > 3 * LOBE_MIN_GAIN, checked
     # (σ, n_i) are then warmed up on the profile pixels (later rounds refit on the fit pixels)
     assert np.isfinite(fit["sigma"]) and fit["n_i"] > 1.0, fit
-
-
-def test_the_diffuse_part_stays_the_lis_unless_lamberts_is_clearly_lower():
-    # candidates as _profile_lobe leaves them: a tie between the two diffuse parts keeps the LI
-    # (the thesis's substrate); Lambert's wins only by more than DIFFUSE_MARGIN; a metal's lobe
-    # is still chosen on its gain
-    from facette.fit._li_model import DIFFUSE, DIFFUSE_MARGIN, _pick
-
-    def cand(cost, vm, gain=0.9):
-        return {"cost": cost, "volume_model": vm, "gain": gain}
-
-    li, lam = DIFFUSE["li"], DIFFUSE["lambert"]
-    tie = {(False, li): cand(1.0, li), (False, lam): cand(1.0 - DIFFUSE_MARGIN / 2, lam)}
-    assert _pick(tie)[0]["volume_model"] == li
-    clear = {(False, li): cand(1.0, li), (False, lam): cand(1.0 - 2 * DIFFUSE_MARGIN, lam)}
-    assert _pick(clear)[0]["volume_model"] == lam
-    alone = {(False, lam): cand(1.0, lam)}
-    assert _pick(alone)[0]["volume_model"] == lam
-    metal = {**tie, (True, lam): cand(0.5, lam, gain=0.95)}
-    best, dielectric = _pick(metal)
-    assert best is metal[(True, lam)] and dielectric["volume_model"] == li
