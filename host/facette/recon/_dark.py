@@ -54,11 +54,14 @@ def dark_offsets(images, light_dirs, normals, valid, saturation=None):
     info = {"estimated": 0, "pixels": 0, "median": [0.0] * c, "relative": 0.0, "spread": 0, "too_high": 0}
     if idx.size == 0:
         return offsets, info
-    n = normals.reshape(-1, 3)[idx].astype(np.float64)
-    if light_dirs.ndim == 2:
-        dots = n @ np.asarray(light_dirs, np.float64).T                     # (N, m)
-    else:
-        dots = np.einsum("nk,nmk->nm", n, light_dirs.reshape(-1, m, 3)[idx].astype(np.float64))
+    n = normals.reshape(-1, 3)[idx].astype(np.float32)
+    per_pixel = None if light_dirs.ndim == 2 else light_dirs.reshape(-1, m, 3)
+
+    def dots(k):     # n · s of light k at the valid pixels (one light at a time: no (N, m) array)
+        if per_pixel is None:
+            return n @ np.asarray(light_dirs[k], np.float32)
+        return np.einsum("nk,nk->n", n, per_pixel[idx, k].astype(np.float32))
+
     flat = images.reshape(m, h * w, c)
     lit_med = np.full((m, c), np.nan)
 
@@ -70,11 +73,12 @@ def dark_offsets(images, light_dirs, normals, valid, saturation=None):
         return v[ok]
 
     for k in range(m):
-        rows = np.flatnonzero(dots[:, k] < DARK_BELOW)
+        d = dots(k)
+        rows = np.flatnonzero(d < DARK_BELOW)
         if rows.size < DARK_MIN_PIXELS:
             continue
         dark = readable(k, rows)
-        lit = np.flatnonzero(dots[:, k] > 0.5)
+        lit = np.flatnonzero(d > 0.5)
         if len(dark) < DARK_MIN_PIXELS or lit.size == 0:
             continue
         lit = readable(k, lit[::max(1, lit.size // LIT_SAMPLE)])     # a median to compare with: a sample does

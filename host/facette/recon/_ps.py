@@ -132,8 +132,6 @@ def near_light_directions(positions_mm, shape, pixel_pitch_mm, heights_mm=None, 
 
 # ----------------------------------------------------------------------------- least squares
 
-
-
 def _ls_normals(e, s, ok):
     """Least squares g = argmin ||W (E - S g)|| per pixel (light-major layout).
 

@@ -317,7 +317,7 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
         rgb = srgb_encode(rgb)
         scale, lut = 1.0, srgb_table()
         run_blocks(lambda a: srgb_lum_block(flat[:, a:a + _BLOCK], rgb, lum, a, 1.0 / white, lut),
-             range(0, h * w, _BLOCK))
+                   range(0, h * w, _BLOCK))
     lum_img = lum.reshape(m, h, w, 1)
 
     def values(e):                          # e: a copy of its own, changed in place
