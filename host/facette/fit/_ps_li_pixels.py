@@ -21,7 +21,7 @@ import numpy as np
 from facette._threads import run_blocks
 from facette.brdf import li_shading_terms
 from facette.recon import ps_woodham1980
-from facette.recon._ps import _pixel_dirs, _usable
+from facette.recon._ps import _pixel_dirs
 from ._li_model import PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model, is_metal
 from ._normals_li import RefineResult, refine_normals_li
 
@@ -91,9 +91,9 @@ class Pixels:
         ls = base if init is ps_woodham1980 else \
             ps_woodham1980(images, light_dirs, mask=mask, channel=channel, saturation=saturation)
         alb = base.albedo.reshape(-1, c)[idx]
-        g_ok = _usable(flat[:, idx, channel], saturation).T            # (N, m)
-        all_ok = np.all(np.isfinite(flat[:, idx, :]), axis=2).T & g_ok
-        has_highlight, hl_start = _highlight_starts(flat[:, idx, channel].T, all_ok, nrm, s_all, alb[:, channel])
+        from ._ps_li_pixels_jit import channel_and_usable     # numba loads only when li_alternating runs
+        values, all_ok = channel_and_usable(flat, idx, channel, saturation)     # (N, m) each
+        has_highlight, hl_start = _highlight_starts(values, all_ok, nrm, s_all, alb[:, channel])
         return cls(settings=settings, shape=(h, w), channel=channel, flat=flat, idx=idx, s_all=s_all,
                    all_ok=all_ok, alb=alb, nrm0=nrm.copy(), nrm_ls=ls.normal.reshape(-1, 3)[idx].astype(np.float32),
                    resid_ls=np.where(ls.valid.reshape(-1)[idx], ls.residual.reshape(-1)[idx], np.inf),

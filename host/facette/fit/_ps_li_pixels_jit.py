@@ -13,7 +13,35 @@ import math
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["brightest_excess"]
+__all__ = ["brightest_excess", "channel_and_usable"]
+
+
+@njit(cache=True, parallel=True)
+def _channel_and_usable(flat, idx, channel, saturation, values_out, ok_out):
+    m, _, c = flat.shape
+    for p in prange(idx.size):
+        j = idx[p]
+        for i in range(m):
+            v = flat[i, j, channel]
+            ok = np.isfinite(v) and v < saturation
+            for ch in range(c):
+                ok = ok and np.isfinite(flat[i, j, ch])
+            values_out[p, i] = v
+            ok_out[p, i] = ok
+
+
+def channel_and_usable(flat, idx, channel, saturation):
+    """flat : (m, H·W, C) images; idx : (N,) flat pixel indices. Returns ((N, m) float32 the
+    values of `channel`, (N, m) bool usable: finite in every channel and, in `channel`, below
+    `saturation` (None: no level)), in one pass over the pixels' values. At 2144×1424 × 12 lights
+    the array form (a (m, N, C) gather, its isfinite, the transposes) took 2.2 s."""
+    n_pix, m = idx.size, flat.shape[0]
+    values = np.empty((n_pix, m), np.float32)
+    ok = np.empty((n_pix, m), bool)
+    # the level in float32, as numpy compares float32 values with a Python float (`recon._ps._usable`)
+    _channel_and_usable(flat, np.asarray(idx, np.int64), int(channel),
+                        np.float32(np.inf if saturation is None else saturation), values, ok)
+    return values, ok
 
 
 @njit(cache=True, parallel=True)

@@ -55,3 +55,24 @@ def test_compiled_highlight_test_on_no_pixels():
     has, brightest = brightest_excess(np.zeros((0, 5), np.float32), np.zeros((0, 5), bool),
                                       np.zeros((0, 3), np.float32), np.eye(5, 3), np.zeros(0, np.float32))
     assert has.shape == (0,) and brightest.shape == (0,)
+
+
+def test_channel_and_usable_equals_the_array_form():
+    # Pixels.start's usable flags and green values, against the numpy passes they replaced
+    from facette.fit._ps_li_pixels_jit import channel_and_usable
+    from facette.recon._ps import _usable
+    rng = np.random.default_rng(4)
+    flat = rng.uniform(0, 1, (7, 500, 3)).astype(np.float32)
+    flat[rng.random(flat.shape) < 0.05] = np.nan                   # unusable in one channel or another
+    flat[2, 10, 1] = np.float32(0.95)                              # exactly at the level, in float32
+    flat[3, 11, 0] = np.inf
+    idx = np.flatnonzero(rng.random(500) < 0.7)
+    for channel, saturation in ((1, None), (1, 0.95), (0, 0.5)):
+        values, ok = channel_and_usable(flat, idx, channel, saturation)
+        want_ok = np.all(np.isfinite(flat[:, idx, :]), axis=2).T & _usable(flat[:, idx, channel], saturation).T
+        np.testing.assert_array_equal(ok, want_ok)
+        np.testing.assert_array_equal(values, flat[:, idx, channel].T)
+        assert values.flags.c_contiguous and 0.05 < (~ok).mean() < 0.9
+    assert not channel_and_usable(flat, np.array([10]), 1, 0.95)[1][0, 2]    # 0.95 is not below 0.95
+    values, ok = channel_and_usable(flat, np.zeros(0, np.int64), 1, None)
+    assert values.shape == (0, 7) and ok.shape == (0, 7)
