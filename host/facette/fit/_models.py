@@ -8,6 +8,8 @@ Everything that depends on (σ, n_i) alone (the specular lobe, the volume integr
 inter-reflection integral J) is cached per (σ, n_i), so changing K_d — and the finite-difference
 columns of the Jacobian for K_d — costs a multiply-add.
 """
+import threading
+
 import numpy as np
 
 from facette.brdf import (MODELS, interreflection_integral_vcavity, interreflection_mixed_integral_vcavity, li_specular,
@@ -50,6 +52,7 @@ class FitModel:
         # the lobe's directions unit and broadcast once, not at each of the fit's evaluations
         self._s_unit, self._o_unit = (np.ascontiguousarray(a) for a in prepare_directions(self.s, self.o))
         self._cache = {}
+        self._count_lock = threading.Lock()    # the fits' starts run on two threads (fit._fit)
         self.n_evaluations = 0
         if name in ("li", "cook_torrance"):
             self.names = ["sigma", "n_i"]
@@ -84,9 +87,11 @@ class FitModel:
     def _parts(self, sigma, n_i):
         """K_d-free parts for these (σ, n_i), cached (a handful of entries)."""
         key = (round(float(sigma), 15), round(float(n_i), 15))
-        if key in self._cache:
-            return self._cache[key]
-        self.n_evaluations += 1
+        parts = self._cache.get(key)    # one lookup: another thread's fit may clear the cache
+        if parts is not None:
+            return parts
+        with self._count_lock:
+            self.n_evaluations += 1
         spec = self._mean(li_specular(self._s_unit, self._o_unit, sigma, n_i, self.distribution, self.masking,
                                        prepared=True))
         parts = {"spec": spec}
@@ -111,12 +116,14 @@ class FitModel:
             return self.up[:, None] * kd[None, :] / np.pi
         if self.name == "oren_nayar":
             key = ("on", round(float(shared["sigma"]), 15))
-            if key not in self._cache:
-                self.n_evaluations += 1
+            ab = self._cache.get(key)
+            if ab is None:
+                with self._count_lock:
+                    self.n_evaluations += 1
                 a = self._mean(oren_nayar1994(self.s, self.o, 1.0, shared["sigma"], interreflection=False))
                 b = self._mean(oren_nayar1994(self.s, self.o, 1.0, shared["sigma"], interreflection=True)) - a
-                self._cache[key] = (a, b)
-            a, b = self._cache[key]
+                ab = self._cache[key] = (a, b)
+            a, b = ab
             return a[:, None] * kd[None, :] + b[:, None] * kd[None, :] ** 2
         sigma, n_i = shared["sigma"], shared["n_i"]
         parts = self._parts(sigma, n_i)

@@ -195,3 +195,17 @@ def test_the_brdf_fits_model_evaluates_the_lobe_on_directions_normalised_once():
     m = FitModel("li", s, s, 3, o_spread=o_spread)
     want = li_specular(s[:, None, :], o_spread, 0.2, 1.4).mean(axis=1)
     np.testing.assert_allclose(m._parts(0.2, 1.4)["spec"], want, rtol=1e-12)
+
+
+def test_the_fit_models_cache_gives_the_same_values_from_two_threads():
+    # fit_least_squares runs its starts on two threads that share one FitModel and its cache
+    # (cleared past 64 entries): every prediction must be the one a lone thread gets
+    from concurrent.futures import ThreadPoolExecutor
+    fm = FitModel("li", S[:60], O[:60], 3, volume="approx")
+    params = [np.array([0.05 + 0.004 * k, 1.2 + 0.003 * k, 0.3, 0.5, 0.7]) for k in range(150)]
+    alone = [FitModel("li", S[:60], O[:60], 3, volume="approx").predict(p) for p in params]
+    with ThreadPoolExecutor(2) as pool:
+        both = list(pool.map(fm.predict, params + params[::-1]))
+    for got, want in zip(both, alone + alone[::-1]):
+        np.testing.assert_array_equal(got, want)
+    assert 150 <= fm.n_evaluations <= 300
