@@ -20,13 +20,14 @@ relative (tested).
 import numpy as np
 from scipy.special import erfc
 
+from ._coupled import coupled_terms
 from ._fresnel import check_n_i, fresnel_dielectric, r_e_molenaar1999, r_i_simonot2009
 from ._microfacet import SIGMA_FLAT
 from ._volume import approx_coefficients, rough_lambert_terms, volume_table_at
 
 __all__ = ["li_shading_terms", "li_kappa", "li_kd_from_kappa", "kd_from_kappa", "VOLUME_MODELS"]
 
-VOLUME_MODELS = ("approx", "tables", "lambert")
+VOLUME_MODELS = ("approx", "tables", "lambert", "coupled")
 
 _SQRT_PI = np.float32(np.sqrt(np.pi))
 
@@ -46,8 +47,8 @@ def li_kd_from_kappa(kappa, n_i):
 
 
 def kd_from_kappa(kappa, n_i, volume_model):
-    """K_d from κ under either diffuse part: the LI substrate (`li_kd_from_kappa`) or, with
-    volume_model "lambert" (a Lambertian term beside the lobe, no transmission), K_d = π κ."""
+    """K_d from κ under the diffuse part: the LI substrate or the coupled one (`li_kd_from_kappa`) or,
+    with volume_model "lambert" (a Lambertian term beside the lobe, no transmission), K_d = π κ."""
     if volume_model == "lambert":
         return np.clip(np.pi * np.maximum(np.asarray(kappa, dtype=np.float32), 0), 0.0, 1.0).astype(np.float32)
     return li_kd_from_kappa(kappa, n_i)
@@ -76,7 +77,9 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True, vo
         part: it is evaluated on the pairs near the lobe alone).
     volume_model : "approx" (eq 3.49–3.57) or "tables" (eq 3.15 itself, see the module doc), or
         "lambert": B = n·s, a Lambertian substrate beside the lobe with no Fresnel transmission
-        in or out (the Cook–Torrance form, facette.brdf.cook_torrance1982; κ = ρ/π).
+        in or out (the Cook–Torrance form, facette.brdf.cook_torrance1982; κ = ρ/π), or
+        "coupled": B = (n·s) t(n·s) t(n·v), a Lambertian substrate seen through the interface
+        (facette.brdf._coupled; κ as eq 3.15).
     Returns (A, B), each (N, m) float32, 0 where n·s ≤ 0 or n·v ≤ 0 (attached shadow,
     back-facing). Units: E is the image value over the light's intensity; a Lambertian
     surface of reflectance ρ has A = 0, B κ = (ρ/π) n·s.
@@ -114,6 +117,8 @@ def li_shading_terms(normals, lights, sigma, n_i, specular=True, volume=True, vo
     # volume part: the angles (θ_s, θ_o, Δφ) in the local frame, from dot products
     if volume_model == "lambert":      # no angles needed: B = n·s
         B = np.where(lit, cs_c, np.float32(0)).astype(np.float32)
+    elif volume_model == "coupled":    # B = (n·s) t(n·s) t(n·v) (facette.brdf._coupled)
+        B = coupled_terms(cs, co[:, 0], sig_v, n_i)
     elif volume_model == "tables":     # angles, table and product in one compiled pass
         from ._volume_jit import volume_terms_tables     # numba loads only when the tables are used
         B = np.empty(cs.shape, np.float32)

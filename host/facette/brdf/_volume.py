@@ -20,6 +20,7 @@ import numpy as np
 
 from facette._registry import Registry
 
+from ._coupled import volume_integral_coupled
 from ._fresnel import check_n_i, fresnel_dielectric, r_e_molenaar1999
 from ._microfacet import (check_masking, check_sigma, masking_g, microfacet_quadrature,
                           sample_microfacet_normals, smith_g1)
@@ -447,3 +448,4 @@ VOLUME_METHODS.add("monte_carlo", volume_integral_monte_carlo)
 VOLUME_METHODS.add("tables", volume_integral_tables)
 VOLUME_METHODS.add("table", volume_integral_table)
 VOLUME_METHODS.add("approx", _volume_integral_approx_any_masking)
+VOLUME_METHODS.add("coupled", volume_integral_coupled)

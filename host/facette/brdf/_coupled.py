@@ -1,0 +1,113 @@
+"""The coupled diffuse part: a Lambertian substrate seen through the lobe's rough interface.
+
+Light reaches the substrate only in the share the interface does not reflect, and leaves it in
+the share the interface lets out: the diffuse part is weighted by t(θ) = 1 − E(θ), E the directional
+albedo of the specular lobe (eq 3.10), once towards the light and once towards the camera
+(Kelemen & Szirmay-Kalos 2001, "A microfacet based coupled specular-matte BRDF model", Eurographics
+short papers, §3). Inside, the substrate's light is diffuse, so in and out are independent: the
+term is separable, B = (n·s) t(n·s) t(n·v), with the LI model's interface constants for K_d
+(κ = K_d / (π n_i² (1 − K_d r_i)), facette.brdf.li_kappa). The LI volume part (eq 3.15) couples
+the two transmissions through the facets' shadowing; this form does not.
+
+    coupled_transmittance(sigma, n_i) -> (mu (K,), t (K,))
+    coupled_terms(cs, co, sigma, n_i) -> B (N, m) float32
+    volume_integral_coupled(s, o, sigma, n_i) -> I = t(θ_s) t(θ_o) (the BRDF fits' volume="coupled")
+"""
+import functools
+
+import numpy as np
+from scipy.special import erfc
+
+from ._fresnel import check_n_i, fresnel_dielectric
+
+__all__ = ["coupled_terms", "coupled_transmittance", "volume_integral_coupled"]
+
+MU_NODES = 65           # cos θ nodes of t(θ), linear interpolation between them
+# stratified half-vector samples of the albedo, Beckmann's (u, φ): against 64 × 48 on 129 cosines,
+# at most 0.0015 of t off for σ 0.05-0.5 and 0.006 at σ 0.02 (grazing), 2.4 ms a node against 48 ms
+HALF_VECTORS = (32, 24)
+SIGMA_MIN = 1e-3        # below: the interface is taken as this rough (a mirror's albedo is F)
+NODE_SIGMA_RATIO = 1.2  # the nodes in σ: SIGMA_MIN · ratio^k (as facette.brdf._volume's)
+NODE_N_I_STEP = 0.025   # the nodes in n_i: 1 + k · step
+
+
+def _g1(c, sigma):
+    """Smith G_1 for Beckmann at cosine c (float64; the lobe's `_smith_g1_beckmann`)."""
+    c = np.clip(c, 1e-12, 1.0)
+    a = c / (sigma * np.sqrt(np.maximum(1 - c * c, 1e-300)))
+    lam = 0.5 * (np.exp(-a * a) / (a * np.sqrt(np.pi)) - erfc(a))
+    return 1.0 / (1.0 + lam)
+
+
+def _node_weights(x, step):
+    """(k, w): the cell [k, k + 1] of x ≥ 0 in units of `step`, and the weight of k + 1."""
+    u = max(float(x) / step, 0.0)
+    k = int(np.floor(u))
+    return k, u - k
+
+
+@functools.lru_cache(maxsize=512)
+def coupled_transmittance(sigma, n_i):
+    """(mu, t): t(μ) = 1 − E(μ) on MU_NODES cosines μ ∈ [0, 1], E the lobe's directional albedo
+    (`_albedo_nodes`), combined linearly in log σ and n_i from the nodes around (σ, n_i), as the LI
+    volume tables are (facette.brdf.volume_table_at): continuous in both for the fits' finite
+    differences, and each node computed once (~4 ms). Read-only arrays, cached per (σ, n_i)."""
+    n = check_n_i(n_i)
+    ks, ws = _node_weights(np.log(max(float(sigma), SIGMA_MIN) / SIGMA_MIN), np.log(NODE_SIGMA_RATIO))
+    kn, wn = _node_weights(n - 1.0, NODE_N_I_STEP)
+    t = sum(wi * wj * _albedo_node(i, j) for i, wi in ((ks, 1 - ws), (ks + 1, ws))
+            for j, wj in ((kn, 1 - wn), (kn + 1, wn)) if wi * wj > 0)
+    t = 1 - np.asarray(t, float)
+    mu = np.linspace(0.0, 1.0, MU_NODES)
+    mu.setflags(write=False)
+    t.setflags(write=False)
+    return mu, t
+
+
+@functools.lru_cache(maxsize=1024)
+def _albedo_node(k, j):
+    """E(μ) at the node σ = SIGMA_MIN · NODE_SIGMA_RATIO^k, n_i = 1 + j · NODE_N_I_STEP:
+    E(i) = ∫ F(i·h) D(h) G_1(i) G_1(o) (i·h) / (n·i) dω_h (o the mirror of i about h, above the
+    surface; f cos θ_o dω_o with dω_o = 4 (i·h) dω_h), by half-vectors h stratified in D(h) (n·h)
+    (Beckmann: tan² θ_h = −σ² ln(1 − u))."""
+    sigma, n = SIGMA_MIN * NODE_SIGMA_RATIO ** k, 1.0 + j * NODE_N_I_STEP
+    ku, kp = HALF_VECTORS
+    u = (np.arange(ku) + 0.5) / ku
+    phi = 2 * np.pi * (np.arange(kp) + 0.5) / kp
+    ch = 1 / np.sqrt(1 - sigma * sigma * np.log1p(-u))               # n·h
+    sh = np.sqrt(np.maximum(1 - ch * ch, 0))
+    h = np.stack(np.broadcast_arrays(sh[:, None] * np.cos(phi), sh[:, None] * np.sin(phi), ch[:, None]), -1)
+    h = h.reshape(-1, 3)
+    mu = np.maximum(np.linspace(0.0, 1.0, MU_NODES), 1e-4)
+    i = np.stack([np.sqrt(1 - mu * mu), np.zeros_like(mu), mu], -1)  # (K, 3)
+    ih = i @ h.T                                                      # (K, S)
+    o_z = 2 * ih * h[None, :, 2] - mu[:, None]
+    ok = (ih > 0) & (o_z > 0)
+    g = _g1(mu, sigma)[:, None] * _g1(np.clip(o_z, 0, 1), sigma)
+    w = np.where(ok, fresnel_dielectric(np.clip(ih, 0, 1), n) * g * ih / (mu[:, None] * h[None, :, 2]), 0.0)
+    return np.clip(w.mean(1), 0, 1)
+
+
+def coupled_terms(cs, co, sigma, n_i):
+    """B (N, m) float32 = (n·s) t(n·s) t(n·v), 0 where n·s ≤ 0 or n·v ≤ 0; cs (N, m) the
+    cosines n·s, co (N,) n·v (`coupled_transmittance`)."""
+    mu, t = coupled_transmittance(float(sigma), float(check_n_i(n_i)))
+    cs = np.asarray(cs, np.float32)
+    co = np.asarray(co, np.float32).reshape(-1, 1)
+    lit = (cs > 0) & (co > 0)
+    cs_c = np.clip(cs, 0, 1)
+    t_s = np.interp(cs_c, mu, t).astype(np.float32)
+    t_o = np.interp(np.clip(co, 0, 1), mu, t).astype(np.float32)
+    return np.where(lit, cs_c * t_s * t_o, np.float32(0)).astype(np.float32)
+
+
+def volume_integral_coupled(s, o, sigma, n_i, distribution="beckmann", masking="smith"):
+    """The coupled diffuse part as a volume integral of the LI form (B = (n·s) I, κ as eq 3.15):
+    I = t(θ_s) t(θ_o) for local-frame unit directions s, o (..., 3), z the normal; 0 below the
+    surface. Beckmann and Smith only (the transmittance's quadrature)."""
+    if distribution != "beckmann" or masking != "smith":
+        raise ValueError(f"volume 'coupled' is computed for a Beckmann lobe with Smith masking, got "
+                         f"{distribution!r} / {masking!r}: use volume='tables' or 'quadrature'")
+    mu, t = coupled_transmittance(float(sigma), float(check_n_i(n_i)))
+    sz, oz = np.asarray(s, float)[..., 2], np.asarray(o, float)[..., 2]
+    return np.where((sz > 0) & (oz > 0), np.interp(np.clip(sz, 0, 1), mu, t) * np.interp(np.clip(oz, 0, 1), mu, t), 0.0)

@@ -1,0 +1,56 @@
+"""The coupled diffuse part (facette.brdf._coupled): the interface's transmittance against a
+brute-force integral of the lobe li_shading_terms evaluates, and its use as a diffuse part."""
+import numpy as np
+import pytest
+
+from facette.brdf import li_shading_terms
+from facette.brdf._coupled import coupled_transmittance, volume_integral_coupled
+from facette.brdf._volume import volume_integral
+
+
+def _albedo_by_sphere(mu, sigma, n_i, k=60_000):
+    """E(μ) = ∫ A(n, s) dω_s over the lights s above the normal, A = f cos θ_s from
+    li_shading_terms (view +z, the normal tilted by arccos μ), on a Fibonacci hemisphere."""
+    i = np.arange(k) + 0.5
+    phi, z = np.pi * (1 + 5 ** 0.5) * i, 1 - i / k
+    dirs = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], 1)
+    th = np.arccos(mu)
+    rot = np.array([[np.cos(th), 0, np.sin(th)], [0, 1, 0], [-np.sin(th), 0, np.cos(th)]])
+    normal = np.array([[np.sin(th), 0, np.cos(th)]], np.float32)
+    a, _ = li_shading_terms(normal, (dirs @ rot.T).astype(np.float32), sigma, n_i, volume=False)
+    return float(a.sum()) * 2 * np.pi / k
+
+
+@pytest.mark.parametrize("sigma, n_i", [(0.05, 1.26), (0.2, 1.5), (0.43, 1.37), (0.11, 2.2)])
+def test_transmittance_is_one_minus_the_lobes_albedo(sigma, n_i):
+    # off the (σ, n_i) nodes: the interpolation between them is checked too
+    mu, t = coupled_transmittance(sigma, n_i)
+    for m in (0.25, 0.5, 0.8, 1.0):
+        assert np.interp(m, mu, t) == pytest.approx(1 - _albedo_by_sphere(m, sigma, n_i), abs=4e-3)
+    assert np.all(np.diff(t) >= -1e-9) and 0 < t[0] < t[-1] < 1        # less gets in at grazing
+
+
+def test_no_interface_lets_everything_through_and_a_mirror_reflects_fresnel():
+    np.testing.assert_allclose(coupled_transmittance(0.2, 1.0)[1], 1.0)
+    mu, t = coupled_transmittance(1e-6, 1.5)
+    assert t[-1] == pytest.approx(0.96, abs=2e-3)                     # 1 − ((n − 1)/(n + 1))² at normal incidence
+
+
+def test_shading_terms_and_volume_integral_agree():
+    rng = np.random.default_rng(1)
+    normal = np.float32([[0.3, 0.1, 0.95]])
+    normal /= np.linalg.norm(normal)
+    s = rng.normal(size=(40, 3)).astype(np.float32)
+    s[:, 2] = np.abs(s[:, 2]) + 0.2
+    s /= np.linalg.norm(s, axis=1, keepdims=True)
+    _, b = li_shading_terms(normal, s, 0.2, 1.5, volume_model="coupled")
+    z = normal[0].astype(float)
+    x = np.cross([0, 1, 0], z)
+    x /= np.linalg.norm(x)
+    frame = np.stack([x, np.cross(z, x), z])
+    s_loc, o_loc = s @ frame.T, np.broadcast_to(frame @ [0, 0, 1.0], s.shape)
+    i_loc = volume_integral(s_loc, o_loc, 0.2, 1.5, method="coupled")
+    np.testing.assert_allclose(b[0], np.clip(s_loc[:, 2], 0, None) * i_loc, rtol=1e-5, atol=1e-7)
+    assert np.all(b[0][s_loc[:, 2] <= 0] == 0) and np.all(np.isfinite(b))
+    with pytest.raises(ValueError, match="Beckmann"):
+        volume_integral_coupled(s_loc, o_loc, 0.2, 1.5, distribution="ggx")
