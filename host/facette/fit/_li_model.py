@@ -61,14 +61,16 @@ PROFILE_KEEP = 0.8
 PROFILE_VALUES = 12_000
 PROFILE_TABLE_GRID = 65
 # The diffuse part beside the lobe: the LI substrate under the interface (eq 3.15: Fresnel
-# transmissions in and out) or a Lambertian term with no transmission (Cook–Torrance). Which one a
-# material gets is its fit pixels' profile cost (`diffuse="auto"`), never a fixed choice: the
-# simulated rig renders Cook–Torrance, Mitsuba's roughplastic a layered (LI-like) material.
-DIFFUSE = {"li": LI_VOLUME_MODEL, "lambert": "lambert"}
+# transmissions in and out through the facets), a Lambertian term with no transmission
+# (Cook–Torrance), or a Lambertian substrate weighted by the interface's transmittance in and out,
+# one minus the lobe's directional albedo (Kelemen & Szirmay-Kalos 2001, facette.brdf._coupled).
+# Which one a material gets is its fit pixels' profile cost (`diffuse="auto"`), never a fixed
+# choice: the simulated rig renders Cook–Torrance, Mitsuba's roughplastic a layered material.
+DIFFUSE = {"li": LI_VOLUME_MODEL, "lambert": "lambert", "coupled": "coupled"}
 
 
 def diffuse_name(volume_model):
-    """The DIFFUSE name ("li", "lambert") of a volume model, or the model itself (e.g. "approx")."""
+    """The DIFFUSE name ("li", "lambert", "coupled") of a volume model, or the model itself (e.g. "approx")."""
     return next((k for k, v in DIFFUSE.items() if v == volume_model), volume_model)
 
 

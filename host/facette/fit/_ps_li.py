@@ -20,8 +20,9 @@ as `photometric_stereo(method="li_alternating")`.
    relative residual below t_residual, every light usable, no light inside the fitted specular
    lobe) skip this step; a material whose fit finds n_i → 1 (no interface: Lambertian-like)
    skips it entirely. That choice is made once, in round 1, by the profile of the fit pixels'
-   robust cost (`_profile_lobe`): for each diffuse part (the LI substrate, eq 3.15, or a
-   Lambertian term beside the lobe as in Cook–Torrance) and each (σ, n_i) of a coordinate search,
+   robust cost (`_profile_lobe`): for each diffuse part (the LI substrate, eq 3.15; a Lambertian
+   term beside the lobe as in Cook–Torrance; or a Lambertian substrate weighted by what the
+   interface lets in and out, facette.brdf._coupled) and each (σ, n_i) of a coordinate search,
    the fit pixels' normals are solved against the model and the summed robust cost of the best
    explained 80 % of them scores it (a pixel whose solve stopped in a wrong minimum does not
    decide). The material gets a lobe when the best lowers that cost by ≥ LOBE_MIN_GAIN against the
@@ -150,7 +151,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         step, the start of lower cost was worse than either (5.83°). "all" is the default because
         it is what held up on the unseen objects of issue 24.
     diffuse : the diffuse part beside the lobe: "li" (the LI substrate, `volume_model`), "lambert"
-        (Lambertian, no transmission: Cook–Torrance) or "auto" (default): per material, the one
+        (Lambertian, no transmission: Cook–Torrance), "coupled" (a Lambertian substrate through the
+        interface, facette.brdf._coupled) or "auto" (default): per material, the one
         whose best lobe has the lower trimmed profile cost on the fit pixels (DIFFUSE,
         `_profile_lobe`; info["materials"][k]["diffuse"] and its "model_choice").
     dark_offset : "auto" (default): each photograph's dark level (facette.recon.dark_offsets, on the
@@ -214,7 +216,7 @@ def _check_options(rounds, init, highlight_start, diffuse, volume_model, dark_of
     if diffuse not in ("auto", *DIFFUSE):
         raise ValueError(f"diffuse = {diffuse!r}: choose 'auto', {', '.join(repr(k) for k in DIFFUSE)}")
     diffuse_models = tuple(dict.fromkeys([volume_model if k == "li" else DIFFUSE[k] for k in
-                                          (("li", "lambert") if diffuse == "auto" else (diffuse,))]))
+                                          (("li", "lambert", "coupled") if diffuse == "auto" else (diffuse,))]))
     if init is ps_li_alternating:
         raise ValueError("init = 'li_alternating': the initial normals must come from another method "
                          "(hierarchical_tautzia2016, woodham1980, rpca_wu2010, ...)")

@@ -119,7 +119,7 @@ class ProcessResult:
     interreflections: dict = None
 
 
-def _fit_stage(filtered, fit_options, brdf_aware=False, prefer="li"):
+def _fit_stage(filtered, fit_options, brdf_aware=False, material=None):
     """BRDF identification on the hemisphere sensor's cells (facette.fit.fit_hemisphere_cells:
     the model averaged over each cell, which removes the lobe-widening bias of fitting cell
     centres). The LI volume part: after BRDF-aware normals (`brdf_aware`, li_alternating, which
@@ -127,20 +127,21 @@ def _fit_stage(filtered, fit_options, brdf_aware=False, prefer="li"):
     approximate formula (eq 3.49-3.57, "approx"). Mitsuba spheres and relief at 256 spp, σ / n_i /
     K_d over the truth, approx → tables: with li_alternating's normals paint 0.10 1.148 / 1.340 /
     1.00-1.01 → 1.018 / 1.300 / 1.00, satin 1.126 / 1.599 / 1.06-1.09 → 0.979 / 1.483 / 0.99-1.00;
-    with rank_trimmed's, whose normal error dominates, tables are better on two scenes and worse
-    on two (satin 1.157 / 1.443 → 0.824 / 1.277) for 0.4-1.4 s more, so approx stays there.
-    fit_options={"volume": ...} chooses ("quadrature": the reference, ~15× slower).
-    The model: `prefer` first (facette.fit.preferred_model), the others too when it is off by more
+    with rank_trimmed's tables are better on two scenes, worse on two (satin 1.157 / 1.443 → 0.824 /
+    1.277) for 0.4-1.4 s more: approx there. "coupled" where photometric stereo chose that diffuse
+    part for the main `material`; fit_options={"volume": ...} chooses ("quadrature": ~15× slower).
+    The model: facette.fit.preferred_model(material) first, the others too when it is off by more
     than facette.fit.FITS_RELATIVE_RMS, and a verdict either way (facette.fit.fit_cells_verdict);
-    fit_options={"model": ...} fits that one.
-    Returns (FitResult or None, note)."""
+    fit_options={"model": ...} fits that one. Returns (FitResult or None, note)."""
     check_fit_cells(filtered)         # too few filled cells: InsufficientData (exit 3)
     options = dict(fit_options)
     model = options.pop("model", None)
+    material = material or {}
     if model in (None, "li"):
-        options.setdefault("volume", "tables" if brdf_aware else "approx")
-    res = fit_cells_verdict(filtered, prefer=model or prefer, **({} if model is None else {"models": (model,)}),
-                            **options)
+        options.setdefault("volume", "coupled" if material.get("diffuse") == "coupled" else
+                           "tables" if brdf_aware else "approx")
+    res = fit_cells_verdict(filtered, prefer=model or preferred_model(material),
+                            **({} if model is None else {"models": (model,)}), **options)
     note = "" if getattr(res, "success", True) else f"brdf: the fit failed ({res.message})"
     if getattr(res, "verdict", "") == "no model fits well":
         note = "brdf: no model fits well (" + ", ".join(
@@ -438,8 +439,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
         mats = res.ps.info.get("materials") or [{}]
         main = max(mats, key=lambda q: q.get("pixels", 0))
         res.brdf, note = _timed(res, "fit", _fit_stage, res.filtered, dict(o.fit_options),
-                                res.ps.method == "li_alternating",
-                                preferred_model(main))
+                                res.ps.method == "li_alternating", main)
         write("brdf")
         if out is not None and "report" in outputs:
             # matplotlib holds the GIL: drawn here, it runs beside numpy stages that let it go
