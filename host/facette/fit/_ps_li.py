@@ -152,9 +152,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         it is what held up on the unseen objects of issue 24.
     diffuse : the diffuse part beside the lobe: "li" (the LI substrate, `volume_model`), "lambert"
         (Lambertian, no transmission: Cook–Torrance), "coupled" (a Lambertian substrate through the
-        interface, facette.brdf._coupled) or "auto" (default): per material, the one
-        whose best lobe has the lower trimmed profile cost on the fit pixels (DIFFUSE,
-        `_profile_lobe`; info["materials"][k]["diffuse"] and its "model_choice").
+        interface, facette.brdf._coupled) or "auto" (default): per material, the one whose best lobe
+        has the lower trimmed profile cost (DIFFUSE, `_profile_lobe`; info["materials"][k]["diffuse"]).
     dark_offset : "auto" (default): each photograph's dark level (facette.recon.dark_offsets, on the
         initial normals) taken out of the images the BRDF-aware steps read, since the model
         predicts 0 there (`_without_dark_level`, info["dark_offset"]); "none": the images as given.

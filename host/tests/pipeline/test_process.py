@@ -232,9 +232,11 @@ def test_brdf_aware_method_writes_its_materials_into_brdf_json(tmp_path):
     assert ps["dark_offset"]["applied"] is False and not any("dark level" in n for n in res.notes)
     albedo, _ = read_exr(tmp_path / "out" / "albedo.exr")
     np.testing.assert_allclose(np.median(albedo[res.mask], axis=0), d["params"]["kd"], rtol=0.1)
-    # after BRDF-aware normals the fit evaluates the volume part as they did (eq 3.15 by tables),
-    # after Lambertian ones by the approximate formula; fit_options chooses
-    assert doc["volume"] == "tables" and res.brdf.volume == "tables"
+    # after BRDF-aware normals the fit evaluates the diffuse part as they did (eq 3.15 by tables, or
+    # the coupled one where the model choice took it), after Lambertian ones by the approximate
+    # formula; fit_options chooses
+    want = "coupled" if ps["materials"][0]["diffuse"] == "coupled" else "tables"
+    assert ps["materials"][0]["diffuse"] in ("li", "coupled") and doc["volume"] == res.brdf.volume == want
     ls = process(folder, outputs=["samples", "brdf"], method="woodham1980")
     assert ls.brdf.volume == "approx"
     assert process(folder, outputs=["samples", "brdf"], method="li_alternating",
@@ -274,7 +276,8 @@ def test_brdf_aware_method_removes_glossy_interreflections_too(tmp_path):
     glossy = res.interreflections["glossy"]
     assert res.interreflections["applied"] and glossy is not None and 0.06 < glossy["lobe"][0] < 0.11
     assert any(n.startswith("glossy inter-reflections removed") for n in res.notes)
-    assert res.brdf.volume == "tables" and 0.06 < res.brdf.params["sigma"] < 0.11
+    layered = res.ps.info["materials"][0]["diffuse"]
+    assert res.brdf.volume == {"li": "tables", "coupled": "coupled"}[layered] and 0.06 < res.brdf.params["sigma"] < 0.11
     assert json.loads((tmp_path / "out" / "process.json").read_text())["options"]["interreflections"] is True
 
 
