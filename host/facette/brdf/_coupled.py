@@ -49,9 +49,9 @@ def _node_weights(x, step):
 @functools.lru_cache(maxsize=512)
 def coupled_transmittance(sigma, n_i):
     """(mu, t): t(μ) = 1 − E(μ) on MU_NODES cosines μ ∈ [0, 1], E the lobe's directional albedo
-    (`_albedo_nodes`), combined linearly in log σ and n_i from the nodes around (σ, n_i), as the LI
+    (`_albedo_node`), combined linearly in log σ and n_i from the nodes around (σ, n_i), as the LI
     volume tables are (facette.brdf.volume_table_at): continuous in both for the fits' finite
-    differences, and each node computed once (~4 ms). Read-only arrays, cached per (σ, n_i)."""
+    differences, and each node computed once (~2.5 ms). Read-only arrays, cached per (σ, n_i)."""
     n = check_n_i(n_i)
     ks, ws = _node_weights(np.log(max(float(sigma), SIGMA_MIN) / SIGMA_MIN), np.log(NODE_SIGMA_RATIO))
     kn, wn = _node_weights(n - 1.0, NODE_N_I_STEP)

@@ -1,9 +1,10 @@
-"""Compiled per-pixel pass of `facette.fit._ps_li_pixels` (numba, cache=True): the highlight start
+"""Compiled per-pixel passes of `facette.fit._ps_li_pixels` (numba, cache=True): the highlight start
 of each valid pixel, one loop over its lights instead of five whole-array passes (the Lambertian
 prediction, the excess, its argmax, the mean of the usable values and the test). At 2144×1424 × 12
 lights the array form took 6.4 s of `Pixels.start`'s 12.3 s over its two calls.
 
     brightest_excess(values, usable, normals, lights, albedo_pi) -> (has_highlight (N,), brightest (N,))
+    channel_and_usable(flat, idx, channel, saturation) -> (values (N, m), usable (N, m))
 
 Arithmetic in float64 where the array form mixes float32 and float64: the two agree but for a pixel
 whose excess sits within rounding of the 10 % test (tests/fit/test_ps_li_pixels_jit.py).
