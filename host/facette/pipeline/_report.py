@@ -305,7 +305,8 @@ def _fit_section(res, truth_brdf, truth_kd):
     err = d.get("fit_error") or {}
     lines = [f"Model: {html.escape(str(d.get('model')))}"
              + (f" ({html.escape(str(d.get('distribution')))} facets, {html.escape(str(d.get('masking')))} masking,"
-                f" volume part by {html.escape(str(d.get('volume')))})" if d.get("model") == "li" else "")
+                + (" coupled diffuse part: the substrate through the interface)" if d.get("volume") == "coupled"
+                   else f" volume part by {html.escape(str(d.get('volume')))})") if d.get("model") == "li" else "")
              + f"; {'converged' if d.get('success') else 'FAILED'}"
              + f" by {html.escape(str(d.get('method')))} in {fmt(d.get('time_s'), 2)} s.",
              f"Fitted to {fmt(err.get('n_samples'))} sensor cells × {fmt(err.get('n_channels'))} channels: "
