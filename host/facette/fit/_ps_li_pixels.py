@@ -228,13 +228,12 @@ class Pixels:
 
 def _in_lobe(normals, lights, sigma):
     """(N,) True where some light is inside the fitted lobe (tan θ_h < LOBE_TAN σ)."""
-    v = np.float32([0, 0, 1])
-    h = lights + v
+    from ._ps_li_pixels_jit import any_light_in_lobe     # numba loads only when li_alternating runs
+    h = lights + np.float32([0, 0, 1])
     h = h / np.linalg.norm(h, axis=-1, keepdims=True)
-    ch = normals @ h.T if h.ndim == 2 else np.einsum("nj,nmj->nm", normals, h)
-    # tan θ_h < k  ⟺  cos² θ_h > 1 / (1 + k²) (for cos θ_h > 0): no square root per pair
+    # tan θ_h < k  ⟺  cos θ_h > 1 / √(1 + k²) (for cos θ_h > 0)
     k2 = np.float32((LOBE_TAN * sigma) ** 2)
-    return np.any(ch > np.float32(np.sqrt(1 / (1 + k2))), axis=1)
+    return any_light_in_lobe(normals, h, np.float32(np.sqrt(1 / (1 + k2))))
 
 
 def _lambertian_correction(normals, lights, sigma, n_i, volume_model, grid=65):

@@ -5,6 +5,7 @@ lights the array form took 6.4 s of `Pixels.start`'s 12.3 s over its two calls.
 
     brightest_excess(values, usable, normals, lights, albedo_pi) -> (has_highlight (N,), brightest (N,))
     channel_and_usable(flat, idx, channel, saturation) -> (values (N, m), usable (N, m))
+    any_light_in_lobe(normals, half, cos_min) -> (N,) bool
 
 Arithmetic in float64 where the array form mixes float32 and float64: the two agree but for a pixel
 whose excess sits within rounding of the 10 % test (tests/fit/test_ps_li_pixels_jit.py).
@@ -14,7 +15,34 @@ import math
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["brightest_excess", "channel_and_usable"]
+__all__ = ["brightest_excess", "channel_and_usable", "any_light_in_lobe"]
+
+
+@njit(cache=True, parallel=True)
+def _any_light_in_lobe(normals, half, cos_min, out):
+    n_pix, m = half.shape[0], half.shape[1]
+    for p in prange(n_pix):
+        hit = False
+        for i in range(m):
+            ch = (float(normals[p, 0]) * half[p, i, 0] + float(normals[p, 1]) * half[p, i, 1]
+                  + float(normals[p, 2]) * half[p, i, 2])
+            if ch > cos_min:
+                hit = True
+                break
+        out[p] = hit
+
+
+def any_light_in_lobe(normals, half, cos_min):
+    """(N,) bool: some light's half-vector `half` ((m, 3) or (N, m, 3), unit) within the lobe of
+    the normals (N, 3), n·h > cos_min, in one pass over the pixels, n·h in float64 (the (N, m)
+    product and its comparison took 0.5 s at 2.3 M pixels × 12 lights)."""
+    n_pix = len(normals)
+    half = np.asarray(half, np.float64)
+    if half.ndim == 2:      # one direction per light: the same row for every pixel (no copy)
+        half = np.broadcast_to(half, (n_pix,) + half.shape)
+    out = np.empty(n_pix, bool)
+    _any_light_in_lobe(np.ascontiguousarray(normals, np.float32), half, float(cos_min), out)
+    return out
 
 
 @njit(cache=True, parallel=True)

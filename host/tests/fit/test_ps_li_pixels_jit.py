@@ -76,3 +76,20 @@ def test_channel_and_usable_equals_the_array_form():
     assert not channel_and_usable(flat, np.array([10]), 1, 0.95)[1][0, 2]    # 0.95 is not below 0.95
     values, ok = channel_and_usable(flat, np.zeros(0, np.int64), 1, None)
     assert values.shape == (0, 7) and ok.shape == (0, 7)
+
+
+def test_compiled_lobe_test_equals_the_array_form():
+    # split_levels' "some light inside the fitted lobe", against the numpy form it replaced
+    from facette.fit._ps_li_pixels_jit import any_light_in_lobe
+    for near in (False, True):
+        _, _, normals, lights, _ = _inputs(3000, 12, near, 7)
+        h = lights + np.float32([0, 0, 1])
+        h = h / np.linalg.norm(h, axis=-1, keepdims=True)
+        cos_min = np.float32(np.sqrt(1 / (1 + np.float32((2.5 * 0.1) ** 2))))
+        ch = normals @ h.T if h.ndim == 2 else np.einsum("nj,nmj->nm", normals, h)
+        want = np.any(ch > cos_min, axis=1)
+        got = any_light_in_lobe(normals, h, cos_min)
+        clear = np.all(np.abs(ch - cos_min) > 1e-6, axis=1)
+        np.testing.assert_array_equal(got[clear], want[clear])
+        assert clear.mean() > 0.99 and 0.05 < got.mean() < 0.95
+    assert any_light_in_lobe(np.zeros((0, 3), np.float32), np.eye(3), 0.5).shape == (0,)
