@@ -16,27 +16,19 @@ the two transmissions through the facets' shadowing; this form does not.
 import functools
 
 import numpy as np
-from scipy.special import erfc
 
 from ._fresnel import check_n_i, fresnel_dielectric
+from ._microfacet import microfacet_quadrature, smith_g1
 
 __all__ = ["coupled_terms", "coupled_transmittance", "volume_integral_coupled"]
 
 MU_NODES = 65           # cos θ nodes of t(θ), linear interpolation between them
-# stratified half-vector samples of the albedo, Beckmann's (u, φ): against 64 × 48 on 129 cosines,
-# at most 0.0015 of t off for σ 0.05-0.5 and 0.006 at σ 0.02 (grazing), 2.4 ms a node against 48 ms
+# half-vector nodes of the albedo's quadrature (n_θ, n_φ of microfacet_quadrature): against 64 × 48,
+# at most 0.0015 of t off at σ 0.01-0.5, n_i 1.2-2.0; ~6-12 ms a node, computed once
 HALF_VECTORS = (32, 24)
 SIGMA_MIN = 1e-3        # below: the interface is taken as this rough (a mirror's albedo is F)
 NODE_SIGMA_RATIO = 1.2  # the nodes in σ: SIGMA_MIN · ratio^k (as facette.brdf._volume's)
 NODE_N_I_STEP = 0.025   # the nodes in n_i: 1 + k · step
-
-
-def _g1(c, sigma):
-    """Smith G_1 for Beckmann at cosine c (float64; the lobe's `_smith_g1_beckmann`)."""
-    c = np.clip(c, 1e-12, 1.0)
-    a = c / (sigma * np.sqrt(np.maximum(1 - c * c, 1e-300)))
-    lam = 0.5 * (np.exp(-a * a) / (a * np.sqrt(np.pi)) - erfc(a))
-    return 1.0 / (1.0 + lam)
 
 
 def _node_weights(x, step):
@@ -51,7 +43,7 @@ def coupled_transmittance(sigma, n_i):
     """(mu, t): t(μ) = 1 − E(μ) on MU_NODES cosines μ ∈ [0, 1], E the lobe's directional albedo
     (`_albedo_node`), combined linearly in log σ and n_i from the nodes around (σ, n_i), as the LI
     volume tables are (facette.brdf.volume_table_at): continuous in both for the fits' finite
-    differences, and each node computed once (~2.5 ms). Read-only arrays, cached per (σ, n_i)."""
+    differences, and each node computed once. Read-only arrays, cached per (σ, n_i)."""
     n = check_n_i(n_i)
     ks, ws = _node_weights(np.log(max(float(sigma), SIGMA_MIN) / SIGMA_MIN), np.log(NODE_SIGMA_RATIO))
     kn, wn = _node_weights(n - 1.0, NODE_N_I_STEP)
@@ -68,37 +60,31 @@ def coupled_transmittance(sigma, n_i):
 def _albedo_node(k, j):
     """E(μ) at the node σ = SIGMA_MIN · NODE_SIGMA_RATIO^k, n_i = 1 + j · NODE_N_I_STEP:
     E(i) = ∫ F(i·h) D(h) G_1(i) G_1(o) (i·h) / (n·i) dω_h (o the mirror of i about h, above the
-    surface; f cos θ_o dω_o with dω_o = 4 (i·h) dω_h), by half-vectors h stratified in D(h) (n·h)
-    (Beckmann: tan² θ_h = −σ² ln(1 − u))."""
+    surface; f cos θ_o dω_o with dω_o = 4 (i·h) dω_h), on the nodes of D(h) (n·h) that the volume
+    quadrature uses (facette.brdf.microfacet_quadrature) and the lobe's Smith G_1."""
     sigma, n = SIGMA_MIN * NODE_SIGMA_RATIO ** k, 1.0 + j * NODE_N_I_STEP
-    ku, kp = HALF_VECTORS
-    u = (np.arange(ku) + 0.5) / ku
-    phi = 2 * np.pi * (np.arange(kp) + 0.5) / kp
-    ch = 1 / np.sqrt(1 - sigma * sigma * np.log1p(-u))               # n·h
-    sh = np.sqrt(np.maximum(1 - ch * ch, 0))
-    h = np.stack(np.broadcast_arrays(sh[:, None] * np.cos(phi), sh[:, None] * np.sin(phi), ch[:, None]), -1)
-    h = h.reshape(-1, 3)
+    h, w = microfacet_quadrature(sigma, "beckmann", *HALF_VECTORS)
     mu = np.maximum(np.linspace(0.0, 1.0, MU_NODES), 1e-4)
     i = np.stack([np.sqrt(1 - mu * mu), np.zeros_like(mu), mu], -1)  # (K, 3)
     ih = i @ h.T                                                      # (K, S)
-    o_z = 2 * ih * h[None, :, 2] - mu[:, None]
-    ok = (ih > 0) & (o_z > 0)
-    g = _g1(mu, sigma)[:, None] * _g1(np.clip(o_z, 0, 1), sigma)
-    w = np.where(ok, fresnel_dielectric(np.clip(ih, 0, 1), n) * g * ih / (mu[:, None] * h[None, :, 2]), 0.0)
-    return np.clip(w.mean(1), 0, 1)
+    o = 2 * ih[..., None] * h[None] - i[:, None, :]                   # mirror directions (K, S, 3)
+    g = smith_g1(i, sigma)[:, None] * smith_g1(o, sigma)              # 0 below the surface
+    f = np.where(ih > 0, fresnel_dielectric(np.clip(ih, 0, 1), n) * g * ih / (mu[:, None] * h[None, :, 2]), 0.0)
+    return np.clip(f @ w, 0, 1)
+
+
+def _through(c_in, c_out, sigma, n_i):
+    """t(θ_in) t(θ_out) from the cosines (broadcast), 0 where either is ≤ 0."""
+    mu, t = coupled_transmittance(float(sigma), float(n_i))
+    both = (c_in > 0) & (c_out > 0)
+    return np.where(both, np.interp(np.clip(c_in, 0, 1), mu, t) * np.interp(np.clip(c_out, 0, 1), mu, t), 0.0)
 
 
 def coupled_terms(cs, co, sigma, n_i):
     """B (N, m) float32 = (n·s) t(n·s) t(n·v), 0 where n·s ≤ 0 or n·v ≤ 0; cs (N, m) the
     cosines n·s, co (N,) n·v (`coupled_transmittance`)."""
-    mu, t = coupled_transmittance(float(sigma), float(check_n_i(n_i)))
     cs = np.asarray(cs, np.float32)
-    co = np.asarray(co, np.float32).reshape(-1, 1)
-    lit = (cs > 0) & (co > 0)
-    cs_c = np.clip(cs, 0, 1)
-    t_s = np.interp(cs_c, mu, t).astype(np.float32)
-    t_o = np.interp(np.clip(co, 0, 1), mu, t).astype(np.float32)
-    return np.where(lit, cs_c * t_s * t_o, np.float32(0)).astype(np.float32)
+    return (np.clip(cs, 0, 1) * _through(cs, np.asarray(co, np.float32).reshape(-1, 1), sigma, n_i)).astype(np.float32)
 
 
 def volume_integral_coupled(s, o, sigma, n_i, distribution="beckmann", masking="smith"):
@@ -108,6 +94,4 @@ def volume_integral_coupled(s, o, sigma, n_i, distribution="beckmann", masking="
     if distribution != "beckmann" or masking != "smith":
         raise ValueError(f"volume 'coupled' is computed for a Beckmann lobe with Smith masking, got "
                          f"{distribution!r} / {masking!r}: use volume='tables' or 'quadrature'")
-    mu, t = coupled_transmittance(float(sigma), float(check_n_i(n_i)))
-    sz, oz = np.asarray(s, float)[..., 2], np.asarray(o, float)[..., 2]
-    return np.where((sz > 0) & (oz > 0), np.interp(np.clip(sz, 0, 1), mu, t) * np.interp(np.clip(oz, 0, 1), mu, t), 0.0)
+    return _through(np.asarray(s, float)[..., 2], np.asarray(o, float)[..., 2], sigma, n_i)

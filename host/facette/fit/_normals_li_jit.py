@@ -429,13 +429,12 @@ def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, 
         of 125 profile pixels were one chunk, one thread.
     Returns (normals (N, 3) f32, kappa (N, C) f32, used (N, m), cost (N,), rel (N,) f32,
     iterations (N,) int32)."""
-    e = np.asarray(e, np.float32)
+    e = np.ascontiguousarray(e, np.float32)
     n_pix, m, c = e.shape
     s = np.ascontiguousarray(lights, np.float64)
     # finiteness is tested in the kernel, pixel by pixel (the (N, m, C) isfinite and the zeroed copy
     # took 0.6 s of the 12 MP scan's full-size step)
     usable = np.ascontiguousarray(np.broadcast_to(np.asarray(usable, bool), (n_pix, m)))
-    e = np.ascontiguousarray(e)
     sig = max(float(sigma), 1e-6)
     spec = bool(float(sigma) >= 1e-9 and float(n_i) != 1.0)
     sh = np.sqrt(np.maximum((1 + s[:, 2]) / 2, 1e-12))
