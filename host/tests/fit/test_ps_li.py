@@ -156,6 +156,17 @@ def test_the_lobe_and_its_diffuse_part_are_chosen_by_the_profile_cost(cache):
         assert r.info["levels"]["brdf_aware"]["pixels"] > 0.3 * r.valid.sum()
 
 
+def test_a_broad_lobe_between_the_grids_sigmas_gets_its_layered_diffuse_part(cache):
+    # Mitsuba's rough plastic (σ 0.4, n_i 1.5): its cost is a narrow valley along σ and n_i; with no
+    # σ between 0.3 and 0.5 on the search's grid, Cook–Torrance's Lambertian part won (σ 0.43, 3.0°
+    # here against 2.4° with the coupled part)
+    d = render_scene("sphere", "rough_plastic", size=48, spp=8, cache_dir=cache)
+    r = ps_li_alternating(d["images"], d["light_dirs"], mask=d["mask"])
+    mat = r.info["materials"][0]
+    assert mat["diffuse"] in ("li", "coupled"), mat["model_choice"]["cost_by_diffuse"]
+    assert 0.36 < mat["sigma"] < 0.44 and 1.4 < mat["n_i"] < 1.6, mat
+
+
 def test_a_lambertian_diffuse_part_beside_the_lobe_is_found_and_gives_better_normals():
     # Cook–Torrance images (a Lambertian term beside the lobe, σ 0.05, n_i 1.2: the simulated rig's
     # material): the search picks the "lambert" diffuse part and the lobe near the truth, and the
