@@ -1,6 +1,7 @@
 """The specular lobe's pieces (eq 3.10) as compiled scalar functions (numba), for the per-pixel and
 per-pair kernels that evaluate it inside their loops: facette.fit._normals_li_jit (the per-pixel
-solve) and facette.recon._interreflect_jit (the glossy gather). The array forms are
+solve) and facette.recon._interreflect_jit (the glossy gather), and the lobe's albedo for the coupled
+diffuse part (facette.brdf._coupled). The array forms are
 facette.brdf._shading (`li_shading_terms`) and facette.brdf._fresnel (`fresnel_dielectric`).
 
 Loaded only with those kernels (numba is imported here). numba's cache keys a kernel on its own
@@ -10,7 +11,8 @@ import math
 
 from numba import njit
 
-__all__ = ["G1_ONE_ABOVE", "smith_g1_beckmann", "beckmann_d", "fresnel_dielectric_scalar", "li_specular_beckmann_smith"]
+__all__ = ["G1_ONE_ABOVE", "smith_g1_beckmann", "beckmann_d", "fresnel_dielectric_scalar", "li_specular_beckmann_smith",
+           "lobe_albedo_beckmann_smith"]
 
 _SQRT_PI = math.sqrt(math.pi)
 # Smith's Λ(a) < e^(−a²) / (2√π a) < 1e-17 above a = 6, so G_1 = 1 / (1 + Λ) is 1.0 to the last bit
@@ -77,3 +79,26 @@ def li_specular_beckmann_smith(s, o, sigma, eta, out):
             continue
         g = smith_g1_beckmann(sz, sigma) * smith_g1_beckmann(oz, sigma)
         out[i] = fresnel_dielectric_scalar(min(sm, 1.0), eta) * d * g / (4.0 * sz * oz)
+
+
+@njit(cache=True, nogil=True)
+def lobe_albedo_beckmann_smith(mu, h, w, sigma, eta, out):
+    """The lobe's directional albedo E(μ) = Σ_h w F(i·h) G_1(i) G_1(o) (i·h) / (μ h_z) at each cosine
+    μ of `mu` (K,), i = (√(1 − μ²), 0, μ), o the mirror of i about h: the quadrature of
+    facette.brdf._coupled._albedo_node over the half-vectors h (S, 3) with weights w (S,) (D(h) h_z
+    folded in), into out (K,); eta = n_i² − 1. One pass with no (K, S, 3) temporaries."""
+    for k in range(mu.shape[0]):
+        m = mu[k]
+        sx = math.sqrt(max(1.0 - m * m, 0.0))
+        gi = smith_g1_beckmann(m, sigma)
+        tot = 0.0
+        for j in range(h.shape[0]):
+            ih = sx * h[j, 0] + m * h[j, 2]
+            if ih <= 0.0:
+                continue
+            oz = 2.0 * ih * h[j, 2] - m
+            if oz <= 0.0:
+                continue
+            tot += w[j] * fresnel_dielectric_scalar(min(ih, 1.0), eta) * gi * smith_g1_beckmann(oz, sigma) \
+                * ih / (m * h[j, 2])
+        out[k] = min(max(tot, 0.0), 1.0)
