@@ -84,18 +84,30 @@ def fit_hemisphere_cells(filtered, model="li", min_count=1, spread=4, **options)
     return fit_brdf(s, o, f, model=model, counts=cnt, **extra, **options)
 
 
-def fit_cells_verdict(filtered, prefer="li", models=VERDICT_MODELS, **options):
+def fit_cells_verdict(filtered, prefer="li", models=VERDICT_MODELS, start=None, **options):
     """`fit_hemisphere_cells` with a verdict: the `prefer`red model first; when its relative RMS
     is above FITS_RELATIVE_RMS the other `models` are fitted too and the lowest relative RMS is
     kept. The result's `verdict` is "fits" or "no model fits well", and `models_tried` lists every
     model fitted with its relative RMS and parameters (brdf.json, the report): a material no model
     fits is said, never "ok".
+    start : None, or (σ, n_i) the `prefer`red model starts from (photometric stereo's fit of the
+        material, `_fit_stage`); the models after it then start from the best fit before them. Each such
+        fit has one start of the fitter's grid beside its own instead of six (n_starts): on DiLiGenT
+        and seven Mitsuba scenes the same parameters and verdicts, 2-5× sooner (pot2 1.23 -> 0.56 s,
+        cat's three models 5.05 -> 2.44 s).
     options : as fit_hemisphere_cells; "volume" applies to the LI model only."""
     order = [prefer] + [m for m in models if m != prefer]
     volume = options.pop("volume", None)
     tried, best = [], None
     for model in order:
         opts = dict(options, **({"volume": volume} if model == "li" and volume else {}))
+        # the preferred model from `start`, the next ones from the best fit so far: each beside one
+        # start of the fitter's grid instead of six
+        seed = start if model == prefer or start is None else \
+            None if best is None or "n_i" not in best.params else (best.params["sigma"], best.params["n_i"])
+        if seed is not None and model in ("li", "cook_torrance", "metal"):
+            opts.setdefault("x0", tuple(seed))
+            opts.setdefault("n_starts", 1)
         if model == "metal":
             res = fit_hemisphere_cells(filtered, model="cook_torrance", n_i_max=METAL_N_I_MAX, **opts)
             if res.success and res.model == "cook_torrance":     # not a simpler model fit_brdf kept

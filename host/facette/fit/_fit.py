@@ -239,7 +239,8 @@ def fit_least_squares(s, o, values, model="li", distribution="beckmann", masking
     """Bounded least squares (scipy ``least_squares``, TRF) from ``n_starts`` starts; the best kept.
 
     Starts: a grid over σ ∈ {0.05, 0.15, 0.4, 0.8} × n_i ∈ {1.15, 1.5} (first n_starts of it) with
-    K_d from the median value; ``x0`` (a parameter vector, see FitModel) is tried first if given.
+    K_d from the median value; ``x0`` (a parameter vector, see FitModel, or its shared part alone:
+    (σ, n_i), K_d then from the median value) is tried first if given.
     n_i_max : Cook–Torrance only, a metal's lobe: n_i up to this (the starts then at n_i 15 and 3,
         F0 0.77 and 0.25).
     With the "relative" weighting, ``reweight_passes`` further solves take the weights from the
@@ -255,6 +256,8 @@ def fit_least_squares(s, o, values, model="li", distribution="beckmann", masking
     lo, hi = fm.bounds()
     kd0 = _kd_guess(fm, data)
     grid = [(sg, n) for sg in (0.15, 0.05, 0.4, 0.8) for n in ((15.0, 3.0) if n_i_max else (1.5, 1.15))]
+    if x0 is not None and len(x0) == len(lo) - len(kd0):
+        x0 = np.concatenate([np.asarray(x0, float), kd0])
     starts = [] if x0 is None else [np.clip(np.asarray(x0, float), lo, hi)]
     for sg, n in grid[:max(1, int(n_starts))]:
         shared = {"li": [sg, n], "cook_torrance": [sg, n], "oren_nayar": [sg], "lambert": []}[fm.name]

@@ -59,9 +59,8 @@ STAGES_FOR = {
     "normals": ("load", "ps"), "albedo": ("load", "ps"), "mask": ("load", "ps"),
     "height": ("load", "ps", "integrate"), "mesh": ("load", "ps", "integrate", "mesh"),
     "samples": ("load", "ps", "samples"), "brdf": ("load", "ps", "samples", "fit"),
-    "ptm": ("load", "ps", "ptm"), "rti": ("load", "ps", "hsh"),
-    "gltf": ("load", "ps", "integrate", "mesh", "samples", "fit"), "report": ("load", "ps"),
-}
+    "ptm": ("load", "ps", "ptm"), "rti": ("load", "ps", "hsh"), "report": ("load", "ps"),
+    "gltf": ("load", "ps", "integrate", "mesh", "samples", "fit")}
 FILES = {"normals": "normal.exr", "albedo": "albedo.exr", "mask": "mask.png", "height": "height.exr",
          "mesh": "mesh.ply", "samples": "samples.npz", "brdf": "brdf.json", "ptm": "relight.ptm",
          "rti": "relight.rti", "gltf": "model.glb", "report": "report.html"}
@@ -130,9 +129,9 @@ def _fit_stage(filtered, fit_options, brdf_aware=False, material=None):
     with rank_trimmed's tables are better on two scenes, worse on two (satin 1.157 / 1.443 → 0.824 /
     1.277) for 0.4-1.4 s more: approx there. "coupled" where photometric stereo chose that diffuse
     part for the main `material`; fit_options={"volume": ...} chooses ("quadrature": ~15× slower).
-    The model: facette.fit.preferred_model(material) first, the others too when it is off by more
-    than facette.fit.FITS_RELATIVE_RMS, and a verdict either way (facette.fit.fit_cells_verdict);
-    fit_options={"model": ...} fits that one. Returns (FitResult or None, note)."""
+    The model: facette.fit.preferred_model(material) first (from the material's (σ, n_i) after BRDF-aware normals),
+    the others too when it is off by more than facette.fit.FITS_RELATIVE_RMS, and a verdict either way
+    (facette.fit.fit_cells_verdict); fit_options={"model": ...} fits that one. Returns (FitResult or None, note)."""
     check_fit_cells(filtered)         # too few filled cells: InsufficientData (exit 3)
     options = dict(fit_options)
     model = options.pop("model", None)
@@ -140,7 +139,8 @@ def _fit_stage(filtered, fit_options, brdf_aware=False, material=None):
     if model in (None, "li"):
         options.setdefault("volume", "coupled" if material.get("diffuse") == "coupled" else
                            "tables" if brdf_aware else "approx")
-    res = fit_cells_verdict(filtered, prefer=model or preferred_model(material),
+    start = (material["sigma"], material["n_i"]) if brdf_aware and model is None and material.get("brdf_step") else None
+    res = fit_cells_verdict(filtered, prefer=model or preferred_model(material), start=start,
                             **({} if model is None else {"models": (model,)}), **options)
     note = "" if getattr(res, "success", True) else f"brdf: the fit failed ({res.message})"
     if getattr(res, "verdict", "") == "no model fits well":

@@ -81,3 +81,38 @@ def test_the_verdict_asked_for_a_metal_on_a_matte_material_keeps_the_simpler_mod
     res = fit_cells_verdict(sensor.result(), prefer="metal", n_starts=2)
     assert res.success and res.verdict == "fits" and res.model == "lambert", res.models_tried
     assert res.models_tried[0]["model"] == "lambert"
+
+
+def _narrow_lobe_cells(seed=0):
+    rng = np.random.default_rng(seed)
+    sensor = reflect.HemisphereSensor(3.0, channels=1)
+    _, mid = sensor.centres()
+    for ts in mid[np.searchsorted(mid, np.radians([25, 40, 55]))]:
+        n = 30_000
+        s = np.broadcast_to([np.sin(ts), 0.0, np.cos(ts)], (n, 3))
+        z = rng.random(n)
+        phi = 2 * np.pi * rng.random(n)
+        o = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], axis=1)
+        sensor.add(s, o, B.cook_torrance1982(s, o, 0.5, 0.05, 1.3)[:, None])
+    return sensor.result()
+
+
+def test_the_verdict_from_photometric_stereos_start_finds_the_same_fit_with_fewer_evaluations():
+    # `start`: the preferred model from (σ, n_i) near the answer and one start of the grid, not six
+    from facette.fit import fit_cells_verdict
+    filt = _narrow_lobe_cells()
+    grid = fit_cells_verdict(filt, prefer="cook_torrance", select=False)
+    seeded = fit_cells_verdict(filt, prefer="cook_torrance", start=(0.06, 1.25), select=False)
+    assert grid.verdict == seeded.verdict == "fits"
+    for k in ("sigma", "n_i"):
+        assert seeded.params[k] == pytest.approx(grid.params[k], rel=1e-4)
+    assert seeded.params["sigma"] == pytest.approx(0.05, rel=0.03)
+    assert seeded.n_evaluations < 0.6 * grid.n_evaluations, (seeded.n_evaluations, grid.n_evaluations)
+
+
+def test_a_start_of_the_shared_parameters_alone_gets_kd_from_the_values():
+    # fit_least_squares' x0 as (σ, n_i) only, through fit_hemisphere_cells
+    res = fit_hemisphere_cells(_narrow_lobe_cells(1), model="cook_torrance", x0=(0.06, 1.25), n_starts=1,
+                               select=False)
+    assert res.success and res.params["sigma"] == pytest.approx(0.05, rel=0.05)
+    assert res.params["kd"][0] == pytest.approx(0.5, rel=0.05)
