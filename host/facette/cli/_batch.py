@@ -14,8 +14,7 @@ import sys
 
 
 def register(sub):
-    from facette.brdf import MODELS
-    from facette.cli._process import _outputs
+    from facette.cli._process import PROCESS_FIT_OPTIONS, _outputs, brdf_model_choices
     from facette.pipeline import OUTPUTS
     p = sub.add_parser("batch", help="process many scans on Dask, with one summary table",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -28,7 +27,7 @@ def register(sub):
                             "need facette installed and the same paths)")
     p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
                    help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all)")
-    p.add_argument("--brdf-model", default="li", choices=list(MODELS.names()),
+    p.add_argument("--brdf-model", default=PROCESS_FIT_OPTIONS["model"], choices=brdf_model_choices(),
                    help="model fitted for brdf.json (see facette process)")
     p.add_argument("--allow-incomplete", action="store_true",
                    help="process scans that are not complete (every output then says so)")

@@ -10,8 +10,15 @@ from types import MappingProxyType
 
 # the BRDF fit asked for without --brdf-model/--fit-method; the scan's own processing asks for
 # the same (facette.cli._scan), so that a later `facette process SCAN -o SCAN/results` finds
-# one run, not another one
-PROCESS_FIT_OPTIONS = MappingProxyType({"model": "li", "method": "least_squares"})
+# one run, not another one. "auto": the model photometric stereo's evidence prefers for the main
+# material, the others too when it is off, and a verdict either way (facette.fit.fit_cells_verdict)
+PROCESS_FIT_OPTIONS = MappingProxyType({"model": "auto", "method": "least_squares"})
+
+
+def brdf_model_choices():
+    """--brdf-model's choices: "auto" and every BRDF model's name."""
+    from facette.brdf import MODELS
+    return ["auto", *MODELS.names()]
 
 
 def _number(kind, lo=None, hi=None, lo_open=False, what="value"):
@@ -97,8 +104,9 @@ def register(sub):
     p.add_argument("--mesh-step", type=_number(int, 1, None, False, "--mesh-step"),
                    help="mesh vertex every N pixels, >= 1 (default: <= ~1e6 vertices)")
     p.add_argument("--ascii-ply", action="store_true", help="write mesh.ply as ASCII")
-    p.add_argument("--brdf-model", default=PROCESS_FIT_OPTIONS["model"], choices=list(MODELS.names()),
-                   help="model fitted for brdf.json")
+    p.add_argument("--brdf-model", default=PROCESS_FIT_OPTIONS["model"], choices=brdf_model_choices(),
+                   help="model fitted for brdf.json (default auto: the one photometric stereo's evidence "
+                        "prefers, the others too when it fits badly, and a verdict)")
     p.add_argument("--fit-method", default=PROCESS_FIT_OPTIONS["method"], choices=list(METHODS.names()),
                    help="fit method")
     p.add_argument("--allow-incomplete", action="store_true",

@@ -72,8 +72,8 @@ class ProcessOptions:
     mesh_step: int = _option(None, "pixel step of the mesh, >= 1 (None: so that it has at most ~1e6 vertices)")
     ascii_ply: bool = _option(False, "write mesh.ply as ASCII", record=False)
     saturation: float = _option(None, "image values >= this are treated as missing")
-    fit_options: dict = _option(None, "keyword arguments of facette.fit.fit_hemisphere_cells (model, method, "
-                                "volume, ...)", factory=dict)
+    fit_options: dict = _option(None, "keyword arguments of facette.fit.fit_hemisphere_cells (model: 'auto', "
+                                "as none, or one model's name; method, volume, ...)", factory=dict)
     ps_options: dict = _option(None, "options of the photometric-stereo method, beside the thresholds above "
                                "(li_alternating: init, rounds, materials, ...): one bag, each method takes "
                                "its own (facette.methods.options_for)", factory=dict)

@@ -135,7 +135,7 @@ def _fit_stage(filtered, fit_options, brdf_aware=False, material=None):
     check_fit_cells(filtered)         # too few filled cells: InsufficientData (exit 3)
     options = dict(fit_options)
     model = options.pop("model", None)
-    material = material or {}
+    model, material = (None if model == "auto" else model), material or {}
     if model in (None, "li"):
         options.setdefault("volume", "coupled" if material.get("diffuse") == "coupled" else
                            "tables" if brdf_aware else "approx")

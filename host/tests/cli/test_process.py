@@ -214,3 +214,19 @@ def test_a_brdf_fit_needs_enough_filled_cells(capsys, tmp_path):
     assert code == 3 and "a BRDF fit needs 10 filled cells" in err and "more lights" in err, err
     code, out, err = run_cli(capsys, "process", tmp_path / "flat", "-o", tmp_path / "r2", "--outputs", "normals")
     assert code == 0, err                                   # the normals it can give
+
+
+def test_the_default_brdf_model_is_the_one_photometric_stereo_found(tmp_path, capsys):
+    # Cook–Torrance images (a Lambertian term beside the lobe): photometric stereo finds that diffuse
+    # part, and `facette process` without --brdf-model fits Cook–Torrance first ("auto"), not the LI
+    # model it once forced on every material
+    sc = sphere_on_plane(64, 64)
+    imgs = render(sc, L, "glossy", noise=0.005, rng=np.random.default_rng(3))
+    folder = tmp_path / "glossy"
+    write_diligent(folder, np.round(imgs / imgs.max() * 50000).astype(np.uint16), L, None, sc.mask)
+    code, out, err = run_cli(capsys, "process", folder, "-o", tmp_path / "o", "--outputs", "normals,samples,brdf")
+    assert code == 0, err
+    doc = json.loads((tmp_path / "o" / "brdf.json").read_text())
+    assert doc["photometric_stereo"]["materials"][0]["diffuse"] == "lambert"
+    assert doc["model"] == "cook_torrance" and doc["models_tried"][0]["model"] == "cook_torrance", doc["models_tried"]
+    assert abs(doc["parameters"]["sigma"] - 0.05) < 0.01

@@ -142,7 +142,7 @@ def test_the_scan_hands_its_directory_to_process_and_drops_what_it_did_not_take(
     assert _scan._process(sd) == tmp_path / "s" / "results"
     [(source, kw)] = calls
     assert source is sd and kw == {"out_dir": tmp_path / "s" / "results",
-                                   "fit_options": {"model": "li", "method": "least_squares"}}
+                                   "fit_options": {"model": "auto", "method": "least_squares"}}
     assert sd.held_lights() == [] and "printed result" in capsys.readouterr().out
 
 
