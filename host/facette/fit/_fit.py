@@ -258,6 +258,9 @@ def fit_least_squares(s, o, values, model="li", distribution="beckmann", masking
     grid = [(sg, n) for sg in (0.15, 0.05, 0.4, 0.8) for n in ((15.0, 3.0) if n_i_max else (1.5, 1.15))]
     if x0 is not None and len(x0) == len(lo) - len(kd0):
         x0 = np.concatenate([np.asarray(x0, float), kd0])
+    if x0 is not None and len(x0) != len(lo):
+        raise ValueError(f"x0 has {len(x0)} values: {fm.name} takes {len(lo)} (shared and K_d) or its "
+                         f"{len(lo) - len(kd0)} shared ones")
     starts = [] if x0 is None else [np.clip(np.asarray(x0, float), lo, hi)]
     for sg, n in grid[:max(1, int(n_starts))]:
         shared = {"li": [sg, n], "cook_torrance": [sg, n], "oren_nayar": [sg], "lambert": []}[fm.name]
@@ -427,7 +430,9 @@ def fit_brdf(s, o, values, model="li", method="least_squares", distribution="bec
             notes.append(f"n_i = {n:.4f} ± {dn:.2g} ≈ 1: no interface needed, trying simpler models")
             simpler = ["oren_nayar", "lambert"] if model == "li" else ["lambert"]
             for alt in simpler:
-                r2 = fitter(s, o, values, alt, **common, **{k: v for k, v in options.items() if k != "n_i_max"})
+                # a simpler model's own starts: x0 and n_starts were the full model's
+                r2 = fitter(s, o, values, alt, **common,
+                            **{k: v for k, v in options.items() if k not in ("n_i_max", "x0", "n_starts")})
                 if r2.success and r2.error["relative_rms"] <= res.error["relative_rms"] * (1 + rel_error_tolerance) + 1e-12:
                     notes.append(f"{alt} kept: relative RMS {r2.error['relative_rms']:.4g} vs "
                                  f"{res.error['relative_rms']:.4g} for {res.model}")

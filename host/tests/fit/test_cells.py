@@ -65,10 +65,7 @@ def test_li_fit_on_cook_torrance_cells_finds_the_lobe():
     assert unbalanced.params["n_i"] < 1.05  # the failure the balance removes
 
 
-def test_the_verdict_asked_for_a_metal_on_a_matte_material_keeps_the_simpler_model():
-    # a metal's lobe tried first (photometric stereo's choice) on Lambertian cells: the fit finds no
-    # interface and keeps Lambert, and the verdict lists it under the model it is, not as a metal
-    from facette.fit import fit_cells_verdict
+def _matte_cells():
     rng = np.random.default_rng(1)
     sensor = reflect.HemisphereSensor(5.0, channels=1)
     for ts in np.radians([20, 40]):
@@ -78,9 +75,27 @@ def test_the_verdict_asked_for_a_metal_on_a_matte_material_keeps_the_simpler_mod
         phi = 2 * np.pi * rng.random(n)
         o = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], axis=1)
         sensor.add(s, o, np.full((n, 1), 0.6 / np.pi))
-    res = fit_cells_verdict(sensor.result(), prefer="metal", n_starts=2)
+    return sensor.result()
+
+
+def test_the_verdict_asked_for_a_metal_on_a_matte_material_keeps_the_simpler_model():
+    # a metal's lobe tried first (photometric stereo's choice) on Lambertian cells: the fit finds no
+    # interface and keeps Lambert, and the verdict lists it under the model it is, not as a metal
+    from facette.fit import fit_cells_verdict
+    res = fit_cells_verdict(_matte_cells(), prefer="metal", n_starts=2)
     assert res.success and res.verdict == "fits" and res.model == "lambert", res.models_tried
     assert res.models_tried[0]["model"] == "lambert"
+
+
+def test_a_start_for_the_lobe_is_not_handed_to_the_simpler_models():
+    # photometric stereo's (σ, n_i) start the Cook–Torrance fit; on matte cells it finds no interface
+    # and fit_brdf tries Oren–Nayar and Lambert, each from its own starts (the start's two values
+    # handed on to them failed as a numpy broadcast error: DiLiGenT-Π Bear)
+    from facette.fit import fit_cells_verdict, fit_hemisphere_cells
+    res = fit_cells_verdict(_matte_cells(), prefer="cook_torrance", start=(0.1, 1.3))
+    assert res.success and res.model == "lambert", res.models_tried
+    with pytest.raises(ValueError, match="x0 has 4 values"):   # one channel: σ, n_i, K_d
+        fit_hemisphere_cells(_matte_cells(), model="cook_torrance", x0=(0.1, 1.3, 0.5, 0.5))
 
 
 def _narrow_lobe_cells(seed=0):
