@@ -13,6 +13,7 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
+from facette._threads import run_blocks
 from facette.brdf import li_kd_from_kappa, li_shading_terms
 
 __all__ = ["choose_material_model", "fit_bounds", "METAL_FIT_BOUNDS", "fit_li_per_pixel_kd", "li_fit_cost", "LI_FIT_BOUNDS", "LI_VOLUME_MODEL", "DIFFUSE", "LOBE_MIN_GAIN"]
@@ -195,27 +196,37 @@ def _profile_lobe(e, lights, usable, solve, volume_models):
     Returns ({(is a metal's lobe, volume_model): the best such candidate, a dict(cost,
     cost_lambertian: the Lambertian solution's cost on its kept pixels, gain, volume_model, sigma,
     n_i, normals, kept)}, {volume_model: its best trimmed cost}, the number of solves)."""
-    best, per_model, solves = {}, {}, 0
+    def search(vm):
+        # one diffuse part's search: its candidates, its best cost, its solves
+        best, low, solves = {}, np.inf, 0
 
-    def score(sigma, n_i, vm):
-        nonlocal solves
-        n = solve(sigma, n_i, vm)
-        solves += 1
-        cost, kept = _trimmed(_pixel_costs(e, lights, n, usable, sigma, n_i, vm))
-        per_model[vm] = min(per_model.get(vm, np.inf), cost)
-        key = (is_metal(n_i), vm)
-        if key not in best or cost < best[key]["cost"]:
-            best[key] = dict(cost=cost, volume_model=vm, sigma=sigma, n_i=n_i, normals=n, kept=kept)
-        return cost
+        def score(sigma, n_i):
+            nonlocal low, solves
+            n = solve(sigma, n_i, vm)
+            solves += 1
+            cost, kept = _trimmed(_pixel_costs(e, lights, n, usable, sigma, n_i, vm))
+            low = min(low, cost)
+            key = (is_metal(n_i), vm)
+            if key not in best or cost < best[key]["cost"]:
+                best[key] = dict(cost=cost, volume_model=vm, sigma=sigma, n_i=n_i, normals=n, kept=kept)
+            return cost
 
-    for vm in volume_models:
         starts = (PROFILE_N_I0,) + ((PROFILE_N_I0_METAL,) if vm == "lambert" else ())
-        costs = {(sigma, n0): score(sigma, n0, vm) for n0 in starts for sigma in PROFILE_SIGMAS}
+        costs = {(sigma, n0): score(sigma, n0) for n0 in starts for sigma in PROFILE_SIGMAS}
         sigma, n0 = min(costs, key=costs.get)
         n_is = PROFILE_N_IS + (PROFILE_N_IS_METAL if vm == "lambert" else ())
         for n_i in n_is:
             if n_i != n0:
-                score(sigma, n_i, vm)
+                score(sigma, n_i)
+        return best, low, solves
+
+    # the diffuse parts' searches are independent: on two threads (the solves' compiled kernel and
+    # numpy give the GIL up), merged in their order (the same candidates as one after the other)
+    best, per_model, solves = {}, {}, 0
+    for vm, (b, low, k) in zip(volume_models, run_blocks(search, volume_models)):
+        best.update(b)
+        per_model[vm] = low
+        solves += k
     # the Lambertian solution scored on each candidate's kept pixels: trimmed on its own, it would
     # drop the highlights, the very pixels that show a lobe (a glossy sphere's few % of pixels)
     n = solve(LAMBERTIAN_SIGMA, 1.0, volume_models[0])

@@ -32,6 +32,7 @@ First call in a fresh environment compiles the kernel (~10–20 s on one core); 
 machine code next to this file (__pycache__), later processes load it in well under a second.
 """
 import math
+import threading
 
 import numba
 import numpy as np
@@ -58,6 +59,7 @@ SECOND_START_ABOVE = 0.0
 
 
 _TABLES = {}               # (σ, n_i, grid, lights' bytes) -> table; the last few kept
+_TABLES_LOCK = threading.Lock()     # the model choice's diffuse parts search on two threads
 
 
 def volume_table(lights, sigma, n_i, grid=TABLE_GRID, volume_model="approx"):
@@ -68,9 +70,10 @@ def volume_table(lights, sigma, n_i, grid=TABLE_GRID, volume_model="approx"):
     tab = _TABLES.get(key)
     if tab is None:
         tab = _volume_table(s, sigma, n_i, grid, volume_model)
-        if len(_TABLES) >= 8:
-            _TABLES.pop(next(iter(_TABLES)))
-        _TABLES[key] = tab
+        with _TABLES_LOCK:
+            if len(_TABLES) >= 8:
+                _TABLES.pop(next(iter(_TABLES)))
+            _TABLES[key] = tab
     return tab
 
 
@@ -357,7 +360,7 @@ def _workspace(m):
             np.empty(m), np.empty(m), np.empty(m, np.int64), np.empty(m), np.empty(m))
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _refine_all(e, usable, n0, n1, has1, s, sh, fres, btab, sigma, spec, iterations, cast_ratio,
                 floor, max_step, step_tol, second_above, out_n, out_k, out_used, out_cost, out_rel, out_it, chunk):
     n_pix, m, c = e.shape
