@@ -17,8 +17,8 @@ import functools
 
 import numpy as np
 
-from ._fresnel import check_n_i, fresnel_dielectric
-from ._microfacet import microfacet_quadrature, smith_g1
+from ._fresnel import check_n_i
+from ._microfacet import microfacet_quadrature
 
 __all__ = ["coupled_terms", "coupled_transmittance", "volume_integral_coupled"]
 

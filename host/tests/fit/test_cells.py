@@ -18,18 +18,22 @@ def test_spread_directions_fall_in_their_own_cells():
         cell_spread_directions(sensor.edges, sensor.counts, [sensor.n_cells])
 
 
-def test_filtered_cells_fit_recovers_a_narrow_lobe():
-    rng = np.random.default_rng(0)
+def _narrow_lobe_cells(seed=0, n=30_000):
+    """Cells of Cook–Torrance (K_d 0.5, σ 0.05, n_i 1.3) seen from n directions at three incidences."""
+    rng = np.random.default_rng(seed)
     sensor = reflect.HemisphereSensor(3.0, channels=1)
     _, mid = sensor.centres()
     for ts in mid[np.searchsorted(mid, np.radians([25, 40, 55]))]:
-        n = 60_000
         s = np.broadcast_to([np.sin(ts), 0.0, np.cos(ts)], (n, 3))
         z = rng.random(n)
         phi = 2 * np.pi * rng.random(n)
         o = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], axis=1)
         sensor.add(s, o, B.cook_torrance1982(s, o, 0.5, 0.05, 1.3)[:, None])
-    filt = sensor.result()
+    return sensor.result()
+
+
+def test_filtered_cells_fit_recovers_a_narrow_lobe():
+    filt = _narrow_lobe_cells(n=60_000)
     fwd = fit_hemisphere_cells(filt, model="cook_torrance", spread=4, select=False, n_starts=2)
     centres = fit_hemisphere_cells(filt, model="cook_torrance", spread=0, select=False, n_starts=2)
     assert fwd.success
@@ -96,20 +100,6 @@ def test_a_start_for_the_lobe_is_not_handed_to_the_simpler_models():
     assert res.success and res.model == "lambert", res.models_tried
     with pytest.raises(ValueError, match="x0 has 4 values"):   # one channel: σ, n_i, K_d
         fit_hemisphere_cells(_matte_cells(), model="cook_torrance", x0=(0.1, 1.3, 0.5, 0.5))
-
-
-def _narrow_lobe_cells(seed=0):
-    rng = np.random.default_rng(seed)
-    sensor = reflect.HemisphereSensor(3.0, channels=1)
-    _, mid = sensor.centres()
-    for ts in mid[np.searchsorted(mid, np.radians([25, 40, 55]))]:
-        n = 30_000
-        s = np.broadcast_to([np.sin(ts), 0.0, np.cos(ts)], (n, 3))
-        z = rng.random(n)
-        phi = 2 * np.pi * rng.random(n)
-        o = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], axis=1)
-        sensor.add(s, o, B.cook_torrance1982(s, o, 0.5, 0.05, 1.3)[:, None])
-    return sensor.result()
 
 
 def test_the_verdict_from_photometric_stereos_start_finds_the_same_fit_with_fewer_evaluations():
