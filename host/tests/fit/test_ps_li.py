@@ -319,3 +319,28 @@ def test_a_dark_level_under_every_photograph_is_taken_out(cache):
     e_clean, e_auto, e_kept = (_err(r.normal, d["normals"], sel).mean() for r in (clean, auto, kept))
     # measured: 0.31 clean, 0.40 taken out, 0.51 kept (the photographs with too few dark pixels keep it)
     assert e_auto < e_kept - 0.05 and e_auto < e_clean + 0.2, (e_clean, e_auto, e_kept)
+
+
+def test_the_later_rounds_refit_on_round_twos_draw(monkeypatch):
+    # a refit on pixels drawn again each round moves with the draw (DiLiGenT pot2: n_i by 0.01-0.03
+    # a round) and the rounds ran to their limit; the later rounds refit on round 2's pixels
+    import facette.fit._ps_li as ps_li
+    from facette.fit._ps_li_pixels import Pixels
+    drawn = []
+    draw = Pixels.draw
+
+    def counted(self, trust):
+        drawn.append(draw(self, trust))
+        return drawn[-1]
+
+    monkeypatch.setattr(Pixels, "draw", counted)
+    monkeypatch.setattr(ps_li, "_settled", lambda prev, new: False)     # every round runs
+    sc = sphere_on_plane(64, 64)
+    lights = thesis_light_directions()
+    im = render(sc, lights, "satin", noise=0.02, rng=np.random.default_rng(3))
+    r = ps_li_alternating(im, lights, mask=sc.mask, tol_deg=0.0, rounds=4, fit_pixels=200)
+    assert [x["round"] for x in r.info["rounds"]] == [1, 2, 3, 4]
+    assert len(drawn) == 2 and not np.array_equal(drawn[0], drawn[1])
+    # on the same pixels the refit follows the normals alone: rounds 3 and 4 agree closely
+    r3, r4 = r.info["rounds"][2:]
+    assert abs(r3["sigma"] - r4["sigma"]) < 0.01 * r3["sigma"] and abs(r3["n_i"] - r4["n_i"]) < 0.005
