@@ -19,6 +19,7 @@ import numpy as np
 
 from ._fresnel import check_n_i
 from ._microfacet import microfacet_quadrature
+from ._nodes import node_point, nodes_around
 
 __all__ = ["coupled_terms", "coupled_transmittance", "volume_integral_coupled"]
 
@@ -26,29 +27,16 @@ MU_NODES = 65           # cos θ nodes of t(θ), linear interpolation between th
 # half-vector nodes of the albedo's quadrature (n_θ, n_φ of microfacet_quadrature): against 64 × 48,
 # at most 0.0015 of t off at σ 0.01-0.5, n_i 1.2-2.0; ~2 ms a node (compiled), computed once
 HALF_VECTORS = (32, 24)
-SIGMA_MIN = 1e-3        # below: the interface is taken as this rough (a mirror's albedo is F)
-NODE_SIGMA_RATIO = 1.2  # the nodes in σ: SIGMA_MIN · ratio^k (as facette.brdf._volume's)
-NODE_N_I_STEP = 0.025   # the nodes in n_i: 1 + k · step
-
-
-def _node_weights(x, step):
-    """(k, w): the cell [k, k + 1] of x ≥ 0 in units of `step`, and the weight of k + 1."""
-    u = max(float(x) / step, 0.0)
-    k = int(np.floor(u))
-    return k, u - k
 
 
 @functools.lru_cache(maxsize=512)
 def coupled_transmittance(sigma, n_i):
     """(mu, t): t(μ) = 1 − E(μ) on MU_NODES cosines μ ∈ [0, 1], E the lobe's directional albedo
-    (`_albedo_node`), combined linearly in log σ and n_i from the nodes around (σ, n_i), as the LI
-    volume tables are (facette.brdf.volume_table_at): continuous in both for the fits' finite
-    differences, and each node computed once. Read-only arrays, cached per (σ, n_i)."""
-    n = check_n_i(n_i)
-    ks, ws = _node_weights(np.log(max(float(sigma), SIGMA_MIN) / SIGMA_MIN), np.log(NODE_SIGMA_RATIO))
-    kn, wn = _node_weights(n - 1.0, NODE_N_I_STEP)
-    t = sum(wi * wj * _albedo_node(i, j) for i, wi in ((ks, 1 - ws), (ks + 1, ws))
-            for j, wj in ((kn, 1 - wn), (kn + 1, wn)) if wi * wj > 0)
+    (`_albedo_node`), combined linearly in log σ and n_i from the nodes around (σ, n_i)
+    (facette.brdf._nodes), as the LI volume tables are (facette.brdf.volume_table_at): continuous in
+    both for the fits' finite differences, and each node computed once. Read-only arrays, cached
+    per (σ, n_i)."""
+    t = sum(w * _albedo_node(i, j) for i, j, w in nodes_around(sigma, check_n_i(n_i)))
     t = 1 - np.asarray(t, float)
     mu = np.linspace(0.0, 1.0, MU_NODES)
     mu.setflags(write=False)
@@ -58,12 +46,13 @@ def coupled_transmittance(sigma, n_i):
 
 @functools.lru_cache(maxsize=1024)
 def _albedo_node(k, j):
-    """E(μ) at the node σ = SIGMA_MIN · NODE_SIGMA_RATIO^k, n_i = 1 + j · NODE_N_I_STEP:
+    """E(μ) at the node (σ, n_i) = node_point(k, j) (facette.brdf._nodes; below its first σ the
+    interface is taken as that rough: a mirror's albedo is F):
     E(i) = ∫ F(i·h) D(h) G_1(i) G_1(o) (i·h) / (n·i) dω_h (o the mirror of i about h, above the
     surface; f cos θ_o dω_o with dω_o = 4 (i·h) dω_h), on the nodes of D(h) (n·h) that the volume
     quadrature uses (facette.brdf.microfacet_quadrature) and the lobe's Smith G_1."""
     from ._lobe_jit import lobe_albedo_beckmann_smith     # numba: loaded with the first node
-    sigma, n = SIGMA_MIN * NODE_SIGMA_RATIO ** k, 1.0 + j * NODE_N_I_STEP
+    sigma, n = node_point(k, j)
     h, w = microfacet_quadrature(sigma, "beckmann", *HALF_VECTORS)
     mu = np.maximum(np.linspace(0.0, 1.0, MU_NODES), 1e-4)
     out = np.empty(MU_NODES)

@@ -22,6 +22,7 @@ from facette._registry import Registry
 
 from ._coupled import volume_integral_coupled
 from ._fresnel import check_n_i, fresnel_dielectric, r_e_molenaar1999
+from ._nodes import node_point, nodes_around
 from ._microfacet import (check_masking, check_sigma, masking_g, microfacet_quadrature,
                           sample_microfacet_normals, smith_g1)
 
@@ -297,23 +298,13 @@ def volume_integral_table(s, o, sigma, n_i, distribution="beckmann", masking="sm
 
 
 # Node tables of `volume_table_at`: eq 3.15 by quadrature every NODE_STEP_DEG (the last three
-# θ cells split in two) on a grid of (σ, n_i). Measured on 4000 random pairs above 6° elevation
-# (σ, n_i = 0.05-0.2, 1.26-1.5) against the 48 × 48 quadrature: 5° and 16 × 24 nodes builds in
+# θ cells split in two) on the grid of (σ, n_i) of facette.brdf._nodes. Measured on 4000 random
+# pairs above 6° elevation (σ, n_i = 0.05-0.2, 1.26-1.5) against the 48 × 48 quadrature: 5° and 16 × 24 nodes builds in
 # 0.03-0.05 s, 0.05 % off at the median and 1.3-1.7 % at the 99th percentile (10° and 16 × 16:
 # 0.005 s, 0.1 % and 5 %; 5° and 24 × 32, refined by 4: 0.08-0.12 s, 0.03 % and 0.3-0.9 %),
 # against 3-5 % and 13-45 % for the approximate formula eq 3.49-3.57
 NODE_STEP_DEG = 5.0
 NODE_QUADRATURE = (16, 24, 2)   # n_theta, n_phi of the quadrature; grazing refinement of θ
-NODE_SIGMA_MIN = 1e-3           # σ nodes NODE_SIGMA_MIN · NODE_SIGMA_RATIO^k (below: the first node)
-NODE_SIGMA_RATIO = 1.2
-NODE_N_I_STEP = 0.025           # n_i nodes 1 + k · NODE_N_I_STEP
-
-
-def _node_weights(x, step):
-    """(k, w): the grid cell [k, k + 1] of x in units of `step` (x ≥ 0) and the weight of k + 1."""
-    u = max(float(x) / step, 0.0)
-    k = int(np.floor(u))
-    return k, u - k
 
 
 @functools.lru_cache(maxsize=256)
@@ -327,17 +318,11 @@ def volume_table_at(sigma, n_i, distribution="beckmann", masking="smith"):
     sx, sy, iso, n = check_volume_config(sigma, n_i, distribution, masking)
     if not iso:
         raise ValueError("volume='tables' assumes an isotropic distribution; use 'quadrature' for a sigma pair")
-    ks, ws = _node_weights(np.log(max(sx, NODE_SIGMA_MIN) / NODE_SIGMA_MIN), np.log(NODE_SIGMA_RATIO))
-    kn, wn = _node_weights(n - 1.0, NODE_N_I_STEP)
     values, first = 0.0, None
-    for i, wi in ((ks, 1 - ws), (ks + 1, ws)):
-        for j, wj in ((kn, 1 - wn), (kn + 1, wn)):
-            if wi * wj == 0:
-                continue
-            node = build_volume_table(NODE_SIGMA_MIN * NODE_SIGMA_RATIO ** i, 1.0 + j * NODE_N_I_STEP,
-                                      distribution, masking, NODE_STEP_DEG, *NODE_QUADRATURE)
-            first = first or node
-            values = values + (wi * wj) * node.values
+    for i, j, w in nodes_around(sx, n):       # the node grid (facette.brdf._nodes)
+        node = build_volume_table(*node_point(i, j), distribution, masking, NODE_STEP_DEG, *NODE_QUADRATURE)
+        first = first or node
+        values = values + w * node.values
     values = np.asarray(values, dtype=float)
     values.setflags(write=False)
     return VolumeTable(NODE_STEP_DEG, values, (sx, n, distribution, masking, "nodes"), np.degrees(first.theta))

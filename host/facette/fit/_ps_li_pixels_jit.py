@@ -23,9 +23,9 @@ def _any_light_in_lobe(normals, half, cos_min, out):
     n_pix, m = half.shape[0], half.shape[1]
     for p in prange(n_pix):
         hit = False
+        nx, ny, nz = float(normals[p, 0]), float(normals[p, 1]), float(normals[p, 2])
         for i in range(m):
-            ch = (float(normals[p, 0]) * half[p, i, 0] + float(normals[p, 1]) * half[p, i, 1]
-                  + float(normals[p, 2]) * half[p, i, 2])
+            ch = nx * half[p, i, 0] + ny * half[p, i, 1] + nz * half[p, i, 2]
             if ch > cos_min:
                 hit = True
                 break
