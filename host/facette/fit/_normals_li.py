@@ -289,11 +289,19 @@ def _lm_step(ei, kwi, ni, si, ai, bi, ki, scale_i, li, sigma, n_i, volume_model)
         st = t @ si.T if si.ndim == 2 else np.einsum("nj,nmj->nm", t, si)
         jac.append(((au - ai) / STEP_FD)[..., None] + (b_over * st)[..., None] * ki[:, None, :])
     ju, jv = jac
-    huu = np.sum(wr * ju * ju, axis=(1, 2))
-    hvv = np.sum(wr * jv * jv, axis=(1, 2))
-    huv = np.sum(wr * ju * jv, axis=(1, 2))
-    gu = np.sum(wr * ju * r0, axis=(1, 2))
-    gv = np.sum(wr * jv * r0, axis=(1, 2))
+    # variable projection: κ_c is solved again at every candidate, so the step is taken along
+    # the Jacobian's part that a change of κ_c cannot mimic (ju − b (Σ w b ju / Σ w b²) per
+    # channel, where κ_c > 0: Kaufman's form); without it the normal and κ zig-zag
+    wb = wr * bi[..., None]
+    sbb = np.sum(wb * bi[..., None], axis=1)
+    free = (ki > 0) & (sbb > 1e-30)
+    inv = np.where(free, 1 / np.where(free, sbb, 1), 0)
+    sbu, sbv, sbr = (np.sum(wb * x, axis=1) for x in (ju, jv, r0))
+    huu = np.sum(wr * ju * ju, axis=(1, 2)) - np.sum(sbu * sbu * inv, axis=1)
+    hvv = np.sum(wr * jv * jv, axis=(1, 2)) - np.sum(sbv * sbv * inv, axis=1)
+    huv = np.sum(wr * ju * jv, axis=(1, 2)) - np.sum(sbu * sbv * inv, axis=1)
+    gu = np.sum(wr * ju * r0, axis=(1, 2)) - np.sum(sbu * sbr * inv, axis=1)
+    gv = np.sum(wr * jv * r0, axis=(1, 2)) - np.sum(sbv * sbr * inv, axis=1)
     huu_d, hvv_d = huu * (1 + li) + 1e-20, hvv * (1 + li) + 1e-20
     det = huu_d * hvv_d - huv * huv
     det = np.where(np.abs(det) > 1e-30, det, 1e-30)

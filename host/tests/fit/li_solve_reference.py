@@ -134,6 +134,7 @@ def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, 
             jac.append(col)
         ju, jv = jac
         huu = hvv = huv = gu = gv = 0.0
+        sbb = sbu = sbv = sbr = 0.0
         for i in range(m):
             w = wr[i]
             huu += w * ju[i] * ju[i]
@@ -141,6 +142,17 @@ def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, 
             huv += w * ju[i] * jv[i]
             gu += w * ju[i] * r[i]
             gv += w * jv[i] * r[i]
+            wb = w * b[i]
+            sbb += wb * b[i]
+            sbu += wb * ju[i]
+            sbv += wb * jv[i]
+            sbr += wb * r[i]
+        if k > 0.0 and sbb > 1e-30:     # variable projection: κ solved again at the candidate
+            huu -= sbu * sbu / sbb
+            hvv -= sbv * sbv / sbb
+            huv -= sbu * sbv / sbb
+            gu -= sbu * sbr / sbb
+            gv -= sbv * sbr / sbb
         huu_d = huu * (1 + lam) + 1e-20
         hvv_d = hvv * (1 + lam) + 1e-20
         det = huu_d * hvv_d - huv * huv
