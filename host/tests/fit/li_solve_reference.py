@@ -19,8 +19,9 @@ def _model(n, s, sh, fres, btab, sigma, spec):
     nx, ny, nz = n
     m = len(s)
     g = len(btab)
-    fx = min(max((nx + 1.0) * 0.5 * (g - 1), 0.0), g - 1.000001)
-    fy = min(max((ny + 1.0) * 0.5 * (g - 1), 0.0), g - 1.000001)
+    inv = 1.0 / max(1.0 + nz, 1e-6)           # the table's stereographic coordinates
+    fx = min(max((nx * inv + 1.0) * 0.5 * (g - 1), 0.0), g - 1.000001)
+    fy = min(max((ny * inv + 1.0) * 0.5 * (g - 1), 0.0), g - 1.000001)
     ix, iy = int(fx), int(fy)
     wx, wy = fx - ix, fy - iy
     co = min(max(nz, 0.0), 1.0)
