@@ -74,16 +74,14 @@ def test_volume_table_matches_the_direct_evaluation(tilts):
     # up to the rim too: on a grid of (n_x, n_y) the steep normals' B was 2 % off (median) at
     # 80-87° of tilt and 21 % at 87-89.5°, with the table in stereographic coordinates ≤ 2e-4
     from facette.fit._normals_li_jit import volume_table
+    from facette.fit._stereo import stereo_cells
     rng = np.random.default_rng(3)
     th, ph = np.radians(rng.uniform(*tilts, 5000)), rng.uniform(0, 2 * np.pi, 5000)
     n = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1).astype(np.float32)
     _, b = li_shading_terms(n, RIG, 0.1, 1.3, specular=False)
     tab = volume_table(RIG, 0.1, 1.3)
-    g = tab.shape[0]
-    inv = 1 / (1 + n[:, 2])                                  # the table's stereographic coordinates
-    fx, fy = (n[:, 0] * inv + 1) / 2 * (g - 1), (n[:, 1] * inv + 1) / 2 * (g - 1)
-    ix, iy = fx.astype(int), fy.astype(int)
-    wx, wy = (fx - ix)[:, None], (fy - iy)[:, None]
+    iy, ix, wy, wx = stereo_cells(n, tab.shape[0])
+    wx, wy = wx[:, None], wy[:, None]
     bi = ((1 - wx) * (1 - wy) * tab[iy, ix] + wx * (1 - wy) * tab[iy, ix + 1]
           + (1 - wx) * wy * tab[iy + 1, ix] + wx * wy * tab[iy + 1, ix + 1])
     lit = b > 0.05 * b.max()
@@ -94,12 +92,11 @@ def test_volume_table_matches_the_direct_evaluation(tilts):
 def test_volume_table_in_blocks_equals_one_evaluation_of_the_whole_disk():
     # the table is evaluated TABLE_BLOCK normals at a time on threads: not a bit may change
     from facette.fit._normals_li_jit import TABLE_BLOCK, _volume_table
+    from facette.fit._stereo import stereo_grid
     grid = 81
-    u = np.linspace(-1, 1, grid)
-    gx, gy = np.meshgrid(u, u)
-    r2 = gx * gx + gy * gy
+    gn, r2 = stereo_grid(grid)
     inside = r2 < 1
-    gn = (np.stack([2 * gx, 2 * gy, 1 - r2], -1) / (1 + r2)[..., None])[inside].astype(np.float32)
+    gn = gn[inside].astype(np.float32)
     assert len(gn) > 3 * TABLE_BLOCK
     for volume_model in ("approx", "tables"):
         tab = _volume_table(RIG, 0.15, 1.4, grid, volume_model)
