@@ -191,7 +191,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     settings = Settings(iterations=iterations, fine_iterations=fine_iterations, fit_pixels=fit_pixels,
                         t_residual=t_residual, engine=engine, highlight_start=highlight_start,
                         diffuse_models=diffuse_models)
-    px = Pixels.start(images, light_dirs, mask, channel, saturation, base, init, settings, seed)
+    px = Pixels.start(images, light_dirs, channel, saturation, base, settings, seed)
     labels, info["regions_found_by"] = _regions(px.alb, px.idx.size, materials, min_region_fraction, seed)
     if coarse is not None:
         info["coarse"] = {k: coarse.info[k] for k in ("factor", "pixels", "seconds", "cpu_seconds", "rounds")}

@@ -20,7 +20,6 @@ import numpy as np
 
 from facette._threads import run_blocks
 from facette.brdf import li_shading_terms
-from facette.recon import ps_woodham1980
 from facette.recon._ps import _pixel_dirs
 from ._li_model import PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model, is_metal
 from ._normals_li import RefineResult, refine_normals_li
@@ -78,25 +77,20 @@ class Pixels:
     vm: str = ""               # the current material's diffuse part (volume model)
 
     @classmethod
-    def start(cls, images, light_dirs, mask, channel, saturation, base, init, settings, seed):
+    def start(cls, images, light_dirs, channel, saturation, base, settings, seed):
         """The valid pixels of `base` (the initial solution, a PSResult), with least squares."""
         m, h, w, c = images.shape
         idx = np.flatnonzero(base.valid.ravel())
         flat = images.reshape(m, h * w, c)
         s_all = _pixel_dirs(light_dirs, idx)                          # (m, 3) or (N, m, 3)
         nrm = base.normal.reshape(-1, 3)[idx].astype(np.float32)
-        # the Lambertian level: least squares over every light (its residual decides which pixels it
-        # explains; the init's own residual is on the lights that method kept, and its normal would
-        # bias the tabulated correction, which models least squares over every light)
-        ls = base if init is ps_woodham1980 else \
-            ps_woodham1980(images, light_dirs, mask=mask, channel=channel, saturation=saturation)
         alb = base.albedo.reshape(-1, c)[idx]
         from ._ps_li_pixels_jit import channel_and_usable     # numba loads only when li_alternating runs
         values, all_ok = channel_and_usable(flat, idx, channel, saturation)     # (N, m) each
         has_highlight, hl_start = _highlight_starts(values, all_ok, nrm, s_all, alb[:, channel])
+        nrm_ls, resid_ls = _least_squares_level(values, all_ok, s_all)
         return cls(settings=settings, shape=(h, w), channel=channel, flat=flat, idx=idx, s_all=s_all,
-                   all_ok=all_ok, alb=alb, nrm0=nrm.copy(), nrm_ls=ls.normal.reshape(-1, 3)[idx].astype(np.float32),
-                   resid_ls=np.where(ls.valid.reshape(-1)[idx], ls.residual.reshape(-1)[idx], np.inf),
+                   all_ok=all_ok, alb=alb, nrm0=nrm.copy(), nrm_ls=nrm_ls, resid_ls=resid_ls,
                    has_highlight=has_highlight, hl_start=hl_start, rng=np.random.default_rng(seed), nrm=nrm,
                    kd=np.zeros((idx.size, c), np.float32), refined=np.zeros(idx.size, bool),
                    shadow=base.shadow.reshape(-1, m)[idx].copy(), rel=base.residual.reshape(-1)[idx].copy(),
@@ -236,6 +230,39 @@ def _in_lobe(normals, lights, sigma):
     # tan θ_h < k  ⟺  cos θ_h > 1 / √(1 + k²) (for cos θ_h > 0)
     k2 = np.float32((LOBE_TAN * sigma) ** 2)
     return any_light_in_lobe(normals, h, np.float32(np.sqrt(1 / (1 + k2))))
+
+
+def _least_squares_level(values, all_ok, lights, chunk=262144):
+    """The Lambertian level's least squares over every light ((N, 3) unit normals, (N,) relative
+    residual): its residual decides which pixels it explains, and its normal is what the tabulated
+    correction models (the initial solution's residual is on the lights it kept, its normal would
+    bias the correction). Only a pixel with every light usable can be at that level: the others get
+    an infinite residual. From the values the alternation gathered already (a second whole
+    `ps_woodham1980` took 1.3 s of the 12 MP scan's photometric stereo)."""
+    n_pix = len(values)
+    nrm = np.zeros((n_pix, 3), np.float32)
+    resid = np.full(n_pix, np.inf, np.float32)
+    pinv = np.linalg.pinv(lights).astype(np.float32) if lights.ndim == 2 else None
+
+    def block(a):
+        sl = slice(a, a + chunk)
+        e, full = values[sl], all_ok[sl].all(1)
+        if pinv is not None:
+            g = e @ pinv.T                                           # (n, 3): ρ/π times the normal
+            pred = g @ lights.T
+        else:
+            s = lights[sl]
+            g = np.linalg.solve(np.einsum("nmi,nmj->nij", s, s).astype(np.float64),
+                                np.einsum("nmi,nm->ni", s, e)[..., None].astype(np.float64))[..., 0].astype(np.float32)
+            pred = np.einsum("nmi,ni->nm", s, g)
+        g_len = np.linalg.norm(g, axis=1)
+        e_len = np.linalg.norm(e, axis=1)
+        good = full & (g_len > 1e-12) & (e_len > 0) & np.isfinite(g_len)
+        nrm[sl] = np.where(good[:, None], g / np.where(good, g_len, 1)[:, None], 0)
+        resid[sl] = np.where(good, np.linalg.norm(e - pred, axis=1) / np.where(good, e_len, 1), np.inf)
+
+    run_blocks(block, range(0, n_pix, chunk))
+    return nrm, resid
 
 
 def _lambertian_correction(normals, lights, sigma, n_i, volume_model, grid=65):

@@ -1,6 +1,7 @@
 """The per-pixel steps of ps_li_alternating (facette.fit._ps_li_pixels): which lights are in the
 lobe, the highlight starts, the Lambertian level's correction, and the state's pixel levels."""
 import numpy as np
+import pytest
 
 from facette.brdf import li_shading_terms
 from facette.fit._ps_li_pixels import (LOBE_TAN, Pixels, Settings, _highlight_starts, _in_lobe,
@@ -57,7 +58,7 @@ def _pixels(material="glossy", seed=0, fit_pixels=50):
     base = ps_woodham1980(im, lights, mask=sc.mask)
     settings = Settings(iterations=8, fine_iterations=2, fit_pixels=fit_pixels, t_residual=0.05, engine="arrays",
                         highlight_start="all", diffuse_models=("approx",))
-    return Pixels.start(im.astype(np.float32), lights, sc.mask, 1, None, base, ps_woodham1980, settings, seed), base
+    return Pixels.start(im.astype(np.float32), lights, 1, None, base, settings, seed), base
 
 
 def test_the_state_starts_from_the_initial_solution_of_every_valid_pixel():
@@ -104,3 +105,22 @@ def test_a_later_round_gives_the_first_rounds_starts_only_to_pixels_new_to_the_b
     np.testing.assert_array_equal(mixed.used[1::2], alone_new.used)
     # the first round's highlight start changes some answers: the two forms are not the same solve
     assert np.any(px.refine(old, 0.1, 1.5, first_round=True).normals != alone_old.normals)
+
+
+@pytest.mark.parametrize("per_pixel", [False, True])
+def test_the_lambertian_levels_least_squares_is_woodhams_where_every_light_is_usable(per_pixel):
+    from facette.fit._ps_li_pixels import _least_squares_level
+    sc = sphere_on_plane(40, 40)
+    lights = thesis_light_directions()
+    im = render(sc, lights, "glossy", noise=0.002, rng=np.random.default_rng(1))[..., 1]
+    im[3, 5:9] = np.nan                                      # a light not usable on a few pixels
+    dirs = np.broadcast_to(lights, (40, 40) + lights.shape).copy() if per_pixel else lights
+    ref = ps_woodham1980(im, dirs, mask=sc.mask)
+    idx = np.flatnonzero(sc.mask)
+    values = im.reshape(len(lights), -1)[:, idx].T.astype(np.float32)
+    ok = np.isfinite(values)
+    nrm, resid = _least_squares_level(values, ok, dirs.reshape(-1, len(lights), 3)[idx] if per_pixel else lights)
+    full = ok.all(1)
+    assert (~full).sum() > 0 and np.isinf(resid[~full]).all()
+    np.testing.assert_allclose(nrm[full], ref.normal.reshape(-1, 3)[idx][full], atol=2e-5)
+    np.testing.assert_allclose(resid[full], ref.residual.reshape(-1)[idx][full], rtol=1e-3, atol=1e-6)
