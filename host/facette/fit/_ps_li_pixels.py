@@ -24,6 +24,7 @@ from facette.recon._ps import _pixel_dirs
 from ._li_model import PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model, is_metal
 from ._normals_li import RefineResult, refine_normals_li
 
+CORRECTION_PASSES = 3       # fixed-point passes of `_lambertian_correction`
 LOBE_TAN = 2.5             # a light is inside the lobe when tan θ_h < LOBE_TAN σ (D > 0.2 % of its peak)
 ROUND_STEP_TOL = 1e-3      # rad (0.06°): a pixel's solve stops below this step in the rounds too
 BLOCK = 32768              # pixels per block of the per-pixel solve (array code, two threads)
@@ -265,18 +266,23 @@ def _least_squares_level(values, all_ok, lights, chunk=262144):
     return nrm, resid
 
 
-def _lambertian_correction(normals, lights, sigma, n_i, volume_model, grid=65):
+def _lambertian_correction(normals, lights, sigma, n_i, volume_model, grid=65, passes=CORRECTION_PASSES):
     """(N, 3) corrected normals for pixels outside the lobe, from least-squares normals.
 
     Outside the specular lobe the model is E ≈ B(n, s) κ, whose least-squares (Lambertian)
-    normal n_LS(n) differs from n by a smooth bias (the Fresnel transmissions of the volume
-    part, eq 3.15, tilt it by up to a few degrees at oblique normals). That bias depends on the
-    normal alone (κ cancels), so it is tabulated once per (σ, n_i) on a grid of normals and
-    interpolated: n ≈ n_LS + (n_grid − n_LS(n_grid)) at n_grid = n_LS. Cost: grid² pixels, not N.
-    lights : (m, 3), or (N, m, 3) whose mean direction is used (near lights vary little).
+    normal n_LS(n) differs from n by a smooth bias δ(n) = n − n_LS(n) (the Fresnel transmissions
+    of the volume part, eq 3.15, tilt it by up to a few degrees at oblique normals). That bias
+    depends on the normal alone (κ cancels), so it is tabulated once per (σ, n_i) on a grid of
+    normals and interpolated, and n = n_LS + δ(n) is solved by `passes` fixed-point passes from
+    n = n_LS (one pass, δ taken at n_LS, left 0.15-0.38° at the 95th percentile at 40-70° of tilt
+    on the model's own values, σ 0.1-0.2; three passes 0.09-0.11°). Cost: grid² pixels, not N.
+    lights : (m, 3), or (N, m, 3) whose mean direction is used (near lights vary little); then one
+        pass only: the table is the mean directions', and solving its fixed point moved the
+        Mitsuba near-light sphere from 0.26° to 0.31°.
     """
     s = lights if lights.ndim == 2 else lights.mean(axis=0)
     s = s / np.linalg.norm(s, axis=1, keepdims=True)
+    passes = passes if lights.ndim == 2 else 1
     u = np.linspace(-1, 1, grid, dtype=np.float32)
     gx, gy = np.meshgrid(u, u)
     r2 = gx * gx + gy * gy
@@ -288,15 +294,18 @@ def _lambertian_correction(normals, lights, sigma, n_i, volume_model, grid=65):
     n_ls = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-12)
     delta = (gn - n_ls).reshape(grid, grid, 3)
     delta[~inside] = 0
-    # bilinear lookup at each pixel's own (least-squares) normal
-    fx = np.clip((normals[:, 0] + 1) / 2 * (grid - 1), 0, grid - 1.001)
-    fy = np.clip((normals[:, 1] + 1) / 2 * (grid - 1), 0, grid - 1.001)
-    ix, iy = fx.astype(int), fy.astype(int)
-    wx, wy = (fx - ix)[:, None], (fy - iy)[:, None]
-    d = ((1 - wx) * (1 - wy) * delta[iy, ix] + wx * (1 - wy) * delta[iy, ix + 1]
-         + (1 - wx) * wy * delta[iy + 1, ix] + wx * wy * delta[iy + 1, ix + 1])
-    out = normals + d
-    return (out / np.linalg.norm(out, axis=1, keepdims=True)).astype(np.float32)
+    out = normals
+    for _ in range(passes):
+        # bilinear lookup of δ at the current estimate
+        fx = np.clip((out[:, 0] + 1) / 2 * (grid - 1), 0, grid - 1.001)
+        fy = np.clip((out[:, 1] + 1) / 2 * (grid - 1), 0, grid - 1.001)
+        ix, iy = fx.astype(int), fy.astype(int)
+        wx, wy = (fx - ix)[:, None], (fy - iy)[:, None]
+        d = ((1 - wx) * (1 - wy) * delta[iy, ix] + wx * (1 - wy) * delta[iy, ix + 1]
+             + (1 - wx) * wy * delta[iy + 1, ix] + wx * wy * delta[iy + 1, ix + 1])
+        out = normals + d
+        out = (out / np.linalg.norm(out, axis=1, keepdims=True)).astype(np.float32)
+    return out
 
 
 def _highlight_starts(values, usable, normals, lights, albedo):
