@@ -251,10 +251,13 @@ def _least_squares_level(values, all_ok, lights, chunk=262144):
         if pinv is not None:
             g = e @ pinv.T                                           # (n, 3): ρ/π times the normal
             pred = g @ lights.T
-        else:
+        else:                                                        # per-pixel lights: 3 × 3 systems
             s = lights[sl]
-            g = np.linalg.solve(np.einsum("nmi,nmj->nij", s, s).astype(np.float64),
-                                np.einsum("nmi,nm->ni", s, e)[..., None].astype(np.float64))[..., 0].astype(np.float32)
+            a_m = np.einsum("nmi,nmj->nij", s, s).astype(np.float64)
+            full &= np.abs(np.linalg.det(a_m)) > 1e-9               # lights not spanning 3-D: no level
+            g = np.zeros((len(e), 3), np.float32)
+            rhs = np.einsum("nmi,nm->ni", s[full], e[full])[..., None].astype(np.float64)
+            g[full] = np.linalg.solve(a_m[full], rhs)[..., 0]
             pred = np.einsum("nmi,ni->nm", s, g)
         g_len = np.linalg.norm(g, axis=1)
         e_len = np.linalg.norm(e, axis=1)
