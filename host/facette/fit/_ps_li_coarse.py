@@ -5,6 +5,8 @@ import time
 
 import numpy as np
 
+from facette._threads import run_blocks
+
 from ._normals_li import refine_normals_li
 from ._ps_li_pixels import BLOCK, BLOCK_COMPILED, angle_deg, join_blocks
 
@@ -121,7 +123,11 @@ def upsample_normals(coarse, shape, f):
     yy = (np.arange(h, dtype=np.float32) + 0.5) / f - 0.5
     xx = (np.arange(w, dtype=np.float32) + 0.5) / f - 0.5
     gy, gx = np.meshgrid(yy, xx, indexing="ij")
-    out = np.stack([map_coordinates(coarse[..., k], [gy, gx], order=1, mode="nearest")
-                    for k in range(3)], -1)
+    out = np.empty((h, w, 3), np.float32)
+
+    def channel(k):        # scipy's interpolation lets the GIL go: the three on threads
+        out[..., k] = map_coordinates(coarse[..., k], [gy, gx], order=1, mode="nearest")
+
+    run_blocks(channel, range(3))
     ln = np.linalg.norm(out, axis=-1, keepdims=True)
     return np.where(ln > 1e-6, out / np.maximum(ln, 1e-6), np.float32([0, 0, 1])).astype(np.float32)
