@@ -122,6 +122,11 @@ def test_the_lambertian_levels_least_squares_is_woodhams_where_every_light_is_us
     nrm, resid = _least_squares_level(values, ok, dirs.reshape(-1, len(lights), 3)[idx] if per_pixel else lights)
     full = ok.all(1)
     assert (~full).sum() > 0 and np.isinf(resid[~full]).all()
+    if per_pixel:                 # lights that do not span 3-D on one pixel: no level, no error
+        flat = dirs.reshape(-1, len(lights), 3)[idx].copy()
+        flat[0] = lights[0]
+        _, r_flat = _least_squares_level(values, ok, flat)
+        assert np.isinf(r_flat[0]) and np.isfinite(r_flat[1:][full[1:]]).all()
     np.testing.assert_allclose(nrm[full], ref.normal.reshape(-1, 3)[idx][full], atol=2e-5)
     np.testing.assert_allclose(resid[full], ref.residual.reshape(-1)[idx][full], rtol=1e-3, atol=1e-6)
 
