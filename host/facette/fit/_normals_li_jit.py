@@ -13,20 +13,15 @@ normals within 0.02° at the 90th percentile, 0.04° at the 99th, 0.6° at most.
 pixels by > 1° (to another minimum, up to 30°); `facette bench diligent`, 96 lights: every object's
 mean the same to 0.01° (reading 9.63 -> 9.64°), the mean 6.68°).
 
-The step is variable projection's (Kaufman's form): κ is solved again at every candidate, so the
-normal's Jacobian is taken without the part a change of κ can mimic (J − b (Σ w b J) / Σ w b²,
-where κ > 0). The plain Gauss–Newton step had the normal and κ zig-zag: on noiseless σ 0.3 pixels
-it stopped 0.8° short (median) after 24 steps; DiLiGenT pot2's round 1 took 15.2 steps a pixel on
-average (a quarter at the limit of 24), 8.9 with it.
+The step is variable projection's (`_damped_step`): without it the normal and κ zig-zagged (noiseless
+σ 0.3 pixels: 0.8° short after 24 steps; DiLiGenT pot2's round 1: 15.2 steps a pixel, 8.9 with it).
 
 The model values: the specular lobe A (eq 3.10) is evaluated exactly per pixel and light (the
 Fresnel factor F(s·h) is one number per distant light); the volume part B(n, s_i) (eq 3.15, by the
-formula eq 3.49–3.57 or the quadrature tables: `volume_model`)
-is smooth in the normal, so for each light it is tabulated once per (σ, n_i) on a grid of the
-normals' stereographic coordinates (facette.fit._stereo) by `facette.brdf.li_shading_terms` itself
-and interpolated bilinearly (relative difference to the direct evaluation ≤ 2e-4 at the median, up
-to 89.5° of tilt, see the tests). Per-pixel
-(near-light) directions are not tabulated: they go through the array code.
+formula eq 3.49–3.57 or the quadrature tables: `volume_model`) is smooth in the normal, so for each
+light it is tabulated once per (σ, n_i) over the normals' stereographic coordinates (`_volume_table`)
+and interpolated bilinearly (≤ 2e-4 of the direct evaluation at the median up to 89.5° of tilt, see
+the tests). Per-pixel (near-light) directions are not tabulated: they go through the array code.
 
 The kept lights: once a start's cast shadows are found, its solve evaluates and sums only the
 lights it keeps, packed to the front of its work arrays in order (a light left out weighed 0 in
@@ -227,6 +222,38 @@ def _cost(r, n, sc):
 
 
 @njit(cache=True)
+def _tangent_frame(nx, ny, nz):
+    """Two unit tangents of the unit normal n: t1 = n × z (n × x near the pole), t2 = n × t1."""
+    if abs(nz) < 0.9:
+        t1x, t1y, t1z = ny, -nx, 0.0
+    else:
+        t1x, t1y, t1z = 0.0, nz, -ny
+    tl = math.sqrt(t1x * t1x + t1y * t1y + t1z * t1z)
+    t1x, t1y, t1z = t1x / tl, t1y / tl, t1z / tl
+    return t1x, t1y, t1z, ny * t1z - nz * t1y, nz * t1x - nx * t1z, nx * t1y - ny * t1x
+
+
+@njit(cache=True)
+def _damped_step(huu, hvv, huv, gu, gv, sbb, sbu, sbv, sbr, k, lam):
+    """(du, dv): the Levenberg–Marquardt step on the tangent angles from the weighted normal
+    equations (huu, hvv, huv; gu, gv) and the κ column's sums (Σ w b², Σ w b ju, Σ w b jv, Σ w b r).
+    Variable projection (Kaufman's form): κ is solved again at the candidate, so where κ > 0 the
+    step is taken along the Jacobian's part that a change of κ cannot mimic."""
+    if k > 0.0 and sbb > 1e-30:
+        huu -= sbu * sbu / sbb
+        hvv -= sbv * sbv / sbb
+        huv -= sbu * sbv / sbb
+        gu -= sbu * sbr / sbb
+        gv -= sbv * sbr / sbb
+    huu_d = huu * (1 + lam) + 1e-20
+    hvv_d = hvv * (1 + lam) + 1e-20
+    det = huu_d * hvv_d - huv * huv
+    if abs(det) <= 1e-30:
+        det = 1e-30
+    return (hvv_d * gu - huv * gv) / det, (huu_d * gv - huv * gu) / det
+
+
+@njit(cache=True)
 def _solve_one(e_all, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, cast_ratio,
                floor, max_step, step_tol, ws):
     """One start for one pixel, one channel e_all (m,). Returns (nx, ny, nz, cost, scale, rel,
@@ -293,14 +320,7 @@ def _solve_one(e_all, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_
             scale = _scale(r, n, mean_e, buf, floor)
             cost = _cost(r, n, scale)
             lam = max(lam, 1e-2)
-        # tangents
-        if abs(nz) < 0.9:
-            t1x, t1y, t1z = ny, -nx, 0.0          # n × z
-        else:
-            t1x, t1y, t1z = 0.0, nz, -ny          # n × x
-        tl = math.sqrt(t1x * t1x + t1y * t1y + t1z * t1z)
-        t1x, t1y, t1z = t1x / tl, t1y / tl, t1z / tl
-        t2x, t2y, t2z = ny * t1z - nz * t1y, nz * t1x - nx * t1z, nx * t1y - ny * t1x
+        t1x, t1y, t1z, t2x, t2y, t2z = _tangent_frame(nx, ny, nz)
         # residual, Cauchy weight, Jacobian (the lobe's analytic derivative from `_model`, the
         # volume part as (B / n·s)(s·t) κ) and the normal equations in one pass
         huu = hvv = huv = gu = gv = 0.0
@@ -327,19 +347,7 @@ def _solve_one(e_all, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_
             sbu += wb * ju
             sbv += wb * jv
             sbr += wb * rt
-        if k > 0.0 and sbb > 1e-30:      # variable projection (Kaufman): κ is solved again at the candidate
-            huu -= sbu * sbu / sbb
-            hvv -= sbv * sbv / sbb
-            huv -= sbu * sbv / sbb
-            gu -= sbu * sbr / sbb
-            gv -= sbv * sbr / sbb
-        huu_d = huu * (1 + lam) + 1e-20
-        hvv_d = hvv * (1 + lam) + 1e-20
-        det = huu_d * hvv_d - huv * huv
-        if abs(det) <= 1e-30:
-            det = 1e-30
-        du = (hvv_d * gu - huv * gv) / det
-        dv = (huu_d * gv - huv * gu) / det
+        du, dv = _damped_step(huu, hvv, huv, gu, gv, sbb, sbu, sbv, sbr, k, lam)
         step = math.sqrt(du * du + dv * dv)
         shrink = min(1.0, max_step / max(step, 1e-12))
         cx = nx + du * shrink * t1x + dv * shrink * t2x
