@@ -146,7 +146,7 @@ def _model(nx, ny, nz, s, sh, fres, btab, sigma, spec, lights, n_lights, a_out, 
     the normal as dA/dt = pa_out (s·t) + qa_out t_z (eq 3.10 differentiated: D through
     cos θ_h = n·h, G_1 through n·s and n·z, 1 / (4 n·z))."""
     g = btab.shape[0]
-    # bilinear position in the B table (same for every light), as facette.fit._stereo.stereo_cells
+    # bilinear position in the B table (same for every light): (u, v) = (n_x, n_y) / (1 + n_z)
     inv = 1.0 / max(1.0 + nz, 1e-6)
     fx = (nx * inv + 1.0) * 0.5 * (g - 1)
     fy = (ny * inv + 1.0) * 0.5 * (g - 1)

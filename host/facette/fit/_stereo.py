@@ -1,6 +1,6 @@
 """Grids over the visible hemisphere of normals in stereographic coordinates, for tables looked up
-per pixel by bilinear interpolation (the compiled solve's volume part; its kernel inlines
-`stereo_cells`).
+per pixel by bilinear interpolation (the compiled solve's volume part: `_normals_li_jit._model`
+does the lookup).
 
     (u, v) = (n_x, n_y) / (1 + n_z);   n = (2u, 2v, 1 − u² − v²) / (1 + u² + v²)
 
@@ -12,7 +12,7 @@ its mirror image (n_x, n_y, −n_z) is the point (u, v) / (u² + v²) inside.
 """
 import numpy as np
 
-__all__ = ["stereo_grid", "stereo_cells"]
+__all__ = ["stereo_grid"]
 
 
 def stereo_grid(grid):
@@ -23,12 +23,3 @@ def stereo_grid(grid):
     r2 = gu * gu + gv * gv
     return np.stack([2 * gu, 2 * gv, 1 - r2], -1) / (1 + r2)[..., None], r2
 
-
-def stereo_cells(normals, grid):
-    """Bilinear lookup of (N, 3) normals n_z > −1 in a `stereo_grid` table: (iy, ix, wy, wx),
-    the cell's corner and weights (each (N,))."""
-    inv = 1 / np.maximum(1 + normals[:, 2], 1e-6)
-    fx = np.clip((normals[:, 0] * inv + 1) / 2 * (grid - 1), 0, grid - 1.000001)
-    fy = np.clip((normals[:, 1] * inv + 1) / 2 * (grid - 1), 0, grid - 1.000001)
-    ix, iy = fx.astype(int), fy.astype(int)
-    return iy, ix, fy - iy, fx - ix

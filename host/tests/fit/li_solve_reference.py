@@ -1,7 +1,8 @@
 """A plain-Python reference of the compiled per-pixel solve (facette.fit._normals_li_jit), written
 as it was before the kept lights were packed to the front: every light is evaluated at every step
 and a light left out weighs 0. The compiled kernel must give the same numbers bit for bit (its
-sums skip only exact zeros). Slow: a few dozen pixels at most.
+sums skip only exact zeros). The per-step arithmetic on those sums (`_tangent_frame`, `_damped_step`)
+is the kernel's own: what this checks is the sums over every light. Slow: a few dozen pixels at most.
 
     refine_reference(e, ok, n0, n1, has1, s, sh, fres, btab, sigma, spec, iterations, cast_ratio,
                      floor, max_step, step_tol, second_above)
@@ -12,7 +13,7 @@ import math
 import numpy as np
 
 from facette.brdf._lobe_jit import beckmann_d
-from facette.fit._normals_li_jit import _g1_dlog
+from facette.fit._normals_li_jit import _damped_step, _g1_dlog, _tangent_frame
 
 
 def _model(n, s, sh, fres, btab, sigma, spec):
@@ -118,10 +119,7 @@ def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, 
             scale = _scale(r, keep, mean_e, floor)
             cost = _cost(r, keep, scale)
             lam = max(lam, 1e-2)
-        t1 = (ny, -nx, 0.0) if abs(nz) < 0.9 else (0.0, nz, -ny)
-        tl = math.sqrt(t1[0] * t1[0] + t1[1] * t1[1] + t1[2] * t1[2])
-        t1x, t1y, t1z = t1[0] / tl, t1[1] / tl, t1[2] / tl
-        t2x, t2y, t2z = ny * t1z - nz * t1y, nz * t1x - nx * t1z, nx * t1y - ny * t1x
+        t1x, t1y, t1z, t2x, t2y, t2z = _tangent_frame(nx, ny, nz)
         r = _resid(e, a, b, k, keep)
         wr = [(1.0 if keep[i] else 0.0) / (1.0 + (r[i] / scale) * (r[i] / scale)) for i in range(m)]
         jac = []
@@ -148,19 +146,7 @@ def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, 
             sbu += wb * ju[i]
             sbv += wb * jv[i]
             sbr += wb * r[i]
-        if k > 0.0 and sbb > 1e-30:     # variable projection: κ solved again at the candidate
-            huu -= sbu * sbu / sbb
-            hvv -= sbv * sbv / sbb
-            huv -= sbu * sbv / sbb
-            gu -= sbu * sbr / sbb
-            gv -= sbv * sbr / sbb
-        huu_d = huu * (1 + lam) + 1e-20
-        hvv_d = hvv * (1 + lam) + 1e-20
-        det = huu_d * hvv_d - huv * huv
-        if abs(det) <= 1e-30:
-            det = 1e-30
-        du = (hvv_d * gu - huv * gv) / det
-        dv = (huu_d * gv - huv * gu) / det
+        du, dv = _damped_step(huu, hvv, huv, gu, gv, sbb, sbu, sbv, sbr, k, lam)
         step = math.sqrt(du * du + dv * dv)
         shrink = min(1.0, max_step / max(step, 1e-12))
         cx = nx + du * shrink * t1x + dv * shrink * t2x

@@ -74,14 +74,15 @@ def test_volume_table_matches_the_direct_evaluation(tilts):
     # up to the rim too: on a grid of (n_x, n_y) the steep normals' B was 2 % off (median) at
     # 80-87° of tilt and 21 % at 87-89.5°, with the table in stereographic coordinates ≤ 2e-4
     from facette.fit._normals_li_jit import volume_table
-    from facette.fit._stereo import stereo_cells
     rng = np.random.default_rng(3)
     th, ph = np.radians(rng.uniform(*tilts, 5000)), rng.uniform(0, 2 * np.pi, 5000)
     n = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1).astype(np.float32)
     _, b = li_shading_terms(n, RIG, 0.1, 1.3, specular=False)
     tab = volume_table(RIG, 0.1, 1.3)
-    iy, ix, wy, wx = stereo_cells(n, tab.shape[0])
-    wx, wy = wx[:, None], wy[:, None]
+    g = tab.shape[0]                      # the table's cell: stereographic (u, v) = (n_x, n_y) / (1 + n_z)
+    fx, fy = (n[:, 0] / (1 + n[:, 2]) + 1) / 2 * (g - 1), (n[:, 1] / (1 + n[:, 2]) + 1) / 2 * (g - 1)
+    ix, iy = fx.astype(int), fy.astype(int)
+    wx, wy = (fx - ix)[:, None], (fy - iy)[:, None]
     bi = ((1 - wx) * (1 - wy) * tab[iy, ix] + wx * (1 - wy) * tab[iy, ix + 1]
           + (1 - wx) * wy * tab[iy + 1, ix] + wx * wy * tab[iy + 1, ix + 1])
     lit = b > 0.05 * b.max()
