@@ -293,22 +293,36 @@ def test_compiled_beckmann_smith_lobe_equals_the_array_form(sigma, n_i):
     np.testing.assert_array_equal(B.li_specular(su, ou, sigma, n_i, prepared=True), got)
 
 
-
 @pytest.mark.parametrize("sigma", [0.01, 0.1, 0.3, 1.0, 2.0])
 def test_the_compiled_smith_g1_skips_its_exp_and_erfc_only_where_they_give_one(sigma):
     """smith_g1_beckmann returns 1.0 without exp and erfc above a = G1_ONE_ABOVE: there the full
-    formula gives 1.0 to the last bit too; the per-pixel solve's d ln G_1 is then < 1e-16."""
+    formula gives 1.0 to the last bit too; so does the tabulated G_1, with a derivative of 0."""
     import math
-    from facette.brdf._lobe_jit import G1_ONE_ABOVE, smith_g1_beckmann
-    from facette.fit._normals_li_jit import _g1_dlog
+    from facette.brdf._lobe_jit import G1_ONE_ABOVE, SMITH_G1_TABLE, smith_g1_beckmann, smith_g1_dlog_tabulated
     for c in np.linspace(1e-4, 1 - 1e-9, 3001):
         sn = math.sqrt(1 - c * c)
         a = c / (sigma * sn)
         full = 1.0 / (1.0 + 0.5 * (math.exp(-a * a) / (a * math.sqrt(math.pi)) - math.erfc(a)))
         assert smith_g1_beckmann(c, sigma) == full
-        g, dlog = _g1_dlog(c, sigma)
-        assert g == full
         if a > G1_ONE_ABOVE:
-            assert full == 1.0
-            # the derivative the full form would give: G_1 e^(−a²) σ / (2√π c² sin)
-            assert dlog == 0.0 and math.exp(-a * a) * sigma / (2 * math.sqrt(math.pi) * c * c * sn) < 1e-14
+            assert full == 1.0 and smith_g1_dlog_tabulated(c, sigma, SMITH_G1_TABLE) == (1.0, 0.0)
+
+
+@pytest.mark.parametrize("sigma", [0.005, 0.05, 0.3, 2.0])
+def test_the_tabulated_smith_g1_is_the_formula(sigma):
+    """The per-pixel solve's G_1 comes from a table over a = c / (σ sin θ): within 1e-7 of the
+    formula, from grazing to the normal; d ln G_1 / dc (the tabulated G_1's own) within 1e-3 of
+    the formula's G_1 e^(−a²) σ / (2√π c² sin θ), on the scale a / (c sin² θ) of d ln G_1 / dc."""
+    import math
+    from facette.brdf._lobe_jit import SMITH_G1_TABLE, smith_g1_beckmann, smith_g1_dlog_tabulated
+    for c in np.concatenate([np.geomspace(1e-6, 1e-2, 200), np.linspace(1e-2, 1 - 1e-9, 20001),
+                             1 - np.geomspace(1e-9, 1e-2, 200)]):
+        sn = math.sqrt(1 - c * c)
+        a = c / (sigma * sn)
+        g, dlog = smith_g1_dlog_tabulated(c, sigma, SMITH_G1_TABLE)
+        want = smith_g1_beckmann(c, sigma)
+        assert abs(g - want) <= 1e-7 * want
+        exact = want * math.exp(-a * a) * sigma / (2 * math.sqrt(math.pi) * c * c * sn) if a < 6 else 0.0
+        assert abs(dlog - exact) <= 1e-3 * a / (c * sn * sn)
+    assert smith_g1_dlog_tabulated(0.0, sigma, SMITH_G1_TABLE) == (0.0, 0.0)
+    assert smith_g1_dlog_tabulated(1.0, sigma, SMITH_G1_TABLE) == (1.0, 0.0)

@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from facette.brdf._lobe_jit import beckmann_d
-from facette.fit._normals_li_jit import _damped_step, _g1_dlog, _tangent_frame
+from facette.brdf._lobe_jit import SMITH_G1_TABLE, beckmann_d, smith_g1_dlog_tabulated
+from facette.fit._normals_li_jit import _damped_step, _log_product, _tangent_frame
 
 
 def _model(n, s, sh, fres, btab, sigma, spec):
@@ -26,7 +26,7 @@ def _model(n, s, sh, fres, btab, sigma, spec):
     ix, iy = int(fx), int(fy)
     wx, wy = fx - ix, fy - iy
     co = min(max(nz, 0.0), 1.0)
-    g1o, dg1o = _g1_dlog(co, sigma) if spec else (0.0, 0.0)
+    g1o, dg1o = smith_g1_dlog_tabulated(co, sigma, SMITH_G1_TABLE) if spec else (0.0, 0.0)
     qo = dg1o - 1.0 / co if co > 0.0 else 0.0
     s2 = sigma * sigma
     a, b, pa, qa = [0.0] * m, [0.0] * m, [0.0] * m, [0.0] * m
@@ -40,7 +40,7 @@ def _model(n, s, sh, fres, btab, sigma, spec):
             ch = min(max((cs + co) / (2.0 * sh[i]), 0.0), 1.0)
             ch2 = ch * ch
             if 1.0 - ch2 < 16.0 * s2 * ch2 and ch2 > 0.0:
-                g1s, dg1s = _g1_dlog(min(cs, 1.0), sigma)
+                g1s, dg1s = smith_g1_dlog_tabulated(min(cs, 1.0), sigma, SMITH_G1_TABLE)
                 av = fres[i] * beckmann_d(ch2, s2) * g1s * g1o / (4.0 * co)
                 a[i] = av
                 dd = (2.0 / (s2 * ch2 * ch) - 4.0 / ch) / (2.0 * sh[i])
@@ -69,12 +69,12 @@ def _scale(r, keep, mean_e, floor):
 
 
 def _cost(r, keep, sc):
-    tot = 0.0
+    tot, prod = 0.0, 1.0
     for i in range(len(r)):
         if keep[i]:
             q = r[i] / sc
-            tot += math.log1p(q * q)
-    return tot
+            prod, tot = _log_product(prod * (1.0 + q * q), tot)
+    return tot + math.log(prod)
 
 
 def _total(values):

@@ -110,7 +110,9 @@ def test_volume_table_in_blocks_equals_one_evaluation_of_the_whole_disk():
 def test_the_compiled_lobe_derivative_matches_central_differences():
     # the per-pixel solve's Jacobian of the lobe A (eq 3.10) is analytic (`_model`'s pa, qa):
     # dA/dt = pa (s·t) + qa t_z along a tangent t of the normal; central differences of A agree
+    # (G_1 from its table: the derivative is the tabulated G_1's own)
     from facette.brdf import fresnel_dielectric
+    from facette.brdf._lobe_jit import SMITH_G1_TABLE
     from facette.fit._normals_li_jit import _model
     rng = np.random.default_rng(5)
     s = RIG.astype(np.float64)
@@ -128,11 +130,11 @@ def test_the_compiled_lobe_derivative_matches_central_differences():
             n /= np.linalg.norm(n)
             t = np.cross(n, rng.normal(size=3))
             t /= np.linalg.norm(t)
-            _model(*n, s, sh, fres, btab, sigma, True, every, m, *out)
+            _model(*n, s, sh, fres, btab, SMITH_G1_TABLE, sigma, True, every, m, *out)
             h = 1e-6
             for sign, buf in ((1, hi), (-1, lo)):
                 p = n + sign * h * t
-                _model(*(p / np.linalg.norm(p)), s, sh, fres, btab, sigma, True, every, m, *buf)
+                _model(*(p / np.linalg.norm(p)), s, sh, fres, btab, SMITH_G1_TABLE, sigma, True, every, m, *buf)
             fd = (hi[0] - lo[0]) / (2 * h)
             analytic = out[2] * (s @ t) + out[3] * t[2]
             lit = out[0] > 1e-3 * out[0].max()      # away from the lobe's cut-off
@@ -222,6 +224,7 @@ def test_compiled_solve_equals_the_all_lights_reference_bit_for_bit():
     # in every sum, so the result must be that of evaluating every light (li_solve_reference),
     # to the last bit, also for unusable values, cast shadows, too few lights and no light at all
     from facette.brdf import fresnel_dielectric
+    from facette.brdf._lobe_jit import SMITH_G1_TABLE
     from facette.fit._normals_li_jit import _refine_all, volume_table
     from li_solve_reference import refine_reference
     sigma, n_i = 0.25, 1.45
@@ -244,7 +247,7 @@ def test_compiled_solve_equals_the_all_lights_reference_bit_for_bit():
     args = (e, ok, n0, n1, has1, s, sh, fres, btab, sigma, True, 24, 0.25, 0.03, 0.15, 2e-4, 0.0)
     out = (np.empty((len(e), 3)), np.empty((len(e), 3)), np.empty(e.shape[:2], bool), np.empty(len(e)),
            np.empty(len(e)), np.empty(len(e), np.int32))
-    _refine_all(*args, *out, 5)
+    _refine_all(*args[:9], SMITH_G1_TABLE, *args[9:], *out, 5)
     ref = refine_reference(*args)
     for name, got, want in zip(("normals", "kappa", "used", "cost", "rel", "iterations"), out, ref):
         np.testing.assert_array_equal(got, want, err_msg=name)
