@@ -12,8 +12,8 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["G1_ONE_ABOVE", "SMITH_G1_TABLE", "smith_g1_beckmann", "smith_g1_dlog_tabulated", "beckmann_d", "fresnel_dielectric_scalar", "li_specular_beckmann_smith",
-           "lobe_albedo_beckmann_smith"]
+__all__ = ["G1_ONE_ABOVE", "SMITH_G1_TABLE", "smith_g1_beckmann", "smith_g1_dlog_tabulated", "beckmann_d",
+           "fresnel_dielectric_scalar", "li_specular_beckmann_smith", "lobe_albedo_beckmann_smith"]
 
 _SQRT_PI = math.sqrt(math.pi)
 # Smith's Λ(a) < e^(−a²) / (2√π a) < 1e-17 above a = 6, so G_1 = 1 / (1 + Λ) is 1.0 to the last bit

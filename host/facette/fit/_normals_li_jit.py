@@ -488,7 +488,8 @@ def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, 
     out_it = np.empty(n_pix, np.int32)
     second_above = SECOND_START_ABOVE if second_above is None else second_above
     chunk = max(1, min(int(chunk), -(-n_pix // (4 * numba.get_num_threads()))))
-    _refine_all(e, usable, n0, n1, has1, s, sh, fres, btab, SMITH_G1_TABLE, sig, spec, int(iterations), cast_ratio, floor,
-                max_step, float(step_tol), float(second_above), out_n, out_k, out_used, out_cost, out_rel, out_it, chunk)
+    _refine_all(e, usable, n0, n1, has1, s, sh, fres, btab, SMITH_G1_TABLE, sig, spec, int(iterations), cast_ratio,
+                floor, max_step, float(step_tol), float(second_above), out_n, out_k, out_used, out_cost, out_rel,
+                out_it, chunk)
     return (out_n.astype(np.float32), out_k.astype(np.float32), out_used, out_cost,
             out_rel.astype(np.float32), out_it)

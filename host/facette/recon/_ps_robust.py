@@ -111,76 +111,11 @@ def _rel_residual(e, s, g, keep):
 T_DARK = 0.03
 
 
-def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None, trim=TRIM,
-                    rounds=1, min_lit=MIN_LIT, min_keep=MIN_KEEP, noise=NOISE, t_dark=T_DARK):
-    """Per-pixel trimmed least squares: middle intensity ranks, then middle reflectance ratios.
-
-    images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
-    light_dirs : (m, 3) unit vectors towards the lights, or (H, W, m, 3) per pixel (near lights).
-    mask : (H, W) bool (default all); channel : default green when C == 3.
-    saturation : values >= this are missing, as are NaN and inf. A missing value still counts
-        as one of the brightest in the ranking (a clipped value is at least that bright) but
-        is never used.
-    trim : share of each pixel's usable observations dropped at each end, in [0, 0.5);
-        default 0.3 (the middle 40 % kept).
-    noise : relative noise of the values (standard deviation / value), default 0.01 (the rig's
-        HDR images). Each window's bounds widen by 3 x noise (relative), so that lights tied
-        with a bound within the noise stay together: a flat surface under a symmetric ring of
-        lights would otherwise have the ring split by noise, and its normal tilted (simulated
-        satin plate, 12 rig lights: median 11.6 deg with no widening, 0.6 deg with it).
-    t_dark : values at or below t_dark x the pixel's brightest usable value still take their
-        ranks but are never kept (cast shadows: a pixel with more shadowed lights than the
-        trimmed share). Default 0.03 (3 x noise): on the simulated rig scenes (sphere on a plane,
-        12 lights) it takes the glossy scene's mean error from 0.90 to 0.13 deg (the hierarchy:
-        0.27) and the plane's albedo spread from 7.7 % to 0.1 %, for 0.2 deg on DiLiGenT
-        (96 lights: 8.77 against 8.57; 12 lights: 10.02 against 10.10). None: no such test.
-    min_keep : when the window holds fewer lights, the middle min_keep are kept (default 6,
-        twice the unknowns; with 12 lights the window is then ranks 3..8), or every usable
-        one when fewer are usable; fewer than 3 usable leave the pixel invalid.
-    rounds : ratio passes after the intensity pass (0: intensity ranks only). Default 1: on
-        DiLiGenT (96 lights) the mean error is 8.95 deg with 0, 8.44 with 1, 8.48 with 3 and
-        8.75 with 6 passes: the ratio window does not converge to a better set, it drifts.
-    min_lit : lights with s.n below this are left out of the ratio pass (grazing, unlit).
-    Returns a `PSResult`: normal, albedo (rho per channel on the kept lights), valid (False for
-    black pixels, fewer than 3 usable values, or a degenerate kept set), shadow = usable lights
-    with s.n <= 0 or a value below 0.5 x the diffuse fit s.g, specular = lights left out with a
-    value above 1.5 x s.g (maps for the later stages; the normal does not use them), residual = relative least-squares
-    residual on the kept lights; info holds the rounds run and the median normal change (deg)
-    of each round.
-
-    Notes: pass 0 keeps the ranks [trim, 1 - trim] of E_i (intensity); pass k keeps the same
-    ranks of q_i = E_i / (s_i . n_{k-1}) among the lit usable lights, and solves least squares
-    g = argmin sum_kept (E_i - s_i . g)^2, n = g / |g| (Woodham's equation on the kept lights).
-    """
-    if not 0 <= trim < 0.5:
-        raise ValueError(f"trim must be in [0, 0.5) (share dropped at each end), got {trim}")
-    if not 0 <= noise < 0.2:
-        raise ValueError(f"noise is the relative noise of the values, in [0, 0.2); got {noise}")
-    if t_dark is not None and not 0 <= t_dark < 1:
-        raise ValueError(f"t_dark must be None or in [0, 1) (share of the pixel's brightest value), "
-                         f"got {t_dark}")
-    if rounds < 0 or int(rounds) != rounds:
-        raise ValueError(f"rounds must be a whole number >= 0, got {rounds}")
-    images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
-    m, h, w, c = images.shape
-    res = _empty_result(h, w, m, c, "rank_trimmed")
-    idx, e_all, e, sub = _gather(images, mask, channel)
-    res.info = {"pixels": int(idx.size), "rounds": int(rounds), "trim": float(trim),
-                "noise": float(noise), "t_dark": t_dark}
-    if idx.size == 0:
-        res.info["median_change_deg"] = []
-        return res
-    s = _pixel_dirs(light_dirs, idx)
-    ok = _usable(e, saturation)
-    e = np.where(ok, e, np.float32(0))            # missing values never enter a sum
-    n_pix = idx.size
-    normal = np.zeros((3, n_pix), np.float32)
-    found = np.zeros(n_pix, bool)
-    keep = np.zeros((m, n_pix), bool)
-    resid = np.zeros(n_pix, np.float32)
-    changes = np.zeros((int(rounds), n_pix), np.float32)
-    below = np.empty((m, n_pix), bool)            # shadow and specular maps, filled by block
-    above = np.empty((m, n_pix), bool)
+def _rank_trimmed_arrays(e, ok, s, trim, min_keep, noise, t_dark, rounds, min_lit, normal, found, keep, resid,
+                         changes, below, above):
+    """`ps_rank_trimmed`'s passes on arrays, block by block on threads, into its outputs (the compiled
+    loop, facette.recon._ps_robust_jit, does the same pixel by pixel)."""
+    n_pix = e.shape[1]
 
     def block(a):
         sl = slice(a, a + _CHUNK)
@@ -218,6 +153,91 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         above[:, sl] = okb & ~kb & (eb > SPECULAR_ABOVE * pred) & (sn > 0)
 
     run_blocks(block, range(0, n_pix, _CHUNK))
+
+
+def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None, trim=TRIM,
+                    rounds=1, min_lit=MIN_LIT, min_keep=MIN_KEEP, noise=NOISE, t_dark=T_DARK, engine="auto"):
+    """Per-pixel trimmed least squares: middle intensity ranks, then middle reflectance ratios.
+
+    images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
+    light_dirs : (m, 3) unit vectors towards the lights, or (H, W, m, 3) per pixel (near lights).
+    mask : (H, W) bool (default all); channel : default green when C == 3.
+    saturation : values >= this are missing, as are NaN and inf. A missing value still counts
+        as one of the brightest in the ranking (a clipped value is at least that bright) but
+        is never used.
+    trim : share of each pixel's usable observations dropped at each end, in [0, 0.5);
+        default 0.3 (the middle 40 % kept).
+    noise : relative noise of the values (standard deviation / value), default 0.01 (the rig's
+        HDR images). Each window's bounds widen by 3 x noise (relative), so that lights tied
+        with a bound within the noise stay together: a flat surface under a symmetric ring of
+        lights would otherwise have the ring split by noise, and its normal tilted (simulated
+        satin plate, 12 rig lights: median 11.6 deg with no widening, 0.6 deg with it).
+    t_dark : values at or below t_dark x the pixel's brightest usable value still take their
+        ranks but are never kept (cast shadows: a pixel with more shadowed lights than the
+        trimmed share). Default 0.03 (3 x noise): on the simulated rig scenes (sphere on a plane,
+        12 lights) it takes the glossy scene's mean error from 0.90 to 0.13 deg (the hierarchy:
+        0.27) and the plane's albedo spread from 7.7 % to 0.1 %, for 0.2 deg on DiLiGenT
+        (96 lights: 8.77 against 8.57; 12 lights: 10.02 against 10.10). None: no such test.
+    min_keep : when the window holds fewer lights, the middle min_keep are kept (default 6,
+        twice the unknowns; with 12 lights the window is then ranks 3..8), or every usable
+        one when fewer are usable; fewer than 3 usable leave the pixel invalid.
+    rounds : ratio passes after the intensity pass (0: intensity ranks only). Default 1: on
+        DiLiGenT (96 lights) the mean error is 8.95 deg with 0, 8.44 with 1, 8.48 with 3 and
+        8.75 with 6 passes: the ratio window does not converge to a better set, it drifts.
+    min_lit : lights with s.n below this are left out of the ratio pass (grazing, unlit).
+    engine : "auto" (distant lights: the compiled per-pixel loop, facette.recon._ps_robust_jit;
+        per-pixel lights: the array code) or "arrays" (the array code always).
+    Returns a `PSResult`: normal, albedo (rho per channel on the kept lights), valid (False for
+    black pixels, fewer than 3 usable values, or a degenerate kept set), shadow = usable lights
+    with s.n <= 0 or a value below 0.5 x the diffuse fit s.g, specular = lights left out with a
+    value above 1.5 x s.g (maps for the later stages; the normal does not use them), residual = relative least-squares
+    residual on the kept lights; info holds the rounds run and the median normal change (deg)
+    of each round.
+
+    Notes: pass 0 keeps the ranks [trim, 1 - trim] of E_i (intensity); pass k keeps the same
+    ranks of q_i = E_i / (s_i . n_{k-1}) among the lit usable lights, and solves least squares
+    g = argmin sum_kept (E_i - s_i . g)^2, n = g / |g| (Woodham's equation on the kept lights).
+    """
+    if not 0 <= trim < 0.5:
+        raise ValueError(f"trim must be in [0, 0.5) (share dropped at each end), got {trim}")
+    if not 0 <= noise < 0.2:
+        raise ValueError(f"noise is the relative noise of the values, in [0, 0.2); got {noise}")
+    if t_dark is not None and not 0 <= t_dark < 1:
+        raise ValueError(f"t_dark must be None or in [0, 1) (share of the pixel's brightest value), "
+                         f"got {t_dark}")
+    if rounds < 0 or int(rounds) != rounds:
+        raise ValueError(f"rounds must be a whole number >= 0, got {rounds}")
+    if engine not in ("auto", "arrays"):
+        raise ValueError(f"engine must be 'auto' or 'arrays', got {engine!r}")
+    images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
+    m, h, w, c = images.shape
+    res = _empty_result(h, w, m, c, "rank_trimmed")
+    idx, e_all, e, sub = _gather(images, mask, channel)
+    res.info = {"pixels": int(idx.size), "rounds": int(rounds), "trim": float(trim),
+                "noise": float(noise), "t_dark": t_dark}
+    if idx.size == 0:
+        res.info["median_change_deg"] = []
+        return res
+    s = _pixel_dirs(light_dirs, idx)
+    ok = _usable(e, saturation)
+    e = np.where(ok, e, np.float32(0))            # missing values never enter a sum
+    n_pix = idx.size
+    normal = np.zeros((3, n_pix), np.float32)
+    found = np.zeros(n_pix, bool)
+    keep = np.zeros((m, n_pix), bool)
+    resid = np.zeros(n_pix, np.float32)
+    changes = np.zeros((int(rounds), n_pix), np.float32)
+    below = np.empty((m, n_pix), bool)            # shadow and specular maps, filled by block
+    above = np.empty((m, n_pix), bool)
+
+    args = (trim, min_keep, noise, t_dark, int(rounds), min_lit, normal, found, keep, resid, changes, below, above)
+    if engine == "auto" and s.ndim == 2:      # distant lights: the compiled loop (`_ps_robust_jit`)
+        from ._ps_robust_jit import rank_trimmed_pixels
+        rank_trimmed_pixels(e, ok, s.astype(np.float32), trim, min_keep, 3 * noise, -1.0 if t_dark is None else t_dark,
+                            int(rounds), min_lit, SHADOW_BELOW, SPECULAR_ABOVE, normal, found, keep, resid, changes,
+                            below, above)
+    else:
+        _rank_trimmed_arrays(e, ok, s, *args)
     rho = _albedo(e_all, s, normal, keep & ok, idx=sub)
     _scatter(res, idx, "normal", normal.T)
     _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
