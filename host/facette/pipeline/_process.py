@@ -92,7 +92,7 @@ class ProcessResult:
     scan's truth.npz when present (angular error in degrees, height RMS in mm); ptm a PTMFit, hsh
     an HSHFit (--memory: every k-th pixel, _rti_bands) or None; fit_errors {name: value}: rel. RMS of
     the PTM / HSH relighting against the (fall-off corrected) HDR images on the object (above
-    0.5 Mpx, on an even sample of rows: `recon.RELIGHT_ERROR_PIXELS`); interreflections the
+    6.3 M values, on an even sample of rows: `recon.RELIGHT_ERROR_VALUES`); interreflections the
     figures of `without_interreflections` when it was asked for, else None.
     """
     normals: np.ndarray = None

@@ -34,8 +34,8 @@ from facette.methods import PS_METHODS
 from facette.pipeline._exports import fill_left, fill_unfitted, hsh_order_for, unfitted_verdict
 from facette.pipeline._tiles import BYTES_PER_PIXEL_LIGHT as PS_BYTES_PER_PIXEL_LIGHT
 from facette.recon import _rti as fit_blocks        # its _BLOCK: the pixels solved together
-from facette.recon import (HSHFit, PTMFit, RELIGHT_ERROR_PIXELS, fit_hsh, fit_ptm_lrgb, fit_relight_error,
-                           near_light_directions, relight_error_parts)
+from facette.recon import (HSHFit, PTMFit, fit_hsh, fit_ptm_lrgb, fit_relight_error,
+                           near_light_directions, relight_error_parts, relight_error_step)
 
 __all__ = ["RelightBands", "relight_bands", "relight_stage", "band_reader", "relight_rows", "PREVIEW_PIXELS"]
 
@@ -266,7 +266,7 @@ def relight_bands(read, mask, outputs, o, ps_rows, lights):
 def _fit_pass(out, read, mask, spans, whites, order, encoding, lights):
     """Each band fitted, filled, its error's parts summed and spilled (`_Spill`)."""
     h, w = out.shape
-    step = 2 * max(1, -(-h * w // RELIGHT_ERROR_PIXELS))        # fit_relight_error's sample of rows
+    step = relight_error_step(h, w, lights)        # fit_relight_error's sample of rows
     if whites[0] is not None:
         out.spills["ptm"] = _Spill((h, w), (6,), out.stride)
         out.rgb = disk_array((h, w, 3), np.uint8)

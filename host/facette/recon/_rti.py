@@ -443,19 +443,31 @@ def relight_error(render, images, light_dirs, mask):
     return float(np.sqrt(num / den)) if den > 0 else float("nan")
 
 
-# Pixels the relighting error is summed over at most (`fit_relight_error`). At 2144×1424 px
-# (simulated fossil, 12 lights) every 6th pair of rows gives PTM 0.1165 against 0.1153 from
-# every row, HSH 0.0921 against 0.0912 (+1 %), for 0.5 CPU s instead of 3.7 each.
-RELIGHT_ERROR_PIXELS = 1 << 19
+# Values (pixels × lights) the relighting error is summed over at most (`fit_relight_error`): its
+# cost and its precision go with them. At 2144×1424 px (simulated fossil, 12 lights) every 6th pair
+# of rows gives PTM 0.1165 against 0.1153 from every row, HSH 0.0921 against 0.0912 (+1 %), for
+# 0.5 CPU s instead of 3.7 each. Under 96 lights the same budget is 65 536 pixels (a DiLiGenT
+# crop's 80 000: every other pair of rows; pot2's PTM / HSH errors within 0.2 % of every row's, 0.59 /
+# 0.44 -> 0.26 / 0.23 s).
+RELIGHT_ERROR_VALUES = 12 << 19
 
 
-def fit_relight_error(fit, images, light_dirs, mask, rows=2, workers=2, max_pixels=RELIGHT_ERROR_PIXELS):
+def relight_error_step(h, w, m, rows=2, max_pixels="auto"):
+    """Rows between the first rows of `fit_relight_error`'s blocks of `rows` rows over an h × w map
+    under m lights: the smallest multiple of `rows` that keeps ≤ max_pixels pixels ("auto":
+    RELIGHT_ERROR_VALUES / m; None: every row)."""
+    if max_pixels == "auto":
+        max_pixels = max(1, RELIGHT_ERROR_VALUES // max(int(m), 1))
+    return rows if max_pixels is None else rows * max(1, -(-h * w // max_pixels))
+
+
+def fit_relight_error(fit, images, light_dirs, mask, rows=2, workers=2, max_pixels="auto"):
     """`relight_error` of a `PTMFit` or `HSHFit`, its sums taken `rows` image rows at a time on
     `workers` threads (a block's coefficients stay in the cache for every light); maps of more
     than `max_pixels` pixels summed over every k-th block of rows (the smallest k that keeps
-    ≤ max_pixels: an even sample of the whole map), `None`: every row."""
+    ≤ max_pixels: an even sample of the whole map; `relight_error_step`)."""
     h, w = np.shape(mask)[:2]
-    step = rows if max_pixels is None else rows * max(1, -(-h * w // max_pixels))
+    step = relight_error_step(h, w, len(images), rows, max_pixels)
     num, den = (sum(x) for x in zip(*relight_error_parts(fit, images, light_dirs, mask, range(0, h, step), rows,
                                                          workers)))
     return float(np.sqrt(num / den)) if den > 0 else float("nan")

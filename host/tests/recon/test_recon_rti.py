@@ -87,6 +87,18 @@ def test_fit_relight_error_is_relight_error_and_samples_rows_of_large_maps():
         assert sub < 0.9 * whole
 
 
+def test_the_relighting_error_s_sample_is_a_budget_of_values():
+    """By default the rows are sampled down to RELIGHT_ERROR_VALUES values (pixels × lights): a
+    DiLiGenT crop (316 × 252 px) every row under 12 lights, every other pair under 96."""
+    from facette.recon import RELIGHT_ERROR_VALUES, relight_error_step
+    assert relight_error_step(252, 316, 12) == 2 and relight_error_step(252, 316, 96) == 4
+    assert relight_error_step(1424, 2144, 12) == 12        # 12 MP scan's maps: every 6th pair
+    for m in (4, 12, 96):            # the values summed: within the budget, and not far under it
+        summed = len(range(0, 1424, relight_error_step(1424, 2144, m))) * 2 * 2144 * m
+        assert 0.5 * RELIGHT_ERROR_VALUES < summed <= 1.1 * RELIGHT_ERROR_VALUES
+    assert relight_error_step(1424, 2144, 96, max_pixels=None) == 2
+
+
 def test_near_lights_per_pixel_directions_and_missing_values():
     """Per-pixel light directions (H, W, m, 3); NaN samples and lights below the horizon are
     left out of each pixel's fit; a pixel with fewer usable lights than terms is invalid."""
