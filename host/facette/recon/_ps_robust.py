@@ -185,8 +185,8 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         DiLiGenT (96 lights) the mean error is 8.95 deg with 0, 8.44 with 1, 8.48 with 3 and
         8.75 with 6 passes: the ratio window does not converge to a better set, it drifts.
     min_lit : lights with s.n below this are left out of the ratio pass (grazing, unlit).
-    engine : "auto" (distant lights: the compiled per-pixel loop, facette.recon._ps_robust_jit;
-        per-pixel lights: the array code) or "arrays" (the array code always).
+    engine : "auto" (the compiled per-pixel loop, facette.recon._ps_robust_jit) or "arrays" (the
+        array code: block by block, numpy).
     Returns a `PSResult`: normal, albedo (rho per channel on the kept lights), valid (False for
     black pixels, fewer than 3 usable values, or a degenerate kept set), shadow = usable lights
     with s.n <= 0 or a value below 0.5 x the diffuse fit s.g, specular = lights left out with a
@@ -231,9 +231,11 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
     above = np.empty((m, n_pix), bool)
 
     args = (trim, min_keep, noise, t_dark, int(rounds), min_lit, normal, found, keep, resid, changes, below, above)
-    if engine == "auto" and s.ndim == 2:      # distant lights: the compiled loop (`_ps_robust_jit`)
+    if engine == "auto":      # the compiled loop (`_ps_robust_jit`), lights per pixel (distant: a view)
         from ._ps_robust_jit import rank_trimmed_pixels
-        rank_trimmed_pixels(e, ok, s.astype(np.float32), trim, min_keep, 3 * noise, -1.0 if t_dark is None else t_dark,
+        s32 = s.astype(np.float32, copy=False)
+        s3 = np.broadcast_to(s32, (n_pix,) + s.shape) if s.ndim == 2 else s32
+        rank_trimmed_pixels(e, ok, s3, trim, min_keep, 3 * noise, -1.0 if t_dark is None else t_dark,
                             int(rounds), min_lit, SHADOW_BELOW, SPECULAR_ABOVE, normal, found, keep, resid, changes,
                             below, above)
     else:

@@ -1,4 +1,4 @@
-"""Compiled per-pixel loop of `ps_rank_trimmed` for distant lights (numba, cache=True).
+"""Compiled per-pixel loop of `ps_rank_trimmed` (numba, cache=True).
 
 The same steps as the array code of facette.recon._ps_robust (its `block`: the intensity window,
 least squares on it, the ratio windows, the residual and the shadow / highlight maps), one pixel at
@@ -142,11 +142,12 @@ def _chunk(e, ok, s, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below,
         if nk < 3:                        # too few left: every bright value
             for i in range(m):
                 kb[i] = bright[i]
-        _wls(ep, s, kb, m, g)
+        sp = s[p]                         # (m, 3): the pixel's lights
+        _wls(ep, sp, kb, m, g)
         fb = _unit(g, nb)
         for r in range(rounds):
             for i in range(m):
-                sn = s[i, 0] * nb[0] + s[i, 1] * nb[1] + s[i, 2] * nb[2]
+                sn = sp[i, 0] * nb[0] + sp[i, 1] * nb[1] + sp[i, 2] * nb[2]
                 lit[i] = okp[i] and sn > min_lit and fb
                 key[i] = ep[i] / sn if lit[i] else np.inf
             _window(key, lit, m, trim, min_keep, tol, srt, kr)
@@ -154,7 +155,7 @@ def _chunk(e, ok, s, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below,
             for i in range(m):
                 kr[i] = kr[i] and bright[i]
                 nk += kr[i]
-            _wls(ep, s, kr, m, gr)
+            _wls(ep, sp, kr, m, gr)
             fr = _unit(gr, nr)
             changes[r, p] = 0.0
             if nk >= 3 and fr:
@@ -173,8 +174,8 @@ def _chunk(e, ok, s, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below,
         g2 = _F32(0) if np.isnan(g[2]) else g[2]
         for i in range(m):
             keep[i, p] = kb[i]
-            pred = s[i, 0] * g0 + s[i, 1] * g1 + s[i, 2] * g2
-            sn = s[i, 0] * nb[0] + s[i, 1] * nb[1] + s[i, 2] * nb[2]
+            pred = sp[i, 0] * g0 + sp[i, 1] * g1 + sp[i, 2] * g2
+            sn = sp[i, 0] * nb[0] + sp[i, 1] * nb[1] + sp[i, 2] * nb[2]
             if kb[i]:
                 d = ep[i] - pred
                 num += d * d
@@ -188,7 +189,8 @@ def _chunk(e, ok, s, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below,
 @njit(cache=True, parallel=True, nogil=True)
 def rank_trimmed_pixels(e, ok, s, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below, specular_above,
                         normal, found, keep, resid, changes, below, above):
-    """Every pixel of e (m, N) float32 (missing values 0), ok (m, N) usable, s (m, 3) float32 distant lights,
+    """Every pixel of e (m, N) float32 (missing values 0), ok (m, N) usable, s (N, m, 3) float32 its lights
+    (distant ones: a broadcast view),
     into the outputs of `ps_rank_trimmed`'s loop: normal (3, N), found (N,), keep (m, N), resid (N,),
     changes (rounds, N) degrees, below / above (m, N). t_dark < 0: no dark test."""
     m, n_pix = e.shape

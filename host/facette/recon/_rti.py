@@ -443,21 +443,16 @@ def relight_error(render, images, light_dirs, mask):
     return float(np.sqrt(num / den)) if den > 0 else float("nan")
 
 
-# Values (pixels × lights) the relighting error is summed over at most (`fit_relight_error`): its
-# cost and its precision go with them. At 2144×1424 px (simulated fossil, 12 lights) every 6th pair
-# of rows gives PTM 0.1165 against 0.1153 from every row, HSH 0.0921 against 0.0912 (+1 %), for
-# 0.5 CPU s instead of 3.7 each. Under 96 lights the same budget is 65 536 pixels (a DiLiGenT
-# crop's 80 000: every other pair of rows; pot2's PTM / HSH errors within 0.2 % of every row's, 0.59 /
-# 0.44 -> 0.26 / 0.23 s).
+# Values (pixels × lights) the relighting error sums at most (`fit_relight_error`). 2144×1424 px, 12
+# lights: every 6th pair of rows, PTM 0.1165 / HSH 0.0921 against 0.1153 / 0.0912 from every row, 0.5
+# CPU s instead of 3.7 each; DiLiGenT pot2, 96 lights: every other pair, within 0.2 %, 0.5 s less.
 RELIGHT_ERROR_VALUES = 12 << 19
 
 
 def relight_error_step(h, w, m, rows=2, max_pixels="auto"):
-    """Rows between the first rows of `fit_relight_error`'s blocks of `rows` rows over an h × w map
-    under m lights: the smallest multiple of `rows` that keeps ≤ max_pixels pixels ("auto":
-    RELIGHT_ERROR_VALUES / m; None: every row)."""
-    if max_pixels == "auto":
-        max_pixels = max(1, RELIGHT_ERROR_VALUES // max(int(m), 1))
+    """Rows between `fit_relight_error`'s blocks of `rows` rows of an h × w map: the smallest multiple
+    of `rows` keeping ≤ max_pixels pixels ("auto": RELIGHT_ERROR_VALUES / m lights; None: every row)."""
+    max_pixels = max(1, RELIGHT_ERROR_VALUES // max(int(m), 1)) if max_pixels == "auto" else max_pixels
     return rows if max_pixels is None else rows * max(1, -(-h * w // max_pixels))
 
 
