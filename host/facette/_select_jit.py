@@ -9,6 +9,8 @@ from numba import njit
 
 __all__ = ["kth_smallest", "median_in_place"]
 
+SORT_BELOW = 24      # medians of at most this many values by insertion sort
+
 
 @njit(cache=True)
 def kth_smallest(v, n, kth):
@@ -42,6 +44,15 @@ def median_in_place(v, n):
     """np.median of v[:n] (the same value: the middle one or the mean of the two), without
     np.median's copy; v reordered."""
     half = n >> 1
+    if n <= SORT_BELOW:           # a few values: insertion sort (quickselect's partitions cost more)
+        for i in range(1, n):
+            x = v[i]
+            j = i - 1
+            while j >= 0 and v[j] > x:
+                v[j + 1] = v[j]
+                j -= 1
+            v[j + 1] = x
+        return v[half] if n & 1 else (v[half - 1] + v[half]) / 2
     upper = kth_smallest(v, n, half)
     if n & 1:
         return upper
