@@ -223,7 +223,10 @@ def _empty_result(h, w, m, c, method):
 def _scatter(res, idx, name, values):
     arr = getattr(res, name)
     flat = arr.reshape((-1,) + arr.shape[2:])
-    flat[idx] = values
+    if len(idx) == len(flat):      # every pixel (idx from `_gather`: sorted, distinct): a copy, no fancy index
+        flat[...] = values
+    else:
+        flat[idx] = values
 
 
 def _pixel_dirs(light_dirs, idx):

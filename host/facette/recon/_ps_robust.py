@@ -227,25 +227,26 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
     keep = np.zeros((m, n_pix), bool)
     resid = np.zeros(n_pix, np.float32)
     changes = np.zeros((int(rounds), n_pix), np.float32)
-    below = np.empty((m, n_pix), bool)            # shadow and specular maps, filled by block
-    above = np.empty((m, n_pix), bool)
-
-    args = (trim, min_keep, noise, t_dark, int(rounds), min_lit, normal, found, keep, resid, changes, below, above)
     if engine == "auto":      # the compiled loop (`_ps_robust_jit`), lights per pixel (distant: a view)
         from ._ps_robust_jit import rank_trimmed_pixels
         s32 = s.astype(np.float32, copy=False)
         s3 = np.broadcast_to(s32, (n_pix,) + s.shape) if s.ndim == 2 else s32
-        rank_trimmed_pixels(e, ok, s3, trim, min_keep, 3 * noise, -1.0 if t_dark is None else t_dark,
-                            int(rounds), min_lit, SHADOW_BELOW, SPECULAR_ABOVE, normal, found, keep, resid, changes,
-                            below, above)
+        rho = np.empty((n_pix, c), np.float32)
+        below, above = np.empty((n_pix, m), bool), np.empty((n_pix, m), bool)     # shadow, specular maps
+        rank_trimmed_pixels(e, ok, s3, e_all, np.arange(n_pix) if sub is None else sub, trim, min_keep, 3 * noise,
+                            -1.0 if t_dark is None else t_dark, int(rounds), min_lit, SHADOW_BELOW, SPECULAR_ABOVE,
+                            normal, found, keep, resid, changes, below, above, rho)
     else:
-        _rank_trimmed_arrays(e, ok, s, *args)
-    rho = _albedo(e_all, s, normal, keep & ok, idx=sub)
+        below, above = np.empty((m, n_pix), bool), np.empty((m, n_pix), bool)     # filled by block
+        _rank_trimmed_arrays(e, ok, s, trim, min_keep, noise, t_dark, int(rounds), min_lit, normal, found, keep,
+                             resid, changes, below, above)
+        rho = _albedo(e_all, s, normal, keep & ok, idx=sub)
+        below, above = below.T, above.T
     _scatter(res, idx, "normal", normal.T)
     _scatter(res, idx, "albedo", np.where(found[:, None], rho, 0.0))
     _scatter(res, idx, "valid", found)
-    _scatter(res, idx, "shadow", (below & found).T)
-    _scatter(res, idx, "specular", (above & found).T)
+    _scatter(res, idx, "shadow", below & found[:, None])
+    _scatter(res, idx, "specular", above & found[:, None])
     _scatter(res, idx, "residual", resid)
     res.info["median_change_deg"] = [float(np.median(ch[found])) if found.any() else 0.0
                                      for ch in changes]

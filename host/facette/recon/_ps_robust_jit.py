@@ -108,8 +108,8 @@ def _unit(g, nrm):
 
 
 @njit(cache=True, nogil=True)
-def _chunk(e, ok, s, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below, specular_above,
-           normal, found, keep, resid, changes, below, above, start, stop):
+def _chunk(e, ok, s, src, cols, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below, specular_above,
+           normal, found, keep, resid, changes, below, above, rho, start, stop):
     """The pixels start .. stop − 1 of `rank_trimmed_pixels`, with one set of work arrays."""
     m = e.shape[0]
     ep = np.empty(m, np.float32)
@@ -180,21 +180,37 @@ def _chunk(e, ok, s, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below,
                 d = ep[i] - pred
                 num += d * d
                 den += float(ep[i]) * ep[i]
-            below[i, p] = okp[i] and (sn <= 0 or ep[i] < _F32(shadow_below) * pred)
-            above[i, p] = okp[i] and not kb[i] and ep[i] > _F32(specular_above) * pred and sn > 0
+            below[p, i] = okp[i] and (sn <= 0 or ep[i] < _F32(shadow_below) * pred)
+            above[p, i] = okp[i] and not kb[i] and ep[i] > _F32(specular_above) * pred and sn > 0
         r_ = math.sqrt(num) / math.sqrt(den) if den > 0 else 0.0
         resid[p] = r_ if np.isfinite(r_) else 0.0
+        # ρ = π Σ E s·n / Σ (s·n)² per channel over the kept lit lights (`_ps._albedo`)
+        den = 0.0
+        for i in range(m):
+            sn = sp[i, 0] * nb[0] + sp[i, 1] * nb[1] + sp[i, 2] * nb[2]
+            if kb[i] and sn > 0:
+                den += float(sn) * sn
+        for c in range(rho.shape[1]):
+            num = 0.0
+            if den > 1e-12:
+                for i in range(m):
+                    sn = sp[i, 0] * nb[0] + sp[i, 1] * nb[1] + sp[i, 2] * nb[2]
+                    if kb[i] and sn > 0:
+                        num += float(src[i, cols[p], c]) * sn
+            rho[p, c] = math.pi * num / den if den > 1e-12 else 0.0
 
 
 @njit(cache=True, parallel=True, nogil=True)
-def rank_trimmed_pixels(e, ok, s, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below, specular_above,
-                        normal, found, keep, resid, changes, below, above):
+def rank_trimmed_pixels(e, ok, s, src, cols, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below,
+                        specular_above, normal, found, keep, resid, changes, below, above, rho):
     """Every pixel of e (m, N) float32 (missing values 0), ok (m, N) usable, s (N, m, 3) float32 its lights
     (distant ones: a broadcast view),
     into the outputs of `ps_rank_trimmed`'s loop: normal (3, N), found (N,), keep (m, N), resid (N,),
-    changes (rounds, N) degrees, below / above (m, N). t_dark < 0: no dark test."""
+    changes (rounds, N) degrees, below / above (N, m: pixel-major, as the result's maps), rho (N, C) the
+    albedo per channel of src
+    (m, *, C), pixel p in its column cols[p] (`_ps._albedo`). t_dark < 0: no dark test."""
     m, n_pix = e.shape
     n_chunks = (n_pix + CHUNK - 1) // CHUNK
     for q in prange(n_chunks):
-        _chunk(e, ok, s, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below, specular_above,
-               normal, found, keep, resid, changes, below, above, q * CHUNK, min((q + 1) * CHUNK, n_pix))
+        _chunk(e, ok, s, src, cols, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below, specular_above,
+               normal, found, keep, resid, changes, below, above, rho, q * CHUNK, min((q + 1) * CHUNK, n_pix))
