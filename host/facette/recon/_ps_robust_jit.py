@@ -203,12 +203,11 @@ def _chunk(e, ok, s, src, cols, trim, min_keep, tol, t_dark, rounds, min_lit, sh
 @njit(cache=True, parallel=True, nogil=True)
 def rank_trimmed_pixels(e, ok, s, src, cols, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below,
                         specular_above, normal, found, keep, resid, changes, below, above, rho):
-    """Every pixel of e (m, N) float32 (missing values 0), ok (m, N) usable, s (N, m, 3) float32 its lights
-    (distant ones: a broadcast view),
-    into the outputs of `ps_rank_trimmed`'s loop: normal (3, N), found (N,), keep (m, N), resid (N,),
-    changes (rounds, N) degrees, below / above (N, m: pixel-major, as the result's maps), rho (N, C) the
-    albedo per channel of src
-    (m, *, C), pixel p in its column cols[p] (`_ps._albedo`). t_dark < 0: no dark test."""
+    """`ps_rank_trimmed`'s passes over every pixel of e (m, N) float32 (missing values 0), ok (m, N)
+    usable, s (N, m, 3) float32 the pixels' lights (distant ones: a broadcast view), into its
+    outputs: normal (3, N), found (N,), keep (m, N), resid (N,), changes (rounds, N) degrees,
+    below / above (N, m: pixel-major, as the result's maps) and rho (N, C), the albedo per channel
+    of src (m, *, C) whose column cols[p] is pixel p (`_ps._albedo`). t_dark < 0: no dark test."""
     m, n_pix = e.shape
     n_chunks = (n_pix + CHUNK - 1) // CHUNK
     for q in prange(n_chunks):
