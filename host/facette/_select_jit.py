@@ -1,13 +1,14 @@
 """Order statistics in compiled loops (numba), shared by the kernels that need a median without
 a copy or a sort: the per-pixel LI solve (facette.fit._normals_li_jit) and the median over the
-lights of `process`'s loading and report (facette.pipeline._pixels_jit).
+lights of `process`'s loading and report (facette.pipeline._pixels_jit); and the small sort of
+rank_trimmed's windows (facette.recon._ps_robust_jit).
 
 numba's cache keys a kernel on its own file: after editing this one, clear the callers'
 __pycache__/*.nbc so that they recompile with it.
 """
 from numba import njit
 
-__all__ = ["kth_smallest", "median_in_place"]
+__all__ = ["insertion_sort", "kth_smallest", "median_in_place"]
 
 SORT_BELOW = 24      # medians of at most this many values by insertion sort
 
@@ -40,18 +41,24 @@ def kth_smallest(v, n, kth):
 
 
 @njit(cache=True)
+def insertion_sort(v, n):
+    """v[:n] sorted in place (ascending): the fastest for a few dozen values, no call, no recursion."""
+    for i in range(1, n):
+        x = v[i]
+        j = i - 1
+        while j >= 0 and v[j] > x:
+            v[j + 1] = v[j]
+            j -= 1
+        v[j + 1] = x
+
+
+@njit(cache=True)
 def median_in_place(v, n):
     """np.median of v[:n] (the same value: the middle one or the mean of the two), without
     np.median's copy; v reordered."""
     half = n >> 1
     if n <= SORT_BELOW:           # a few values: insertion sort (quickselect's partitions cost more)
-        for i in range(1, n):
-            x = v[i]
-            j = i - 1
-            while j >= 0 and v[j] > x:
-                v[j + 1] = v[j]
-                j -= 1
-            v[j + 1] = x
+        insertion_sort(v, n)
         return v[half] if n & 1 else (v[half - 1] + v[half]) / 2
     upper = kth_smallest(v, n, half)
     if n & 1:

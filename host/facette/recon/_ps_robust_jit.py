@@ -15,6 +15,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from facette._select_jit import insertion_sort
+
 __all__ = ["rank_trimmed_pixels"]
 
 _F32 = np.float32
@@ -35,14 +37,8 @@ def _window(key, use, m, trim, min_keep, tol, srt, out):
         for i in range(m):
             out[i] = False
         return 0
-    if u <= 32:                   # a few lights: insertion sort (no call, no recursion)
-        for i in range(1, u):
-            v = srt[i]
-            j = i - 1
-            while j >= 0 and srt[j] > v:
-                srt[j + 1] = srt[j]
-                j -= 1
-            srt[j + 1] = v
+    if u <= 32:                   # a few lights: insertion sort
+        insertion_sort(srt, u)
     else:
         srt[:u].sort()
     lo = int(math.ceil(trim * (u - 1) - 1e-9))
