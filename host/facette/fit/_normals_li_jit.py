@@ -19,7 +19,7 @@ The step is variable projection's (`_damped_step`): without it the normal and κ
 The model values: the specular lobe A (eq 3.10) is evaluated per pixel and light (the Fresnel
 factor F(s·h) is one number per distant light; Smith's G_1 from a table, within 1e-7 of it:
 `smith_g1_dlog_tabulated`; the Cauchy cost Σ ln(1 + q²) as the log of running products: exp, erfc
-and log1p per light were ~30 % of the solve, DiLiGenT's photometric stereo 29 -> 22 s, the same
+and log1p per light were ~30 % of the solve, DiLiGenT's photometric stereo 28 -> 22 s, the same
 errors to 0.01°); the volume part B(n, s_i) (eq 3.15, by the
 formula eq 3.49–3.57 or the quadrature tables: `volume_model`) is smooth in the normal, so for each
 light it is tabulated once per (σ, n_i) over the normals' stereographic coordinates (`_volume_table`)
@@ -204,12 +204,13 @@ def _log_product(prod, tot):
 
 
 @njit(cache=True)
-def _cost(r, n, sc):
-    """Σ ln(1 + q²), q = r / sc, as the log of running products: one log per ~100 lights, not one each."""
+def _cost(e, a, b, k, n, sc):
+    """Σ ln(1 + q²) over the first n values, q = (e − a − b κ) / sc, as the log of running products:
+    one log per ~100 lights, not one each."""
     tot = 0.0
     prod = 1.0
     for t in range(n):
-        q = r[t] / sc
+        q = (e[t] - a[t] - b[t] * k) / sc
         prod, tot = _log_product(prod * (1.0 + q * q), tot)
     return tot + math.log(prod)
 
@@ -304,14 +305,14 @@ def _solve_one(e_all, ok, n0, s, sh, fres, btab, g1tab, sigma, spec, iterations,
         k = _kappa(e, a, b, wr, n)
         _residuals(e, a, b, k, n, r)
     scale = _scale(r, n, mean_e, buf, floor) if rescale else scale_in
-    cost = _cost(r, n, scale)
+    cost = _cost(e, a, b, k, n, scale)
     lam = 1e-2
     it = 0
     for it in range(1, iterations + 1):
         if rescale and (it == 3 or it == 6):
             _residuals(e, a, b, k, n, r)
             scale = _scale(r, n, mean_e, buf, floor)
-            cost = _cost(r, n, scale)
+            cost = _cost(e, a, b, k, n, scale)
             lam = max(lam, 1e-2)
         t1x, t1y, t1z, t2x, t2y, t2z = _tangent_frame(nx, ny, nz)
         # residual, Cauchy weight, Jacobian (the lobe's analytic derivative from `_model`, the
@@ -353,12 +354,7 @@ def _solve_one(e_all, ok, n0, s, sh, fres, btab, g1tab, sigma, spec, iterations,
             cx, cy, cz = 0.0, 0.0, 1.0
         _model(cx, cy, cz, s, sh, fres, btab, g1tab, sigma, spec, kept, n, ac, bc, pc, qc, csc_)
         kc = _kappa(e, ac, bc, wr, n)
-        cc = 0.0
-        prod = 1.0
-        for t in range(n):
-            q = (e[t] - ac[t] - bc[t] * kc) / scale
-            prod, cc = _log_product(prod * (1.0 + q * q), cc)
-        cc += math.log(prod)
+        cc = _cost(e, ac, bc, kc, n, scale)
         if cc <= cost:
             # the candidate's arrays become the current ones: swapped, not copied
             nx, ny, nz, cost = cx, cy, cz, cc
