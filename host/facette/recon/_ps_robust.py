@@ -220,11 +220,9 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         return res
     s = _pixel_dirs(light_dirs, idx)
     ok = _usable(e, saturation)
-    e = np.where(ok, e, np.float32(0))            # missing values never enter a sum
     n_pix = idx.size
     normal = np.zeros((3, n_pix), np.float32)
     found = np.zeros(n_pix, bool)
-    keep = np.zeros((m, n_pix), bool)
     resid = np.zeros(n_pix, np.float32)
     changes = np.zeros((int(rounds), n_pix), np.float32)
     if engine == "auto":      # the compiled loop (`_ps_robust_jit`), lights per pixel (distant: a view)
@@ -235,9 +233,11 @@ def ps_rank_trimmed(images, light_dirs, mask=None, channel=None, saturation=None
         below, above = np.empty((n_pix, m), bool), np.empty((n_pix, m), bool)     # shadow, specular maps
         rank_trimmed_pixels(e, ok, s3, e_all, np.arange(n_pix) if sub is None else sub, trim, min_keep, 3 * noise,
                             -1.0 if t_dark is None else t_dark, int(rounds), min_lit, SHADOW_BELOW, SPECULAR_ABOVE,
-                            normal, found, keep, resid, changes, below, above, rho)
+                            normal, found, resid, changes, below, above, rho)
     else:
+        keep = np.zeros((m, n_pix), bool)
         below, above = np.empty((m, n_pix), bool), np.empty((m, n_pix), bool)     # filled by block
+        e = np.where(ok, e, np.float32(0))            # missing values never enter a sum
         _rank_trimmed_arrays(e, ok, s, trim, min_keep, noise, t_dark, int(rounds), min_lit, normal, found, keep,
                              resid, changes, below, above)
         rho = _albedo(e_all, s, normal, keep & ok, idx=sub)

@@ -105,7 +105,7 @@ def _unit(g, nrm):
 
 @njit(cache=True, nogil=True)
 def _chunk(e, ok, s, src, cols, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below, specular_above,
-           normal, found, keep, resid, changes, below, above, rho, start, stop):
+           normal, found, resid, changes, below, above, rho, start, stop):
     """The pixels start .. stop − 1 of `rank_trimmed_pixels`, with one set of work arrays."""
     m = e.shape[0]
     ep = np.empty(m, np.float32)
@@ -120,11 +120,12 @@ def _chunk(e, ok, s, src, cols, trim, min_keep, tol, t_dark, rounds, min_lit, sh
     gr = np.empty(3, np.float32)
     nb = np.empty(3, np.float32)
     nr = np.empty(3, np.float32)
+    sw = np.empty(m, np.float32)      # s·n where a light counts in the albedo, else 0
     for p in range(start, stop):
         top = _F32(0)
         for i in range(m):
-            ep[i] = e[i, p]
             okp[i] = ok[i, p]
+            ep[i] = e[i, p] if okp[i] else _F32(0)       # a missing value never enters a sum
             top = max(top, ep[i])
         for i in range(m):
             # ranks count every usable value; a dark one (cast shadow) is never kept
@@ -169,9 +170,9 @@ def _chunk(e, ok, s, src, cols, trim, min_keep, tol, t_dark, rounds, min_lit, sh
         g1 = _F32(0) if np.isnan(g[1]) else g[1]
         g2 = _F32(0) if np.isnan(g[2]) else g[2]
         for i in range(m):
-            keep[i, p] = kb[i]
             pred = sp[i, 0] * g0 + sp[i, 1] * g1 + sp[i, 2] * g2
             sn = sp[i, 0] * nb[0] + sp[i, 1] * nb[1] + sp[i, 2] * nb[2]
+            sw[i] = sn if kb[i] and sn > 0 else _F32(0)
             if kb[i]:
                 d = ep[i] - pred
                 num += d * d
@@ -183,29 +184,26 @@ def _chunk(e, ok, s, src, cols, trim, min_keep, tol, t_dark, rounds, min_lit, sh
         # ρ = π Σ E s·n / Σ (s·n)² per channel over the kept lit lights (`_ps._albedo`)
         den = 0.0
         for i in range(m):
-            sn = sp[i, 0] * nb[0] + sp[i, 1] * nb[1] + sp[i, 2] * nb[2]
-            if kb[i] and sn > 0:
-                den += float(sn) * sn
+            den += float(sw[i]) * sw[i]
         for c in range(rho.shape[1]):
             num = 0.0
             if den > 1e-12:
                 for i in range(m):
-                    sn = sp[i, 0] * nb[0] + sp[i, 1] * nb[1] + sp[i, 2] * nb[2]
-                    if kb[i] and sn > 0:
-                        num += float(src[i, cols[p], c]) * sn
+                    if sw[i] > 0:
+                        num += float(src[i, cols[p], c]) * sw[i]
             rho[p, c] = math.pi * num / den if den > 1e-12 else 0.0
 
 
 @njit(cache=True, parallel=True, nogil=True)
 def rank_trimmed_pixels(e, ok, s, src, cols, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below,
-                        specular_above, normal, found, keep, resid, changes, below, above, rho):
-    """`ps_rank_trimmed`'s passes over every pixel of e (m, N) float32 (missing values 0), ok (m, N)
-    usable, s (N, m, 3) float32 the pixels' lights (distant ones: a broadcast view), into its
-    outputs: normal (3, N), found (N,), keep (m, N), resid (N,), changes (rounds, N) degrees,
+                        specular_above, normal, found, resid, changes, below, above, rho):
+    """`ps_rank_trimmed`'s passes over every pixel of e (m, N) float32 (read where ok (m, N), the
+    usable values), s (N, m, 3) float32 the pixels' lights (distant ones: a broadcast view), into its
+    outputs: normal (3, N), found (N,), resid (N,), changes (rounds, N) degrees,
     below / above (N, m: pixel-major, as the result's maps) and rho (N, C), the albedo per channel
     of src (m, *, C) whose column cols[p] is pixel p (`_ps._albedo`). t_dark < 0: no dark test."""
     m, n_pix = e.shape
     n_chunks = (n_pix + CHUNK - 1) // CHUNK
     for q in prange(n_chunks):
         _chunk(e, ok, s, src, cols, trim, min_keep, tol, t_dark, rounds, min_lit, shadow_below, specular_above,
-               normal, found, keep, resid, changes, below, above, rho, q * CHUNK, min((q + 1) * CHUNK, n_pix))
+               normal, found, resid, changes, below, above, rho, q * CHUNK, min((q + 1) * CHUNK, n_pix))
