@@ -20,7 +20,7 @@ import numpy as np
 
 from facette._threads import run_blocks
 from facette.brdf import li_shading_terms
-from facette.recon._ps import _pixel_dirs
+from facette.recon._ps import _ls_normals, _pixel_dirs, _shading
 from ._li_model import PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model, is_metal
 from ._normals_li import RefineResult, refine_normals_li
 
@@ -237,33 +237,26 @@ def _least_squares_level(values, all_ok, lights, chunk=262144):
     """The Lambertian level's least squares over every light ((N, 3) unit normals, (N,) relative
     residual): its residual decides which pixels it explains, and its normal is what the tabulated
     correction models (the initial solution's residual is on the lights it kept, its normal would
-    bias the correction). Only a pixel with every light usable can be at that level: the others get
-    an infinite residual. From the values the alternation gathered already (a second whole
-    `ps_woodham1980` took 1.3 s of the 12 MP scan's photometric stereo)."""
+    bias the correction). Only a pixel with every light usable, whose lights span 3-D, can be at that
+    level: the others get an infinite residual. From the values the alternation gathered already (a
+    second whole `ps_woodham1980` took 1.3 s of the 12 MP scan's photometric stereo), by its solve
+    (facette.recon._ps._ls_normals)."""
     n_pix = len(values)
     nrm = np.zeros((n_pix, 3), np.float32)
     resid = np.full(n_pix, np.inf, np.float32)
-    pinv = np.linalg.pinv(lights).astype(np.float32) if lights.ndim == 2 else None
 
     def block(a):
         sl = slice(a, a + chunk)
-        e, full = values[sl], all_ok[sl].all(1)
-        if pinv is not None:
-            g = e @ pinv.T                                           # (n, 3): ρ/π times the normal
-            pred = g @ lights.T
-        else:                                                        # per-pixel lights: 3 × 3 systems
-            s = lights[sl]
-            a_m = np.einsum("nmi,nmj->nij", s, s).astype(np.float64)
-            full &= np.abs(np.linalg.det(a_m)) > 1e-9               # lights not spanning 3-D: no level
-            g = np.zeros((len(e), 3), np.float32)
-            rhs = np.einsum("nmi,nm->ni", s[full], e[full])[..., None].astype(np.float64)
-            g[full] = np.linalg.solve(a_m[full], rhs)[..., 0]
-            pred = np.einsum("nmi,ni->nm", s, g)
-        g_len = np.linalg.norm(g, axis=1)
-        e_len = np.linalg.norm(e, axis=1)
+        e, full = values[sl].T, all_ok[sl].all(1)                     # (m, n) light-major, as recon's
+        s = lights if lights.ndim == 2 else lights[sl]
+        # distant lights: one pseudo-inverse for every pixel (a pixel not `full` is dropped below)
+        g = _ls_normals(e, s, np.ones(e.shape, bool) if s.ndim == 2 else np.broadcast_to(full, e.shape))
+        g_len = np.linalg.norm(g, axis=0)
+        e_len = np.linalg.norm(e, axis=0)
         good = full & (g_len > 1e-12) & (e_len > 0) & np.isfinite(g_len)
-        nrm[sl] = np.where(good[:, None], g / np.where(good, g_len, 1)[:, None], 0)
-        resid[sl] = np.where(good, np.linalg.norm(e - pred, axis=1) / np.where(good, e_len, 1), np.inf)
+        g = np.where(good, g, 0)
+        nrm[sl] = (g / np.where(good, g_len, 1)).T
+        resid[sl] = np.where(good, np.linalg.norm(e - _shading(s, g), axis=0) / np.where(good, e_len, 1), np.inf)
 
     run_blocks(block, range(0, n_pix, chunk))
     return nrm, resid
