@@ -10,6 +10,7 @@ the BRDF-aware step solved); `Settings` the call's options the steps read. The s
 - `refine`: the BRDF-aware per-pixel solve (facette.fit.refine_normals_li) in blocks;
 - `choose_model`: round 1's model choice on profile pixels (facette.fit._li_model);
 - `lambertian_material`: a material without a lobe;
+- `neighbour_round`: a second start from the neighbours' mean where a solved normal stands apart;
 - `store`: a solve's results written back.
 
 `Pixels.start`'s highlight test runs compiled, one loop per pixel (`_ps_li_pixels_jit`).
@@ -51,6 +52,7 @@ class Settings:
     engine: str
     highlight_start: str
     diffuse_models: tuple      # the volume models the model choice tries, the first the default
+    neighbour_deg: float = 0.0  # `neighbour_round`'s threshold (0: no neighbour starts)
 
 
 @dataclass
@@ -214,6 +216,28 @@ class Pixels:
         self.nrm[lam] = self.nrm_ls[lam]
         return int(lam.size)
 
+    def neighbour_round(self, pix, sigma, n_i):
+        """The pixels of `pix` the BRDF-aware step solved whose normal is more than
+        settings.neighbour_deg from the mean of their 5 × 5 neighbours (`_neighbour_means`)
+        solved again from that mean and from their normal, keeping the start of lower robust
+        cost: the pixel's own values choose, the neighbours only propose a start (under few lights
+        the per-pixel cost has several minima, and a pixel's solve may stop in another one than its
+        neighbours'). Returns (pixels tried, pixels whose normal moved by > 1°)."""
+        far = pix[self.refined[pix]]
+        mean = _neighbour_means(self.nrm, self.idx, self.shape)
+        far = far[angle_deg(self.nrm[far], mean[far]) > self.settings.neighbour_deg]
+        if not far.size:
+            return 0, 0
+        size = BLOCK_COMPILED if self.s_all.ndim == 2 else BLOCK
+        out = [refine_normals_li(self.gather(sub), self.lights_of(sub), mean[sub], sigma, n_i,
+                                 usable=self.all_ok[sub], iterations=self.settings.iterations,
+                                 extra_starts=[self.nrm[sub]], engine=self.settings.engine, volume_model=self.vm)
+               for sub in (far[a:a + size] for a in range(0, far.size, size))]
+        rr = join_blocks(out)
+        moved = int((angle_deg(rr.normals, self.nrm[far]) > 1.0).sum())
+        self.store(far, rr)
+        return int(far.size), moved
+
     def store(self, todo, rr):
         """The BRDF-aware solve `rr` of the pixels `todo` written back."""
         self.nrm[todo] = rr.normals
@@ -221,6 +245,19 @@ class Pixels:
         self.refined[todo] = True
         self.rel[todo] = rr.rel_residual
         self.shadow[todo] = self.all_ok[todo] & ~rr.used
+
+
+def _neighbour_means(nrm, idx, shape):
+    """(N, 3) unit mean of the normals of each pixel's valid neighbours in its 5 × 5 block (itself
+    left out; a pixel without any keeps its own normal)."""
+    from scipy.ndimage import uniform_filter
+    h, w = shape
+    grid = np.zeros((3, h * w), np.float32)
+    grid[:, idx] = nrm.T
+    sums = np.stack([uniform_filter(g.reshape(h, w), size=5, mode="constant") for g in grid]).reshape(3, -1)
+    mean = (25 * sums[:, idx] - grid[:, idx]).T            # uniform_filter's mean × 25: the block's sum
+    ln = np.linalg.norm(mean, axis=1, keepdims=True)
+    return np.where(ln > 1e-6, mean / np.maximum(ln, 1e-6), nrm).astype(np.float32)
 
 
 def _in_lobe(normals, lights, sigma):

@@ -110,6 +110,8 @@ def test_arguments_and_degenerate_inputs():
         ps_li_alternating(np.ones((6, 4, 4)), L, rounds=0)
     with pytest.raises(ValueError, match="highlight_start"):
         ps_li_alternating(np.ones((6, 4, 4)), L, highlight_start="some")
+    with pytest.raises(ValueError, match="neighbour_deg"):
+        ps_li_alternating(np.ones((6, 4, 4)), L, neighbour_deg=-1)
     with pytest.raises(ValueError, match="another method"):
         ps_li_alternating(np.ones((6, 4, 4)), L, init=ps_li_alternating)
     black = ps_li_alternating(np.zeros((6, 8, 8, 3)), L)       # nothing lit: no valid pixel, no crash

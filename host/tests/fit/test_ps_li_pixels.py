@@ -5,7 +5,7 @@ import pytest
 
 from facette.brdf import li_shading_terms
 from facette.fit._ps_li_pixels import (LOBE_TAN, Pixels, Settings, _highlight_starts, _in_lobe,
-                                       _lambertian_correction, angle_deg)
+                                       _lambertian_correction, _neighbour_means, angle_deg)
 from facette.recon import ps_woodham1980
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
@@ -144,3 +144,40 @@ def test_the_lambertian_correction_solves_its_fixed_point_at_oblique_normals():
     solved = angle_deg(_lambertian_correction(n_ls, lights, 0.1, 1.3, "approx"), truth[lit])
     assert np.percentile(one, 95) > 0.3 and np.percentile(solved, 95) < 0.15, (np.percentile(one, 95),
                                                                              np.percentile(solved, 95))
+
+
+@pytest.mark.parametrize("engine", ["arrays", "compiled"])
+def test_a_pixel_apart_from_its_neighbours_gets_their_mean_as_a_start_and_its_own_values_choose(engine):
+    """`neighbour_round`: a solved normal far from its neighbours' mean is solved again from that
+    mean, and the start of lower robust cost is kept. A pixel pushed 35° off (as a solve stopped in
+    another minimum) comes back; a pixel whose own surface stands apart (a one-pixel facet tilted
+    30° on the plane) keeps its own normal: the neighbours only propose."""
+    from dataclasses import replace
+    sc = sphere_on_plane(40, 40)
+    facet = (5, 5)                                         # on the plane, away from the sphere
+    tilt = np.radians(30)
+    sc.normals[facet] = [np.sin(tilt), 0, np.cos(tilt)]
+    lights = thesis_light_directions()
+    im = render(sc, lights, "glossy", noise=0.002, rng=np.random.default_rng(1)).astype(np.float32)
+    base = ps_woodham1980(im, lights, mask=sc.mask)
+    settings = Settings(iterations=24, fine_iterations=2, fit_pixels=50, t_residual=0.05, engine=engine,
+                        highlight_start="all", diffuse_models=("approx",), neighbour_deg=10.0)
+    px = Pixels.start(im, lights, 1, None, base, settings, 0)
+    pix = np.arange(px.idx.size)
+    px.store(pix, px.refine(pix, 0.05, 1.2))
+    truth = sc.normals.reshape(-1, 3)[px.idx].astype(np.float32)
+    flat = np.flatnonzero(sc.normals.reshape(-1, 3)[px.idx, 2] > 0.999)
+    pushed = flat[[40, 160, 300]]                          # plane pixels, 35° off about y
+    c, s = np.cos(np.radians(35)), np.sin(np.radians(35))
+    px.nrm[pushed] = _unit(px.nrm[pushed] @ np.float32([[c, 0, -s], [0, 1, 0], [s, 0, c]]))
+    f = int(np.flatnonzero(px.idx == facet[0] * 40 + facet[1])[0])
+    assert angle_deg(px.nrm[f], truth[f]) < 2                  # the facet's solve found its own normal
+    apart = angle_deg(px.nrm, _neighbour_means(px.nrm, px.idx, px.shape)) > 10
+    assert apart[pushed].all() and apart[f]                  # all four are tried
+    tried, moved = px.neighbour_round(pix, 0.05, 1.2)
+    assert tried >= pushed.size + 1 and moved >= pushed.size
+    assert angle_deg(px.nrm[pushed], truth[pushed]).max() < 2, angle_deg(px.nrm[pushed], truth[pushed])
+    assert angle_deg(px.nrm[f], truth[f]) < 2                  # kept: its values say 30°, not the plane's 0°
+    # no pixel this far from its neighbours: nothing tried
+    px.settings = replace(settings, neighbour_deg=90.0)
+    assert px.neighbour_round(pix, 0.05, 1.2) == (0, 0)
