@@ -165,7 +165,8 @@ def _shading(s, n):
 
 
 def _albedo(e_all, s, n, keep, chunk=262144, idx=None):
-    """rho per channel for fixed unit normals: rho = pi * sum(E s.n) / sum((s.n)^2) over kept lights.
+    """rho per channel for fixed unit normals: rho = pi * sum(E s.n) / sum((s.n)^2) over kept lights
+    whose value in that channel is finite (0 where none is).
 
     e_all : (m, N, C), or with idx (N,) the whole (m, H*W, C) images whose pixels idx are
     gathered block by block (no copy of every pixel); s : (m, 3) or (N, m, 3); n : (3, N);
@@ -186,10 +187,14 @@ def _albedo(e_all, s, n, keep, chunk=262144, idx=None):
         sn = _shading(s if s.ndim == 2 else s[sl], n[:, sl])
         w = keep[:, sl] & (sn > 0)
         sn_w = np.where(w, sn, np.float32(0))
-        den = np.sum(sn_w * sn_w, axis=0)
-        good = den > 1e-12
         for ch in range(c):
-            num = np.sum(np.where(w, eb[:, :, ch], np.float32(0)) * sn_w, axis=0)
+            # a light kept on the test channel may be missing in this one (saturated in red
+            # alone: DiLiGenT reading's highlights): each channel sums its own usable lights
+            fin = np.isfinite(eb[:, :, ch])
+            sn_c = np.where(fin, sn_w, np.float32(0))
+            den = np.sum(sn_c * sn_c, axis=0)
+            good = den > 1e-12
+            num = np.sum(np.where(w & fin, eb[:, :, ch], np.float32(0)) * sn_c, axis=0)
             out[sl, ch] = np.where(good, np.pi * num / np.where(good, den, 1.0), 0.0)
 
     run_blocks(block, range(0, n.shape[1], chunk))

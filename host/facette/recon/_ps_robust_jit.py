@@ -181,16 +181,17 @@ def _chunk(e, ok, s, src, cols, trim, min_keep, tol, t_dark, rounds, min_lit, sh
             above[p, i] = okp[i] and not kb[i] and ep[i] > _F32(specular_above) * pred and sn > 0
         r_ = math.sqrt(num) / math.sqrt(den) if den > 0 else 0.0
         resid[p] = r_ if np.isfinite(r_) else 0.0
-        # ρ = π Σ E s·n / Σ (s·n)² per channel over the kept lit lights (`_ps._albedo`)
-        den = 0.0
-        for i in range(m):
-            den += float(sw[i]) * sw[i]
+        # ρ = π Σ E s·n / Σ (s·n)² per channel over the kept lit lights whose value in that
+        # channel is finite (`_ps._albedo`)
         for c in range(rho.shape[1]):
             num = 0.0
-            if den > 1e-12:
-                for i in range(m):
-                    if sw[i] > 0:
-                        num += float(src[i, cols[p], c]) * sw[i]
+            den = 0.0
+            for i in range(m):
+                if sw[i] > 0:
+                    v = src[i, cols[p], c]
+                    if np.isfinite(v):
+                        num += float(v) * sw[i]
+                        den += float(sw[i]) * sw[i]
             rho[p, c] = math.pi * num / den if den > 1e-12 else 0.0
 
 

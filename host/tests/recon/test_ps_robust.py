@@ -107,6 +107,19 @@ def test_black_and_saturated_pixels_are_invalid_and_finite(method):
     assert angular_error_deg(r.normal, n, ~bad).max() < 0.05
 
 
+@pytest.mark.parametrize("method, engine", [("woodham1980", None), ("rank_trimmed", "auto"),
+                                            ("rank_trimmed", "arrays"), ("rpca_wu2010", None)])
+def test_a_value_missing_in_one_channel_alone_leaves_that_channel_s_albedo_finite(method, engine):
+    """Red saturated under two lights where green is not (DiLiGenT reading's highlights): the
+    normal comes from green, and red's albedo from red's own usable lights, not NaN."""
+    imgs, n = plane_images([0.1, 0.2, 1.0], L12)
+    imgs[[2, 5], 1, 1, 0] = np.nan
+    r = photometric_stereo(imgs, L12, method=method, options={"engine": engine} if engine else None)
+    assert r.valid.all() and np.all(np.isfinite(r.albedo))
+    np.testing.assert_allclose(r.albedo[1, 1], ALBEDO, rtol=2e-3)
+    assert angular_error_deg(r.normal, n).max() < 0.05
+
+
 @pytest.mark.parametrize("method", ROBUST)
 def test_a_pixel_shadowed_under_every_light_gives_a_finite_unit_normal(method):
     """Only noise is left: the normal is finite and unit (meaningless, documented), never NaN."""
