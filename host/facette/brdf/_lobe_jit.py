@@ -13,7 +13,8 @@ import numpy as np
 from numba import njit
 
 __all__ = ["G1_ONE_ABOVE", "SMITH_G1_TABLE", "smith_g1_beckmann", "smith_g1_dlog_tabulated", "beckmann_d",
-           "fresnel_dielectric_scalar", "li_specular_beckmann_smith", "lobe_albedo_beckmann_smith"]
+           "fresnel_dielectric_scalar", "li_specular_beckmann_smith",
+           "lobe_transmittance_beckmann_smith"]
 
 _SQRT_PI = math.sqrt(math.pi)
 # Smith's Λ(a) < e^(−a²) / (2√π a) < 1e-17 above a = 6, so G_1 = 1 / (1 + Λ) is 1.0 to the last bit
@@ -124,11 +125,19 @@ def li_specular_beckmann_smith(s, o, sigma, eta, out):
 
 
 @njit(cache=True, nogil=True)
-def lobe_albedo_beckmann_smith(mu, h, w, sigma, eta, out):
-    """The lobe's directional albedo E(μ) = Σ_h w F(i·h) G_1(i) G_1(o) (i·h) / (μ h_z) at each cosine
-    μ of `mu` (K,), i = (√(1 − μ²), 0, μ), o the mirror of i about h: the quadrature of
-    facette.brdf._coupled._albedo_node over the half-vectors h (S, 3) with weights w (S,) (D(h) h_z
-    folded in), into out (K,); eta = n_i² − 1. One pass with no (K, S, 3) temporaries."""
+def lobe_transmittance_beckmann_smith(mu, h, w, sigma, n_i, out):
+    """The share of light the rough interface transmits into the substrate,
+    T(μ) = Σ_h w (1 − F(i·h)) G_1(i) G_1(t) (i·h) / (μ h_z), at each cosine μ of `mu` (K,),
+    i = (√(1 − μ²), 0, μ), t the refraction of i through the facet h (into the medium of index n_i,
+    Snell), over the half-vectors h (S, 3) with weights w (S,) (D(h) h_z folded in: the visible facets' distribution
+    D(h) G_1(i) (i·h) / μ, Walter et al. 2007) of facette.brdf._coupled._transmittance_node. Single
+    scattering: the light the facets mask after a reflection is not counted as transmitted (1 − E,
+    E the lobe's directional albedo, does count it). Into out (K,), one pass, no temporaries.
+    n_i = 1 is no interface: everything gets through (the nodes above it interpolate towards it)."""
+    if n_i <= 1.0:
+        out[:] = 1.0
+        return
+    eta = n_i * n_i - 1.0
     for k in range(mu.shape[0]):
         m = mu[k]
         sx = math.sqrt(max(1.0 - m * m, 0.0))
@@ -138,9 +147,11 @@ def lobe_albedo_beckmann_smith(mu, h, w, sigma, eta, out):
             ih = sx * h[j, 0] + m * h[j, 2]
             if ih <= 0.0:
                 continue
-            oz = 2.0 * ih * h[j, 2] - m
-            if oz <= 0.0:
+            # refracted t = −i / n + (c / n − √(1 − (1 − c²) / n²)) h; its z (< 0: into the substrate)
+            root = math.sqrt(max(1.0 - (1.0 - ih * ih) / (n_i * n_i), 0.0))
+            tz = -m / n_i + (ih / n_i - root) * h[j, 2]
+            if tz >= 0.0:
                 continue
-            tot += w[j] * fresnel_dielectric_scalar(min(ih, 1.0), eta) * gi * smith_g1_beckmann(oz, sigma) \
+            tot += w[j] * (1.0 - fresnel_dielectric_scalar(min(ih, 1.0), eta)) * gi * smith_g1_beckmann(-tz, sigma) \
                 * ih / (m * h[j, 2])
         out[k] = min(max(tot, 0.0), 1.0)

@@ -1,5 +1,6 @@
-"""The coupled diffuse part (facette.brdf._coupled): the interface's transmittance against a
-brute-force integral of the lobe li_shading_terms evaluates, and its use as a diffuse part."""
+"""The coupled diffuse part (facette.brdf._coupled): the interface's transmittance against
+Mitsuba 3's own rough plastic and a brute-force integral of the lobe li_shading_terms evaluates,
+and its use as a diffuse part."""
 import numpy as np
 import pytest
 
@@ -21,12 +22,52 @@ def _albedo_by_sphere(mu, sigma, n_i, k=60_000):
     return float(a.sum()) * 2 * np.pi / k
 
 
+def _mitsuba_diffuse(s, o, sigma, n_i, rho=0.5):
+    """Mitsuba 3's `roughplastic` (Beckmann, Smith, the same construction: a Lambertian base under a
+    rough dielectric) at the local directions s (towards the light) and o (towards the camera): its
+    BRDF minus that of the same interface over a black base, i.e. its diffuse part."""
+    import mitsuba as mi
+    mi.set_variant("scalar_rgb")
+
+    def bsdf(r):
+        return mi.load_dict({"type": "roughplastic", "distribution": "beckmann", "alpha": sigma, "int_ior": n_i,
+                             "ext_ior": 1.0, "nonlinear": True,
+                             "diffuse_reflectance": {"type": "rgb", "value": [r, r, r]}})
+
+    full, black, ctx = bsdf(rho), bsdf(0.0), mi.BSDFContext()
+    out = []
+    for a, b in zip(s, o):
+        si = mi.SurfaceInteraction3f()
+        si.wi = mi.Vector3f(*b)
+        si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+        wo = mi.Vector3f(*a)
+        out.append((full.eval(ctx, si, wo)[0] - black.eval(ctx, si, wo)[0]) / a[2])
+    return np.array(out)
+
+
+@pytest.mark.parametrize("sigma, n_i", [(0.4, 1.5), (0.2, 1.33), (0.07, 1.26)])
+def test_transmittance_gives_mitsubas_rough_plastic_diffuse_shape(sigma, n_i):
+    # off the (σ, n_i) nodes: the interpolation between them is checked too. The diffuse part of
+    # Mitsuba's own BSDF over t(θ_s) t(θ_o) is one constant (K_d and the interface's constants);
+    # with Kelemen's 1 − E it varied by -2.5 % (grazing) to +1.5 % (normal) at σ 0.4
+    rng = np.random.default_rng(3)
+    ts, to, ph = np.arccos(rng.uniform(0.05, 1, 300)), np.arccos(rng.uniform(0.05, 1, 300)), rng.uniform(0, 6.3, 300)
+    s = np.stack([np.sin(ts) * np.cos(ph), np.sin(ts) * np.sin(ph), np.cos(ts)], 1)
+    o = np.stack([np.sin(to), np.zeros_like(to), np.cos(to)], 1)
+    ratio = _mitsuba_diffuse(s, o, sigma, n_i) / volume_integral_coupled(s, o, sigma, n_i)
+    assert np.percentile(ratio, 99) / np.percentile(ratio, 1) < 1.006, np.percentile(ratio, [1, 50, 99])
+
+
 @pytest.mark.parametrize("sigma, n_i", [(0.05, 1.26), (0.2, 1.5), (0.43, 1.37), (0.11, 2.2)])
-def test_transmittance_is_one_minus_the_lobes_albedo(sigma, n_i):
-    # off the (σ, n_i) nodes: the interpolation between them is checked too
+def test_transmittance_is_at_most_what_the_lobe_does_not_reflect(sigma, n_i):
+    """Single scattering: light the facets mask after a reflection is neither reflected nor
+    transmitted, so t ≤ 1 − E (E the lobe's albedo, by brute force over li_shading_terms' lobe),
+    the gap growing towards grazing and with σ; at the normal of a narrow lobe nothing is masked."""
     mu, t = coupled_transmittance(sigma, n_i)
-    for m in (0.25, 0.5, 0.8, 1.0):
-        assert np.interp(m, mu, t) == pytest.approx(1 - _albedo_by_sphere(m, sigma, n_i), abs=4e-3)
+    gaps = [1 - _albedo_by_sphere(m, sigma, n_i) - np.interp(m, mu, t) for m in (0.25, 0.5, 0.8, 1.0)]
+    assert min(gaps) > -4e-3 and gaps[0] >= gaps[-1] - 1e-3, gaps
+    if sigma <= 0.05:
+        assert abs(gaps[-1]) < 4e-3
     assert np.all(np.diff(t) >= -1e-9) and 0 < t[0] < t[-1] < 1        # less gets in at grazing
 
 

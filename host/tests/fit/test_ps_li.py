@@ -301,26 +301,30 @@ def _grid_lights_96():
     return lights / np.linalg.norm(lights, axis=1, keepdims=True)
 
 
-def test_a_dark_level_under_every_photograph_is_taken_out(cache):
+@pytest.mark.parametrize("diffuse", ["li", "coupled"])
+def test_a_dark_level_under_every_photograph_is_taken_out(cache, diffuse):
     """A pedestal (black level, ambient light) of 2 % of the lit median added to every value of a
     glossy sphere under 96 lights: li_alternating finds it in the pixels whose light is behind
-    them and takes it out; the clean render has none and is solved as it is."""
+    them and takes it out; the clean render has none and is solved as it is. One diffuse part
+    throughout: with diffuse="auto" the choice between these two, a near tie here, moved with the
+    pedestal (the clean render and the one taken out: coupled; kept: li)."""
     d = render_scene("sphere", "paint_0.05", size=64, spp=16, lights=_grid_lights_96(), cache_dir=cache)
     sel = binary_erosion(d["mask"])
     im = d["images"]
     pedestal = 0.02 * np.median(im[:, d["mask"], 1][im[:, d["mask"], 1] > 0])
-    clean = ps_li_alternating(im, d["light_dirs"], mask=d["mask"])
+    clean = ps_li_alternating(im, d["light_dirs"], mask=d["mask"], diffuse=diffuse)
     assert clean.info["dark_offset"]["applied"] is False and clean.info["dark_offset"]["estimated"] == 0
-    same = ps_li_alternating(im, d["light_dirs"], mask=d["mask"], dark_offset="none")
+    same = ps_li_alternating(im, d["light_dirs"], mask=d["mask"], dark_offset="none", diffuse=diffuse)
     assert np.array_equal(clean.normal, same.normal)
-    auto = ps_li_alternating(im + pedestal, d["light_dirs"], mask=d["mask"])
-    kept = ps_li_alternating(im + pedestal, d["light_dirs"], mask=d["mask"], dark_offset="none")
+    auto = ps_li_alternating(im + pedestal, d["light_dirs"], mask=d["mask"], diffuse=diffuse)
+    kept = ps_li_alternating(im + pedestal, d["light_dirs"], mask=d["mask"], dark_offset="none", diffuse=diffuse)
     dark = auto.info["dark_offset"]
     assert dark["applied"] and dark["estimated"] >= 40
     np.testing.assert_allclose(dark["median"], pedestal, rtol=1e-3)
     e_clean, e_auto, e_kept = (_err(r.normal, d["normals"], sel).mean() for r in (clean, auto, kept))
-    # measured: 0.31 clean, 0.40 taken out, 0.51 kept (the photographs with too few dark pixels keep it)
-    assert e_auto < e_kept - 0.05 and e_auto < e_clean + 0.2, (e_clean, e_auto, e_kept)
+    # measured: li 0.28 clean, 0.41 taken out, 0.50 kept; coupled 0.27, 0.49, 0.59 (the photographs
+    # with too few dark pixels keep it)
+    assert e_auto < e_kept - 0.05 and e_auto < e_clean + 0.25, (e_clean, e_auto, e_kept)
 
 
 def test_the_later_rounds_refit_on_round_twos_draw(monkeypatch):
