@@ -66,8 +66,8 @@ PROFILE_VALUES = 12_000
 PROFILE_TABLE_GRID = 65
 # The diffuse part beside the lobe: the LI substrate under the interface (eq 3.15: Fresnel
 # transmissions in and out through the facets), a Lambertian term with no transmission
-# (Cook–Torrance), or a Lambertian substrate weighted by the interface's transmittance in and out,
-# one minus the lobe's directional albedo (Kelemen & Szirmay-Kalos 2001, facette.brdf._coupled).
+# (Cook–Torrance), or a Lambertian substrate weighted by the interface's transmittance in and out
+# (Kelemen & Szirmay-Kalos 2001, the facets' single-scattering transmittance: facette.brdf._coupled).
 # Which one a material gets is its fit pixels' profile cost (`diffuse="auto"`), never a fixed
 # choice: the simulated rig renders Cook–Torrance, Mitsuba's roughplastic a layered material.
 DIFFUSE = {"li": LI_VOLUME_MODEL, "lambert": "lambert", "coupled": "coupled"}
