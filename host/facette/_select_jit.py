@@ -8,9 +8,9 @@ __pycache__/*.nbc so that they recompile with it.
 """
 from numba import njit
 
-__all__ = ["insertion_sort", "kth_smallest", "median_in_place"]
+__all__ = ["insertion_sort", "kth_smallest", "median_in_place", "sort_prefix"]
 
-SORT_BELOW = 24      # medians of at most this many values by insertion sort
+SORT_BELOW = 24      # at most this many values: insertion sort (medians and `sort_prefix`)
 
 
 @njit(cache=True)
@@ -50,6 +50,15 @@ def insertion_sort(v, n):
             v[j + 1] = v[j]
             j -= 1
         v[j + 1] = x
+
+
+@njit(cache=True)
+def sort_prefix(v, n):
+    """v[:n] sorted in place: by insertion up to SORT_BELOW values, else numpy's sort."""
+    if n <= SORT_BELOW:
+        insertion_sort(v, n)
+    else:
+        v[:n].sort()
 
 
 @njit(cache=True)

@@ -7,8 +7,7 @@ import numpy as np
 
 from facette._threads import run_blocks
 
-from ._normals_li import refine_normals_li
-from ._ps_li_pixels import BLOCK, BLOCK_COMPILED, angle_deg, join_blocks
+from ._ps_li_pixels import angle_deg, join_blocks
 
 FINE_START_DEG = 5.0       # the fine round starts from the initial normal where the coarse one is this far
 FINE_STEP_TOL = 1e-3       # rad (0.06°): full-size steps stop below this (errors are ~1°)
@@ -64,13 +63,7 @@ def fine_round(px, coarse, pix, x0, steps, rounds_log):
     lobe, lam_ok, todo = px.split_levels(pix, sigma, n_i)
     change, mean_its = np.zeros(0), 0.0
     if todo.size:
-        out = []
-        size = BLOCK_COMPILED if px.s_all.ndim == 2 else BLOCK
-        for a in range(0, todo.size, size):
-            sub = todo[a:a + size]
-            out.append(refine_normals_li(px.gather(sub), px.lights_of(sub), up[sub], sigma, n_i,
-                                         usable=px.all_ok[sub], iterations=steps, step_tol=FINE_STEP_TOL,
-                                         engine=px.settings.engine, volume_model=px.vm))
+        out = px.solve_from(todo, up[todo], sigma, n_i, steps, step_tol=FINE_STEP_TOL)
         rr = join_blocks(out)
         mean_its = float(np.average([getattr(p, "mean_iterations", p.iterations) for p in out],
                                     weights=[len(p.normals) for p in out]))

@@ -216,6 +216,17 @@ class Pixels:
         self.nrm[lam] = self.nrm_ls[lam]
         return int(lam.size)
 
+    def solve_from(self, sel, start, sigma, n_i, iterations, extra=None, **options):
+        """The BRDF-aware solves (RefineResult, one per block, in order) of the pixels `sel` from the
+        normals `start` (len(sel), 3), and from `extra` too where given (the lower cost kept),
+        against the current material's diffuse part; options: of refine_normals_li (step_tol)."""
+        size = BLOCK_COMPILED if self.s_all.ndim == 2 else BLOCK
+        return [refine_normals_li(self.gather(sel[a:a + size]), self.lights_of(sel[a:a + size]), start[a:a + size],
+                                  sigma, n_i, usable=self.all_ok[sel[a:a + size]], iterations=iterations,
+                                  extra_starts=None if extra is None else [extra[a:a + size]],
+                                  engine=self.settings.engine, volume_model=self.vm, **options)
+                for a in range(0, sel.size, size)]
+
     def neighbour_round(self, pix, sigma, n_i):
         """The pixels of `pix` the BRDF-aware step solved whose normal is more than
         settings.neighbour_deg from the mean of their 5 × 5 neighbours (`_neighbour_means`)
@@ -228,12 +239,7 @@ class Pixels:
         far = far[angle_deg(self.nrm[far], mean[far]) > self.settings.neighbour_deg]
         if not far.size:
             return 0, 0
-        size = BLOCK_COMPILED if self.s_all.ndim == 2 else BLOCK
-        out = [refine_normals_li(self.gather(sub), self.lights_of(sub), mean[sub], sigma, n_i,
-                                 usable=self.all_ok[sub], iterations=self.settings.iterations,
-                                 extra_starts=[self.nrm[sub]], engine=self.settings.engine, volume_model=self.vm)
-               for sub in (far[a:a + size] for a in range(0, far.size, size))]
-        rr = join_blocks(out)
+        rr = join_blocks(self.solve_from(far, mean[far], sigma, n_i, self.settings.iterations, extra=self.nrm[far]))
         moved = int((angle_deg(rr.normals, self.nrm[far]) > 1.0).sum())
         self.store(far, rr)
         return int(far.size), moved

@@ -26,8 +26,8 @@ from ._dark import dark_offsets, dark_level_notes
 from ._interreflect import (remove_interreflections, without_interreflections, IR_GRID, IR_MAX_FRACTION,
                             IR_PASSES, IR_SKIP_P95)
 from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, fit_relight_error,
-                   relight_error_parts, relight_ptm, relight_hsh, relight_error, HSH_ORDERS, RELIGHT_ERROR_VALUES, relight_error_step,
-                   RTI_ENCODINGS, srgb_encode, srgb_decode, display_ptm, display_hsh)
+                   relight_error_parts, relight_ptm, relight_hsh, relight_error, HSH_ORDERS, RELIGHT_ERROR_VALUES,
+                   relight_error_step, RTI_ENCODINGS, srgb_encode, srgb_decode, display_ptm, display_hsh)
 
 __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
            "ps_rank_trimmed", "ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "ps_consensus_higo2010",
@@ -39,5 +39,5 @@ __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca
            "ptm_basis", "hsh_basis", "PTMFit", "HSHFit", "fit_ptm_lrgb", "fit_hsh", "relight_ptm",
            "relight_hsh", "relight_error", "fit_relight_error", "relight_error_parts", "HSH_ORDERS", "RTI_ENCODINGS",
            "srgb_encode", "srgb_decode", "display_ptm", "display_hsh",
-           "RELIGHT_ERROR_VALUES", "relight_error_step", "remove_interreflections", "without_interreflections", "IR_GRID", "IR_MAX_FRACTION", "IR_PASSES",
-           "IR_SKIP_P95"]
+           "RELIGHT_ERROR_VALUES", "relight_error_step", "remove_interreflections", "without_interreflections",
+           "IR_GRID", "IR_MAX_FRACTION", "IR_PASSES", "IR_SKIP_P95"]

@@ -15,7 +15,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from facette._select_jit import insertion_sort
+from facette._select_jit import sort_prefix
 
 __all__ = ["rank_trimmed_pixels"]
 
@@ -37,10 +37,7 @@ def _window(key, use, m, trim, min_keep, tol, srt, out):
         for i in range(m):
             out[i] = False
         return 0
-    if u <= 32:                   # a few lights: insertion sort
-        insertion_sort(srt, u)
-    else:
-        srt[:u].sort()
+    sort_prefix(srt, u)
     lo = int(math.ceil(trim * (u - 1) - 1e-9))
     hi = int(math.floor((1 - trim) * (u - 1) + 1e-9))
     want = min(u, min_keep)
