@@ -45,7 +45,8 @@ def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, re
     lobe = (float(mats[0]["sigma"]), float(mats[0]["n_i"]))
     direct, glossy = remove_interreflections(images, light_dirs, ps.normal, first.albedo, ps.valid & mask,
                                              reflectance_scale=reflectance_scale, saturation=saturation,
-                                             passes=1, lobe=lobe)
+                                             passes=1, lobe=lobe,
+                                             diffuse_through=mats[0].get("diffuse") != "lambert")
     ps = ps_li_alternating(direct, light_dirs, mask=mask, saturation=saturation, **options)
     info["glossy"] = {"lobe": lobe, "median_fraction": glossy["median_fraction"],
                       "p95_fraction": glossy["p95_fraction"], "capped": glossy["capped"],

@@ -33,6 +33,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from facette.brdf import coupled_transmittance
 from facette.errors import InsufficientData
 
 from ._integrate import integrate_frankot_chellappa1988
@@ -87,10 +88,15 @@ def _interp_matrix(n_fine, n_cells, f):
     return m
 
 
-def _gather_cells(i_c, ld_c, n_c, a_c, cells, z=None, lobe=None):
+def _gather_cells(i_c, ld_c, n_c, a_c, cells, z=None, lobe=None, tau=None):
     """((m, hc, wc, c) radiance each cell gathers from the cells it sees (`gather`), the same
     through the specular lobe `lobe` = (σ, n_i) towards the camera or None), the cells' radiance
-    capped as the module doc says; z : cell heights in cell units (None: integrated)."""
+    capped as the module doc says; z : cell heights in cell units (None: integrated); tau : the
+    diffuse part's transmittance t(μ) on even cosines (`remove_interreflections`' `diffuse_through`)
+    or None. With tau, a cell's image radiance is its diffuse light let out at t(n_z) (towards the
+    camera) and what it gathers is divided by the t(n·s) its albedo holds (the mean over the lights
+    that light it, weighted by n·s): the Lambertian ρ/π then turns what the gather let in into
+    the light it sends to the camera."""
     m, hc, wc, c = i_c.shape
     if ld_c.ndim == 2:
         shade = np.einsum("kd,hwd->khw", ld_c, n_c)
@@ -99,21 +105,30 @@ def _gather_cells(i_c, ld_c, n_c, a_c, cells, z=None, lobe=None):
     model = a_c[None] * np.clip(shade, 0, None)[..., None]
     src = np.where(np.isfinite(i_c), i_c, model)
     src = np.minimum(src, _SOURCE_CAP * model + _SOURCE_FLOOR * a_c[None])
+    through = np.zeros(0, np.float32) if tau is None else np.ascontiguousarray(tau, np.float32)
+    if tau is not None:
+        mu = np.linspace(0.0, 1.0, through.size)
+        src = src / np.maximum(np.interp(n_c[..., 2], mu, through), 1e-3)[None, ..., None]
     rr, cc = np.nonzero(cells)
     gathered = np.zeros((m, hc, wc, c), np.float32)
     glossy = np.zeros((m, hc, wc, c), np.float32) if lobe is not None else None
     if rr.size > 1:
-        from ._interreflect_jit import gather        # numba loads only when this runs
+        from ._interreflect_jit import OFF_SURFACE, gather        # numba loads only when this runs
         if z is None:
             z = integrate_frankot_chellappa1988(n_c, 1.0, cells)
-        zgrid = np.where(cells, z, np.nan).astype(np.float32)
+        zgrid = np.where(cells, z, OFF_SURFACE).astype(np.float32)
         rad = np.ascontiguousarray(np.moveaxis(src[:, rr, cc, :], 1, 0).reshape(rr.size, m * c), np.float32)
         sigma, n_i = lobe if lobe is not None else (0.0, 1.0)
         g, gs = gather(rr.astype(np.float32), cc.astype(np.float32), z[rr, cc].astype(np.float32),
-                       np.ascontiguousarray(n_c[rr, cc], np.float32), rad, zgrid, 48, float(sigma), float(n_i))
+                       np.ascontiguousarray(n_c[rr, cc], np.float32), rad, zgrid, 48, float(sigma), float(n_i),
+                       through)
         gathered[:, rr, cc, :] = np.moveaxis(g.reshape(rr.size, m, c), 1, 0)
         if glossy is not None:
             glossy[:, rr, cc, :] = np.moveaxis(gs.reshape(rr.size, m, c), 1, 0)
+    if tau is not None:
+        lit = np.clip(shade, 0, None)
+        t_in = (lit * np.interp(lit, mu, through)).sum(0) / np.maximum(lit.sum(0), 1e-6)
+        gathered /= np.maximum(t_in, 1e-3)[None, ..., None]
     return gathered, glossy
 
 
@@ -125,7 +140,7 @@ def _p95(ir, i_c, cells):
 
 def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectance_scale=1.0,
                             grid=IR_GRID, max_fraction=IR_MAX_FRACTION, saturation=None, heights=None,
-                            passes=IR_PASSES, tol_deg=0.1, lobe=None):
+                            passes=IR_PASSES, tol_deg=0.1, lobe=None, diffuse_through=True):
     """The images with the light the surface gathers from itself taken out (module doc).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity (as
@@ -145,6 +160,10 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
     lobe : (σ, n_i) of a glossy surface (a BRDF-aware pass's fit), or None: the light a cell
         reflects towards the camera through its specular lobe (eq 3.10) is removed too, besides
         the Lambertian (ρ/π) share.
+    diffuse_through : with `lobe`, whether the diffuse part lies under the lobe's interface (the LI
+        and coupled parts: it takes light in and lets it out by the interface's transmittance
+        t(θ), facette.brdf.coupled_transmittance, so light travelling along the surface, at
+        grazing angles, is gathered weaker than a Lambertian surface would) or beside it (False).
     Returns (corrected images, same shape, float32; info) with info = grid (cells), cell_px,
     cells, passes (per gather: median change of the shape after it, seconds), median_fraction
     and p95_fraction (share of the lit values on the surface that was gathered light), capped
@@ -207,10 +226,13 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
     else:
         z = np.nan_to_num(_cell_mean(np.asarray(heights, np.float32)[..., None], ok, f, hc, wc)[..., 0]) / f
     receive = a_c * np.float32(reflectance_scale / np.pi)
+    tau = None
+    if lobe is not None and diffuse_through:
+        tau = coupled_transmittance(float(lobe[0]), float(lobe[1]))[1]
     rows = []
     for k in range(int(passes)):
         t = time.perf_counter()
-        gathered, glossy = _gather_cells(i_c, ld_c, n_c, a_c, cells, z, lobe)
+        gathered, glossy = _gather_cells(i_c, ld_c, n_c, a_c, cells, z, lobe, tau)
         cell_ir = gathered * receive if glossy is None else gathered * receive + glossy
         row = {}
         if k + 1 < int(passes) and m >= 4 and (k > 0 or _p95(cell_ir, i_c, cells) >= IR_SKIP_P95):
