@@ -105,7 +105,6 @@ def li_specular_beckmann_smith(s, o, sigma, eta, out):
     """`facette.brdf.li_specular` (eq 3.10) for Beckmann D and Smith G (eq 3.18, 3.20), isotropic
     σ > 0, over the rows of s, o (N, 3) unit vectors; eta = n_i² − 1; out (N,). One pass with no
     temporaries: the BRDF fit evaluates it on every sample and cell direction at each step."""
-    s2 = sigma * sigma
     for i in range(s.shape[0]):
         out[i] = 0.0
         sz, oz = s[i, 2], o[i, 2]
@@ -117,11 +116,18 @@ def li_specular_beckmann_smith(s, o, sigma, eta, out):
         om = (o[i, 0] * hx + o[i, 1] * hy + oz * hz) / hn
         if sm <= 0.0 or om <= 0.0:
             continue
-        d = beckmann_d((hz / hn) ** 2, s2)
-        if not d > 0.0:
-            continue
-        g = smith_g1_beckmann(sz, sigma) * smith_g1_beckmann(oz, sigma)
-        out[i] = fresnel_dielectric_scalar(min(sm, 1.0), eta) * d * g / (4.0 * sz * oz)
+        out[i] = li_specular_half(sz, oz, hz / hn, sm, sigma, eta)
+
+
+@njit(cache=True, nogil=True)
+def li_specular_half(cs, co, ch, sh, sigma, eta):
+    """`li_specular_beckmann_smith` of one pair from its cosines: cs = n·s > 0, co = n·o > 0,
+    ch = n·h, sh = s·h > 0 (h the half-vector); 0 where D underflows."""
+    d = beckmann_d(ch * ch, sigma * sigma)
+    if not d > 0.0:
+        return 0.0
+    g = smith_g1_beckmann(cs, sigma) * smith_g1_beckmann(co, sigma)
+    return fresnel_dielectric_scalar(min(sh, 1.0), eta) * d * g / (4.0 * cs * co)
 
 
 @njit(cache=True, nogil=True)

@@ -9,15 +9,15 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from facette.brdf._lobe_jit import beckmann_d, fresnel_dielectric_scalar, smith_g1_beckmann
+from facette.brdf._lobe_jit import li_specular_half
 
-__all__ = ["gather", "OFF_SURFACE"]
+__all__ = ["gather", "specular_towards_camera", "OFF_SURFACE"]
 
 OFF_SURFACE = np.float32(-1e30)     # zgrid's height off the surface: below every segment
 
 
 @njit(parallel=True, fastmath=True, cache=True)
-def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma, n_i, tau):
+def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma, n_i, tau, lights, lit, spec_scale):
     """out[i, k] = sum_j G_ij radiance[j, k], over the elements j that element i sees.
 
     rows, cols, z : (N,) float32 element positions (grid units; z up, towards the camera);
@@ -39,6 +39,11 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma, n_i, tau):
     facette.brdf._coupled), so a glossy wall sends its diffuse light along the relief, at grazing
     angles, weaker than towards the camera, and its neighbour takes less of it in. spec's source
     radiance takes t(θ_j) alone (the receiver's lobe is on the interface).
+    lights : (N, m, 3) float32 unit vectors towards the m lights (radiance's K = m C columns are
+    light by light, C channels each); spec_scale > 0 (with sigma): each source j also sends, for
+    light l, its lobe's reflection towards i, spec_scale f_s(s_l, ω_ji) (n_j·s_l), white (the
+    radiance given is then the sources' diffuse part alone): a glossy wall mirrors its highlights
+    onto the wall in front of it. spec_scale is 1 / the reflectance scale (images are f (n·s)).
     Returns (out, spec); spec is zeros when sigma is 0.
     """
     n, k_out = radiance.shape
@@ -47,11 +52,15 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma, n_i, tau):
     glossy = sigma > 0 and n_i > 1
     eta = (n_i - 1.0) * (n_i + 1.0)
     through = tau.size >= 2
+    n_l = lights.shape[1]
+    n_c = k_out // n_l
+    mirrors = glossy and spec_scale > 0
     for i in prange(n):
         ri, ci, zi = rows[i], cols[i], z[i]
         nxi, nyi, nzi = normals[i, 0], normals[i, 1], normals[i, 2]
         acc = np.zeros(k_out, np.float32)
         acc_s = np.zeros(k_out, np.float32)
+        sent = np.zeros(n_l, np.float32)
         for j in range(n):
             if j == i:
                 continue
@@ -77,17 +86,28 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma, n_i, tau):
             r2 = dx * dx + dy * dy + dz * dz
             g = cos_i * cos_j / (r2 * r2) / max(normals[j, 2], 0.05)
             r = math.sqrt(r2)
-            g_in = g
-            if through:
-                g = g * _interp(tau, cos_j / r)
-                g_in = g * _interp(tau, cos_i / r)
+            t_i = _interp(tau, cos_i / r) if through else 1.0
+            g_d = g * _interp(tau, cos_j / r) if through else g     # the source's diffuse part, let out
+            fs = _f_s(dx / r, dy / r, dz / r, 0.0, 0.0, 1.0, nxi, nyi, nzi, sigma, eta) if glossy else 0.0
             for k in range(k_out):
-                acc[k] += g_in * radiance[j, k]
-            if glossy:
-                fs = _lobe(dx, dy, dz, r, nxi, nyi, nzi, sigma, eta)
-                if fs > 0:
-                    for k in range(k_out):
-                        acc_s[k] += fs * g * radiance[j, k]
+                acc[k] += g_d * t_i * radiance[j, k]
+            if fs > 0:
+                for k in range(k_out):
+                    acc_s[k] += fs * g_d * radiance[j, k]
+            if mirrors:
+                nxj, nyj, nzj = normals[j, 0], normals[j, 1], normals[j, 2]
+                for l in range(n_l):
+                    sx, sy, sz = lights[j, l, 0], lights[j, l, 1], lights[j, l, 2]
+                    ns = nxj * sx + nyj * sy + nzj * sz
+                    sent[l] = 0.0
+                    if ns > 0:      # towards i: o = -d / r
+                        sent[l] = spec_scale * lit[j, l] * ns * _f_s(sx, sy, sz, -dx / r, -dy / r, -dz / r,
+                                                                     nxj, nyj, nzj, sigma, eta)
+                for l in range(n_l):
+                    if sent[l] > 0:
+                        for ch in range(n_c):
+                            acc[l * n_c + ch] += g * t_i * sent[l]
+                            acc_s[l * n_c + ch] += fs * g * sent[l]
         out[i] = acc
         spec[i] = acc_s
     return out, spec
@@ -102,20 +122,33 @@ def _interp(table, mu):
 
 
 @njit(fastmath=True, cache=True)
-def _lobe(dx, dy, dz, r, nx, ny, nz, sigma, eta):
-    """f_s (eq 3.10) for light arriving from direction (dx, dy, dz)/r, seen from +z, at normal n:
-    F(w·h) D(h) G1(w) G1(v) / (4 (n·w)(n·v)), Beckmann D and Smith G1 (facette.brdf._lobe_jit)."""
-    wx, wy, wz = dx / r, dy / r, dz / r
-    hx, hy, hz = wx, wy, wz + 1.0
-    hn = math.sqrt(hx * hx + hy * hy + hz * hz)
-    if hn < 1e-9:
-        return 0.0
-    hx, hy, hz = hx / hn, hy / hn, hz / hn
-    ch = nx * hx + ny * hy + nz * hz
+def _f_s(wx, wy, wz, ox, oy, oz, nx, ny, nz, sigma, eta):
+    """f_s (eq 3.10, facette.brdf.li_specular) for light from the unit direction w leaving towards
+    the unit o at the normal n; 0 below the surface and beyond 4 σ of the lobe (D < 1e-7 of its peak)."""
     cw = nx * wx + ny * wy + nz * wz
-    s2 = sigma * sigma
-    if ch <= 0 or cw <= 0 or nz <= 0 or 1.0 - ch * ch > 16.0 * s2 * ch * ch:
+    co = nx * ox + ny * oy + nz * oz
+    hx, hy, hz = wx + ox, wy + oy, wz + oz
+    hn = math.sqrt(hx * hx + hy * hy + hz * hz)
+    if cw <= 0 or co <= 0 or hn < 1e-9:
         return 0.0
-    f = fresnel_dielectric_scalar(wx * hx + wy * hy + wz * hz, eta)     # w·h = v·h
-    g = smith_g1_beckmann(cw, sigma) * smith_g1_beckmann(nz, sigma)
-    return f * beckmann_d(ch * ch, s2) * g / (4.0 * cw * nz)
+    ch = (nx * hx + ny * hy + nz * hz) / hn
+    if ch <= 0 or 1.0 - ch * ch > 16.0 * sigma * sigma * ch * ch:
+        return 0.0
+    return li_specular_half(cw, co, ch, (wx * hx + wy * hy + wz * hz) / hn, sigma, eta)
+
+
+@njit(parallel=True, fastmath=True, cache=True)
+def specular_towards_camera(normals, lights, sigma, n_i):
+    """(N, m) float32: f_s(s_l, +z) (n·s_l) of each element's lobe for each light (lights as
+    `gather`'s), the share of its image the lobe holds (before the images' scale)."""
+    n, n_l = normals.shape[0], lights.shape[1]
+    eta = (n_i - 1.0) * (n_i + 1.0)
+    out = np.zeros((n, n_l), np.float32)
+    if not (sigma > 0 and n_i > 1):
+        return out
+    for j in prange(n):
+        for l in range(n_l):
+            sx, sy, sz = lights[j, l, 0], lights[j, l, 1], lights[j, l, 2]
+            ns = normals[j, 0] * sx + normals[j, 1] * sy + normals[j, 2] * sz
+            out[j, l] = ns * _f_s(sx, sy, sz, 0.0, 0.0, 1.0, normals[j, 0], normals[j, 1], normals[j, 2], sigma, eta)
+    return out

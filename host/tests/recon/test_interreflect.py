@@ -175,24 +175,17 @@ def test_per_pixel_light_directions_give_what_distant_ones_give():
     np.testing.assert_allclose(near, far, rtol=1e-5, atol=1e-7)
 
 
-def test_the_gather_weights_each_pair_by_the_interface_transmittance_at_both_ends():
-    # four elements of a bowl, z = 0.15 ((col - 3.5)² + (row - 3.5)²), that see each other (no
-    # surface grid in the way): the compiled gather against the sum written out,
-    # G_ij t(θ_i) t(θ_j) radiance_j, with a t(μ) that is not flat
-    from facette.recon._interreflect_jit import OFF_SURFACE, gather
-    rng = np.random.default_rng(3)
+def _bowl_elements():
+    """Four elements of a bowl, z = 0.15 ((col - 3.5)² + (row - 3.5)²), that see each other, with
+    no surface grid in the way: (rows, cols, z, normals, grid), and each pair's (i, j, d, r, cos θ_i,
+    cos θ_j, G_ij) where both face each other (d from i to j, camera frame: x right, y up)."""
+    from facette.recon._interreflect_jit import OFF_SURFACE
     rows = np.array([0.0, 3.0, 7.0, 2.0], np.float32)
     cols = np.array([0.0, 7.0, 1.0, 4.0], np.float32)
     z = (0.15 * ((cols - 3.5) ** 2 + (rows - 3.5) ** 2)).astype(np.float32)
     nrm = np.stack([-0.3 * (cols - 3.5), 0.3 * (rows - 3.5), np.ones(4)], 1)
     nrm = (nrm / np.linalg.norm(nrm, axis=1, keepdims=True)).astype(np.float32)
-    rad = rng.uniform(0.1, 1.0, (4, 2)).astype(np.float32)
-    tau = np.linspace(0.3, 0.95, 9).astype(np.float32) ** 0.5
-    grid = np.full((8, 8), OFF_SURFACE, np.float32)
-    got, _ = gather(rows, cols, z, nrm, rad, grid, 48, 0.0, 1.0, tau)
-    flat, _ = gather(rows, cols, z, nrm, rad, grid, 48, 0.0, 1.0, np.zeros(0, np.float32))
-    t = lambda mu: np.interp(mu, np.linspace(0, 1, tau.size), tau)
-    want, plain = np.zeros((4, 2)), np.zeros((4, 2))
+    pairs = []
     for i in range(4):
         for j in range(4):
             if i == j:
@@ -200,22 +193,73 @@ def test_the_gather_weights_each_pair_by_the_interface_transmittance_at_both_end
             d = np.array([cols[j] - cols[i], rows[i] - rows[j], z[j] - z[i]], float)
             r = np.linalg.norm(d)
             ci, cj = nrm[i] @ d / r, -(nrm[j] @ d) / r
-            if ci <= 0 or cj <= 0:
-                continue
-            g = ci * cj / r ** 2 / max(nrm[j, 2], 0.05)
-            want[i] += g * t(ci) * t(cj) * rad[j]
-            plain[i] += g * rad[j]
-    assert np.count_nonzero(plain) >= 4
+            if ci > 0 and cj > 0:
+                pairs.append((i, j, d, r, ci, cj, ci * cj / r ** 2 / max(nrm[j, 2], 0.05)))
+    assert len(pairs) >= 6
+    return rows, cols, z, nrm, np.full((8, 8), OFF_SURFACE, np.float32), pairs
+
+
+def test_the_gather_weights_each_pair_by_the_interface_transmittance_at_both_ends():
+    # the compiled gather against the sum written out, G_ij t(θ_i) t(θ_j) radiance_j, with a t(μ)
+    # that is not flat
+    from facette.recon._interreflect_jit import gather
+    rows, cols, z, nrm, grid, pairs = _bowl_elements()
+    rad = np.random.default_rng(3).uniform(0.1, 1.0, (4, 2)).astype(np.float32)
+    tau = np.linspace(0.3, 0.95, 9).astype(np.float32) ** 0.5
+    no_lights, ones = np.zeros((4, 2, 3), np.float32), np.ones((4, 2), np.float32)
+    got, _ = gather(rows, cols, z, nrm, rad, grid, 48, 0.0, 1.0, tau, no_lights, ones, 0.0)
+    flat, _ = gather(rows, cols, z, nrm, rad, grid, 48, 0.0, 1.0, np.zeros(0, np.float32), no_lights, ones, 0.0)
+    t = lambda mu: np.interp(mu, np.linspace(0, 1, tau.size), tau)
+    want, plain = np.zeros((4, 2)), np.zeros((4, 2))
+    for i, j, _, _, ci, cj, g in pairs:
+        want[i] += g * t(ci) * t(cj) * rad[j]
+        plain[i] += g * rad[j]
     np.testing.assert_allclose(flat, plain, rtol=1e-4)
     np.testing.assert_allclose(got, want, rtol=1e-4)
+
+
+def test_a_glossy_cell_mirrors_its_lights_towards_the_cells_in_front_of_it():
+    # each source j sends, for light l, f_s(s_l, ω_ji) (n_j·s_l) as far as it is lit; the receiver
+    # takes it in as diffuse light and reflects it through its own lobe towards the camera:
+    # against facette.brdf.li_specular in each element's own frame
+    from facette.brdf import li_specular
+    from facette.recon._interreflect_jit import gather, specular_towards_camera
+    rows, cols, z, nrm, grid, pairs = _bowl_elements()
+    sigma, n_i, scale = 0.3, 1.5, 0.8
+    lights = np.array([[0.3, 0.2, 0.93], [-0.5, 0.1, 0.86]], np.float32)
+    lights /= np.linalg.norm(lights, axis=1, keepdims=True)
+    lit = np.array([[1, 1], [1, 0.5], [0, 1], [1, 1]], np.float32)
+    rad = np.zeros((4, 2), np.float32)                  # no diffuse light: the mirrors alone
+    out, spec = gather(rows, cols, z, nrm, rad, grid, 48, sigma, n_i, np.zeros(0, np.float32),
+                       np.ascontiguousarray(np.broadcast_to(lights, (4, 2, 3))), lit, scale)
+
+    def f_s(n, s, o):       # li_specular in the frame of normal n
+        e3 = n / np.linalg.norm(n)
+        e1 = np.cross(e3, [0.0, 1.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        frame = np.stack([e1, np.cross(e3, e1), e3])
+        return float(li_specular(frame @ s, frame @ o, sigma, n_i))
+
+    want, want_s = np.zeros((4, 2)), np.zeros((4, 2))
+    v = np.array([0.0, 0.0, 1.0])
+    for i, j, d, r, _, _, g in pairs:
+        for l in range(2):
+            sent = scale * lit[j, l] * max(nrm[j] @ lights[l], 0) * f_s(nrm[j], lights[l], -d / r)
+            want[i, l] += g * sent
+            want_s[i, l] += f_s(nrm[i], d / r, v) * g * sent
+    assert np.count_nonzero(want) >= 3
+    np.testing.assert_allclose(out, want, rtol=1e-3, atol=1e-7)
+    np.testing.assert_allclose(spec, want_s, rtol=1e-3, atol=1e-7)
+    cam = specular_towards_camera(nrm, np.ascontiguousarray(np.broadcast_to(lights, (4, 2, 3))), sigma, n_i)
+    np.testing.assert_allclose(cam, [[max(n @ s, 0) * f_s(n, s, v) for s in lights] for n in nrm], rtol=1e-4, atol=1e-6)
 
 
 def test_a_glossy_reliefs_diffuse_light_is_gathered_through_its_interface(tmp_path):
     # Mitsuba's rough plastic relief (paint: σ 0.05, n_i 1.26): its inter-reflected light is what
     # a 4-bounce render holds beyond a direct-light one. A wall under an interface lets its diffuse
     # light out weaker along the relief (grazing angles) than towards the camera, and its neighbour
-    # takes it in weaker: gathered as by a Lambertian surface the removed light was 1.25x the true
-    # one, through the transmittance 0.92x (64 px, 32 spp; the rest: the walls' highlights)
+    # takes it in weaker: gathered as by a Lambertian surface the removed light was 1.29x the true
+    # one, through the transmittance 0.96x (64 px, 32 spp; the walls' mirrored highlights in both)
     full = render_scene("relief", "paint_0.05", size=64, spp=32, cache_dir=tmp_path)
     direct = render_scene("relief", "paint_0.05", size=64, spp=32, max_depth=2, cache_dir=tmp_path)
     sel = binary_erosion(full["mask"], iterations=2)
@@ -227,4 +271,4 @@ def test_a_glossy_reliefs_diffuse_light_is_gathered_through_its_interface(tmp_pa
         out, _ = remove_interreflections(im, lights, full["normals"], first.albedo, full["mask"], passes=1,
                                          lobe=(0.05, 1.26), diffuse_through=through)
         ratio[through] = (im - out)[:, sel].sum() / true
-    assert ratio[False] > 1.15 and 0.85 < ratio[True] < 1.05, ratio
+    assert ratio[False] > 1.15 and 0.9 < ratio[True] < 1.05, ratio
