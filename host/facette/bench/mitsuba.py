@@ -192,7 +192,8 @@ def thesis_test(args, variants, normals):
                 if spp == args.spp and ("plaster", name) not in normals:
                     continue
                 if method in ("woodham1980", "li_alternating"):
-                    got[(mat if seed == 0 else "plaster seed 1", name)] = (run_ps(d, method, args.init, ir)[0].normal, sel)
+                    key = (mat if seed == 0 else "plaster seed 1", name)
+                    got[key] = (run_ps(d, method, args.init, ir)[0].normal, sel)
         print(f"  {spp} spp")
         for _, _, name in variants:
             if ("plaster", name) not in got:

@@ -216,7 +216,8 @@ def print_result(res):
               + f", {ir['seconds']:.1f} s")
         if ir.get("glossy"):
             g = ir["glossy"]
-            print(f"  glossy inter-reflections (lobe σ {g['lobe'][0]:.3f}, n_i {g['lobe'][1]:.3f}): "
+            from facette.fit import glossy_lobes_text
+            print(f"  glossy inter-reflections ({glossy_lobes_text(g)}): "
                   f"{100 * g['median_fraction']:.1f} % of the median value, {100 * g['p95_fraction']:.1f} % "
                   f"at the 95th percentile, {g['seconds']:.1f} s")
     info = res.ps.info

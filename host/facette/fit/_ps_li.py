@@ -213,7 +213,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         mats.append(_fit_material(px, np.flatnonzero(labels == region), region, coarse, rounds, tol_deg,
                                   info["rounds"]))
         t_brdf += time.perf_counter() - t_reg
-    _finish(res, px, mats, t_init, t_brdf)
+    _finish(res, px, mats, labels, t_init, t_brdf)
     info["seconds"] = time.perf_counter() - t_start
     return res
 
@@ -380,11 +380,17 @@ def _rounds(px, pix, trust, region, mat, rounds, tol_deg, rounds_log):
     return x0
 
 
-def _finish(res, px, mats, t_init, t_brdf):
+def _finish(res, px, mats, labels, t_init, t_brdf):
     """The valid pixels' normals, K_d, shadows, residuals written into `res` (the pixels the
     BRDF-aware step solved are not skipped and have no light eliminated as specular); the
-    materials (agreeing regions merged) and the levels into its info."""
+    materials (agreeing regions merged) and the levels into its info, each pixel's material
+    (`labels`: its region) into res.material."""
     res.info["materials"] = _merge_agreeing(mats)
+    merged = np.zeros(len(mats), np.int16)
+    for k, mat in enumerate(res.info["materials"]):
+        merged[mat.get("regions", [mat["region"]])] = k
+    res.material = np.full(res.valid.shape, -1, np.int16)
+    res.material.reshape(-1)[px.idx] = merged[labels]
     _scatter_rows(res.normal, px.idx, px.nrm)
     _scatter_rows(res.albedo, px.idx, px.kd)
     _scatter_rows(res.shadow, px.idx, px.shadow)

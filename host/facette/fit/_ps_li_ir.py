@@ -15,7 +15,8 @@ the true light removed with the receiver's lobe alone, 0.99x now. Mean normal er
 lobe alone → now: the relief's paints 0.48 / 0.56 / 0.58 → 0.38 / 0.48 / 0.50° (the plaster 0.36°),
 the satin relief 0.51 → 0.34, the rough-plastic relief 0.88 → 0.69, the lacquer shell 0.65 → 0.52,
 the paint vase 1.40 → 1.40; convex objects gather nothing and are unchanged. Several materials
-(materials="auto") keep the Lambertian removal alone: the gather takes one lobe.
+(materials="auto"): each cell gathers and sends through its own material's lobe (the one most of
+its pixels have, `PSResult.material`).
 """
 import time
 
@@ -23,7 +24,7 @@ from facette.recon import remove_interreflections, without_interreflections
 
 from ._ps_li import ps_li_alternating
 
-__all__ = ["ps_li_without_interreflections"]
+__all__ = ["ps_li_without_interreflections", "glossy_lobes_text"]
 
 
 def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, reflectance_scale=1.0, **options):
@@ -32,8 +33,9 @@ def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, re
     images, light_dirs, mask, saturation : as `ps_li_alternating`; reflectance_scale : as
     `remove_interreflections`; **options : of `ps_li_alternating`.
     info : the Lambertian removal's (`without_interreflections`: "applied", fractions, passes),
-    with "glossy": None when that stage did not run (nothing removed, no lobe found, several
-    materials), else the second removal's fractions, its lobe and seconds; "removal_seconds":
+    with "glossy": None when that stage did not run (nothing removed, no lobe found), else the
+    second removal's fractions, its lobes (one per material of li_alternating's info, (σ, n_i) or
+    None) and seconds; "removal_seconds":
     both removals with the first rank_trimmed pass, li_alternating's runs left out.
     """
     t0 = time.perf_counter()
@@ -43,16 +45,23 @@ def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, re
     ps = ps_li_alternating(direct, light_dirs, mask=mask, saturation=saturation, **options)
     info["glossy"] = None
     mats = ps.info.get("materials", [])
-    if not info["applied"] or len(mats) != 1 or not mats[0].get("brdf_step") or mats[0].get("n_i") is None:
+    lobes = [(float(q["sigma"]), float(q["n_i"])) if q.get("brdf_step") and q.get("n_i") is not None else None
+             for q in mats]
+    if not info["applied"] or not any(lobes) or ps.material is None:
         return ps, direct, info
-    lobe = (float(mats[0]["sigma"]), float(mats[0]["n_i"]))
     direct, glossy = remove_interreflections(images, light_dirs, ps.normal, first.albedo, ps.valid & mask,
                                              reflectance_scale=reflectance_scale, saturation=saturation,
-                                             passes=1, lobe=lobe,
-                                             diffuse_through=mats[0].get("diffuse") != "lambert")
+                                             passes=1, lobe=lobes, lobe_map=ps.material,
+                                             diffuse_through=[q.get("diffuse") != "lambert" for q in mats])
     ps = ps_li_alternating(direct, light_dirs, mask=mask, saturation=saturation, **options)
-    info["glossy"] = {"lobe": lobe, "median_fraction": glossy["median_fraction"],
+    info["glossy"] = {"lobes": lobes, "median_fraction": glossy["median_fraction"],
                       "p95_fraction": glossy["p95_fraction"], "capped": glossy["capped"],
                       "seconds": glossy["seconds"]}
     info["removal_seconds"] += glossy["seconds"]
     return ps, direct, info
+
+
+def glossy_lobes_text(glossy):
+    """The lobes of info["glossy"] in words: "σ 0.080, n_i 1.28" for each material ("no lobe" for
+    one without), joined by "; "."""
+    return "; ".join("no lobe" if q is None else f"σ {q[0]:.3f}, n_i {q[1]:.2f}" for q in glossy["lobes"])

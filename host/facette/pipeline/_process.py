@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from facette.fit import fit_cells_verdict, preferred_model, ps_li_without_interreflections
+from facette.fit import fit_cells_verdict, glossy_lobes_text, preferred_model, ps_li_without_interreflections
 from facette._memory import handing_back
 from facette.errors import BadInputError
 from facette.io.atomic import atomic_path, write_text_atomic
@@ -387,8 +387,8 @@ def _note_interreflections(res, info, seconds):
                      + (f"; {info['capped']} values limited to {IR_MAX_FRACTION:.0%} removed" if info["capped"] else ""))
     glossy = info.get("glossy")
     if glossy:
-        res.notes.append(f"glossy inter-reflections removed with the lobe li_alternating found (σ "
-                         f"{glossy['lobe'][0]:.3f}, n_i {glossy['lobe'][1]:.3f}): {glossy['median_fraction']:.1%} "
+        res.notes.append(f"glossy inter-reflections removed with the lobes li_alternating found "
+                         f"({glossy_lobes_text(glossy)}): {glossy['median_fraction']:.1%} "
                          f"of the median value, {glossy['p95_fraction']:.1%} at the 95th percentile, "
                          "then li_alternating again")
 

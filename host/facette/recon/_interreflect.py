@@ -89,17 +89,19 @@ def _interp_matrix(n_fine, n_cells, f):
     return m
 
 
-def _gather_cells(i_c, ld_c, n_c, a_c, cells, z=None, lobe=None, tau=None, spec_scale=0.0):
+def _gather_cells(i_c, ld_c, n_c, a_c, cells, z=None, lobes=None, cell_lobe=None, spec_scale=0.0):
     """((m, hc, wc, c) radiance each cell gathers from the cells it sees (`gather`), the same
-    through the specular lobe `lobe` = (σ, n_i) towards the camera or None), the cells' radiance
-    capped as the module doc says; z : cell heights in cell units (None: integrated); tau : the
-    diffuse part's transmittance t(μ) on even cosines (`remove_interreflections`' `diffuse_through`)
-    or None. With tau, a cell's image radiance is its diffuse light let out at t(n_z) (towards the
-    camera) and what it gathers is divided by the t(n·s) its albedo holds (the mean over the lights
-    that light it, weighted by n·s): the Lambertian ρ/π then turns what the gather let in into
-    the light it sends to the camera. spec_scale > 0 (with `lobe`): 1 / the reflectance scale; each
-    cell's lobe then also mirrors its lights towards the cells in front of it, and its image less
-    its lobe's share (towards the camera) is its diffuse part."""
+    reflected towards the camera by the cells' lobes or None), the cells' radiance capped as the
+    module doc says; z : cell heights in cell units (None: integrated).
+
+    lobes : (sigmas (R,), n_is (R,), taus (R, T)) of `_lobes`, or None (a Lambertian surface);
+    cell_lobe : (hc, wc) int, each cell's lobe (−1: none). A cell with a lobe: its image radiance is
+    its diffuse light let out at t(n_z) (towards the camera), less its lobe's share (towards the
+    camera, times spec_scale = 1 / the reflectance scale), and it mirrors its lights towards the
+    cells in front of it as far as they light it (its image over its Lambertian value, at most 1);
+    what it gathers is divided by the t(n·s) its albedo holds (the mean over the lights that light
+    it, weighted by n·s): the Lambertian ρ/π then turns what the gather let in into the light it
+    sends to the camera."""
     m, hc, wc, c = i_c.shape
     if ld_c.ndim == 2:
         shade = np.einsum("kd,hwd->khw", ld_c, n_c)
@@ -110,43 +112,91 @@ def _gather_cells(i_c, ld_c, n_c, a_c, cells, z=None, lobe=None, tau=None, spec_
     rr, cc = np.nonzero(cells)
     lights = np.ascontiguousarray(np.broadcast_to(ld_c, (rr.size, *ld_c.shape)) if ld_c.ndim == 2 else ld_c[rr, cc],
                                   np.float32)
-    mirrors = lobe is not None and spec_scale > 0 and rr.size > 1
-    if mirrors:
+    if lobes is None:
+        lobes, cell_lobe = (np.zeros(1), np.ones(1), np.ones((1, 2), np.float32)), np.full((hc, wc), -1)
+    sigmas, n_is, taus = lobes
+    lobe_of = np.ascontiguousarray(np.where(cells, cell_lobe, -1)[rr, cc], np.int32)
+    glossy = np.zeros((m, hc, wc, c), np.float32) if (lobe_of >= 0).any() else None
+    lit = np.ones((rr.size, m), np.float32)
+    if glossy is not None and spec_scale > 0:
         from ._interreflect_jit import specular_towards_camera
         lobe_share = np.zeros((m, hc, wc, 1), np.float32)
         lobe_share[:, rr, cc, 0] = spec_scale * specular_towards_camera(
-            np.ascontiguousarray(n_c[rr, cc], np.float32), lights, float(lobe[0]), float(lobe[1])).T
+            np.ascontiguousarray(n_c[rr, cc], np.float32), lights, lobe_of, sigmas, n_is).T
         src = np.maximum(src - lobe_share, 0)
         with np.errstate(invalid="ignore", divide="ignore"):
             lit = np.clip(np.nanmean(i_c, -1) / np.maximum(model.mean(-1), 1e-6), 0, 1)[:, rr, cc].T
         lit = np.ascontiguousarray(np.nan_to_num(lit, nan=1.0), np.float32)
-    else:
-        lit = np.ones((rr.size, m), np.float32)
     src = np.minimum(src, _SOURCE_CAP * model + _SOURCE_FLOOR * a_c[None])
-    through = np.zeros(0, np.float32) if tau is None else np.ascontiguousarray(tau, np.float32)
-    if tau is not None:
-        mu = np.linspace(0.0, 1.0, through.size)
-        src = src / np.maximum(np.interp(n_c[..., 2], mu, through), 1e-3)[None, ..., None]
+    t_of = np.ones((hc, wc), np.float32)        # the transmittance towards the camera, t(n_z)
+    t_in = np.ones((hc, wc), np.float32)        # the albedo's, mean t(n·s) over the lights
+    mu = np.linspace(0.0, 1.0, taus.shape[1])
+    lit_s = np.clip(shade, 0, None)
+    for k in range(len(sigmas)):
+        here = cells & (cell_lobe == k)
+        t_of[here] = np.interp(n_c[..., 2][here], mu, taus[k])
+        t_in[here] = ((lit_s[:, here] * np.interp(lit_s[:, here], mu, taus[k])).sum(0)
+                      / np.maximum(lit_s[:, here].sum(0), 1e-6))
+    src = src / np.maximum(t_of, 1e-3)[None, ..., None]
     gathered = np.zeros((m, hc, wc, c), np.float32)
-    glossy = np.zeros((m, hc, wc, c), np.float32) if lobe is not None else None
     if rr.size > 1:
         from ._interreflect_jit import OFF_SURFACE, gather        # numba loads only when this runs
         if z is None:
             z = integrate_frankot_chellappa1988(n_c, 1.0, cells)
         zgrid = np.where(cells, z, OFF_SURFACE).astype(np.float32)
         rad = np.ascontiguousarray(np.moveaxis(src[:, rr, cc, :], 1, 0).reshape(rr.size, m * c), np.float32)
-        sigma, n_i = lobe if lobe is not None else (0.0, 1.0)
         g, gs = gather(rr.astype(np.float32), cc.astype(np.float32), z[rr, cc].astype(np.float32),
-                       np.ascontiguousarray(n_c[rr, cc], np.float32), rad, zgrid, 48, float(sigma), float(n_i),
-                       through, lights, lit, float(spec_scale) if mirrors else 0.0)
+                       np.ascontiguousarray(n_c[rr, cc], np.float32), rad, zgrid, 48, lobe_of,
+                       np.asarray(sigmas, np.float64), np.asarray(n_is, np.float64),
+                       np.ascontiguousarray(taus, np.float32), lights, lit, float(spec_scale))
         gathered[:, rr, cc, :] = np.moveaxis(g.reshape(rr.size, m, c), 1, 0)
         if glossy is not None:
             glossy[:, rr, cc, :] = np.moveaxis(gs.reshape(rr.size, m, c), 1, 0)
-    if tau is not None:
-        lit = np.clip(shade, 0, None)
-        t_in = (lit * np.interp(lit, mu, through)).sum(0) / np.maximum(lit.sum(0), 1e-6)
-        gathered /= np.maximum(t_in, 1e-3)[None, ..., None]
+    gathered /= np.maximum(t_in, 1e-3)[None, ..., None]
     return gathered, glossy
+
+
+def _cell_lights(ld, ok, f, hc, wc):
+    """The cells' light directions: ld itself for distant lights (m, 3); for per-pixel directions
+    (H, W, m, 3) the cell mean, renormalised (cells off the surface take the mean over the image)."""
+    if ld.ndim == 2:
+        return ld
+    h, w, m, _ = ld.shape
+    ld_c = np.nan_to_num(_cell_mean(ld.reshape(h, w, m * 3), ok, f, hc, wc)).reshape(hc, wc, m, 3)
+    mean = ld.reshape(-1, m, 3).mean(axis=0)
+    norm = np.linalg.norm(ld_c, axis=-1, keepdims=True)
+    return np.where(norm > 0.5, ld_c / np.maximum(norm, 1e-9),
+                    mean / np.linalg.norm(mean, axis=-1, keepdims=True)).astype(np.float32)
+
+
+def _lobes(lobe, lobe_map, diffuse_through, ok, f, hc, wc):
+    """(sigmas (R,), n_is (R,), taus (R, T)) and each cell's lobe (hc, wc) int (−1: none, where most
+    of its pixels have none) of `remove_interreflections`' lobe options, or (None, None)."""
+    if lobe is None:
+        return None, None
+    many = lobe_map is not None
+    lobes = [tuple(map(float, q)) if q is not None else None for q in (lobe if many else [lobe])]
+    through = list(diffuse_through) if np.ndim(diffuse_through) else [bool(diffuse_through)] * len(lobes)
+    if len(through) != len(lobes):
+        raise ValueError(f"diffuse_through: one per lobe ({len(lobes)}), got {len(through)}")
+    for q in lobes:
+        if q is not None and (len(q) != 2 or not (q[0] > 0 and q[1] >= 1)):
+            raise ValueError(f"a lobe is (σ > 0, n_i ≥ 1), got {q}")
+    sigmas = np.array([q[0] if q else 0.0 for q in lobes])
+    n_is = np.array([q[1] if q else 1.0 for q in lobes])
+    taus = np.ones((len(lobes), 65), np.float32)
+    for k, q in enumerate(lobes):
+        if q is not None and through[k]:
+            _, t = coupled_transmittance(*q)
+            taus[k] = np.interp(np.linspace(0, 1, taus.shape[1]), np.linspace(0, 1, t.size), t)
+    if not many:
+        return (sigmas, n_is, taus), np.zeros((hc, wc), np.int64)
+    lab = np.asarray(lobe_map)
+    if lab.shape != ok.shape:
+        raise ValueError(f"lobe_map {lab.shape} must be (H, W) = {ok.shape}")
+    votes = np.stack([_block_sum(((lab == k) & ok)[..., None].astype(np.float32), f, hc, wc)[..., 0]
+                      for k in range(-1, len(lobes))])
+    return (sigmas, n_is, taus), np.argmax(votes, axis=0) - 1
 
 
 def _p95(ir, i_c, cells):
@@ -184,7 +234,7 @@ def _checked(im, shape, normals, albedo, mask, reflectance_scale, max_fraction, 
 
 def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectance_scale=1.0,
                             grid=IR_GRID, max_fraction=IR_MAX_FRACTION, saturation=None, heights=None,
-                            passes=IR_PASSES, tol_deg=0.1, lobe=None, diffuse_through=True):
+                            passes=IR_PASSES, tol_deg=0.1, lobe=None, diffuse_through=True, lobe_map=None):
     """The images with the light the surface gathers from itself taken out (module doc).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity (as
@@ -209,6 +259,14 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
         counted only as far as the cell is lit (its image over its Lambertian value, at most 1: a
         cell in a cast shadow mirrors nothing); a cell's image less its lobe's share towards the
         camera is then its diffuse part.
+    diffuse_through : with `lobe`, whether the diffuse part lies under the lobe's interface (the LI
+        and coupled parts: it takes light in and lets it out by the interface's transmittance
+        t(θ), facette.brdf.coupled_transmittance, so light travelling along the surface, at
+        grazing angles, is gathered weaker than a Lambertian surface would) or beside it (False);
+        one per lobe with `lobe_map`.
+    lobe_map : (H, W) int, for several materials: `lobe` is then a list of (σ, n_i) or None (a
+        material without a lobe), and each pixel's entry its index in it (−1: none); a cell takes
+        the lobe most of its pixels have.
     Returns (corrected images, same shape, float32; info) with info = grid (cells), cell_px,
     cells, passes (per gather: median change of the shape after it, seconds), median_fraction
     and p95_fraction (share of the lit values on the surface that was gathered light), capped
@@ -239,28 +297,17 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
             return _cell_mean(im[k], ok[..., None] & (im[k] < sat), f, hc, wc)
     with ThreadPoolExecutor(2) as pool:                  # numpy lets the GIL go: both cores
         i_c = np.stack(list(pool.map(cell_radiance, range(m))))                      # (m, hc, wc, c)
-    ld = np.asarray(light_dirs, np.float32)
-    if ld.ndim == 2:
-        ld_c = ld
-    else:   # per-pixel directions: the cell mean, renormalised; cells off the surface take the mean
-        ld_c = np.nan_to_num(_cell_mean(ld.reshape(h, w, m * 3), ok, f, hc, wc)).reshape(hc, wc, m, 3)
-        mean = ld.reshape(-1, m, 3).mean(axis=0)
-        norm = np.linalg.norm(ld_c, axis=-1, keepdims=True)
-        ld_c = np.where(norm > 0.5, ld_c / np.maximum(norm, 1e-9),
-                        mean / np.linalg.norm(mean, axis=-1, keepdims=True)).astype(np.float32)
+    ld_c = _cell_lights(np.asarray(light_dirs, np.float32), ok, f, hc, wc)
     if heights is None:
         z = None
     else:
         z = np.nan_to_num(_cell_mean(np.asarray(heights, np.float32)[..., None], ok, f, hc, wc)[..., 0]) / f
     receive = a_c * np.float32(reflectance_scale / np.pi)
-    tau = None
-    if lobe is not None and diffuse_through:
-        tau = coupled_transmittance(float(lobe[0]), float(lobe[1]))[1]
+    lobes, cell_lobe = _lobes(lobe, lobe_map, diffuse_through, ok, f, hc, wc)
     rows = []
     for k in range(int(passes)):
         t = time.perf_counter()
-        gathered, glossy = _gather_cells(i_c, ld_c, n_c, a_c, cells, z, lobe, tau,
-                                         1.0 / reflectance_scale)
+        gathered, glossy = _gather_cells(i_c, ld_c, n_c, a_c, cells, z, lobes, cell_lobe, 1.0 / reflectance_scale)
         cell_ir = gathered * receive if glossy is None else gathered * receive + glossy
         row = {}
         if k + 1 < int(passes) and m >= 4 and (k > 0 or _p95(cell_ir, i_c, cells) >= IR_SKIP_P95):

@@ -17,7 +17,7 @@ OFF_SURFACE = np.float32(-1e30)     # zgrid's height off the surface: below ever
 
 
 @njit(parallel=True, fastmath=True, cache=True)
-def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma, n_i, tau, lights, lit, spec_scale):
+def gather(rows, cols, z, normals, radiance, zgrid, max_steps, lobe_of, sigmas, n_is, taus, lights, lit, spec_scale):
     """out[i, k] = sum_j G_ij radiance[j, k], over the elements j that element i sees.
 
     rows, cols, z : (N,) float32 element positions (grid units; z up, towards the camera);
@@ -30,34 +30,37 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma, n_i, tau, 
     G_ij = cos θ_i cos θ_j A_j / r², A_j = 1 / n_z,j the surface area over one cell: the form
     factor of a small element j seen from i, times π (the radiance, not the exitance, is given).
     A segment that passes more than half a cell under the surface is occluded.
-    sigma > 0 (and n_i > 1): also spec[i, k] = sum_j f_s(ω_ij, v) G_ij radiance[j, k], the light
-    element i reflects towards the camera (v = +z) through a Beckmann lobe of that σ with the
-    Fresnel factor of n_i and Smith's G (eq 3.10): what a glossy receiver adds to its image.
-    tau : (K,) float32, the diffuse part's transmittance t(μ) on K ≥ 2 even cosines μ ∈ [0, 1], or
-    (0,) for none: with it, G_ij takes t(θ_i) t(θ_j) (θ_i, θ_j the angles of the segment to each
-    normal): a substrate under an interface takes light in and lets it out by t (eq 3.15's form;
-    facette.brdf._coupled), so a glossy wall sends its diffuse light along the relief, at grazing
-    angles, weaker than towards the camera, and its neighbour takes less of it in. spec's source
-    radiance takes t(θ_j) alone (the receiver's lobe is on the interface).
+
+    Glossy elements: lobe_of (N,) int32, each element's lobe (an index into sigmas, n_is, taus; −1:
+    none, a Lambertian surface); sigmas, n_is (R,) its Beckmann σ and n_i; taus (R, T) float32 its
+    diffuse part's transmittance t(μ) on T ≥ 2 even cosines μ ∈ [0, 1] (all ones: a diffuse part
+    beside the lobe). For an element with a lobe:
+    - as a receiver, spec[i, k] = sum_j f_s(ω_ij, v) G_ij radiance[j, k], the light it reflects
+      towards the camera (v = +z) through its lobe (eq 3.10; Fresnel of n_i, Smith's G);
+    - its diffuse part takes light in and lets it out by t (eq 3.15's form; facette.brdf._coupled):
+      G_ij takes t_i(θ_i) as a receiver and t_j(θ_j) as a source (θ the segment's angle to each
+      normal), so a glossy wall sends its diffuse light along the relief, at grazing angles, weaker
+      than towards the camera, and its neighbour takes less of it in; spec's source takes t_j alone;
+    - as a source, with spec_scale > 0, it also sends for light l its lobe's reflection towards i,
+      spec_scale lit[j, l] f_s(s_l, ω_ji) (n_j·s_l), white (the radiance given is then its diffuse
+      part alone): a glossy wall mirrors its highlights onto the wall in front of it. spec_scale is
+      1 / the reflectance scale (images are f (n·s)); lit (N, m) the share of the element the light
+      reaches (0 in a cast shadow).
     lights : (N, m, 3) float32 unit vectors towards the m lights (radiance's K = m C columns are
-    light by light, C channels each); spec_scale > 0 (with sigma): each source j also sends, for
-    light l, its lobe's reflection towards i, spec_scale f_s(s_l, ω_ji) (n_j·s_l), white (the
-    radiance given is then the sources' diffuse part alone): a glossy wall mirrors its highlights
-    onto the wall in front of it. spec_scale is 1 / the reflectance scale (images are f (n·s)).
-    Returns (out, spec); spec is zeros when sigma is 0.
+    light by light, C channels each).
+    Returns (out, spec).
     """
     n, k_out = radiance.shape
     out = np.zeros((n, k_out), np.float32)
     spec = np.zeros((n, k_out), np.float32)
-    glossy = sigma > 0 and n_i > 1
-    eta = (n_i - 1.0) * (n_i + 1.0)
-    through = tau.size >= 2
     n_l = lights.shape[1]
     n_c = k_out // n_l
-    mirrors = glossy and spec_scale > 0
     for i in prange(n):
         ri, ci, zi = rows[i], cols[i], z[i]
         nxi, nyi, nzi = normals[i, 0], normals[i, 1], normals[i, 2]
+        li = lobe_of[i]
+        glossy_i = li >= 0 and sigmas[max(li, 0)] > 0 and n_is[max(li, 0)] > 1
+        eta_i = (n_is[max(li, 0)] - 1.0) * (n_is[max(li, 0)] + 1.0)
         acc = np.zeros(k_out, np.float32)
         acc_s = np.zeros(k_out, np.float32)
         sent = np.zeros(n_l, np.float32)
@@ -86,15 +89,17 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma, n_i, tau, 
             r2 = dx * dx + dy * dy + dz * dz
             g = cos_i * cos_j / (r2 * r2) / max(normals[j, 2], 0.05)
             r = math.sqrt(r2)
-            t_i = _interp(tau, cos_i / r) if through else 1.0
-            g_d = g * _interp(tau, cos_j / r) if through else g     # the source's diffuse part, let out
-            fs = _f_s(dx / r, dy / r, dz / r, 0.0, 0.0, 1.0, nxi, nyi, nzi, sigma, eta) if glossy else 0.0
+            lj = lobe_of[j]
+            t_i = _interp(taus, li, cos_i / r) if li >= 0 else 1.0
+            g_d = g * _interp(taus, lj, cos_j / r) if lj >= 0 else g     # the source's diffuse part, let out
+            fs = _f_s(dx / r, dy / r, dz / r, 0.0, 0.0, 1.0, nxi, nyi, nzi, sigmas[li], eta_i) if glossy_i else 0.0
             for k in range(k_out):
                 acc[k] += g_d * t_i * radiance[j, k]
             if fs > 0:
                 for k in range(k_out):
                     acc_s[k] += fs * g_d * radiance[j, k]
-            if mirrors:
+            if spec_scale > 0 and lj >= 0 and sigmas[lj] > 0 and n_is[lj] > 1:
+                eta_j = (n_is[lj] - 1.0) * (n_is[lj] + 1.0)
                 nxj, nyj, nzj = normals[j, 0], normals[j, 1], normals[j, 2]
                 for l in range(n_l):
                     sx, sy, sz = lights[j, l, 0], lights[j, l, 1], lights[j, l, 2]
@@ -102,7 +107,7 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma, n_i, tau, 
                     sent[l] = 0.0
                     if ns > 0:      # towards i: o = -d / r
                         sent[l] = spec_scale * lit[j, l] * ns * _f_s(sx, sy, sz, -dx / r, -dy / r, -dz / r,
-                                                                     nxj, nyj, nzj, sigma, eta)
+                                                                     nxj, nyj, nzj, sigmas[lj], eta_j)
                 for l in range(n_l):
                     if sent[l] > 0:
                         for ch in range(n_c):
@@ -114,11 +119,12 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, sigma, n_i, tau, 
 
 
 @njit(fastmath=True, cache=True)
-def _interp(table, mu):
-    """table (K,) on K even cosines of [0, 1], read linearly at mu."""
-    x = min(max(mu, 0.0), 1.0) * (table.size - 1)
-    k = min(int(x), table.size - 2)
-    return table[k] + (x - k) * (table[k + 1] - table[k])
+def _interp(tables, row, mu):
+    """tables[row] (T,) on T even cosines of [0, 1], read linearly at mu."""
+    t = tables.shape[1]
+    x = min(max(mu, 0.0), 1.0) * (t - 1)
+    k = min(int(x), t - 2)
+    return tables[row, k] + (x - k) * (tables[row, k + 1] - tables[row, k])
 
 
 @njit(fastmath=True, cache=True)
@@ -138,17 +144,20 @@ def _f_s(wx, wy, wz, ox, oy, oz, nx, ny, nz, sigma, eta):
 
 
 @njit(parallel=True, fastmath=True, cache=True)
-def specular_towards_camera(normals, lights, sigma, n_i):
-    """(N, m) float32: f_s(s_l, +z) (n·s_l) of each element's lobe for each light (lights as
-    `gather`'s), the share of its image the lobe holds (before the images' scale)."""
+def specular_towards_camera(normals, lights, lobe_of, sigmas, n_is):
+    """(N, m) float32: f_s(s_l, +z) (n·s_l) of each element's lobe (`gather`'s lobe_of, sigmas, n_is;
+    0 for an element without one) for each light (lights as `gather`'s), the share of its image
+    the lobe holds (before the images' scale)."""
     n, n_l = normals.shape[0], lights.shape[1]
-    eta = (n_i - 1.0) * (n_i + 1.0)
     out = np.zeros((n, n_l), np.float32)
-    if not (sigma > 0 and n_i > 1):
-        return out
     for j in prange(n):
+        lj = lobe_of[j]
+        if lj < 0 or not (sigmas[lj] > 0 and n_is[lj] > 1):
+            continue
+        eta = (n_is[lj] - 1.0) * (n_is[lj] + 1.0)
         for l in range(n_l):
             sx, sy, sz = lights[j, l, 0], lights[j, l, 1], lights[j, l, 2]
             ns = normals[j, 0] * sx + normals[j, 1] * sy + normals[j, 2] * sz
-            out[j, l] = ns * _f_s(sx, sy, sz, 0.0, 0.0, 1.0, normals[j, 0], normals[j, 1], normals[j, 2], sigma, eta)
+            out[j, l] = ns * _f_s(sx, sy, sz, 0.0, 0.0, 1.0, normals[j, 0], normals[j, 1], normals[j, 2],
+                                  sigmas[lj], eta)
     return out

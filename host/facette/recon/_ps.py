@@ -41,6 +41,8 @@ class PSResult:
         on the chosen channel (a confidence map: high means non-Lambertian or shadowed).
     skipped : (H, W) bool, pixels that least squares already explained (residual <
         t_residual, no light near grazing), so the hierarchy did not run on them.
+    material : (H, W) int16, the BRDF-aware methods' material of each pixel (an index into
+        info["materials"]; −1 where not valid), or None.
     """
     normal: np.ndarray
     albedo: np.ndarray
@@ -52,6 +54,7 @@ class PSResult:
     skipped: np.ndarray
     method: str = ""
     info: dict = field(default_factory=dict)
+    material: np.ndarray = None
 
 
 # ----------------------------------------------------------------------------- input checks

@@ -235,7 +235,8 @@ def test_glossy_walls_mirror_light_that_the_second_removal_takes_out(cache):
     lambertian = ps_li_alternating(without_interreflections(im, L, d["mask"])[0], L, mask=d["mask"])
     r, direct, info = ps_li_without_interreflections(im, L, d["mask"])
     assert info["applied"] and info["glossy"] is not None
-    assert 0.06 < info["glossy"]["lobe"][0] < 0.11 and 1.2 < info["glossy"]["lobe"][1] < 1.36
+    (sigma, n_i), = info["glossy"]["lobes"]
+    assert 0.06 < sigma < 0.11 and 1.2 < n_i < 1.36
     assert info["glossy"]["p95_fraction"] > info["p95_fraction"]      # more is removed than before
     assert err(r) < 0.97 * err(lambertian), (err(r), err(lambertian))
     assert np.all(direct <= im + 1e-6)

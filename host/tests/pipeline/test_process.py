@@ -274,7 +274,7 @@ def test_brdf_aware_method_removes_glossy_interreflections_too(tmp_path):
     res = process(folder, outputs=["normals", "samples", "brdf"], out_dir=tmp_path / "out",
                   method="li_alternating", interreflections=True)
     glossy = res.interreflections["glossy"]
-    assert res.interreflections["applied"] and glossy is not None and 0.06 < glossy["lobe"][0] < 0.11
+    assert res.interreflections["applied"] and glossy is not None and 0.06 < glossy["lobes"][0][0] < 0.11
     assert any(n.startswith("glossy inter-reflections removed") for n in res.notes)
     layered = res.ps.info["materials"][0]["diffuse"]
     assert res.brdf.volume == {"li": "tables", "coupled": "coupled"}[layered] and 0.06 < res.brdf.params["sigma"] < 0.11

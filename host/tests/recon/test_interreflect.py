@@ -207,12 +207,16 @@ def test_the_gather_weights_each_pair_by_the_interface_transmittance_at_both_end
     rad = np.random.default_rng(3).uniform(0.1, 1.0, (4, 2)).astype(np.float32)
     tau = np.linspace(0.3, 0.95, 9).astype(np.float32) ** 0.5
     no_lights, ones = np.zeros((4, 2, 3), np.float32), np.ones((4, 2), np.float32)
-    got, _ = gather(rows, cols, z, nrm, rad, grid, 48, 0.0, 1.0, tau, no_lights, ones, 0.0)
-    flat, _ = gather(rows, cols, z, nrm, rad, grid, 48, 0.0, 1.0, np.zeros(0, np.float32), no_lights, ones, 0.0)
-    t = lambda mu: np.interp(mu, np.linspace(0, 1, tau.size), tau)
+    # element 3 has no lobe (a Lambertian material beside the others): t = 1 at its end
+    lobe_of = np.array([0, 0, 0, -1], np.int32)
+    no_lobe = (np.zeros(1), np.ones(1))
+    got, _ = gather(rows, cols, z, nrm, rad, grid, 48, lobe_of, *no_lobe, tau[None], no_lights, ones, 0.0)
+    flat, _ = gather(rows, cols, z, nrm, rad, grid, 48, np.full(4, -1, np.int32), *no_lobe, tau[None], no_lights,
+                     ones, 0.0)
+    t = lambda mu, k: np.interp(mu, np.linspace(0, 1, tau.size), tau) if lobe_of[k] >= 0 else 1.0
     want, plain = np.zeros((4, 2)), np.zeros((4, 2))
     for i, j, _, _, ci, cj, g in pairs:
-        want[i] += g * t(ci) * t(cj) * rad[j]
+        want[i] += g * t(ci, i) * t(cj, j) * rad[j]
         plain[i] += g * rad[j]
     np.testing.assert_allclose(flat, plain, rtol=1e-4)
     np.testing.assert_allclose(got, want, rtol=1e-4)
@@ -230,28 +234,32 @@ def test_a_glossy_cell_mirrors_its_lights_towards_the_cells_in_front_of_it():
     lights /= np.linalg.norm(lights, axis=1, keepdims=True)
     lit = np.array([[1, 1], [1, 0.5], [0, 1], [1, 1]], np.float32)
     rad = np.zeros((4, 2), np.float32)                  # no diffuse light: the mirrors alone
-    out, spec = gather(rows, cols, z, nrm, rad, grid, 48, sigma, n_i, np.zeros(0, np.float32),
+    # two materials: elements 0-2 in one lobe, element 3 in another (σ 0.2, n_i 1.3)
+    lobe_of = np.array([0, 0, 0, 1], np.int32)
+    sig, nis = np.array([sigma, 0.2]), np.array([n_i, 1.3])
+    out, spec = gather(rows, cols, z, nrm, rad, grid, 48, lobe_of, sig, nis, np.ones((2, 2), np.float32),
                        np.ascontiguousarray(np.broadcast_to(lights, (4, 2, 3))), lit, scale)
 
-    def f_s(n, s, o):       # li_specular in the frame of normal n
+    def f_s(n, s, o, k):    # li_specular in the frame of normal n, element k's lobe
         e3 = n / np.linalg.norm(n)
         e1 = np.cross(e3, [0.0, 1.0, 0.0])
         e1 /= np.linalg.norm(e1)
         frame = np.stack([e1, np.cross(e3, e1), e3])
-        return float(li_specular(frame @ s, frame @ o, sigma, n_i))
+        return float(li_specular(frame @ s, frame @ o, sig[lobe_of[k]], nis[lobe_of[k]]))
 
     want, want_s = np.zeros((4, 2)), np.zeros((4, 2))
     v = np.array([0.0, 0.0, 1.0])
     for i, j, d, r, _, _, g in pairs:
         for l in range(2):
-            sent = scale * lit[j, l] * max(nrm[j] @ lights[l], 0) * f_s(nrm[j], lights[l], -d / r)
+            sent = scale * lit[j, l] * max(nrm[j] @ lights[l], 0) * f_s(nrm[j], lights[l], -d / r, j)
             want[i, l] += g * sent
-            want_s[i, l] += f_s(nrm[i], d / r, v) * g * sent
+            want_s[i, l] += f_s(nrm[i], d / r, v, i) * g * sent
     assert np.count_nonzero(want) >= 3
     np.testing.assert_allclose(out, want, rtol=1e-3, atol=1e-7)
     np.testing.assert_allclose(spec, want_s, rtol=1e-3, atol=1e-7)
-    cam = specular_towards_camera(nrm, np.ascontiguousarray(np.broadcast_to(lights, (4, 2, 3))), sigma, n_i)
-    np.testing.assert_allclose(cam, [[max(n @ s, 0) * f_s(n, s, v) for s in lights] for n in nrm], rtol=1e-4, atol=1e-6)
+    cam = specular_towards_camera(nrm, np.ascontiguousarray(np.broadcast_to(lights, (4, 2, 3))), lobe_of, sig, nis)
+    np.testing.assert_allclose(cam, [[max(n @ s, 0) * f_s(n, s, v, k) for s in lights] for k, n in enumerate(nrm)],
+                               rtol=1e-4, atol=1e-6)
 
 
 def test_a_glossy_reliefs_diffuse_light_is_gathered_through_its_interface(tmp_path):
@@ -272,3 +280,36 @@ def test_a_glossy_reliefs_diffuse_light_is_gathered_through_its_interface(tmp_pa
                                          lobe=(0.05, 1.26), diffuse_through=through)
         ratio[through] = (im - out)[:, sel].sum() / true
     assert ratio[False] > 1.15 and 0.9 < ratio[True] < 1.05, ratio
+
+
+def test_each_material_gathers_through_its_own_lobe():
+    # a lobe map naming one material everywhere is the single lobe; a map that gives half the
+    # groove a second material changes the light removed there, and a material without a lobe
+    # (None) is a Lambertian one
+    nrm, heights, _, _ = _v_groove(32, 48)
+    h, w = heights.shape
+    im = np.stack([_lambertian(nrm, 0.5, UP[k:k + 1])[0] for k in range(4)])
+    args = (im, UP, nrm, np.full((h, w, 3), 0.5), np.ones((h, w), bool))
+    kw = {"heights": heights, "passes": 1}
+    one, _ = remove_interreflections(*args, lobe=(0.1, 1.5), **kw)
+    same, _ = remove_interreflections(*args, lobe=[(0.1, 1.5), (0.3, 1.4)], lobe_map=np.zeros((h, w), int), **kw)
+    np.testing.assert_allclose(same, one, rtol=1e-6, atol=1e-7)
+    halves = np.zeros((h, w), int)
+    halves[:, w // 2:] = 1
+    two, _ = remove_interreflections(*args, lobe=[(0.1, 1.5), (0.3, 1.4)], lobe_map=halves, **kw)
+    plain, _ = remove_interreflections(*args, **kw)
+    lamb, _ = remove_interreflections(*args, lobe=[None], lobe_map=np.zeros((h, w), int), **kw)
+    np.testing.assert_allclose(lamb, plain, rtol=1e-6, atol=1e-7)
+    assert np.abs(two - one).max() > 1e-4 and not np.allclose(two, plain)
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"lobe": [(0.1, 1.5)], "lobe_map": np.zeros((3, 3), int)}, "lobe_map"),
+    ({"lobe": [(0.1, 1.5)], "lobe_map": np.zeros((16, 16), int), "diffuse_through": [True, False]}, "one per lobe"),
+    ({"lobe": (0.0, 1.5)}, "σ > 0"),
+])
+def test_bad_lobes_are_refused_with_what_was_wrong(kwargs, words):
+    nrm, mask = _dome(16, 6)
+    im = _lambertian(nrm, 0.5, UP)
+    with pytest.raises(ValueError, match=words):
+        remove_interreflections(im, UP, nrm, np.full(mask.shape, 0.5), mask, **kwargs)
