@@ -11,7 +11,8 @@ to choose another: pipeline._channels; the albedo, li_alternating's K_d, per cha
 The time is process's wall time for the normals (reading included); `facette process` with every
 output adds the integration, BRDF fit, PTM/HSH and report. Rows of a name ending in "+ir" are
 NOT process's (process refuses to remove inter-reflections from an albedo that is not a
-reflectance, as DiLiGenT's is not): `run_ps` on the same images, the albedo's scale assumed.
+reflectance, as DiLiGenT's is not): `run_ps` on the same images, the albedo's scale assumed, the
+steps and channels as `process --interreflections`.
 Per object and method: mean and median angular error over the mask (zero-length truth normals
 left out), run time, and the published least-squares figure (Shi et al. 2016/2019, all 96
 lights) beside it; then the mean over each group of objects. "rank_trimmed+ir": the same after
@@ -37,7 +38,6 @@ from scipy.optimize import linear_sum_assignment
 
 from facette.io.diligent import is_diligent_dir, read_diligent
 from facette.methods import PS_METHODS, photometric_stereo
-from facette.recon import remove_interreflections
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
 DEFAULT_METHODS = ["woodham1980", "rank_trimmed", "li_alternating"]
@@ -120,15 +120,28 @@ def base_method(name):
 
 def run_ps(images, light_dirs, name, mask, init=None):
     """photometric_stereo by name; a name ending in IR_SUFFIX first removes the inter-reflections
-    (shape and albedo from a rank_trimmed pass, the albedo scaled as IR_ASSUMED_P99 says)."""
+    as `process --interreflections` does (the normals on the channels `process` chooses by default;
+    li_alternating: its glossy second gather, `ps_li_without_interreflections`), with the albedo's
+    scale assumed: its 99th percentile (the brightest channel) IR_ASSUMED_P99."""
     method = base_method(name)
-    if name != method:
-        first = photometric_stereo(images, light_dirs, method="rank_trimmed", mask=mask)
-        p99 = float(np.percentile(first.albedo[first.valid], 99)) if first.valid.any() else 1.0
-        images, _ = remove_interreflections(images, light_dirs, first.normal, first.albedo, first.valid,
-                                            reflectance_scale=IR_ASSUMED_P99 / max(p99, 1e-12))
-    # li_alternating takes `init`; the other methods leave it
-    return photometric_stereo(images, light_dirs, method=method, mask=mask, options={"init": init} if init else None)
+    options = {"init": init} if init else {}       # li_alternating takes `init`; the other methods leave it
+    if name == method:
+        return photometric_stereo(images, light_dirs, method=method, mask=mask, options=options or None)
+    from facette.fit import ps_li_without_interreflections
+    from facette.pipeline._channels import CHANNELS_DEFAULT, SOLVE_CHANNEL, channel_weights, with_solve_channel
+    from facette.recon import without_interreflections
+    if images.ndim == 4 and images.shape[-1] == 3:       # RGB: the channel process solves on, appended
+        images = with_solve_channel(images, channel_weights(images, mask, CHANNELS_DEFAULT)[0])
+        options["channel"] = SOLVE_CHANNEL
+    channel = options.get("channel")
+    first = photometric_stereo(images, light_dirs, method="rank_trimmed", mask=mask,
+                               options={"channel": channel} if channel is not None else None)
+    p99 = float(np.percentile(first.albedo[first.valid].max(-1), 99)) if first.valid.any() else 1.0
+    scale = IR_ASSUMED_P99 / max(p99, 1e-12)
+    if PS_METHODS.canonical(method) == "li_alternating":
+        return ps_li_without_interreflections(images, light_dirs, mask, reflectance_scale=scale, **options)[0]
+    images, _, _ = without_interreflections(images, light_dirs, mask, reflectance_scale=scale, channel=channel)
+    return photometric_stereo(images, light_dirs, method=method, mask=mask, options=options)
 
 
 def subset_folder(folder, select, dest):

@@ -40,7 +40,7 @@ def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, re
     """
     t0 = time.perf_counter()
     direct, first, info = without_interreflections(images, light_dirs, mask, saturation=saturation,
-                                                   reflectance_scale=reflectance_scale)
+                                                   reflectance_scale=reflectance_scale, channel=options.get("channel"))
     info["removal_seconds"] = time.perf_counter() - t0
     ps = ps_li_alternating(direct, light_dirs, mask=mask, saturation=saturation, **options)
     info["glossy"] = None

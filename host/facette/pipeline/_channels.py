@@ -150,16 +150,16 @@ def with_solve_channel(images, weights, saturation=None):
 def images_for_solve(images, mask, options, bag, notes):
     """(images the normals are solved on, {"channels": the choice applied, "weights": [w_R, w_G, w_B]}).
 
-    options : `process`'s (its channels, saturation, memory, interreflections); bag : the
+    options : `process`'s (its channels, saturation, memory); bag : the
     methods' options (its "channel" set to SOLVE_CHANNEL when one is appended); notes : a list
     the notes are appended to. `images` itself for "green", for images that are not RGB, and with
-    --memory or --interreflections (the choice was not measured there: green, with a note); else
+    --memory (the choice was not measured there: green, with a note); else
     R, G, B with the reduced channel appended (`with_solve_channel`).
     """
     channels = options.channels
     if images.ndim != 4 or images.shape[-1] != 3:
         return images, {"channels": "single", "weights": None}
-    green_with = "--memory" if options.memory else "--interreflections" if options.interreflections else None
+    green_with = "--memory" if options.memory else None
     if channels != "green" and green_with:
         notes.append(f"channels: {channels} asked; with {green_with} the normals are solved on green")
     if channels == "green" or green_with:

@@ -297,11 +297,11 @@ def _process(source, outputs, out_dir, o):
     direct, ps = solve_in, None
     if o.interreflections and method_name == "li_alternating":
         # glossy walls mirror each other: a second removal with li's lobe (facette.fit._ps_li_ir)
-        ps, direct, info = ps_li_without_interreflections(images, light_dirs, **options_for(method_name, bag))
+        ps, direct, info = ps_li_without_interreflections(solve_in, light_dirs, **options_for(method_name, bag))
         _note_interreflections(res, info, info["removal_seconds"])
     elif o.interreflections:
-        direct, ps = _without_interreflections(res, images, light_dirs, inp.mask, o.saturation,
-                                               method_name == "rank_trimmed")
+        direct, ps = _without_interreflections(res, solve_in, light_dirs, inp.mask, o.saturation,
+                                               method_name == "rank_trimmed", bag.get("channel"))
     if ps is None and o.memory is not None:     # over bands of the images held whole
         ps = in_memory_ps(direct, light_dirs, o, bag, outputs, res)
     elif ps is None:
@@ -363,11 +363,11 @@ def _timed(res, name, fn, *args):
     return out
 
 
-def _without_interreflections(res, images, light_dirs, mask, saturation, reuse):
+def _without_interreflections(res, images, light_dirs, mask, saturation, reuse, channel=None):
     """(images with the gathered light removed, or `images` when there is too little to matter;
-    the first pass's PSResult when `reuse` and nothing was removed, else None)."""
+    the first pass's PSResult (on `channel`) when `reuse` and nothing was removed, else None)."""
     t0 = time.perf_counter()
-    direct, first, info = without_interreflections(images, light_dirs, mask, saturation=saturation)
+    direct, first, info = without_interreflections(images, light_dirs, mask, saturation=saturation, channel=channel)
     _note_interreflections(res, info, time.perf_counter() - t0)
     if not info["applied"]:
         return images, first if reuse else None

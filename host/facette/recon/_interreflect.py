@@ -124,9 +124,10 @@ def _gather_cells(i_c, ld_c, n_c, a_c, cells, z=None, lobes=None, cell_lobe=None
         lobe_share[:, rr, cc, 0] = spec_scale * specular_towards_camera(
             np.ascontiguousarray(n_c[rr, cc], np.float32), lights, lobe_of, sigmas, n_is).T
         src = np.maximum(src - lobe_share, 0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            lit = np.clip(np.nanmean(i_c, -1) / np.maximum(model.mean(-1), 1e-6), 0, 1)[:, rr, cc].T
-        lit = np.ascontiguousarray(np.nan_to_num(lit, nan=1.0), np.float32)
+        seen = np.isfinite(i_c)          # a cell missing in every channel counts as lit
+        mean_i = np.where(seen, i_c, 0).sum(-1) / np.maximum(seen.sum(-1), 1)
+        lit = np.where(seen.any(-1), np.clip(mean_i / np.maximum(model.mean(-1), 1e-6), 0, 1), 1.0)
+        lit = np.ascontiguousarray(lit[:, rr, cc].T, np.float32)
     src = np.minimum(src, _SOURCE_CAP * model + _SOURCE_FLOOR * a_c[None])
     t_of = np.ones((hc, wc), np.float32)        # the transmittance towards the camera, t(n_z)
     t_in = np.ones((hc, wc), np.float32)        # the albedo's, mean t(n·s) over the lights
@@ -362,11 +363,13 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
 
 
 
-def without_interreflections(images, light_dirs, mask, saturation=None, reflectance_scale=1.0, **options):
+def without_interreflections(images, light_dirs, mask, saturation=None, reflectance_scale=1.0, channel=None,
+                             **options):
     """`remove_interreflections` with its first shape from rank_trimmed on the images.
 
-    images, light_dirs, mask, saturation : as `ps_rank_trimmed`; reflectance_scale and
-    **options : as `remove_interreflections`.
+    images, light_dirs, mask, saturation, channel : as `ps_rank_trimmed` (channel: the one its
+    normals are solved on; None: its default); reflectance_scale and **options : as
+    `remove_interreflections`.
     Returns (images, first, info): the corrected images, or the given ones when under
     IR_SKIP_P95 of the values at the 95th percentile is gathered light (info "applied" False);
     the first pass's PSResult; the removal's info.
@@ -374,7 +377,8 @@ def without_interreflections(images, light_dirs, mask, saturation=None, reflecta
     percentile above 1, as with a DiLiGenT folder's relative intensities): the wrong amount of
     light would be removed without a word.
     """
-    first = ps_rank_trimmed(images, light_dirs, mask=mask, saturation=saturation)
+    first = ps_rank_trimmed(images, light_dirs, mask=mask, saturation=saturation,
+                            **({} if channel is None else {"channel": channel}))
     if first.valid.any():
         p99 = float(np.percentile(first.albedo[first.valid].max(axis=-1), 99)) * reflectance_scale
         if p99 > 1.0:
