@@ -35,8 +35,8 @@ def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, re
     info : the Lambertian removal's (`without_interreflections`: "applied", fractions, passes),
     with "glossy": None when that stage did not run (nothing removed, no lobe found), else the
     second removal's fractions, its lobes (one per material of li_alternating's info, (σ, n_i) or
-    None) and seconds; "removal_seconds":
-    both removals with the first rank_trimmed pass, li_alternating's runs left out.
+    None) and seconds; "removal_seconds": both removals with the first rank_trimmed pass,
+    li_alternating's runs left out.
     """
     t0 = time.perf_counter()
     direct, first, info = without_interreflections(images, light_dirs, mask, saturation=saturation,
