@@ -3,6 +3,12 @@ element, the radiance it receives from every other one it sees, weighted by thei
 
 First call in a fresh environment compiles the kernel (a few seconds); numba caches the machine
 code next to this file (__pycache__).
+
+No fastmath: numba compiles the brdf helpers the lobe calls (facette.brdf._lobe_jit) with the
+caller's flags and caches them for every later caller, so with fastmath here Smith's G_1 lost
+its last bits for the BRDF fit too, depending on which ran first after an install (a test caught
+it). Without it the gather is ~20 % slower (96 × 96 cells, 12 lights: 0.65-0.71 -> 0.79-0.80 s
+Lambertian, 1.26-1.31 -> 1.55-1.61 s glossy).
 """
 import math
 
@@ -16,7 +22,7 @@ __all__ = ["gather", "specular_towards_camera", "OFF_SURFACE"]
 OFF_SURFACE = np.float32(-1e30)     # zgrid's height off the surface: below every segment
 
 
-@njit(parallel=True, fastmath=True, cache=True)
+@njit(parallel=True, cache=True)
 def gather(rows, cols, z, normals, radiance, zgrid, max_steps, lobe_of, sigmas, n_is, taus, lights, lit, spec_scale):
     """out[i, k] = sum_j G_ij radiance[j, k], over the elements j that element i sees.
 
@@ -24,7 +30,7 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, lobe_of, sigmas, 
     normals : (N, 3) float32 unit normals, camera frame (x right, y up: y = -row);
     radiance : (N, K) float32 radiance leaving each element (the K images and channels);
     zgrid : (H, W) float32 heights of the grid, OFF_SURFACE off the surface (the visibility test;
-        not NaN: under fastmath a NaN test may be compiled away, and NaN then hid every segment);
+        a finite floor, not NaN: with fastmath, once used here, a NaN test was compiled away);
     max_steps : samples of the segment i -> j tested against zgrid (at most one per cell).
 
     G_ij = cos θ_i cos θ_j A_j / r², A_j = 1 / n_z,j the surface area over one cell: the form
@@ -118,7 +124,7 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, lobe_of, sigmas, 
     return out, spec
 
 
-@njit(fastmath=True, cache=True)
+@njit(cache=True)
 def _interp(tables, row, mu):
     """tables[row] (T,) on T even cosines of [0, 1], read linearly at mu."""
     t = tables.shape[1]
@@ -127,7 +133,7 @@ def _interp(tables, row, mu):
     return tables[row, k] + (x - k) * (tables[row, k + 1] - tables[row, k])
 
 
-@njit(fastmath=True, cache=True)
+@njit(cache=True)
 def _f_s(wx, wy, wz, ox, oy, oz, nx, ny, nz, sigma, eta):
     """f_s (eq 3.10, facette.brdf.li_specular) for light from the unit direction w leaving towards
     the unit o at the normal n; 0 below the surface and beyond 4 σ of the lobe (D < 1e-7 of its peak)."""
@@ -143,7 +149,7 @@ def _f_s(wx, wy, wz, ox, oy, oz, nx, ny, nz, sigma, eta):
     return li_specular_half(cw, co, ch, (wx * hx + wy * hy + wz * hz) / hn, sigma, eta)
 
 
-@njit(parallel=True, fastmath=True, cache=True)
+@njit(parallel=True, cache=True)
 def specular_towards_camera(normals, lights, lobe_of, sigmas, n_is):
     """(N, m) float32: f_s(s_l, +z) (n·s_l) of each element's lobe (`gather`'s lobe_of, sigmas, n_is;
     0 for an element without one) for each light (lights as `gather`'s), the share of its image
