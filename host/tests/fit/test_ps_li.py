@@ -351,3 +351,23 @@ def test_the_later_rounds_refit_on_round_twos_draw(monkeypatch):
     # on the same pixels the refit follows the normals alone: rounds 3 and 4 agree closely
     r3, r4 = r.info["rounds"][2:]
     assert abs(r3["sigma"] - r4["sigma"]) < 0.01 * r3["sigma"] and abs(r3["n_i"] - r4["n_i"]) < 0.005
+
+
+def test_a_cast_shadow_stays_flagged_and_the_lobes_own_tail_does_not(cache):
+    # a narrow lobe (paint σ 0.05) with a block cast into shadow under two lights: the solve's
+    # test, read at its start normal, flagged 86 lit values of the highlights' tails too (which
+    # the BRDF fit's samples then left out); settled at the final normal against the diffuse
+    # part, the shadow's values stay flagged and the lit ones are lifted
+    d = render_scene("sphere", "paint_0.05", size=64, spp=32, cache_dir=cache)
+    im, mask = d["images"].copy(), d["mask"]
+    block = np.zeros(mask.shape, bool)
+    block[20:30, 24:40] = True
+    for k in (0, 5):
+        im[k][block & mask] *= 0.02
+    r = ps_li_alternating(im, d["light_dirs"], mask=mask)
+    solved = r.valid & ~r.skipped
+    assert r.shadow[block & mask & solved][:, [0, 5]].all()
+    lit = r.shadow.copy()
+    lit[block] = False
+    assert lit[solved].sum() <= 10, lit[solved].sum()
+    assert r.info["materials"][0]["shadows_settled"]["flags_lifted"] > 50
