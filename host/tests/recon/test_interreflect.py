@@ -168,11 +168,12 @@ def test_per_pixel_light_directions_give_what_distant_ones_give():
     lights /= np.linalg.norm(lights, axis=1, keepdims=True)
     im = _lambertian(nrm, 0.8, lights)
     mask = x * x + y * y < 14 ** 2
-    far, info = remove_interreflections(im, lights, nrm, np.full((h, w), 0.8), mask, grid=16)
-    near, _ = remove_interreflections(im, np.broadcast_to(lights, (h, w, len(lights), 3)), nrm,
-                                      np.full((h, w), 0.8), mask, grid=16)
-    assert info["median_fraction"] > 0.01
-    np.testing.assert_allclose(near, far, rtol=1e-5, atol=1e-7)
+    for lobe in (None, (0.1, 1.4)):             # a glossy bowl's mirrors read the cells' lights too
+        far, info = remove_interreflections(im, lights, nrm, np.full((h, w), 0.8), mask, grid=16, lobe=lobe)
+        near, _ = remove_interreflections(im, np.broadcast_to(lights, (h, w, len(lights), 3)), nrm,
+                                          np.full((h, w), 0.8), mask, grid=16, lobe=lobe)
+        assert info["median_fraction"] > 0.01
+        np.testing.assert_allclose(near, far, rtol=1e-5, atol=1e-7)
 
 
 def _bowl_elements():
