@@ -128,11 +128,10 @@ def run_ps(images, light_dirs, name, mask, init=None):
     if name == method:
         return photometric_stereo(images, light_dirs, method=method, mask=mask, options=options or None)
     from facette.fit import ps_li_without_interreflections
-    from facette.pipeline._channels import CHANNELS_DEFAULT, SOLVE_CHANNEL, channel_weights, with_solve_channel
+    from facette.pipeline import ProcessOptions
+    from facette.pipeline._channels import images_for_solve
     from facette.recon import without_interreflections
-    if images.ndim == 4 and images.shape[-1] == 3:       # RGB: the channel process solves on, appended
-        images = with_solve_channel(images, channel_weights(images, mask, CHANNELS_DEFAULT)[0])
-        options["channel"] = SOLVE_CHANNEL
+    images, _ = images_for_solve(images, mask, ProcessOptions(), options, [])   # process's default channels
     channel = options.get("channel")
     first = photometric_stereo(images, light_dirs, method="rank_trimmed", mask=mask,
                                options={"channel": channel} if channel is not None else None)

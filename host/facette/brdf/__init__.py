@@ -17,7 +17,7 @@ from ._volume import (VOLUME_METHODS, VolumeTable, build_volume_table, volume_in
                       volume_integral_table)
 from ._albedo import directional_albedo
 from ._coupled import coupled_transmittance
-from ._shading import kd_from_kappa, li_kappa, li_kd_from_kappa, li_shading_terms
+from ._shading import kd_from_kappa, kappa_from_kd, li_kappa, li_kd_from_kappa, li_shading_terms
 
 __all__ = [
     "fresnel_dielectric", "r_e_molenaar1999", "r_i_simonot2009",
@@ -30,5 +30,5 @@ __all__ = [
     "interreflection_integral_vcavity", "interreflection_mixed_integral_vcavity", "interreflection_vcavity",
     "build_interreflection_table",
     "directional_albedo", "coupled_transmittance",
-    "li_kappa", "li_kd_from_kappa", "kd_from_kappa", "li_shading_terms",
+    "li_kappa", "li_kd_from_kappa", "kd_from_kappa", "kappa_from_kd", "li_shading_terms",
 ]

@@ -54,6 +54,14 @@ def kd_from_kappa(kappa, n_i, volume_model):
     return li_kd_from_kappa(kappa, n_i)
 
 
+def kappa_from_kd(kd, n_i, volume_model):
+    """Inverse of `kd_from_kappa`: κ of K_d (in [0, 1]) under the diffuse part (`li_kappa`, or
+    K_d / π for volume_model "lambert")."""
+    if volume_model == "lambert":
+        return np.asarray(kd) / np.pi
+    return li_kappa(kd, n_i)
+
+
 def _smith_g1_beckmann(c, sigma):
     """Smith G_1 for Beckmann (eq 3.20) from the cosine c to the normal; 0 at c ≤ 0."""
     c = np.clip(c, 0, 1)

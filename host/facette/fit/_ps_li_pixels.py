@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from facette._threads import run_blocks
-from facette.brdf import li_kappa, li_shading_terms
+from facette.brdf import kappa_from_kd, li_shading_terms
 from facette.recon._ps import _ls_normals, _pixel_dirs, _shading
 from ._li_model import PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model, is_metal
 from ._normals_li import CAST_SHADOW_RATIO, RefineResult, refine_normals_li
@@ -258,8 +258,7 @@ class Pixels:
             p = sel[a:a + BLOCK]
             _, b = li_shading_terms(self.nrm[p], self.lights_of(p), sigma, n_i, specular=False,
                                     volume_model=self.vm)
-            kd = np.clip(self.kd[p, self.channel], 0, 1)
-            kappa = kd / np.pi if self.vm == "lambert" else li_kappa(kd, n_i)
+            kappa = kappa_from_kd(np.clip(self.kd[p, self.channel], 0, 1), n_i, self.vm)
             values = self.flat[:, self.idx[p], self.channel].T
             was = self.shadow[p]
             self.shadow[p] = was & (values < CAST_SHADOW_RATIO * b * kappa[:, None])

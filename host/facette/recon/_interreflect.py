@@ -185,11 +185,9 @@ def _lobes(lobe, lobe_map, diffuse_through, ok, f, hc, wc):
             raise ValueError(f"a lobe is (σ > 0, n_i ≥ 1), got {q}")
     sigmas = np.array([q[0] if q else 0.0 for q in lobes])
     n_is = np.array([q[1] if q else 1.0 for q in lobes])
-    taus = np.ones((len(lobes), 65), np.float32)
-    for k, q in enumerate(lobes):
-        if q is not None and through[k]:
-            _, t = coupled_transmittance(*q)
-            taus[k] = np.interp(np.linspace(0, 1, taus.shape[1]), np.linspace(0, 1, t.size), t)
+    tables = [coupled_transmittance(*q)[1] if q is not None and thru else None for q, thru in zip(lobes, through)]
+    width = max((t.size for t in tables if t is not None), default=2)     # t(μ) on even cosines
+    taus = np.stack([np.ones(width) if t is None else t for t in tables]).astype(np.float32)
     if not many:
         return (sigmas, n_is, taus), np.zeros((hc, wc), np.int64)
     lab = np.asarray(lobe_map)

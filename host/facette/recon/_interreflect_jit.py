@@ -61,12 +61,12 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, lobe_of, sigmas, 
     spec = np.zeros((n, k_out), np.float32)
     n_l = lights.shape[1]
     n_c = k_out // n_l
+    glossy, etas = _lobe_constants(sigmas, n_is)
     for i in prange(n):
         ri, ci, zi = rows[i], cols[i], z[i]
         nxi, nyi, nzi = normals[i, 0], normals[i, 1], normals[i, 2]
         li = lobe_of[i]
-        glossy_i = li >= 0 and sigmas[max(li, 0)] > 0 and n_is[max(li, 0)] > 1
-        eta_i = (n_is[max(li, 0)] - 1.0) * (n_is[max(li, 0)] + 1.0)
+        glossy_i = li >= 0 and glossy[li]
         acc = np.zeros(k_out, np.float32)
         acc_s = np.zeros(k_out, np.float32)
         sent = np.zeros(n_l, np.float32)
@@ -98,14 +98,13 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, lobe_of, sigmas, 
             lj = lobe_of[j]
             t_i = _interp(taus, li, cos_i / r) if li >= 0 else 1.0
             g_d = g * _interp(taus, lj, cos_j / r) if lj >= 0 else g     # the source's diffuse part, let out
-            fs = _f_s(dx / r, dy / r, dz / r, 0.0, 0.0, 1.0, nxi, nyi, nzi, sigmas[li], eta_i) if glossy_i else 0.0
+            fs = _f_s(dx / r, dy / r, dz / r, 0.0, 0.0, 1.0, nxi, nyi, nzi, sigmas[li], etas[li]) if glossy_i else 0.0
             for k in range(k_out):
                 acc[k] += g_d * t_i * radiance[j, k]
             if fs > 0:
                 for k in range(k_out):
                     acc_s[k] += fs * g_d * radiance[j, k]
-            if spec_scale > 0 and lj >= 0 and sigmas[lj] > 0 and n_is[lj] > 1:
-                eta_j = (n_is[lj] - 1.0) * (n_is[lj] + 1.0)
+            if spec_scale > 0 and lj >= 0 and glossy[lj]:
                 nxj, nyj, nzj = normals[j, 0], normals[j, 1], normals[j, 2]
                 for l in range(n_l):
                     sx, sy, sz = lights[j, l, 0], lights[j, l, 1], lights[j, l, 2]
@@ -113,7 +112,7 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, lobe_of, sigmas, 
                     sent[l] = 0.0
                     if ns > 0:      # towards i: o = -d / r
                         sent[l] = spec_scale * lit[j, l] * ns * _f_s(sx, sy, sz, -dx / r, -dy / r, -dz / r,
-                                                                     nxj, nyj, nzj, sigmas[lj], eta_j)
+                                                                     nxj, nyj, nzj, sigmas[lj], etas[lj])
                 for l in range(n_l):
                     if sent[l] > 0:
                         for ch in range(n_c):
@@ -122,6 +121,12 @@ def gather(rows, cols, z, normals, radiance, zgrid, max_steps, lobe_of, sigmas, 
         out[i] = acc
         spec[i] = acc_s
     return out, spec
+
+
+@njit(cache=True)
+def _lobe_constants(sigmas, n_is):
+    """Per lobe: whether it reflects (σ > 0 and n_i > 1), and its Fresnel eta = n_i² − 1."""
+    return (sigmas > 0) & (n_is > 1), (n_is - 1.0) * (n_is + 1.0)
 
 
 @njit(cache=True)
@@ -156,14 +161,14 @@ def specular_towards_camera(normals, lights, lobe_of, sigmas, n_is):
     the lobe holds (before the images' scale)."""
     n, n_l = normals.shape[0], lights.shape[1]
     out = np.zeros((n, n_l), np.float32)
+    glossy, etas = _lobe_constants(sigmas, n_is)
     for j in prange(n):
         lj = lobe_of[j]
-        if lj < 0 or not (sigmas[lj] > 0 and n_is[lj] > 1):
+        if lj < 0 or not glossy[lj]:
             continue
-        eta = (n_is[lj] - 1.0) * (n_is[lj] + 1.0)
         for l in range(n_l):
             sx, sy, sz = lights[j, l, 0], lights[j, l, 1], lights[j, l, 2]
             ns = normals[j, 0] * sx + normals[j, 1] * sy + normals[j, 2] * sz
             out[j, l] = ns * _f_s(sx, sy, sz, 0.0, 0.0, 1.0, normals[j, 0], normals[j, 1], normals[j, 2],
-                                  sigmas[lj], eta)
+                                  sigmas[lj], etas[lj])
     return out
