@@ -78,10 +78,12 @@ def register(sub):
                         "of R, G, B; weighted: by mean/variance, the noise estimated from the images; green, "
                         "the thesis's); "
                         "the albedo stays per channel")
-    p.add_argument("--interreflections", action="store_true",
-                   help="take the light a concave matte surface gathers from itself out of the images "
-                        "first (craters, grooves, a vase's neck; needs a reflectance-calibrated scan); with "
-                        "--method li_alternating also what glossy walls mirror into each other")
+    p.add_argument("--interreflections", action=argparse.BooleanOptionalAction, default=None,
+                   help="take the light a concave surface gathers from itself out of the images first "
+                        "(craters, grooves, a vase's neck; needs a reflectance-calibrated scan); with "
+                        "li_alternating also what glossy walls mirror into each other. Default: on a "
+                        "reflectance-calibrated scan read whole, off elsewhere (a note says why); "
+                        "--no-interreflections: never")
     p.add_argument("--integration", default=d.integration, choices=list(INTEGRATION_METHODS),
                    help=f"normal integration (default {d.integration}: the object needs a flat "
                         "margin around it, as for frankot_chellappa1988, the thesis's; least_squares "
@@ -177,7 +179,7 @@ def _method(args):
 
 def options(args):
     """The ProcessOptions of parsed `facette process` arguments."""
-    from facette.pipeline import ProcessOptions
+    from facette.pipeline import IR_AUTO, ProcessOptions
 
     return ProcessOptions(
         method=_method(args), integration=args.integration, t_ombre=args.t_ombre, t_spec=args.t_spec,
@@ -185,7 +187,8 @@ def options(args):
         pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light, mesh_step=args.mesh_step,
         ascii_ply=args.ascii_ply, fit_options={"model": args.brdf_model, "method": args.fit_method},
         hsh_order=args.hsh_order, rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
-        interreflections=args.interreflections, capture=_capture(args), memory=args.memory,
+        interreflections=IR_AUTO if args.interreflections is None else args.interreflections,
+        capture=_capture(args), memory=args.memory,
         scheduler=args.scheduler, channels=args.channels,
         ps_options={"init": args.init} if args.init else None)     # li_alternating takes it, the others leave it
 

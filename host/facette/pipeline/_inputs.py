@@ -52,6 +52,7 @@ class PSInput:
     incomplete: str = ""           # scans: "" when complete, else e.g. "5 of 6 frames"
     digest: str = ""               # what the inputs were: changes when a frame or image changes
     lights_file: object = None     # RTI captures lit by a sphere: (file names, directions) of the .lp to write
+    reflectance: bool = False      # the images are radiance factors (a scan with the Spectralon's radiometric scale)
 
     def sample_mask(self):
         """Pixels whose reflectance samples are taken: the mask, within the material mask."""

@@ -17,7 +17,9 @@ from facette.recon import HSH_ORDERS, INTEGRATION_DEFAULT, INTEGRATION_METHODS, 
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import THETA0_DEG
 
-__all__ = ["ProcessOptions"]
+__all__ = ["ProcessOptions", "IR_AUTO"]
+
+IR_AUTO = "auto"    # interreflections: removed where the input allows it (`process`)
 
 
 def _option(default, doc, record=True, report=False, factory=None):
@@ -82,8 +84,10 @@ class ProcessOptions:
                                      record=False)
     overwrite: bool = _option(False, "replace an earlier run's results in out_dir made with other options or "
                               "inputs (without it such a folder is refused: one folder, one run)", record=False)
-    interreflections: bool = _option(False, "take the light a concave surface gathers from itself out of the "
-                                     "images before photometric stereo (see `process`)")
+    interreflections: object = _option(IR_AUTO, "take the light a concave surface gathers from itself out of the "
+                                       "images before photometric stereo (see `process`): True, False, or 'auto' "
+                                       "(default): on a reflectance-calibrated scan read whole, off elsewhere "
+                                       "(a note says why)", report=True)
     capture: dict = _option(None, "options of an RTI capture folder (photographs + .lp, or a mirror sphere in "
                             "view): {encoding: srgb|linear, sphere: Circle or (H, W) mask, reference: (x0, y0, "
                             "x1, y1)}; see pipeline._rti_capture.read_rti_capture; recorded only when given "
@@ -117,12 +121,17 @@ class ProcessOptions:
             raise ValueError(f"hsh_order = {self.hsh_order}: choose one of {HSH_ORDERS}")
         if self.channels not in CHANNELS:
             raise BadInputError(f"channels must be one of {', '.join(CHANNELS)}, got {self.channels!r}")
+        if isinstance(self.interreflections, str) and self.interreflections != IR_AUTO \
+                or self.interreflections not in (True, False, IR_AUTO):
+            raise BadInputError(f"interreflections must be True, False or {IR_AUTO!r}, got {self.interreflections!r}")
+        if self.interreflections != IR_AUTO:
+            object.__setattr__(self, "interreflections", bool(self.interreflections))
         INTEGRATION_METHODS.canonical(self.integration)        # ValueError naming the valid ones
         options_for(self.method, self.ps_bag())                # an unknown method or option: ValueError
         if self.memory is not None:
             from facette.pipeline._tiled_process import check_memory_options
             parse_memory(self.memory)                           # '2 apples': ValueError
-            check_memory_options(self.method, self.interreflections)
+            check_memory_options(self.method, self.interreflections is True)
         elif self.scheduler is not None:
             raise ValueError("--scheduler runs the bands of --memory on a Dask cluster: give --memory too "
                              "(e.g. --memory 2GB), or leave --scheduler out")

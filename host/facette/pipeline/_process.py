@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from facette.fit import fit_cells_verdict, glossy_lobes_text, preferred_model, ps_li_without_interreflections
+from facette.fit import fit_cells_verdict, preferred_model
 from facette._memory import handing_back
 from facette.errors import BadInputError
 from facette.io.atomic import atomic_path, write_text_atomic
@@ -37,12 +37,13 @@ from facette.io.png import write_mask
 from facette.calib.lp import write_lp
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
-from facette.methods import PS_METHODS, options_for, photometric_stereo
+from facette.methods import PS_METHODS, photometric_stereo
 from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_from_height, MESH_MAX_SLOPE,
-                           near_light_directions, IR_MAX_FRACTION, without_interreflections, dark_level_notes)
+                           near_light_directions, dark_level_notes)
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.pipeline._inputs import load_input, object_of
+from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_bands import relight_bands, relight_stage
@@ -64,9 +65,6 @@ STAGES_FOR = {
 FILES = {"normals": "normal.exr", "albedo": "albedo.exr", "mask": "mask.png", "height": "height.exr",
          "mesh": "mesh.ply", "samples": "samples.npz", "brdf": "brdf.json", "ptm": "relight.ptm",
          "rti": "relight.rti", "gltf": "model.glb", "report": "report.html"}
-SIM_INTERREFLECTIONS_NOTE = ("--interreflections on a simulated scan: the simulator renders no inter-reflections, so "
-                             "their removal takes away light that no wall gathered (errors against truth grow); leave it out for simulated scans")
-
 
 def stages_needed(outputs):
     """Ordered stage names for a list of outputs (unknown names raise ValueError)."""
@@ -203,14 +201,15 @@ def process(source, outputs=None, out_dir=None, options=None, **overrides):
     interreflections (an option): take the light a concave surface gathers from itself out of
         the images before photometric stereo (`facette.recon.without_interreflections`, its shape
         from a first rank_trimmed pass; needs the albedo as a reflectance, as the rig's
-        calibration gives it). The BRDF fit then sees the direct light only; PTM/HSH keep the
+        calibration gives it: "auto", the default, runs it on a reflectance-calibrated scan read
+        whole and says why not elsewhere, pipeline._interreflections). The BRDF fit then sees the direct light only; PTM/HSH keep the
         images as photographed. Left out, with a note, when gathered light is under IR_SKIP_P95
         (0.5 %) of the values at their 95th percentile (a convex object gathers none). With
         li_alternating, the light glossy walls mirror into each other is removed too, with the
         lobe it finds (facette.fit.ps_li_without_interreflections).
     Returns a `ProcessResult` (timings: wall seconds per stage, "after_ps" the concurrent
     stages together, "cpu" the CPU seconds of the whole call; `interreflections` the removal's
-    figures when it was asked for). Raises InsufficientData
+    figures when it ran). Raises InsufficientData
     (facette.errors) when the data cannot carry the result (too dark, saturated, empty mask,
     too few filled cells for a BRDF fit).
     """
@@ -258,6 +257,7 @@ def _process(source, outputs, out_dir, o):
                                                samples="samples" in stages,
                                                relight=fits if {"ptm", "rti"} & set(outputs) else None)
         previous, images, direct = claimed["previous"], None, None
+        interreflections_wanted(o, inp, res.notes)       # never with --memory: its note says why
         if res.ps is None:
             _streamed_result(res, inp, ps, top)
         del top                    # its object mask made: 4 bytes per pixel no later stage reads (100 MP: 0.4 GB)
@@ -275,8 +275,6 @@ def _process(source, outputs, out_dir, o):
     previous = claim(inp)
     res.inputs = inp
     res.notes.extend(inp.notes)
-    if o.interreflections and inp.truth is not None and "sensor" in inp.truth:   # the rig simulator's truth
-        res.notes.append(SIM_INTERREFLECTIONS_NOTE)
     if inp.usable is not None:       # the data must be able to carry normals (else exit 3)
         notes, res.quality = check_samples(inp.images, inp.usable, inp.object_mask, inp.mask_source)
         res.notes.extend(notes)
@@ -295,13 +293,8 @@ def _process(source, outputs, out_dir, o):
     method_name = PS_METHODS.canonical(o.method)
     solve_in, used = images_for_solve(images, inp.mask, o, bag, res.notes)     # the channels the normals see
     direct, ps = solve_in, None
-    if o.interreflections and method_name == "li_alternating":
-        # glossy walls mirror each other: a second removal with li's lobe (facette.fit._ps_li_ir)
-        ps, direct, info = ps_li_without_interreflections(solve_in, light_dirs, **options_for(method_name, bag))
-        _note_interreflections(res, info, info["removal_seconds"])
-    elif o.interreflections:
-        direct, ps = _without_interreflections(res, solve_in, light_dirs, inp.mask, o.saturation,
-                                               method_name == "rank_trimmed", bag.get("channel"))
+    if interreflections_wanted(o, inp, res.notes):
+        direct, ps = solve_without_interreflections(res, o, solve_in, light_dirs, inp.mask, method_name, bag)
     if ps is None and o.memory is not None:     # over bands of the images held whole
         ps = in_memory_ps(direct, light_dirs, o, bag, outputs, res)
     elif ps is None:
@@ -361,36 +354,6 @@ def _timed(res, name, fn, *args):
     out = fn(*args)
     res.timings[name] = time.perf_counter() - t0
     return out
-
-
-def _without_interreflections(res, images, light_dirs, mask, saturation, reuse, channel=None):
-    """(images with the gathered light removed, or `images` when there is too little to matter;
-    the first pass's PSResult (on `channel`) when `reuse` and nothing was removed, else None)."""
-    t0 = time.perf_counter()
-    direct, first, info = without_interreflections(images, light_dirs, mask, saturation=saturation, channel=channel)
-    _note_interreflections(res, info, time.perf_counter() - t0)
-    if not info["applied"]:
-        return images, first if reuse else None
-    return direct, None
-
-
-def _note_interreflections(res, info, seconds):
-    """The removal's info, seconds and note into `res`."""
-    res.interreflections = info
-    res.timings["interreflections"] = seconds
-    how = (f"{info['median_fraction']:.1%} of the median value, {info['p95_fraction']:.1%} at the 95th "
-           f"percentile, on {info['grid'][1]}x{info['grid'][0]} cells, {len(info['passes'])} pass(es)")
-    if not info["applied"]:
-        res.notes.append(f"inter-reflections: {how}; too little to matter, the images are used as they are")
-        return
-    res.notes.append(f"inter-reflections removed before photometric stereo: {how}"
-                     + (f"; {info['capped']} values limited to {IR_MAX_FRACTION:.0%} removed" if info["capped"] else ""))
-    glossy = info.get("glossy")
-    if glossy:
-        res.notes.append(f"glossy inter-reflections removed with the lobes li_alternating found "
-                         f"({glossy_lobes_text(glossy)}): {glossy['median_fraction']:.1%} "
-                         f"of the median value, {glossy['p95_fraction']:.1%} at the 95th percentile, "
-                         "then li_alternating again")
 
 
 def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, drawn, workers=2, relight=None):

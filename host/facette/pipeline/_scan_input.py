@@ -233,6 +233,7 @@ def scan_input(scan_dir, data, complete, images, dirs, positions, mask, material
     inp.digest = _digest(sorted((f.file, "" if "sha256" in f.absent else f.sha256) for f in data.frames))
     inp.notes.extend(profile_notes)
     inp.notes.extend(hdr_notes)
+    inp.reflectance = data.radiometric_scale is not None
     if data.radiometric_scale is None:
         inp.notes.append("no radiometric scale in scan.json (profile without a Spectralon step): "
                          "albedo and BRDF values are relative, K_d is not a reflectance")

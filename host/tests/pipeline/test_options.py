@@ -20,8 +20,8 @@ def test_recorded_and_reported_fields_and_defaults():
     o = ProcessOptions()
     assert list(o.recorded()) == RECORDED and o.recorded()["mask"] is None
     assert list(o.reported()) == ["method", "integration", "channels", "t_ombre", "t_spec", "t_source", "t_residual",
-                                  "theta0_deg", "rti_encoding"]
-    assert o.channels == "mean"
+                                  "theta0_deg", "rti_encoding", "interreflections"]
+    assert o.channels == "mean" and o.interreflections == "auto"
     assert o.method == PROCESS_DEFAULT == "li_alternating" and o.fit_options == {} and o.ps_options == {} and o.near_light
     assert replace(o, mask="m.png").recorded()["mask"] == "m.png"       # a path is recorded, an array not
     for name in RECORDED + ["ascii_ply", "allow_incomplete", "overwrite"]:
@@ -53,6 +53,9 @@ def test_every_check_at_construction():
         ProcessOptions(rti_encoding="gamma")
     with pytest.raises(ValueError, match="hsh_order"):
         ProcessOptions(hsh_order=4)
+    with pytest.raises(BadInputError, match="interreflections must be True, False or 'auto', got 'yes'"):
+        ProcessOptions(interreflections="yes")
+    assert ProcessOptions(interreflections=1).interreflections is True      # a truthy value becomes a bool
 
 
 def test_every_method_gets_its_own_options_from_the_one_bag():

@@ -1,0 +1,86 @@
+"""`process`'s inter-reflection step: whether it runs (the option, or for "auto" what the input
+allows), the removal itself, and what it says in the notes and timings.
+
+The removal needs the albedo as a reflectance (it decides how much light each wall sends), so
+"auto" runs it on a scan whose images are radiance factors (the calibration's Spectralon step,
+`PSInput.reflectance`) and read whole; elsewhere it is left out with a note saying why. A convex
+object gathers no light: the removal then finds too little to matter and the images stay as they
+are (`facette.recon.without_interreflections`, IR_SKIP_P95).
+"""
+import time
+
+from facette.errors import InsufficientData
+from facette.fit import glossy_lobes_text, ps_li_without_interreflections
+from facette.methods import options_for
+from facette.pipeline._options import IR_AUTO
+from facette.recon import IR_MAX_FRACTION, without_interreflections
+
+__all__ = ["interreflections_wanted", "solve_without_interreflections", "SIM_INTERREFLECTIONS_NOTE"]
+
+SIM_INTERREFLECTIONS_NOTE = ("--interreflections on a simulated scan: the simulator renders no inter-reflections, so "
+                             "their removal takes away light that no wall gathered (errors against truth grow); leave it "
+                             "out for simulated scans")
+AUTO_OFF = "inter-reflections left in (interreflections 'auto'): "
+
+
+def interreflections_wanted(o, inp, notes):
+    """Whether `process` removes the inter-reflections: the option when True or False; for "auto",
+    on a reflectance-calibrated scan read whole that is not the rig simulator's. A note in `notes`
+    says why it is left out ("auto") or that a simulated scan has none to remove (True)."""
+    simulated = inp.truth is not None and "sensor" in inp.truth      # the rig simulator's truth
+    if o.interreflections is True and simulated:
+        notes.append(SIM_INTERREFLECTIONS_NOTE)
+    if o.interreflections != IR_AUTO:
+        return o.interreflections
+    why = ("the simulator renders none" if simulated else
+           "--memory reads the images by bands and the removal needs them whole" if o.memory else
+           None if inp.reflectance else
+           "the images are not reflectance-calibrated (no Spectralon scale: a DiLiGenT folder, an RTI capture, "
+           "a scan without the calibration's Spectralon step), and the removal needs the albedo as a reflectance")
+    if why:
+        notes.append(AUTO_OFF + why)
+    return why is None
+
+
+def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_name, bag):
+    """(images the method is to see, PSResult or None) after the removal: li_alternating solves
+    itself (its lobe takes the glossy walls' light out too, facette.fit.ps_li_without_interreflections);
+    the others get the images and, for rank_trimmed when nothing was removed, its first pass.
+    Under "auto" an albedo that is no reflectance (a calibration gone wrong) leaves the removal
+    out with a note; asked for explicitly, it raises InsufficientData."""
+    t0 = time.perf_counter()
+    try:
+        if method_name == "li_alternating":
+            ps, direct, info = ps_li_without_interreflections(solve_in, light_dirs, **options_for(method_name, bag))
+            note_interreflections(res, info, info["removal_seconds"])
+            return direct, ps
+        direct, first, info = without_interreflections(solve_in, light_dirs, mask, saturation=o.saturation,
+                                                       channel=bag.get("channel"))
+    except InsufficientData as exc:
+        if o.interreflections is True:
+            raise
+        res.notes.append(AUTO_OFF + str(exc))
+        return solve_in, None
+    note_interreflections(res, info, time.perf_counter() - t0)
+    if not info["applied"]:
+        return solve_in, (first if method_name == "rank_trimmed" else None)
+    return direct, None
+
+
+def note_interreflections(res, info, seconds):
+    """The removal's info, seconds and note into `res`."""
+    res.interreflections = info
+    res.timings["interreflections"] = seconds
+    how = (f"{info['median_fraction']:.1%} of the median value, {info['p95_fraction']:.1%} at the 95th "
+           f"percentile, on {info['grid'][1]}x{info['grid'][0]} cells, {len(info['passes'])} pass(es)")
+    if not info["applied"]:
+        res.notes.append(f"inter-reflections: {how}; too little to matter, the images are used as they are")
+        return
+    res.notes.append(f"inter-reflections removed before photometric stereo: {how}"
+                     + (f"; {info['capped']} values limited to {IR_MAX_FRACTION:.0%} removed" if info["capped"] else ""))
+    glossy = info.get("glossy")
+    if glossy:
+        res.notes.append(f"glossy inter-reflections removed with the lobes li_alternating found "
+                         f"({glossy_lobes_text(glossy)}): {glossy['median_fraction']:.1%} "
+                         f"of the median value, {glossy['p95_fraction']:.1%} at the 95th percentile, "
+                         "then li_alternating again")

@@ -1,0 +1,84 @@
+"""`process`'s default for inter-reflections ("auto"): removed on a reflectance-calibrated scan read
+whole, left in with a note that says why everywhere else (pipeline._interreflections)."""
+import json
+
+import numpy as np
+import pytest
+
+from facette.errors import InsufficientData
+from facette.io.exr import write_exr
+from facette.pipeline import process
+from facette.recon.synthetic import angular_error_deg
+
+SCALE = 4.0            # the Spectralon's HDR units per unit irradiance written into scan.json
+
+
+@pytest.fixture(scope="module")
+def relief():
+    """A Mitsuba relief in plaster (64 px, 32 spp): a concave object that gathers its own light."""
+    from facette.bench._mitsuba_scenes import render_scene
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        return render_scene("relief", "plaster", size=64, spp=32, cache_dir=tmp)
+
+
+def _scan(folder, d, scale=SCALE, truth=None):
+    """A scan directory of the render: HDR images in the calibration's units (the radiance factor
+    x intensity x scale), scan.json with the radiometric scale; `truth` keys into truth.npz."""
+    m = len(d["light_dirs"])
+    inten = np.full((m, 3), 2.0)
+    (folder / "hdr").mkdir(parents=True)
+    for i in range(m):
+        write_exr(folder / "hdr" / f"light_{i:02d}.exr", (d["images"][i] * inten[i] * SCALE).astype(np.float32))
+        write_exr(folder / "hdr" / f"light_{i:02d}_var.exr", np.full(d["images"][i].shape, 1e-8, np.float32))
+    if truth is not None:
+        np.savez(folder / "truth.npz", **truth)
+    (folder / "scan.json").write_text(json.dumps({
+        "schema": 1, "rig": {"id": "test"}, "profile": None, "pixel_pitch_mm": 0.1,
+        "lights": [{"index": i, "direction": d["light_dirs"][i].tolist(), "position_mm": None,
+                    "intensity": inten[i].tolist()} for i in range(m)],
+        "exposures": [{"index": 0, "time_us": 1000, "current_mA": 100, "mode": "camera"}],
+        "frames": [{"file": f"raw/L{i:02d}_E00.dng", "light": i, "exposure": 0, "time_us": 1000,
+                    "current_set_mA": 100, "current_meas_mA": 100, "start_us": 0, "sync": True, "sha256": ""}
+                   for i in range(m)],
+        "rig_time_s": 0.0, "radiometric_scale": None if scale is None else [scale] * 3,
+        "truth": None if truth is None else "truth.npz"}))
+    return folder
+
+
+def test_removed_by_default_on_a_calibrated_scan(tmp_path, relief):
+    scan = _scan(tmp_path / "scan", relief)
+    res = process(scan, outputs=["normals"], out_dir=tmp_path / "out", method="woodham1980", mask=relief["mask"])
+    left = process(scan, outputs=["normals"], method="woodham1980", mask=relief["mask"], interreflections=False)
+    assert res.inputs.reflectance and res.interreflections["applied"]
+    assert any(n.startswith("inter-reflections removed") for n in res.notes)
+    assert left.interreflections is None and not any("inter-reflections" in n for n in left.notes)
+    sel = relief["mask"] & res.mask & left.mask
+    err = lambda r: angular_error_deg(r.normals, relief["normals"])[sel].mean()
+    assert err(res) < 0.85 * err(left), (err(res), err(left))
+    assert json.loads((tmp_path / "out" / "process.json").read_text())["options"]["interreflections"] == "auto"
+
+
+def test_left_in_with_the_reason_elsewhere(tmp_path, relief):
+    # without the Spectralon step the images are relative: nothing removed, and the note says why
+    res = process(_scan(tmp_path / "relative", relief, scale=None), outputs=["normals"], method="woodham1980")
+    assert not res.inputs.reflectance and res.interreflections is None
+    assert any("left in (interreflections 'auto'): the images are not reflectance-calibrated" in n for n in res.notes)
+    # the rig simulator renders none (its truth carries the sensor model)
+    sim = process(_scan(tmp_path / "sim", relief, truth={"sensor": np.zeros(1)}), outputs=["normals"],
+                  method="woodham1980")
+    assert sim.interreflections is None and any("the simulator renders none" in n for n in sim.notes)
+    # --memory reads the images by bands: left in by default, refused when asked for
+    banded = process(_scan(tmp_path / "banded", relief), outputs=["normals"], method="woodham1980", memory="1GB")
+    assert banded.interreflections is None and any("--memory reads the images by bands" in n for n in banded.notes)
+
+
+def test_a_calibration_gone_wrong_is_said_not_fatal_by_default(tmp_path, relief):
+    # images 3x too bright for the scale written: the albedo is no reflectance (p99 above 1)
+    scan = _scan(tmp_path / "bright", relief, scale=SCALE / 3)
+    res = process(scan, outputs=["normals"], method="woodham1980")
+    assert res.interreflections is None
+    assert any("left in (interreflections 'auto'): removing inter-reflections needs the albedo as a reflectance"
+               in n for n in res.notes)
+    with pytest.raises(InsufficientData, match="needs the albedo as a reflectance"):
+        process(scan, outputs=["normals"], method="woodham1980", interreflections=True)
