@@ -240,6 +240,24 @@ def test_glossy_walls_mirror_light_that_the_second_removal_takes_out(cache):
     assert info["glossy"]["p95_fraction"] > info["p95_fraction"]      # more is removed than before
     assert err(r) < 0.97 * err(lambertian), (err(r), err(lambertian))
     assert np.all(direct <= im + 1e-6)
+    # above coarse_pixels the first li pass, which only feeds the gather's cells, runs on binned
+    # images (2 x 2 here: 192 px for 96 cells), its lobe li's own: the same lobe, and normals as good
+    # as with no coarse pass at all (here 2.21° against 2.15°, li without the removal 3.99°; the 12 MP
+    # relief: 0.45° against 0.48° with the first pass at full size)
+    big, big_mask = np.repeat(np.repeat(im, 6, 1), 6, 2), np.repeat(np.repeat(d["mask"], 6, 0), 6, 1)
+    big_truth, coarse = np.repeat(np.repeat(d["normals"], 6, 0), 6, 1), int(big_mask.sum()) // 3
+    whole, _, info_w = ps_li_without_interreflections(big, L, big_mask, coarse_pixels=None)
+    binned, _, info_b = ps_li_without_interreflections(big, L, big_mask, coarse_pixels=coarse)
+    left_in = ps_li_alternating(big, L, mask=big_mask, coarse_pixels=coarse)
+    (sigma_w, n_i_w), = info_w["glossy"]["lobes"]
+    (sigma_b, n_i_b), = info_b["glossy"]["lobes"]
+    assert abs(sigma_b - sigma_w) < 0.01 and abs(n_i_b - n_i_w) < 0.03
+
+    def big_err(r):
+        return np.degrees(np.arccos(np.clip(np.sum(r.normal * big_truth, -1), -1, 1)))[big_mask & r.valid].mean()
+
+    assert big_err(binned) < min(1.1 * big_err(whole), 0.7 * big_err(left_in)), \
+        (big_err(binned), big_err(whole), big_err(left_in))
     # a convex object gathers nothing: no removal, so no second stage
     s = render_scene("sphere", "paint_0.10", size=48, spp=8, cache_dir=cache)
     _, same, info = ps_li_without_interreflections(s["images"], s["light_dirs"], s["mask"])
