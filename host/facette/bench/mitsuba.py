@@ -4,10 +4,11 @@ Scenes are rendered once by Mitsuba 3 (facette.bench._mitsuba_scenes; `roughplas
 Beckmann α = σ, int_ior = n_i, diffuse_reflectance = K_d) and cached under --cache
 (default out/mitsuba-cache; never committed). For each scene and method: mean and median
 angular error of the normals (against Mitsuba's shading normals, on the object mask eroded by
-one pixel: the silhouette's pixels mix object and background), and the time; rows "+ir" run the
-method on the images with the inter-reflections removed (a first rank_trimmed pass gives the
-shape; for li_alternating also the glossy walls, with its lobe; `facette process
---interreflections`). Then:
+one pixel: the silhouette's pixels mix object and background), and the time. Each method solves
+as `process` does (its channels, pipeline._channels); rows "+ir" run its inter-reflection step
+first (a first rank_trimmed pass gives the shape; for li_alternating also the glossy walls, with
+its lobe), as its default "auto" does on a calibrated scan: the renders are radiance factors, so
+"li_alternating +ir" is `process`'s default here, marked "(default)". Then:
 
 1. the thesis's test (§4.3.2): one shape in plaster and in the three fitted paints; each paint's
    normals against the plaster's (mean angle), per method, beside the plaster against itself
@@ -23,14 +24,18 @@ import argparse
 import tempfile
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 from scipy.ndimage import binary_erosion
 
 from facette.bench._mitsuba_scenes import MATERIALS, NON_LI_SCENES, TABLE_MATERIAL, render_scene
 from facette.bench.e2e import height_errors
-from facette.methods import PS_DEFAULT, options_for, photometric_stereo
-from facette.pipeline import ProcessOptions, auto_masks, margin_of
+from facette.errors import InsufficientData
+from facette.methods import PROCESS_DEFAULT, PS_DEFAULT, PS_METHODS, photometric_stereo
+from facette.pipeline import IR_AUTO, ProcessOptions, auto_masks, margin_of
+from facette.pipeline._channels import images_for_solve, results_in_rgb
+from facette.pipeline._interreflections import solve_without_interreflections
 from facette.recon import INTEGRATION_METHODS, integrate
 
 METHODS = ("woodham1980", "hierarchical_tautzia2016", "rank_trimmed", "rpca_wu2010", "li_alternating")
@@ -48,6 +53,9 @@ SCENES = [  # (shape, material, textured, near_distance)
 THESIS_SHAPE = "relief"
 IR_METHODS = ("woodham1980", "rank_trimmed", "li_alternating")   # also run with inter-reflections removed
 IR_SUFFIX = " +ir"
+# what `process` runs by default on these renders: they are radiance factors, as a calibrated scan's
+# images are, so its interreflections "auto" removes them (pipeline._interreflections)
+DEFAULT_LABEL = PROCESS_DEFAULT + IR_SUFFIX
 # Monte Carlo noise of the renders (two seeds of the relief in plaster): a relative standard
 # deviation per value of 1.6 % at 64 spp, 0.8 % at 256, against 0.7 % for the rig's HDR images at
 # midtones (42.7 dB); on its own it moves least-squares normals by 0.68 deg at 64 spp, 0.34 at 256
@@ -81,22 +89,25 @@ def _images_and_dirs(d):
 
 
 def run_ps(d, method, init=None, interreflections=False):
-    """(PSResult, seconds); with `interreflections`, a first rank_trimmed pass gives the shape
-    and remove_interreflections the images the method sees (both inside the seconds)."""
-    from facette.fit import ps_li_without_interreflections
-    from facette.recon import without_interreflections
+    """(PSResult, seconds) as `process` solves: on its default channels (images_for_solve), and with
+    `interreflections` through its removal step as its default "auto" runs it on a calibrated scan
+    (pipeline._interreflections; the renders are radiance factors): where the albedo is no
+    reflectance (a metal's Lambertian albedo) it is left in. Both inside the seconds."""
     im, L = _images_and_dirs(d)
     # one bag for every method: each takes its own (li_alternating: materials, init)
     options = {"mask": d["mask"], **({"materials": "auto"} if d["params"].get("two_materials") else {}),
                **({"init": init} if init else {})}
     t = time.perf_counter()
-    if interreflections and method == "li_alternating":     # as `process`: glossy walls too
-        r = ps_li_without_interreflections(im, L, **options_for(method, options))[0]
-        return r, time.perf_counter() - t
+    o = ProcessOptions(interreflections=IR_AUTO if interreflections else False)   # a refusal leaves them in
+    solve_in, used = images_for_solve(im, d["mask"], o, options, [])
+    direct, r = solve_in, None
     if interreflections:
-        im, _, _ = without_interreflections(im, L, d["mask"])
-    r = photometric_stereo(im, L, method=method, options=options)
-    return r, time.perf_counter() - t
+        said = SimpleNamespace(notes=[], timings={}, interreflections=None)
+        direct, r = solve_without_interreflections(said, o, solve_in, L, d["mask"], PS_METHODS.canonical(method),
+                                                   options)
+    if r is None:
+        r = photometric_stereo(direct, L, method=method, options=options)
+    return results_in_rgb(r, direct, solve_in, im, used)[0], time.perf_counter() - t
 
 
 def _valid_note(r, d, sel, ls_normal):
@@ -201,7 +212,12 @@ def thesis_test(args, variants, normals):
             ref, sel = got[("plaster", name)]
             row = [f"{mat} {angular_errors(got[(mat, name)][0], ref, sel).mean():5.2f}°"
                    for mat in paints + ("plaster seed 1",) if (mat, name) in got]
-            print(f"    {name:30s} " + "   ".join(row))
+            print(f"    {_marked(name):30s} " + "   ".join(row))
+
+
+def _marked(name):
+    """A row's method label, with "(default)" on what `process` runs by default on these renders."""
+    return name + (" (default)" if name == DEFAULT_LABEL else "")
 
 
 def _variants(methods, interreflections):
@@ -234,7 +250,8 @@ def main(argv=None):
     variants = _variants(methods, args.interreflections)
     print(f"Mitsuba 3 scenes, {args.size}x{args.size} px, {args.spp} spp, 12 lights of the rig "
           f"(cached in {args.cache}); error on the mask eroded by 1 px; '{IR_SUFFIX.strip()}': "
-          "inter-reflections removed first (facette.recon.remove_interreflections)")
+          "inter-reflections removed first (facette.recon.remove_interreflections); the renders are radiance "
+          f"factors, as a calibrated scan's images: `process`'s default on them is {DEFAULT_LABEL}")
     print(f"{'scene':34s} {'method':30s} {'mean°':>6s} {'median°':>7s} {'p95°':>6s} {'s':>6s}  BRDF-aware rounds")
     normals = {}
     for shape, mat, tex, near in scenes + ([] if args.quick else [("relief", "two_materials", False, None)]):
@@ -279,7 +296,7 @@ def main(argv=None):
                     ls_mean = angular_errors(ls_normal, d["normals"], sel).mean()
                 extra += f"  ({e.mean() / ls_mean:.2f}× least squares)"
             extra += _valid_note(r, d, sel, ls_normal)
-            print(f"{label:34s} {name:30s} {e.mean():6.2f} {np.median(e):7.2f} {np.percentile(e, 95):6.2f} "
+            print(f"{label:34s} {_marked(name):30s} {e.mean():6.2f} {np.median(e):7.2f} {np.percentile(e, 95):6.2f} "
                   f"{dt:6.2f}  {extra}", flush=True)
             if shape == THESIS_SHAPE and not tex and near is None:
                 normals[(mat, name)] = (r.normal, sel)
@@ -294,12 +311,17 @@ def main(argv=None):
             d = render_scene(shape, mat, size=args.size, spp=args.spp, cache_dir=args.cache)
             truth = {"sigma": np.nan, "n_i": np.nan, **MATERIALS[mat]}
             for method, ir, name in [v for v in variants if v[0] in PIPELINE_METHODS]:
-                res, dt = whole_pipeline(d, method, tmp, args.init, ir)
+                left_in = ""
+                try:
+                    res, dt = whole_pipeline(d, method, tmp, args.init, ir)
+                except InsufficientData:      # a metal's Lambertian albedo is above 1: "auto" leaves them in
+                    res, dt = whole_pipeline(d, method, tmp, args.init, False)
+                    left_in = "; inter-reflections left in: the albedo is no reflectance"
                 p = res.brdf.params if res.brdf is not None and res.brdf.success else {}
                 kd = np.array(p.get("kd", [np.nan] * 3)) / np.array(d["params"].get("kd", [np.nan] * 3))
-                print(f"{shape + '/' + mat:22s} {name:30s} {p.get('sigma', np.nan):7.4f} {truth['sigma']:6.3f} "
+                print(f"{shape + '/' + mat:22s} {_marked(name):30s} {p.get('sigma', np.nan):7.4f} {truth['sigma']:6.3f} "
                       f"{p.get('n_i', np.nan):6.3f} {truth['n_i']:6.2f} {' '.join(f'{x:5.3f}' for x in kd):>18s} "
-                      f"{dt:6.1f}  ({_verdict(res.brdf)})", flush=True)
+                      f"{dt:6.1f}  ({_verdict(res.brdf)}{left_in})", flush=True)
     rows, found = table_heights(args)
     print(f"\nHeights: two domes in paint_0.10 on a dark table (K_d 0.04, {TABLE_MATERIAL}), rank_trimmed "
           f"normals; RMS against Mitsuba's positions in pixels, one constant over both domes / one per dome; "
