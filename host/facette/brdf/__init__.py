@@ -16,7 +16,7 @@ from ._volume import (VOLUME_METHODS, VolumeTable, build_volume_table, volume_in
                       volume_integral_approx, volume_integral_monte_carlo, volume_integral_quadrature,
                       volume_integral_table)
 from ._albedo import directional_albedo
-from ._coupled import coupled_transmittance
+from ._coupled import coupled_internal_reflectance, coupled_transmittance, diffuse_r_i
 from ._shading import kd_from_kappa, kappa_from_kd, li_kappa, li_kd_from_kappa, li_shading_terms
 
 __all__ = [
@@ -29,6 +29,6 @@ __all__ = [
     "volume_integral_monte_carlo", "volume_integral_quadrature", "volume_integral_table",
     "interreflection_integral_vcavity", "interreflection_mixed_integral_vcavity", "interreflection_vcavity",
     "build_interreflection_table",
-    "directional_albedo", "coupled_transmittance",
+    "directional_albedo", "coupled_transmittance", "coupled_internal_reflectance", "diffuse_r_i",
     "li_kappa", "li_kd_from_kappa", "kd_from_kappa", "kappa_from_kd", "li_shading_terms",
 ]

@@ -40,5 +40,5 @@ def directional_albedo(s, kd, sigma, n_i, distribution="beckmann", masking="smit
                   axis=-1).reshape(-1, 3)
     wo = (np.pi * 0.5 * wx[:, None] / len(phi) * np.ones((1, len(phi)))).reshape(-1)
     vals = volume_integral(s2, oo[None], sig, n_i, distribution, masking, volume, **options)
-    rho_v = (vals @ wo) * li_kd_factor(float(kd), n_i)
+    rho_v = (vals @ wo) * li_kd_factor(float(kd), n_i, sig, volume)
     return (rho_s + rho_v).reshape(shape)

@@ -14,7 +14,7 @@ from numba import njit
 
 __all__ = ["G1_ONE_ABOVE", "SMITH_G1_TABLE", "smith_g1_beckmann", "smith_g1_dlog_tabulated", "beckmann_d",
            "fresnel_dielectric_scalar", "li_specular_beckmann_smith",
-           "lobe_transmittance_beckmann_smith"]
+           "lobe_transmittance_beckmann_smith", "lobe_internal_reflectance_beckmann_smith"]
 
 _SQRT_PI = math.sqrt(math.pi)
 # Smith's Λ(a) < e^(−a²) / (2√π a) < 1e-17 above a = 6, so G_1 = 1 / (1 + Λ) is 1.0 to the last bit
@@ -160,4 +160,32 @@ def lobe_transmittance_beckmann_smith(mu, h, w, sigma, n_i, out):
                 continue
             tot += w[j] * (1.0 - fresnel_dielectric_scalar(min(ih, 1.0), eta)) * gi * smith_g1_beckmann(-tz, sigma) \
                 * ih / (m * h[j, 2])
+        out[k] = min(max(tot, 0.0), 1.0)
+
+
+@njit(cache=True, nogil=True)
+def lobe_internal_reflectance_beckmann_smith(mu, h, w, sigma, n_i, out):
+    """The share of the substrate's light the rough interface sends back into it,
+    E(μ) = Σ_h w F_in(i·h) G_1(i) G_1(o) (i·h) / (μ h_z), at each cosine μ of `mu` (K,), the light
+    meeting the interface from inside (i = (√(1 − μ²), 0, μ) in the frame whose z points into the
+    substrate), o the mirror of i about the facet h, F_in Fresnel from index n_i into air (1 beyond
+    the critical angle); h, w as `lobe_transmittance_beckmann_smith`. Single scattering, as that
+    transmittance: what the facets mask is lost, not reflected. Into out (K,). n_i = 1: nothing."""
+    if n_i <= 1.0:
+        out[:] = 0.0
+        return
+    eta = 1.0 / (n_i * n_i) - 1.0      # fresnel_dielectric_scalar's n² − 1 for the relative index 1 / n_i
+    for k in range(mu.shape[0]):
+        m = mu[k]
+        sx = math.sqrt(max(1.0 - m * m, 0.0))
+        gi = smith_g1_beckmann(m, sigma)
+        tot = 0.0
+        for j in range(h.shape[0]):
+            ih = sx * h[j, 0] + m * h[j, 2]
+            oz = 2.0 * ih * h[j, 2] - m
+            if ih <= 0.0 or oz <= 0.0:
+                continue
+            c = min(ih, 1.0)
+            f = 1.0 if eta + c * c <= 0.0 else fresnel_dielectric_scalar(c, eta)
+            tot += w[j] * f * gi * smith_g1_beckmann(oz, sigma) * ih / (m * h[j, 2])
         out[k] = min(max(tot, 0.0), 1.0)

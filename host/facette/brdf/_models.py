@@ -8,7 +8,8 @@ import numpy as np
 
 from facette._registry import Registry
 
-from ._fresnel import check_n_i, fresnel_dielectric, r_i_simonot2009
+from ._fresnel import check_n_i, fresnel_dielectric
+from ._shading import li_kappa
 from ._microfacet import check_masking, check_sigma, distribution_d, masking_g
 from ._volume import rough_lambert_terms, volume_integral, _angles
 from ._interreflection import interreflection_vcavity
@@ -115,10 +116,10 @@ def _li_specular_arrays(s, o, sigma, n, distribution, masking):
     return np.where(up & (d > 0), val, 0.0)
 
 
-def li_kd_factor(kd, n_i):
-    """K_d / (π n_i² (1 − K_d r_i)) of eq 3.15 (the only place K_d enters the single-bounce model)."""
-    n = check_n_i(n_i)
-    return kd / (np.pi * n * n * (1.0 - kd * r_i_simonot2009(n)))
+def li_kd_factor(kd, n_i, sigma=None, volume=None):
+    """K_d / (π n_i² (1 − K_d r_i)) of eq 3.15 (the only place K_d enters the single-bounce model),
+    r_i the diffuse part's (`li_kappa`: the coupled part, volume "coupled", takes its rough interface's)."""
+    return li_kappa(kd, n_i, sigma, volume)
 
 
 def li_volume(s, o, kd, sigma, n_i, distribution="beckmann", masking="smith", volume="quadrature", **options):
@@ -127,7 +128,7 @@ def li_volume(s, o, kd, sigma, n_i, distribution="beckmann", masking="smith", vo
     kd, pc = check_kd(kd)
     up = _above(s, o)
     integral = np.where(up, volume_integral(s, o, sigma, n_i, distribution, masking, volume, **options), 0.0)
-    fac = li_kd_factor(kd, n_i)
+    fac = li_kd_factor(kd, n_i, sigma, volume)
     return integral[..., None] * fac if pc else integral * fac
 
 

@@ -20,7 +20,7 @@ relative (tested).
 import numpy as np
 from scipy.special import erfc
 
-from ._coupled import coupled_terms
+from ._coupled import coupled_terms, diffuse_r_i
 from ._fresnel import check_n_i, fresnel_dielectric, r_e_molenaar1999, r_i_simonot2009
 from ._microfacet import SIGMA_FLAT
 from ._volume import approx_coefficients, rough_lambert_terms, volume_table_at
@@ -32,34 +32,36 @@ VOLUME_MODELS = ("approx", "tables", "lambert", "coupled")
 _SQRT_PI = np.float32(np.sqrt(np.pi))
 
 
-def li_kappa(kd, n_i):
-    """κ = K_d / (π n_i² (1 − K_d r_i)) (eq 3.15), elementwise; K_d in [0, 1]."""
+def li_kappa(kd, n_i, sigma=None, volume_model=None):
+    """κ = K_d / (π n_i² (1 − K_d r_i)) (eq 3.15), elementwise; K_d in [0, 1]; r_i the diffuse part's
+    (facette.brdf._coupled.diffuse_r_i: the coupled part's needs σ)."""
     n = check_n_i(n_i)
-    return np.asarray(kd) / (np.pi * n * n * (1.0 - np.asarray(kd) * r_i_simonot2009(n)))
+    return np.asarray(kd) / (np.pi * n * n * (1.0 - np.asarray(kd) * diffuse_r_i(n, sigma, volume_model)))
 
 
-def li_kd_from_kappa(kappa, n_i):
+def li_kd_from_kappa(kappa, n_i, sigma=None, volume_model=None):
     """Inverse of `li_kappa`: K_d = π n² κ / (1 + π n² r_i κ), clipped to [0, 1]."""
     n = check_n_i(n_i)
-    ri = r_i_simonot2009(n)
+    ri = diffuse_r_i(n, sigma, volume_model)
     k = np.maximum(np.asarray(kappa, dtype=np.float32), 0)
     return np.clip(np.pi * n * n * k / (1.0 + np.pi * n * n * ri * k), 0.0, 1.0).astype(np.float32)
 
 
-def kd_from_kappa(kappa, n_i, volume_model):
-    """K_d from κ under the diffuse part: the LI substrate or the coupled one (`li_kd_from_kappa`) or,
-    with volume_model "lambert" (a Lambertian term beside the lobe, no transmission), K_d = π κ."""
+def kd_from_kappa(kappa, n_i, volume_model, sigma=None):
+    """K_d from κ under the diffuse part: the LI substrate or the coupled one (`li_kd_from_kappa`; the
+    coupled one's r_i needs σ) or, with volume_model "lambert" (a Lambertian term beside the lobe, no
+    transmission), K_d = π κ."""
     if volume_model == "lambert":
         return np.clip(np.pi * np.maximum(np.asarray(kappa, dtype=np.float32), 0), 0.0, 1.0).astype(np.float32)
-    return li_kd_from_kappa(kappa, n_i)
+    return li_kd_from_kappa(kappa, n_i, sigma, volume_model)
 
 
-def kappa_from_kd(kd, n_i, volume_model):
+def kappa_from_kd(kd, n_i, volume_model, sigma=None):
     """Inverse of `kd_from_kappa`: κ of K_d (in [0, 1]) under the diffuse part (`li_kappa`, or
     K_d / π for volume_model "lambert")."""
     if volume_model == "lambert":
         return np.asarray(kd) / np.pi
-    return li_kappa(kd, n_i)
+    return li_kappa(kd, n_i, sigma, volume_model)
 
 
 def _smith_g1_beckmann(c, sigma):

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from facette._threads import run_blocks
-from facette.brdf import li_kd_from_kappa, li_shading_terms
+from facette.brdf import kd_from_kappa, li_shading_terms
 
 __all__ = ["choose_material_model", "fit_bounds", "METAL_FIT_BOUNDS", "fit_li_per_pixel_kd", "li_fit_cost", "LI_FIT_BOUNDS", "LI_VOLUME_MODEL", "DIFFUSE", "LOBE_MIN_GAIN"]
 
@@ -166,7 +166,7 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
             best = r
     k, _ = _kd_and_residuals(e0, w, den, normals, lights, best.x[0], best.x[1], volume_model)
     return dict(success=bool(best.success), sigma=float(best.x[0]), n_i=float(best.x[1]), kappa=k,
-                kd=li_kd_from_kappa(k, best.x[1]), cost=float(best.cost), n_values=int(sel.sum()),
+                kd=kd_from_kappa(k, best.x[1], volume_model, best.x[0]), cost=float(best.cost), n_values=int(sel.sum()),
                 seconds=time.perf_counter() - t0, message=str(best.message))
 
 

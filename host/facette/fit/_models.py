@@ -12,8 +12,8 @@ import threading
 
 import numpy as np
 
-from facette.brdf import (MODELS, interreflection_integral_vcavity, interreflection_mixed_integral_vcavity, li_specular,
-                          oren_nayar1994, prepare_directions, r_i_simonot2009, volume_integral)
+from facette.brdf import (MODELS, diffuse_r_i, interreflection_integral_vcavity, interreflection_mixed_integral_vcavity,
+                          li_kappa, li_specular, oren_nayar1994, prepare_directions, volume_integral)
 
 __all__ = ["FitModel", "BOUNDS"]
 
@@ -129,7 +129,7 @@ class FitModel:
         parts = self._parts(sigma, n_i)
         if self.name == "cook_torrance":
             return parts["spec"][:, None] + self.up[:, None] * kd[None, :] / np.pi
-        kappa = kd / (np.pi * n_i * n_i * (1.0 - kd * r_i_simonot2009(n_i)))
+        kappa = li_kappa(kd, n_i, sigma, self.volume)
         out = parts["spec"][:, None] + parts["I"][:, None] * kappa[None, :]
         if self.interreflection:
             out = out + parts["J"][:, None] * kappa[None, :] ** 2 + parts["J1"][:, None] * kappa[None, :]
@@ -158,7 +158,7 @@ class FitModel:
         coef = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
         if self.name == "li":
             n = shared["n_i"]
-            ri = r_i_simonot2009(n)
+            ri = diffuse_r_i(n, shared["sigma"], self.volume)
             kappa = np.clip(coef, 0.0, 1.0 / (np.pi * n * n * (1.0 - ri)))  # κ(K_d = 1)
             kd = kappa * np.pi * n * n / (1.0 + kappa * np.pi * n * n * ri)
         else:

@@ -217,7 +217,7 @@ def _refine_one_start(e, lights, normals, sigma, n_i, usable=None, iterations=12
     # 0 for a black pixel (nothing to explain), 1 where fewer than 3 values were kept (nothing explained)
     rel = np.where(den > 0, num / np.maximum(den, 1e-30), 0).astype(np.float32)
     rel[keep.sum(1) < 3] = 1
-    return RefineResult(normals=n, kappa=k, kd=kd_from_kappa(k, n_i, volume_model), used=keep, cost=cost,
+    return RefineResult(normals=n, kappa=k, kd=kd_from_kappa(k, n_i, volume_model, sigma), used=keep, cost=cost,
                         rel_residual=rel, iterations=it, evaluations=evals, scale=scale)
 
 
@@ -339,7 +339,7 @@ def _refine_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_s
         cast_ratio=CAST_SHADOW_RATIO, floor=SCALE_FLOOR, max_step=MAX_STEP,
         step_tol=step_tol, volume_model=volume_model, second_above=second_above,
         table=None if table_grid is None else volume_table(lights, sigma, n_i, grid=table_grid, volume_model=volume_model))
-    return RefineResult(normals=nrm, kappa=k, kd=kd_from_kappa(k, n_i, volume_model), used=used, cost=cost,
+    return RefineResult(normals=nrm, kappa=k, kd=kd_from_kappa(k, n_i, volume_model, sigma), used=used, cost=cost,
                         rel_residual=rel, iterations=int(its.max()) if its.size else 0,
                         mean_iterations=float(its.mean()) if its.size else 0.0,
                         evaluations=None, scale=None)

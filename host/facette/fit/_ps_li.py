@@ -321,7 +321,8 @@ def _fit_material(px, pix, region, coarse, rounds, tol_deg, rounds_log):
     if keep.size and x0 is not None and x0[1] >= 1.0:
         _, b0 = li_shading_terms(np.float32([[0, 0, 1]]), np.float32([[0, 0, 1]]), x0[0], x0[1],
                                  volume_model=px.vm)
-        px.kd[keep] = kd_from_kappa(px.alb[keep] / np.pi / max(float(b0[0, 0]), 1e-6), x0[1], px.vm)
+        px.kd[keep] = kd_from_kappa(px.alb[keep] / np.pi / max(float(b0[0, 0]), 1e-6), x0[1], px.vm,
+                                      x0[0])
     elif keep.size:
         px.kd[keep] = np.clip(px.alb[keep], 0, 1)
     return mat

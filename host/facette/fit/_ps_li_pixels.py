@@ -258,7 +258,7 @@ class Pixels:
             p = sel[a:a + BLOCK]
             _, b = li_shading_terms(self.nrm[p], self.lights_of(p), sigma, n_i, specular=False,
                                     volume_model=self.vm)
-            kappa = kappa_from_kd(np.clip(self.kd[p, self.channel], 0, 1), n_i, self.vm)
+            kappa = kappa_from_kd(np.clip(self.kd[p, self.channel], 0, 1), n_i, self.vm, sigma)
             values = self.flat[:, self.idx[p], self.channel].T
             was = self.shadow[p]
             self.shadow[p] = was & (values < CAST_SHADOW_RATIO * b * kappa[:, None])

@@ -48,7 +48,7 @@ class ViewerModel:
     def kd_factor(self, kd):
         """g(K_d): what multiplies the K_d-free diffuse integral; kd (..., C) in [0, 1]."""
         if self.model == "li":
-            return brdf.li_kd_factor(np.asarray(kd, dtype=float), self.n_i)
+            return brdf.li_kd_factor(np.asarray(kd, dtype=float), self.n_i, self.sigma, self.volume)
         return np.asarray(kd, dtype=float) / np.pi
 
     def has_lobe(self):

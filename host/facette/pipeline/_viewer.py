@@ -71,7 +71,7 @@ def viewer_data(normals, mask, fit, albedo=None, kd_map=None, height=None, pitch
     rgba[..., 3] = np.where(mk, 255, 0)
     nxy = np.where(mk[..., None], n[..., :2], 0).astype(np.float16)
     table = volume_table(m)
-    r_i = brdf.r_i_simonot2009(m.n_i) if m.model == "li" else 0.0
+    r_i = brdf.diffuse_r_i(m.n_i, m.sigma, m.volume) if m.model == "li" else 0.0
     kd_a = 1.0 / (np.pi * m.n_i ** 2) if m.model == "li" else 1.0 / np.pi
     exposure = default_exposure(n, kd, mk, m)
     data = {
