@@ -76,17 +76,13 @@ def _cell_mean(a, keep, f, hc, wc):
         return np.where(n > 0, s / n, np.nan).astype(np.float32)
 
 
-def _interp_matrix(n_fine, n_cells, f):
-    """(n_fine, n_cells) linear interpolation from cell centres ((i + 0.5) f - 0.5) to pixels,
-    constant beyond the first and last centres."""
+def _interp_taps(n_fine, n_cells, f):
+    """(i0, i1, t): linear interpolation from cell centres ((i + 0.5) f - 0.5) to the n_fine pixels,
+    value = cell[i0] (1 − t) + cell[i1] t, constant beyond the first and last centres."""
     x = (np.arange(n_fine) + 0.5) / f - 0.5
     i0 = np.clip(np.floor(x).astype(int), 0, n_cells - 1)
     i1 = np.clip(i0 + 1, 0, n_cells - 1)
-    t = np.clip(x - i0, 0, 1).astype(np.float32)
-    m = np.zeros((n_fine, n_cells), np.float32)
-    np.add.at(m, (np.arange(n_fine), i0), 1 - t)
-    np.add.at(m, (np.arange(n_fine), i1), t)
-    return m
+    return i0, i1, np.clip(x - i0, 0, 1).astype(np.float32)
 
 
 def _gather_cells(i_c, ld_c, n_c, a_c, cells, z=None, lobes=None, cell_lobe=None, spec_scale=0.0):
@@ -323,31 +319,24 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
         if row.get("median_change_deg", 0.0) < tol_deg:
             break
 
-    # upsample each (light, channel) plane: two small matrix products
-    wr, wcm = _interp_matrix(h, hc, f), _interp_matrix(w, wc, f)
-    scale = alb * np.float32(reflectance_scale / np.pi)
+    # each light's cell light interpolated to the pixels, capped and subtracted in one compiled pass
+    from ._interreflect_jit import subtract_gathered
+    (r0, r1, rt), (c0, c1, ct) = _interp_taps(h, hc, f), _interp_taps(w, wc, f)
+    scale = np.ascontiguousarray(alb * np.float32(reflectance_scale / np.pi) * ok[..., None], np.float32)
+    no_glossy = np.zeros((0, 0, c), np.float32)
     out = np.empty((m, h, w, c), np.float32)
-    okf = ok[..., None].astype(np.float32)
-    scale = scale * okf                                 # nothing is removed off the surface
     # the fractions reported are read on an even sample of the surface's pixels
     sample = np.flatnonzero(ok)[:: max(1, int(ok.sum()) // 20000)]
 
     def remove(k):
-        v = im[k].astype(np.float32, copy=False)
-        ir_k = np.einsum("hi,ijc,wj->hwc", wr, gathered[k], wcm, optimize=True)
-        ir_k *= scale
-        if glossy is not None:      # the lobe's share is white: no albedo (masked off the surface)
-            ir_k += np.einsum("hi,ijc,wj->hwc", wr, glossy[k], wcm, optimize=True) * okf
+        v = np.ascontiguousarray(im[k], np.float32)
+        gl = no_glossy if glossy is None else np.ascontiguousarray(glossy[k], np.float32)
+        capped = subtract_gathered(v, np.ascontiguousarray(gathered[k], np.float32), gl, r0, r1, rt, c0, c1, ct,
+                                   scale, ok, np.float32(max_fraction), sat, out[k])
+        vs, os_ = v.reshape(-1, c)[sample], out[k].reshape(-1, c)[sample]
         with np.errstate(invalid="ignore"):
-            limit = np.float32(max_fraction) * v        # NaN where v is: fmin then keeps ir_k
-            capped = int(np.count_nonzero((ir_k > limit) & (v < sat)))
-            np.fmin(ir_k, np.maximum(limit, 0), out=ir_k)
-            # a missing value (NaN, inf, clipped) stays as it was, so that it is found missing again
-            np.subtract(v, ir_k, out=out[k])
-            np.copyto(out[k], v, where=~(v < sat))
-            vs, rs = v.reshape(-1, c)[sample], ir_k.reshape(-1, c)[sample]
             lit = (vs > 0) & (vs < sat)
-        return capped, rs[lit] / vs[lit]
+        return capped, (vs[lit] - os_[lit]) / vs[lit]
 
     with ThreadPoolExecutor(2) as pool:
         done = list(pool.map(remove, range(m)))

@@ -17,7 +17,7 @@ from numba import njit, prange
 
 from facette.brdf._lobe_jit import li_specular_half
 
-__all__ = ["gather", "specular_towards_camera", "OFF_SURFACE"]
+__all__ = ["gather", "specular_towards_camera", "subtract_gathered", "OFF_SURFACE"]
 
 OFF_SURFACE = np.float32(-1e30)     # zgrid's height off the surface: below every segment
 
@@ -172,3 +172,39 @@ def specular_towards_camera(normals, lights, lobe_of, sigmas, n_is):
             out[j, l] = ns * _f_s(sx, sy, sz, 0.0, 0.0, 1.0, normals[j, 0], normals[j, 1], normals[j, 2],
                                   sigmas[lj], etas[lj])
     return out
+
+
+@njit(cache=True, nogil=True)
+def subtract_gathered(v, g, gl, rows0, rows1, rows_t, cols0, cols1, cols_t, scale, ok, max_fraction, sat, out):
+    """One light's image `v` (h, w, c) with its gathered light taken out, into `out`; returns how
+    many values the cap limited. The light at a pixel is the cells' `g` (hc, wc, c) interpolated
+    bilinearly (taps of `_interp_taps`: rows0/rows1/rows_t, cols0/cols1/cols_t) times `scale`
+    (h, w, c: the albedo as a reflectance over π, 0 off the surface), plus the cells' glossy light
+    `gl` the same way where `ok` (gl of shape (0, 0, c): none); at most max_fraction × the value.
+    A value that is not below `sat` (NaN, inf, clipped) stays as it is. One pass, no temporaries
+    (the numpy passes it replaces took ~9 s for 12 lights at 12 MP × 4 channels)."""
+    h, w, c = v.shape
+    glossy = gl.shape[0] > 0
+    capped = 0
+    for y in range(h):
+        i0, i1, ty = rows0[y], rows1[y], rows_t[y]
+        for x in range(w):
+            j0, j1, tx = cols0[x], cols1[x], cols_t[x]
+            for k in range(c):
+                val = v[y, x, k]
+                if not val < sat:
+                    out[y, x, k] = val
+                    continue
+                top = g[i0, j0, k] * (1 - tx) + g[i0, j1, k] * tx
+                bottom = g[i1, j0, k] * (1 - tx) + g[i1, j1, k] * tx
+                ir = (top * (1 - ty) + bottom * ty) * scale[y, x, k]
+                if glossy and ok[y, x]:
+                    top = gl[i0, j0, k] * (1 - tx) + gl[i0, j1, k] * tx
+                    bottom = gl[i1, j0, k] * (1 - tx) + gl[i1, j1, k] * tx
+                    ir += top * (1 - ty) + bottom * ty
+                limit = max_fraction * val
+                if ir > limit:
+                    capped += 1
+                    ir = max(limit, 0.0)
+                out[y, x, k] = val - ir
+    return capped

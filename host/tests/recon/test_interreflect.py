@@ -314,3 +314,44 @@ def test_bad_lobes_are_refused_with_what_was_wrong(kwargs, words):
     im = _lambertian(nrm, 0.5, UP)
     with pytest.raises(ValueError, match=words):
         remove_interreflections(im, UP, nrm, np.full(mask.shape, 0.5), mask, **kwargs)
+
+
+def test_the_compiled_subtraction_is_the_interpolated_capped_difference():
+    # one light: the cells' light interpolated bilinearly between cell centres (np.interp along
+    # rows, then columns), times the per-pixel scale, the glossy share where the surface is, capped
+    # at max_fraction x the value; NaN, inf and clipped values kept as they were
+    from facette.recon._interreflect import _interp_taps
+    from facette.recon._interreflect_jit import subtract_gathered
+    rng = np.random.default_rng(4)
+    h, w, c, f = 23, 17, 2, 4
+    hc, wc = -(-h // f), -(-w // f)
+    g, gl = rng.random((hc, wc, c), np.float32), rng.random((hc, wc, c), np.float32) * 0.1
+    v = rng.random((h, w, c), np.float32) * 2 - 0.2
+    v[3, 4, 0], v[5, 6, 1], v[7, 8, 0] = np.nan, np.inf, 1.5
+    scale = rng.random((h, w, c), np.float32)
+    ok = rng.random((h, w)) > 0.3
+    centres_r, centres_c = (np.arange(hc) + 0.5) * f - 0.5, (np.arange(wc) + 0.5) * f - 0.5
+
+    def bilinear(cells):
+        rows = np.stack([[np.interp(np.arange(h), centres_r, cells[:, j, k]) for k in range(c)]
+                         for j in range(wc)])                                  # (wc, c, h)
+        return np.stack([[np.interp(np.arange(w), centres_c, rows[:, k, y]) for k in range(c)]
+                         for y in range(h)]).transpose(0, 2, 1)                # (h, w, c)
+
+    ir = bilinear(g) * scale + bilinear(gl) * ok[..., None]
+    limit = 0.5 * v
+    with np.errstate(invalid="ignore"):
+        want = np.where(v < 1.5, v - np.where(ir > limit, np.maximum(limit, 0), ir), v)
+        want_capped = int(np.count_nonzero((ir > limit) & (v < 1.5)))
+    out = np.empty_like(v)
+    capped = subtract_gathered(v, g, gl, *_interp_taps(h, hc, f), *_interp_taps(w, wc, f), scale, ok,
+                               np.float32(0.5), np.float32(1.5), out)
+    np.testing.assert_allclose(out, want, rtol=1e-5, atol=1e-6)
+    assert capped == want_capped > 0
+    assert np.isnan(out[3, 4, 0]) and out[5, 6, 1] == np.inf and out[7, 8, 0] == 1.5
+    # without the glossy cells (shape (0, 0, c)) only the Lambertian share goes
+    capped = subtract_gathered(v, g, np.zeros((0, 0, c), np.float32), *_interp_taps(h, hc, f),
+                               *_interp_taps(w, wc, f), scale, ok, np.float32(10.0), np.float32(1.5), out)
+    on = (v >= 0.1) & (v < 1.5)                     # no cap there: 10 x the value is above the light
+    np.testing.assert_allclose(out[on], (v - bilinear(g) * scale)[on], rtol=1e-5, atol=1e-6)
+    assert np.array_equal(out[v < 0], v[v < 0])         # a negative value: nothing removed (the cap is 0)
