@@ -319,7 +319,8 @@ def main(argv=None):
                     left_in = "; inter-reflections left in: the albedo is no reflectance"
                 p = res.brdf.params if res.brdf is not None and res.brdf.success else {}
                 kd = np.array(p.get("kd", [np.nan] * 3)) / np.array(d["params"].get("kd", [np.nan] * 3))
-                print(f"{shape + '/' + mat:22s} {_marked(name):30s} {p.get('sigma', np.nan):7.4f} {truth['sigma']:6.3f} "
+                print(f"{shape + '/' + mat:22s} {_marked(name):30s} {p.get('sigma', np.nan):7.4f} "
+                      f"{truth['sigma']:6.3f} "
                       f"{p.get('n_i', np.nan):6.3f} {truth['n_i']:6.2f} {' '.join(f'{x:5.3f}' for x in kd):>18s} "
                       f"{dt:6.1f}  ({_verdict(res.brdf)}{left_in})", flush=True)
     rows, found = table_heights(args)

@@ -143,24 +143,7 @@ def lobe_transmittance_beckmann_smith(mu, h, w, sigma, n_i, out):
     if n_i <= 1.0:
         out[:] = 1.0
         return
-    eta = n_i * n_i - 1.0
-    for k in range(mu.shape[0]):
-        m = mu[k]
-        sx = math.sqrt(max(1.0 - m * m, 0.0))
-        gi = smith_g1_beckmann(m, sigma)
-        tot = 0.0
-        for j in range(h.shape[0]):
-            ih = sx * h[j, 0] + m * h[j, 2]
-            if ih <= 0.0:
-                continue
-            # refracted t = −i / n + (c / n − √(1 − (1 − c²) / n²)) h; its z (< 0: into the substrate)
-            root = math.sqrt(max(1.0 - (1.0 - ih * ih) / (n_i * n_i), 0.0))
-            tz = -m / n_i + (ih / n_i - root) * h[j, 2]
-            if tz >= 0.0:
-                continue
-            tot += w[j] * (1.0 - fresnel_dielectric_scalar(min(ih, 1.0), eta)) * gi * smith_g1_beckmann(-tz, sigma) \
-                * ih / (m * h[j, 2])
-        out[k] = min(max(tot, 0.0), 1.0)
+    _interface_share(mu, h, w, sigma, n_i, False, out)
 
 
 @njit(cache=True, nogil=True)
@@ -174,7 +157,17 @@ def lobe_internal_reflectance_beckmann_smith(mu, h, w, sigma, n_i, out):
     if n_i <= 1.0:
         out[:] = 0.0
         return
-    eta = 1.0 / (n_i * n_i) - 1.0      # fresnel_dielectric_scalar's n² − 1 for the relative index 1 / n_i
+    _interface_share(mu, h, w, sigma, n_i, True, out)
+
+
+@njit(cache=True, nogil=True)
+def _interface_share(mu, h, w, sigma, n_i, inside, out):
+    """Σ_h w S G_1(i) (i·h) / (μ h_z) at each cosine μ of `mu`, i = (√(1 − μ²), 0, μ), over the
+    half-vectors h with weights w: S = (1 − F(i·h)) G_1(t), t the refraction of i into the medium
+    of index n_i (inside False: `lobe_transmittance_beckmann_smith`), or S = F_in(i·h) G_1(o), o the
+    mirror of i about h and F_in Fresnel from the medium into air, 1 beyond the critical angle
+    (inside True: `lobe_internal_reflectance_beckmann_smith`). Clipped to [0, 1], into out."""
+    eta = 1.0 / (n_i * n_i) - 1.0 if inside else n_i * n_i - 1.0    # fresnel_dielectric_scalar's n² − 1
     for k in range(mu.shape[0]):
         m = mu[k]
         sx = math.sqrt(max(1.0 - m * m, 0.0))
@@ -182,10 +175,21 @@ def lobe_internal_reflectance_beckmann_smith(mu, h, w, sigma, n_i, out):
         tot = 0.0
         for j in range(h.shape[0]):
             ih = sx * h[j, 0] + m * h[j, 2]
-            oz = 2.0 * ih * h[j, 2] - m
-            if ih <= 0.0 or oz <= 0.0:
+            if ih <= 0.0:
                 continue
             c = min(ih, 1.0)
-            f = 1.0 if eta + c * c <= 0.0 else fresnel_dielectric_scalar(c, eta)
-            tot += w[j] * f * gi * smith_g1_beckmann(oz, sigma) * ih / (m * h[j, 2])
+            if inside:
+                oz = 2.0 * ih * h[j, 2] - m
+                if oz <= 0.0:
+                    continue
+                f = 1.0 if eta + c * c <= 0.0 else fresnel_dielectric_scalar(c, eta)
+                share = f * smith_g1_beckmann(oz, sigma)
+            else:
+                # refracted t = −i / n + (c / n − √(1 − (1 − c²) / n²)) h; its z (< 0: into the substrate)
+                root = math.sqrt(max(1.0 - (1.0 - ih * ih) / (n_i * n_i), 0.0))
+                tz = -m / n_i + (ih / n_i - root) * h[j, 2]
+                if tz >= 0.0:
+                    continue
+                share = (1.0 - fresnel_dielectric_scalar(c, eta)) * smith_g1_beckmann(-tz, sigma)
+            tot += w[j] * share * gi * ih / (m * h[j, 2])
         out[k] = min(max(tot, 0.0), 1.0)

@@ -17,9 +17,9 @@ from facette.recon import IR_MAX_FRACTION, without_interreflections
 
 __all__ = ["interreflections_wanted", "solve_without_interreflections", "SIM_INTERREFLECTIONS_NOTE"]
 
-SIM_INTERREFLECTIONS_NOTE = ("--interreflections on a simulated scan: the simulator renders no inter-reflections, so "
-                             "their removal takes away light that no wall gathered (errors against truth grow); leave it "
-                             "out for simulated scans")
+SIM_INTERREFLECTIONS_NOTE = ("--interreflections on a simulated scan: the simulator renders no inter-reflections, "
+                             "so their removal takes away light that no wall gathered (errors against truth grow); "
+                             "leave it out for simulated scans")
 AUTO_OFF = "inter-reflections left in (interreflections 'auto'): "
 
 
@@ -76,8 +76,8 @@ def note_interreflections(res, info, seconds):
     if not info["applied"]:
         res.notes.append(f"inter-reflections: {how}; too little to matter, the images are used as they are")
         return
-    res.notes.append(f"inter-reflections removed before photometric stereo: {how}"
-                     + (f"; {info['capped']} values limited to {IR_MAX_FRACTION:.0%} removed" if info["capped"] else ""))
+    capped = f"; {info['capped']} values limited to {IR_MAX_FRACTION:.0%} removed" if info["capped"] else ""
+    res.notes.append(f"inter-reflections removed before photometric stereo: {how}{capped}")
     glossy = info.get("glossy")
     if glossy:
         res.notes.append(f"glossy inter-reflections removed with the lobes li_alternating found "
