@@ -202,11 +202,11 @@ def process(source, outputs=None, out_dir=None, options=None, **overrides):
         the images before photometric stereo (`facette.recon.without_interreflections`, its shape
         from a first rank_trimmed pass; needs the albedo as a reflectance, as the rig's
         calibration gives it: "auto", the default, runs it on a reflectance-calibrated scan read
-        whole and says why not elsewhere, pipeline._interreflections). The BRDF fit then sees the direct light only; PTM/HSH keep the
-        images as photographed. Left out, with a note, when gathered light is under IR_SKIP_P95
-        (0.5 %) of the values at their 95th percentile (a convex object gathers none). With
-        li_alternating, the light glossy walls mirror into each other is removed too, with the
-        lobe it finds (facette.fit.ps_li_without_interreflections).
+        whole and says why not elsewhere, pipeline._interreflections). The BRDF fit then sees the
+        direct light only; PTM/HSH keep the images as photographed. Left out, with a note, when
+        gathered light is under IR_SKIP_P95 (0.5 %) of the values at their 95th percentile (a
+        convex object gathers none). With li_alternating, the light glossy walls mirror into
+        each other is removed too, with the lobe it finds (facette.fit.ps_li_without_interreflections).
     Returns a `ProcessResult` (timings: wall seconds per stage, "after_ps" the concurrent
     stages together, "cpu" the CPU seconds of the whole call; `interreflections` the removal's
     figures when it ran). Raises InsufficientData
