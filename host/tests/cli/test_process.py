@@ -72,6 +72,14 @@ def test_interreflections_flag_reports_what_was_gathered(capsys, folders, tmp_pa
     code, out, err = run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r2", "--outputs",
                              "normals", "--interreflections")
     assert code == 3 and "needs the albedo as a reflectance" in err and "no --interreflections" in err
+    # by default ('auto') a DiLiGenT folder keeps its light (relative intensities), recorded as such;
+    # --no-interreflections records False
+    for flag, recorded in (([], "auto"), (["--no-interreflections"], False)):
+        code, out, err = run_cli(capsys, "process", folder, "-o", tmp_path / f"r_{recorded}", "--outputs", "normals",
+                                 *flag)
+        assert code == 0, err
+        rec = json.loads((tmp_path / f"r_{recorded}" / "process.json").read_text())
+        assert rec["options"]["interreflections"] == recorded and "inter-reflections:" not in out
 
 
 @pytest.mark.parametrize("name, words", [
