@@ -15,7 +15,7 @@ given, says what to do. Layers raise these (or a subclass); the command line pri
 """
 from __future__ import annotations
 
-__all__ = ["FacetteError", "BadInputError", "StoppedError", "InsufficientData", "EXIT_OK",
+__all__ = ["FacetteError", "BadInputError", "StoppedError", "InsufficientData", "NotAReflectance", "EXIT_OK",
            "EXIT_STOPPED", "EXIT_BAD_INPUT", "EXIT_NO_RESULT", "EXIT_BUG", "EXIT_INTERRUPTED"]
 
 EXIT_OK = 0
@@ -62,3 +62,8 @@ class InsufficientData(FacetteError, ValueError):
     """The data cannot carry the result asked for (too dark, saturated, too few samples)."""
 
     exit_code = EXIT_NO_RESULT
+
+
+class NotAReflectance(InsufficientData):
+    """A step that needs the albedo as a reflectance (the inter-reflection removal) got one above 1:
+    relative light intensities, or a metal's Lambertian albedo."""

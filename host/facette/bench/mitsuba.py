@@ -31,7 +31,7 @@ from scipy.ndimage import binary_erosion
 
 from facette.bench._mitsuba_scenes import MATERIALS, NON_LI_SCENES, TABLE_MATERIAL, render_scene
 from facette.bench.e2e import height_errors
-from facette.errors import InsufficientData
+from facette.errors import NotAReflectance
 from facette.methods import PROCESS_DEFAULT, PS_DEFAULT, PS_METHODS, photometric_stereo
 from facette.pipeline import IR_AUTO, ProcessOptions, auto_masks, margin_of
 from facette.pipeline._channels import images_for_solve, results_in_rgb
@@ -314,7 +314,7 @@ def main(argv=None):
                 left_in = ""
                 try:
                     res, dt = whole_pipeline(d, method, tmp, args.init, ir)
-                except InsufficientData:      # a metal's Lambertian albedo is above 1: "auto" leaves them in
+                except NotAReflectance:       # a metal's Lambertian albedo is above 1: "auto" leaves them in
                     res, dt = whole_pipeline(d, method, tmp, args.init, False)
                     left_in = "; inter-reflections left in: the albedo is no reflectance"
                 p = res.brdf.params if res.brdf is not None and res.brdf.success else {}

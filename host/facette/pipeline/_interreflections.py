@@ -9,7 +9,7 @@ are (`facette.recon.without_interreflections`, IR_SKIP_P95).
 """
 import time
 
-from facette.errors import InsufficientData
+from facette.errors import NotAReflectance
 from facette.fit import glossy_lobes_text, ps_li_without_interreflections
 from facette.methods import options_for
 from facette.pipeline._options import IR_AUTO
@@ -47,7 +47,7 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
     itself (its lobe takes the glossy walls' light out too, facette.fit.ps_li_without_interreflections);
     the others get the images and, for rank_trimmed when nothing was removed, its first pass.
     Under "auto" an albedo that is no reflectance (a calibration gone wrong) leaves the removal
-    out with a note; asked for explicitly, it raises InsufficientData."""
+    out with a note; asked for explicitly, it raises (NotAReflectance, an InsufficientData)."""
     t0 = time.perf_counter()
     try:
         if method_name == "li_alternating":
@@ -56,7 +56,7 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
             return direct, ps
         direct, first, info = without_interreflections(solve_in, light_dirs, mask, saturation=o.saturation,
                                                        channel=bag.get("channel"))
-    except InsufficientData as exc:
+    except NotAReflectance as exc:      # raised before any solve: nothing done is lost
         if o.interreflections is True:
             raise
         res.notes.append(AUTO_OFF + str(exc))

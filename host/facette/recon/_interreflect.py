@@ -35,7 +35,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from facette.brdf import coupled_transmittance
-from facette.errors import InsufficientData
+from facette.errors import NotAReflectance
 
 from ._integrate import integrate_frankot_chellappa1988
 from ._ps_robust import ps_rank_trimmed
@@ -360,16 +360,16 @@ def without_interreflections(images, light_dirs, mask, saturation=None, reflecta
     Returns (images, first, info): the corrected images, or the given ones when under
     IR_SKIP_P95 of the values at the 95th percentile is gathered light (info "applied" False);
     the first pass's PSResult; the removal's info.
-    Raises InsufficientData when reflectance_scale x albedo is no reflectance (its 99th
-    percentile above 1, as with a DiLiGenT folder's relative intensities): the wrong amount of
-    light would be removed without a word.
+    Raises NotAReflectance (an InsufficientData) when reflectance_scale x albedo is no reflectance
+    (its 99th percentile above 1, as with a DiLiGenT folder's relative intensities): the wrong
+    amount of light would be removed without a word.
     """
     first = ps_rank_trimmed(images, light_dirs, mask=mask, saturation=saturation,
                             **({} if channel is None else {"channel": channel}))
     if first.valid.any():
         p99 = float(np.percentile(first.albedo[first.valid].max(axis=-1), 99)) * reflectance_scale
         if p99 > 1.0:
-            raise InsufficientData(
+            raise NotAReflectance(
                 f"removing inter-reflections needs the albedo as a reflectance, and this one reaches "
                 f"{p99:.2f} (99th percentile; a reflectance is at most 1): the light intensities are "
                 "relative, not calibrated",

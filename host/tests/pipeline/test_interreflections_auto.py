@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from facette.errors import InsufficientData
+from facette.errors import InsufficientData, NotAReflectance
 from facette.io.exr import write_exr
 from facette.pipeline import process
 from facette.recon.synthetic import angular_error_deg
@@ -80,5 +80,9 @@ def test_a_calibration_gone_wrong_is_said_not_fatal_by_default(tmp_path, relief)
     assert res.interreflections is None
     assert any("left in (interreflections 'auto'): removing inter-reflections needs the albedo as a reflectance"
                in n for n in res.notes)
-    with pytest.raises(InsufficientData, match="needs the albedo as a reflectance"):
+    with pytest.raises(NotAReflectance, match="needs the albedo as a reflectance") as exc:
         process(scan, outputs=["normals"], method="woodham1980", interreflections=True)
+    assert isinstance(exc.value, InsufficientData) and exc.value.exit_code == 3
+    # the default method too: the refusal comes before any solve, and "auto" goes on without
+    res = process(scan, outputs=["normals"])
+    assert res.interreflections is None and res.ps.method == "li_alternating"
