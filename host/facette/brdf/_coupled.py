@@ -13,7 +13,7 @@ The substrate's light that the interface sends back in (the 1 − K_d r_i of κ)
 interface's too: r_i = 2 ∫ E(μ) μ dμ, E(μ) the share the facets reflect back of light meeting them
 from inside, single scattering as t(θ) is (`coupled_internal_reflectance`). The LI substrate keeps
 the thesis's smooth-interface r_i (eq 3.13, Simonot's n_i² (1 − r_i) = 1 − r_e, which assumes the
-interface loses nothing). At σ 0.4, n_i 1.5 the two are 0.496 and 0.596: with the smooth one, K_d
+interface loses nothing). At σ 0.4, n_i 1.5 the two are 0.495 and 0.596: with the smooth one, K_d
 fitted to Mitsuba's rough plastic (whose multiple internal bounces use its own rough interface's
 reflectance) came out 4-6 % low, the shortfall this difference predicts (0.943 / 0.952 / 0.962 of
 the truth for K_d 0.6 / 0.5 / 0.4 against 0.940 / 0.949 / 0.960 measured).
@@ -72,12 +72,18 @@ def _transmittance_node(k, j):
     facet h), on the nodes of D(h) (n·h) that the volume quadrature uses
     (facette.brdf.microfacet_quadrature) and the lobe's Smith G_1."""
     from ._lobe_jit import lobe_transmittance_beckmann_smith     # numba: loaded with the first node
+    return _on_node(lobe_transmittance_beckmann_smith, k, j)
+
+
+def _on_node(kernel, k, j):
+    """(MU_NODES,) `kernel`(mu, h, w, σ, n_i, out) of facette.brdf._lobe_jit at the node (σ, n_i) =
+    node_point(k, j): on MU_NODES cosines, over the half-vectors and weights of D(h) (n·h) that the
+    volume quadrature uses (facette.brdf.microfacet_quadrature)."""
     sigma, n = node_point(k, j)
     h, w = microfacet_quadrature(sigma, "beckmann", *HALF_VECTORS)
     mu = np.maximum(np.linspace(0.0, 1.0, MU_NODES), 1e-4)
     out = np.empty(MU_NODES)
-    lobe_transmittance_beckmann_smith(mu, np.ascontiguousarray(h, float), np.ascontiguousarray(w, float), sigma,
-                                      float(n), out)
+    kernel(mu, np.ascontiguousarray(h, float), np.ascontiguousarray(w, float), sigma, float(n), out)
     return out
 
 
@@ -94,12 +100,8 @@ def _internal_node(k, j):
     """2 ∫ E(μ) μ dμ (trapezoid on MU_NODES cosines) at the node (σ, n_i) = node_point(k, j), E of
     facette.brdf._lobe_jit.lobe_internal_reflectance_beckmann_smith on the quadrature of `_transmittance_node`."""
     from ._lobe_jit import lobe_internal_reflectance_beckmann_smith
-    sigma, n = node_point(k, j)
-    h, w = microfacet_quadrature(sigma, "beckmann", *HALF_VECTORS)
+    e = _on_node(lobe_internal_reflectance_beckmann_smith, k, j)
     mu = np.maximum(np.linspace(0.0, 1.0, MU_NODES), 1e-4)
-    e = np.empty(MU_NODES)
-    lobe_internal_reflectance_beckmann_smith(mu, np.ascontiguousarray(h, float), np.ascontiguousarray(w, float),
-                                             sigma, float(n), e)
     return float(np.trapezoid(2.0 * e * mu, mu))
 
 

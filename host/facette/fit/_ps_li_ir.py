@@ -48,20 +48,23 @@ def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, re
                                                    reflectance_scale=reflectance_scale, channel=options.get("channel"))
     info["removal_seconds"] = time.perf_counter() - t0
     info["glossy"] = None
+
+    def solve(im):              # li_alternating at full size, the result
+        return ps_li_alternating(im, light_dirs, mask=mask, saturation=saturation, **options)
+
     if not info["applied"]:
-        return ps_li_alternating(direct, light_dirs, mask=mask, saturation=saturation, **options), direct, info
-    ps, normal, valid, material = _lobe_pass(direct, light_dirs, mask, saturation, options)
+        return solve(direct), direct, info
+    ps, binned, normal, valid, material = _lobe_pass(direct, light_dirs, mask, saturation, options)
     mats = ps.info.get("materials", [])
     lobes = [(float(q["sigma"]), float(q["n_i"])) if q.get("brdf_step") and q.get("n_i") is not None else None
              for q in mats]
-    if not any(lobes) or material is None:
-        return (ps if normal is ps.normal else
-                ps_li_alternating(direct, light_dirs, mask=mask, saturation=saturation, **options)), direct, info
+    if not any(lobes) or material is None:      # no glossy gather: the lobe pass is the result if whole
+        return (solve(direct) if binned else ps), direct, info
     direct, glossy = remove_interreflections(images, light_dirs, normal, first.albedo, valid & mask,
                                              reflectance_scale=reflectance_scale, saturation=saturation,
                                              passes=1, lobe=lobes, lobe_map=material,
                                              diffuse_through=[q.get("diffuse") != "lambert" for q in mats])
-    ps = ps_li_alternating(direct, light_dirs, mask=mask, saturation=saturation, **options)
+    ps = solve(direct)
     info["glossy"] = {"lobes": lobes, "median_fraction": glossy["median_fraction"],
                       "p95_fraction": glossy["p95_fraction"], "capped": glossy["capped"],
                       "seconds": glossy["seconds"]}
@@ -70,8 +73,8 @@ def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, re
 
 
 def _lobe_pass(direct, light_dirs, mask, saturation, options):
-    """li_alternating on `direct` for the glossy gather: (its PSResult, normals, valid and material
-    maps at the images' size). The gather reads them on cells of at most IR_GRID a side, so above
+    """li_alternating on `direct` for the glossy gather: (its PSResult, whether it ran on binned
+    images, its normals, valid and material maps at the images' size). The gather reads them on cells of at most IR_GRID a side, so above
     coarse_pixels valid pixels (one material) it runs on the images binned as li's own coarse pass
     bins them (the lobe li keeps at full size), its normals upsampled and its maps repeated, as long
     as each cell keeps 2 x 2 binned pixels: at 12 MP this spares a whole-size run (the second, on the
@@ -80,7 +83,7 @@ def _lobe_pass(direct, light_dirs, mask, saturation, options):
                       options.get("materials", 1))
     if f is None or -(-max(mask.shape) // f) < 2 * IR_GRID:      # at least 2 x 2 binned pixels a cell
         ps = ps_li_alternating(direct, light_dirs, mask=mask, saturation=saturation, **options)
-        return ps, ps.normal, ps.valid, ps.material
+        return ps, False, ps.normal, ps.valid, ps.material
     rest = {k: v for k, v in options.items() if k not in ("materials", "coarse_pixels")}
     ps = _coarse_pass(direct, light_dirs, mask, f, saturation, **rest)
     h, w = mask.shape
@@ -89,7 +92,7 @@ def _lobe_pass(direct, light_dirs, mask, saturation, options):
         return np.repeat(np.repeat(a, f, 0), f, 1)[:h, :w]
 
     normal = upsample_normals(np.where(ps.valid[..., None], ps.normal, 0), (h, w), f)
-    return ps, normal, grow(ps.valid) & mask, None if ps.material is None else grow(ps.material)
+    return ps, True, normal, grow(ps.valid) & mask, None if ps.material is None else grow(ps.material)
 
 
 def glossy_lobes_text(glossy):
