@@ -9,7 +9,8 @@ table of photometric-stereo methods, with fit's li_alternating). Integration: `i
 dispatched by `integrate(..., method=)`.
 The dark level of each photograph (black level, ambient light: what pixels read with their light
 behind them), for the methods that predict 0 there: `dark_offsets`, `dark_level_notes`.
-Inter-reflections of concave matte surfaces taken out of the images before photometric stereo:
+Normals where none was measured (no light above the noise), interpolated from those around them:
+`fill_normals`. Inter-reflections of concave matte surfaces taken out of the images before photometric stereo:
 `remove_interreflections` (`without_interreflections`: with its first shape).
 Relighting functions for RTI (PTM, Malzbender 2001; hemispherical harmonics, Gautron 2004):
 `fit_ptm_lrgb`, `fit_hsh`.
@@ -23,6 +24,7 @@ from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
                          integrate, INTEGRATION_DEFAULT, INTEGRATION_METHODS, mesh_from_height, MESH_MAX_SLOPE,
                          flat_margin, MIN_BACKGROUND_PIXELS)
 from ._dark import dark_offsets, dark_level_notes
+from ._fill import fill_normals, FILL_TOLERANCE
 from ._interreflect import (remove_interreflections, without_interreflections, IR_GRID, IR_MAX_FRACTION,
                             IR_PASSES, IR_SKIP_P95)
 from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, fit_relight_error,
@@ -31,7 +33,7 @@ from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, 
 
 __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
            "ps_rank_trimmed", "ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "ps_consensus_higo2010",
-           "triplet_inverses", "dark_offsets", "dark_level_notes",
+           "triplet_inverses", "dark_offsets", "dark_level_notes", "fill_normals", "FILL_TOLERANCE",
            "near_light_directions",
            "normals_to_gradients", "integrate_frankot_chellappa1988", "integrate_simchony1990",
            "integrate_poisson_flat_margin", "integrate_least_squares", "integrate", "INTEGRATION_DEFAULT",
