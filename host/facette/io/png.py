@@ -116,9 +116,17 @@ def read_mask(path):
     return arr.any(axis=-1) if arr.ndim == 3 else arr > 0
 
 
-def write_mask(path, mask, text=None):
-    """Write an (H, W) bool mask as an 8-bit grey PNG (0 / 255); text as `write_png`."""
-    write_png(path, np.asarray(mask, bool), text)
+def write_mask(path, mask, text=None, grey=None, grey_level=128):
+    """Write an (H, W) bool mask as an 8-bit grey PNG (0 / 255); text as `write_png`. grey : an
+    optional (H, W) bool map of the mask's pixels written `grey_level` instead of 255 (`read_mask`
+    reads them as inside)."""
+    mask = np.asarray(mask, bool)
+    if grey is None:
+        write_png(path, mask, text)
+        return
+    out = mask.astype(np.uint8) * np.uint8(255)
+    out[mask & np.asarray(grey, bool)] = grey_level
+    write_png(path, out, text)
 
 
 class PngBandWriter:

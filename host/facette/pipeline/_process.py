@@ -43,6 +43,7 @@ from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_fro
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.pipeline._inputs import load_input, object_of
+from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
@@ -80,8 +81,8 @@ def stages_needed(outputs):
 class ProcessResult:
     """What `process` computed. Arrays at the input image size (H, W):
 
-    normals (H, W, 3) unit vectors, camera frame (0 where not valid); albedo (H, W, 3);
-    mask (H, W) bool (valid normals inside the input mask); object_mask (H, W) bool, the object
+    normals (H, W, 3) unit vectors, camera frame (0 where not valid); albedo (H, W, 3); mask (H, W) bool
+    (valid normals inside the input mask: measured, or `filled` (H, W) bool or None: pipeline._filled); object_mask (H, W) bool, the object
     in it (mask.png: the mask without the dark table or cloth `auto_masks` finds around the
     object; the mask itself where there is none, or a mask was given); height (H, W) mm or None;
     mesh (vertices, faces) or None; filtered `FilteredReflectance` or None; samples raw
@@ -114,6 +115,7 @@ class ProcessResult:
     fit_errors: dict = field(default_factory=dict)
     quality: dict = field(default_factory=dict)
     interreflections: dict = None
+    filled: np.ndarray = None
 
 
 def _fit_stage(filtered, fit_options, brdf_aware=False, material=None):
@@ -302,7 +304,7 @@ def _process(source, outputs, out_dir, o):
     ps, direct = results_in_rgb(ps, direct, solve_in, images, used)
     res.ps = ps
     res.notes.extend(dark_level_notes(ps.info.get("dark_offset")))
-    res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
+    normals_of(res, inp, ps)
     # mask.png: the object, without the dark table or cloth around it (when one surrounds it)
     res.object_mask = res.mask if inp.background_mask() is None else \
         res.mask & object_of(inp.images, inp.mask, inp.material_mask)
@@ -314,7 +316,7 @@ def _process(source, outputs, out_dir, o):
 def _streamed_result(res, inp, ps, top):
     """res.ps, normals, albedo, mask and object mask of photometric stereo over bands (`streamed_ps`)."""
     res.ps = ps
-    res.normals, res.albedo, res.mask = ps.normal, ps.albedo, ps.valid & inp.mask
+    normals_of(res, inp, ps)
     res.object_mask = res.mask if inp.background_mask() is None else \
         res.mask & object_of(None, inp.mask, inp.material_mask, top=top)
 
@@ -469,7 +471,8 @@ def _writers(res, out, outputs, ascii_ply, relight=None):
         "normals": lambda p: write_exr(p, res.normals, ("X", "Y", "Z"), header=meta, compression="none"),
         "albedo": lambda p: write_exr(p, res.albedo, ("R", "G", "B"), header=meta, compression="none"),
         "height": lambda p: write_exr(p, res.height, ("Z",), header={**meta, "unit": "mm"}, compression="none"),
-        "mask": lambda p: write_mask(p, res.object_mask, {"Comment": comment} if res.inputs.incomplete else None),
+        "mask": lambda p: write_mask(p, res.object_mask, {"Comment": comment} if res.inputs.incomplete else None,
+                                     grey=res.filled),
         "mesh": lambda p: write_ply(p, *res.mesh, binary=not ascii_ply, comment=comment),
         "samples": samples,
         "brdf": lambda p: write_text_atomic(p, brdf_text()) if res.brdf is not None else None,

@@ -448,8 +448,8 @@ def _summary(res, viewer_note):
     inp, ps = res.inputs, res.ps
     h, w = res.normals.shape[:2]
     m = len(inp.light_dirs) if inp is not None and getattr(inp, "light_dirs", None) is not None else None
-    valid = int(res.mask.sum())
-    material = int((res.mask & inp.sample_mask()).sum()) if inp is not None else valid
+    valid, seen = int(res.mask.sum()), res.mask if res.filled is None else res.mask & ~res.filled   # seen: measured
+    material = int((seen & inp.sample_mask()).sum()) if inp is not None else valid
     measured = (f"{fmt(m)} lights on {fmt(w)} × {fmt(h)} pixels"
                 f" ({html.escape(str(inp.kind)) if inp else ''} {html.escape(str(inp.source)) if inp else ''}); "
                 f"a normal on {fmt(valid)} pixels ({_pct(valid / max(h * w, 1))}), "
@@ -468,7 +468,7 @@ def _summary(res, viewer_note):
         if "height_rms_mm" in e:
             good.append(f"heights within {fmt(e['height_rms_mm'], 2)} mm RMS")
     if ps is not None and valid:
-        residual = float(np.median(masked_values(ps.residual, res.mask), overwrite_input=True))  # by bands, no copy
+        residual = float(np.median(masked_values(ps.residual, seen), overwrite_input=True))  # by bands, no copy
         good.append(f"photometric-stereo residual {_pct(residual)} (median; "
                     "0 is a perfect Lambertian fit)")
     fit = res.brdf
@@ -485,12 +485,15 @@ def _summary(res, viewer_note):
         lost = int((inp.mask & ~res.mask).sum())
         if lost:
             left.append(f"{fmt(lost)} pixels inside the mask got no normal (too few usable lights)")
+        if res.filled is not None:
+            left.append(f"{fmt(int(res.filled.sum()))} pixels had no light above the noise: their normals are "
+                        "interpolated from the measured ones around them (grey in mask.png)")
         bg = int((res.mask & ~inp.sample_mask()).sum())
         if bg:
             left.append(f"{fmt(bg)} pixels outside the material (dark background) are left out of the "
                         "BRDF fit; they keep their normals and heights")
     if ps is not None and ps.shadow is not None and ps.shadow.size and valid:
-        sh = float(ps.shadow[res.mask].mean())
+        sh = float(ps.shadow[seen].mean())
         if sh > 0:
             left.append(f"{_pct(sh)} of the pixel-light pairs were flagged as shadow and left out of the "
                         "reflectance samples")

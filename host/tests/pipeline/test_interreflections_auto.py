@@ -6,44 +6,16 @@ import numpy as np
 import pytest
 
 from facette.errors import InsufficientData, NotAReflectance
-from facette.io.exr import write_exr
 from facette.pipeline import process
 from facette.recon.synthetic import angular_error_deg
 
-SCALE = 4.0            # the Spectralon's HDR units per unit irradiance written into scan.json
+from mitsuba_scan import SCALE, calibrated_scan as _scan, render
 
 
 @pytest.fixture(scope="module")
 def relief():
     """A Mitsuba relief in plaster (64 px, 32 spp): a concave object that gathers its own light."""
-    from facette.bench._mitsuba_scenes import render_scene
-    import tempfile
-    with tempfile.TemporaryDirectory() as tmp:
-        return render_scene("relief", "plaster", size=64, spp=32, cache_dir=tmp)
-
-
-def _scan(folder, d, scale=SCALE, truth=None):
-    """A scan directory of the render: HDR images in the calibration's units (the radiance factor
-    x intensity x scale), scan.json with the radiometric scale; `truth` keys into truth.npz."""
-    m = len(d["light_dirs"])
-    inten = np.full((m, 3), 2.0)
-    (folder / "hdr").mkdir(parents=True)
-    for i in range(m):
-        write_exr(folder / "hdr" / f"light_{i:02d}.exr", (d["images"][i] * inten[i] * SCALE).astype(np.float32))
-        write_exr(folder / "hdr" / f"light_{i:02d}_var.exr", np.full(d["images"][i].shape, 1e-8, np.float32))
-    if truth is not None:
-        np.savez(folder / "truth.npz", **truth)
-    (folder / "scan.json").write_text(json.dumps({
-        "schema": 1, "rig": {"id": "test"}, "profile": None, "pixel_pitch_mm": 0.1,
-        "lights": [{"index": i, "direction": d["light_dirs"][i].tolist(), "position_mm": None,
-                    "intensity": inten[i].tolist()} for i in range(m)],
-        "exposures": [{"index": 0, "time_us": 1000, "current_mA": 100, "mode": "camera"}],
-        "frames": [{"file": f"raw/L{i:02d}_E00.dng", "light": i, "exposure": 0, "time_us": 1000,
-                    "current_set_mA": 100, "current_meas_mA": 100, "start_us": 0, "sync": True, "sha256": ""}
-                   for i in range(m)],
-        "rig_time_s": 0.0, "radiometric_scale": None if scale is None else [scale] * 3,
-        "truth": None if truth is None else "truth.npz"}))
-    return folder
+    return render("relief", "plaster")
 
 
 def test_removed_by_default_on_a_calibrated_scan(tmp_path, relief):

@@ -48,7 +48,7 @@ def diligent(tmp_path_factory):
 def _interrupt_at_mask(monkeypatch):
     real = process_module.write_mask
 
-    def stopped(*args):
+    def stopped(*args, **kwargs):
         raise KeyboardInterrupt          # Ctrl-C (or a kill) while the maps are written
 
     monkeypatch.setattr(process_module, "write_mask", stopped)

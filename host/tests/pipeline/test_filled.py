@@ -1,0 +1,80 @@
+"""`process` on a bare metal: the pixels no light reaches above the noise get their normals
+interpolated from the measured ones (pipeline._filled), marked grey in mask.png and kept out of
+the reflectance samples."""
+import numpy as np
+import pytest
+from scipy.ndimage import binary_erosion
+
+from facette.io.png import read_png
+from facette.pipeline import process
+from facette.recon.synthetic import angular_error_deg
+
+from mitsuba_scan import calibrated_scan, render
+
+
+@pytest.fixture(scope="module")
+def gold():
+    """A Mitsuba sphere in polished gold (64 px, 32 spp): dark between its 12 highlights."""
+    return render("sphere", "gold")
+
+
+def test_a_bare_metal_is_filled_between_its_highlights(tmp_path, gold):
+    scan = calibrated_scan(tmp_path / "scan", gold)
+    res = process(scan, outputs=["normals", "mask", "samples"], out_dir=tmp_path / "out", mask=gold["mask"])
+    seen = res.ps.valid & gold["mask"]
+    assert res.filled is not None and res.filled.sum() > seen.sum()          # most of it: no light
+    assert np.array_equal(res.mask, seen | res.filled) and not (res.filled & seen).any()
+    sel = binary_erosion(gold["mask"])
+    err = angular_error_deg(res.normals, gold["normals"])[sel].mean()
+    unfilled = angular_error_deg(res.ps.normal, gold["normals"])[sel].mean()  # the gap's zeros: 90°
+    ls = process(scan, outputs=["normals"], method="woodham1980", mask=gold["mask"])
+    err_ls = angular_error_deg(ls.normals, gold["normals"])[sel].mean()
+    assert err < 0.5 * err_ls and err < 0.5 * unfilled, (err, err_ls, unfilled)
+    assert any(n.startswith("normals interpolated at") for n in res.notes)
+    png = read_png(tmp_path / "out" / "mask.png")
+    assert np.array_equal(png == 128, res.filled) and np.array_equal(png == 255, seen)
+    raw = np.load(tmp_path / "out" / "samples.npz")["raw_pixel"]
+    assert not res.filled.ravel()[raw].any()                                 # samples: measured pixels only
+
+
+def test_outputs_that_show_no_shape_skip_the_fill(tmp_path, gold):
+    res = process(calibrated_scan(tmp_path / "scan", gold), outputs=["samples"], mask=gold["mask"])
+    assert res.filled is None and np.array_equal(res.mask, res.ps.valid & gold["mask"])
+
+
+def _sphere_samples(amplitude, exponent=None, seed=0):
+    """12 rig lights on a sphere, green only, unit noise: a matte one (exponent None) or a sharp
+    Blinn-Phong lobe; images (12, H, W, 3), usable, object mask."""
+    from facette.bench._mitsuba_scenes import rig_light_directions
+    from facette.pipeline._quality import usable_from_green
+    yy, xx = (np.mgrid[:64, :64] - 31.5) / 30
+    inside = xx ** 2 + yy ** 2 < 1
+    n = np.dstack([xx, -yy, np.sqrt(np.clip(1 - xx ** 2 - yy ** 2, 0, 1))])
+    rng = np.random.default_rng(seed)
+    ims = []
+    for s in rig_light_directions():
+        h = (s + [0, 0, 1]) / np.linalg.norm(s + [0, 0, 1])
+        shade = np.clip(n @ s, 0, None) if exponent is None else np.clip(n @ h, 0, None) ** exponent
+        ims.append(np.repeat((amplitude * shade + rng.normal(size=shade.shape))[..., None], 3, -1))
+    images = np.array(ims, np.float32)
+    usable = np.array([usable_from_green(im[..., 1], np.ones(inside.shape, np.float32)) for im in images])
+    return images, usable, inside
+
+
+def test_a_dim_scan_is_refused_and_a_bare_metal_goes_on_with_a_note():
+    from facette.errors import InsufficientData
+    from facette.pipeline._quality import (MIN_PIXEL_FRACTION, MIN_SPARSE_FRACTION, SPARSE_CONTRAST, check_samples,
+                                           lit_contrast, sample_counts)
+    for amplitude, exponent, passes in ((3.0, None, False), (3000.0, 100, True)):
+        images, usable, inside = _sphere_samples(amplitude, exponent)
+        c = sample_counts(images, usable, inside)
+        assert MIN_SPARSE_FRACTION <= c["enough"] / c["object"] < MIN_PIXEL_FRACTION    # the rule's range
+        contrast = lit_contrast(images, usable, inside)
+        assert (contrast >= SPARSE_CONTRAST) == passes, contrast
+        if passes:
+            notes, summary = check_samples(images, usable, inside, "the given mask")
+            assert "sends light back only near its highlights" in notes[0]
+        else:
+            with pytest.raises(InsufficientData, match="cannot carry a result") as exc:
+                check_samples(images, usable, inside, "the given mask")
+            assert "lengthen" in exc.value.hint
