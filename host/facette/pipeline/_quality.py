@@ -6,7 +6,9 @@ variance (scans, from the HDR merge's _var.exr), or >= MIN_LEVELS grey levels of
 image's bit depth (DiLiGenT-style PNG folders). Photometric stereo needs MIN_LIGHTS usable
 lights per pixel; when fewer than MIN_PIXEL_FRACTION of the object's pixels have them, the
 data cannot give shapes, and processing stops with `InsufficientData` (exit code 3) saying
-what to change (exposure, current, mask). A BRDF fit needs MIN_FIT_CELLS filled cells of the
+what to change (exposure, current, mask), unless the lit samples stand far above the rest
+(SPARSE_CONTRAST): an object dark by its nature between its highlights (a bare metal) is processed,
+its unlit pixels' normals interpolated. A BRDF fit needs MIN_FIT_CELLS filled cells of the
 hemisphere sensor.
 
 Thresholds measured on simulated scans (32x24 px object, see the note of issue 14): good
@@ -18,7 +20,8 @@ import numpy as np
 
 from facette.errors import InsufficientData
 
-__all__ = ["MIN_SNR", "MIN_LEVELS", "MIN_LIGHTS", "MIN_PIXEL_FRACTION", "MIN_FIT_CELLS",
+__all__ = ["MIN_SNR", "MIN_LEVELS", "MIN_LIGHTS", "MIN_PIXEL_FRACTION", "MIN_FIT_CELLS", "SPARSE_CONTRAST",
+           "MIN_SPARSE_FRACTION", "lit_contrast",
            "usable_from_variance", "usable_from_green", "check_samples", "check_fit_cells", "sample_counts",
            "add_counts", "check_counts"]
 
@@ -28,6 +31,12 @@ MIN_LIGHTS = 3             # usable lights per pixel for a normal
 MIN_PIXEL_FRACTION = 0.5   # of the object's pixels that need MIN_LIGHTS usable lights
 SPARSE_LIGHT = 0.05        # a light usable on fewer of the object's pixels is named in a note
 MIN_FIT_CELLS = 10         # filled hemisphere cells for a BRDF fit (the li model has 5 parameters)
+# a scan below MIN_PIXEL_FRACTION whose lit samples stand this far above the others (`lit_contrast`)
+# is dark by its nature, not its exposure: processed, the rest filled (pipeline._filled). 12 lights,
+# unit noise: a matte sphere 3 σ bright gives 1.3, a Blinn-Phong lobe (exponent 100) 3000 σ high 61;
+# Mitsuba's bare gold and aluminium spheres (calibrated, noiseless renders) 2e5 and 1e4
+SPARSE_CONTRAST = 30.0
+MIN_SPARSE_FRACTION = 0.1  # ... provided this much of the object still has MIN_LIGHTS usable lights
 
 
 def usable_from_variance(image, variance):
@@ -58,7 +67,23 @@ def check_samples(images, usable, object_mask, mask_source, light_names=None):
     """
     if images.shape[0] <= MIN_LIGHTS or not np.any(object_mask):    # said before any count
         return check_counts({"m": images.shape[0], "object": int(np.count_nonzero(object_mask))}, mask_source)
-    return check_counts(sample_counts(images, usable, object_mask), mask_source, light_names)
+    return check_counts(sample_counts(images, usable, object_mask), mask_source, light_names,
+                        contrast=lit_contrast(images, usable, object_mask))
+
+
+def lit_contrast(images, usable, object_mask):
+    """How far the object's samples above the noise stand above those below it: the median of the
+    usable ones over the 90th percentile of the others (green; inf when those are all 0, nan when
+    either set is empty). A dim scan's lit samples sit just above the noise (a few times the
+    rest); a bare metal's are its highlights, far above a rest that no exposure would light."""
+    g = images[..., 1 if images.shape[-1] > 1 else 0]
+    obj = np.asarray(object_mask, bool)
+    lit, dark = g[usable & obj], g[~usable & obj]
+    dark = np.abs(dark[np.isfinite(dark)])
+    if lit.size == 0 or dark.size == 0:
+        return float("nan")
+    floor = float(np.percentile(dark, 90))
+    return float(np.median(lit)) / floor if floor > 0 else float("inf")
 
 
 def sample_counts(images, usable, object_mask):
@@ -80,8 +105,9 @@ def add_counts(a, b):
     return dict(b) if a is None else {k: (a[k] if k == "m" else a[k] + b[k]) for k in a}
 
 
-def check_counts(counts, mask_source, light_names=None):
-    """`check_samples` on its `sample_counts`: raise InsufficientData, or return (notes, summary)."""
+def check_counts(counts, mask_source, light_names=None, contrast=float("nan")):
+    """`check_samples` on its `sample_counts`: raise InsufficientData, or return (notes, summary).
+    contrast : `lit_contrast` (whole images only; nan over bands, where the exemption below is off)."""
     m, n_obj = counts["m"], counts["object"]
     if m <= MIN_LIGHTS:
         raise InsufficientData(f"photometric stereo needs at least {MIN_LIGHTS + 1} lights ({MIN_LIGHTS} "
@@ -105,7 +131,8 @@ def check_counts(counts, mask_source, light_names=None):
                "saturated_samples": saturated, "samples_below_noise": dark,
                "usable_per_light": [round(float(x), 4) for x in per_light],
                "min_snr": MIN_SNR, "min_lights": MIN_LIGHTS}
-    if frac < MIN_PIXEL_FRACTION:
+    own_dark = frac >= MIN_SPARSE_FRACTION and dark > saturated and contrast >= SPARSE_CONTRAST
+    if frac < MIN_PIXEL_FRACTION and not own_dark:
         if saturated >= dark:
             todo = "shorten the exposures or lower the LED current (--exposures, --current)"
         else:
@@ -117,7 +144,13 @@ def check_counts(counts, mask_source, light_names=None):
             hint=todo + (", or give a mask of the object (--mask)" if mask_source == "the lit pixels"
                          else ""))
     notes = []
-    if frac < 0.9:
+    if frac < MIN_PIXEL_FRACTION:
+        notes.append(f"only {100 * frac:.0f} % of the object's pixels have {MIN_LIGHTS} usable lights and "
+                     f"{100 * dark:.0f} % of the samples are below the noise, but those above it stand "
+                     f"{contrast:.3g} times above the rest: the object sends light back only near its "
+                     "highlights (a bare metal, a mirror-like finish), which no longer exposure changes; "
+                     "more lights (a dome) would measure the rest")
+    elif frac < 0.9:
         notes.append(f"only {100 * frac:.0f} % of the object's pixels have {MIN_LIGHTS} usable lights "
                      f"({100 * saturated:.0f} % of the samples saturated, {100 * dark:.0f} % below "
                      "the noise): the others get no normal")
