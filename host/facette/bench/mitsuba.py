@@ -35,6 +35,7 @@ from facette.errors import NotAReflectance
 from facette.methods import PROCESS_DEFAULT, PS_DEFAULT, PS_METHODS, photometric_stereo
 from facette.pipeline import IR_AUTO, ProcessOptions, auto_masks, margin_of
 from facette.pipeline._channels import images_for_solve, results_in_rgb
+from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import solve_without_interreflections
 from facette.recon import INTEGRATION_METHODS, integrate
 
@@ -107,7 +108,12 @@ def run_ps(d, method, init=None, interreflections=False):
                                                    options)
     if r is None:
         r = photometric_stereo(direct, L, method=method, options=options)
-    return results_in_rgb(r, direct, solve_in, im, used)[0], time.perf_counter() - t
+    r = results_in_rgb(r, direct, solve_in, im, used)[0]
+    # the pixels no light reached above the noise, filled as process fills them (pipeline._filled)
+    said = SimpleNamespace(options={}, notes=[], timings={})
+    normals_of(said, SimpleNamespace(mask=d["mask"]), r)
+    r.normal = said.normals
+    return r, time.perf_counter() - t
 
 
 def _valid_note(r, d, sel, ls_normal):
@@ -231,6 +237,35 @@ def _variants(methods, interreflections):
     return out
 
 
+def pipeline_rows(args, variants):
+    """The whole pipeline's rows: `process` on a DiLiGenT-style folder of each render, per method."""
+    print("\nWhole pipeline (process: normals → samples → hemisphere filter → LI fit; no true normals); "
+          "its normals' mean error on the eroded mask, the pixels it filled included")
+    print(f"{'scene':22s} {'method':30s} {'σ':>7s} {'(true)':>6s} {'n_i':>6s} {'(true)':>6s} {'K_d/true':>18s} {'s':>6s}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for shape, mat in (("sphere", "paint_0.10"), ("sphere", "paint_0.05"), ("sphere", "satin"),
+                           ("relief", "paint_0.08"), ("sphere", "rough_plastic"), ("sphere", "metallic_paint"),
+                           ("relief", "gold"), ("sphere", "gold"), ("sphere", "aluminium")):
+            d = render_scene(shape, mat, size=args.size, spp=args.spp, cache_dir=args.cache)
+            truth = {"sigma": np.nan, "n_i": np.nan, **MATERIALS[mat]}
+            for method, ir, name in [v for v in variants if v[0] in PIPELINE_METHODS]:
+                left_in = ""
+                try:
+                    res, dt = whole_pipeline(d, method, tmp, args.init, ir)
+                except NotAReflectance:       # a metal's Lambertian albedo is above 1: "auto" leaves them in
+                    res, dt = whole_pipeline(d, method, tmp, args.init, False)
+                    left_in = "; inter-reflections left in: the albedo is no reflectance"
+                p = res.brdf.params if res.brdf is not None and res.brdf.success else {}
+                kd = np.array(p.get("kd", [np.nan] * 3)) / np.array(d["params"].get("kd", [np.nan] * 3))
+                sel = binary_erosion(d["mask"])
+                shape_err = (f"normals {angular_errors(res.normals, d['normals'], sel).mean():.2f}°"
+                             + ("" if res.filled is None else f", {100 * res.filled[sel].mean():.0f} % filled"))
+                print(f"{shape + '/' + mat:22s} {_marked(name):30s} {p.get('sigma', np.nan):7.4f} "
+                      f"{truth['sigma']:6.3f} "
+                      f"{p.get('n_i', np.nan):6.3f} {truth['n_i']:6.2f} {' '.join(f'{x:5.3f}' for x in kd):>18s} "
+                      f"{dt:6.1f}  {shape_err}  ({_verdict(res.brdf)}{left_in})", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="facette bench mitsuba", description=__doc__.splitlines()[0])
     ap.add_argument("--cache", default="out/mitsuba-cache", help="folder for the cached renders")
@@ -302,27 +337,7 @@ def main(argv=None):
                 normals[(mat, name)] = (r.normal, sel)
     if not args.quick:
         thesis_test(args, variants, normals)
-    print("\nWhole pipeline (process: normals → samples → hemisphere filter → LI fit; no true normals)")
-    print(f"{'scene':22s} {'method':30s} {'σ':>7s} {'(true)':>6s} {'n_i':>6s} {'(true)':>6s} {'K_d/true':>18s} {'s':>6s}")
-    with tempfile.TemporaryDirectory() as tmp:
-        for shape, mat in (("sphere", "paint_0.10"), ("sphere", "paint_0.05"), ("sphere", "satin"),
-                           ("relief", "paint_0.08"), ("sphere", "rough_plastic"), ("sphere", "metallic_paint"),
-                           ("relief", "gold")):
-            d = render_scene(shape, mat, size=args.size, spp=args.spp, cache_dir=args.cache)
-            truth = {"sigma": np.nan, "n_i": np.nan, **MATERIALS[mat]}
-            for method, ir, name in [v for v in variants if v[0] in PIPELINE_METHODS]:
-                left_in = ""
-                try:
-                    res, dt = whole_pipeline(d, method, tmp, args.init, ir)
-                except NotAReflectance:       # a metal's Lambertian albedo is above 1: "auto" leaves them in
-                    res, dt = whole_pipeline(d, method, tmp, args.init, False)
-                    left_in = "; inter-reflections left in: the albedo is no reflectance"
-                p = res.brdf.params if res.brdf is not None and res.brdf.success else {}
-                kd = np.array(p.get("kd", [np.nan] * 3)) / np.array(d["params"].get("kd", [np.nan] * 3))
-                print(f"{shape + '/' + mat:22s} {_marked(name):30s} {p.get('sigma', np.nan):7.4f} "
-                      f"{truth['sigma']:6.3f} "
-                      f"{p.get('n_i', np.nan):6.3f} {truth['n_i']:6.2f} {' '.join(f'{x:5.3f}' for x in kd):>18s} "
-                      f"{dt:6.1f}  ({_verdict(res.brdf)}{left_in})", flush=True)
+    pipeline_rows(args, variants)
     rows, found = table_heights(args)
     print(f"\nHeights: two domes in paint_0.10 on a dark table (K_d 0.04, {TABLE_MATERIAL}), rank_trimmed "
           f"normals; RMS against Mitsuba's positions in pixels, one constant over both domes / one per dome; "
