@@ -67,8 +67,10 @@ def check_samples(images, usable, object_mask, mask_source, light_names=None):
     """
     if images.shape[0] <= MIN_LIGHTS or not np.any(object_mask):    # said before any count
         return check_counts({"m": images.shape[0], "object": int(np.count_nonzero(object_mask))}, mask_source)
-    return check_counts(sample_counts(images, usable, object_mask), mask_source, light_names,
-                        contrast=lit_contrast(images, usable, object_mask))
+    counts = sample_counts(images, usable, object_mask)
+    short = counts["enough"] < MIN_PIXEL_FRACTION * counts["object"]      # only then: 12 MP, 0.6 GB of samples
+    return check_counts(counts, mask_source, light_names,
+                        contrast=lit_contrast(images, usable, object_mask) if short else float("nan"))
 
 
 def lit_contrast(images, usable, object_mask):

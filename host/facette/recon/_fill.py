@@ -9,14 +9,15 @@ pixels fixed at its edge and no flux across the object's outline, then the vecto
 
     fill_normals(normals, measured, region) -> (normals, filled)
 
-Harmonic, not biharmonic (thin plate): by the maximum principle each component stays within the
-values on the gap's edge, so a fill never overshoots into a slope nobody measured. On Mitsuba's
-renders through li_alternating (12 lights, 128 px) the two give gold sphere 19.0° / 12.7°,
-aluminium sphere 6.0° / 3.3°, gold relief 9.9° / 10.8° (unfilled: 70.3°, 35.1°, 20.7°, the
-gap's zero normals counting 90°); harmonic was kept for that guarantee, its figures already
-meeting the issue's bound (half of least squares). A gap that touches no measured pixel (a piece
-of the region lit by nothing) stays unfilled. Solved by algebraic multigrid (pyamg), a few seconds
-for millions of gap pixels, where a direct factorisation's fill-in would not fit.
+Harmonic in the normals, which for gentle slopes is the thin plate on the heights (∫|∇n|² is then
+∫|∇∇z|², the bending energy); by the maximum principle each component stays within its values on
+the gap's edge, so a fill never overshoots into a slope nobody measured. On Mitsuba's renders
+through li_alternating (12 lights, 128 px), harmonic / biharmonic in the normals: gold sphere
+19.0° / 12.7°, aluminium sphere 6.0° / 3.3°, gold relief 9.9° / 10.8° (unfilled: 70.3°, 35.1°,
+20.7°, the gap's zero normals counting 90°); harmonic was kept for the guarantee and the relief,
+whose gaps lie along sharp edges. A gap that touches no measured pixel (a piece of the region lit
+by nothing) stays unfilled. Solved by algebraic multigrid (pyamg): 4.1 million gap pixels at 12 MP
+in 13-15 s, where a direct factorisation's fill-in would not fit in memory.
 """
 import numpy as np
 import pyamg

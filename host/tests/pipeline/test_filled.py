@@ -7,6 +7,7 @@ from scipy.ndimage import binary_erosion
 
 from facette.io.png import read_png
 from facette.pipeline import process
+from facette.pipeline._report import fmt
 from facette.recon.synthetic import angular_error_deg
 
 from mitsuba_scan import calibrated_scan, render
@@ -20,7 +21,7 @@ def gold():
 
 def test_a_bare_metal_is_filled_between_its_highlights(tmp_path, gold):
     scan = calibrated_scan(tmp_path / "scan", gold)
-    res = process(scan, outputs=["normals", "mask", "samples"], out_dir=tmp_path / "out", mask=gold["mask"])
+    res = process(scan, outputs=["normals", "mask", "samples", "report"], out_dir=tmp_path / "out", mask=gold["mask"])
     seen = res.ps.valid & gold["mask"]
     assert res.filled is not None and res.filled.sum() > seen.sum()          # most of it: no light
     assert np.array_equal(res.mask, seen | res.filled) and not (res.filled & seen).any()
@@ -35,6 +36,8 @@ def test_a_bare_metal_is_filled_between_its_highlights(tmp_path, gold):
     assert np.array_equal(png == 128, res.filled) and np.array_equal(png == 255, seen)
     raw = np.load(tmp_path / "out" / "samples.npz")["raw_pixel"]
     assert not res.filled.ravel()[raw].any()                                 # samples: measured pixels only
+    assert f"{fmt(int(res.filled.sum()))} pixels had no light above the noise" in \
+        (tmp_path / "out" / "report.html").read_text()
 
 
 def test_outputs_that_show_no_shape_skip_the_fill(tmp_path, gold):
