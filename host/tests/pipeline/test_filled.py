@@ -72,7 +72,7 @@ def test_a_dim_scan_is_refused_and_a_bare_metal_goes_on_with_a_note():
         images, usable, inside = _sphere_samples(amplitude, exponent)
         c = sample_counts(images, usable, inside)
         assert MIN_SPARSE_FRACTION <= c["enough"] / c["object"] < MIN_PIXEL_FRACTION    # the rule's range
-        contrast = lit_contrast(images, usable, inside)
+        contrast = lit_contrast(c)
         assert (contrast >= SPARSE_CONTRAST) == passes, contrast
         if passes:
             notes, summary = check_samples(images, usable, inside, "the given mask")
@@ -81,3 +81,11 @@ def test_a_dim_scan_is_refused_and_a_bare_metal_goes_on_with_a_note():
             with pytest.raises(InsufficientData, match="cannot carry a result") as exc:
                 check_samples(images, usable, inside, "the given mask")
             assert "lengthen" in exc.value.hint
+
+
+def test_read_by_bands_a_bare_metal_goes_on_and_is_filled_too(tmp_path, gold):
+    # --memory judges the same counts summed over bands (their value samples joined)
+    res = process(calibrated_scan(tmp_path / "scan", gold), outputs=["normals"], mask=gold["mask"], memory="1GB",
+                  method="rank_trimmed")
+    assert any("sends light back only near its highlights" in n for n in res.notes)
+    assert res.filled is not None and res.filled.any() and not (res.filled & res.ps.valid).any()
