@@ -171,8 +171,7 @@ def _in_plane(filtered, values, b, ch, tol_deg=15):
     o = filtered.o
     phi = np.arctan2(o[:, 1], o[:, 0])
     cosz = np.clip(o[:, 2], -1, 1)
-    ring = np.clip(np.searchsorted(filtered.edges, np.arccos(cosz), side="right") - 1, 0,
-                   len(filtered.counts) - 1)
+    ring = np.clip(np.searchsorted(filtered.edges, np.arccos(cosz), side="right") - 1, 0, len(filtered.counts) - 1)
     theta = np.degrees(np.arccos(cosz))
     tol = np.radians(tol_deg)
     xs, ys = [], []
@@ -284,8 +283,7 @@ def _params_table(fit, truth_brdf=None, truth_kd=None):
                 rows.append((f"{_PARAM_NAMES.get(k, k)} {names[i]}", fmt_pm(x, s), fmt(t) if t is not None else ""))
         else:
             t = tparams.get(k)
-            rows.append((_PARAM_NAMES.get(k, k), fmt_pm(v, sd),
-                         fmt(t) if isinstance(t, (int, float)) else ""))
+            rows.append((_PARAM_NAMES.get(k, k), fmt_pm(v, sd), fmt(t) if isinstance(t, (int, float)) else ""))
     has_truth = any(r[2] for r in rows)
     head = "<tr><th>parameter</th><th>fitted ± 1 s.d.</th>" + ("<th>truth</th>" if has_truth else "") + "</tr>"
     body = "".join(f"<tr><td>{html.escape(a)}</td><td>{html.escape(b)}</td>"
@@ -579,7 +577,9 @@ def write_report(res, path, fit_html=None):
     figs = []
     st = max(1, int(np.ceil(max(res.normals.shape[:2]) / 800)))   # pictures need no more
     n, mask, ps = decimated(res.normals, st), res.mask[::st, ::st], res.ps    # disk maps: by bands
-    figs.append(_map("Normal map ((n+1)/2 as RGB)", np.where(mask[..., None], (n + 1) / 2, 0)))
+    dim = 1.0 if res.filled is None else np.where(res.filled[::st, ::st, None], 0.5, 1.0)   # interpolated: dimmed
+    figs.append(_map("Normal map ((n+1)/2 as RGB" + ("" if res.filled is None else "; interpolated pixels at half "
+                     "brightness") + ")", np.where(mask[..., None], (n + 1) / 2 * dim, 0)))
     albedo = decimated(res.albedo, st)
     top = float(np.percentile(albedo[mask], 99)) if mask.any() else 1.0
     figs.append(_map("Albedo (scaled to the 99th percentile)", np.clip(albedo / max(top, 1e-12), 0, 1)))

@@ -36,8 +36,9 @@ def test_a_bare_metal_is_filled_between_its_highlights(tmp_path, gold):
     assert np.array_equal(png == 128, res.filled) and np.array_equal(png == 255, seen)
     raw = np.load(tmp_path / "out" / "samples.npz")["raw_pixel"]
     assert not res.filled.ravel()[raw].any()                                 # samples: measured pixels only
-    assert f"{fmt(int(res.filled.sum()))} pixels had no light above the noise" in \
-        (tmp_path / "out" / "report.html").read_text()
+    page = (tmp_path / "out" / "report.html").read_text()
+    assert f"{fmt(int(res.filled.sum()))} pixels had no light above the noise" in page
+    assert "interpolated pixels at half brightness" in page                 # the normal map says which
 
 
 def test_outputs_that_show_no_shape_skip_the_fill(tmp_path, gold):
