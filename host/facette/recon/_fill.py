@@ -36,7 +36,8 @@ def fill_normals(normals, measured, region):
     measured : (H, W) bool, the pixels with a measured normal; region : (H, W) bool, the object.
     Returns (normals, filled): a float32 copy with the gap pixels written (or `normals` itself
     when there is no gap), and the (H, W) bool map of the pixels written."""
-    measured = np.asarray(measured, bool) & np.asarray(region, bool)
+    # a measured normal that is not finite would spread NaN over its whole gap: it joins the gap
+    measured = np.asarray(measured, bool) & np.asarray(region, bool) & np.isfinite(normals).all(-1)
     gap = np.asarray(region, bool) & ~measured
     if not gap.any():
         return normals, gap

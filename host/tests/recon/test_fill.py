@@ -56,6 +56,17 @@ def test_only_the_region_is_read_and_a_gap_with_nothing_measured_stays_empty():
     assert angular_error_deg(out, n)[filled].mean() < 1.0
 
 
+def test_a_measured_normal_that_is_not_finite_is_filled_not_spread():
+    n, inside = _sphere(40)
+    seen = inside.copy()
+    seen[15:25, 15:25] = False
+    bad = n.copy()
+    bad[20, 14] = np.nan                                        # on the hole's edge
+    out, filled = fill_normals(bad, seen, inside)
+    assert filled[20, 14] and np.isfinite(out[inside]).all()
+    assert angular_error_deg(out, n)[filled].mean() < 1.0
+
+
 def test_no_gap_returns_the_normals_as_they_are():
     n, inside = _sphere(20)
     out, filled = fill_normals(n, inside, inside)
