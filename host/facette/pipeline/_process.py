@@ -81,10 +81,10 @@ def stages_needed(outputs):
 class ProcessResult:
     """What `process` computed. Arrays at the input image size (H, W):
 
-    normals (H, W, 3) unit vectors, camera frame (0 where not valid); albedo (H, W, 3); mask (H, W) bool
-    (valid normals inside the input mask: measured, or `filled` (H, W) bool or None: pipeline._filled); object_mask (H, W) bool, the object
-    in it (mask.png: the mask without the dark table or cloth `auto_masks` finds around the
-    object; the mask itself where there is none, or a mask was given); height (H, W) mm or None;
+    normals (H, W, 3) unit vectors, camera frame (0 where not valid); albedo (H, W, 3); mask (H, W) bool,
+    normals inside the input mask, measured or `filled` ((H, W) bool or None: pipeline._filled); object_mask
+    (H, W) bool, the object in it (mask.png: the mask without the dark table or cloth `auto_masks` finds
+    around the object; the mask itself where there is none, or a mask was given); height (H, W) mm or None;
     mesh (vertices, faces) or None; filtered `FilteredReflectance` or None; samples raw
     `ReflectanceSamples` subset or None; brdf a facette.fit FitResult or None; ps the full `PSResult`;
     timings {stage: seconds}; files {output: path}; errors {name: value} against the
