@@ -7,7 +7,7 @@ its heights must too, so `process` gives such a pixel the harmonic interpolation
 normals around it: each component solves Laplace's equation over the gap (Δn = 0), the measured
 pixels fixed at its edge and no flux across the object's outline, then the vector is made unit.
 
-    fill_normals(normals, measured, region) -> (normals, filled)
+    fill_normals(normals, measured, region, avoid=None) -> (normals, filled)
 
 Harmonic in the normals, which for gentle slopes is the thin plate on the heights (∫|∇n|² is then
 ∫|∇∇z|², the bending energy); by the maximum principle each component stays within its values on
@@ -18,24 +18,71 @@ through li_alternating (12 lights, 128 px), harmonic / biharmonic in the normals
 whose gaps lie along sharp edges. A gap that touches no measured pixel (a piece of the region lit
 by nothing) stays unfilled. Solved by algebraic multigrid (pyamg): 4.1 million gap pixels at 12 MP
 in 13-15 s, where a direct factorisation's fill-in would not fit in memory.
+
+A bare metal's dark pixels say more than "no measurement": their normal lies outside every light's
+lobe, or the lobe would have lit them. With `avoid` (the lights' half vectors and the lobe's reach,
+pipeline._filled) the fill keeps out of those cones: a plain fill between a gold sphere's highlights
+leaves 74 % of its normals within 15° of some half vector, where 4.6 % of the true ones lie.
 """
 import numpy as np
 import pyamg
 import scipy.sparse as sp
 from scipy import ndimage
 
-__all__ = ["fill_normals", "FILL_TOLERANCE"]
+__all__ = ["fill_normals", "FILL_TOLERANCE", "AVOID_ROUNDS"]
 
 FILL_TOLERANCE = 1e-5      # relative residual of the multigrid solve (1e-4 moves a 12 MP fill by 3e-5°)
+AVOID_ROUNDS = 4           # active-set rounds of a constrained fill (Mitsuba's metals: done after one)
 
 
-def fill_normals(normals, measured, region):
+def fill_normals(normals, measured, region, avoid=None):
     """Normals interpolated where `region` has no measured normal.
 
     normals : (H, W, 3) unit normals where `measured`, anything elsewhere (not read);
-    measured : (H, W) bool, the pixels with a measured normal; region : (H, W) bool, the object.
+    measured : (H, W) bool, the pixels with a measured normal; region : (H, W) bool, the object;
+    avoid : optional (dirs (k, 3) unit, cos_max, where (H, W) bool): directions the normals filled at
+    `where` must stay more than arccos(cos_max) from (a metal's dark pixels: its lobes' half vectors).
     Returns (normals, filled): a float32 copy with the gap pixels written (or `normals` itself
-    when there is no gap), and the (H, W) bool map of the pixels written."""
+    when there is no gap), and the (H, W) bool map of the pixels written.
+
+    With `avoid`, the fill is the harmonic one under those constraints, by active sets: a filled
+    normal inside a cone is moved onto its edge (away from the cone's axis) and held there, the rest
+    of the gap filled again, until no filled normal enters a cone (AVOID_ROUNDS at most, then the
+    last ones are moved out without filling again)."""
+    out, filled = _harmonic(normals, measured, region)
+    if avoid is None or not filled.any():
+        return out, filled
+    dirs, cos_max, where = np.asarray(avoid[0], np.float64), float(avoid[1]), np.asarray(avoid[2], bool)
+    held = np.asarray(measured, bool) & ~filled
+    for last in [False] * AVOID_ROUNDS + [True]:
+        inside = filled & where & ~held
+        inside[inside] = (out[inside] @ dirs.T > cos_max + 1e-6).any(1)
+        if not inside.any():
+            break
+        out[inside] = _out_of_cones(out[inside].astype(np.float64), dirs, cos_max)
+        if last:                   # rounds spent: the last ones moved out without filling again
+            break
+        held |= inside
+        out, more = _harmonic(out, held, region)
+        filled |= more
+    return out, filled
+
+
+def _out_of_cones(n, dirs, cos_max):
+    """(N, 3) unit normals, each moved onto the edge of every cone (axis in `dirs`, half-angle
+    arccos(cos_max)) it lies in, in the plane of the normal and the axis."""
+    sin_max = np.sqrt(max(1.0 - cos_max * cos_max, 0.0))
+    for h in dirs:
+        d = n @ h
+        bad = d > cos_max
+        away = n[bad] - d[bad, None] * h
+        norm = np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-9)
+        n[bad] = cos_max * h + sin_max * away / norm
+    return n.astype(np.float32)
+
+
+def _harmonic(normals, measured, region):
+    """`fill_normals` without constraints."""
     # a measured normal that is not finite would spread NaN over its whole gap: it joins the gap
     measured = np.asarray(measured, bool) & np.asarray(region, bool) & np.isfinite(normals).all(-1)
     gap = np.asarray(region, bool) & ~measured

@@ -67,6 +67,23 @@ def test_a_measured_normal_that_is_not_finite_is_filled_not_spread():
     assert angular_error_deg(out, n)[filled].mean() < 1.0
 
 
+def test_a_constrained_fill_keeps_out_of_the_cones_and_only_where_asked():
+    n, inside = _sphere()
+    yy, xx = np.mgrid[:96, :96]
+    spots = inside & ((xx // 12 + yy // 12) % 3 == 0)
+    seen = np.where(spots[..., None], n, 0)
+    axes = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
+    c = np.cos(np.radians(20))
+    where = inside & (xx < 48)                                 # the left half only
+    plain, _ = fill_normals(seen, spots, inside)
+    out, filled = fill_normals(seen, spots, inside, avoid=(axes, c, where))
+    assert np.array_equal(filled, inside & ~spots) and np.array_equal(out[spots], n[spots])
+    assert np.allclose(np.linalg.norm(out[filled], axis=1), 1, atol=1e-5)
+    assert (out[filled & where] @ axes.T <= c + 1e-4).all()
+    assert ((plain[filled & where] @ axes.T) > c + 1e-3).any(1).sum() > 50      # the plain fill enters them
+    assert ((out[filled & ~where] @ axes.T) > c + 1e-3).any()                   # elsewhere left free
+
+
 def test_no_gap_returns_the_normals_as_they_are():
     n, inside = _sphere(20)
     out, filled = fill_normals(n, inside, inside)
