@@ -35,7 +35,8 @@ from facette.errors import NotAReflectance
 from facette.methods import PROCESS_DEFAULT, PS_DEFAULT, PS_METHODS, photometric_stereo
 from facette.pipeline import IR_AUTO, ProcessOptions, auto_masks, margin_of
 from facette.pipeline._channels import images_for_solve, results_in_rgb
-from facette.pipeline._filled import normals_of
+from facette.pipeline._filled import carried, normals_of
+from facette.pipeline._quality import MIN_LEVELS
 from facette.pipeline._interreflections import solve_without_interreflections
 from facette.recon import INTEGRATION_METHODS, integrate
 
@@ -64,6 +65,7 @@ SPP = 256
 # the thesis's test again with less noise: at 256 spp the plaster relief rendered twice (two seeds)
 # gives normals 0.50° apart (li_alternating +ir), at 1024 spp 0.25° (its renders: ~5 min, cached)
 THESIS_SPP = 1024
+PNG_TOP = 60000.0   # the brightest value of a render written as 16-bit PNG (whole_pipeline)
 
 
 def angular_errors(n, truth, mask):
@@ -93,12 +95,16 @@ def run_ps(d, method, init=None, interreflections=False):
     """(PSResult, seconds) as `process` solves: on its default channels (images_for_solve), and with
     `interreflections` through its removal step as its default "auto" runs it on a calibrated scan
     (pipeline._interreflections; the renders are radiance factors): where the albedo is no
-    reflectance (a metal's Lambertian albedo) it is left in. Both inside the seconds."""
+    reflectance (a metal's Lambertian albedo) it is left in; the pixels without MIN_LIGHTS samples
+    above the noise (as process reads the 16-bit folder of `whole_pipeline`) are not solved but filled
+    with the others no light reached (pipeline._filled). All inside the seconds."""
     im, L = _images_and_dirs(d)
-    # one bag for every method: each takes its own (li_alternating: materials, init)
-    options = {"mask": d["mask"], **({"materials": "auto"} if d["params"].get("two_materials") else {}),
-               **({"init": init} if init else {})}
     t = time.perf_counter()
+    inp = SimpleNamespace(mask=d["mask"], images=im, light_dirs=L,
+                          usable=im[..., 1] * (PNG_TOP / float(np.nanmax(im))) >= MIN_LEVELS)
+    # one bag for every method: each takes its own (li_alternating: materials, init)
+    options = {"mask": carried(inp), **({"materials": "auto"} if d["params"].get("two_materials") else {}),
+               **({"init": init} if init else {})}
     o = ProcessOptions(interreflections=IR_AUTO if interreflections else False)   # a refusal leaves them in
     solve_in, used = images_for_solve(im, d["mask"], o, options, [])
     direct, r = solve_in, None
@@ -109,9 +115,8 @@ def run_ps(d, method, init=None, interreflections=False):
     if r is None:
         r = photometric_stereo(direct, L, method=method, options=options)
     r = results_in_rgb(r, direct, solve_in, im, used)[0]
-    # the pixels no light reached above the noise, filled as process fills them (pipeline._filled)
     said = SimpleNamespace(options={}, notes=[], timings={})
-    normals_of(said, SimpleNamespace(mask=d["mask"]), r)
+    normals_of(said, inp, r)
     r.normal = said.normals
     return r, time.perf_counter() - t
 
@@ -140,7 +145,7 @@ def whole_pipeline(d, method, workdir, init=None, interreflections=False):
     from facette.io.diligent import write_diligent
     from facette.pipeline import process
     im = d["images"]
-    k = 60000.0 / float(np.nanmax(im))
+    k = PNG_TOP / float(np.nanmax(im))
     folder = Path(workdir) / f"{d['params']['shape']}_{d['params']['material']}"
     write_diligent(folder, np.clip(np.round(im * k), 0, 65535).astype(np.uint16), d["light_dirs"],
                    np.full((len(im), 3), k / 65535.0), d["mask"])

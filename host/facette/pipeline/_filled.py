@@ -7,11 +7,28 @@ never these.
 """
 import time
 
+import numpy as np
+
+from facette.fit import is_metal
+from facette.pipeline._quality import MIN_LIGHTS
 from facette.recon import fill_normals
 
-__all__ = ["normals_of", "SHAPE_OUTPUTS"]
+__all__ = ["carried", "normals_of", "metal_cones", "SHAPE_OUTPUTS", "DARK_STEP"]
 
 SHAPE_OUTPUTS = frozenset({"normals", "mask", "height", "mesh", "gltf", "report"})   # what shows the shape
+DARK_STEP = 8      # metal_cones reads the noise floor on every 8th dark pixel
+
+
+def carried(inp):
+    """The input mask's pixels whose data can carry a normal, MIN_LIGHTS samples above the noise
+    (`PSInput.usable`; the whole mask without one): photometric stereo solves these, the others are
+    filled. A solver judges its pixels by their own values, so it reads noise as light where every
+    value is noise: a Mitsuba gold sphere with noise at 1/10⁴ of its highlights got li_alternating's
+    lobe fit on noise (σ 0.001, n_i 1.0) and 58° over the sphere; 8.4° with this. DiLiGenT (at least
+    2 grey levels, `_quality.MIN_LEVELS`): 96 lights 6.31° → 6.27°, 12 lights 7.24° → 7.14°."""
+    if getattr(inp, "usable", None) is None:
+        return inp.mask
+    return inp.mask & (np.count_nonzero(inp.usable, axis=0) >= MIN_LIGHTS)
 
 
 def normals_of(res, inp, ps):
@@ -22,7 +39,8 @@ def normals_of(res, inp, ps):
     res.normals, res.albedo, res.filled = ps.normal, ps.albedo, None
     if SHAPE_OUTPUTS & set(res.options.get("outputs", SHAPE_OUTPUTS)):
         t0 = time.perf_counter()
-        normals, filled = fill_normals(ps.normal, measured, inp.mask)
+        cones = metal_cones(inp, ps, measured)
+        normals, filled = fill_normals(ps.normal, measured, inp.mask, avoid=cones)
         if filled.any():
             res.normals, res.filled = normals, filled
             res.timings["fill"] = time.perf_counter() - t0
@@ -30,6 +48,42 @@ def normals_of(res, inp, ps):
             res.notes.append(
                 f"normals interpolated at {n:,} pixels ({100 * n / max(int(inp.mask.sum()), 1):.1f} % of the object) "
                 "that no light reached above the noise (a bare metal between its highlights, shadow in every "
-                "photograph): harmonic from the measured normals around them, grey in mask.png, left out of "
-                "the reflectance samples and the BRDF fit")
+                "photograph): harmonic from the measured normals around them"
+                + ("" if cones is None else f", kept {np.degrees(np.arccos(cones[1])):.0f}° or more from every "
+                   "light's half vector where the metal's lobe would have lit them")
+                + ", grey in mask.png, left out of the reflectance samples and the BRDF fit")
     res.mask = measured if res.filled is None else measured | res.filled
+
+
+def metal_cones(inp, ps, measured):
+    """`fill_normals`' `avoid` for a bare metal, or None: the half vectors of the lights and the
+    lobe's reach, on the pixels dark under every light. A metal has no diffuse part, so such a
+    pixel's normal lies where no light's lobe reaches: more than θ from every half vector h_j,
+    where the Beckmann lobe D ∝ exp(−tan²θ / σ²) has fallen from the lit pixels' typical peak to
+    the noise floor, tan²θ = σ² ln R (R = the median over measured pixels of their brightest value,
+    over the 90th percentile of the dark pixels' values, green). Only for li_alternating's
+    metal lobes (every material's index a metal's), distant lights and images held whole.
+    Mitsuba, 12 rig lights: gold sphere θ 29°, 19.0° → 11.8° over the sphere; aluminium 45°,
+    6.0° → 3.7°; gold relief 20°, 9.89° → 9.84°."""
+    last = {}
+    for r in ps.info.get("rounds", []) if ps.method == "li_alternating" else []:
+        if "sigma" in r and "n_i" in r:
+            last[r.get("material", 0)] = (r["sigma"], r["n_i"])
+    L = inp.light_dirs
+    if not last or not all(is_metal(n_i) for _, n_i in last.values()) or inp.images is None or \
+            inp.usable is None or np.ndim(L) != 2:
+        return None
+    sigma = min(s for s, _ in last.values())           # the narrower lobe: the smaller cones
+    g = inp.images[..., 1 if inp.images.shape[-1] > 1 else 0]
+    dark = inp.mask & ~measured & ~inp.usable.any(0) & np.isfinite(g).all(0)
+    if not dark.any() or not measured.any():
+        return None
+    peak = float(np.median(np.where(np.isnan(g[:, measured]), np.inf, g[:, measured]).max(0)))
+    floor = float(np.percentile(np.abs(g.reshape(len(g), -1)[:, np.flatnonzero(dark.ravel())[::DARK_STEP]]), 90))
+    ratio = peak / floor if floor > 0 else np.inf
+    if not ratio > np.e:
+        return None
+    theta = np.arctan(sigma * np.sqrt(np.log(min(ratio, 1e12))))
+    h = np.asarray(L, np.float64) + [0.0, 0.0, 1.0]     # the half vectors (towards the camera: +z)
+    return h / np.linalg.norm(h, axis=1, keepdims=True), float(np.cos(theta)), dark
+

@@ -43,7 +43,7 @@ from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_fro
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.pipeline._inputs import load_input, object_of
-from facette.pipeline._filled import normals_of
+from facette.pipeline._filled import carried, normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
@@ -291,7 +291,7 @@ def _process(source, outputs, out_dir, o):
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
         res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
     # one bag of options for whichever method: each takes its own (facette.methods)
-    bag = o.ps_bag(mask=inp.mask, saturation=o.saturation)
+    bag = o.ps_bag(mask=carried(inp), saturation=o.saturation)
     method_name = PS_METHODS.canonical(o.method)
     solve_in, used = images_for_solve(images, inp.mask, o, bag, res.notes)     # the channels the normals see
     direct, ps = solve_in, None

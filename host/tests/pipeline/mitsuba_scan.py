@@ -16,15 +16,19 @@ def render(shape, material, size=64, spp=32):
         return render_scene(shape, material, size=size, spp=spp, cache_dir=tmp)
 
 
-def calibrated_scan(folder, d, scale=SCALE, truth=None):
+def calibrated_scan(folder, d, scale=SCALE, truth=None, noise=None):
     """A scan directory of the render: HDR images in the calibration's units (the radiance factor
-    x intensity x scale), scan.json with the radiometric scale; `truth` keys into truth.npz."""
+    x intensity x scale), scan.json with the radiometric scale; `truth` keys into truth.npz; noise:
+    a Gaussian standard deviation (radiance factor) added to every value and written as its variance."""
     m = len(d["light_dirs"])
     inten = np.full((m, 3), 2.0)
+    rng = np.random.default_rng(7)
     (folder / "hdr").mkdir(parents=True)
     for i in range(m):
-        write_exr(folder / "hdr" / f"light_{i:02d}.exr", (d["images"][i] * inten[i] * SCALE).astype(np.float32))
-        write_exr(folder / "hdr" / f"light_{i:02d}_var.exr", np.full(d["images"][i].shape, 1e-8, np.float32))
+        im = d["images"][i] + (0 if noise is None else rng.normal(scale=noise, size=d["images"][i].shape))
+        var = 1e-8 if noise is None else (noise * inten[i, 1] * SCALE) ** 2
+        write_exr(folder / "hdr" / f"light_{i:02d}.exr", (im * inten[i] * SCALE).astype(np.float32))
+        write_exr(folder / "hdr" / f"light_{i:02d}_var.exr", np.full(d["images"][i].shape, var, np.float32))
     if truth is not None:
         np.savez(folder / "truth.npz", **truth)
     (folder / "scan.json").write_text(json.dumps({

@@ -41,6 +41,22 @@ def test_a_bare_metal_is_filled_between_its_highlights(tmp_path, gold):
     assert "interpolated pixels at half brightness" in page                 # the normal map says which
 
 
+def test_a_noisy_bare_metal_solves_only_what_its_data_carries(tmp_path, gold):
+    # noise at 1/10⁴ of the highlights: every dark value is noise, which a solver alone reads as light
+    from facette.fit import is_metal
+    peak = float(np.median(gold["images"][..., 1][:, gold["mask"]].max(0)))
+    scan = calibrated_scan(tmp_path / "scan", gold, noise=peak / 1e4)
+    res = process(scan, outputs=["normals"], mask=gold["mask"])
+    ls = process(scan, outputs=["normals"], method="woodham1980", mask=gold["mask"])
+    carried = np.count_nonzero(res.inputs.usable, axis=0) >= 3
+    assert not (res.ps.valid & ~carried).any()                                 # no normal solved on noise
+    assert is_metal(res.ps.info["rounds"][-1]["n_i"])                          # the lobe fitted on the highlights
+    assert any("from every light's half vector" in n for n in res.notes)       # the fill kept out of the lobes
+    sel = binary_erosion(gold["mask"])
+    err, err_ls = (angular_error_deg(r.normals, gold["normals"])[sel].mean() for r in (res, ls))
+    assert err < 0.5 * err_ls, (err, err_ls)
+
+
 def test_outputs_that_show_no_shape_skip_the_fill(tmp_path, gold):
     res = process(calibrated_scan(tmp_path / "scan", gold), outputs=["samples"], mask=gold["mask"])
     assert res.filled is None and np.array_equal(res.mask, res.ps.valid & gold["mask"])
