@@ -1,9 +1,10 @@
 """`process`'s normals where photometric stereo measured none (no light above the noise: a bare
-metal between its highlights, a cavity's floor): interpolated from the measured ones around them
-(`facette.recon.fill_normals`) when an output shows the shape, and said in the notes. mask.png
-marks them grey (128, `facette.io.png.write_mask`: the object, its normal interpolated; 255 measured;
-0 outside). The reflectance samples and the BRDF fit read photometric stereo's own valid pixels,
-never these.
+metal between its highlights, a cavity's floor). Photometric stereo solves only the pixels whose
+data carry a normal (`carried`); the others are interpolated from the measured ones around them
+(`facette.recon.fill_normals`, on a bare metal kept out of its lobes' reach: `metal_cones`) when
+an output shows the shape, and said in the notes. mask.png marks them grey (128,
+`facette.io.png.write_mask`: the object, its normal interpolated; 255 measured; 0 outside). The
+reflectance samples and the BRDF fit read photometric stereo's own valid pixels, never these.
 """
 import time
 
@@ -84,6 +85,7 @@ def metal_cones(inp, ps, measured):
     ratio = peak / floor if floor > 0 else np.inf
     if not ratio > np.e:
         return None
+    # a noiseless render has no floor: the reach is where D has fallen by 10¹² (float32 images' range)
     theta = np.arctan(sigma * np.sqrt(np.log(min(ratio, 1e12))))
     h = np.asarray(L, np.float64) + [0.0, 0.0, 1.0]     # the half vectors (towards the camera: +z)
     return h / np.linalg.norm(h, axis=1, keepdims=True), float(np.cos(theta)), dark
