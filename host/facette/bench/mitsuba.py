@@ -103,7 +103,7 @@ def run_ps(d, method, init=None, interreflections=False):
     inp = SimpleNamespace(mask=d["mask"], images=im, light_dirs=L,
                           usable=im[..., 1] * (PNG_TOP / float(np.nanmax(im))) >= MIN_LEVELS)
     # one bag for every method: each takes its own (li_alternating: materials, init)
-    options = {"mask": carried(inp), **({"materials": "auto"} if d["params"].get("two_materials") else {}),
+    options = {"mask": carried(inp.mask, inp.usable), **({"materials": "auto"} if d["params"].get("two_materials") else {}),
                **({"init": init} if init else {})}
     o = ProcessOptions(interreflections=IR_AUTO if interreflections else False)   # a refusal leaves them in
     solve_in, used = images_for_solve(im, d["mask"], o, options, [])

@@ -20,16 +20,16 @@ SHAPE_OUTPUTS = frozenset({"normals", "mask", "height", "mesh", "gltf", "report"
 DARK_STEP = 8      # metal_cones reads the noise floor on every 8th dark pixel
 
 
-def carried(inp):
-    """The input mask's pixels whose data can carry a normal, MIN_LIGHTS samples above the noise
-    (`PSInput.usable`; the whole mask without one): photometric stereo solves these, the others are
-    filled. A solver judges its pixels by their own values, so it reads noise as light where every
+def carried(mask, usable):
+    """The pixels of `mask` whose data can carry a normal, MIN_LIGHTS samples above the noise
+    (usable: (m, H, W) bool, `PSInput.usable` or a band's; the whole mask when None): photometric
+    stereo solves these (whole images and bands alike), the others are filled. A solver judges its pixels by their own values, so it reads noise as light where every
     value is noise: a Mitsuba gold sphere with noise at 1/10⁴ of its highlights got li_alternating's
     lobe fit on noise (σ 0.001, n_i 1.0) and 58° over the sphere; 8.4° with this. DiLiGenT (at least
     2 grey levels, `_quality.MIN_LEVELS`): 96 lights 6.31° → 6.27°, 12 lights 7.24° → 7.14°."""
-    if getattr(inp, "usable", None) is None:
-        return inp.mask
-    return inp.mask & (np.count_nonzero(inp.usable, axis=0) >= MIN_LIGHTS)
+    if usable is None:
+        return mask
+    return mask & (np.count_nonzero(usable, axis=0) >= MIN_LIGHTS)
 
 
 def normals_of(res, inp, ps):

@@ -291,7 +291,7 @@ def _process(source, outputs, out_dir, o):
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
         res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
     # one bag of options for whichever method: each takes its own (facette.methods)
-    bag = o.ps_bag(mask=carried(inp), saturation=o.saturation)
+    bag = o.ps_bag(mask=carried(inp.mask, inp.usable), saturation=o.saturation)
     method_name = PS_METHODS.canonical(o.method)
     solve_in, used = images_for_solve(images, inp.mask, o, bag, res.notes)     # the channels the normals see
     direct, ps = solve_in, None

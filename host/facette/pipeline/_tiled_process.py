@@ -51,6 +51,7 @@ from facette.pipeline._inputs import (NO_PITCH_NOTE, PSInput, _digest, _file_sta
                                       source_path)
 from facette.pipeline._scan_input import merged_lights, profile_flat, scan_input, scan_lights, scan_manifest
 from facette.pipeline._bands import DiligentBands, ScanBands, open_bands
+from facette.pipeline._filled import carried
 from facette.pipeline._quality import add_counts, check_counts, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
@@ -149,7 +150,7 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
         positions, shape, pitch = near
         dirs, falloff = near_light_directions(positions, shape, pitch, rows=(r0, r1))
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
-    part = photometric_stereo(images, dirs, method=method, options=dict(bag, mask=mask))
+    part = photometric_stereo(images, dirs, method=method, options=dict(bag, mask=carried(mask, usable)))
     taken = None
     if samples is not None:
         taken = samples_sensor(images, samples["sample_mask"], part, dirs, samples["theta0_deg"], seed=r0,
@@ -308,7 +309,7 @@ def ps_bands(read, shape, m, light_dirs, method, bag, mask, rows, flags=False, c
             return r0, r1, None, counts, read_s, 0.0, None
         t0 = time.perf_counter()
         dirs = light_dirs if np.ndim(light_dirs) == 2 else light_dirs[r0:r1]
-        part = photometric_stereo(band, dirs, method=method, options=dict(bag, mask=mask[r0:r1]))
+        part = photometric_stereo(band, dirs, method=method, options=dict(bag, mask=carried(mask[r0:r1], usable)))
         return r0, r1, part, counts, read_s, time.perf_counter() - t0, None
 
     spans = [b for b in _bands(h, rows) if count_in is not None or mask[b[0]:b[1]].any()]

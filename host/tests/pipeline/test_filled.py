@@ -57,6 +57,15 @@ def test_a_noisy_bare_metal_solves_only_what_its_data_carries(tmp_path, gold):
     assert err < 0.5 * err_ls, (err, err_ls)
 
 
+def test_read_by_bands_the_noisy_metal_solves_only_what_its_data_carries(tmp_path, gold):
+    peak = float(np.median(gold["images"][..., 1][:, gold["mask"]].max(0)))
+    scan = calibrated_scan(tmp_path / "scan", gold, noise=peak / 1e4)
+    whole = process(scan, outputs=["normals"], mask=gold["mask"], method="rank_trimmed")
+    banded = process(scan, outputs=["normals"], mask=gold["mask"], method="rank_trimmed", memory="1GB")
+    carried = np.count_nonzero(whole.inputs.usable, axis=0) >= 3
+    assert not (banded.ps.valid & ~carried).any() and np.array_equal(banded.ps.valid, whole.ps.valid)
+
+
 def test_outputs_that_show_no_shape_skip_the_fill(tmp_path, gold):
     res = process(calibrated_scan(tmp_path / "scan", gold), outputs=["samples"], mask=gold["mask"])
     assert res.filled is None and np.array_equal(res.mask, res.ps.valid & gold["mask"])
