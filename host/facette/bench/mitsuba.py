@@ -35,8 +35,8 @@ from facette.errors import NotAReflectance
 from facette.methods import PROCESS_DEFAULT, PS_DEFAULT, PS_METHODS, photometric_stereo
 from facette.pipeline import IR_AUTO, ProcessOptions, auto_masks, margin_of
 from facette.pipeline._channels import images_for_solve, results_in_rgb
-from facette.pipeline._filled import carried, normals_of
-from facette.pipeline._quality import MIN_LEVELS
+from facette.pipeline._filled import normals_of
+from facette.pipeline._quality import MIN_LEVELS, carried
 from facette.pipeline._interreflections import solve_without_interreflections
 from facette.recon import INTEGRATION_METHODS, integrate
 
@@ -103,8 +103,8 @@ def run_ps(d, method, init=None, interreflections=False):
     inp = SimpleNamespace(mask=d["mask"], images=im, light_dirs=L,
                           usable=im[..., 1] * (PNG_TOP / float(np.nanmax(im))) >= MIN_LEVELS)
     # one bag for every method: each takes its own (li_alternating: materials, init)
-    options = {"mask": carried(inp.mask, inp.usable), **({"materials": "auto"} if d["params"].get("two_materials") else {}),
-               **({"init": init} if init else {})}
+    options = {"mask": carried(inp.mask, inp.usable),
+               **({"materials": "auto"} if d["params"].get("two_materials") else {}), **({"init": init} if init else {})}
     o = ProcessOptions(interreflections=IR_AUTO if interreflections else False)   # a refusal leaves them in
     solve_in, used = images_for_solve(im, d["mask"], o, options, [])
     direct, r = solve_in, None

@@ -116,10 +116,8 @@ def _li_specular_arrays(s, o, sigma, n, distribution, masking):
     return np.where(up & (d > 0), val, 0.0)
 
 
-def li_kd_factor(kd, n_i, sigma=None, volume=None):
-    """K_d / (π n_i² (1 − K_d r_i)) of eq 3.15 (the only place K_d enters the single-bounce model),
-    r_i the diffuse part's (`li_kappa`: the coupled part, volume "coupled", takes its rough interface's)."""
-    return li_kappa(kd, n_i, sigma, volume)
+# K_d / (π n_i² (1 − K_d r_i)) of eq 3.15 (the only place K_d enters the single-bounce model): κ itself
+li_kd_factor = li_kappa
 
 
 def li_volume(s, o, kd, sigma, n_i, distribution="beckmann", masking="smith", volume="quadrature", **options):

@@ -74,9 +74,10 @@ def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, re
 
 def _lobe_pass(direct, light_dirs, mask, saturation, options):
     """li_alternating on `direct` for the glossy gather: (its PSResult, whether it ran on binned
-    images, its normals, valid and material maps at the images' size). The gather reads them on cells of at most IR_GRID a side, so above
-    coarse_pixels valid pixels (one material) it runs on the images binned as li's own coarse pass
-    bins them (the lobe li keeps at full size), its normals upsampled and its maps repeated, as long
+    images, its normals, valid and material maps at the images' size). The gather reads them on
+    cells of at most IR_GRID a side, so above coarse_pixels valid pixels (one material) it runs on
+    the images binned as li's own coarse pass bins them (the lobe li keeps at full size), its
+    normals upsampled and its maps repeated, as long
     as each cell keeps 2 x 2 binned pixels: at 12 MP this spares a whole-size run (the second, on the
     images the gather leaves, is the result)."""
     f = coarse_factor(int(np.count_nonzero(mask)), options.get("coarse_pixels", COARSE_PIXELS),

@@ -1,6 +1,6 @@
 """`process`'s normals where photometric stereo measured none (no light above the noise: a bare
 metal between its highlights, a cavity's floor). Photometric stereo solves only the pixels whose
-data carry a normal (`carried`); the others are interpolated from the measured ones around them
+data carry a normal (`pipeline._quality.carried`); the others are interpolated from the measured ones around them
 (`facette.recon.fill_normals`, on a bare metal kept out of its lobes' reach: `metal_cones`) when
 an output shows the shape, and said in the notes. mask.png marks them grey (128,
 `facette.io.png.write_mask`: the object, its normal interpolated; 255 measured; 0 outside). The
@@ -11,25 +11,12 @@ import time
 import numpy as np
 
 from facette.fit import is_metal
-from facette.pipeline._quality import MIN_LIGHTS
 from facette.recon import fill_normals
 
-__all__ = ["carried", "normals_of", "metal_cones", "SHAPE_OUTPUTS", "DARK_STEP"]
+__all__ = ["normals_of", "metal_cones", "SHAPE_OUTPUTS", "DARK_STEP"]
 
 SHAPE_OUTPUTS = frozenset({"normals", "mask", "height", "mesh", "gltf", "report"})   # what shows the shape
 DARK_STEP = 8      # metal_cones reads the noise floor on every 8th dark pixel
-
-
-def carried(mask, usable):
-    """The pixels of `mask` whose data can carry a normal, MIN_LIGHTS samples above the noise
-    (usable: (m, H, W) bool, `PSInput.usable` or a band's; the whole mask when None): photometric
-    stereo solves these (whole images and bands alike), the others are filled. A solver judges its pixels by their own values, so it reads noise as light where every
-    value is noise: a Mitsuba gold sphere with noise at 1/10⁴ of its highlights got li_alternating's
-    lobe fit on noise (σ 0.001, n_i 1.0) and 58° over the sphere; 8.4° with this. DiLiGenT (at least
-    2 grey levels, `_quality.MIN_LEVELS`): 96 lights 6.31° → 6.27°, 12 lights 7.24° → 7.14°."""
-    if usable is None:
-        return mask
-    return mask & (np.count_nonzero(usable, axis=0) >= MIN_LIGHTS)
 
 
 def normals_of(res, inp, ps):

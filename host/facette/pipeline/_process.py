@@ -43,14 +43,14 @@ from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_fro
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.pipeline._inputs import load_input, object_of
-from facette.pipeline._filled import carried, normals_of
+from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_bands import relight_bands, relight_stage
 from facette.pipeline._rti_capture import LP_NAME
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
-from facette.pipeline._quality import check_fit_cells, check_samples
+from facette.pipeline._quality import carried, check_fit_cells, check_samples
 from facette.pipeline._report import report_fit_section, write_report
 from facette.pipeline._samples import _samples_stage  # bench/recon.py imports it from here too
 

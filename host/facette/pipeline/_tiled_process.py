@@ -51,8 +51,7 @@ from facette.pipeline._inputs import (NO_PITCH_NOTE, PSInput, _digest, _file_sta
                                       source_path)
 from facette.pipeline._scan_input import merged_lights, profile_flat, scan_input, scan_lights, scan_manifest
 from facette.pipeline._bands import DiligentBands, ScanBands, open_bands
-from facette.pipeline._filled import carried
-from facette.pipeline._quality import add_counts, check_counts, sample_counts
+from facette.pipeline._quality import add_counts, carried, check_counts, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
 from facette.pipeline._tiles import FIELD_BYTES, PROCESS_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, rows_per_tile
