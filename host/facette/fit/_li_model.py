@@ -296,18 +296,44 @@ def _gain_on(check, candidates, volume_models):
     return 1 + len(candidates)
 
 
+def _diffuse_at_fits(e, lights, usable, solve, check, candidates, best, fit, choice):
+    """(best, fit, warm-up refits): the dielectric diffuse parts whose grid point clears the bar,
+    each warmed up to its own (σ, n_i), then scored on the check pixels at that fit; the lowest
+    wins. At the grid's points the parts differ by how near each point is to its own optimum (a
+    sphere rendered with the coupled part: LI 0.0351 against coupled 0.0366 at σ 0.08, n_i 1.45);
+    at their fits, by how well each explains the pixels. `choice` gets the costs."""
+    fits, warm = [(best, fit)], 0
+    for b in candidates.values():
+        if b is best or is_metal(b["n_i"]) or b["gain"] < LOBE_MIN_GAIN:
+            continue
+        f, w = _warm_up(e, lights, usable, solve, b)
+        warm += w
+        if _has_interface(f) and not is_metal(f["n_i"]):
+            fits.append((b, f))
+    if len(fits) == 1:
+        return best, fit, warm
+    e_c, l_c, ok_c, solve_c = check
+    costs = []
+    for b, f in fits:
+        n = solve_c(f["sigma"], f["n_i"], b["volume_model"], search=False)
+        costs.append(_trimmed(_pixel_costs(e_c, l_c, n, ok_c, f["sigma"], f["n_i"], b["volume_model"]))[0])
+    choice["fitted_cost_by_diffuse"] = {diffuse_name(b["volume_model"]): c for (b, _), c in zip(fits, costs)}
+    b, f = fits[int(np.argmin(costs))]
+    return b, f, warm
+
+
 def choose_material_model(e, lights, usable, solve, volume_models, check=None):
     """Round 1 of ps_li_alternating for one material: lobe or none, which diffuse part, and (σ, n_i).
 
     e, lights, usable : the profile pixels' values (N, m, C), directions, usable flags.
     solve(sigma, n_i, volume_model, search=True) -> (N, 3): those pixels' normals solved against a
         model (search=False: the converged solve of the rounds).
-    check : None, or (e, lights, usable, solve) of a larger set of pixels (the fit pixels, where
-        many lights leave the profile only a sample of them) on which each diffuse part's best
+    check : None, or (e, lights, usable, solve) of other pixels on which each diffuse part's best
         candidate (and the metals') is measured again, the choice among them and the bar decided
-        there: one draw of ~100 pixels decided the model (DiLiGenT cat, 96 lights, 125 profile
-        pixels: gain 0.079-0.131 over three seeds, the two diffuse parts within 0.1 % of each
-        other, Lambertian on one of the seeds).
+        there. `ps_li_alternating` gives a draw of all the material's pixels: the profile's are
+        the brighter, less oblique fit pixels (few under many lights: one draw of ~100 pixels
+        decided the model, DiLiGenT cat, 96 lights: gain 0.079-0.131 over three seeds, Lambertian
+        on one), and there the diffuse parts tie where oblique pixels tell them apart.
     The search (`_profile_lobe`) scores every candidate by its trimmed robust cost; the lobe must
     lower it by LOBE_MIN_GAIN against Lambert's on the same pixels. Returns (fit: dict(sigma, n_i,
     volume_model, ...), warm-up refits, choice: the costs and the reason, for info["materials"]).
@@ -322,7 +348,9 @@ def choose_material_model(e, lights, usable, solve, volume_models, check=None):
               "profile_seconds": time.perf_counter() - t_p, "trimmed_to": PROFILE_KEEP,
               "cost_by_diffuse": {diffuse_name(k): c for k, c in per_model.items()}}
     if check is not None:
-        choice.update(gain_pixels=int(len(check[0])), profile_gain=best["profile_gain"])
+        choice.update(gain_pixels=int(len(check[0])), profile_gain=best["profile_gain"],
+                      check_cost_by_diffuse={diffuse_name(b["volume_model"]): b["cost"]
+                                             for (metal, _), b in candidates.items() if not metal})
     # (σ, n_i) from the best point, on its re-solved normals, then warmed up (the normals
     # re-solved against the fit, refit) until they settle, every profile pixel counted. Chosen on
     # renders (mean normal error, the simulated scan + Mitsuba sphere paint 0.10, relief paints
@@ -338,6 +366,9 @@ def choose_material_model(e, lights, usable, solve, volume_models, check=None):
         choice["metal_fit_n_i"] = fit["n_i"]
         best = dielectric
         fit, more = _warm_up(e_f, l_f, ok_f, solve, best) if best["gain"] >= LOBE_MIN_GAIN else (None, 0)
+        warm += more
+    if check is not None and fit is not None and not is_metal(fit["n_i"]) and _has_interface(fit):
+        best, fit, more = _diffuse_at_fits(e_f, l_f, ok_f, solve, check, candidates, best, fit, choice)
         warm += more
     gain, name = best["gain"], diffuse_name(best["volume_model"])
     choice.update(cost_lambertian=best["cost_lambertian"], cost_lobe=best["cost"], gain=gain,

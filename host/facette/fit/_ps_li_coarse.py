@@ -35,7 +35,7 @@ def material_from_coarse(px, coarse, pix, trust, mat, rounds_log):
         # binning smears a sharp highlight over its block, and the lobe no longer fits it:
         # a glossy sphere at 2144x1424 binned by 4 showed a 1.9 % gain (Lambertian), 67 % at
         # 536x356 unbinned. So "no lobe" is asked again of full-size pixels.
-        fit, _, choice = px.choose_model(px.draw(trust))
+        fit, _, choice = px.choose_model(px.draw(trust), pix)
         if choice["model"] == "lobe":
             px.vm = fit["volume_model"]
             mat["model_choice"] = dict(choice, made_on="full-size pixels (the coarse pass found no lobe)")

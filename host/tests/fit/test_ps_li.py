@@ -392,3 +392,24 @@ def test_a_cast_shadow_stays_flagged_and_the_lobes_own_tail_does_not(cache):
     lit[block] = False
     assert lit[solved].sum() <= 10, lit[solved].sum()
     assert r.info["materials"][0]["shadows_settled"]["flags_lifted"] > 50
+
+
+def test_the_diffuse_part_is_chosen_on_all_the_materials_pixels_under_few_lights_too():
+    # a glossy sphere whose diffuse part is the coupled one (a Lambertian substrate through the
+    # interface), 12 lights: each diffuse part is fitted, then scored at its fit on a draw of all the
+    # sphere's pixels, oblique ones included (the fit pixels are the less oblique ones); at the grid's
+    # points LI's scored lower (0.0351 against 0.0366), and its normals were 0.52° off
+    from facette.brdf import kappa_from_kd, li_shading_terms
+    sc = sphere_on_plane(64, 64)
+    lights = thesis_light_directions()
+    sel = sc.sphere
+    a, b = li_shading_terms(sc.normals[sel], lights, 0.1, 1.3, volume_model="coupled")
+    kd = np.array([0.6, 0.5, 0.4])
+    images = np.zeros((len(lights),) + sel.shape + (3,), np.float32)
+    images[:, sel] = np.transpose(a[..., None] + b[..., None] * kappa_from_kd(kd, 1.3, "coupled", 0.1), (1, 0, 2))
+    r = ps_li_alternating(images, lights, mask=sel)
+    choice = r.info["materials"][0]["model_choice"]
+    assert choice["gain_pixels"] == min(1000, int(r.valid.sum())), choice
+    costs = choice["fitted_cost_by_diffuse"]
+    assert choice["diffuse"] == "coupled" and costs["coupled"] < 0.8 * costs["li"], choice
+    assert _err(r.normal, sc.normals, sel & r.valid).mean() < 0.1
