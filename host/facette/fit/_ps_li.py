@@ -29,9 +29,10 @@ as `photometric_stereo(method="li_alternating")`.
    material's pixels, oblique and dark ones included, where the diffuse parts differ most (the
    fit pixels' costs tie: Mitsuba sphere paint 0.10, LI 0.0946 against coupled 0.0948). The
    material gets a lobe when the best there lowers that cost by ≥ LOBE_MIN_GAIN against the
-   Lambertian solution (renders: plaster −20 to +4.6 %, paints and satin 74–99 %), with the
-   diffuse part of the best; (σ, n_i) are then fitted from the best point on the initial normals
-   and warmed up (normals against the fit, refit) until they settle. Round 1's fit pixels are
+   Lambertian solution (renders: plaster −20 to +4.6 %, paints and satin 74–99 %); each
+   dielectric diffuse part that clears the bar is fitted, and the one whose fit scores lowest on
+   that draw is kept (`_li_model._diffuse_at_fits`). Its (σ, n_i) come from its best grid point,
+   warmed up (normals against the fit, refit) until they settle. Round 1's fit pixels are
    drawn from the brighter half (the better signal to noise: a dark glossy table, whose relative
    values the highlight dominates, pulled the simulated scan's fit to σ 0.035, n_i 1.15). The
    costs are in `info["materials"][k]["model_choice"]`.
