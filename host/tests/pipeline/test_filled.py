@@ -94,7 +94,9 @@ def test_a_dim_scan_is_refused_and_a_bare_metal_goes_on_with_a_note():
     from facette.errors import InsufficientData
     from facette.pipeline._quality import (MIN_PIXEL_FRACTION, MIN_SPARSE_FRACTION, SPARSE_CONTRAST, check_samples,
                                            lit_contrast, sample_counts)
-    for amplitude, exponent, passes in ((3.0, None, False), (3000.0, 100, True)):
+    # a matte sphere 3 σ bright is dim; a lobe 3000 σ or 300 σ high is a metal's (at 300 σ its lit
+    # samples' median is 10× the noise: the noise's crossings of the threshold weigh as much)
+    for amplitude, exponent, passes in ((3.0, None, False), (3000.0, 100, True), (300.0, 100, True)):
         images, usable, inside = _sphere_samples(amplitude, exponent)
         c = sample_counts(images, usable, inside)
         assert MIN_SPARSE_FRACTION <= c["enough"] / c["object"] < MIN_PIXEL_FRACTION    # the rule's range
