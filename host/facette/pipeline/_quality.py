@@ -21,7 +21,7 @@ import numpy as np
 from facette.errors import InsufficientData
 
 __all__ = ["MIN_SNR", "MIN_LEVELS", "MIN_LIGHTS", "MIN_PIXEL_FRACTION", "MIN_FIT_CELLS", "SPARSE_CONTRAST",
-           "MIN_SPARSE_FRACTION", "lit_contrast", "carried",
+           "LIT_PERCENTILE", "MIN_SPARSE_FRACTION", "lit_contrast", "carried",
            "usable_from_variance", "usable_from_green", "check_samples", "check_fit_cells", "sample_counts",
            "add_counts", "check_counts"]
 
