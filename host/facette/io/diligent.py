@@ -149,7 +149,8 @@ def read_diligent(folder, dtype=np.float32, select=None):
     def one(i):
         arr = first if i == 0 else read_png(folder / names[i])
         if arr.shape[:2] != (h, w):
-            raise ValueError(f"{names[i]} is {arr.shape[1]}x{arr.shape[0]}, {names[0]} is {w}x{h}")
+            raise ValueError(f"{names[i]} is {arr.shape[1]}x{arr.shape[0]}, {names[0]} is {w}x{h}: every "
+                             "photograph of a folder must have one size (export or crop them alike)")
         png_radiance(arr, inten[i], images[i])
 
     # the PNG decoder gives the GIL up: two images at once (the 16-bit ball, 96 × 612×512:

@@ -122,7 +122,8 @@ class _Staged:
                 self.shape, self.dtype = arr.shape, arr.dtype
             elif arr.shape != self.shape:
                 raise ValueError(f"{name} is {arr.shape[1]}x{arr.shape[0]}, {names[0]} is "
-                                 f"{self.shape[1]}x{self.shape[0]}")
+                                 f"{self.shape[1]}x{self.shape[0]}: every photograph of a folder must have "
+                                 "one size (export or crop them alike)")
             path = Path(work) / f"{i:04d}.raw"
             arr.astype(self.dtype, copy=False).tofile(path)
             self.paths.append(path)
