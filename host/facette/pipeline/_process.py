@@ -50,7 +50,7 @@ from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_bands import relight_bands, relight_stage
 from facette.pipeline._rti_capture import LP_NAME
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
-from facette.pipeline._quality import carried, check_fit_cells, check_samples
+from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry
 from facette.pipeline._report import report_fit_section, write_report
 from facette.pipeline._samples import _samples_stage  # bench/recon.py imports it from here too
 
@@ -279,7 +279,7 @@ def _process(source, outputs, out_dir, o):
     res.notes.extend(inp.notes)
     if inp.usable is not None:       # the data must be able to carry normals (else exit 3)
         notes, res.quality = check_samples(inp.images, inp.usable, inp.object_mask, inp.mask_source)
-        res.notes.extend(notes)
+        res.notes.extend(notes + light_geometry(inp.light_dirs, res.quality))
     res.timings["load"] = time.perf_counter() - t0
     m, h, w, c = inp.images.shape
 

@@ -51,7 +51,7 @@ from facette.pipeline._inputs import (NO_PITCH_NOTE, PSInput, _digest, _file_sta
                                       source_path)
 from facette.pipeline._scan_input import merged_lights, profile_flat, scan_input, scan_lights, scan_manifest
 from facette.pipeline._bands import DiligentBands, ScanBands, open_bands
-from facette.pipeline._quality import add_counts, carried, check_counts, sample_counts
+from facette.pipeline._quality import add_counts, carried, check_counts, light_geometry, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
 from facette.pipeline._tiles import FIELD_BYTES, PROCESS_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, rows_per_tile
@@ -386,7 +386,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
         shutil.rmtree(work, ignore_errors=True)
     # the check's verdict (InsufficientData) as untiled, after the bands that counted
     notes, res.quality = check_counts(counts if counts is not None else {"m": m, "object": 0}, inp.mask_source)
-    res.notes.extend(notes)
+    res.notes.extend(notes + light_geometry(inp.light_dirs, res.quality))
     if near:
         res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
     where = f" as tasks on the scheduler {o.scheduler}" if o.scheduler is not None else ""
