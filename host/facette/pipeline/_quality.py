@@ -127,7 +127,7 @@ def light_geometry(light_dirs, summary):
     return [f"the lights lie {off.min():.0f}-{off.max():.0f}° from the view: a 1 % error in one light's "
             f"intensity tilts the normals by about {tilt:.1f}° ({RIG_TILT}° under the rig's 12 lights), so "
             "the intensities must be known better than that (light_intensities.txt, or the calibration's "
-            "Spectralon step), or lights farther from the axis added"]
+            "Spectralon step); lights farther from the view lower it"]
 
 
 def carried(mask, usable):
