@@ -30,6 +30,7 @@ LOBE_TAN = 2.5             # a light is inside the lobe when tan θ_h < LOBE_TAN
 ROUND_STEP_TOL = 1e-3      # rad (0.06°): a pixel's solve stops below this step in the rounds too
 BLOCK = 32768              # pixels per block of the per-pixel solve (array code, two threads)
 BLOCK_COMPILED = 262144    # pixels per call of the compiled solve (it threads inside)
+NEIGHBOUR_ROUNDS = 5       # `neighbour_round` repeats while normals move, at most this often
 _FIELDS = ("normals", "kd", "used", "rel_residual")
 
 
@@ -232,22 +233,32 @@ class Pixels:
                                   engine=self.settings.engine, volume_model=self.vm, **options)
                 for a in range(0, sel.size, size)]
 
-    def neighbour_round(self, pix, sigma, n_i):
+    def neighbour_round(self, pix, sigma, n_i, rounds=NEIGHBOUR_ROUNDS):
         """The pixels of `pix` the BRDF-aware step solved whose normal is more than
         settings.neighbour_deg from the mean of their 5 × 5 neighbours (`_neighbour_means`)
         solved again from that mean and from their normal, keeping the start of lower robust
         cost: the pixel's own values choose, the neighbours only propose a start (under few lights
         the per-pixel cost has several minima, and a pixel's solve may stop in another one than its
-        neighbours'). Returns (pixels tried, pixels whose normal moved by > 1°)."""
-        far = pix[self.refined[pix]]
-        mean = _neighbour_means(self.nrm, self.idx, self.shape)
-        far = far[angle_deg(self.nrm[far], mean[far]) > self.settings.neighbour_deg]
-        if not far.size:
-            return 0, 0
-        rr = join_blocks(self.solve_from(far, mean[far], sigma, n_i, self.settings.iterations, extra=self.nrm[far]))
-        moved = int((angle_deg(rr.normals, self.nrm[far]) > 1.0).sum())
-        self.store(far, rr)
-        return int(far.size), moved
+        neighbours'). Repeated while normals move, at most `rounds` times: a later round tries
+        only the pixels within the 5 × 5 block of one that moved, whose proposed start changed.
+        Returns (pixels tried, pixels whose normal moved by > 1°, per round)."""
+        cand = pix[self.refined[pix]]
+        tried, moved = [], []
+        for _ in range(rounds):
+            mean = _neighbour_means(self.nrm, self.idx, self.shape)
+            far = cand[angle_deg(self.nrm[cand], mean[cand]) > self.settings.neighbour_deg]
+            if not far.size:
+                break
+            rr = join_blocks(self.solve_from(far, mean[far], sigma, n_i, self.settings.iterations,
+                                             extra=self.nrm[far]))
+            went = far[angle_deg(rr.normals, self.nrm[far]) > 1.0]
+            self.store(far, rr)
+            tried.append(int(far.size))
+            moved.append(int(went.size))
+            if not went.size:
+                break
+            cand = cand[_near(went, cand, self.idx, self.shape)]
+        return tried, moved
 
     def settle_shadows(self, pix, sigma, n_i):
         """The lights the BRDF-aware solve left out of the pixels of `pix` stay cast shadows only
@@ -277,6 +288,15 @@ class Pixels:
         self.refined[todo] = True
         self.rel[todo] = rr.rel_residual
         self.shadow[todo] = self.all_ok[todo] & ~rr.used
+
+
+def _near(went, cand, idx, shape):
+    """(len(cand),) bool: the pixels `cand` within the 5 × 5 block of a pixel of `went` (indices
+    into the valid pixels `idx` of an image of `shape`)."""
+    from scipy.ndimage import maximum_filter
+    grid = np.zeros(shape[0] * shape[1], bool)
+    grid[idx[went]] = True
+    return maximum_filter(grid.reshape(shape), size=5, mode="constant").ravel()[idx[cand]]
 
 
 def _neighbour_means(nrm, idx, shape):

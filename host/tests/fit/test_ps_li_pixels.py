@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from facette.brdf import li_shading_terms
-from facette.fit._ps_li_pixels import (LOBE_TAN, Pixels, Settings, _highlight_starts, _in_lobe,
+from facette.fit._ps_li_pixels import (LOBE_TAN, NEIGHBOUR_ROUNDS, Pixels, Settings, _highlight_starts, _in_lobe,
                                        _lambertian_correction, _neighbour_means, angle_deg)
 from facette.recon import ps_woodham1980
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
@@ -175,9 +175,24 @@ def test_a_pixel_apart_from_its_neighbours_gets_their_mean_as_a_start_and_its_ow
     apart = angle_deg(px.nrm, _neighbour_means(px.nrm, px.idx, px.shape)) > 10
     assert apart[pushed].all() and apart[f]                  # all four are tried
     tried, moved = px.neighbour_round(pix, 0.05, 1.2)
-    assert tried >= pushed.size + 1 and moved >= pushed.size
+    assert tried[0] >= pushed.size + 1 and moved[0] >= pushed.size
+    assert len(tried) == len(moved) <= NEIGHBOUR_ROUNDS
     assert angle_deg(px.nrm[pushed], truth[pushed]).max() < 2, angle_deg(px.nrm[pushed], truth[pushed])
     assert angle_deg(px.nrm[f], truth[f]) < 2                  # kept: its values say 30°, not the plane's 0°
+    # a 5 × 5 patch pushed off together: inside it a pixel agrees with its neighbours, so only its
+    # rim stands apart; a ring that comes back leaves the next one apart, tried in the next round
+    # (only the pixels around those that moved: their proposed start changed)
+    plane = np.flatnonzero(sc.normals.reshape(-1, 3)[px.idx, 2] > 0.999)
+    rows, cols = np.divmod(px.idx[plane], 40)
+    patch = plane[(rows >= 30) & (rows < 35) & (cols >= 3) & (cols < 8)]
+    good, back = px.nrm[patch].copy(), {}
+    for rounds in (1, NEIGHBOUR_ROUNDS):
+        px.nrm[patch] = _unit(good @ np.float32([[c, 0, -s], [0, 1, 0], [s, 0, c]]))
+        tried, moved = px.neighbour_round(pix, 0.05, 1.2, rounds=rounds)
+        back[rounds] = int((angle_deg(px.nrm[patch], truth[patch]) < 2).sum())
+        if rounds > 1:
+            assert len(tried) >= 3 and all(t < tried[0] for t in tried[1:]) and all(moved), (tried, moved)
+    assert patch.size == 25 and back[NEIGHBOUR_ROUNDS] > back[1], back
     # no pixel this far from its neighbours: nothing tried
     px.settings = replace(settings, neighbour_deg=90.0)
-    assert px.neighbour_round(pix, 0.05, 1.2) == (0, 0)
+    assert px.neighbour_round(pix, 0.05, 1.2) == ([], [])
