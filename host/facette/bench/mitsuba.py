@@ -36,7 +36,7 @@ from facette.methods import PROCESS_DEFAULT, PS_DEFAULT, PS_METHODS, photometric
 from facette.pipeline import IR_AUTO, ProcessOptions, auto_masks, margin_of
 from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.pipeline._filled import normals_of
-from facette.pipeline._quality import MIN_LEVELS, carried
+from facette.pipeline._quality import carried, usable_from_levels
 from facette.pipeline._interreflections import solve_without_interreflections
 from facette.recon import INTEGRATION_METHODS, integrate
 
@@ -101,7 +101,7 @@ def run_ps(d, method, init=None, interreflections=False):
     im, L = _images_and_dirs(d)
     t = time.perf_counter()
     inp = SimpleNamespace(mask=d["mask"], images=im, light_dirs=L,
-                          usable=im[..., 1] * (PNG_TOP / float(np.nanmax(im))) >= MIN_LEVELS)
+                          usable=usable_from_levels(im[..., 1] * (PNG_TOP / float(np.nanmax(im)))))
     # one bag for every method: each takes its own (li_alternating: materials, init)
     options = {"mask": carried(inp.mask, inp.usable),
                **({"materials": "auto"} if d["params"].get("two_materials") else {}), **({"init": init} if init else {})}

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facette.pipeline._quality import MIN_LEVELS, usable_from_green
+from facette.pipeline._quality import usable_from_green, usable_from_levels
 from facette.pipeline._tiles import _Staged
 
 __all__ = ["ScanBands", "DiligentBands", "open_bands"]
@@ -98,7 +98,7 @@ class ScanBands:
 
 class DiligentBands:
     """A DiLiGenT-style folder's photographs staged to raw files (`_tiles._Staged`), read a band
-    at a time as `read_diligent` and `load_input` make them (usable: >= MIN_LEVELS grey levels)."""
+    at a time as `read_diligent` and `load_input` make them (usable: `usable_from_levels`)."""
 
     def __init__(self, folder, names, inten, work):
         self._init(_Staged(folder, names, work), inten)
@@ -117,7 +117,7 @@ class DiligentBands:
         images = self.staged.band(r0, r1, self.inten)
         with np.errstate(invalid="ignore"):
             levels = images[..., 1] * self.levels
-        return images, np.isfinite(levels) & (levels >= MIN_LEVELS)
+        return images, usable_from_levels(levels)
 
     def close(self):
         pass

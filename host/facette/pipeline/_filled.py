@@ -54,15 +54,13 @@ def metal_cones(inp, ps, measured):
     Mitsuba, 12 rig lights, over the object (plain fill → this): gold sphere θ 38°, 19.0° → 9.6°;
     aluminium sphere 54°, 6.0° → 2.7°; gold relief 27°, 9.9° → 9.7°; the gold sphere with noise at
     10⁻³ / 10⁻⁴ of its highlights θ 34° / 35°, 8.8° / 8.4°."""
-    last = {}
-    for r in ps.info.get("rounds", []) if ps.method == "li_alternating" else []:
-        if "sigma" in r and "n_i" in r:
-            last[r.get("material", 0)] = (r["sigma"], r["n_i"])
+    fits = [(m["sigma"], m["n_i"]) for m in (ps.info.get("materials", []) if ps.method == "li_alternating" else [])
+            if m.get("sigma") is not None and m.get("n_i") is not None]
     L = inp.light_dirs
-    if not last or not all(is_metal(n_i) for _, n_i in last.values()) or inp.images is None or \
-            inp.usable is None or np.ndim(L) != 2:
+    if not fits or not all(is_metal(n_i) for _, n_i in fits) or inp.images is None or inp.usable is None or \
+            np.ndim(L) != 2:
         return None
-    sigma = min(s for s, _ in last.values())           # the narrower lobe: the smaller cones
+    sigma = min(s for s, _ in fits)                    # the narrower lobe: the smaller cones
     g = inp.images[..., 1 if inp.images.shape[-1] > 1 else 0]
     dark = inp.mask & ~measured & ~inp.usable.any(0) & np.isfinite(g).all(0)
     if not dark.any() or not measured.any():

@@ -8,7 +8,7 @@ from scipy import ndimage
 
 from facette.io.diligent import is_diligent_dir, read_diligent
 from facette.io.png import read_mask
-from facette.pipeline._quality import MIN_LEVELS
+from facette.pipeline._quality import usable_from_levels
 from facette.pipeline._rti_capture import is_rti_capture, read_rti_capture
 from facette.scan import ScanDirectory
 
@@ -231,7 +231,7 @@ def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False, c
         d = read_diligent(path)
         with np.errstate(invalid="ignore"):
             levels = d.images[..., 1] * (d.light_intensities[:, 1] * (2.0 ** d.bit_depth - 1))[:, None, None]
-        usable = np.isfinite(levels) & (levels >= MIN_LEVELS)
+        usable = usable_from_levels(levels)
         inp = PSInput(d.images, d.light_dirs, None, d.mask, float(pixel_pitch_mm or 1.0),
                       "diligent", path, usable=usable, object_mask=d.mask,
                       mask_source=f"{path / 'mask.png'}" if (path / "mask.png").is_file() else "the image")

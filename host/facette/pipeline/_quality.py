@@ -23,7 +23,7 @@ from facette.errors import InsufficientData
 __all__ = ["MIN_SNR", "MIN_LEVELS", "MIN_LIGHTS", "MIN_PIXEL_FRACTION", "MIN_FIT_CELLS", "SPARSE_CONTRAST",
            "LIT_PERCENTILE", "MIN_SPARSE_FRACTION", "TILT_NOTE_ABOVE", "lit_contrast", "carried", "intensity_tilt",
            "light_geometry",
-           "usable_from_variance", "usable_from_green", "check_samples", "check_fit_cells", "sample_counts",
+           "usable_from_variance", "usable_from_green", "usable_from_levels", "check_samples", "check_fit_cells", "sample_counts",
            "add_counts", "check_counts"]
 
 MIN_SNR = 3.0              # signal / noise standard deviation of a usable sample
@@ -58,6 +58,14 @@ def usable_from_variance(image, variance):
     """(H, W) bool: known (finite) and >= MIN_SNR standard deviations, on the green channel.
     image, variance : (H, W, 3) radiance and its variance (any consistent unit)."""
     return usable_from_green(image[..., 1], variance[..., 1])
+
+
+def usable_from_levels(levels):
+    """Known and at least MIN_LEVELS grey levels of the image's bit depth, elementwise (`levels`:
+    values in grey levels; images without a variance, PNG folders and RTI captures, whose noise
+    floor is their quantisation)."""
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(levels) & (levels >= MIN_LEVELS)
 
 
 def usable_from_green(g, v):
@@ -162,8 +170,17 @@ def sample_counts(images, usable, object_mask):
 
 def add_counts(a, b):
     """The `sample_counts` of two parts of an image together (a may be None)."""
-    return dict(b) if a is None else {k: (a[k] if k == "m" else np.concatenate([a[k], b[k]]) if k.endswith("_values")
-                                          else a[k] + b[k]) for k in a}
+    if a is None:
+        return dict(b)
+    out = {}
+    for k in a:
+        if k == "m":
+            out[k] = a[k]
+        elif k.endswith("_values"):        # lit_contrast's value samples: joined
+            out[k] = np.concatenate([a[k], b[k]])
+        else:                              # counts: summed
+            out[k] = a[k] + b[k]
+    return out
 
 
 def check_counts(counts, mask_source, light_names=None):

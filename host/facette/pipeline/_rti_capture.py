@@ -21,7 +21,7 @@ from facette.calib.lp import read_lp
 from facette.calib.mirror_sphere import Circle, mirror_sphere_directions
 from facette.errors import BadInputError
 from facette.io.png import read_mask
-from facette.pipeline._quality import MIN_LEVELS
+from facette.pipeline._quality import usable_from_levels
 
 __all__ = ["IMAGE_SUFFIXES", "ENCODINGS", "is_rti_capture", "read_rti_capture", "srgb_to_linear",
            "parse_circle", "parse_box"]
@@ -172,7 +172,7 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
         if raw.shape[:2] != (h, w):
             raise BadInputError(f"{p.name} is {raw.shape[1]}x{raw.shape[0]} px, {paths[0].name} is {w}x{h}",
                                 hint="every photograph of a capture must have the same size")
-        usable[k] = raw[..., 1] >= MIN_LEVELS if np.isfinite(top_k) else raw[..., 1] > 0
+        usable[k] = usable_from_levels(raw[..., 1]) if np.isfinite(top_k) else raw[..., 1] > 0
         clipped = raw >= top_k
         scale = top_k if np.isfinite(top_k) else 1.0
         if enc == "linear":            # one division in float64, as the DiLiGenT reader does
