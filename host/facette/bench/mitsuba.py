@@ -103,8 +103,8 @@ def run_ps(d, method, init=None, interreflections=False):
     inp = SimpleNamespace(mask=d["mask"], images=im, light_dirs=L,
                           usable=usable_from_levels(im[..., 1] * (PNG_TOP / float(np.nanmax(im)))))
     # one bag for every method: each takes its own (li_alternating: materials, init)
-    options = {"mask": carried(inp.mask, inp.usable),
-               **({"materials": "auto"} if d["params"].get("two_materials") else {}), **({"init": init} if init else {})}
+    options = {"mask": carried(inp.mask, inp.usable), **({"init": init} if init else {}),
+               **({"materials": "auto"} if d["params"].get("two_materials") else {})}
     o = ProcessOptions(interreflections=IR_AUTO if interreflections else False)   # a refusal leaves them in
     solve_in, used = images_for_solve(im, d["mask"], o, options, [])
     direct, r = solve_in, None
@@ -246,7 +246,8 @@ def pipeline_rows(args, variants):
     """The whole pipeline's rows: `process` on a DiLiGenT-style folder of each render, per method."""
     print("\nWhole pipeline (process: normals → samples → hemisphere filter → LI fit; no true normals); "
           "its normals' mean error on the eroded mask, the pixels it filled included")
-    print(f"{'scene':22s} {'method':30s} {'σ':>7s} {'(true)':>6s} {'n_i':>6s} {'(true)':>6s} {'K_d/true':>18s} {'s':>6s}")
+    print(f"{'scene':22s} {'method':30s} {'σ':>7s} {'(true)':>6s} {'n_i':>6s} {'(true)':>6s} "
+          f"{'K_d/true':>18s} {'s':>6s}")
     with tempfile.TemporaryDirectory() as tmp:
         for shape, mat in (("sphere", "paint_0.10"), ("sphere", "paint_0.05"), ("sphere", "satin"),
                            ("relief", "paint_0.08"), ("sphere", "rough_plastic"), ("sphere", "metallic_paint"),

@@ -22,9 +22,8 @@ from facette.errors import InsufficientData
 
 __all__ = ["MIN_SNR", "MIN_LEVELS", "MIN_LIGHTS", "MIN_PIXEL_FRACTION", "MIN_FIT_CELLS", "SPARSE_CONTRAST",
            "LIT_PERCENTILE", "MIN_SPARSE_FRACTION", "TILT_NOTE_ABOVE", "lit_contrast", "carried", "intensity_tilt",
-           "light_geometry",
-           "usable_from_variance", "usable_from_green", "usable_from_levels", "check_samples", "check_fit_cells", "sample_counts",
-           "add_counts", "check_counts"]
+           "light_geometry", "usable_from_variance", "usable_from_green", "usable_from_levels", "check_samples",
+           "check_fit_cells", "sample_counts", "add_counts", "check_counts"]
 
 MIN_SNR = 3.0              # signal / noise standard deviation of a usable sample
 MIN_LEVELS = 2             # grey levels of a PNG above which a sample is not dark noise
