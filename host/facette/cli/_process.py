@@ -84,6 +84,12 @@ def register(sub):
                         "li_alternating also what glossy walls mirror into each other. Default: on a "
                         "reflectance-calibrated scan read whole, off elsewhere (a note says why); "
                         "--no-interreflections: never")
+    p.add_argument("--light-gains", action=argparse.BooleanOptionalAction, default=None,
+                   help="read each light's relative intensity from the photographs and correct the given "
+                        "ones (light_intensities.txt, or none) before the normals. Default: for folders "
+                        "solved with the default method under lights spread enough, not for scans (their "
+                        "intensities come from the Spectralon); a note says what was done; "
+                        "--no-light-gains: never")
     p.add_argument("--integration", default=d.integration, choices=list(INTEGRATION_METHODS),
                    help=f"normal integration (default {d.integration}: the object needs a flat "
                         "margin around it, as for frankot_chellappa1988, the thesis's; least_squares "
@@ -179,7 +185,7 @@ def _method(args):
 
 def options(args):
     """The ProcessOptions of parsed `facette process` arguments."""
-    from facette.pipeline import IR_AUTO, ProcessOptions
+    from facette.pipeline import GAINS_AUTO, IR_AUTO, ProcessOptions
 
     return ProcessOptions(
         method=_method(args), integration=args.integration, t_ombre=args.t_ombre, t_spec=args.t_spec,
@@ -188,6 +194,7 @@ def options(args):
         ascii_ply=args.ascii_ply, fit_options={"model": args.brdf_model, "method": args.fit_method},
         hsh_order=args.hsh_order, rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
         interreflections=IR_AUTO if args.interreflections is None else args.interreflections,
+        light_gains=GAINS_AUTO if args.light_gains is None else args.light_gains,
         capture=_capture(args), memory=args.memory,
         scheduler=args.scheduler, channels=args.channels,
         ps_options={"init": args.init} if args.init else None)     # li_alternating takes it, the others leave it
@@ -223,6 +230,10 @@ def print_result(res):
             print(f"  glossy inter-reflections ({glossy_lobes_text(g)}): "
                   f"{100 * g['median_fraction']:.1f} % of the median value, {100 * g['p95_fraction']:.1f} % "
                   f"at the 95th percentile, {g['seconds']:.1f} s")
+    lg = res.light_gains
+    if lg is not None and lg["applied"]:
+        print(f"  light gains: the given intensities {lg['rms_percent']:.1f} % RMS off (at most "
+              f"{lg['max_percent']:.1f} %), corrected; {lg['seconds']:.1f} s")
     info = res.ps.info
     if "skipped_fraction" in info:
         print(f"  least squares explained {100 * info['skipped_fraction']:.1f} % of the pixels "

@@ -17,8 +17,9 @@ from facette.recon import HSH_ORDERS, INTEGRATION_DEFAULT, INTEGRATION_METHODS, 
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import THETA0_DEG
 
-__all__ = ["ProcessOptions", "IR_AUTO"]
+__all__ = ["ProcessOptions", "GAINS_AUTO", "IR_AUTO"]
 
+GAINS_AUTO = "auto"  # light_gains: for folders solved with the default (`process`)
 IR_AUTO = "auto"    # interreflections: removed where the input allows it (`process`)
 
 
@@ -88,6 +89,10 @@ class ProcessOptions:
                                        "images before photometric stereo (see `process`): True, False, or 'auto' "
                                        "(default): on a reflectance-calibrated scan read whole, off elsewhere "
                                        "(a note says why)", report=True)
+    light_gains: object = _option(GAINS_AUTO, "read each light's relative intensity from the photographs and "
+                                  "correct the given ones (pipeline._light_gains): True, False, or 'auto' (default): "
+                                  "for folders (DiLiGenT, RTI captures) solved with li_alternating, not for scans "
+                                  "(their intensities are measured on the Spectralon)", report=True)
     capture: dict = _option(None, "options of an RTI capture folder (photographs + .lp, or a mirror sphere in "
                             "view): {encoding: srgb|linear, sphere: Circle or (H, W) mask, reference: (x0, y0, "
                             "x1, y1)}; see pipeline._rti_capture.read_rti_capture; recorded only when given "
@@ -126,6 +131,9 @@ class ProcessOptions:
             raise BadInputError(f"interreflections must be True, False or {IR_AUTO!r}, got {self.interreflections!r}")
         if self.interreflections != IR_AUTO:
             object.__setattr__(self, "interreflections", bool(self.interreflections))
+        if isinstance(self.light_gains, str) and self.light_gains != GAINS_AUTO \
+                or self.light_gains not in (True, False, GAINS_AUTO):
+            raise BadInputError(f"light_gains must be True, False or {GAINS_AUTO!r}, got {self.light_gains!r}")
         INTEGRATION_METHODS.canonical(self.integration)        # ValueError naming the valid ones
         options_for(self.method, self.ps_bag())                # an unknown method or option: ValueError
         if self.memory is not None:

@@ -45,12 +45,13 @@ from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.pipeline._inputs import load_input, object_of
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
+from facette.pipeline._light_gains import with_light_gains
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_bands import relight_bands, relight_stage
 from facette.pipeline._rti_capture import LP_NAME
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
-from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry
+from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry, truth_errors
 from facette.pipeline._report import report_fit_section, write_report
 from facette.pipeline._samples import _samples_stage  # bench/recon.py imports it from here too
 
@@ -92,7 +93,7 @@ class ProcessResult:
     an HSHFit (--memory: every k-th pixel, _rti_bands) or None; fit_errors {name: value}: rel. RMS of
     the PTM / HSH relighting against the (fall-off corrected) HDR images on the object (above
     6.3 M values, on an even sample of rows: `recon.RELIGHT_ERROR_VALUES`); interreflections the
-    figures of `without_interreflections` when it was asked for, else None.
+    figures of `without_interreflections` when it was asked for, else None; light_gains: pipeline._light_gains's.
     """
     normals: np.ndarray = None
     albedo: np.ndarray = None
@@ -115,6 +116,7 @@ class ProcessResult:
     fit_errors: dict = field(default_factory=dict)
     quality: dict = field(default_factory=dict)
     interreflections: dict = None
+    light_gains: dict = None
     filled: np.ndarray = None
 
 
@@ -173,23 +175,6 @@ def preload():
         from matplotlib import colormaps  # noqa: F401
     except Exception:     # the report itself will say what is wrong
         pass
-
-
-def _truth_errors(inp, res):
-    t = inp.truth
-    out = {}
-    if not t or "normals" not in t or t["normals"].shape != res.normals.shape:
-        return out
-    sel = res.mask & t.get("mask", np.ones(res.mask.shape, bool)).astype(bool)
-    if sel.any():
-        dot = np.clip(np.sum(res.normals[sel] * t["normals"][sel], -1), -1, 1)
-        err = np.degrees(np.arccos(dot))
-        out.update(normal_mean_deg=float(err.mean()), normal_median_deg=float(np.median(err)),
-                   normal_p95_deg=float(np.percentile(err, 95)))
-        if res.height is not None and "height_mm" in t:
-            d = res.height[sel] - t["height_mm"][sel]
-            out["height_rms_mm"] = float(np.sqrt(np.mean((d - d.mean()) ** 2)))
-    return out
 
 
 def process(source, outputs=None, out_dir=None, options=None, **overrides):
@@ -294,6 +279,7 @@ def _process(source, outputs, out_dir, o):
     bag = o.ps_bag(mask=carried(inp.mask, inp.usable), saturation=o.saturation)
     method_name = PS_METHODS.canonical(o.method)
     solve_in, used = images_for_solve(images, inp.mask, o, bag, res.notes)     # the channels the normals see
+    solve_in, images = with_light_gains(res, o, inp, method_name, solve_in, images, bag)
     direct, ps = solve_in, None
     if interreflections_wanted(o, inp, res.notes):
         direct, ps = solve_without_interreflections(res, o, solve_in, light_dirs, inp.mask, method_name, bag)
@@ -337,7 +323,7 @@ def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, 
             "linear for values proportional to the radiance)" if o.rti_encoding == "srgb" else
             "linear values (proportional to the radiance: RTIViewer and Relight show them darker "
             "and harsher than the photographs)"))
-    res.errors = _truth_errors(inp, res)
+    res.errors = truth_errors(inp, res)
     res.timings["total_compute"] = time.perf_counter() - t_all
     if out_dir is not None:
         t0 = time.perf_counter()

@@ -23,7 +23,7 @@ from facette.errors import InsufficientData
 __all__ = ["MIN_SNR", "MIN_LEVELS", "MIN_LIGHTS", "MIN_PIXEL_FRACTION", "MIN_FIT_CELLS", "SPARSE_CONTRAST",
            "LIT_PERCENTILE", "MIN_SPARSE_FRACTION", "TILT_NOTE_ABOVE", "lit_contrast", "carried", "intensity_tilt",
            "light_geometry", "usable_from_variance", "usable_from_green", "usable_from_levels", "check_samples",
-           "check_fit_cells", "sample_counts", "add_counts", "check_counts"]
+           "check_fit_cells", "sample_counts", "add_counts", "check_counts", "truth_errors"]
 
 MIN_SNR = 3.0              # signal / noise standard deviation of a usable sample
 MIN_LEVELS = 2             # grey levels of a PNG above which a sample is not dark noise
@@ -248,3 +248,22 @@ def check_fit_cells(filtered):
             hint="capture with more lights or a curved object (more angles), enlarge the mask, or "
                  "leave brdf out of --outputs")
     return filled
+
+
+def truth_errors(inp, res):
+    """{name: value} of `res` against the input's truth (a simulated scan's truth.npz): the normals'
+    mean, median and 95th-percentile angular error (deg), the heights' RMS (mm, mean taken out)."""
+    t = inp.truth
+    out = {}
+    if not t or "normals" not in t or t["normals"].shape != res.normals.shape:
+        return out
+    sel = res.mask & t.get("mask", np.ones(res.mask.shape, bool)).astype(bool)
+    if sel.any():
+        dot = np.clip(np.sum(res.normals[sel] * t["normals"][sel], -1), -1, 1)
+        err = np.degrees(np.arccos(dot))
+        out.update(normal_mean_deg=float(err.mean()), normal_median_deg=float(np.median(err)),
+                   normal_p95_deg=float(np.percentile(err, 95)))
+        if res.height is not None and "height_mm" in t:
+            d = res.height[sel] - t["height_mm"][sel]
+            out["height_rms_mm"] = float(np.sqrt(np.mean((d - d.mean()) ** 2)))
+    return out

@@ -142,6 +142,7 @@ def write_record(out, options, inp, res, previous=None):
            "files": sorted(Path(p).name for p in res.files.values()),
            "quality": _plain(res.quality), "notes": list(res.notes),
            "ps_channels": _plain(res.ps.info.get("channels") if res.ps is not None else None),
+           "light_gains": _plain(res.light_gains),
            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
     if previous and previous.get("inputs") == inp.digest and previous.get("options") == rec["options"]:
         # the same run with other outputs: its files stay valid beside these

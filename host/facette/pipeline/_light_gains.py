@@ -1,0 +1,55 @@
+"""`process`'s light-gains step: whether it runs (the option, or for "auto" what the input and the
+method allow), the gains read from the photographs (facette.fit.estimate_light_gains), the images
+divided by them, and what it says in the notes and process.json.
+
+"auto" runs it on folders (DiLiGenT-style, RTI captures: intensities from a file, or none) solved
+with li_alternating, whose model the gains are read against, under lights spread enough that a
+1 % intensity error tilts the normals by at most TILT_NOTE_ABOVE (pipeline._quality): under lights
+bunched near the axis (DiLiGenT-Π's five, 8-18° off it) a pattern of intensities and a tilt of the
+normals make nearly the same images. A scan's intensities were measured on the Spectralon at the
+calibration, a reference target whose reflectance is known, which the object is not; the rig
+simulator's are exact. With --memory the images are never whole.
+"""
+import numpy as np
+
+from facette.fit import estimate_light_gains
+from facette.pipeline._options import GAINS_AUTO
+from facette.pipeline._quality import TILT_NOTE_ABOVE, intensity_tilt
+
+__all__ = ["light_gains_wanted", "with_light_gains"]
+
+
+def light_gains_wanted(o, inp, method_name, notes):
+    """Whether `process` reads the lights' gains: the option when True or False; for "auto", a
+    folder's images read whole, solved with li_alternating, under lights spread enough (else a
+    note says why not)."""
+    if o.light_gains != GAINS_AUTO:
+        return bool(o.light_gains)
+    if inp.kind == "scan" or o.memory is not None or method_name != "li_alternating":
+        return False
+    tilt = intensity_tilt(inp.light_dirs) if inp.light_dirs.ndim == 2 else np.inf
+    if not tilt <= TILT_NOTE_ABOVE:
+        notes.append(f"light gains: the given intensities are kept (under these lights a 1 % intensity error "
+                     f"tilts the normals by {tilt:.2f}°: the photographs cannot tell the intensities from a tilt)")
+        return False
+    return True
+
+
+def with_light_gains(res, o, inp, method_name, solve_in, images, bag):
+    """(solve_in, images) divided by the gains read from `solve_in` where the step runs
+    (`light_gains_wanted`) and they apply, else as given; res.light_gains holds the step's info
+    and a note says what was done or why not."""
+    if not light_gains_wanted(o, inp, method_name, res.notes):
+        return solve_in, images
+    gains, info = estimate_light_gains(solve_in, inp.light_dirs, inp.mask, channel=bag.get("channel"),
+                                       saturation=bag.get("saturation"), seed=bag.get("seed", 0))
+    res.light_gains = info
+    res.timings["light_gains"] = info["seconds"]
+    if gains is None:
+        res.notes.append(f"light gains: the given intensities are kept ({info['why']})")
+        return solve_in, images
+    res.notes.append(f"light gains: the photographs put the given intensities {info['rms_percent']:.1f} % RMS "
+                     f"off (at most {info['max_percent']:.1f} %); the images were divided by the gains read from "
+                     "them (process.json light_gains; --light-gains off keeps the given ones)")
+    g = np.asarray(gains, np.float32)[:, None, None, None]
+    return solve_in / g, images / g
