@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from facette.fit import estimate_light_gains
-from facette.fit._light_gains import MIN_RMS, MIN_SPREAD_DEG
+from facette.fit._light_gains import MAX_RMS, MIN_RMS, MIN_SPREAD_DEG
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
 LIGHTS = thesis_light_directions()
@@ -25,6 +25,10 @@ def test_the_gains_of_a_sphere_are_read_back_and_exact_intensities_are_kept(mate
     kept, info = estimate_light_gains(im, LIGHTS, sc.mask, channel=1)
     assert kept is None and not info["applied"] and info["rms_percent"] < 100 * MIN_RMS
     assert "the given intensities stand" in info["why"]
+    # lights off by 40 % RMS: no calibration's error, the model is told not to explain the object
+    wild = np.exp(0.4 * np.sin(np.arange(len(LIGHTS)) * 2.3))
+    refused, info = estimate_light_gains(im * wild[:, None, None, None], LIGHTS, sc.mask, channel=1)
+    assert refused is None and info["rms_percent"] > 100 * MAX_RMS and "too large" in info["why"]
 
 
 def test_a_flat_object_keeps_its_intensities():

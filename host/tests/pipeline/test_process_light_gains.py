@@ -7,6 +7,8 @@ import pytest
 from facette.errors import BadInputError
 from facette.io.diligent import write_diligent
 from facette.pipeline import process
+from facette.pipeline._light_gains import MIN_TILT
+from facette.pipeline._quality import intensity_tilt
 from facette.recon.synthetic import angular_error_deg, render, sphere_on_plane, thesis_light_directions
 
 
@@ -38,13 +40,22 @@ def test_a_folders_intensities_off_by_3_percent_are_corrected_from_its_photograp
     assert rec["light_gains"]["gains"] == lg["gains"] and rec["options"]["light_gains"] == "auto"
 
 
-def test_lights_bunched_near_the_axis_keep_their_intensities_and_say_why(tmp_path):
-    az = np.radians(20 + 72.0 * np.arange(5))
-    t = np.radians(12.0)
-    lights = np.stack([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(5, np.cos(t))], axis=1)
-    _folder(tmp_path / "f", lights, np.ones(5))
-    res = process(tmp_path / "f", outputs=["normals"])
-    assert res.light_gains is None
-    assert any(n.startswith("light gains: the given intensities are kept (under these lights") for n in res.notes)
+def _rings(polar_degs, per_ring):
+    lights = []
+    for k, polar in enumerate(polar_degs):
+        az, t = np.radians(20 + 7 * k + 360.0 * np.arange(per_ring) / per_ring), np.radians(polar)
+        lights.append(np.stack([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(per_ring, np.cos(t))], 1))
+    return np.concatenate(lights)
+
+
+def test_lights_bunched_near_the_axis_or_many_keep_their_intensities_and_say_why(tmp_path):
+    for name, lights, said in (("bunched", _rings([12.0], 5), "the given intensities are kept (under these lights"),
+                               ("many", _rings([20.0, 40.0, 60.0], 16), "not read (under these lights")):
+        _folder(tmp_path / name, lights, 1 + 0.03 * np.sin(np.arange(len(lights)) * 1.7))
+        res = process(tmp_path / name, outputs=["normals"])
+        assert res.light_gains is None and (name == "many") == (intensity_tilt(lights) < MIN_TILT)
+        assert any(n.startswith("light gains: " + said) for n in res.notes), res.notes
+        if name == "many":        # asked for, it runs
+            assert process(tmp_path / name, outputs=["normals"], light_gains=True).light_gains["applied"]
     with pytest.raises(BadInputError, match="light_gains must be True, False or 'auto'"):
-        process(tmp_path / "f", outputs=["normals"], light_gains="yes")
+        process(tmp_path / "many", outputs=["normals"], light_gains="yes")
