@@ -5,10 +5,11 @@ divided by them, and what it says in the notes and process.json.
 "auto" runs it on folders (DiLiGenT-style, RTI captures: intensities from a file, or none) solved
 with li_alternating, whose model the gains are read against, under lights few enough that their
 intensities matter (MIN_TILT) and spread enough that a 1 % intensity error tilts the normals by at
-most TILT_NOTE_ABOVE (pipeline._quality): under lights bunched near the axis (DiLiGenT-Π's five, 8-18° off it) a pattern of intensities and a tilt of the
-normals make nearly the same images. A scan's intensities were measured on the Spectralon at the
-calibration, a reference target whose reflectance is known, which the object is not; the rig
-simulator's are exact. With --memory the images are never whole.
+most TILT_NOTE_ABOVE (pipeline._quality): under lights bunched near the axis (DiLiGenT-Π's five,
+8-18° off it) a pattern of intensities and a tilt of the normals make nearly the same images. A
+scan's intensities were measured on the Spectralon at the calibration, a reference target whose
+reflectance is known, which the object is not; the rig simulator's are exact. With --memory the
+images are never whole.
 """
 import numpy as np
 

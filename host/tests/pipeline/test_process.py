@@ -132,6 +132,7 @@ def test_scan_directory_with_truth(tmp_path):
     res = process(tmp_path / "scan", outputs=["normals", "height", "brdf", "report"],
                   out_dir=tmp_path / "o", fit_options={"model": "lambert"})
     assert res.inputs.kind == "scan" and res.inputs.pixel_pitch_mm == 0.05
+    assert res.light_gains is None              # a scan's intensities are the Spectralon's: never read again
     assert not res.mask[0, 0]                   # unknown everywhere: no normal there
     assert res.errors["normal_median_deg"] < 0.5
     assert "height_rms_mm" in res.errors
