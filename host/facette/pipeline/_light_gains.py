@@ -61,6 +61,6 @@ def with_light_gains(res, o, inp, method_name, solve_in, images, bag):
         return solve_in, images
     res.notes.append(f"light gains: the photographs put the given intensities {info['rms_percent']:.1f} % RMS "
                      f"off (at most {info['max_percent']:.1f} %); the images were divided by the gains read from "
-                     "them (process.json light_gains; --light-gains off keeps the given ones)")
+                     "them (process.json light_gains; --no-light-gains keeps the given ones)")
     g = np.asarray(gains, np.float32)[:, None, None, None]
     return solve_in / g, images / g
