@@ -13,7 +13,7 @@ from facette._threads import run_blocks
 from facette.errors import BadInputError
 from facette.io.png import read_mask, read_png, write_png, write_mask
 
-__all__ = ["DiligentData", "is_diligent_dir", "read_diligent", "read_diligent_lights", "png_radiance",
+__all__ = ["DiligentData", "is_diligent_dir", "read_diligent", "read_diligent_lights", "png_radiance", "size_mismatch",
            "write_diligent"]
 
 
@@ -119,6 +119,13 @@ def read_diligent_lights(folder, select=None):
     return names, dirs, inten, notes
 
 
+def size_mismatch(name, shape, first_name, first_shape):
+    """The error text for a photograph `name` of (H, W, ...) `shape` in a folder whose first,
+    `first_name`, is `first_shape`: what differs and what to do."""
+    return (f"{name} is {shape[1]}x{shape[0]}, {first_name} is {first_shape[1]}x{first_shape[0]}: every "
+            "photograph of a folder must have one size (export or crop them alike)")
+
+
 def png_radiance(arr, intensity, out):
     """Stored PNG integers (H, W) grey or (H, W, 3|4) -> `out` (H, W, 3) float: divided by the
     full scale (65535 or 255) and by the light's R G B `intensity`, NaN where the value is at the
@@ -149,8 +156,7 @@ def read_diligent(folder, dtype=np.float32, select=None):
     def one(i):
         arr = first if i == 0 else read_png(folder / names[i])
         if arr.shape[:2] != (h, w):
-            raise ValueError(f"{names[i]} is {arr.shape[1]}x{arr.shape[0]}, {names[0]} is {w}x{h}: every "
-                             "photograph of a folder must have one size (export or crop them alike)")
+            raise ValueError(size_mismatch(names[i], arr.shape, names[0], (h, w)))
         png_radiance(arr, inten[i], images[i])
 
     # the PNG decoder gives the GIL up: two images at once (the 16-bit ball, 96 × 612×512:

@@ -62,5 +62,10 @@ def with_light_gains(res, o, inp, method_name, solve_in, images, bag):
     res.notes.append(f"light gains: the photographs put the given intensities {info['rms_percent']:.1f} % RMS "
                      f"off (at most {info['max_percent']:.1f} %); the images were divided by the gains read from "
                      "them (process.json light_gains; --no-light-gains keeps the given ones)")
+    # in place: the images are process's own (read for this run), and a folder of 12 photographs
+    # at 50 MP holds 7 GB of them; the solve's stack is a copy of its own unless it is the images
     g = np.asarray(gains, np.float32)[:, None, None, None]
-    return solve_in / g, images / g
+    if solve_in is not images:
+        solve_in /= g
+    images /= g
+    return solve_in, images

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facette.io.diligent import png_radiance, read_diligent_lights
+from facette.io.diligent import png_radiance, read_diligent_lights, size_mismatch
 from facette.io.png import png_size, read_mask, read_png
 from facette.methods import PS_DEFAULT, PS_METHODS
 from facette.recon import PSResult
@@ -121,9 +121,7 @@ class _Staged:
             if self.shape is None:
                 self.shape, self.dtype = arr.shape, arr.dtype
             elif arr.shape != self.shape:
-                raise ValueError(f"{name} is {arr.shape[1]}x{arr.shape[0]}, {names[0]} is "
-                                 f"{self.shape[1]}x{self.shape[0]}: every photograph of a folder must have "
-                                 "one size (export or crop them alike)")
+                raise ValueError(size_mismatch(name, arr.shape, names[0], self.shape))
             path = Path(work) / f"{i:04d}.raw"
             arr.astype(self.dtype, copy=False).tofile(path)
             self.paths.append(path)
