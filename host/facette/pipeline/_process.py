@@ -46,6 +46,7 @@ from facette.pipeline._inputs import load_input, object_of
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
 from facette.pipeline._light_gains import with_light_gains
+from facette.pipeline._shadows import shadows_wanted, solve_with_shadows
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_bands import relight_bands, relight_stage
@@ -118,6 +119,7 @@ class ProcessResult:
     interreflections: dict = None
     light_gains: dict = None
     filled: np.ndarray = None
+    shadows: dict = None          # pipeline._shadows's figures when the step ran
 
 
 def _fit_stage(filtered, fit_options, brdf_aware=False, material=None):
@@ -282,7 +284,10 @@ def _process(source, outputs, out_dir, o):
     solve_in, images = with_light_gains(res, o, inp, method_name, solve_in, images, bag)
     direct, ps = solve_in, None
     if interreflections_wanted(o, inp, res.notes):
-        direct, ps = solve_without_interreflections(res, o, solve_in, light_dirs, inp.mask, method_name, bag)
+        direct, ps = solve_without_interreflections(res, o, solve_in, light_dirs, inp.mask, method_name, bag,
+                                                    1.0 if inp.reflectance else "auto")
+    if shadows_wanted(o, light_dirs, res.notes):       # cast shadows, alternated with the normals
+        ps = solve_with_shadows(res, o, direct, light_dirs, inp.mask, method_name, bag, first=ps) or ps
     if ps is None and o.memory is not None:     # over bands of the images held whole
         ps = in_memory_ps(direct, light_dirs, o, bag, outputs, res)
     elif ps is None:
