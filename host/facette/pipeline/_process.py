@@ -247,6 +247,7 @@ def _process(source, outputs, out_dir, o):
                                                relight=fits if {"ptm", "rti"} & set(outputs) else None)
         previous, images, direct = claimed["previous"], None, None
         interreflections_wanted(o, inp, res.notes)       # never with --memory: its note says why
+        shadows_wanted(o, light_dirs, res.notes)           # nor the cast shadows
         if res.ps is None:
             _streamed_result(res, inp, ps, top)
         del top                    # its object mask made: 4 bytes per pixel no later stage reads (100 MP: 0.4 GB)

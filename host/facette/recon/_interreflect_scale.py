@@ -12,6 +12,8 @@ is at most 1) the cells' images less s G are solved again (rank_trimmed) and the
 residual read where the most light is gathered (the top GATHER_QUANTILE of the cells); the s of
 the lowest median residual wins, refined by a parabola through its neighbours.
 """
+import warnings
+
 import numpy as np
 
 from ._interreflect import IR_GRID, IR_MAX_FRACTION, _block_sum, _cell_lights, _cell_mean, _gather_cells
@@ -64,7 +66,8 @@ def estimate_reflectance_scale(images, light_dirs, normals, albedo, mask, satura
     i_c, ld_c, n_c, a_c, cells = _cells(im, light_dirs, normals, alb, mask, saturation, grid)
     gathered, _ = _gather_cells(i_c, ld_c, n_c, a_c, cells)
     g1 = gathered * a_c[None] / np.float32(np.pi)            # the gathered light at scale 1
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)       # a cell dark under every light: NaN
         share = np.nanmedian(np.where(i_c > 0, g1 / i_c, np.nan), axis=0)[..., 0]
     info = {"max_scale": max_scale, "costs": []}
     strong = cells & np.isfinite(share)

@@ -7,9 +7,10 @@ direction and t the distance along it (pixel pitches),
     horizon(p, d) = max_t atan((z(p + t d) − z(p)) / t),      elevation(s) = atan(s_z / |s_xy|),
 
 and the light is hidden where horizon − elevation > `margin_deg` (a horizon test, as in
-horizon-based ambient occlusion). The heights are an estimate (integrated from normals that the
-shadows themselves biased), so the margin keeps the lights just above or below a wall's edge in
-doubt out of the test: "soft at the edge". The march steps every pixel up to SHORT_STEPS, then
+horizon-based ambient occlusion). The heights are an estimate (integrated from normals, which
+round a wall's rim off and lower the horizon), so the margin decides the lights just above or
+below a wall's edge, the soft edge of the test (pipeline._shadows.SHADOW_MARGIN_DEG: negative,
+the lights up to that far above the horizon count as hidden too). The march steps every pixel up to SHORT_STEPS, then
 geometrically (×STEP_GROWTH), stopping at the image's edge or the mask's (outside it nothing is
 known, so nothing hides). Large images are binned first (at most HORIZON_PIXELS cells).
 """
