@@ -68,8 +68,9 @@ def run(folder, **options):
 VARIANTS = {   # label: process options
     "least squares": {"method": "woodham1980", "shadows": "off", "interreflections": False},
     "before (no ir or shadows)": {"shadows": "off", "interreflections": False},
-    "default (no shadows)": {"shadows": "off"},
     "default": {},
+    "default +ir (no shadows)": {"interreflections": True, "shadows": "off"},
+    "default +ir": {"interreflections": True},
 }
 
 
