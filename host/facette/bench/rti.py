@@ -11,6 +11,9 @@ photographs), with the fit time. Data sets:
 3. the reference tools' own files (rti_reference/: RTIBuilder's HSH, HP's JPEG PTM) read by
    facette.io's readers (written from RTIViewer's and Relight's loaders): read time, and the
    orientation figures (light from +x / +y brightens the right / upper side of the object);
+5. real captures (rti_captures/loewenkopf_240 and JPEG + .lp captures made of the DiLiGenT crops),
+   every 6th light held out: facette's files as RTIViewer and openlime read them against plain
+   least-squares fits of the same photographs, PSNR / SSIM in 8-bit display values (bench._rti_captures);
 4. with --results DIR (a `facette process` output of a scan): relight.ptm and relight.rti
    read back as RTIViewer (integer PTM coefficients) and Relight (float) read them, relative
    RMS against the (fall-off corrected) HDR images at the captured lights on the object
@@ -25,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import facette
+from facette.bench._rti_captures import captures_section
 from facette.io.diligent import read_diligent
 from facette.io.png import read_mask
 from facette.io.ptm import read_ptm
@@ -191,7 +195,11 @@ def main(argv=None):
     ap.add_argument("--results", help="a `facette process` output folder of a scan: its relight.ptm and "
                                       "relight.rti against the scan's HDR images (section 4)")
     ap.add_argument("--files-only", action="store_true", help="sections 3 and 4 only (the files)")
+    ap.add_argument("--captures-only", action="store_true", help="section 5 only (the real captures)")
     args = ap.parse_args(argv)
+    if args.captures_only:
+        captures_section(args.root)
+        return 0
     if not args.files_only:
         simulated()
         if not args.skip_real:
@@ -200,4 +208,6 @@ def main(argv=None):
         reference_files(args.root)
     if args.results:
         demo_results(args.results)
+    if not args.skip_real and not args.files_only:
+        captures_section(args.root)
     return 0
