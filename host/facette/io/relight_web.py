@@ -241,7 +241,8 @@ def _read_plane(folder, j, w, h):
     from PIL import Image
     single = folder / f"plane_{j}.jpg"
     if single.is_file():
-        a = np.asarray(Image.open(single).convert("RGB"))
+        with Image.open(single) as im:
+            a = np.asarray(im.convert("RGB"))
     else:
         dzi = folder / f"plane_{j}.dzi"
         if not dzi.is_file():
@@ -257,7 +258,8 @@ def _read_plane(folder, j, w, h):
         a = np.zeros((size["Height"], size["Width"], 3), np.uint8)
         for row in range(-(-size["Height"] // t)):
             for col in range(-(-size["Width"] // t)):
-                tile = np.asarray(Image.open(tiles / str(top) / f"{col}_{row}.jpg").convert("RGB"))
+                with Image.open(tiles / str(top) / f"{col}_{row}.jpg") as im:
+                    tile = np.asarray(im.convert("RGB"))
                 a[row * t:row * t + tile.shape[0], col * t:col * t + tile.shape[1]] = tile
     if a.shape[:2] != (h, w):
         raise BadInputError(f"{folder}: plane {j} is {a.shape[1]}x{a.shape[0]}, info.json says {w}x{h}")
