@@ -8,8 +8,9 @@ photographs), with the fit time. Data sets:
 2. DiLiGenT ball (612x512, 16-bit PNG, 96 lights) and the 8-bit crops, when the real data
    is found (../shared/data beside the repository, or --root DIR); the time to read the 96
    16-bit PNGs (facette.io.png) is printed too.
-3. the reference tools' own files (rti_reference/: RTIBuilder's HSH, HP's JPEG PTM) read by
-   facette.io's readers (written from RTIViewer's and Relight's loaders): read time, and the
+3. the reference tools' own files (rti_reference/: RTIBuilder's HSH, HP's JPEG PTM, Relight's web
+   folders of openlime) read by facette.io's readers (written from RTIViewer's, Relight's and
+   openlime's loaders): read time, and the
    orientation figures (light from +x / +y brightens the right / upper side of the object);
 5. real captures (rti_captures/loewenkopf_240 and JPEG + .lp captures made of the DiLiGenT crops),
    every 6th light held out: facette's files as RTIViewer and openlime read them against plain
@@ -32,6 +33,7 @@ from facette.bench._rti_captures import captures_section
 from facette.io.diligent import read_diligent
 from facette.io.png import read_mask
 from facette.io.ptm import read_ptm
+from facette.io.relight_web import read_relight_web
 from facette.io.rti import hsh_weights, read_hsh_rti
 from facette.recon import (fit_hsh, fit_ptm_lrgb, near_light_directions, relight_error, relight_hsh,
                            relight_ptm, srgb_decode, srgb_encode)
@@ -106,7 +108,8 @@ def _side_ratio(picture_at, coords, lit):
 
 def reference_files(root):
     base = Path(root) / "rti_reference"
-    files = sorted(base.glob("hsh/*.rti")) + sorted(base.glob("ptm/*.ptm"))
+    files = sorted(base.glob("hsh/*.rti")) + sorted(base.glob("ptm/*.ptm")) + \
+        sorted(p.parent for p in base.glob("relight_web/*/info.json"))
     if not files:
         print(f"3. reference RTI files: none under {base}; skipped")
         return
@@ -116,7 +119,7 @@ def reference_files(root):
     print(f"  {'file':28s} {'size':>9s} {'read':>8s} {'right/left':>11s} {'top/bottom':>11s}")
     for f in files:
         t0 = time.perf_counter()
-        rti = read_hsh_rti(f) if f.suffix == ".rti" else read_ptm(f)
+        rti = read_hsh_rti(f) if f.suffix == ".rti" else read_ptm(f) if f.suffix == ".ptm" else read_relight_web(f)
         dt = time.perf_counter() - t0
         lit = rti.relight([0, 0, 1]).mean(-1) > 0.15
         yy, xx = np.mgrid[0:rti.height, 0:rti.width]

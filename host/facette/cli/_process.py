@@ -38,13 +38,13 @@ def _number(kind, lo=None, hi=None, lo_open=False, what="value"):
 
 
 def _outputs(text):
-    from facette.pipeline import OUTPUTS
+    from facette.pipeline import ALL_OUTPUTS
 
     out = [o.strip() for o in text.split(",") if o.strip()]
-    bad = [o for o in out if o not in OUTPUTS]
+    bad = [o for o in out if o not in ALL_OUTPUTS]
     if bad or not out:
         raise argparse.ArgumentTypeError(f"unknown output(s) {', '.join(bad) or '(none given)'}; "
-                                         f"choose from {','.join(OUTPUTS)}")
+                                         f"choose from {','.join(ALL_OUTPUTS)}")
     return out
 
 
@@ -61,8 +61,8 @@ def register(sub):
                                   "(photographs with an .lp file, or with a mirror sphere in view)")
     p.add_argument("-o", "--out", required=True, help="output directory (created)")
     p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
-                   help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all); only the "
-                        "stages they need run")
+                   help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all), or relight-web "
+                        "(Relight's web format for openlime, asked for by name); only the stages they need run")
     p.add_argument("--method", default=None,
                    choices=list(PS_METHODS),
                    help=f"photometric stereo (default {d.method}: BRDF-aware, the LI model fitted per "

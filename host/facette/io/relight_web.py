@@ -32,7 +32,7 @@ __all__ = ["write_relight_web", "read_relight_web", "RelightWeb", "openlime_weig
 TILE = 256                 # deep-zoom tile size (Relight's)
 QUALITY = 95               # JPEG quality of the planes (Relight's default)
 IMAGE_MAX = 2048           # pictures up to this size on their long side: plain plane_j.jpg, else deep zoom
-ROWS = 256                 # image rows quantised at a time
+ROWS = 64                  # image rows quantised at a time
 HSH_MIN_ELEVATION = 0.15   # openlime's HSH: lights lower than this (rad above the horizon) are taken at it
 OPENLIME_PI = 3.1415       # openlime's HSH uses this value of π
 # facette's PTM coefficient order ([x², y², xy, x, y, 1], the .ptm file's) -> openlime's [1, x, y, x², xy, y²]
@@ -74,22 +74,22 @@ def _jpeg(path, rgb, quality):
 
 
 def _half(x):
-    """(rows, W, P) uint8 -> (ceil(rows / 2), ceil(W / 2), P): the mean of each 2x2 block (of the
-    pixels there are at an odd edge), rounded."""
-    r, w = x.shape[:2]
+    """(J, rows, W, 3) uint8 -> (J, ceil(rows / 2), ceil(W / 2), 3): the mean of each 2x2 block (of
+    the pixels there are at an odd edge), rounded."""
+    r, w = x.shape[1:3]
     x = x.astype(np.uint16)
     if r % 2:
-        x = np.concatenate([x, x[-1:]], axis=0)
-    if w % 2:
         x = np.concatenate([x, x[:, -1:]], axis=1)
-    s = x[0::2, 0::2] + x[1::2, 0::2] + x[0::2, 1::2] + x[1::2, 1::2]
+    if w % 2:
+        x = np.concatenate([x, x[:, :, -1:]], axis=2)
+    s = x[:, 0::2, 0::2] + x[:, 1::2, 0::2] + x[:, 0::2, 1::2] + x[:, 1::2, 1::2]
     return ((s + 2) // 4).astype(np.uint8)
 
 
 class _Pyramid:
     """Deep-zoom tiles of `jpegs` planes (3 channels each) of a w x h picture, fed top rows first at
-    the full-size level (`add`); each level's tile rows written as soon as they are complete, the
-    rows halved into the level above it as they come."""
+    the full-size level (`add`: (jpegs, rows, w, 3) uint8); each level's tile rows written as soon
+    as they are complete, the rows halved into the level above it as they come."""
 
     def __init__(self, folder, jpegs, w, h, quality):
         self.levels = max(1, int(np.ceil(np.log2(max(w, h) / TILE))) + 1) if max(w, h) > TILE else 1
@@ -105,29 +105,29 @@ class _Pyramid:
         self._push(self.levels - 1, rows, last)
 
     def _push(self, lv, rows, last):
-        buf = rows if self.buf[lv] is None else np.concatenate([self.buf[lv], rows])
-        while len(buf) >= TILE or (last and len(buf)):
-            self._tiles(lv, self.tile_row[lv], buf[:TILE])
+        buf = rows if self.buf[lv] is None else np.concatenate([self.buf[lv], rows], axis=1)
+        while buf.shape[1] >= TILE or (last and buf.shape[1]):
+            self._tiles(lv, self.tile_row[lv], buf[:, :TILE])
             self.tile_row[lv] += 1
-            buf = buf[TILE:]
+            buf = buf[:, TILE:]
         self.buf[lv] = buf
         if lv == 0:
             return
-        src = rows if self.carry[lv] is None else np.concatenate([self.carry[lv], rows])
-        even = len(src) // 2 * 2
-        down = _half(src[:even]) if even else src[:0, ::2]
-        rest = src[even:]
-        if last and len(rest):
-            down, rest = np.concatenate([down, _half(rest)]), rest[:0]
-        self.carry[lv] = rest if len(rest) else None
-        if len(down) or last:
+        src = rows if self.carry[lv] is None else np.concatenate([self.carry[lv], rows], axis=1)
+        even = src.shape[1] // 2 * 2
+        down = _half(src[:, :even]) if even else src[:, :0, ::2]
+        rest = src[:, even:]
+        if last and rest.shape[1]:
+            down, rest = np.concatenate([down, _half(rest)], axis=1), rest[:, :0]
+        self.carry[lv] = rest if rest.shape[1] else None
+        if down.shape[1] or last:
             self._push(lv - 1, down, last)
 
     def _tiles(self, lv, row, band):
         for j in range(self.jpegs):
-            for col, c0 in enumerate(range(0, band.shape[1], TILE)):
+            for col, c0 in enumerate(range(0, band.shape[2], TILE)):
                 _jpeg(self.folder / f"plane_{j}_files" / str(lv) / f"{col}_{row}.jpg",
-                      band[:, c0:c0 + TILE, 3 * j:3 * j + 3], self.quality)
+                      band[j, :, c0:c0 + TILE], self.quality)
 
 
 def write_relight_web(folder, width, height, kind, coeff_rows, coeff_range, lights, layout="auto",
@@ -173,16 +173,21 @@ def write_relight_web(folder, width, height, kind, coeff_rows, coeff_range, ligh
     tmp.mkdir(parents=True)
     try:
         pyramid = _Pyramid(tmp, terms, w, h, quality) if layout == "deepzoom" else None
-        whole = None if pyramid else np.empty((h, w, 3 * terms), np.uint8)
+        whole = None if pyramid else np.empty((terms, h, w, 3), np.uint8)
+        # byte = coeff · 255 / scale + 255 bias, per (colour, term) as the coefficients come (b, W, 3, T)
+        mul = (255.0 / scale).reshape(terms, 3).T.astype(np.float32)
+        add = (255.0 * bias).reshape(terms, 3).T.astype(np.float32)
         for r0 in range(0, h, ROWS):
             r1 = min(h, r0 + ROWS)
-            x = np.asarray(coeff_rows(r0, r1), np.float64)               # (b, W, 3, T)
-            x = np.swapaxes(x, 2, 3).reshape(r1 - r0, w, 3 * terms)     # plane 3 t + c
-            q = np.clip(np.round((x / scale + bias) * 255.0), 0, 255).astype(np.uint8)
+            x = np.array(coeff_rows(r0, r1), np.float32)                 # (b, W, 3, T), a copy of its own
+            x *= mul
+            x += add
+            np.round(x, out=x)
+            q = np.clip(x, 0, 255, out=x).astype(np.uint8).transpose(3, 0, 1, 2)   # (T, b, W, 3): jpeg t
             if pyramid:
-                pyramid.add(q, last=r1 == h)
+                pyramid.add(np.ascontiguousarray(q), last=r1 == h)
             else:
-                whole[r0:r1] = q
+                whole[:, r0:r1] = q
         for j in range(terms):
             if pyramid:
                 (tmp / f"plane_{j}.dzi").write_text(
@@ -190,7 +195,7 @@ def write_relight_web(folder, width, height, kind, coeff_rows, coeff_range, ligh
                     f'  Format="jpg"\n  Overlap="0"\n  TileSize="{TILE}"\n  >\n  <Size \n    Height="{h}"\n'
                     f'    Width="{w}"\n  />\n</Image>\n')
             else:
-                _jpeg(tmp / f"plane_{j}.jpg", whole[..., 3 * j:3 * j + 3], quality)
+                _jpeg(tmp / f"plane_{j}.jpg", whole[j], quality)
         (tmp / "info.json").write_text(json.dumps(info, indent=1) + "\n")
         if folder.exists():
             shutil.rmtree(folder)

@@ -18,7 +18,7 @@ from test_process_memory import M, WHOLE_CHANNELS, _never_whole, diligent, scan,
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "io"))
 from rti_spec_readers import hsh_colour, ptm_colour, read_hsh, read_ptm  # noqa: E402
 
-OUTPUTS = ["normals", "mask", "ptm", "rti"]
+OUTPUTS = ["normals", "mask", "ptm", "rti", "relight-web"]
 
 
 def _both(request, tmp_path, monkeypatch, source, encoding, rows, block):
@@ -46,6 +46,10 @@ def test_relight_files_over_bands_are_the_untiled_bytes(request, tmp_path, small
     for name in ("relight.ptm", "relight.rti"):
         a, b = (tmp_path / "whole" / name).read_bytes(), (tmp_path / "tiled" / name).read_bytes()
         assert len(a) == len(b) and a == b, name
+    web = sorted(p.relative_to(tmp_path / "whole") for p in (tmp_path / "whole" / "relight_web").rglob("*"))
+    assert len(web) == 10                 # info.json and 9 plane JPEGs: the same bytes from the spill
+    for p in web:
+        assert (tmp_path / "whole" / p).read_bytes() == (tmp_path / "tiled" / p).read_bytes(), p
     assert tiled.fit_errors == whole.fit_errors and set(whole.fit_errors) == {"ptm_relative_rms",
                                                                               "hsh_relative_rms"}
     assert tiled.ptm.white == whole.ptm.white and tiled.hsh.white == whole.hsh.white
