@@ -50,7 +50,7 @@ from facette.pipeline._light_gains import with_light_gains
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_bands import relight_bands, relight_exposure, relight_stage, write_relight_web
-from facette.pipeline._rti_exposure import exposure_note
+from facette.pipeline._rti_exposure import record_exposure
 from facette.pipeline._rti_capture import LP_NAME
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
 from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry, truth_errors
@@ -282,8 +282,7 @@ def _process(source, outputs, out_dir, o):
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
         res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
     if "ps" not in stages:       # the relighting files alone: the images and the object's mask
-        res.mask = inp.mask
-        res.object_mask = inp.mask if inp.background_mask() is None else \
+        res.mask, res.object_mask = inp.mask, inp.mask if inp.background_mask() is None else \
             inp.mask & object_of(inp.images, inp.mask, inp.material_mask)
         return _from_ps(res, inp, stages, outputs, images, images, light_dirs, o, out_dir, record_options, previous,
                         t_all, cpu_all)
@@ -329,9 +328,7 @@ def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, 
     # --memory: the stages after photometric stereo one at a time (100 MP: 4.0 GB two at once)
     res.notes.extend(_after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, drawn,
                                workers=1 if o.memory else 2, relight=relight))
-    if res.rti_exposure is not None and (res.ptm is not None or res.hsh is not None):
-        res.notes.append(exposure_note(res.rti_exposure))
-        res.quality["rti_exposure"] = res.rti_exposure.record()
+    record_exposure(res)                 # the relighting files' scale: a note and process.json
     res.errors = truth_errors(inp, res) if res.normals is not None else {}
     res.timings["total_compute"] = time.perf_counter() - t_all
     if out_dir is not None:

@@ -19,7 +19,7 @@ import numpy as np
 
 from facette.io.diligent import read_diligent_lights
 
-__all__ = ["Exposure", "exposure_of", "exposure_note", "HDRWhite", "CLIP_PERCENT", "photographed_of"]
+__all__ = ["Exposure", "exposure_of", "exposure_note", "record_exposure", "HDRWhite", "CLIP_PERCENT", "photographed_of"]
 
 CLIP_PERCENT = 0.1       # an HDR scan's files: the share (%) of the object's samples that may clip
 ROWS = 256               # image rows of the whole images looked at a time (the HDR white)
@@ -146,3 +146,10 @@ def exposure_note(e):
     return (f"relight.ptm / relight.rti: an HDR scan at the exposure 1.0 = {e.white:.4g} (at most {CLIP_PERCENT} % "
             f"of the object's samples clip: {e.clipped_percent:.3f} %), {e.encoding} values "
             "(process.json quality.rti_exposure)")
+
+
+def record_exposure(res):
+    """`process`'s note on the files' scale and process.json's quality.rti_exposure, when they were fitted."""
+    if res.rti_exposure is not None and (res.ptm is not None or res.hsh is not None):
+        res.notes.append(exposure_note(res.rti_exposure))
+        res.quality["rti_exposure"] = res.rti_exposure.record()
