@@ -148,14 +148,17 @@ def demo_results(results):
         dirs, falloff = near_light_directions(inp.positions_mm, (h, w), inp.pixel_pitch_mm)
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
     obj = read_mask(results / "mask.png")
-    enc = rec["options"].get("rti_encoding", "linear")
+    exposure = rec.get("quality", {}).get("rti_exposure", {})
+    enc = exposure.get("encoding", rec["options"].get("rti_encoding", "linear"))
     print(f"4. {results}: {m} lights, {w}x{h} px, object {int(obj.sum())} of {obj.size} px "
           f"(mask.png), files encoded {enc}")
     per_light = [np.moveaxis(dirs, 2, 0)[k] if dirs.ndim == 4 else dirs[k] for k in range(m)]
     fits = {}
-    for name, fn in (("ptm", lambda e: fit_ptm_lrgb(images, dirs, mask=obj, encoding=e)),
-                     ("hsh", lambda e: fit_hsh(images, dirs, rec["options"].get("hsh_order", 3),
-                                                mask=obj, encoding=e))):
+    white = exposure.get("white")          # the files' scale (pipeline._rti_exposure); older runs: a percentile
+    for name, fn in (("ptm", lambda e: fit_ptm_lrgb(images, dirs, mask=obj, encoding=e, white=white,
+                                                    photographed=white is not None)),
+                     ("hsh", lambda e: fit_hsh(images, dirs, rec["options"].get("hsh_order", 3), mask=obj,
+                                               encoding=e, white=white, photographed=white is not None))):
         for e in ("linear", "srgb"):
             t0 = time.perf_counter()
             fits[name, e] = fn(e)
