@@ -21,8 +21,8 @@ AREAS = {   # subpackage -> what a reader knows it as
 }
 
 
-def _modules():
-    return sorted(p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts)
+def _modules(package):
+    return sorted(p for p in package.rglob("*.py") if "__pycache__" not in p.parts)
 
 
 def facette_error_kinds(trees):
@@ -64,13 +64,14 @@ def _name(func):
     return func.id if isinstance(func, ast.Name) else getattr(func, "attr", "")
 
 
-def collect():
+def collect(package=PACKAGE):
     """{area: {"errors": [(kind, message, hint)], "notes": [text]}} from the package's source."""
-    trees = {p: ast.parse(p.read_text(encoding="utf-8")) for p in _modules()}
+    package = Path(package)
+    trees = {p: ast.parse(p.read_text(encoding="utf-8")) for p in _modules(package)}
     kinds = facette_error_kinds(trees)
     found = {}
     for path, tree in trees.items():
-        rel = path.relative_to(PACKAGE).parts
+        rel = path.relative_to(package).parts
         area = rel[0] if len(rel) > 1 else ""
         bucket = found.setdefault(area, {"errors": [], "notes": []})
         for node in ast.walk(tree):
