@@ -67,11 +67,18 @@ def _usage(parser):
 
 def command_parser(name):
     """The full parser of `facette NAME`, registered as the command line registers it."""
+    return _registered(name)[0]
+
+
+def _registered(name):
+    """(parser of `facette NAME`, its one-line help as the command registers it)."""
     from facette.cli.main import COMMANDS, _Parser
 
     root = _Parser(prog="facette")
     sub = root.add_subparsers(dest="command", parser_class=_Parser)
-    return importlib.import_module(COMMANDS[name][0]).register(sub)
+    parser = importlib.import_module(COMMANDS[name][0]).register(sub)
+    helps = [a.help for a in sub._choices_actions if a.dest == name and a.help]
+    return parser, (helps[0] if helps else COMMANDS[name][1])
 
 
 def _description(parser):
@@ -89,13 +96,13 @@ def page():
            "Every `facette` command and option, generated from the argument parser at each "
            "`make docs` (`tools/docs/cli_reference.py`). `facette COMMAND --help` prints the same.",
            "", "| command | what it does |", "| --- | --- |"]
+    commands = {name: _registered(name) for name in COMMANDS}
     out += [f"| [`facette {name}`](#facette-{name}) | {_cell(help_text)} |"
-            for name, (_, help_text) in COMMANDS.items()]
+            for name, (_, help_text) in commands.items()]
     out += ["", "Exit codes: 0 done, 1 a scan stopped or the device refused (run the same command again "
             "to resume), 2 bad input (nothing started), 3 the data cannot give the result asked for, "
             "70 a bug in facette, 130 interrupted ([messages and errors](../howto/messages.md))."]
-    for name, (_, help_text) in COMMANDS.items():
-        parser = command_parser(name)
+    for name, (parser, help_text) in commands.items():
         out += ["", f"## facette {name}", "", _cell(help_text) + ".", "", _usage(parser)]
         desc = _description(parser)
         if desc and desc.strip() != help_text.strip():

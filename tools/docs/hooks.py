@@ -6,12 +6,18 @@
 - reference/firmware.md: firmware/README.md, the firmware's layout and porting guide;
 - howto/messages.md: its marker `<!-- generated: messages -->` replaced by the errors and notes
   collected from the source (messages.py);
+- the equations (pymdownx.arithmatex's \\( \\) and \\[ \\]) turned into MathML at build time, which
+  browsers draw themselves: the pages need no script and no network to show them;
 - img/generated/*.png: the tutorials' pictures that tools/docs/figures.py made into
   build/docs/figures by running the tutorials' steps; a picture not made yet (`make docs-check`
   builds without running them) is a small placeholder that says so.
 """
+import html
+import re
 import sys
 from pathlib import Path
+
+from latex2mathml.converter import convert as tex_to_mathml
 
 from mkdocs.structure.files import File
 
@@ -39,6 +45,18 @@ def _generated_pages():
         "reference/firmware.md": _with_source(firmware.replace("# facette firmware", "# Firmware and porting", 1),
                                               "firmware/README.md"),
     }
+
+
+MATH = re.compile(r'<(span|div) class="arithmatex">\\[\(\[](.*?)\\[\)\]]</\1>', re.S)
+
+
+def _mathml(match):
+    display = "block" if match.group(1) == "div" else "inline"
+    return tex_to_mathml(html.unescape(match.group(2)), display=display)
+
+
+def on_page_content(content, page, config, files):
+    return MATH.sub(_mathml, content)
 
 
 MESSAGES_MARK = "<!-- generated: messages -->"
