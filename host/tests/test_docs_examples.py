@@ -24,7 +24,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools" / "docs"))
 
-import sample_data  # noqa: E402  (tools/docs, on the path above)
+import figures  # noqa: E402  (tools/docs, on the path above)
+import sample_data  # noqa: E402
 
 FENCE = re.compile(r"^```(\w+)?")
 MARK = re.compile(r"<!--\s*docs-example:\s*([\w-]+)\s*(.*?)\s*-->")
@@ -169,6 +170,14 @@ def test_marks_are_explained_and_sim_steps_are_few():
     left_out = [ex for ex in ALL if ex.mark in ("sim", "skip")]
     assert all(ex.arg.startswith("(") for ex in left_out), [f"{ex.page}:{ex.line}" for ex in left_out if not ex.arg]
     assert len([ex for ex in ALL if ex.mark in ("", "cheap")]) >= len(left_out)
+
+
+def test_the_steps_make_docs_runs_for_the_pictures_are_the_pages_own():
+    """The simulated-rig steps are not run here; tools/docs/figures.py runs them at `make docs`,
+    word for word as their pages show them (in blocks marked sim)."""
+    for page, line in figures.STEPS.values():
+        shown = [ex for ex in ALL if ex.page == f"docs/{page}" and ex.mark == "sim"]
+        assert any(f"facette {line}\n" in ex.code for ex in shown), (page, line)
 
 
 def test_readme_links_point_at_files():

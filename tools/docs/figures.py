@@ -19,6 +19,15 @@ ROOT = Path(__file__).resolve().parents[2]
 BUILD = ROOT / "build" / "docs"
 WORK, FIGURES = BUILD / "work", BUILD / "figures"
 RAW_SIZE = "256x192"            # the demo scan, small: 128x96 px maps
+# The tutorials' commands this script runs, as the pages show them (host/tests/test_docs_examples.py
+# checks that each is on its page, word for word).
+STEPS = {
+    "scan": ("tutorials/first-scan.md", f"scan --sim --press-button --raw-size {RAW_SIZE} scan-demo"),
+    "calibrate": ("tutorials/calibration.md", f"calibrate --rig sim --yes -o calibration-sim --sim-raw-size {RAW_SIZE}"),
+    "second scan": ("tutorials/batch.md",
+                    f"scan --sim --press-button --raw-size {RAW_SIZE} --scene sphere --no-process scans/sphere"),
+    "batch": ("tutorials/batch.md", "batch scans/* -o collection --outputs normals,height,brdf"),
+}
 NAMES = ("overview.png", "first-scan.png", "first-scan-report.png", "rti-relit.png", "calibration.png",
          "batch-summary.png", "library.png")
 
@@ -34,6 +43,17 @@ def placeholder_png(name):
     buf = io.BytesIO()
     img.save(buf, format="PNG")
     return buf.getvalue()
+
+
+def step(name):
+    """Run one of STEPS as the page shows it (a shell pattern expanded in the work folder)."""
+    import glob
+    import shlex
+
+    words = []
+    for word in shlex.split(STEPS[name][1]):
+        words += sorted(os.path.relpath(p, WORK) for p in glob.glob(str(WORK / word))) if "*" in word else [word]
+    facette(*words)
 
 
 def facette(*args):
@@ -83,7 +103,7 @@ def first_scan():
     """Tutorial 1: `facette scan --sim --press-button --raw-size 256x192 scan-demo`."""
     scan = WORK / "scan-demo"
     if not (scan / "results" / "normal.exr").exists():
-        facette("scan", "--sim", "--press-button", "--raw-size", RAW_SIZE, "scan-demo")
+        step("scan")
     return scan
 
 
@@ -170,7 +190,7 @@ def calibration():
 
     profile = WORK / "calibration-sim"
     if not (profile / "profile.json").exists():
-        facette("calibrate", "--rig", "sim", "--yes", "-o", "calibration-sim", "--sim-raw-size", RAW_SIZE)
+        step("calibrate")
     data = json.loads((profile / "profile.json").read_text())
     dirs = np.array([light["direction"] for light in data["lights"]])
     fig = plt.figure(figsize=(3.6, 3.6))
@@ -192,11 +212,9 @@ def batch(scan):
         scans.mkdir(parents=True, exist_ok=True)
         (scans / "scan-demo").symlink_to(scan)
     if not (second / "scan.json").exists():
-        facette("scan", "--sim", "--press-button", "--raw-size", RAW_SIZE, "--scene", "sphere", "--no-process",
-                "scans/sphere")
+        step("second scan")
     if not (WORK / "collection" / "summary.html").exists():
-        facette("batch", "scans/scan-demo", "scans/sphere", "-o", "collection", "--outputs", "normals,height,brdf",
-                "--workers", "1")
+        step("batch")
     _screenshot(WORK / "collection" / "summary.html", "batch-summary.png", size="1280,500")
 
 
