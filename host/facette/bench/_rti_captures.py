@@ -125,7 +125,8 @@ def capture_rows(folder, label, work):
     res = process(fit_dir, outputs=["ptm", "rti", "relight-web"], out_dir=work / "out")
     wall = time.perf_counter() - t0
     out = work / "out"
-    ptm, rti, web = read_ptm(out / "relight.ptm"), read_hsh_rti(out / "relight.rti"), read_relight_web(out / "relight_web")
+    ptm, rti = read_ptm(out / "relight.ptm"), read_hsh_rti(out / "relight.rti")
+    web = read_relight_web(out / "relight_web")
     web_mb = sum(p.stat().st_size for p in (out / "relight_web").rglob("*") if p.is_file()) / 1e6
     methods = [("facette relight.rti (RTIViewer)", rti.relight, res.timings.get("hsh"),
                 (out / "relight.rti").stat().st_size / 1e6),

@@ -191,7 +191,8 @@ def write_relight_web(folder, width, height, kind, coeff_rows, coeff_range, ligh
         for j in range(terms):
             if pyramid:
                 (tmp / f"plane_{j}.dzi").write_text(
-                    '<?xml version="1.0" encoding="UTF-8"?>\n<Image xmlns="http://schemas.microsoft.com/deepzoom/2008"\n'
+                    '<?xml version="1.0" encoding="UTF-8"?>\n'
+                    '<Image xmlns="http://schemas.microsoft.com/deepzoom/2008"\n'
                     f'  Format="jpg"\n  Overlap="0"\n  TileSize="{TILE}"\n  >\n  <Size \n    Height="{h}"\n'
                     f'    Width="{w}"\n  />\n</Image>\n')
             else:

@@ -118,7 +118,8 @@ class ProcessOptions:
         object.__setattr__(self, "fit_options", dict(self.fit_options or {}))
         object.__setattr__(self, "ps_options", dict(self.ps_options or {}))
         if self.rti_encoding not in ("auto",) + RTI_ENCODINGS:
-            raise BadInputError(f"rti_encoding must be one of auto, {', '.join(RTI_ENCODINGS)}, got {self.rti_encoding!r}")
+            raise BadInputError(f"rti_encoding must be one of auto, {', '.join(RTI_ENCODINGS)}, "
+                                f"got {self.rti_encoding!r}")
         if self.pixel_pitch_mm is not None and not self.pixel_pitch_mm > 0:
             raise BadInputError(f"pixel_pitch_mm must be > 0 mm, got {self.pixel_pitch_mm}")
         if self.mesh_step is not None and not int(self.mesh_step) >= 1:

@@ -193,7 +193,7 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
         lp_ok = all(len(p.name.split()) == 1 for p in paths)
         dirs, sphere_circle = _sphere_directions(images, sphere, notes, lp_ok)
         lights_file = ([p.name for p in paths], dirs) if lp_ok else None
-    factors = None if inten is None else np.asarray(inten, float).reshape(len(paths), -1) * np.ones((1, 3))
+    factors = None if inten is None else np.asarray(inten, float)
     if reference is not None:      # what each photograph was divided by, to fit them as photographed
         level = _divide_by_reference(images, reference, notes)[:, None]
         factors = level if factors is None else factors * level
@@ -219,7 +219,7 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
                 material_mask=None if mask_file else material, usable=usable,
                 object_mask=mask & material, mask_source=source,
                 digest=digest, lights_file=lights_file,
-                photographed={"encoding": enc, "gains": None if factors is None else factors * np.ones((1, 3))})
+                photographed={"encoding": enc, "gains": factors})
 
 
 def _sphere_directions(images, sphere, notes, lp_written=True):

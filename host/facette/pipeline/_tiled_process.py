@@ -60,8 +60,8 @@ from facette.recon import PSResult, near_light_directions
 __all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "open_streamed", "ps_bands", "streamed_ps",
            "in_memory_ps"]
 
-STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "relight-web", "gltf",
-                    "report")
+STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report",
+                    "relight-web")
 MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (the photographs are not held) "
                      "and, the per-light shadow and specular flags not being kept (m bytes per pixel each), "
                      "leaves their share out and draws their maps empty")
