@@ -60,8 +60,7 @@ from facette.recon import PSResult, near_light_directions
 __all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "open_streamed", "ps_bands", "streamed_ps",
            "in_memory_ps"]
 
-STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report",
-                    "relight-web")
+STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
 MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (the photographs are not held) "
                      "and, the per-light shadow and specular flags not being kept (m bytes per pixel each), "
                      "leaves their share out and draws their maps empty")
@@ -93,7 +92,7 @@ def check_memory_options(method, interreflections):
 def streamed(source, outputs):
     """True when `process` can run without the whole images: every output in STREAMED_OUTPUTS
     and a scan directory or a DiLiGenT-style folder (an RTI capture is read whole)."""
-    if not set(outputs) <= set(STREAMED_OUTPUTS):
+    if not set(outputs) <= set(STREAMED_OUTPUTS) | {"relight-web"}:     # the web planes: from the HSH fit's spill
         return False
     try:
         path = source_path(source)
