@@ -5,8 +5,10 @@ lights behind it) renders four concave height fields of our own (bench._mitsuba_
 a bowl, three grooves, a crater field, a flat-bottomed cup) in matte plaster and a glossy paint,
 under 96 lights (a DiLiGenT-like grid of 8 x 12, up to 45 deg from the axis) and under the rig's
 12 (15 and 30 deg from the axis). Each scene goes through `facette process` as a user's folder
-(16-bit PNGs, DiLiGenT-style, relative intensities: no Spectralon), with the default method, the
-shadow step off and on (`--shadows`); least squares beside them. Printed per scene: mean, median
+(16-bit PNGs, DiLiGenT-style, relative intensities: no Spectralon): least squares; the default as
+it was before the shadow step ("before": no inter-reflection removal, no shadows); the default
+(shadows "auto"); the default with `--interreflections` (the albedo's scale estimated from the
+images, facette.recon._interreflect_scale), without and with the shadows. Printed per scene: mean, median
 and 95th percentile of the angular error, the ratio to least squares' mean, process's seconds.
 Renders are cached (--cache, default /tmp/facette-concave); the first run renders them
 (about 1 CPU s per image at 128 px, 32 spp).
