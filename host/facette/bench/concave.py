@@ -109,7 +109,8 @@ def main(argv=None):
                         ls = e.mean() if v == "least squares" else ls
                         ratio = e.mean() / ls if ls else np.nan
                         ratios.setdefault((lights, v), []).append(ratio)
-                        extra = "" if res.shadows is None else f"  hidden {res.shadows['hidden_share']}"
+                        shadows = res.quality.get("shadows")
+                        extra = "" if shadows is None else f"  hidden {shadows['hidden_share']}"
                         if res.interreflections is not None:
                             extra += f"  ir scale {res.interreflections.get('reflectance_scale', np.nan):.2f}"
                         print(f"{label:28s} {v:22s} {e.mean():6.2f} {np.median(e):7.2f} {np.percentile(e, 95):6.2f} "

@@ -55,7 +55,10 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
     the others get the images and, for rank_trimmed when nothing was removed, its first pass.
     Under "auto" an albedo that is no reflectance (a calibration gone wrong) leaves the removal
     out with a note; asked for explicitly, it raises (NotAReflectance, an InsufficientData).
-    reflectance_scale : 1 for a reflectance-calibrated input, "auto" (estimated) elsewhere."""
+    mask : (H, W) bool, or the PSInput (its mask; and reflectance_scale 1 when its images are
+    reflectance-calibrated, else "auto": estimated from the images)."""
+    if hasattr(mask, "reflectance"):
+        reflectance_scale, mask = (1.0 if mask.reflectance else "auto"), mask.mask
     t0 = time.perf_counter()
     try:
         if method_name == "li_alternating":

@@ -26,7 +26,7 @@ from facette.methods import photometric_stereo
 from facette.pipeline._options import SHADOWS_AUTO
 from facette.recon import hidden_lights
 
-__all__ = ["shadows_wanted", "solve_with_shadows", "SHADOW_MARGIN_DEG", "SHADOW_MIN_SHARE", "SHADOW_ROUNDS"]
+__all__ = ["shadows_wanted", "solve_with_shadows", "with_shadows", "SHADOW_MARGIN_DEG", "SHADOW_MIN_SHARE", "SHADOW_ROUNDS"]
 
 # a light is hidden when the horizon is above it less this (degrees). Negative: integrated heights round
 # a wall's rim off, so the horizon comes out low (the analytic groove's true heights: truly hidden lights
@@ -48,6 +48,14 @@ def shadows_wanted(o, light_dirs, notes):
         notes.append("shadows: left out with --memory (the horizon test needs the whole normal map)")
         return False
     return True
+
+
+def with_shadows(res, o, direct, light_dirs, mask, method_name, bag, ps=None):
+    """`process`'s call: `ps` (None: not solved yet) replaced by `solve_with_shadows`' result when the
+    step runs and applies."""
+    if not shadows_wanted(o, light_dirs, res.notes):
+        return ps
+    return solve_with_shadows(res, o, direct, light_dirs, mask, method_name, bag, first=ps) or ps
 
 
 def _distant(light_dirs):
@@ -78,7 +86,7 @@ def solve_with_shadows(res, o, direct, light_dirs, mask, method_name, bag, first
     """The method's PSResult with cast shadows left out (module doc), or None when "auto" finds
     too few (then the caller solves as before). first : a PSResult whose normals start the
     alternation (e.g. the inter-reflection step's), else a rank_trimmed pass. Notes, timings
-    ("shadows") and res.shadows (the figures) are filled in."""
+    ("shadows") and res.quality["shadows"] (the figures, which process.json records) are filled in."""
     t0 = time.perf_counter()
     L = _distant(light_dirs)
     robust = first if first is not None else photometric_stereo(direct, light_dirs, method="rank_trimmed",
@@ -88,7 +96,7 @@ def solve_with_shadows(res, o, direct, light_dirs, mask, method_name, bag, first
     share = _lit_share(hidden, robust.normal, robust.valid, L)
     rounds.append(round(share, 5))
     info = {"margin_deg": SHADOW_MARGIN_DEG, "hidden_share": rounds, "bin": factor}
-    res.shadows = info
+    res.quality["shadows"] = info
     if o.shadows == SHADOWS_AUTO and share < SHADOW_MIN_SHARE:
         info["applied"] = False
         res.timings["shadows"] = time.perf_counter() - t0

@@ -33,9 +33,9 @@ def test_hidden_lights_are_no_samples(groove):
     err = lambda r: angular_error_deg(r.normals, d["normals"])[hid].mean()
     assert err(off) > 2.0                        # least squares takes the shadowed values as samples
     assert err(on) < 0.3 * err(off), (err(on), err(off))
-    assert on.shadows["applied"] and on.shadows["hidden_share"][-1] > 0.01
+    assert on.quality["shadows"]["applied"] and on.quality["shadows"]["hidden_share"][-1] > 0.01
     assert any(n.startswith("shadows: the surface's own heights hide") for n in on.notes)
-    assert off.shadows is None
+    assert off.quality.get("shadows") is None
     # the hidden lights join the shadow map the reflectance samples leave out
     assert on.ps.shadow[hid].any()
 
@@ -46,7 +46,7 @@ def test_the_default_method_gains_on_the_groove_and_a_convex_object_is_left_as_i
     res = process(folder, outputs=["normals"], interreflections=False)
     off = process(folder, outputs=["normals"], interreflections=False, shadows="off")
     err = lambda r: angular_error_deg(r.normals, d["normals"])[hid].mean()
-    assert res.shadows["applied"] and err(res) <= err(off) + 0.05, (err(res), err(off))
+    assert res.quality["shadows"]["applied"] and err(res) <= err(off) + 0.05, (err(res), err(off))
     # a dome hides nothing: "auto" says so and the images are used as they are
     y, x = np.mgrid[:48, :48] - 23.5
     z = np.sqrt(np.clip(30.0 ** 2 - x * x - y * y, 1, None))
@@ -56,7 +56,7 @@ def test_the_default_method_gains_on_the_groove_and_a_convex_object_is_left_as_i
                                        "mask": np.ones((48, 48), bool)})
     auto = process(dome, outputs=["normals"], method="woodham1980", interreflections=False)
     plain = process(dome, outputs=["normals"], method="woodham1980", interreflections=False, shadows="off")
-    assert auto.shadows["applied"] is False and any("too few to matter" in n for n in auto.notes)
+    assert auto.quality["shadows"]["applied"] is False and any("too few to matter" in n for n in auto.notes)
     np.testing.assert_array_equal(auto.normals, plain.normals)
 
 
@@ -65,4 +65,4 @@ def test_the_option_is_checked_and_memory_leaves_the_step_out(groove):
         ProcessOptions(shadows="maybe")
     _, folder = groove
     res = process(folder, outputs=["normals"], method="rank_trimmed", memory="1GB", interreflections=False)
-    assert res.shadows is None and any("shadows: left out with --memory" in n for n in res.notes)
+    assert res.quality.get("shadows") is None and any("shadows: left out with --memory" in n for n in res.notes)
