@@ -113,7 +113,7 @@ def solve_with_shadows(res, o, direct, light_dirs, mask, method_name, bag, first
     ps.shadow |= np.moveaxis(hidden, 0, -1) & ps.valid[..., None]
     info.update(applied=True, seconds_before_solve=round(t1 - t0, 3))
     res.timings["shadows"] = time.perf_counter() - t0
-    res.notes.append(f"shadows: the surface's own heights hide {rounds[-1]:.2%} of the lit samples (horizon "
-                     f"{SHADOW_MARGIN_DEG:g}° above the light); those values were left out of the normals "
+    res.notes.append(f"shadows: the surface's own heights hide {rounds[-1]:.2%} of the lit samples (lights "
+                     f"under the horizon + {-SHADOW_MARGIN_DEG:g}°); those values were left out of the normals "
                      f"({len(rounds)} robust passes, then {method_name})")
     return ps
