@@ -6,6 +6,7 @@
 Running the same command again resumes an interrupted scan.
 """
 import argparse
+import math
 import os
 import threading
 import time
@@ -253,12 +254,14 @@ def _check_arguments(args):
     _check_directory(args.directory)
     if args.memory and not args.no_process:
         from facette.errors import BadInputError
-        from facette.pipeline._tiles import PROCESS_BYTES, parse_memory
+        from facette.pipeline._tiles import BAND_FIXED_BYTES, PROCESS_BYTES, parse_memory
 
-        if parse_memory(args.memory) <= PROCESS_BYTES:    # found here, not after the whole scan
+        least = PROCESS_BYTES + BAND_FIXED_BYTES           # whatever the image: libraries, one band's fixed part
+        if parse_memory(args.memory) < least:               # found here, not after the whole scan
             raise BadInputError(f"--memory {args.memory} cannot hold the processing after the last frame: facette's "
-                                f"libraries alone take {PROCESS_BYTES / 1e9:.2f} GB",
-                                hint="give --memory 1GB or more, or --no-process (and facette process later)")
+                                f"libraries and one band take {least / 1e9:.2f} GB whatever the image",
+                                hint=f"give --memory {math.ceil(least / 1e8) / 10:g}GB or more, or --no-process "
+                                     "(and facette process later)")
     profile = args.profile
     if profile is None and args.sim:
         from facette._data import sim_profile_dir
@@ -277,9 +280,11 @@ def _check_arguments(args):
 def _scan_kept(exc, path):
     """A processing after the last frame that failed: the scan is complete and kept; the hint says
     so and gives the command that processes it (with what to change first)."""
-    exc.message = f"the scan is complete and kept in {path}, but its processing failed: {exc.message}"
-    exc.hint = (f"{exc.hint + '; then ' if exc.hint else ''}process it with: facette process {path} "
-                f"-o {Path(path) / 'results'}")
+    from facette.errors import BadInputError
+    exc.message = f"the scan is complete and kept in {path}; its processing failed: {exc.message}"
+    if isinstance(exc, BadInputError):                 # an option or a folder: the scan itself is fine
+        exc.hint = (f"{exc.hint + '; then ' if exc.hint else ''}process it with: facette process {path} "
+                    f"-o {Path(path) / 'results'}")
     return exc
 
 

@@ -53,6 +53,16 @@ def read_record(out):
     return rec
 
 
+def _results_beside(inp):
+    """Where results of `inp` may go: a scan's own results folder (SCAN/results, as its own
+    processing writes), beside any other input (a folder's files are left as they were)."""
+    src = Path(inp.source)
+    if inp.kind == "scan":
+        return src / "results"
+    folder = src.parent if src.is_file() else src
+    return folder.parent / f"{folder.name}-results"
+
+
 def _refuse_inputs(out, inp, mask=None):
     """An output folder must not be the input folder (a DiLiGenT folder's mask.png, a scan's
     scan.json would be replaced) nor hold the --mask file."""
@@ -61,7 +71,7 @@ def _refuse_inputs(out, inp, mask=None):
     if where == source or (source.is_file() and where == source.parent):
         raise BadInputError(f"-o {out} is the input folder {inp.source}: its files would be replaced by the "
                             "results (facette never writes its inputs)",
-                            hint=f"choose another -o folder, e.g. {Path(inp.source) / 'results'}")
+                            hint=f"choose another -o folder, e.g. {_results_beside(inp)}")
     if isinstance(mask, (str, Path)) and Path(mask).resolve().parent == where:
         raise BadInputError(f"-o {out} holds the --mask file {mask}, which the results' mask.png could replace",
                             hint="choose another -o folder, or keep the mask elsewhere")
