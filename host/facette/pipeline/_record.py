@@ -142,7 +142,12 @@ def claim_results(out, options, inp, overwrite=False, names=(), mask=None):
     _refuse_inputs(out, inp, mask)
     if not out.is_dir():
         return None
-    rec = read_record(out)
+    try:
+        rec = read_record(out)
+    except BadInputError:
+        if not overwrite:
+            raise
+        rec = None                   # --overwrite, as the hint says: the damaged record is replaced
     for p in out.glob(f".*{PARTIAL_SUFFIX}"):          # temporaries of an interrupted write
         if p.is_file():
             p.unlink()

@@ -315,3 +315,31 @@ def test_the_input_folder_as_output_hint_works(capsys, folders, tmp_path, unchan
         hinted = err.split("e.g. ")[1].split()[0]
         assert hinted == str(tmp_path / "src-results")
         assert run_cli(capsys, "process", src, "-o", hinted, "--outputs", "normals")[0] == 0
+
+
+def test_a_damaged_record_hint_works(capsys, folders, tmp_path, unchanged):
+    out = tmp_path / "r"
+    out.mkdir()
+    (out / "process.json").write_text("{not json")
+    with unchanged(folders["good"], out):
+        code, _, err = run_cli(capsys, "process", folders["good"], "-o", out, "--outputs", "normals")
+    assert code == 2 and "process.json is damaged" in err and "pass --overwrite" in err, err
+    with unchanged(folders["good"]):               # the hint followed
+        code, _, err = run_cli(capsys, "process", folders["good"], "-o", out, "--outputs", "normals", "--overwrite")
+    assert code == 0, err
+    assert json.loads((out / "process.json").read_text())["state"] == "done"
+
+
+def test_a_mask_inside_the_output_folder_hint_works(capsys, folders, tmp_path, unchanged):
+    import shutil
+    out = tmp_path / "r"
+    out.mkdir()
+    shutil.copy(folders["good"] / "mask.png", out / "m.png")
+    with unchanged(folders["good"], out):
+        code, _, err = run_cli(capsys, "process", folders["good"], "-o", out, "--mask", out / "m.png",
+                               "--outputs", "normals")
+    assert code == 2 and "keep the mask elsewhere" in err, err
+    shutil.move(out / "m.png", tmp_path / "m.png")   # the hint followed
+    with unchanged(folders["good"], tmp_path / "m.png"):
+        assert run_cli(capsys, "process", folders["good"], "-o", out, "--mask", tmp_path / "m.png",
+                       "--outputs", "normals")[0] == 0
