@@ -13,7 +13,8 @@ from facette.errors import BadInputError
 __all__ = ["SCHEDULER_TIMEOUT_S", "scheduler_address", "check_scheduler", "connect_scheduler"]
 
 SCHEDULER_TIMEOUT_S = 5.0
-SCHEMES = ("tcp", "tls")      # the transports a remote dask scheduler listens on
+SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")    # the transports a remote dask scheduler listens on
+IN_PROCESS = "inproc://"      # a scheduler in this process (LocalCluster(processes=False)): no socket
 HINT = ("check the address (dask scheduler prints it: tcp://HOST:8786), start the scheduler there, "
         "or leave --scheduler out to run here")
 
@@ -22,6 +23,8 @@ def scheduler_address(text):
     """(scheme, host, port) of 'tcp://host:8786', 'tls://host:8786' or 'host:8786'; BadInputError
     naming what is wrong otherwise."""
     text = str(text).strip()
+    if text.startswith(IN_PROCESS) and len(text) > len(IN_PROCESS):
+        return "inproc", text[len(IN_PROCESS):], None
     parts = urlsplit(text if "://" in text else f"tcp://{text}")
     try:
         port = parts.port
@@ -37,7 +40,9 @@ def scheduler_address(text):
 def check_scheduler(text, timeout=SCHEDULER_TIMEOUT_S):
     """Check that something listens at the scheduler's address (a TCP connection within `timeout`
     seconds); BadInputError saying so otherwise. Returns the address as given."""
-    _, host, port = scheduler_address(text)
+    scheme, host, port = scheduler_address(text)
+    if scheme == "inproc":
+        return text                        # this process's own: the client's timeout says the rest
     try:
         with socket.create_connection((host, port), timeout=timeout):
             pass
