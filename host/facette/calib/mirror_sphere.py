@@ -455,19 +455,25 @@ def _check_horizon(circle, dirs):
 
 def _check_given_outline(img, circle, ref):
     """Refuse a circle or mask given whose disc leaves out the photographs' highlights (each one's
-    brightest change), or whose rim the photographs show less than the outline found (ValueError)."""
-    pts = highlight_points(img)
-    outside = np.hypot(pts[:, 0] - circle.cx, pts[:, 1] - circle.cy) >= circle.r
+    brightest change), or whose rim the photographs show less than the outline found (ValueError).
+    Both are looked for within three radii of the circle: the cost of a crop, not of the photographs."""
+    h, w = img.shape[1:3]
+    r0, c0 = max(int(circle.cy - 3 * circle.r), 0), max(int(circle.cx - 3 * circle.r), 0)
+    r1, c1 = min(int(circle.cy + 3 * circle.r) + 1, h), min(int(circle.cx + 3 * circle.r) + 1, w)
+    near = Circle(circle.cx - c0, circle.cy - r0, circle.r)
+    crop = ref[r0:r1, c0:c1]
+    pts = highlight_points(img, box=(r0, r1, c0, c1)) - [c0, r0]
+    outside = np.hypot(pts[:, 0] - near.cx, pts[:, 1] - near.cy) >= near.r
     if outside.mean() > 0.1:
         first = int(np.flatnonzero(outside)[0])
         raise ValueError(f"{_where(circle)} leaves out the highlights of {int(outside.sum())} of {len(pts)} "
-                         f"photographs (photograph {first + 1}'s is at ({pts[first][0]:.0f}, {pts[first][1]:.0f}) px): "
-                         "that circle is not the sphere's outline")
+                         f"photographs (photograph {first + 1}'s is at ({pts[first][0] + c0:.0f}, "
+                         f"{pts[first][1] + r0:.0f}) px): that circle is not the sphere's outline")
     try:
-        found = find_sphere_outline(ref, pts)
+        found = find_sphere_outline(crop, pts)
     except ValueError:
         return                            # nothing to compare with: the circle given stands
-    far = np.hypot(found.cx - circle.cx, found.cy - circle.cy) + abs(found.r - circle.r)
-    if far > max(3.0, 0.05 * circle.r) and _rim_support(ref, found) > _rim_support(ref, circle) + RIM_SUPPORT_LEAD:
+    far = np.hypot(found.cx - near.cx, found.cy - near.cy) + abs(found.r - near.r)
+    if far > max(3.0, 0.05 * circle.r) and _rim_support(crop, found) > _rim_support(crop, near) + RIM_SUPPORT_LEAD:
         raise ValueError(f"{_where(circle)} is not the outline the photographs show: the sphere's rim is at "
-                         f"{found.cx:.1f},{found.cy:.1f},{found.r:.1f} (cx,cy,r px; x the column, y the row)")
+                         f"{found.cx + c0:.1f},{found.cy + r0:.1f},{found.r:.1f} (cx,cy,r px; x the column, y the row)")

@@ -233,7 +233,7 @@ def test_a_circle_given_that_the_highlights_cannot_be_on_is_refused(background, 
         mirror_sphere_directions(stack, circle=circle)
     if "not the outline" in str(err.value):            # it names the outline the photographs show
         found = [float(v) for v in str(err.value).split("rim is at ")[1].split(" ")[0].split(",")]
-        assert np.allclose(found, [*CENTER, R], atol=0.5), found
+        assert np.allclose(found, [*CENTER, R], atol=1.5), found
 
 
 def test_a_circle_a_pixel_off_is_taken_and_a_highlight_outside_it_refused():
