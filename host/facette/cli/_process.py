@@ -102,10 +102,13 @@ def register(sub):
                         "the albedo stays per channel")
     p.add_argument("--interreflections", action=argparse.BooleanOptionalAction, default=None,
                    help="take the light a concave surface gathers from itself out of the images first "
-                        "(craters, grooves, a vase's neck; needs a reflectance-calibrated scan); with "
-                        "li_alternating also what glossy walls mirror into each other. Default: on a "
-                        "reflectance-calibrated scan read whole, off elsewhere (a note says why); "
-                        "--no-interreflections: never")
+                        "(craters, grooves, a vase's neck); with li_alternating also what glossy walls mirror "
+                        "into each other. Default: on a reflectance-calibrated scan read whole, off elsewhere "
+                        "(a note says why); asked for on a folder or capture, the albedo's scale is estimated "
+                        "from the images; --no-interreflections: never")
+    p.add_argument("--shadows", choices=("auto", "on", "off"), default="auto",
+                   help="leave out the lights the surface hides from itself (a horizon test on its heights, "
+                        "alternated with the normals); auto (default): where they hide enough samples")
     p.add_argument("--light-gains", action=argparse.BooleanOptionalAction, default=None,
                    help="read each light's relative intensity from the photographs and correct the given "
                         "ones (light_intensities.txt, or none) before the normals. Default: for folders "
@@ -218,7 +221,7 @@ def options(args):
         ascii_ply=args.ascii_ply, fit_options={"model": args.brdf_model, "method": args.fit_method},
         hsh_order=args.hsh_order, rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
         interreflections=IR_AUTO if args.interreflections is None else args.interreflections,
-        light_gains=GAINS_AUTO if args.light_gains is None else args.light_gains,
+        light_gains=GAINS_AUTO if args.light_gains is None else args.light_gains, shadows=args.shadows,
         capture=_capture(args), memory=args.memory,
         scheduler=args.scheduler, channels=args.channels,
         ps_options={"init": args.init} if args.init else None)     # li_alternating takes it, the others leave it

@@ -68,10 +68,11 @@ def test_interreflections_flag_reports_what_was_gathered(capsys, folders, tmp_pa
     assert "inter-reflections:" in out and "95th percentile" in out
     rec = json.loads((tmp_path / "r" / "process.json").read_text())
     assert rec["options"]["interreflections"] is True
-    # the same images with relative intensities: the albedo is no reflectance, exit 3 saying so
+    # the same images with relative intensities: the albedo's scale is estimated from them
     code, out, err = run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r2", "--outputs",
                              "normals", "--interreflections")
-    assert code == 3 and "needs the albedo as a reflectance" in err and "no --interreflections" in err
+    assert code == 0 and "inter-reflections" in out, err
+    assert json.loads((tmp_path / "r2" / "process.json").read_text())["options"]["interreflections"] is True
     # by default ('auto') a DiLiGenT folder keeps its light (relative intensities), recorded as such;
     # --no-interreflections records False
     for flag, recorded in (([], "auto"), (["--no-interreflections"], False)):
