@@ -1,0 +1,297 @@
+"""A relighting model from physics first, then a small residual: `fit_relight_model`.
+
+Per pixel p, channel c and distant light l (unit vector towards the light, camera frame),
+in the photographs' linear unit scaled to their white (1 = display white):
+
+    phys(p, l) = ρ_c(p) max(n·l, 0) V(p, l) + s_c(p) max(n·h, 0)^k [n·l > 0] V(p, l) + a_c(p) max(l_z, 0)
+
+n the pixel's normal, h the half vector of l and the camera (+z), V the cast-shadow visibility
+from the integrated heights (soft at the edge; 1 without heights), k one Blinn–Phong exponent per
+capture (the one of `SHININESS` the fitted photographs fit best), a the light the surface
+gathers from the room and from itself, taken proportional to the irradiance of the object's
+plane (max(l_z, 0)). ρ, s, a ≥ 0 per pixel and channel (non-negative least squares, the
+clipped values left out): the physical part is never negative.
+
+What it misses (inter-reflections it does not model, the BRDF's other lobes, the normals'
+errors) is kept as a residual in display values (sRGB-encoded): the fitted photographs' minus
+phys's, compressed to `n_planes` planes per pixel (principal components over the lights,
+as Relight's RBF basis does with the pixels themselves) and interpolated over the lights' (x, y)
+with Gaussian radial basis functions, which fade to 0 away from the captured lights (at a
+raking light no dome photographed the residual is 0 and phys alone is shown). The width and the
+smoothing of the interpolation, and whether a residual is kept at all, are chosen on the fitted
+photographs alone (every 8th left out in turn, or each one when fewer than 16).
+
+    display(p, l) = clip(srgb(phys(p, l)) + Σ_j C_j(p) e_j(l), 0, 1)
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._rti import srgb_decode, srgb_encode
+
+__all__ = ["RelightModel", "fit_relight_model", "SHININESS", "cast_shadow", "physical_basis"]
+
+SHININESS = (8.0, 32.0, 128.0)       # Blinn–Phong exponents tried (lobes of ~20°, 10°, 5°)
+SATURATED = 254.0 / 255.0            # display values at or above this are clipped: not fitted
+RBF_WIDTHS = (1.0, 2.0, 4.0)         # Gaussian widths tried, in median spacings of the lights
+RBF_SMOOTHING = (1e-3, 1e-1)
+SHADOW_SOFTNESS = 1.0                # height (px) over which a cast shadow's edge goes from 1 to 0
+
+
+@dataclass
+class RelightModel:
+    """A fitted model (see the module's docstring); arrays (H, W, ...), float32.
+
+    normals (H, W, 3); mask (H, W) bool; rho, spec, amb (H, W, 3); shininess k; heights (H, W)
+    in pixels or None; planes (H, W, 3, K) residual coefficients; centres (m, 2) the fitted
+    lights' (x, y); weights (m, K) and epsilon: the Gaussian RBF of the planes' light functions
+    (weights None: no residual)."""
+    normals: np.ndarray
+    mask: np.ndarray
+    rho: np.ndarray
+    spec: np.ndarray
+    amb: np.ndarray
+    shininess: float
+    heights: np.ndarray = None
+    planes: np.ndarray = None
+    centres: np.ndarray = None
+    weights: np.ndarray = None
+    epsilon: float = 1.0
+    notes: list = field(default_factory=list)
+
+    def light_functions(self, light):
+        """The residual planes' weights e_j(l) (K,) under one light (0 without a residual)."""
+        if self.weights is None:
+            return np.zeros(0)
+        d = np.linalg.norm(self.centres - np.asarray(light, float)[:2], axis=1)
+        return np.exp(-(self.epsilon * d) ** 2) @ self.weights
+
+    def physical(self, light):
+        """phys (H, W, 3) under one light, linear (1 = display white), ≥ 0."""
+        light = np.asarray(light, float) / np.linalg.norm(light)
+        vis = None if self.heights is None else cast_shadow(self.heights, light)
+        b = physical_basis(self.normals, light[None], self.shininess, vis if vis is None else vis[None])
+        out = (self.rho * b[0, ..., 0:1] + self.spec * b[0, ..., 1:2] + self.amb * b[0, ..., 2:3])
+        return np.where(self.mask[..., None], out, 0.0)
+
+    def display_raw(self, light):
+        """srgb(phys) + residual (H, W, 3), before the final clip (for counting negatives)."""
+        out = srgb_encode(np.clip(self.physical(light), 0, 1))
+        e = self.light_functions(light)
+        if e.size:
+            out = out + self.planes @ e.astype(self.planes.dtype)
+        return np.where(self.mask[..., None], out, 0.0)
+
+    def display(self, light):
+        """Display values (H, W, 3) in [0, 1] under one light (sRGB-encoded, 1 = white)."""
+        return np.clip(self.display_raw(light), 0.0, 1.0)
+
+    def relight(self, light):
+        """Linear values (H, W, 3) under one light, in the fitted photographs' unit (white 1)."""
+        return srgb_decode(self.display(light))
+
+
+def physical_basis(normals, lights, shininess, visibility=None):
+    """The three terms (m, H, W, 3): max(n·l,0) V, the lobe max(n·h,0)^k [n·l>0] V, max(l_z,0).
+    normals (H, W, 3); lights (m, 3) unit; visibility (m, H, W) in [0, 1] or None."""
+    n = np.asarray(normals, np.float32)
+    lights = np.asarray(lights, np.float32)
+    ndl = np.einsum("hwc,mc->mhw", n, lights)
+    half = lights + np.array([0, 0, 1], np.float32)
+    half /= np.linalg.norm(half, axis=1, keepdims=True)
+    ndh = np.clip(np.einsum("hwc,mc->mhw", n, half), 0, 1)
+    lit = ndl > 0
+    diff = np.where(lit, ndl, 0)
+    lobe = np.where(lit, ndh ** np.float32(shininess), 0)
+    if visibility is not None:
+        diff, lobe = diff * visibility, lobe * visibility
+    amb = np.broadcast_to(np.clip(lights[:, 2], 0, None)[:, None, None], ndl.shape)
+    return np.stack([diff, lobe, amb], axis=-1).astype(np.float32)
+
+
+def cast_shadow(heights, light, softness=SHADOW_SOFTNESS, max_steps=64):
+    """Visibility (H, W) in [0, 1] of a distant light over a height map (pixels; NaN = no
+    surface): 1 where no height along the light's azimuth rises above the ray to the light,
+    falling to 0 over `softness` pixels of height. Marched one pixel at a time (row 0 at the top,
+    y up), up to `max_steps`; a light within 5° of the axis casts no shadow."""
+    light = np.asarray(light, float)
+    h = np.asarray(heights, np.float32)
+    horiz = float(np.hypot(light[0], light[1]))
+    vis = np.ones(h.shape, np.float32)
+    if horiz < np.sin(np.radians(5.0)):
+        return vis
+    rise = light[2] / horiz                      # height gained per pixel towards the light
+    dx, dy = light[0] / horiz, -light[1] / horiz  # image columns right, rows down
+    hh = np.where(np.isfinite(h), h, -np.inf)
+    rows, cols = np.indices(h.shape)
+    over = np.full(h.shape, -np.inf, np.float32)
+    for t in range(1, min(max_steps, max(h.shape)) + 1):
+        r = np.rint(rows + t * dy).astype(int)
+        c = np.rint(cols + t * dx).astype(int)
+        ok = (r >= 0) & (r < h.shape[0]) & (c >= 0) & (c < h.shape[1])
+        other = np.where(ok, hh[np.clip(r, 0, h.shape[0] - 1), np.clip(c, 0, h.shape[1] - 1)], -np.inf)
+        np.maximum(over, other - hh - np.float32(t * rise), out=over)
+    vis = np.clip(0.5 - over / softness, 0, 1).astype(np.float32)
+    return np.where(np.isfinite(h), vis, 1.0).astype(np.float32)
+
+
+DARK_FLOOR = 0.01       # linear value below which the display weight stops growing (display 0.1)
+
+
+def display_weight(lin):
+    """(d srgb / d x)² at max(lin, DARK_FLOOR), relative to its value at 1."""
+    x = np.maximum(np.asarray(lin, np.float32), DARK_FLOOR)
+    return x ** np.float32(-2 * (1 - 1 / 2.4))
+
+
+_SUBSETS = [s for s in ((0, 1, 2), (0, 1), (0, 2), (1, 2), (0,), (1,), (2,))]
+
+
+def _nnls3(basis, values, weights, terms):
+    """Per pixel and channel, the non-negative least-squares coefficients (N, 3, 3) of the
+    three basis terms (m, N, 3) for values (m, N, 3) with weights (m, N), the terms not in
+    `terms` held at 0: every subset solved in closed form, the best feasible kept."""
+    m, npx, _ = basis.shape
+    wb = basis * weights[..., None]
+    gram = np.einsum("mnj,mnk->njk", wb, basis, dtype=np.float64)          # (N, 3, 3)
+    rhs = np.einsum("mnj,mnc->njc", wb, values, dtype=np.float64)          # (N, 3, C)
+    ridge = 1e-9 * (np.trace(gram, axis1=1, axis2=2)[:, None] + 1e-12)
+    best = np.zeros((npx, 3, values.shape[-1]))
+    best_gain = np.zeros((npx, values.shape[-1]))         # the fit's decrease of Σ w y², all-zero = 0
+    for sub in _SUBSETS:
+        if not set(sub) <= set(terms):
+            continue
+        idx = np.array(sub)
+        g = gram[:, idx][:, :, idx] + ridge[:, :, None] * np.eye(len(idx))
+        x = np.linalg.solve(g, rhs[:, idx])                                 # (N, s, C)
+        gain = np.einsum("nsc,nsc->nc", x, rhs[:, idx])                     # x·b at the optimum
+        ok = np.all(x >= 0, axis=1) & (gain > best_gain)
+        for c in range(values.shape[-1]):
+            sel = ok[:, c]
+            full = np.zeros((int(sel.sum()), 3))
+            full[:, idx] = x[sel, :, c]
+            best[sel, :, c] = full
+            best_gain[sel, c] = gain[sel, c]
+    return best
+
+
+def _fit_physics(lin, shown, dirs, normals, mask, vis, terms):
+    """The maps (rho, spec, amb) and the exponent k of SHININESS whose fit is the closest to the
+    fitted photographs in display values.
+
+    Least squares in display values, linearised: a first fit in linear values, then each value
+    weighted by the square of the sRGB curve's slope at the first fit's prediction (dark values
+    count as much as a viewer shows them; the prediction's, not the photograph's, so that a cast
+    shadow the model does not know does not drag a pixel's reflectance down)."""
+    sel = np.nonzero(mask)
+    y = lin[:, sel[0], sel[1]]                                              # (m, N, 3)
+    ok = np.all(shown[:, sel[0], sel[1]] < SATURATED, axis=-1).astype(np.float32)
+    target = shown[:, sel[0], sel[1]]
+    best = None
+    for k in (SHININESS if 1 in terms else SHININESS[:1]):
+        b = physical_basis(normals, dirs, k, vis)[:, sel[0], sel[1]]       # (m, N, 3)
+        x = _nnls3(b, y, ok, terms)                                         # (N, 3, C)
+        pred = np.einsum("mnj,njc->mnc", b, x)
+        x = _nnls3(b, y, ok * display_weight(pred.mean(axis=-1)), terms)
+        pred = np.einsum("mnj,njc->mnc", b, x)
+        err = float(np.sum(ok[..., None] * (srgb_encode(np.clip(pred, 0, 1)) - target) ** 2))
+        if best is None or err < best[-1]:
+            best = (x, k, err)
+    x, k, _ = best
+    maps = [np.zeros(mask.shape + (3,), np.float32) for _ in range(3)]
+    for j in range(3):
+        maps[j][sel] = x[:, j, :]
+    return maps, k
+
+
+def _rbf_weights(xy, funcs, eps, smoothing):
+    """Weights (m, K) of the Gaussian RBF exp(-(eps d)²) through funcs (m, K) at xy (m, 2),
+    `smoothing` added to the kernel matrix's diagonal (scipy's RBFInterpolator's convention)."""
+    d = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
+    kern = np.exp(-(eps * d) ** 2) + smoothing * np.eye(len(xy))
+    return np.linalg.lstsq(kern, funcs, rcond=None)[0]
+
+
+def _rbf_eval(xy, weights, eps, at):
+    d = np.linalg.norm(np.asarray(at)[:, None, :2] - xy[None], axis=-1)
+    return np.exp(-(eps * d) ** 2) @ weights
+
+
+def _rbf_choice(xy, funcs, energy, spacing):
+    """(epsilon, smoothing, keep) of the Gaussian RBF interpolating the planes' light functions
+    funcs (m, K) (orthonormal columns, `energy` (K,) the residual's energy along each): the width
+    and smoothing that predict the fitted lights left out best (every 8th in turn, each one when
+    fewer than 16), the error weighted by each plane's energy; `keep` (K,) bool: the planes that
+    this interpolation predicts better than 0 does. None when it predicts none of them."""
+    m = len(xy)
+    folds = [np.arange(j, m, 8) for j in range(8)] if m >= 16 else [np.array([j]) for j in range(m)]
+    base = sum(np.sum(funcs[f] ** 2, axis=0) for f in folds)
+    best = None
+    for mult in RBF_WIDTHS:
+        for sm in RBF_SMOOTHING:
+            eps = 1.0 / (mult * spacing)
+            err = np.zeros(funcs.shape[1])
+            for f in folds:
+                keep = np.setdiff1d(np.arange(m), f)
+                wts = _rbf_weights(xy[keep], funcs[keep], eps, sm)
+                err += np.sum((_rbf_eval(xy[keep], wts, eps, xy[f]) - funcs[f]) ** 2, axis=0)
+            total = float(np.sum(energy * np.minimum(err, base)))
+            if best is None or total < best[0]:
+                best = (total, eps, sm, err < base)
+    return None if not best[3].any() else best[1:]
+
+
+def fit_relight_model(images, light_dirs, mask, normals, heights=None, n_planes=None, shown=None):
+    """Fit the model of this module to photographs.
+
+    images : (m, H, W, 3) linear, scaled so that 1 is the display's white (values above 1 are
+    clipped in display); light_dirs : (m, 3) unit; mask (H, W); normals (H, W, 3) unit, camera
+    frame (from photometric stereo); heights : (H, W) in pixels (integrated normals) for cast
+    shadows, or None; n_planes : residual planes (default: `default_planes(m)`); shown : the
+    display values (m, H, W, 3) if known (8-bit photographs), else sRGB of the clipped images.
+    Returns a `RelightModel`.
+    """
+    lin = np.asarray(images, np.float32)
+    dirs = np.asarray(light_dirs, float)
+    dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    mask = np.asarray(mask, bool) & np.all(np.isfinite(normals), axis=-1)
+    n = np.where(mask[..., None], np.nan_to_num(np.asarray(normals, np.float32)), 0)
+    m = len(dirs)
+    if shown is None:
+        shown = srgb_encode(np.clip(np.nan_to_num(lin), 0, 1)).astype(np.float32)
+    lin = np.nan_to_num(lin)
+    # as many terms as the lights support: the lobe and the room's light need a dozen lights
+    terms = (0, 1, 2) if m >= 12 else (0,)
+    vis = None if heights is None else np.stack([cast_shadow(heights, d) for d in dirs])
+    (rho, spec, amb), k = _fit_physics(lin, shown, dirs, n, mask, vis, terms)
+    model = RelightModel(n.astype(np.float32), mask, rho, spec, amb, k,
+                         None if heights is None else np.asarray(heights, np.float32))
+    n_planes = default_planes(m) if n_planes is None else int(n_planes)
+    if n_planes <= 0 or m < 3:
+        return model
+    sel = np.nonzero(mask)
+    res = np.stack([shown[j][sel] - srgb_encode(np.clip(model.physical(d)[sel], 0, 1)) for j, d in enumerate(dirs)])
+    rows = res.transpose(1, 2, 0).reshape(-1, m).astype(np.float64)     # (N*3, m)
+    evals, evecs = np.linalg.eigh(rows.T @ rows)
+    funcs = evecs[:, ::-1][:, :n_planes]                                 # (m, K): the light functions
+    energy = np.clip(evals[::-1][:n_planes], 0, None)
+    xy = dirs[:, :2]
+    dist = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
+    np.fill_diagonal(dist, np.inf)
+    spacing = float(np.median(dist.min(axis=1)))
+    choice = _rbf_choice(xy, funcs, energy, spacing)
+    if choice is None:
+        model.notes.append("no residual: interpolating it did not predict the fitted lights left out")
+        return model
+    eps, sm, keep = choice
+    funcs = funcs[:, keep]
+    model.planes = np.zeros(mask.shape + (3, funcs.shape[1]), np.float32)
+    model.planes[sel] = (rows @ funcs).reshape(-1, 3, funcs.shape[1])
+    model.centres, model.weights, model.epsilon = xy, _rbf_weights(xy, funcs, eps, sm), eps
+    return model
+
+
+def default_planes(m):
+    """Residual planes tried for m fitted lights: one per three lights, at most 16 (those the
+    fitted lights left out show to be predictable are kept, `_rbf_choice`)."""
+    return int(np.clip(m // 3, 2, 16)) if m >= 6 else 0
