@@ -27,14 +27,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from facette.errors import BadInputError
+from facette.io.atomic import atomic_path
+
 from ._rti import srgb_decode, srgb_encode
 
-__all__ = ["RelightModel", "fit_relight_model", "SHININESS", "cast_shadow", "physical_basis"]
+__all__ = ["RelightModel", "fit_relight_model", "SHININESS", "cast_shadow", "physical_basis",
+           "save_relight_model", "load_relight_model", "default_planes"]
 
 SHININESS = (8.0, 32.0, 128.0)       # Blinn–Phong exponents tried (lobes of ~20°, 10°, 5°)
 SATURATED = 254.0 / 255.0            # display values at or above this are clipped: not fitted
 RBF_WIDTHS = (1.0, 2.0, 4.0)         # Gaussian widths tried, in median spacings of the lights
 RBF_SMOOTHING = (1e-3, 1e-1)
+BLOCK_VALUES = 1 << 22              # pixel-light pairs per block of the fit (~50 MB per array)
 SHADOW_SOFTNESS = 1.0                # height (px) over which a cast shadow's edge goes from 1 to 0
 
 
@@ -57,7 +62,19 @@ class RelightModel:
     centres: np.ndarray = None
     weights: np.ndarray = None
     epsilon: float = 1.0
+    white: float = 1.0
+    softness: float = SHADOW_SOFTNESS
     notes: list = field(default_factory=list)
+
+    def decimated(self, st):
+        """The model at every st-th pixel (heights in the decimated grid's pixels)."""
+        if st == 1:
+            return self
+        cut = (slice(None, None, st), slice(None, None, st))
+        return RelightModel(self.normals[cut], self.mask[cut], self.rho[cut], self.spec[cut], self.amb[cut],
+                            self.shininess, None if self.heights is None else self.heights[cut] / np.float32(st),
+                            None if self.planes is None else self.planes[cut], self.centres, self.weights,
+                            self.epsilon, self.white, self.softness / st, list(self.notes))
 
     def light_functions(self, light):
         """The residual planes' weights e_j(l) (K,) under one light (0 without a residual)."""
@@ -69,53 +86,64 @@ class RelightModel:
     def physical(self, light):
         """phys (H, W, 3) under one light, linear (1 = display white), ≥ 0."""
         light = np.asarray(light, float) / np.linalg.norm(light)
-        vis = None if self.heights is None else cast_shadow(self.heights, light)
+        vis = None if self.heights is None else cast_shadow(self.heights, light, self.softness)
         b = physical_basis(self.normals, light[None], self.shininess, vis if vis is None else vis[None])
         out = (self.rho * b[0, ..., 0:1] + self.spec * b[0, ..., 1:2] + self.amb * b[0, ..., 2:3])
         return np.where(self.mask[..., None], out, 0.0)
 
-    def display_raw(self, light):
-        """srgb(phys) + residual (H, W, 3), before the final clip (for counting negatives)."""
+    def display_unfloored(self, light):
+        """srgb(phys) + residual (H, W, 3) before the residual's floor (see `display_raw`)."""
         out = srgb_encode(np.clip(self.physical(light), 0, 1))
         e = self.light_functions(light)
         if e.size:
-            out = out + self.planes @ e.astype(self.planes.dtype)
+            out = out + self.planes @ e.astype(np.float32)
         return np.where(self.mask[..., None], out, 0.0)
+
+    def display_raw(self, light):
+        """The model's display values (H, W, 3) before a viewer's clip at white: the residual
+        darkens a pixel at most to black (it corrects the light the physics predicts; it is no
+        light of its own), so the values are never negative."""
+        return np.maximum(self.display_unfloored(light), 0.0)
 
     def display(self, light):
         """Display values (H, W, 3) in [0, 1] under one light (sRGB-encoded, 1 = white)."""
         return np.clip(self.display_raw(light), 0.0, 1.0)
 
     def relight(self, light):
-        """Linear values (H, W, 3) under one light, in the fitted photographs' unit (white 1)."""
-        return srgb_decode(self.display(light))
+        """Linear values (H, W, 3) under one light, in the fitted photographs' unit."""
+        return self.white * srgb_decode(self.display(light))
 
 
 def physical_basis(normals, lights, shininess, visibility=None):
-    """The three terms (m, H, W, 3): max(n·l,0) V, the lobe max(n·h,0)^k [n·l>0] V, max(l_z,0).
-    normals (H, W, 3); lights (m, 3) unit; visibility (m, H, W) in [0, 1] or None."""
+    """The three terms (m, ..., 3): max(n·l,0) V, the lobe max(n·h,0)^k [n·l>0] V, max(l_z,0).
+    normals (..., 3); lights (m, 3) unit; visibility (m, ...) in [0, 1] or None."""
     n = np.asarray(normals, np.float32)
     lights = np.asarray(lights, np.float32)
-    ndl = np.einsum("hwc,mc->mhw", n, lights)
+    ndl = np.einsum("...c,mc->m...", n, lights)
     half = lights + np.array([0, 0, 1], np.float32)
     half /= np.linalg.norm(half, axis=1, keepdims=True)
-    ndh = np.clip(np.einsum("hwc,mc->mhw", n, half), 0, 1)
+    ndh = np.clip(np.einsum("...c,mc->m...", n, half), 0, 1)
     lit = ndl > 0
     diff = np.where(lit, ndl, 0)
     lobe = np.where(lit, ndh ** np.float32(shininess), 0)
     if visibility is not None:
         diff, lobe = diff * visibility, lobe * visibility
-    amb = np.broadcast_to(np.clip(lights[:, 2], 0, None)[:, None, None], ndl.shape)
+    amb = np.broadcast_to(np.clip(lights[:, 2], 0, None).reshape((-1,) + (1,) * (ndl.ndim - 1)), ndl.shape)
     return np.stack([diff, lobe, amb], axis=-1).astype(np.float32)
 
 
-def cast_shadow(heights, light, softness=SHADOW_SOFTNESS, max_steps=64):
+def cast_shadow(heights, light, softness=SHADOW_SOFTNESS, max_steps=64, max_pixels=1 << 20):
     """Visibility (H, W) in [0, 1] of a distant light over a height map (pixels; NaN = no
     surface): 1 where no height along the light's azimuth rises above the ray to the light,
-    falling to 0 over `softness` pixels of height. Marched one pixel at a time (row 0 at the top,
-    y up), up to `max_steps`; a light within 5° of the axis casts no shadow."""
-    light = np.asarray(light, float)
+    falling to 0 as a height rises `softness` pixels above that ray. Marched one pixel at a time (row 0 at the top,
+    y up), up to `max_steps`; a light within 5° of the axis casts no shadow. A map above
+    `max_pixels` is marched every s-th pixel (its heights divided by s) and the result repeated."""
     h = np.asarray(heights, np.float32)
+    st = int(np.ceil(np.sqrt(h.size / max_pixels)))
+    if st > 1:
+        small = cast_shadow(h[::st, ::st] / np.float32(st), light, softness / st, max_steps, max_pixels)
+        return np.repeat(np.repeat(small, st, axis=0), st, axis=1)[:h.shape[0], :h.shape[1]]
+    light = np.asarray(light, float)
     horiz = float(np.hypot(light[0], light[1]))
     vis = np.ones(h.shape, np.float32)
     if horiz < np.sin(np.radians(5.0)):
@@ -131,7 +159,7 @@ def cast_shadow(heights, light, softness=SHADOW_SOFTNESS, max_steps=64):
         ok = (r >= 0) & (r < h.shape[0]) & (c >= 0) & (c < h.shape[1])
         other = np.where(ok, hh[np.clip(r, 0, h.shape[0] - 1), np.clip(c, 0, h.shape[1] - 1)], -np.inf)
         np.maximum(over, other - hh - np.float32(t * rise), out=over)
-    vis = np.clip(0.5 - over / softness, 0, 1).astype(np.float32)
+    vis = np.clip(1.0 - over / softness, 0, 1).astype(np.float32)     # 1 wherever the ray clears
     return np.where(np.isfinite(h), vis, 1.0).astype(np.float32)
 
 
@@ -175,33 +203,40 @@ def _nnls3(basis, values, weights, terms):
     return best
 
 
-def _fit_physics(lin, shown, dirs, normals, mask, vis, terms):
-    """The maps (rho, spec, amb) and the exponent k of SHININESS whose fit is the closest to the
-    fitted photographs in display values.
+def _fit_block(y, shown, b, terms):
+    """Coefficients (N, 3, C) of one block: values y (m, N, C) linear, shown (m, N, C) display,
+    basis b (m, N, 3). Least squares in display values, linearised: a first fit in linear
+    values, then each value weighted by the square of the sRGB curve's slope at the first fit's
+    prediction (dark values count as much as a viewer shows them; the prediction's, not the
+    photograph's, so that a cast shadow the model does not know does not drag a pixel's
+    reflectance down). Clipped values are left out."""
+    ok = np.all(shown < SATURATED, axis=-1).astype(np.float32)
+    x = _nnls3(b, y, ok, terms)
+    pred = np.einsum("mnj,njc->mnc", b, x)
+    return _nnls3(b, y, ok * display_weight(pred.mean(axis=-1)), terms)
 
-    Least squares in display values, linearised: a first fit in linear values, then each value
-    weighted by the square of the sRGB curve's slope at the first fit's prediction (dark values
-    count as much as a viewer shows them; the prediction's, not the photograph's, so that a cast
-    shadow the model does not know does not drag a pixel's reflectance down)."""
-    sel = np.nonzero(mask)
-    y = lin[:, sel[0], sel[1]]                                              # (m, N, 3)
-    ok = np.all(shown[:, sel[0], sel[1]] < SATURATED, axis=-1).astype(np.float32)
-    target = shown[:, sel[0], sel[1]]
-    best = None
-    for k in (SHININESS if 1 in terms else SHININESS[:1]):
-        b = physical_basis(normals, dirs, k, vis)[:, sel[0], sel[1]]       # (m, N, 3)
-        x = _nnls3(b, y, ok, terms)                                         # (N, 3, C)
-        pred = np.einsum("mnj,njc->mnc", b, x)
-        x = _nnls3(b, y, ok * display_weight(pred.mean(axis=-1)), terms)
-        pred = np.einsum("mnj,njc->mnc", b, x)
-        err = float(np.sum(ok[..., None] * (srgb_encode(np.clip(pred, 0, 1)) - target) ** 2))
-        if best is None or err < best[-1]:
-            best = (x, k, err)
-    x, k, _ = best
-    maps = [np.zeros(mask.shape + (3,), np.float32) for _ in range(3)]
-    for j in range(3):
-        maps[j][sel] = x[:, j, :]
-    return maps, k
+
+def _blocks(n, m):
+    step = max(4096, BLOCK_VALUES // max(m, 1))
+    return [slice(a, min(a + step, n)) for a in range(0, n, step)]
+
+
+def _choose_shininess(values, dirs, n, vis, sel, terms, sample=100_000):
+    """The exponent of SHININESS whose fit is the closest to the fitted photographs in display
+    values, on up to `sample` of the object's pixels evenly spread; values(rows, cols) gives
+    their (linear, display) values (m, n, C)."""
+    if 1 not in terms:
+        return SHININESS[0]
+    pick = np.linspace(0, len(sel[0]) - 1, min(sample, len(sel[0]))).astype(int)
+    r, c = sel[0][pick], sel[1][pick]
+    y, target = values(r, c)
+    ok = np.all(target < SATURATED, axis=-1)[..., None]
+    errs = []
+    for k in SHININESS:
+        b = physical_basis(n[r, c], dirs, k, None if vis is None else vis[:, r, c] / np.float32(255))
+        pred = np.einsum("mnj,njc->mnc", b, _fit_block(y, target, b, terms))
+        errs.append(float(np.sum(ok * (srgb_encode(np.clip(pred, 0, 1)) - target) ** 2)))
+    return SHININESS[int(np.argmin(errs))]
 
 
 def _rbf_weights(xy, funcs, eps, smoothing):
@@ -241,52 +276,78 @@ def _rbf_choice(xy, funcs, energy, spacing):
     return None if not best[3].any() else best[1:]
 
 
-def fit_relight_model(images, light_dirs, mask, normals, heights=None, n_planes=None, shown=None):
+def fit_relight_model(images, light_dirs, mask, normals, heights=None, n_planes=None, shown=None, white=1.0):
     """Fit the model of this module to photographs.
 
     images : (m, H, W, 3) linear, scaled so that 1 is the display's white (values above 1 are
     clipped in display); light_dirs : (m, 3) unit; mask (H, W); normals (H, W, 3) unit, camera
     frame (from photometric stereo); heights : (H, W) in pixels (integrated normals) for cast
-    shadows, or None; n_planes : residual planes (default: `default_planes(m)`); shown : the
-    display values (m, H, W, 3) if known (8-bit photographs), else sRGB of the clipped images.
-    Returns a `RelightModel`.
+    shadows, or None; n_planes : residual planes tried (default `default_planes(m)`); shown :
+    the display values (m, H, W, 3) if known (8-bit photographs), else sRGB of the clipped images;
+    white : the images' value shown as white (they are divided by it, block by block). Pixels are fitted by blocks (memory: the images plus ~0.5 GB, and the shadows' m bytes per
+    pixel). Returns a `RelightModel`.
     """
-    lin = np.asarray(images, np.float32)
     dirs = np.asarray(light_dirs, float)
     dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
     mask = np.asarray(mask, bool) & np.all(np.isfinite(normals), axis=-1)
-    n = np.where(mask[..., None], np.nan_to_num(np.asarray(normals, np.float32)), 0)
+    n = np.where(mask[..., None], np.nan_to_num(np.asarray(normals, np.float32)), np.float32(0))
     m = len(dirs)
-    if shown is None:
-        shown = srgb_encode(np.clip(np.nan_to_num(lin), 0, 1)).astype(np.float32)
-    lin = np.nan_to_num(lin)
+    lin = np.asarray(images)
     # as many terms as the lights support: the lobe and the room's light need a dozen lights
     terms = (0, 1, 2) if m >= 12 else (0,)
-    vis = None if heights is None else np.stack([cast_shadow(heights, d) for d in dirs])
-    (rho, spec, amb), k = _fit_physics(lin, shown, dirs, n, mask, vis, terms)
-    model = RelightModel(n.astype(np.float32), mask, rho, spec, amb, k,
-                         None if heights is None else np.asarray(heights, np.float32))
+    vis = None if heights is None else np.stack([np.round(cast_shadow(heights, d) * 255).astype(np.uint8)
+                                                 for d in dirs])
+    sel = np.nonzero(mask)
+
+    def values(r, c):        # (linear, display) values (m, n, C) of some pixels; unknown = white
+        y = np.nan_to_num(lin[:, r, c].astype(np.float32) / np.float32(white), nan=1.0)
+        s = srgb_encode(np.clip(y, 0, 1)) if shown is None else np.asarray(shown[:, r, c], np.float32)
+        return y, s.astype(np.float32)
+
+    def block_values(b):
+        r, c = sel[0][b], sel[1][b]
+        return (r, c) + values(r, c)
+
+    k = _choose_shininess(values, dirs, n, vis, sel, terms)
+    maps = np.zeros((3,) + mask.shape + (3,), np.float32)
+    blocks = _blocks(len(sel[0]), m)
+    for b in blocks:
+        r, c, y, s = block_values(b)
+        basis = physical_basis(n[r, c], dirs, k, None if vis is None else vis[:, r, c] / np.float32(255))
+        maps[:, r, c] = _fit_block(y, s, basis, terms).transpose(1, 0, 2)
+    model = RelightModel(n.astype(np.float32), mask, maps[0], maps[1], maps[2], float(k),
+                         None if heights is None else np.asarray(heights, np.float32), white=float(white))
     n_planes = default_planes(m) if n_planes is None else int(n_planes)
     if n_planes <= 0 or m < 3:
         return model
-    sel = np.nonzero(mask)
-    res = np.stack([shown[j][sel] - srgb_encode(np.clip(model.physical(d)[sel], 0, 1)) for j, d in enumerate(dirs)])
-    rows = res.transpose(1, 2, 0).reshape(-1, m).astype(np.float64)     # (N*3, m)
-    evals, evecs = np.linalg.eigh(rows.T @ rows)
+
+    def residual_rows(b):          # (n_b * 3, m): display values minus srgb(phys), per light
+        r, c, y, s = block_values(b)
+        basis = physical_basis(n[r, c], dirs, k, None if vis is None else vis[:, r, c] / np.float32(255))
+        x = np.stack([maps[j, r, c] for j in range(3)], axis=1)             # (n_b, 3, C)
+        phys = np.einsum("mnj,njc->mnc", basis, x)
+        return (s - srgb_encode(np.clip(phys, 0, 1))).transpose(1, 2, 0).reshape(-1, m).astype(np.float64)
+
+    gram = np.zeros((m, m))
+    for b in blocks:
+        rows = residual_rows(b)
+        gram += rows.T @ rows
+    evals, evecs = np.linalg.eigh(gram)
     funcs = evecs[:, ::-1][:, :n_planes]                                 # (m, K): the light functions
     energy = np.clip(evals[::-1][:n_planes], 0, None)
     xy = dirs[:, :2]
     dist = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
     np.fill_diagonal(dist, np.inf)
-    spacing = float(np.median(dist.min(axis=1)))
-    choice = _rbf_choice(xy, funcs, energy, spacing)
+    choice = _rbf_choice(xy, funcs, energy, float(np.median(dist.min(axis=1))))
     if choice is None:
         model.notes.append("no residual: interpolating it did not predict the fitted lights left out")
         return model
     eps, sm, keep = choice
     funcs = funcs[:, keep]
-    model.planes = np.zeros(mask.shape + (3, funcs.shape[1]), np.float32)
-    model.planes[sel] = (rows @ funcs).reshape(-1, 3, funcs.shape[1])
+    # float16: 5e-4 of white where 8-bit display steps are 4e-3 (half the memory at 12 MP)
+    model.planes = np.zeros(mask.shape + (3, funcs.shape[1]), np.float16)
+    for b in blocks:
+        model.planes[sel[0][b], sel[1][b]] = (residual_rows(b) @ funcs).reshape(-1, 3, funcs.shape[1])
     model.centres, model.weights, model.epsilon = xy, _rbf_weights(xy, funcs, eps, sm), eps
     return model
 
@@ -295,3 +356,32 @@ def default_planes(m):
     """Residual planes tried for m fitted lights: one per three lights, at most 16 (those the
     fitted lights left out show to be predictable are kept, `_rbf_choice`)."""
     return int(np.clip(m // 3, 2, 16)) if m >= 6 else 0
+
+
+_ARRAYS = ("normals", "mask", "rho", "spec", "amb", "heights", "planes", "centres", "weights")
+
+
+def save_relight_model(path, model):
+    """Write a `RelightModel` to an .npz (uncompressed, written whole or not at all)."""
+    arrays = {k: getattr(model, k) for k in _ARRAYS if getattr(model, k) is not None}
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, format=np.array("facette relight model 1"), shininess=model.shininess,
+                 epsilon=model.epsilon, white=model.white, **arrays)
+
+
+def load_relight_model(path):
+    """Read what `save_relight_model` wrote. Raises BadInputError for another file."""
+    try:
+        with np.load(path) as z:
+            if "format" not in z or not str(z["format"]).startswith("facette relight model"):
+                raise BadInputError(f"{path} is not a facette relighting model",
+                                    hint="give the relight_model.npz that facette process wrote")
+            got = {k: z[k] for k in _ARRAYS if k in z}
+            return RelightModel(shininess=float(z["shininess"]), epsilon=float(z["epsilon"]),
+                                white=float(z["white"]),
+                                **{k: got.get(k) for k in _ARRAYS})
+    except BadInputError:
+        raise
+    except (OSError, ValueError, KeyError) as exc:
+        raise BadInputError(f"cannot read the relighting model {path}: {exc}",
+                            hint="give the relight_model.npz that facette process wrote") from exc
