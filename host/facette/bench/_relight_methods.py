@@ -107,9 +107,11 @@ def _model(shadows):
         model = fit_relight_model(cap.lin[train], cap.dirs[train], ok, n, heights=heights,
                                   shown=cap.shown[train])
         k = 0 if model.weights is None else model.planes.shape[-1]
-        # how often the residual's floor acts at raking light (its output is never negative)
-        floored = np.mean([np.mean(np.any(model.display_unfloored(d) < 0, axis=-1)[ok]) for d in _raking()])
-        notes = model.notes + [f"k {model.shininess:g}, {k} planes, residual floored on {100 * floored:.1f} % at 75°"]
+        # how often the residual's floor darkens a pixel the physics lights, at raking light
+        floored = np.mean([np.mean((np.any(model.display_unfloored(d) < 0, axis=-1)
+                                    & np.any(model.physical(d) > 1e-3, axis=-1))[ok]) for d in _raking()])
+        notes = model.notes + [f"k {model.shininess:g}, {k} planes; lit pixels the residual floors to black at "
+                               f"75°: {100 * floored:.1f} %"]
         return Fitted(model.display_raw, 2 + 9 + 3 * k + (2 if shadows else 0), "; ".join(notes))
     return fit_fn
 

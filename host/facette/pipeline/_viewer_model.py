@@ -72,10 +72,12 @@ def model_data(model, st, mask):
         p8, bias, scale = _planes8(small.planes, mask)
         data.update(planes=_b64(p8), n_planes=int(p8.shape[0]), plane_bias=bias.tolist(),
                     plane_scale=scale.tolist(), centres=small.centres.ravel().tolist(),
-                    weights=small.weights.ravel().tolist(), epsilon=small.epsilon, n_lights=len(small.centres))
+                    weights=small.weights.ravel().tolist(), epsilon=small.epsilon, n_lights=len(small.centres),
+                    spacing=small.spacing, reach=small.reach)
         planes = (bias + scale * p8[..., :3].astype(np.float32).transpose(1, 2, 3, 0) / 255).astype(np.float32)
     shipped = RelightModel(small.normals, mask, decoded[0], decoded[1], decoded[2], small.shininess, heights,
-                           planes, small.centres, small.weights, small.epsilon, small.white, small.softness)
+                           planes, small.centres, small.weights, small.epsilon, small.white, small.softness,
+                           small.spacing, small.reach)
     return data, shipped
 
 

@@ -110,11 +110,17 @@ void main() {
 
   function lightFunctions(sv, l) {       // e_j(l): the Gaussian RBF over the captured lights' (x, y)
     const e = new Float32Array(16), K = sv.n_planes;
+    let nearest = Infinity;
     for (let i = 0; i < sv.n_lights; i++) {
       const dx = sv.centres[2 * i] - l[0], dy = sv.centres[2 * i + 1] - l[1];
-      const r = sv.epsilon * Math.hypot(dx, dy), g = Math.exp(-r * r);
+      const dist = Math.hypot(dx, dy), r = sv.epsilon * dist, g = Math.exp(-r * r);
+      nearest = Math.min(nearest, dist);
       for (let j = 0; j < Math.min(K, 16); j++) e[j] += g * sv.weights[i * K + j];
     }
+    // beyond twice the lights' spacing from the nearest one, or below the lowest, the residual fades out
+    const beyond = Math.max(nearest - 2 * sv.spacing, Math.hypot(l[0], l[1]) - sv.reach, 0);
+    const f = beyond / sv.spacing, fade = Math.exp(-f * f);
+    for (let j = 0; j < 16; j++) e[j] *= fade;
     return e;
   }
 

@@ -39,6 +39,7 @@ SHININESS = (8.0, 32.0, 128.0)       # Blinn–Phong exponents tried (lobes of ~
 SATURATED = 254.0 / 255.0            # display values at or above this are clipped: not fitted
 RBF_WIDTHS = (1.0, 2.0, 4.0)         # Gaussian widths tried, in median spacings of the lights
 RBF_SMOOTHING = (1e-3, 1e-1)
+AMBIENT_PRIOR = 0.05                 # relative ridge on the gathered-light term (see `_nnls3`)
 BLOCK_VALUES = 1 << 22              # pixel-light pairs per block of the fit (~50 MB per array)
 SHADOW_SOFTNESS = 1.0                # height (px) over which a cast shadow's edge goes from 1 to 0
 
@@ -64,6 +65,8 @@ class RelightModel:
     epsilon: float = 1.0
     white: float = 1.0
     softness: float = SHADOW_SOFTNESS
+    spacing: float = np.inf
+    reach: float = 1.0
     notes: list = field(default_factory=list)
 
     def decimated(self, st):
@@ -74,14 +77,21 @@ class RelightModel:
         return RelightModel(self.normals[cut], self.mask[cut], self.rho[cut], self.spec[cut], self.amb[cut],
                             self.shininess, None if self.heights is None else self.heights[cut] / np.float32(st),
                             None if self.planes is None else self.planes[cut], self.centres, self.weights,
-                            self.epsilon, self.white, self.softness / st, list(self.notes))
+                            self.epsilon, self.white, self.softness / st, self.spacing, self.reach,
+                            list(self.notes))
 
     def light_functions(self, light):
-        """The residual planes' weights e_j(l) (K,) under one light (0 without a residual)."""
+        """The residual planes' weights e_j(l) (K,) under one light (0 without a residual).
+        The residual is known near the captured lights only: beyond twice their median spacing
+        from the nearest one, or lower than the lowest of them (|l_xy| above their largest,
+        `reach`), it fades out (a Gaussian of that spacing), leaving the physics."""
         if self.weights is None:
             return np.zeros(0)
-        d = np.linalg.norm(self.centres - np.asarray(light, float)[:2], axis=1)
-        return np.exp(-(self.epsilon * d) ** 2) @ self.weights
+        light = np.asarray(light, float)
+        d = np.linalg.norm(self.centres - light[:2], axis=1)
+        beyond = max(float(d.min()) - 2 * self.spacing, float(np.hypot(light[0], light[1])) - self.reach, 0.0)
+        fade = np.exp(-(beyond / self.spacing) ** 2)
+        return fade * (np.exp(-(self.epsilon * d) ** 2) @ self.weights)
 
     def physical(self, light):
         """phys (H, W, 3) under one light, linear (1 = display white), ≥ 0."""
@@ -184,6 +194,9 @@ def _nnls3(basis, values, weights, terms):
     gram = np.einsum("mnj,mnk->njk", wb, basis, dtype=np.float64)          # (N, 3, 3)
     rhs = np.einsum("mnj,mnc->njc", wb, values, dtype=np.float64)          # (N, 3, C)
     ridge = 1e-9 * (np.trace(gram, axis1=1, axis2=2)[:, None] + 1e-12)
+    # a prior towards no gathered light: on a face the lights all see alike (n·l ∝ l_z) the
+    # diffuse and the room's terms are one, and the diffuse is the one that casts shadows
+    gram[:, 2, 2] *= 1.0 + AMBIENT_PRIOR
     best = np.zeros((npx, 3, values.shape[-1]))
     best_gain = np.zeros((npx, values.shape[-1]))         # the fit's decrease of Σ w y², all-zero = 0
     for sub in _SUBSETS:
@@ -338,7 +351,9 @@ def fit_relight_model(images, light_dirs, mask, normals, heights=None, n_planes=
     xy = dirs[:, :2]
     dist = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
     np.fill_diagonal(dist, np.inf)
-    choice = _rbf_choice(xy, funcs, energy, float(np.median(dist.min(axis=1))))
+    model.spacing = float(np.median(dist.min(axis=1)))
+    model.reach = float(np.max(np.linalg.norm(xy, axis=1)))
+    choice = _rbf_choice(xy, funcs, energy, model.spacing)
     if choice is None:
         model.notes.append("no residual: interpolating it did not predict the fitted lights left out")
         return model
@@ -366,7 +381,9 @@ def save_relight_model(path, model):
     arrays = {k: getattr(model, k) for k in _ARRAYS if getattr(model, k) is not None}
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         np.savez(fh, format=np.array("facette relight model 1"), shininess=model.shininess,
-                 epsilon=model.epsilon, white=model.white, **arrays)
+                 epsilon=model.epsilon, white=model.white, softness=model.softness, spacing=model.spacing,
+                 reach=model.reach,
+                 **arrays)
 
 
 def load_relight_model(path):
@@ -378,7 +395,8 @@ def load_relight_model(path):
                                     hint="give the relight_model.npz that facette process wrote")
             got = {k: z[k] for k in _ARRAYS if k in z}
             return RelightModel(shininess=float(z["shininess"]), epsilon=float(z["epsilon"]),
-                                white=float(z["white"]),
+                                white=float(z["white"]), softness=float(z["softness"]),
+                                spacing=float(z["spacing"]), reach=float(z["reach"]),
                                 **{k: got.get(k) for k in _ARRAYS})
     except BadInputError:
         raise
