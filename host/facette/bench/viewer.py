@@ -49,7 +49,7 @@ def _page(path, data):
                     f"{viewer_section(data)}</body></html>", encoding="utf-8")
 
 
-def _reference(arr, light):
+def reference_pixels(arr, light):
     """The page's Python reference (8-bit): the relighting model as shipped when the page draws
     it, else the fitted BRDF (pipeline._relight.relight)."""
     if arr.get("sv_model") is not None:
@@ -65,7 +65,7 @@ def pixel_differences(driver, arr, lights=LIGHTS):
     for az, el in lights:
         got = viewer_pixels(driver, az, el)
         t0 = time.perf_counter()
-        want = _reference(arr, light_from_angles(az, el))
+        want = reference_pixels(arr, light_from_angles(az, el))
         t_ref = time.perf_counter() - t0
         d = np.abs(got.astype(int) - want.astype(int))[arr["mask"]]
         out[(az, el)] = (float(d.mean()), float(np.percentile(d, 99)), int(d.max()), t_ref)

@@ -297,8 +297,9 @@ def fit_relight_model(images, light_dirs, mask, normals, heights=None, n_planes=
     frame (from photometric stereo); heights : (H, W) in pixels (integrated normals) for cast
     shadows, or None; n_planes : residual planes tried (default `default_planes(m)`); shown :
     the display values (m, H, W, 3) if known (8-bit photographs), else sRGB of the clipped images;
-    white : the images' value shown as white (they are divided by it, block by block). Pixels are fitted by blocks (memory: the images plus ~0.5 GB, and the shadows' m bytes per
-    pixel). Returns a `RelightModel`.
+    white : the images' value shown as white (they are divided by it, block by block).
+    Pixels are fitted by blocks (memory: the images, the maps, ~0.2 GB a block, and the
+    shadows' m bytes per pixel). Returns a `RelightModel`.
     """
     dirs = np.asarray(light_dirs, float)
     dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
