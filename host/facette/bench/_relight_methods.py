@@ -150,4 +150,4 @@ def _pb_before(cap, train, work):
 
 
 METHODS = {"PTM": _ptm, "HSH 2": _hsh(2), "HSH 3": _hsh(3), "RBF (Relight)": _rbf_relight,
-           "facette PB (before)": _pb_before, "facette SV": _model(False), "facette SV+shadows": _model(True)}
+           "facette PB (before)": _pb_before, "facette (no shadows)": _model(False), "facette model": _model(True)}

@@ -50,8 +50,8 @@ def test_every_method_predicts_and_the_model_beats_hsh3_without_going_negative(t
     for name in names:
         assert "psnr" in rows[name], f"{name}: {rows[name].get('why')}"
         assert np.isfinite(rows[name]["psnr"]) and 0 < rows[name]["ssim"] <= 1
-    assert rows["facette SV+shadows"]["psnr"] > rows["HSH 3"]["psnr"] + 2.0, rows
-    assert rows["facette SV+shadows"]["neg"] == 0 and rows["facette SV"]["neg"] == 0
+    assert rows["facette model"]["psnr"] > rows["HSH 3"]["psnr"] + 2.0, rows
+    assert rows["facette model"]["neg"] == 0 and rows["facette (no shadows)"]["neg"] == 0
     assert rows["HSH 3"]["neg"] > 1.0          # the polynomial goes negative at 75°
 
 
@@ -76,6 +76,6 @@ def test_main_on_a_diligent_style_folder(tmp_path, capsys):
     write_diligent(tmp_path / "diligent" / "ballPNG", np.round(imgs / imgs.max() * 60000).astype(np.uint16),
                    lights, mask=sc.sphere)
     assert main(["--root", str(tmp_path), "--diligent", "ballPNG", "--groups", "diligent,jpeg",
-                 "--methods", "HSH 3,facette SV", "--no-before"]) == 0
+                 "--methods", "HSH 3,facette model", "--no-before"]) == 0
     out = capsys.readouterr().out
-    assert "ballPNG" in out and "ballPNG.jpg" in out and "facette SV" in out and "vs HSH 3" in out
+    assert "ballPNG" in out and "ballPNG.jpg" in out and "facette model" in out and "vs HSH 3" in out
