@@ -32,6 +32,8 @@ class Fitted:
 
 
 def _ptm(cap, train):
+    if len(train) < 6:
+        return None
     fit = fit_ptm_lrgb(cap.lin[train], cap.dirs[train], mask=cap.mask, white=1.0, encoding="srgb")
     return Fitted(lambda d: (fit.coeffs @ ptm_basis(d))[..., None] * fit.rgb, 9)
 
