@@ -160,14 +160,15 @@ def cast_shadow(heights, light, softness=SHADOW_SOFTNESS, max_steps=64, max_pixe
         return vis
     rise = light[2] / horiz                      # height gained per pixel towards the light
     dx, dy = light[0] / horiz, -light[1] / horiz  # image columns right, rows down
-    hh = np.where(np.isfinite(h), h, -np.inf)
+    low = np.float32(-1e30)                      # no surface: never above a ray (finite: no inf - inf)
+    hh = np.where(np.isfinite(h), h, low)
     rows, cols = np.indices(h.shape)
     over = np.full(h.shape, -np.inf, np.float32)
     for t in range(1, min(max_steps, max(h.shape)) + 1):
         r = np.rint(rows + t * dy).astype(int)
         c = np.rint(cols + t * dx).astype(int)
         ok = (r >= 0) & (r < h.shape[0]) & (c >= 0) & (c < h.shape[1])
-        other = np.where(ok, hh[np.clip(r, 0, h.shape[0] - 1), np.clip(c, 0, h.shape[1] - 1)], -np.inf)
+        other = np.where(ok, hh[np.clip(r, 0, h.shape[0] - 1), np.clip(c, 0, h.shape[1] - 1)], low)
         np.maximum(over, other - hh - np.float32(t * rise), out=over)
     vis = np.clip(1.0 - over / softness, 0, 1).astype(np.float32)     # 1 wherever the ray clears
     return np.where(np.isfinite(h), vis, 1.0).astype(np.float32)
