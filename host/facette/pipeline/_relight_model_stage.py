@@ -9,9 +9,9 @@ import time
 
 import numpy as np
 
-from facette.recon._relight_model import fit_relight_model
+from facette.recon import fit_relight_model, save_relight_model
 
-__all__ = ["relight_model_stage", "WHITE_PERCENTILE"]
+__all__ = ["relight_model_stage", "save_relight_model", "WHITE_PERCENTILE"]
 
 WHITE_PERCENTILE = 99.9
 
@@ -24,8 +24,9 @@ def _white(images, mask, sample=200_000):
     return float(np.percentile(vals, WHITE_PERCENTILE)) if vals.size else 1.0
 
 
-def relight_model_stage(res, images, light_dirs, pixel_pitch_mm=1.0):
-    """res.relight_model fitted (and res.timings["relight_model"]); returns the notes. images
+def relight_model_stage(res, images, light_dirs, pixel_pitch_mm=1.0, write=None):
+    """res.relight_model fitted (and res.timings["relight_model"]), then write("relight") (process's
+    writer of relight_model.npz; run after the heights: the cast shadows need them); returns the notes. images
     (m, H, W, C) linear or None (read by bands with --memory: no model, a note says so);
     light_dirs (m, 3) or None (near lights: per-pixel directions, which the model does not take)."""
     if images is None:
@@ -41,4 +42,6 @@ def relight_model_stage(res, images, light_dirs, pixel_pitch_mm=1.0):
     white = _white(images, mask)
     res.relight_model = fit_relight_model(images, light_dirs, mask, res.normals, heights=heights, white=white)
     res.timings["relight_model"] = time.perf_counter() - t0
+    if write is not None:
+        write("relight")
     return [f"relighting model: {n}" for n in res.relight_model.notes]
