@@ -61,9 +61,10 @@ from facette.pipeline._samples import _samples_stage  # bench/recon.py imports i
 
 __all__ = ["OUTPUTS", "ALL_OUTPUTS", "STAGES_FOR", "ProcessOptions", "ProcessResult", "process", "stages_needed"]
 
-OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "relight", "gltf", "report")
-# asked for by name only (not in the default): relight_web/ costs ~0.4 CPU s per megapixel of JPEG tiles
-ALL_OUTPUTS = OUTPUTS + ("relight-web",)
+OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
+# asked for by name only (not in the default): relight_web/ costs ~0.4 CPU s per megapixel of JPEG
+# tiles, relight_model.npz fits every pixel (the report fits the model at its viewer's size only)
+ALL_OUTPUTS = OUTPUTS + ("relight-web", "relight")
 STAGES_FOR = {
     "normals": ("load", "ps"), "albedo": ("load", "ps"), "mask": ("load", "ps"),
     "height": ("load", "ps", "integrate"), "mesh": ("load", "ps", "integrate", "mesh"),
@@ -386,7 +387,8 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
                               inp.pixel_pitch_mm, step, MESH_MAX_SLOPE)
             res.options["mesh_step"] = step
             write("mesh")
-        notes += relight_model_stage(res, images, light_dirs, inp.pixel_pitch_mm, write) if "relight" in stages else []
+        notes += relight_model_stage(res, images, light_dirs, inp.pixel_pitch_mm, write,
+                                     "relight" in outputs) if "relight" in stages else []
         return notes
 
     def reflectance():

@@ -51,7 +51,8 @@ def _planes8(planes, mask):
 def model_data(model, st, mask):
     """(JSON-ready dict, the model as shipped) of `model` at every st-th pixel; mask: the
     viewer's pixels (at that size)."""
-    small = model.decimated(st)
+    # process fits the model at the viewer's size when relight_model.npz is not asked for
+    small = model if model.mask.shape == np.shape(mask) else model.decimated(st)
     mask = np.asarray(mask, bool) & small.mask
     maps, scales = [], []
     for x in (small.rho, small.spec, small.amb):

@@ -235,7 +235,7 @@ def _blocks(n, m):
     return [slice(a, min(a + step, n)) for a in range(0, n, step)]
 
 
-def _choose_shininess(values, dirs, n, vis, sel, terms, sample=100_000):
+def _choose_shininess(values, dirs, n, vis, sel, terms, sample=20_000):
     """The exponent of SHININESS whose fit is the closest to the fitted photographs in display
     values, on up to `sample` of the object's pixels evenly spread; values(rows, cols) gives
     their (linear, display) values (m, n, C)."""

@@ -61,7 +61,9 @@ def test_cli_processes_a_diligent_folder_end_to_end(diligent_dir, tmp_path, caps
     page = (out / "report.html").read_text()
     # normal, albedo, shadow flags, height, error against truth (the hierarchy adds its triplet maps)
     assert page.count("data:image/png;base64,") >= 5 and "Filtered reflectance per incidence" in page
-    assert "not requested (--outputs without brdf)" in page and "no BRDF was fitted" in page
+    # no BRDF asked for: the fit section says so, and the viewer draws the relighting model instead
+    assert "not requested (--outputs without brdf)" in page and "no BRDF was fitted" not in page
+    assert "facette's relighting model" in page and not (out / "relight_model.npz").exists()   # for the page only
 
 
 def test_outputs_limit_the_stages(diligent_dir, tmp_path):
