@@ -42,14 +42,14 @@ from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_fro
                            near_light_directions, dark_level_notes)
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._channels import images_for_solve, results_in_rgb
-from facette.pipeline._inputs import load_input, object_of
+from facette.capture import load_input, object_of
+from facette.capture.rti import LP_NAME
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
 from facette.pipeline._light_gains import with_light_gains
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_bands import relight_bands, relight_stage
-from facette.pipeline._rti_capture import LP_NAME
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
 from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry, truth_errors
 from facette.pipeline._report import report_fit_section, write_report
@@ -156,7 +156,7 @@ def preload():
     """Import what `process` loads on first use (matplotlib for the report, ~0.5 s; numba and
     the compiled kernels of the loading and the PTM fit, ~0.5 s): a scan that will be processed
     calls this on a thread while it acquires, so that the time does not come after the last frame."""
-    from facette.pipeline._pixels_jit import median_over_lights, usable_green
+    from facette.capture._pixels_jit import median_over_lights, usable_green
     from facette.recon._rti_jit import ptm_colour_block, srgb_lum_block, srgb_scale_inplace, srgb_table
     # each kernel loaded (or compiled) for the array types `process` hands it
     img = np.ones((2, 2, 2, 3), np.float32)

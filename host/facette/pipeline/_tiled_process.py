@@ -47,10 +47,11 @@ from facette._memory import disk_array, hand_back, release
 from facette.io.diligent import is_diligent_dir, read_diligent_lights
 from facette.io.png import read_mask
 from facette.methods import PS_METHODS, photometric_stereo
-from facette.pipeline._inputs import (NO_PITCH_NOTE, PSInput, _digest, _file_stamps, given_mask, masks_from,
-                                      source_path)
-from facette.pipeline._scan_input import merged_lights, profile_flat, scan_input, scan_lights, scan_manifest
-from facette.pipeline._bands import DiligentBands, ScanBands, open_bands
+from facette.capture.base import NO_PITCH_NOTE, PSInput, _digest, _file_stamps, given_mask, source_path
+from facette.capture.diligent import DiligentBands
+from facette.capture.masks import masks_from
+from facette.capture.open import open_bands
+from facette.capture.scan import ScanBands, merged_lights, profile_flat, scan_input, scan_lights, scan_manifest
 from facette.pipeline._quality import add_counts, carried, check_counts, light_geometry, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
@@ -115,7 +116,7 @@ def _rows(w, h, m, memory, method, rows, maps_bytes):
 def _maps_task(spec, r0, r1, flat):
     """A band's part of the masks' maps: (r0, r1, brightest value, median over the lights,
     unknown under some light) of the green channel."""
-    from facette.pipeline._pixels_jit import median_over_lights
+    from facette.capture._pixels_jit import median_over_lights
     reader = open_bands(spec)
     try:
         g = reader.read(r0, r1, flat)[0][..., 1]

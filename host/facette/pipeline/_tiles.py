@@ -17,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from facette.io.diligent import png_radiance, read_diligent_lights, size_mismatch
-from facette.io.png import png_size, read_mask, read_png
+from facette.capture.diligent import _Staged
+from facette.io.diligent import read_diligent_lights
+from facette.io.png import png_size, read_mask
 from facette.methods import PS_DEFAULT, PS_METHODS
 from facette.recon import PSResult
 
@@ -105,37 +106,6 @@ def _check_keep(keep):
     unknown = set(keep) - set(FIELD_BYTES)
     if unknown:
         raise ValueError(f"keep names outputs of {', '.join(FIELD_BYTES)}; got {sorted(unknown)}")
-
-
-class _Staged:
-    """The photographs of a folder as raw uint16/uint8 (H, W, 3) files, one per light, so that a
-    band of rows is one contiguous read per light."""
-
-    def __init__(self, folder, names, work):
-        self.paths, self.shape, self.dtype = [], None, None
-        for i, name in enumerate(names):
-            arr = read_png(folder / name)
-            if arr.ndim == 2:
-                arr = np.repeat(arr[..., None], 3, axis=2)
-            arr = np.ascontiguousarray(arr[..., :3])
-            if self.shape is None:
-                self.shape, self.dtype = arr.shape, arr.dtype
-            elif arr.shape != self.shape:
-                raise ValueError(size_mismatch(name, arr.shape, names[0], self.shape))
-            path = Path(work) / f"{i:04d}.raw"
-            arr.astype(self.dtype, copy=False).tofile(path)
-            self.paths.append(path)
-            del arr
-
-    def band(self, r0, r1, intensities):
-        """(m, r1 - r0, W, 3) float32 radiance of rows r0..r1 (as `read_diligent`)."""
-        h, w, c = self.shape
-        item = np.dtype(self.dtype).itemsize
-        out = np.empty((len(self.paths), r1 - r0, w, 3), np.float32)
-        for i, path in enumerate(self.paths):
-            raw = np.fromfile(path, self.dtype, count=(r1 - r0) * w * c, offset=r0 * w * c * item)
-            png_radiance(raw.reshape(r1 - r0, w, c), intensities[i], out[i])
-        return out
 
 
 def _check_method(method):

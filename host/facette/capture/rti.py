@@ -21,7 +21,7 @@ from facette.calib.lp import read_lp
 from facette.calib.mirror_sphere import Circle, mirror_sphere_directions
 from facette.errors import BadInputError
 from facette.io.png import read_mask
-from facette.pipeline._quality import usable_from_levels
+from facette.capture.usable import usable_from_levels
 
 __all__ = ["IMAGE_SUFFIXES", "ENCODINGS", "is_rti_capture", "read_rti_capture", "srgb_to_linear",
            "parse_circle", "parse_box"]
@@ -131,7 +131,7 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
 
     folder : the capture (photographs, and an `.lp` file or a reflective sphere in view).
     auto_masks : the function that finds (lit, material) masks from the images (the scan's:
-        `pipeline._inputs.auto_masks`); a mask.png in the folder is the object's mask instead.
+        `capture.masks.auto_masks`); a mask.png in the folder is the object's mask instead.
     pixel_pitch_mm : the object-side pixel size, or None (heights in pixels, said in a note).
     encoding : "srgb" or "linear", or None: sRGB for 8-bit files (what cameras and RTIBuilder's
         JPEGs hold), linear for 16-bit and float files (raw converters', DiLiGenT's).
