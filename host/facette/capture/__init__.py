@@ -5,7 +5,8 @@ is read here once, whole (`load_input`) or a band of rows at a time (`open_bands
 (the scan directory's record) and `pipeline` (what is made of a capture)."""
 from .base import NO_PITCH_NOTE, PSInput, given_mask, source_path
 from .masks import auto_masks, margin_of, masks_from, object_of
-from .open import load_input, open_bands
+from .base import ArrayBands
+from .open import load_input, open_bands, open_capture
 
 __all__ = ["NO_PITCH_NOTE", "PSInput", "given_mask", "source_path", "auto_masks", "margin_of", "masks_from",
-           "object_of", "load_input", "open_bands"]
+           "object_of", "load_input", "open_bands", "open_capture", "ArrayBands"]

@@ -9,7 +9,7 @@ import numpy as np
 from facette.capture.masks import margin_of
 from facette.io.png import read_mask
 
-__all__ = ["PSInput", "NO_PITCH_NOTE", "source_path", "given_mask"]
+__all__ = ["ArrayBands", "PSInput", "NO_PITCH_NOTE", "source_path", "given_mask"]
 
 
 @dataclass
@@ -84,3 +84,26 @@ def given_mask(inp, mask):
     inp.mask, inp.material_mask = m, None     # a given mask is the object: samples follow it
     inp.object_mask = m
     inp.mask_source = f"--mask {mask}" if isinstance(mask, (str, os.PathLike)) else "the given mask"
+
+
+class ArrayBands:
+    """Photographs held in memory (a script's arrays, or a capture read whole) behind the band
+    readers' interface: read(r0, r1) -> (images (m, r1 - r0, W, C) float32, usable (m, r1 - r0, W)
+    bool: given, or known and > 0 where none is given)."""
+
+    def __init__(self, images, usable=None):
+        self.images, self.usable = images, usable
+        self.h, self.w = images.shape[1:3]
+
+    def spec(self):
+        return ("arrays", self.images, self.usable)
+
+    def read(self, r0, r1, flat=None):
+        band = self.images[:, r0:r1]
+        if self.usable is not None:
+            return band, self.usable[:, r0:r1]
+        with np.errstate(invalid="ignore"):
+            return band, np.isfinite(band[..., 1]) & (band[..., 1] > 0)
+
+    def close(self):
+        pass

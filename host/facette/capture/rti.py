@@ -20,10 +20,12 @@ import numpy as np
 from facette.calib.lp import read_lp
 from facette.calib.mirror_sphere import Circle, mirror_sphere_directions
 from facette.errors import BadInputError
+from facette.io.lights import check_lights, photograph_paths
 from facette.io.png import read_mask
+from facette.capture.masks import masks_from
 from facette.capture.usable import usable_from_levels
 
-__all__ = ["IMAGE_SUFFIXES", "ENCODINGS", "is_rti_capture", "read_rti_capture", "srgb_to_linear",
+__all__ = ["IMAGE_SUFFIXES", "ENCODINGS", "RTIBands", "rti_files", "open_rti_bands", "is_rti_capture", "read_rti_capture", "srgb_to_linear",
            "parse_circle", "parse_box"]
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".tif", ".tiff", ".png")
@@ -81,7 +83,7 @@ def parse_box(text):
 
 
 def _read_image(path):
-    """(stored values as float32 (H, W, 3), top of the range, bit depth) of a JPEG, PNG or TIFF."""
+    """(stored values (H, W, 3): uint8, uint16 or float32, top of the range, bit depth) of a JPEG, PNG or TIFF."""
     data = np.fromfile(path, np.uint8)
     img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR)
     if img is None:
@@ -94,28 +96,58 @@ def _read_image(path):
     if img.ndim == 2:
         img = np.repeat(img[..., None], 3, axis=2)
     if img.dtype == np.uint8:
-        return img.astype(np.float32), 255.0, 8
+        return img, 255.0, 8
     if img.dtype == np.uint16:
-        return img.astype(np.float32), 65535.0, 16
+        return img, 65535.0, 16
     if img.dtype in (np.float32, np.float64):
         return img.astype(np.float32), np.inf, 32
     raise BadInputError(f"{path}: {img.dtype} samples are not supported (8 or 16 bits, or float)")
 
 
-def _lp_images(folder, lp):
-    """The .lp's file names resolved in the folder (RTIBuilder writes absolute paths of the
-    machine it ran on: the name alone is looked for then)."""
+def _lp_images(folder, lp, notes):
+    """The .lp's photographs in the folder (`io.lights.photograph_paths`: RTIBuilder writes absolute
+    paths of the machine it ran on, read from this folder by their names and said; a photograph
+    listed twice, or in no folder but another, refused) and its vectors."""
     names, vecs = read_lp(lp, normalize=False)
-    paths = []
-    for i, name in enumerate(names, start=2):
-        p = folder / name
-        if not p.is_file():
-            p = folder / name.replace("\\", "/").rsplit("/", 1)[-1]
-        if not p.is_file():
-            raise BadInputError(f"{lp} line {i}: {name} is not in {folder}",
-                                hint="the .lp must name the photographs of its folder")
-        paths.append(p)
+    paths, path_notes = photograph_paths(folder, names, lp.name)
+    notes.extend(path_notes)
     return paths, vecs
+
+
+def _bit_depth(path):
+    """A photograph's bits per sample from its header (nothing decoded): JPEG 8; PNG its IHDR's
+    bit depth; TIFF its BitsPerSample tag (32 for float samples)."""
+    suffix = path.suffix.lower()
+    if suffix in (".jpg", ".jpeg"):
+        return 8
+    if suffix == ".png":
+        with open(path, "rb") as fh:
+            head = fh.read(25)
+        return int(head[24]) if len(head) == 25 and head[:8] == b"\x89PNG\r\n\x1a\n" else None
+    try:
+        import tifffile
+        with tifffile.TiffFile(path) as tif:
+            page = tif.pages[0]
+            return int(page.bitspersample)
+    except Exception:              # not a TIFF after all: the decoder says what it is
+        return None
+
+
+def _one_depth(paths):
+    """The capture's one bit depth (None when no header says it); BadInputError listing the
+    photographs of each depth when they mix (an 8-bit JPEG is sRGB, a 16-bit TIFF linear: one
+    capture read under one encoding would wrap or darken some of them)."""
+    depths = {}
+    for p in paths:
+        depths.setdefault(_bit_depth(p), []).append(p.name)
+    known = {d: n for d, n in depths.items() if d is not None}
+    if len(known) > 1:
+        listed = "; ".join(f"{d}-bit: {', '.join(n[:4])}{'...' if len(n) > 4 else ''} ({len(n)})"
+                           for d, n in sorted(known.items()))
+        raise BadInputError(f"the photographs mix bit depths ({listed}): one capture is photographed and "
+                            "exported alike, and each depth has its own encoding (8-bit sRGB, 16-bit linear)",
+                            hint="export every photograph of the capture alike (all 8-bit JPEGs, or all 16-bit TIFFs)")
+    return next(iter(known), None)
 
 
 def _directions(vecs, lp, notes):
@@ -124,6 +156,132 @@ def _directions(vecs, lp, notes):
         notes.append(f"{lp.name} holds positions (lengths {norms.min():.3g}–{norms.max():.3g}), not unit "
                      "directions: each light's direction is taken from the frame's centre (far light)")
     return vecs / norms[:, None]
+
+
+def rti_files(folder, encoding=None):
+    """What an RTI capture folder holds, nothing decoded: (photographs, the .lp's vectors or None,
+    the .lp files, intensities (m, 3) or None, notes); the lights checked (`io.lights`: those below
+    the horizon left out), the photographs' bit depth one (`_one_depth`)."""
+    notes = []
+    if encoding is not None and encoding not in ENCODINGS:
+        raise BadInputError(f"encoding {encoding!r}: choose one of {', '.join(ENCODINGS)}")
+    lps = sorted(folder.glob("*.lp"))
+    if len(lps) > 1:
+        raise BadInputError(f"{folder} holds {len(lps)} .lp files ({', '.join(p.name for p in lps[:3])}): "
+                            "one capture has one", hint="move the others out of the folder")
+    if lps:
+        try:
+            paths, vecs = _lp_images(folder, lps[0], notes)
+        except BadInputError:
+            raise
+        except ValueError as exc:            # read_lp names the line
+            raise BadInputError(str(exc), hint="fix the .lp file: the count, then 'filename x y z' per line") from None
+        keep, light_notes = check_lights(vecs, lps[0].name, [p.name for p in paths])
+        notes.extend(light_notes)
+    else:
+        paths, vecs = _images_in(folder), None
+        keep = np.arange(len(paths))
+    # light_intensities.txt lists every photograph of the .lp, those left out included
+    inten = _read_intensities(folder / "light_intensities.txt", len(paths), notes)
+    paths = [paths[k] for k in keep]
+    vecs, inten = (None if vecs is None else vecs[keep]), (None if inten is None else inten[keep])
+    if len(paths) < 3:
+        raise BadInputError(f"{folder} has {len(paths)} photographs: photometric stereo needs 3 or more")
+    _one_depth(paths)
+    return paths, vecs, lps, inten, notes
+
+
+class RTIBands:
+    """An RTI capture's photographs read a band of rows at a time: linear (sRGB decoded, or
+    divided by the top of the file's range), divided by the light's intensity (and reference
+    patch, `set_reference`), NaN where clipped; usable from the file's grey levels. Each
+    photograph is decoded once (the JPEG, PNG and TIFF decoders give whole images) and its stored
+    values kept as they are (1 or 2 bytes a sample): in memory, or, given a `work` folder, in a raw
+    file there (a band is then one contiguous read per photograph, and `spec()` reopens it in a
+    task). encoding : "srgb", "linear" or None (from the bit depth: 8-bit sRGB, else linear)."""
+
+    def __init__(self, paths, inten, encoding=None, work=None):
+        self.paths, self.inten, self.store, self.scale = list(paths), inten, [], None
+        for k, p in enumerate(self.paths):
+            raw, top, bits = _read_image(p)
+            if k == 0:
+                self.h, self.w = raw.shape[:2]
+                self.dtype, self.top, self.bits = raw.dtype, top, bits
+            elif bits != self.bits:            # a header `_one_depth` could not read: the decoder's word
+                raise BadInputError(f"{p.name} holds {bits}-bit samples, {self.paths[0].name} {self.bits}-bit: the "
+                                    "photographs mix bit depths", hint="export every photograph of the capture alike")
+            elif raw.shape[:2] != (self.h, self.w):
+                raise BadInputError(f"{p.name} is {raw.shape[1]}x{raw.shape[0]} px, {self.paths[0].name} is "
+                                    f"{self.w}x{self.h}", hint="every photograph of a capture must have the same size")
+            if work is None:
+                self.store.append(raw)
+            else:
+                self.store.append(Path(work) / f"rti_{k:04d}.raw")
+                np.ascontiguousarray(raw).tofile(self.store[-1])
+            del raw
+        self.enc = encoding or ("srgb" if self.bits == 8 else "linear")
+
+    def note(self, encoding=None):
+        return (f"RTI capture: {len(self.paths)} {self.bits}-bit photographs read as {self.enc}"
+                + ("" if encoding else " (from their bit depth; --encoding srgb|linear to say otherwise)"))
+
+    def spec(self):
+        """What a task needs to open the same reader (`open_bands`): the staged files only."""
+        return ("rti", [str(s) for s in self.store], (self.h, self.w), np.dtype(self.dtype).str, self.top, self.bits,
+                self.enc, None if self.inten is None else np.asarray(self.inten).tolist(),
+                None if self.scale is None else self.scale.tolist())
+
+    @classmethod
+    def from_spec(cls, spec):
+        self = cls.__new__(cls)
+        _, files, (self.h, self.w), dtype, self.top, self.bits, self.enc, inten, scale = spec
+        self.store, self.dtype = [Path(f) for f in files], np.dtype(dtype)
+        self.paths = self.store
+        self.inten = None if inten is None else np.asarray(inten, np.float64)
+        self.scale = None if scale is None else np.asarray(scale, np.float64)
+        return self
+
+    def close(self):
+        pass
+
+    def _stored(self, k, r0, r1):
+        s = self.store[k]
+        if isinstance(s, np.ndarray):
+            return s[r0:r1]
+        item = np.dtype(self.dtype).itemsize
+        raw = np.fromfile(s, self.dtype, count=(r1 - r0) * self.w * 3, offset=r0 * self.w * 3 * item)
+        return raw.reshape(r1 - r0, self.w, 3)
+
+    def read(self, r0, r1, flat=None):
+        """(images (m, r1 - r0, W, 3) float32, usable (m, r1 - r0, W) bool) of rows r0..r1."""
+        m, top, inten = len(self.store), self.top, self.inten
+        images = np.empty((m, r1 - r0, self.w, 3), np.float32)
+        usable = np.empty((m, r1 - r0, self.w), bool)
+        lut = srgb_to_linear(np.arange(256) / 255.0) if self.enc == "srgb" and self.bits == 8 else None
+        for k in range(m):
+            raw = self._stored(k, r0, r1).astype(np.float32)
+            usable[k] = usable_from_levels(raw[..., 1]) if np.isfinite(top) else raw[..., 1] > 0
+            clipped = raw >= top
+            scale = top if np.isfinite(top) else 1.0
+            if self.enc == "linear":            # one division in float64, as the DiLiGenT reader does
+                images[k] = raw / (scale * (1.0 if inten is None else inten[k]))
+            else:
+                images[k] = lut[raw.astype(np.uint8)] if lut is not None else srgb_to_linear(raw / scale)
+                if inten is not None:
+                    images[k] /= inten[k].astype(np.float32)
+            images[k][clipped] = np.nan
+            if self.scale is not None:
+                images[k] /= np.float32(self.scale[k])
+        return images, usable
+
+    def set_reference(self, box, notes):
+        """Each photograph divided, from now on, by its reference patch `box` (as `_divide_by_reference`)."""
+        x0, y0, x1, y1 = box
+        if x1 > self.w or y1 > self.h:
+            raise BadInputError(f"the reference patch ({x0},{y0})-({x1},{y1}) is outside the {self.w}x{self.h} px "
+                                "photographs")
+        patch = self.read(y0, y1)[0][:, :, x0:x1]
+        self.scale = _reference_scale(patch, box, notes)
 
 
 def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sphere=None, reference=None):
@@ -142,46 +300,13 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
         or a lamp that does not give the same light every time.
     """
     folder = Path(folder)
-    notes = []
-    if encoding is not None and encoding not in ENCODINGS:
-        raise BadInputError(f"encoding {encoding!r}: choose one of {', '.join(ENCODINGS)}")
-    lps = sorted(folder.glob("*.lp"))
-    if len(lps) > 1:
-        raise BadInputError(f"{folder} holds {len(lps)} .lp files ({', '.join(p.name for p in lps[:3])}): "
-                            "one capture has one", hint="move the others out of the folder")
-    if lps:
-        try:
-            paths, vecs = _lp_images(folder, lps[0])
-        except ValueError as exc:            # read_lp names the line
-            raise BadInputError(str(exc), hint="fix the .lp file: the count, then 'filename x y z' per line") from None
-    else:
-        paths, vecs = _images_in(folder), None
-    if len(paths) < 3:
-        raise BadInputError(f"{folder} has {len(paths)} photographs: photometric stereo needs 3 or more")
-    first, top, bits = _read_image(paths[0])
-    h, w = first.shape[:2]
-    enc = encoding or ("srgb" if bits == 8 else "linear")
-    notes.append(f"RTI capture: {len(paths)} {bits}-bit photographs read as {enc}"
-                 + ("" if encoding else " (from their bit depth; --encoding srgb|linear to say otherwise)"))
-    images = np.empty((len(paths), h, w, 3), np.float32)
-    usable = np.empty((len(paths), h, w), bool)
-    lut = srgb_to_linear(np.arange(256) / 255.0) if enc == "srgb" and bits == 8 else None
-    inten = _read_intensities(folder / "light_intensities.txt", len(paths), notes)
-    for k, p in enumerate(paths):
-        raw, top_k, _ = (first, top, bits) if k == 0 else _read_image(p)
-        if raw.shape[:2] != (h, w):
-            raise BadInputError(f"{p.name} is {raw.shape[1]}x{raw.shape[0]} px, {paths[0].name} is {w}x{h}",
-                                hint="every photograph of a capture must have the same size")
-        usable[k] = usable_from_levels(raw[..., 1]) if np.isfinite(top_k) else raw[..., 1] > 0
-        clipped = raw >= top_k
-        scale = top_k if np.isfinite(top_k) else 1.0
-        if enc == "linear":            # one division in float64, as the DiLiGenT reader does
-            images[k] = raw / (scale * (1.0 if inten is None else inten[k]))
-        else:
-            images[k] = lut[raw.astype(np.uint8)] if lut is not None else srgb_to_linear(raw / scale)
-            if inten is not None:
-                images[k] /= inten[k].astype(np.float32)
-        images[k][clipped] = np.nan
+    paths, vecs, lps, inten, notes = rti_files(folder, encoding)
+    bands = RTIBands(paths, inten, encoding)            # decoded once, held as stored
+    enc = bands.enc
+    notes.append(bands.note(encoding))
+    h, w = bands.h, bands.w
+    images, usable = bands.read(0, h)
+    del bands
     if pixel_pitch_mm is None:
         notes.append("an RTI capture carries no pixel pitch: heights are in pixels (--pixel-pitch to give it)")
     sphere_circle = None
@@ -192,9 +317,24 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
         # Relight reads 4 fields a line: no .lp it could not load
         lp_ok = all(len(p.name.split()) == 1 for p in paths)
         dirs, sphere_circle = _sphere_directions(images, sphere, notes, lp_ok)
+        keep, light_notes = check_lights(dirs, "the mirror sphere's directions", [p.name for p in paths])
+        notes.extend(light_notes)
+        if len(keep) < len(paths):
+            images, usable, dirs = images[keep], usable[keep], dirs[keep]
+            paths = [paths[k] for k in keep]
         lights_file = ([p.name for p in paths], dirs) if lp_ok else None
     if reference is not None:
         _divide_by_reference(images, reference, notes)
+    return _input_of(folder, paths, lps, (h, w), lambda: auto_masks(images), sphere_circle,
+                     dict(images=images, light_dirs=dirs, usable=usable, notes=notes, lights_file=lights_file),
+                     (enc, str(sphere), reference), pixel_pitch_mm)
+
+
+def _input_of(folder, paths, lps, shape, masks, sphere_circle, parts, choices, pixel_pitch_mm):
+    """The keyword arguments of a `PSInput` of an RTI capture from its `parts` (images, usable,
+    light_dirs, notes, lights_file): its masks (the folder's mask.png, or `masks()` -> (lit,
+    material), the sphere's disc left out) and its digest (the files and the `choices` read with)."""
+    h, w = shape
     mask_file = next((p for p in folder.iterdir() if p.name.lower() == "mask.png"), None)
     if mask_file is not None:          # the capture's own mask: the object, as a given mask
         mask = read_mask(mask_file)
@@ -203,7 +343,7 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
         material = mask.copy()
         source = str(mask_file)
     else:
-        mask, material = auto_masks(images)
+        mask, material = masks()
         source = "the lit pixels of the photographs"
     if sphere_circle is not None:      # the sphere is not the object
         rows, cols = np.mgrid[0:h, 0:w]
@@ -211,12 +351,39 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
         mask, material = mask & ~disc, material & ~disc
     extra = [p for p in (mask_file, folder / "light_intensities.txt") if p is not None and p.is_file()]
     stamps = sorted((p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in paths + lps + extra)
-    digest = hashlib.sha256(repr((stamps, enc, str(sphere), reference)).encode()).hexdigest()[:16]
-    return dict(images=images, light_dirs=dirs, positions_mm=None, mask=mask, pixel_pitch_mm=float(pixel_pitch_mm or 1.0),
-                kind="rti", source=folder, notes=notes,
-                material_mask=None if mask_file else material, usable=usable,
-                object_mask=mask & material, mask_source=source,
-                digest=digest, lights_file=lights_file)
+    digest = hashlib.sha256(repr((stamps,) + tuple(choices)).encode()).hexdigest()[:16]
+    return dict(parts, positions_mm=None, mask=mask, pixel_pitch_mm=float(pixel_pitch_mm or 1.0),
+                kind="rti", source=folder, material_mask=None if mask_file else material,
+                object_mask=mask & material, mask_source=source, digest=digest)
+
+
+def open_rti_bands(folder, work, maps, pixel_pitch_mm=None, encoding=None, sphere=None, reference=None):
+    """An RTI capture with an .lp read band by band, its photographs staged in `work`: (the
+    keyword arguments of its `PSInput`, images and usable None; its `RTIBands`; the brightest
+    green over the lights (H, W), or None with a mask.png). maps(bands) -> (brightest, median,
+    unknown) of the green channel over the lights, computed band by band (`capture.open`). None
+    for a capture without an .lp: its sphere is found on the whole photographs (`read_rti_capture`)."""
+    folder = Path(folder)
+    paths, vecs, lps, inten, notes = rti_files(folder, encoding)
+    if vecs is None:
+        return None
+    bands = RTIBands(paths, inten, encoding, work)
+    notes.append(bands.note(encoding))
+    if pixel_pitch_mm is None:
+        notes.append("an RTI capture carries no pixel pitch: heights are in pixels (--pixel-pitch to give it)")
+    dirs = _directions(vecs, lps[0], notes)
+    if reference is not None:
+        bands.set_reference(reference, notes)
+    top = []
+
+    def masks():
+        brightest, med, _ = maps(bands)
+        top.append(brightest)
+        return masks_from(brightest, med)
+    kwargs = _input_of(folder, paths, lps, (bands.h, bands.w), masks, None,
+                       dict(images=None, light_dirs=dirs, usable=None, notes=notes, lights_file=None),
+                       (bands.enc, str(sphere), reference), pixel_pitch_mm)
+    return kwargs, bands, (top[0] if top else None)
 
 
 def _sphere_directions(images, sphere, notes, lp_written=True):
@@ -272,13 +439,20 @@ def _divide_by_reference(images, box, notes):
     m, h, w, _ = images.shape
     if x1 > w or y1 > h:
         raise BadInputError(f"the reference patch ({x0},{y0})-({x1},{y1}) is outside the {w}x{h} px photographs")
-    level = np.array([np.nanmedian(im[y0:y1, x0:x1, 1]) for im in images])
+    scale = _reference_scale(images[:, y0:y1, x0:x1], box, notes)
+    for k in range(m):
+        images[k] /= np.float32(scale[k])
+
+
+def _reference_scale(patch, box, notes):
+    """Each photograph's light level over their mean, from the reference patch's (m, h, w, 3)
+    linear values: their median green; said in a note."""
+    x0, y0, x1, y1 = box
+    level = np.array([np.nanmedian(im[..., 1]) for im in patch])
     if not np.all(np.isfinite(level) & (level > 0)):
         raise BadInputError("the reference patch is black or clipped in some photographs",
                             hint="give a patch that every light reaches without clipping")
     scale = level / level.mean()
-    for k in range(m):
-        images[k] /= np.float32(scale[k])
     notes.append(f"each photograph divided by its reference patch ({x0},{y0})-({x1},{y1}): light levels "
                  f"{scale.min():.3f}–{scale.max():.3f} of their mean")
-
+    return scale

@@ -10,6 +10,7 @@ import numpy as np
 
 from facette.calib import ProfileError, ResolutionError, apply_flat_field, load, pitch_at_size
 from facette.errors import BadInputError
+from facette.io.lights import check_lights
 from facette.capture.base import PSInput, _digest
 from facette.capture.masks import auto_masks
 from facette.capture.usable import usable_from_green
@@ -143,7 +144,24 @@ def merged_lights(scan_dir, data):
                 merge_scan(scan_dir)
         finally:
             sd.unlock()
+    ids, notes = _lights_checked(ids, by_index, notes)
     return ids, [by_index[i] for i in ids], notes
+
+
+def _lights_checked(ids, by_index, notes):
+    """The frames' lights after the checks every capture's lights pass (`io.lights.check_lights`):
+    those below the horizon (a direction or a position with z < 0: a profile measured wrong or a
+    sign flipped) left out, said; (ids kept, notes)."""
+    dirs = np.array([by_index[i].direction for i in ids], dtype=np.float64).reshape(-1, 3)
+    for k, i in enumerate(ids):
+        pos = by_index[i].position_mm
+        if pos is not None and pos[2] < 0 <= dirs[k, 2]:
+            dirs[k, 2] = -max(abs(dirs[k, 2]), 1e-6)      # the light's position is below: so is the light
+    keep, light_notes = check_lights(dirs, "scan.json (the calibration profile's lights)",
+                                     [f"light {i}" for i in ids])
+    if len(keep) < len(ids):
+        light_notes = [n + "; check the profile (facette calibrate)" for n in light_notes]
+    return [ids[k] for k in keep], notes + light_notes
 
 
 def scan_manifest(scan_dir, allow_incomplete=False):
@@ -182,14 +200,7 @@ def scan_lights(scan_dir, data, lights):
         inten = inten * np.asarray(scale, dtype=np.float64)[None, :]
     pos = [l.position_mm for l in lights]
     positions = np.array(pos, dtype=np.float64) if all(p is not None for p in pos) else None
-    below = [int(l.index) for k, l in enumerate(lights)
-             if dirs[k, 2] < 0 or (positions is not None and positions[k, 2] < 0)]
-    notes = []
-    if below:    # a profile measured wrong (or a light's sign flipped): said, not silently fitted
-        notes.append(f"light(s) {below} of scan.json lie below the horizon (z < 0 in the calibration "
-                     "profile's directions or positions): no such light can light a surface the camera "
-                     "sees, and the normals fitted with it err; check the profile (facette calibrate)")
-    return dirs, inten, positions, notes
+    return dirs, inten, positions, []      # checked, those below the horizon left out: `merged_lights`
 
 
 def load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None):
