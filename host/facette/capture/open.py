@@ -8,15 +8,15 @@ import numpy as np
 from facette.capture.base import NO_PITCH_NOTE, ArrayBands, PSInput, _digest, _file_stamps, given_mask, source_path
 from facette.capture.diligent import DiligentBands, _Staged
 from facette.capture.masks import auto_masks, masks_from
-from facette.capture.rti import RTIBands, is_rti_capture, open_rti_bands, read_rti_capture
+from facette.capture.rti import RTIBands, is_rti_capture, open_rti_bands, read_rti_capture, rti_files
 from facette.capture.scan import (ScanBands, load_scan, merged_lights, profile_flat, scan_input, scan_lights,
                                   scan_manifest)
 from facette.capture.usable import usable_from_levels
 from facette.io.diligent import is_diligent_dir, read_diligent, read_diligent_lights
-from facette.io.png import read_mask
+from facette.io.png import png_size, read_mask
 from facette.scan import ScanDirectory
 
-__all__ = ["SCAN_MAPS_BYTES", "load_input", "open_bands", "open_capture"]
+__all__ = ["SCAN_MAPS_BYTES", "capture_size", "load_input", "open_bands", "open_capture"]
 
 
 def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False, capture=None):
@@ -210,3 +210,31 @@ def _open_rti(path, work, rows_for, run, pixel_pitch_mm, capture):
     kwargs, bands, top = opened
     n = rows[0] if rows else rows_for(bands.w, bands.h, len(bands.store), SCAN_MAPS_BYTES)
     return PSInput(**kwargs), bands, top, n
+
+
+def capture_size(source):
+    """(photographs, height, width) of a capture from its files' headers, nothing decoded; None
+    when they do not say (a scan not merged yet, a file no header reader knows)."""
+    try:
+        path = source_path(source)
+        if (path / "scan.json").is_file():
+            import OpenEXR
+            data = ScanDirectory(path).manifest
+            ids = data.frame_lights() or [int(l.index) for l in data.lights]
+            f = OpenEXR.InputFile(str(path / "hdr" / f"light_{ids[0]:02d}.exr"))
+            box = f.header()["dataWindow"]
+            f.close()
+            return len(ids), box.max.y - box.min.y + 1, box.max.x - box.min.x + 1
+        if is_diligent_dir(path):
+            names = [l.strip() for l in (path / "filenames.txt").read_text().splitlines() if l.strip()]
+            w, h = png_size(path / names[0])
+            return len(names), h, w
+        if is_rti_capture(path):
+            from PIL import Image
+            paths = rti_files(path)[0]
+            with Image.open(paths[0]) as im:
+                w, h = im.size
+            return len(paths), h, w
+    except Exception:            # the reader itself will say what is wrong with the capture
+        return None
+    return None

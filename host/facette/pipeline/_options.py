@@ -96,7 +96,7 @@ class ProcessOptions:
                                   "are measured on the Spectralon)", report=True)
     capture: dict = _option(None, "options of an RTI capture folder (photographs + .lp, or a mirror sphere in "
                             "view): {encoding: srgb|linear, sphere: Circle or (H, W) mask, reference: (x0, y0, "
-                            "x1, y1)}; see pipeline._rti_capture.read_rti_capture; recorded only when given "
+                            "x1, y1)}; see capture.rti.read_rti_capture; recorded only when given "
                             "(its values as text, a mask array left out)", record=False)
 
     memory: str = _option(None, "a memory budget ('2GB', '512MB', '3GiB' or bytes): photometric stereo then runs "

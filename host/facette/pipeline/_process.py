@@ -41,6 +41,7 @@ from facette.methods import PS_METHODS, photometric_stereo
 from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_from_height, MESH_MAX_SLOPE,
                            near_light_directions, dark_level_notes)
 from facette.pipeline._exports import gltf_inputs, gltf_material
+from facette.pipeline._budget import with_default_budget
 from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.capture import load_input, object_of
 from facette.capture.rti import LP_NAME
@@ -221,7 +222,9 @@ def process(source, outputs=None, out_dir=None, options=None, **overrides):
 def _process(source, outputs, out_dir, o):
     outputs = list(OUTPUTS if outputs is None else outputs)
     stages = stages_needed(outputs)
+    o, budget_note = with_default_budget(source, o, outputs)     # no --memory: from the free memory
     res = ProcessResult(options=dict(o.reported(), outputs=outputs))
+    res.notes.extend([budget_note] if budget_note else [])
     record_options = o.recorded()
     t_all, cpu_all = time.perf_counter(), time.process_time()
     if out_dir is not None and "report" in outputs:
