@@ -9,7 +9,7 @@ import numpy as np
 from facette.capture.masks import margin_of
 from facette.io.png import read_mask
 
-__all__ = ["ArrayBands", "PSInput", "NO_PITCH_NOTE", "source_path", "given_mask"]
+__all__ = ["Bands", "ArrayBands", "PSInput", "NO_PITCH_NOTE", "source_path", "given_mask"]
 
 
 @dataclass
@@ -86,7 +86,27 @@ def given_mask(inp, mask):
     inp.mask_source = f"--mask {mask}" if isinstance(mask, (str, os.PathLike)) else "the given mask"
 
 
-class ArrayBands:
+class Bands:
+    """What every capture's band reader is (`ScanBands`, `DiligentBands`, `RTIBands`, `ArrayBands`):
+    h, w : the photographs' size; inten : (m, 3) the lights' intensities the values are divided by
+    (None: none); encoding : how the stored values became linear ("linear", or "srgb" for sRGB
+    photographs decoded); read(r0, r1) -> (images (m, r1 - r0, W, 3) float32, NaN where unknown,
+    usable (m, r1 - r0, W) bool) of rows r0..r1; spec() : what `capture.open_bands` needs to open
+    the same reader in another process; close()."""
+    inten = None
+    encoding = "linear"
+
+    def read(self, r0, r1, flat=None):
+        raise NotImplementedError
+
+    def spec(self):
+        raise NotImplementedError
+
+    def close(self):
+        pass
+
+
+class ArrayBands(Bands):
     """Photographs held in memory (a script's arrays, or a capture read whole) behind the band
     readers' interface: read(r0, r1) -> (images (m, r1 - r0, W, C) float32, usable (m, r1 - r0, W)
     bool: given, or known and > 0 where none is given)."""

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
+from facette.capture.base import Bands
 from facette.capture.usable import usable_from_levels
 from facette.io.diligent import png_radiance, size_mismatch
 from facette.io.png import read_png
@@ -43,7 +44,7 @@ class _Staged:
         return out
 
 
-class DiligentBands:
+class DiligentBands(Bands):
     """A DiLiGenT-style folder's photographs staged to raw files (`_tiles._Staged`), read a band
     at a time as `read_diligent` and `load_input` make them (usable: `usable_from_levels`)."""
 

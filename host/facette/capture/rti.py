@@ -22,6 +22,7 @@ from facette.calib.mirror_sphere import Circle, mirror_sphere_directions
 from facette.errors import BadInputError
 from facette.io.lights import check_lights, photograph_paths
 from facette.io.png import read_mask
+from facette.capture.base import Bands
 from facette.capture.masks import masks_from
 from facette.capture.usable import usable_from_levels
 
@@ -191,7 +192,7 @@ def rti_files(folder, encoding=None):
     return paths, vecs, lps, inten, notes
 
 
-class RTIBands:
+class RTIBands(Bands):
     """An RTI capture's photographs read a band of rows at a time: linear (sRGB decoded, or
     divided by the top of the file's range), divided by the light's intensity (and reference
     patch, `set_reference`), NaN where clipped; usable from the file's grey levels. Each
@@ -220,6 +221,10 @@ class RTIBands:
                 np.ascontiguousarray(raw).tofile(self.store[-1])
             del raw
         self.enc = encoding or ("srgb" if self.bits == 8 else "linear")
+
+    @property
+    def encoding(self):
+        return self.enc
 
     def note(self, encoding=None):
         return (f"RTI capture: {len(self.paths)} {self.bits}-bit photographs read as {self.enc}"

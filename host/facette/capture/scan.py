@@ -11,7 +11,7 @@ import numpy as np
 from facette.calib import ProfileError, ResolutionError, apply_flat_field, load, pitch_at_size
 from facette.errors import BadInputError
 from facette.io.lights import check_lights
-from facette.capture.base import PSInput, _digest
+from facette.capture.base import Bands, PSInput, _digest
 from facette.capture.masks import auto_masks
 from facette.capture.usable import usable_from_green
 from facette.scan import MissingFrameWarning, ScanDirectory, merge_scan, stale_lights
@@ -315,7 +315,7 @@ def profile_flat(data, scan_dir, size):
     return pitch, notes, np.asarray(at.flat_field, np.float32)
 
 
-class ScanBands:
+class ScanBands(Bands):
     """A scan's HDR images (hdr/light_XX.exr and _var.exr), read a band of scanlines at a time,
     as `_scan_input._read_hdr_fast` then `load_scan` make them: NaN where the variance is not
     finite, `usable` from the green channel before the light's intensity is divided out, then

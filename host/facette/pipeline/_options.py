@@ -100,9 +100,10 @@ class ProcessOptions:
                             "(its values as text, a mask array left out)", record=False)
 
     memory: str = _option(None, "a memory budget ('2GB', '512MB', '3GiB' or bytes): photometric stereo then runs "
-                          "over bands of rows in it (a per-pixel method only: pipeline._tiles.TILED_METHODS); a scan's or "
-                          "a DiLiGenT folder's images are read band by band, never whole (the samples, PTM and HSH fits "
-                          "too); recorded only when given")
+                          "over bands of rows in it (a per-pixel method only: pipeline._tiles.TILED_METHODS); any capture's "
+                          "photographs are read band by band, never whole (the samples, PTM and HSH fits too); recorded "
+                          "only when given; None: a budget from the free memory (pipeline._budget), used when the "
+                          "capture does not fit whole")
 
     scheduler: str = _option(None, "with memory: the address of a dask.distributed scheduler (tcp://host:8786) whose "
                              "workers run the bands (they must see the scan's path); None: here, one after the other",
