@@ -17,10 +17,12 @@ __all__ = ["FREE_SHARE", "RESERVE_BYTES", "WHOLE_BYTES_PER_PIXEL_LIGHT", "free_m
 # of the free memory, the share a run takes, and what it leaves besides (the system, a viewer)
 FREE_SHARE = 0.8
 RESERVE_BYTES = 1 * 10 ** 9
-# the whole reading's peak per pixel and light, every output: issue 49 measured ~7 GB for a 12 MP
-# folder of 12 lights (48.6 bytes per pixel-light: float32 RGB photographs, their usable flags, the
-# channel chosen for the solve, the light gains' copy and the method's temporaries), rounded up
-WHOLE_BYTES_PER_PIXEL_LIGHT = 50
+# the whole reading's peak per pixel and light (float32 RGB photographs, their usable flags, the
+# channel chosen for the solve, the light gains' copy, the method's temporaries), less the process's
+# own PROCESS_BYTES: the 12 MP relief slab of `facette bench size`, 12 lights, normals and height,
+# max RSS 9.68 GB with the default li_alternating (63 bytes), 4.52 GB with rank_trimmed (28); issue
+# 49's every output, 7 GB (46); rounded up from the largest
+WHOLE_BYTES_PER_PIXEL_LIGHT = 66
 
 
 def free_memory():
