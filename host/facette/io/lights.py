@@ -112,9 +112,9 @@ def photograph_paths(folder, names, where, first_line=2):
     twice = {p: lines for p, lines in seen.items() if len(lines) > 1}
     if twice:
         p, lines = next(iter(twice.items()))
-        raise BadInputError(f"{where}: {p.name} is listed {len(lines)} times (lines {', '.join(map(str, lines))}) "
-                            f"and {len(twice) - 1} other photograph(s) more than once: one photograph cannot be "
-                            "taken under two lights",
+        others = f" (and {len(twice) - 1} other photograph(s) more than once)" if len(twice) > 1 else ""
+        raise BadInputError(f"{where}: {p.name} is listed {len(lines)} times (lines {', '.join(map(str, lines))})"
+                            f"{others}: one photograph cannot be taken under two lights",
                             hint="give each photograph once, with its own light")
     notes = []
     if outside:
