@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 
 from facette._threads import run_blocks
-from facette.errors import BadInputError
 from facette.io.lights import check_lights, photograph_paths
 from facette.io.png import read_mask, read_png, write_png, write_mask
 
