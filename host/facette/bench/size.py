@@ -224,7 +224,7 @@ def scan_size(size, work, memory, method, untiled, outputs="normals,height"):
         _, row["gen_s"], row["gen_gb"] = _run_rss(_measured(SELF + ["--_scan", folder, scan]))
     else:
         row["gen_s"] = row["gen_gb"] = float("nan")
-    # green, as --memory solves (its bands read one channel): the two runs compared like with like
+    # green in every run (--memory solves the default mean too): figures comparable with earlier rounds
     base = FACETTE + ["process", scan, "--outputs", outputs, "--method", method, "--channels", "green",
                       "--overwrite", "-o"]
     out_u, out_m = work / f"scan_untiled_{w}x{h}", work / f"scan_memory_{w}x{h}"
@@ -273,7 +273,7 @@ def _dask_child(scan, out, memory, method, kill_after):
             threading.Timer(kill_after, lambda: os.kill(pids[0], signal.SIGKILL)).start()
         t0 = time.perf_counter()
         res = process(scan, outputs=["normals", "height"], out_dir=out, method=method, memory=memory,
-                      scheduler=cluster.scheduler_address, overwrite=True)
+                      channels="green", scheduler=cluster.scheduler_address, overwrite=True)
         seconds = time.perf_counter() - t0
         rss = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6)
         after = sorted(client.run(os.getpid).values())
@@ -337,7 +337,8 @@ def one_size(size, work, memory, method, untiled):
         exr = out / "normal.exr"
     out_mem = work / f"memory_{w}x{h}"
     stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", folder, "-o", out_mem, "--outputs", "normals,height",
-                                                     "--method", method, "--memory", memory, "--overwrite"]))
+                                                     "--method", method, "--channels", "green", "--memory", memory,
+                                                     "--overwrite"]))
     bands = re.search(r"over (\d+) bands of (\d+) rows", stdout)
     row.update(mem_s=wall, mem_gb=gb, mem_tiles=int(bands.group(1)) if bands else -1,
                mem_ps=_times(stdout).get("ps", float("nan")))

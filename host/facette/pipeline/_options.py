@@ -56,7 +56,8 @@ class ProcessOptions:
                             "mean (default: of R, G, B; chosen on renders, pipeline._channels.CHANNELS_DEFAULT), "
                             "weighted (R, G, B weighted by mean/variance, one weight per channel, the variance "
                             "estimated from the images) or green (the thesis's); "
-                            "the albedo stays per channel; with --memory: green", report=True)
+                            "the albedo stays per channel; with --memory: mean as whole, weighted falls back to "
+                            "green", report=True)
     t_ombre: float = _option(T_OMBRE, "shadow angle threshold, rad (ps_hierarchical_tautzia2016)", report=True)
     t_spec: float = _option(T_SPEC, "specular variance threshold (ps_hierarchical_tautzia2016)", report=True)
     t_source: float = _option(T_SOURCE, "max |entry| of a triplet's inverse (ps_hierarchical_tautzia2016)",

@@ -11,7 +11,10 @@ the outputs asked for:
   `auto_masks` splits), once for photometric stereo; a DiLiGenT folder's PNGs are staged once
   to raw files (`_tiles._Staged`: PNG decodes whole images only) and read band by band. The
   quality counts (`check_samples`) add up over the bands and are judged after the bands (the
-  same verdict, later). The reflectance samples (samples, brdf, gltf) are taken in each band
+  same verdict, later). The normals are solved on the channel the untiled run uses by default,
+  the mean of R, G, B appended to each band (`_channels.with_solve_channel`; "weighted" needs
+  the whole images' noise: green, said): the same normals and heights as untiled (rank_trimmed:
+  the same bytes on a DiLiGenT crop, a scan and an RTI capture). The reflectance samples (samples, brdf, gltf) are taken in each band
   right after its photometric stereo (with its shadows), the bands' hemisphere sensors merged
   (the same cells as untiled; the raw subset kept beside them is drawn band by band).
   relight.ptm and relight.rti are fitted over the bands once photometric stereo is done, with
@@ -39,6 +42,7 @@ finished bands do not pile up; a band whose worker dies is run again by the sche
 import shutil
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -46,10 +50,12 @@ import numpy as np
 from facette._memory import disk_array, hand_back, release
 from facette.methods import PS_METHODS, photometric_stereo
 from facette.capture import open_bands, open_capture, source_path
+from facette.pipeline._channels import SOLVE_CHANNEL, channel_weights, with_solve_channel
 from facette.pipeline._quality import add_counts, carried, check_counts, light_geometry, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
-from facette.pipeline._tiles import FIELD_BYTES, PROCESS_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, rows_per_tile
+from facette.pipeline._tiles import (FIELD_BYTES, PROCESS_BYTES, SOLVE_CHANNEL_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS,
+                                    rows_per_tile)
 from facette.recon import PSResult, near_light_directions
 
 __all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "ps_bands", "streamed_ps",
@@ -90,7 +96,7 @@ def streamed(source, outputs):
     return path.is_dir()
 
 
-def _rows(w, h, m, memory, method, rows, maps_bytes):
+def _rows(w, h, m, memory, method, rows, maps_bytes, extra=0):
     if rows is not None:
         if int(rows) < 1:
             raise ValueError(f"rows must be >= 1, got {rows}")
@@ -98,15 +104,16 @@ def _rows(w, h, m, memory, method, rows, maps_bytes):
     # the budget is the whole process's: the bands get what the libraries and the maps this run
     # holds at the image's size (maps_bytes per pixel) leave; the ON_DISK maps are not held
     return rows_per_tile(w, h, m, memory, method, tuple(k for k in FIELD_BYTES if k not in ON_DISK),
-                         held=PROCESS_BYTES + maps_bytes * w * h)
+                         held=PROCESS_BYTES + maps_bytes * w * h, extra_per_pixel_light=extra)
 
 
-def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None):
+def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None, weights=None):
     """A band's photometric stereo: (r0, r1, PSResult without per-light flags or None when the
     mask leaves the band out, its quality counts or None, read seconds, PS seconds, its
     reflectance samples or None). samples: {sample_mask: the band's, theta0_deg, total} to take
     the band's samples (`_samples.samples_sensor`: (HemisphereSensor, raw samples)) with the
-    shadows it found."""
+    shadows it found. weights: (3,) the solve's channel as a sum of R, G, B appended to the band
+    (`_channels.with_solve_channel`, as the whole reading's `images_for_solve`), None: green."""
     t0 = time.perf_counter()
     reader = open_bands(spec)
     try:
@@ -124,7 +131,14 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
         positions, shape, pitch = near
         dirs, falloff = near_light_directions(positions, shape, pitch, rows=(r0, r1))
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
-    part = photometric_stereo(images, dirs, method=method, options=dict(bag, mask=carried(mask, usable)))
+    solve = images
+    if weights is not None:
+        solve = with_solve_channel(images, weights, bag.get("saturation"))
+        bag["channel"] = SOLVE_CHANNEL
+    part = photometric_stereo(solve, dirs, method=method, options=dict(bag, mask=carried(mask, usable)))
+    del solve
+    if weights is not None:                    # the albedo's R, G, B only (`_channels.results_in_rgb`)
+        part = replace(part, albedo=np.ascontiguousarray(part.albedo[..., :3]))
     taken = None
     if samples is not None:
         taken = samples_sensor(images, samples["sample_mask"], part, dirs, samples["theta0_deg"], seed=r0,
@@ -256,12 +270,18 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
     t0 = time.perf_counter()
     work = Path(tempfile.mkdtemp(prefix="facette-tiles-"))
     client = None
+    # the mean of R, G, B needs no figure of the whole images: the same channel in every band as whole;
+    # "weighted" needs the whole images' noise: green
+    weights = channel_weights(np.zeros((1, 1, 1, 3), np.float32), None, "mean")[0] if o.channels == "mean" else None
+    used = ({"channels": "green", "weights": [0.0, 1.0, 0.0]} if weights is None else
+            {"channels": "mean", "weights": [round(float(x), 4) for x in weights]})
     try:
         if o.scheduler is not None:
             from dask.distributed import Client
             client = Client(o.scheduler)
         inp, bands, top, n = open_capture(
-            source, work, lambda w, h, m, maps_bytes: _rows(w, h, m, o.memory, o.method, rows, maps_bytes),
+            source, work, lambda w, h, m, maps_bytes: _rows(w, h, m, o.memory, o.method, rows, maps_bytes,
+                                                            0 if weights is None else SOLVE_CHANNEL_BYTES),
             lambda fn, calls: _map(fn, calls, client), o.allow_incomplete, o.pixel_pitch_mm, o.mask, o.capture,
             lambda: hand_back(o.memory_bytes))
         try:
@@ -288,12 +308,11 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
                 return None if not samples else {"sample_mask": smask[r0:r1], "theta0_deg": o.theta0_deg,
                                                  "total": total}
             calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
-                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1)) for r0, r1 in _bands(h, n))
+                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1), weights) for r0, r1 in _bands(h, n))
             ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client), on_disk=True)
             hand_back(o.memory_bytes)   # the bands' heap: not under the stages after them
-            ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n,
-                           channels={"channels": "green", "weights": [0.0, 1.0, 0.0]})   # pipeline._channels
-            if o.channels != "green":
+            ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n, channels=used)   # pipeline._channels
+            if o.channels not in ("green", "mean"):
                 res.notes.append(f"channels: {o.channels} asked; with --memory the normals are solved on green")
             taken = ps.info.pop("samples", None)
             if samples:

@@ -49,6 +49,9 @@ PROCESS_BYTES = 450 * 10 ** 6
 # Bytes per pixel of each output `ps_tiled` can keep at the image's size.
 FIELD_BYTES = {"normal": 12, "albedo": 12, "valid": 1, "residual": 4, "n_triplets": 2, "skipped": 1}
 MIN_ROWS = 1
+# a band's photographs with the solve's channel appended (pipeline._channels.with_solve_channel: the
+# (m, rows, W, 4) float32 copy, 16 bytes, and the method's fourth channel in its temporaries)
+SOLVE_CHANNEL_BYTES = 24
 # The per-pixel methods: a pixel's normal from its own values only (tests check each tiled).
 TILED_METHODS = ("woodham1980", "hierarchical_tautzia2016", "rank_trimmed", "bipolynomial_shi2014",
                  "bivariate_ikehata2014", "consensus_higo2010")
@@ -72,14 +75,14 @@ def parse_memory(text):
 
 
 def rows_per_tile(width, height, lights, memory, method=PS_DEFAULT, keep=tuple(FIELD_BYTES),
-                  per_light_flags=False, held=0):
+                  per_light_flags=False, held=0, extra_per_pixel_light=0):
     """Rows of a band so that `ps_tiled` stays within `memory` (bytes, or a text for
     `parse_memory`). Staging (one decoded photograph and its RGB copy, 12 bytes per pixel at 16
     bits) comes first; then `held` (bytes the caller holds besides: the process's libraries and
     its maps at the image's size, so that the budget is the whole process's), the outputs kept
     whole (`keep`, FIELD_BYTES each, and 2 x lights bytes per pixel with `per_light_flags`), the
     mask, the band's fixed part and the band's rows, each the method's BYTES_PER_PIXEL_LIGHT x
-    lights x width bytes.
+    lights x width bytes (plus `extra_per_pixel_light`: the solve's channel appended, SOLVE_CHANNEL_BYTES).
 
     Raises ValueError when even one row does not fit."""
     memory = parse_memory(memory)
@@ -91,7 +94,7 @@ def rows_per_tile(width, height, lights, memory, method=PS_DEFAULT, keep=tuple(F
     fixed = int(held) + pixels * (per_out + 1) + BAND_FIXED_BYTES
     per_pixel_light = BYTES_PER_PIXEL_LIGHT.get(PS_METHODS.canonical(method),
                                                 max(BYTES_PER_PIXEL_LIGHT.values()))
-    per_row = width * lights * per_pixel_light
+    per_row = width * lights * (per_pixel_light + extra_per_pixel_light)
     if memory < staging or memory - fixed < per_row * MIN_ROWS:
         need = max(staging, fixed + per_row * MIN_ROWS) / 1e9
         besides = f" ({held / 1e9:.2f} GB held besides: libraries and maps)" if held else ""

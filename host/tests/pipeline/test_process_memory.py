@@ -21,9 +21,9 @@ STREAMED = ["normals", "albedo", "mask", "height", "mesh", "report"]
 ROWS = 5
 M = "rank_trimmed"      # a per-pixel method (the process default, li_alternating, needs the whole image)
 
-# --memory solves the normals on green (pipeline._channels.images_for_solve): the untiled runs compared
-# with it do too
-WHOLE_CHANNELS = "green"
+# --memory solves the normals on the mean of R, G, B in every band, as the untiled run's default does
+# (pipeline._tiled_process: the same appended channel, `_channels.with_solve_channel`)
+WHOLE_CHANNELS = "mean"
 
 
 def _angle_deg(a, b):
@@ -107,7 +107,7 @@ def test_scan_directory_in_bands_gives_the_untiled_results(scan, tmp_path, small
     whole = process(scan, channels=WHOLE_CHANNELS, outputs=STREAMED, out_dir=tmp_path / "whole", method=M)
     _never_whole(monkeypatch)
     tiled = process(scan, outputs=STREAMED, out_dir=tmp_path / "tiled", memory="1GB", method=M)
-    assert tiled.ps.info["channels"]["channels"] == "green" and any("with --memory" in n for n in tiled.notes)
+    assert tiled.ps.info["channels"]["channels"] == "mean" and not any("with --memory" in n for n in tiled.notes)
     _same(whole, tiled)
     assert any("near lights" in n for n in tiled.notes)
     assert whole.errors and tiled.errors["normal_median_deg"] == pytest.approx(whole.errors["normal_median_deg"],
@@ -230,3 +230,9 @@ def test_bands_on_a_dask_cluster_give_the_untiled_results(request, cluster, tmp_
 def test_a_scheduler_without_memory_is_refused():
     with pytest.raises(ValueError, match="give --memory too"):
         ProcessOptions(scheduler="tcp://127.0.0.1:8786")
+
+
+def test_weighted_channels_with_memory_fall_back_to_green_and_say_so(diligent):
+    tiled = process(diligent, outputs=["normals"], method=M, memory="1GB", channels="weighted")
+    assert tiled.ps.info["channels"]["channels"] == "green"
+    assert any("channels: weighted asked; with --memory the normals are solved on green" in n for n in tiled.notes)
