@@ -328,10 +328,13 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
             images, usable, dirs = images[keep], usable[keep], dirs[keep]
             paths = [paths[k] for k in keep]
         lights_file = ([p.name for p in paths], dirs) if lp_ok else None
-    if reference is not None:
-        _divide_by_reference(images, reference, notes)
+    factors = None if inten is None else np.asarray(inten, float)
+    if reference is not None:      # what each photograph was divided by, to fit them as photographed
+        level = _divide_by_reference(images, reference, notes)[:, None]
+        factors = level if factors is None else factors * level
     return _input_of(folder, paths, lps, (h, w), lambda: auto_masks(images), sphere_circle,
-                     dict(images=images, light_dirs=dirs, usable=usable, notes=notes, lights_file=lights_file),
+                     dict(images=images, light_dirs=dirs, usable=usable, notes=notes, lights_file=lights_file,
+                          photographed={"encoding": enc, "gains": factors}),
                      (enc, str(sphere), reference), pixel_pitch_mm)
 
 
@@ -377,8 +380,10 @@ def open_rti_bands(folder, work, maps, pixel_pitch_mm=None, encoding=None, spher
     if pixel_pitch_mm is None:
         notes.append("an RTI capture carries no pixel pitch: heights are in pixels (--pixel-pitch to give it)")
     dirs = _directions(vecs, lps[0], notes)
-    if reference is not None:
+    factors = None if inten is None else np.asarray(inten, float)
+    if reference is not None:      # what each photograph was divided by, to fit them as photographed
         bands.set_reference(reference, notes)
+        factors = bands.scale[:, None] if factors is None else factors * bands.scale[:, None]
     top = []
 
     def masks():
@@ -386,7 +391,8 @@ def open_rti_bands(folder, work, maps, pixel_pitch_mm=None, encoding=None, spher
         top.append(brightest)
         return masks_from(brightest, med)
     kwargs = _input_of(folder, paths, lps, (bands.h, bands.w), masks, None,
-                       dict(images=None, light_dirs=dirs, usable=None, notes=notes, lights_file=None),
+                       dict(images=None, light_dirs=dirs, usable=None, notes=notes, lights_file=None,
+                            photographed={"encoding": bands.enc, "gains": factors}),
                        (bands.enc, str(sphere), reference), pixel_pitch_mm)
     return kwargs, bands, (top[0] if top else None)
 
@@ -447,6 +453,7 @@ def _divide_by_reference(images, box, notes):
     scale = _reference_scale(images[:, y0:y1, x0:x1], box, notes)
     for k in range(m):
         images[k] /= np.float32(scale[k])
+    return scale
 
 
 def _reference_scale(patch, box, notes):

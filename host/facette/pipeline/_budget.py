@@ -47,25 +47,25 @@ def default_budget(free=None):
 
 
 def with_default_budget(source, o, outputs, free=None):
-    """(options, note or None): `o` itself when --memory was given (or nothing can be known); else
+    """(options, notes: [the budget's] or []): `o` itself when --memory was given (or nothing can be known); else
     the budget from the free memory, said, and `o` with it as its memory when the capture does
     not fit whole (the BRDF-aware default, which needs every pixel at once, then gives way to the
     per-pixel PS_DEFAULT, said)."""
     if o.memory is not None:
-        return o, None
+        return o, []
     free = free_memory() if free is None else free
     budget, size = default_budget(free), capture_size(source)
     if budget is None or size is None:
-        return o, None
+        return o, []
     m, h, w = size
     need = PROCESS_BYTES + WHOLE_BYTES_PER_PIXEL_LIGHT * m * h * w
     said = (f"memory: a budget of {budget / 1e9:.1f} GB ({FREE_SHARE:.0%} of the {free / 1e9:.1f} "
             f"GB free, less {RESERVE_BYTES / 1e9:.0f} GB; --memory to set it)")
     if need <= budget:
-        return o, f"{said}: the capture ({m} photographs of {w}x{h} px, ~{need / 1e9:.1f} GB whole) is read whole"
+        return o, [f"{said}: the capture ({m} photographs of {w}x{h} px, ~{need / 1e9:.1f} GB whole) is read whole"]
     if not streamed(source, outputs) or o.interreflections is True:
-        return o, (f"{said} cannot hold the capture read whole (~{need / 1e9:.1f} GB) and the outputs asked for "
-                   "need it whole: the run may exceed the machine's memory; give --memory to read it band by band")
+        return o, [f"{said} cannot hold the capture read whole (~{need / 1e9:.1f} GB) and the outputs asked for "
+                   "need it whole: the run may exceed the machine's memory; give --memory to read it band by band"]
     method = PS_METHODS.canonical(o.method)
     switched = method not in TILED_METHODS
     note = (f"{said}: the capture ({m} photographs of {w}x{h} px) needs ~{need / 1e9:.1f} GB whole: read band by "
@@ -73,4 +73,4 @@ def with_default_budget(source, o, outputs, free=None):
     if switched:
         why = WHOLE_IMAGE_METHODS.get(method, "it is not known to be per-pixel")
         note += f", photometric stereo with {PS_DEFAULT} ({method} needs every pixel at once: {why})"
-    return replace(o, memory=str(budget), method=PS_DEFAULT if switched else o.method), note
+    return replace(o, memory=str(budget), method=PS_DEFAULT if switched else o.method), [note]

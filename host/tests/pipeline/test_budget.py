@@ -20,12 +20,12 @@ def test_the_budget_is_the_free_memory_less_a_margin():
 
 def test_a_capture_that_fits_is_read_whole_and_the_budget_said(tmp_path):
     scan = _scan(tmp_path)
-    o, note = _budget.with_default_budget(scan, ProcessOptions(), ["normals"], free=6e9)
+    o, notes = _budget.with_default_budget(scan, ProcessOptions(), ["normals"], free=6e9)
     assert o.memory is None and o.method == ProcessOptions().method
-    assert note == ("memory: a budget of 3.8 GB (80% of the 6.0 GB free, less 1 GB; --memory to set it): the capture "
-                    "(12 photographs of 64x48 px, ~0.5 GB whole) is read whole")
+    assert notes == ["memory: a budget of 3.8 GB (80% of the 6.0 GB free, less 1 GB; --memory to set it): the capture "
+                     "(12 photographs of 64x48 px, ~0.5 GB whole) is read whole"]
     given = ProcessOptions(memory="2GB", method="rank_trimmed")
-    assert _budget.with_default_budget(scan, given, ["normals"]) == (given, None)
+    assert _budget.with_default_budget(scan, given, ["normals"]) == (given, [])
 
 
 def test_a_capture_too_large_is_read_in_bands_in_the_budget(tmp_path, monkeypatch):
