@@ -17,10 +17,12 @@ from facette.recon import HSH_ORDERS, INTEGRATION_DEFAULT, INTEGRATION_METHODS, 
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import THETA0_DEG
 
-__all__ = ["ProcessOptions", "GAINS_AUTO", "IR_AUTO"]
+__all__ = ["ProcessOptions", "GAINS_AUTO", "IR_AUTO", "SHADOWS_AUTO", "SHADOWS_CHOICES"]
 
 GAINS_AUTO = "auto"  # light_gains: for folders solved with the default (`process`)
 IR_AUTO = "auto"    # interreflections: removed where the input allows it (`process`)
+SHADOWS_AUTO = "auto"   # shadows: cast shadows found where the input shows them (pipeline._shadows)
+SHADOWS_CHOICES = (SHADOWS_AUTO, "on", "off")
 
 
 def _option(default, doc, record=True, report=False, factory=None):
@@ -90,6 +92,9 @@ class ProcessOptions:
                                        "images before photometric stereo (see `process`): True, False, or 'auto' "
                                        "(default): on a reflectance-calibrated scan read whole, off elsewhere "
                                        "(a note says why)", report=True)
+    shadows: str = _option(SHADOWS_AUTO, "cast shadows from the surface's own heights (pipeline._shadows): 'auto' "
+                           "(default: where the first pass's heights hide lights from enough samples), 'on' or "
+                           "'off'; a hidden light is no sample for that pixel", report=True)
     light_gains: object = _option(GAINS_AUTO, "read each light's relative intensity from the photographs and "
                                   "correct the given ones (pipeline._light_gains): True, False, or 'auto' (default): "
                                   "for folders (DiLiGenT, RTI captures) solved with li_alternating under lights where "
@@ -135,6 +140,8 @@ class ProcessOptions:
             raise BadInputError(f"interreflections must be True, False or {IR_AUTO!r}, got {self.interreflections!r}")
         if self.interreflections != IR_AUTO:
             object.__setattr__(self, "interreflections", bool(self.interreflections))
+        if self.shadows not in SHADOWS_CHOICES:
+            raise BadInputError(f"shadows must be one of {', '.join(SHADOWS_CHOICES)}, got {self.shadows!r}")
         if isinstance(self.light_gains, str) and self.light_gains != GAINS_AUTO \
                 or self.light_gains not in (True, False, GAINS_AUTO):
             raise BadInputError(f"light_gains must be True, False or {GAINS_AUTO!r}, got {self.light_gains!r}")

@@ -48,6 +48,7 @@ from facette.capture import LP_NAME, load_input, object_of
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
 from facette.pipeline._light_gains import with_light_gains
+from facette.pipeline._shadows import shadows_wanted, with_shadows
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_bands import relight_bands, relight_exposure, relight_stage, write_relight_web
@@ -251,7 +252,7 @@ def _process(source, outputs, out_dir, o):
                                                samples="samples" in stages,
                                                relight=fits if {"ptm", "rti"} & set(outputs) else None)
         previous, images, direct = claimed["previous"], None, None
-        interreflections_wanted(o, inp, res.notes)       # never with --memory: its note says why
+        interreflections_wanted(o, inp, res.notes), shadows_wanted(o, light_dirs, res.notes)   # their notes: why not
         if res.ps is None:
             _streamed_result(res, inp, ps, top)
         del top                    # its object mask made: 4 bytes per pixel no later stage reads (100 MP: 0.4 GB)
@@ -276,8 +277,7 @@ def _process(source, outputs, out_dir, o):
     m, h, w, c = inp.images.shape
 
     t0 = time.perf_counter()
-    light_dirs = inp.light_dirs
-    images = inp.images
+    light_dirs, images = inp.light_dirs, inp.images
     if o.near_light and inp.positions_mm is not None:
         light_dirs, falloff = near_light_directions(inp.positions_mm, (h, w), inp.pixel_pitch_mm)
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
@@ -292,9 +292,9 @@ def _process(source, outputs, out_dir, o):
     method_name = PS_METHODS.canonical(o.method)
     solve_in, used = images_for_solve(images, inp.mask, o, bag, res.notes)     # the channels the normals see
     solve_in, images = with_light_gains(res, o, inp, method_name, solve_in, images, bag)
-    direct, ps = solve_in, None
-    if interreflections_wanted(o, inp, res.notes):
-        direct, ps = solve_without_interreflections(res, o, solve_in, light_dirs, inp.mask, method_name, bag)
+    direct, ps = solve_without_interreflections(res, o, solve_in, light_dirs, inp, method_name, bag) \
+        if interreflections_wanted(o, inp, res.notes) else (solve_in, None)
+    ps = with_shadows(res, o, direct, light_dirs, inp.mask, method_name, bag, ps)    # cast shadows, alternated
     if ps is None and o.memory is not None:     # over bands of the images held whole
         ps = in_memory_ps(direct, light_dirs, o, bag, outputs, res)
     elif ps is None:

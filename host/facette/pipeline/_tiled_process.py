@@ -54,6 +54,7 @@ from facette.pipeline._channels import SOLVE_CHANNEL, channel_weights, with_solv
 from facette.pipeline._quality import add_counts, carried, check_counts, light_geometry, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
+from facette.pipeline._scheduler import connect_scheduler
 from facette.pipeline._tiles import (FIELD_BYTES, PROCESS_BYTES, SOLVE_CHANNEL_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS,
                                     rows_per_tile)
 from facette.recon import PSResult, near_light_directions
@@ -277,8 +278,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
             {"channels": "mean", "weights": [round(float(x), 4) for x in weights]})
     try:
         if o.scheduler is not None:
-            from dask.distributed import Client
-            client = Client(o.scheduler)
+            client = connect_scheduler(o.scheduler)      # bad input within seconds, not a 30 s traceback
         inp, bands, top, n = open_capture(
             source, work, lambda w, h, m, maps_bytes: _rows(w, h, m, o.memory, o.method, rows, maps_bytes,
                                                             0 if weights is None else SOLVE_CHANNEL_BYTES),
