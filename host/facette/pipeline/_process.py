@@ -56,11 +56,12 @@ from facette.pipeline._rti_exposure import record_exposure
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
 from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry, truth_errors
 from facette.pipeline._report import report_fit_section, write_report
+from facette.pipeline._relight_model_stage import relight_model_stage, save_relight_model
 from facette.pipeline._samples import _samples_stage  # bench/recon.py imports it from here too
 
 __all__ = ["OUTPUTS", "ALL_OUTPUTS", "STAGES_FOR", "ProcessOptions", "ProcessResult", "process", "stages_needed"]
 
-OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
+OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "relight", "gltf", "report")
 # asked for by name only (not in the default): relight_web/ costs ~0.4 CPU s per megapixel of JPEG tiles
 ALL_OUTPUTS = OUTPUTS + ("relight-web",)
 STAGES_FOR = {
@@ -68,18 +69,20 @@ STAGES_FOR = {
     "height": ("load", "ps", "integrate"), "mesh": ("load", "ps", "integrate", "mesh"),
     "samples": ("load", "ps", "samples"), "brdf": ("load", "ps", "samples", "fit"),
     # the polynomial files need the images and the object's mask, not the normals
-    "ptm": ("load", "ptm"), "rti": ("load", "hsh"), "relight-web": ("load", "hsh"), "report": ("load", "ps"),
+    "ptm": ("load", "ptm"), "rti": ("load", "hsh"), "relight-web": ("load", "hsh"),
+    "relight": ("load", "ps", "integrate", "relight"), "report": ("load", "ps", "integrate", "relight"),
     "gltf": ("load", "ps", "integrate", "mesh", "samples", "fit")}
 FILES = {"normals": "normal.exr", "albedo": "albedo.exr", "mask": "mask.png", "height": "height.exr",
          "mesh": "mesh.ply", "samples": "samples.npz", "brdf": "brdf.json", "ptm": "relight.ptm",
-         "rti": "relight.rti", "relight-web": "relight_web", "gltf": "model.glb", "report": "report.html"}
+         "rti": "relight.rti", "relight-web": "relight_web", "relight": "relight_model.npz", "gltf": "model.glb",
+         "report": "report.html"}
 
 def stages_needed(outputs):
     """Ordered stage names for a list of outputs (unknown names raise ValueError)."""
     bad = [o for o in outputs if o not in STAGES_FOR]
     if bad:
         raise ValueError(f"unknown output(s) {bad}; choose from {', '.join(ALL_OUTPUTS)}")
-    order = ("load", "ps", "integrate", "mesh", "samples", "fit", "ptm", "hsh")
+    order = ("load", "ps", "integrate", "mesh", "samples", "fit", "ptm", "hsh", "relight")
     want = {s for o in outputs for s in STAGES_FOR[o]}
     return [s for s in order if s in want]
 
@@ -125,6 +128,7 @@ class ProcessResult:
     light_gains: dict = None
     rti_exposure: object = None       # the relighting files' scale (pipeline._rti_exposure.Exposure)
     filled: np.ndarray = None
+    relight_model: object = None
 
 
 def _fit_stage(filtered, fit_options, brdf_aware=False, material=None):
@@ -382,6 +386,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
                               inp.pixel_pitch_mm, step, MESH_MAX_SLOPE)
             res.options["mesh_step"] = step
             write("mesh")
+        notes += relight_model_stage(res, images, light_dirs, inp.pixel_pitch_mm, write) if "relight" in stages else []
         return notes
 
     def reflectance():
@@ -476,6 +481,7 @@ def _writers(res, out, outputs, ascii_ply, relight=None):
         "samples": samples,
         "brdf": lambda p: write_text_atomic(p, brdf_text()) if res.brdf is not None else None,
         "ptm": relight.write_ptm if relight else lambda p: write_ptm_lrgb(p, res.ptm.coeffs, res.ptm.rgb),
+        "relight": lambda p: save_relight_model(p, res.relight_model) if res.relight_model is not None else None,
         "rti": lambda p: (relight.write_rti if relight else lambda q, c: write_hsh_rti(q, res.hsh.coeffs, c))(
             p, _rti_comments(res)),
         "relight-web": lambda p: write_relight_web(p, res, relight),
