@@ -279,7 +279,6 @@ def _process(source, outputs, out_dir, o):
         res.notes.extend(notes + light_geometry(inp.light_dirs, res.quality))
     res.timings["load"] = time.perf_counter() - t0
     m, h, w, c = inp.images.shape
-
     t0 = time.perf_counter()
     light_dirs, images = inp.light_dirs, inp.images
     if o.near_light and inp.positions_mm is not None:
