@@ -25,6 +25,7 @@ LAYERS = (
     ("methods",),
     ("sim",),
     ("scan",),
+    ("capture",),
     ("pipeline", "wizard"),
     ("bench",),
     ("cli",),

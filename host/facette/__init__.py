@@ -13,7 +13,7 @@ __version__ = "0.1.0"
 
 # Lowest layer first (docs/ARCHITECTURE.md).
 _SUBPACKAGES = ("device", "camera", "io", "hdr", "recon", "reflect", "brdf", "fit", "calib", "methods", "sim",
-                "scan", "pipeline", "wizard", "cli", "bench")
+                "scan", "capture", "pipeline", "wizard", "cli", "bench")
 # Top-level conveniences, resolved on first use so `import facette` stays fast.
 _SHORTCUTS = {"connect": ("facette.scan", "connect"), "process": ("facette.pipeline", "process")}
 

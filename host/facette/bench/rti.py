@@ -138,7 +138,7 @@ def _rms(pairs):
 
 def demo_results(results):
     """Section 4: the files of a processed scan against its HDR images."""
-    from facette.pipeline._inputs import load_input       # bench: any layer below
+    from facette.capture import load_input       # bench: any layer below
     results = Path(results)
     rec = json.loads((results / "process.json").read_text())
     inp = load_input(rec["source"])

@@ -37,7 +37,11 @@ block layout of the arrays, untiled too: 1 pixel of 3.05 M at 3 MP).
 The untiled run is skipped (`--no-untiled`, or above `--untiled-max-mp`, default 20 MP: at
 100 MP it needs ~38 GB).
 
-Usage: facette bench size [--sizes 12] [--memory 2GB] [--method rank_trimmed] [--keep DIR]
+With `--no-flag`, `facette process SLAB --outputs normals,height` runs once more with no flag at
+all (the default method, li_alternating, and the default memory budget of pipeline._budget, which
+reads a capture band by band when it does not fit whole): wall s, s/MP, peak, the method that ran.
+
+Usage: facette bench size [--sizes 12] [--memory 2GB] [--method rank_trimmed] [--no-flag] [--keep DIR]
 Sizes in megapixels (3, 12, 50, 100: the thesis camera's half and whole, 50 MP, the GFX100)
 or WxH.
 """
@@ -220,7 +224,7 @@ def scan_size(size, work, memory, method, untiled, outputs="normals,height"):
         _, row["gen_s"], row["gen_gb"] = _run_rss(_measured(SELF + ["--_scan", folder, scan]))
     else:
         row["gen_s"] = row["gen_gb"] = float("nan")
-    # green, as --memory solves (its bands read one channel): the two runs compared like with like
+    # green in every run (--memory solves the default mean too): figures comparable with earlier rounds
     base = FACETTE + ["process", scan, "--outputs", outputs, "--method", method, "--channels", "green",
                       "--overwrite", "-o"]
     out_u, out_m = work / f"scan_untiled_{w}x{h}", work / f"scan_memory_{w}x{h}"
@@ -269,7 +273,7 @@ def _dask_child(scan, out, memory, method, kill_after):
             threading.Timer(kill_after, lambda: os.kill(pids[0], signal.SIGKILL)).start()
         t0 = time.perf_counter()
         res = process(scan, outputs=["normals", "height"], out_dir=out, method=method, memory=memory,
-                      scheduler=cluster.scheduler_address, overwrite=True)
+                      channels="green", scheduler=cluster.scheduler_address, overwrite=True)
         seconds = time.perf_counter() - t0
         rss = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6)
         after = sorted(client.run(os.getpid).values())
@@ -333,7 +337,8 @@ def one_size(size, work, memory, method, untiled):
         exr = out / "normal.exr"
     out_mem = work / f"memory_{w}x{h}"
     stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", folder, "-o", out_mem, "--outputs", "normals,height",
-                                                     "--method", method, "--memory", memory, "--overwrite"]))
+                                                     "--method", method, "--channels", "green", "--memory", memory,
+                                                     "--overwrite"]))
     bands = re.search(r"over (\d+) bands of (\d+) rows", stdout)
     row.update(mem_s=wall, mem_gb=gb, mem_tiles=int(bands.group(1)) if bands else -1,
                mem_ps=_times(stdout).get("ps", float("nan")))
@@ -372,6 +377,20 @@ def _print(rows):
               flush=True)
 
 
+def no_flag(size, work):
+    """`facette process SLAB -o OUT --outputs normals,height` with no flag at all, as a user runs it:
+    the default method and the default memory budget (pipeline._budget); prints wall s, s/MP, peak,
+    the method that ran and the budget's note."""
+    w, h = size
+    out = work / f"noflag_{w}x{h}"
+    stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", work / f"slab_{w}x{h}", "-o", out, "--outputs",
+                                                     "normals,height", "--overwrite"]))
+    method = re.search(r"\((\w+)\)\s*$", stdout.splitlines()[0])
+    budget = next((line.strip()[len("note: "):] for line in stdout.splitlines() if "note: memory:" in line), "")
+    print(f"no flag {w}x{h}: {wall:.1f} s, {wall / (w * h / 1e6):.2f} s/MP, peak {gb:.2f} GB, "
+          f"{method.group(1) if method else '?'}; {budget}", flush=True)
+
+
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["--_rss"]:
@@ -405,6 +424,8 @@ def main(argv=None):
                                                         "LocalCluster of 2 workers x 1 thread")
     p.add_argument("--kill-worker", type=float, default=0.0, metavar="S",
                    help="with --dask: kill one worker S seconds into the run (default: none)")
+    p.add_argument("--no-flag", action="store_true", help="also `facette process SLAB` with no flag (the "
+                                                           "default method and memory budget)")
     p.add_argument("--keep", help="keep the captures and results in this folder (default: temporary); "
                                   "a slab already there is reused")
     args = p.parse_args(argv)
@@ -423,6 +444,8 @@ def main(argv=None):
             else:
                 rows.append(one_size(size, work, args.memory, args.method, untiled))
                 _print(rows[-1:])
+                if args.no_flag:
+                    no_flag(size, work)
             if args.scan or args.only_scan:
                 scan_rows.append(scan_size(size, work, args.memory, args.method, untiled, args.scan_outputs))
                 if args.dask:

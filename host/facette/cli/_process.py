@@ -192,7 +192,7 @@ def _check_out(out):
 
 def _capture(args):
     """The RTI capture options of `process` from --encoding, --sphere, --reference."""
-    from facette.pipeline._rti_capture import parse_box, parse_circle
+    from facette.capture.rti import parse_box, parse_circle
 
     return {"encoding": args.encoding,
             "sphere": parse_circle(args.sphere) if args.sphere else None,

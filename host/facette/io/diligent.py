@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from facette._threads import run_blocks
-from facette.errors import BadInputError
+from facette.io.lights import check_lights, photograph_paths
 from facette.io.png import read_mask, read_png, write_png, write_mask
 
 __all__ = ["DiligentData", "is_diligent_dir", "read_diligent", "read_diligent_lights", "png_radiance", "size_mismatch",
@@ -31,35 +31,6 @@ class DiligentData:
     names: list
     bit_depth: int = 16
     notes: list = field(default_factory=list)
-
-
-# the smallest singular value over the largest of the directions' matrix under which the
-# lights do not span three dimensions (all from one direction, or all in one plane through
-# the object): photometric stereo cannot separate the normal from the albedo
-MIN_SPREAD = 1e-3
-
-
-def _check_directions(path, dirs):
-    """Refuse lights that cannot give normals; (indices kept, notes) for lights below the horizon."""
-    below = np.flatnonzero(dirs[:, 2] < 0)
-    if len(below) == len(dirs):
-        raise BadInputError(f"{path}: every light has z < 0, below the horizon (facette's frame: x right, y up, "
-                            "z towards the camera)",
-                            hint="the file is in another frame: flip the sign of z (and of y for a y-down frame)")
-    keep = np.flatnonzero(dirs[:, 2] >= 0)
-    notes = []
-    if len(below):
-        lines = ", ".join(str(i + 1) for i in below[:8]) + ("..." if len(below) > 8 else "")
-        notes.append(f"{path.name}: {len(below)} light(s) below the horizon (z < 0; lines {lines}) left out: "
-                     "they cannot light a surface the camera sees")
-    s = np.linalg.svd(dirs[keep], compute_uv=False) if len(keep) >= 3 else None   # fewer: the method says
-    if s is not None and s[2] < MIN_SPREAD * s[0]:
-        same = np.allclose(dirs[keep], dirs[keep][0], atol=1e-3)
-        raise BadInputError(f"{path}: the {len(keep)} lights " + ("all share one direction" if same else
-                            "lie in one plane through the object") + ": photometric stereo needs lights from "
-                            "at least three directions that are not in one plane",
-                            hint="check light_directions.txt (one direction per image, in the order of filenames.txt)")
-    return keep, notes
 
 
 def is_diligent_dir(path):
@@ -96,13 +67,17 @@ def read_diligent_lights(folder, select=None):
     if not names:
         raise ValueError(f"{folder / 'filenames.txt'} lists no images")
     m = len(names)
+    # the checks every capture's lights pass (io.lights): a photograph listed twice or outside the folder
+    paths, notes = photograph_paths(folder, names, folder / "filenames.txt", first_line=1)
+    names = [p.relative_to(folder).as_posix() for p in paths]
     dirs = _table(folder / "light_directions.txt", m, "unit light directions")
     norms = np.linalg.norm(dirs, axis=1)
     if np.any(norms <= 0):
         raise ValueError(f"{folder / 'light_directions.txt'}, line {int(np.argmin(norms)) + 1}: a zero "
                          "direction (every light needs a direction)")
     dirs = dirs / norms[:, None]
-    keep, notes = _check_directions(folder / "light_directions.txt", dirs)
+    keep, light_notes = check_lights(dirs, "light_directions.txt")
+    notes += light_notes
     inten_path = folder / "light_intensities.txt"
     inten = _table(inten_path, m, "R G B intensity per light") if inten_path.is_file() else np.ones((m, 3))
     if np.any(inten <= 0):

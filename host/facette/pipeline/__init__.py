@@ -6,7 +6,7 @@ stereo of a DiLiGenT-style folder over row bands in bounded memory (per-pixel me
 height from a memory budget (`rows_per_tile`)."""
 from facette.methods import PROCESS_DEFAULT
 from ._channels import CHANNELS, CHANNELS_DEFAULT
-from ._inputs import PSInput, auto_masks, load_input, margin_of
+from facette.capture import PSInput, auto_masks, load_input, margin_of
 from ._options import GAINS_AUTO, IR_AUTO
 from ._process import ALL_OUTPUTS, OUTPUTS, STAGES_FOR, ProcessOptions, ProcessResult, preload, process, stages_needed
 from ._batch import batch, process_scan

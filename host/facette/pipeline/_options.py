@@ -58,7 +58,8 @@ class ProcessOptions:
                             "mean (default: of R, G, B; chosen on renders, pipeline._channels.CHANNELS_DEFAULT), "
                             "weighted (R, G, B weighted by mean/variance, one weight per channel, the variance "
                             "estimated from the images) or green (the thesis's); "
-                            "the albedo stays per channel; with --memory: green", report=True)
+                            "the albedo stays per channel; with --memory: mean as whole, weighted falls back to "
+                            "green", report=True)
     t_ombre: float = _option(T_OMBRE, "shadow angle threshold, rad (ps_hierarchical_tautzia2016)", report=True)
     t_spec: float = _option(T_SPEC, "specular variance threshold (ps_hierarchical_tautzia2016)", report=True)
     t_source: float = _option(T_SOURCE, "max |entry| of a triplet's inverse (ps_hierarchical_tautzia2016)",
@@ -101,13 +102,14 @@ class ProcessOptions:
                                   "are measured on the Spectralon)", report=True)
     capture: dict = _option(None, "options of an RTI capture folder (photographs + .lp, or a mirror sphere in "
                             "view): {encoding: srgb|linear, sphere: Circle or (H, W) mask, reference: (x0, y0, "
-                            "x1, y1)}; see pipeline._rti_capture.read_rti_capture; recorded only when given "
+                            "x1, y1)}; see capture.rti.read_rti_capture; recorded only when given "
                             "(its values as text, a mask array left out)", record=False)
 
     memory: str = _option(None, "a memory budget ('2GB', '512MB', '3GiB' or bytes): photometric stereo then runs "
-                          "over bands of rows in it (a per-pixel method only: pipeline._tiles.TILED_METHODS); a scan's or "
-                          "a DiLiGenT folder's images are read band by band, never whole (the samples, PTM and HSH fits "
-                          "too); recorded only when given")
+                          "over bands of rows in it (a per-pixel method only: pipeline._tiles.TILED_METHODS); any capture's "
+                          "photographs are read band by band, never whole (the samples, PTM and HSH fits too); recorded "
+                          "only when given; None: a budget from the free memory (pipeline._budget), used when the "
+                          "capture does not fit whole")
 
     scheduler: str = _option(None, "with memory: the address of a dask.distributed scheduler (tcp://host:8786) whose "
                              "workers run the bands (they must see the scan's path); None: here, one after the other",

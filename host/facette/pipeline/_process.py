@@ -42,8 +42,9 @@ from facette.methods import PS_METHODS, photometric_stereo
 from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_from_height, MESH_MAX_SLOPE,
                            near_light_directions, dark_level_notes)
 from facette.pipeline._exports import gltf_inputs, gltf_material
+from facette.pipeline._budget import with_default_budget
 from facette.pipeline._channels import images_for_solve, results_in_rgb
-from facette.pipeline._inputs import load_input, object_of
+from facette.capture import LP_NAME, load_input, object_of
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
 from facette.pipeline._light_gains import with_light_gains
@@ -52,7 +53,6 @@ from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_bands import relight_bands, relight_exposure, relight_stage, write_relight_web
 from facette.pipeline._rti_exposure import record_exposure
-from facette.pipeline._rti_capture import LP_NAME
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
 from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry, truth_errors
 from facette.pipeline._report import report_fit_section, write_report
@@ -168,7 +168,7 @@ def preload():
     """Import what `process` loads on first use (matplotlib for the report, ~0.5 s; numba and
     the compiled kernels of the loading and the PTM fit, ~0.5 s): a scan that will be processed
     calls this on a thread while it acquires, so that the time does not come after the last frame."""
-    from facette.pipeline._pixels_jit import median_over_lights, usable_green
+    from facette.capture._pixels_jit import median_over_lights, usable_green
     from facette.recon._rti_jit import ptm_colour_block, srgb_lum_block, srgb_scale_inplace, srgb_table
     # each kernel loaded (or compiled) for the array types `process` hands it
     img = np.ones((2, 2, 2, 3), np.float32)
@@ -233,7 +233,8 @@ def process(source, outputs=None, out_dir=None, options=None, **overrides):
 def _process(source, outputs, out_dir, o):
     outputs = list(OUTPUTS if outputs is None else outputs)
     stages = stages_needed(outputs)
-    res = ProcessResult(options=dict(o.reported(), outputs=outputs))
+    o, budget_notes = with_default_budget(source, o, outputs)     # no --memory: from the free memory
+    res = ProcessResult(options=dict(o.reported(), outputs=outputs), notes=budget_notes)
     record_options = o.recorded()
     t_all, cpu_all = time.perf_counter(), time.process_time()
     if out_dir is not None and "report" in outputs:
@@ -279,10 +280,8 @@ def _process(source, outputs, out_dir, o):
         res.notes.extend(notes + light_geometry(inp.light_dirs, res.quality))
     res.timings["load"] = time.perf_counter() - t0
     m, h, w, c = inp.images.shape
-
     t0 = time.perf_counter()
-    light_dirs = inp.light_dirs
-    images = inp.images
+    light_dirs, images = inp.light_dirs, inp.images
     if o.near_light and inp.positions_mm is not None:
         light_dirs, falloff = near_light_directions(inp.positions_mm, (h, w), inp.pixel_pitch_mm)
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]

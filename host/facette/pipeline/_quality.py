@@ -18,6 +18,7 @@ the pixels saturated under every light).
 """
 import numpy as np
 
+from facette.capture.usable import MIN_LEVELS, MIN_SNR, usable_from_green, usable_from_levels, usable_from_variance
 from facette.errors import InsufficientData
 
 __all__ = ["MIN_SNR", "MIN_LEVELS", "MIN_LIGHTS", "MIN_PIXEL_FRACTION", "MIN_FIT_CELLS", "SPARSE_CONTRAST",
@@ -25,8 +26,6 @@ __all__ = ["MIN_SNR", "MIN_LEVELS", "MIN_LIGHTS", "MIN_PIXEL_FRACTION", "MIN_FIT
            "light_geometry", "usable_from_variance", "usable_from_green", "usable_from_levels", "check_samples",
            "check_fit_cells", "sample_counts", "add_counts", "check_counts", "truth_errors"]
 
-MIN_SNR = 3.0              # signal / noise standard deviation of a usable sample
-MIN_LEVELS = 2             # grey levels of a PNG above which a sample is not dark noise
 MIN_LIGHTS = 3             # usable lights per pixel for a normal
 MIN_PIXEL_FRACTION = 0.5   # of the object's pixels that need MIN_LIGHTS usable lights
 SPARSE_LIGHT = 0.05        # a light usable on fewer of the object's pixels is named in a note
@@ -51,31 +50,6 @@ MIN_SPARSE_FRACTION = 0.1  # ... provided this much of the object still has MIN_
 RIG_TILT = 0.74
 TILT_NOTE_ABOVE = 2 * RIG_TILT
 CONTRAST_STEP = 8          # lit_contrast reads every 8th row and column (12 MP x 12: 2.3 M values, not 147 M)
-
-
-def usable_from_variance(image, variance):
-    """(H, W) bool: known (finite) and >= MIN_SNR standard deviations, on the green channel.
-    image, variance : (H, W, 3) radiance and its variance (any consistent unit)."""
-    return usable_from_green(image[..., 1], variance[..., 1])
-
-
-def usable_from_levels(levels):
-    """Known and at least MIN_LEVELS grey levels of the image's bit depth, elementwise (`levels`:
-    values in grey levels; images without a variance, PNG folders and RTI captures, whose noise
-    floor is their quantisation)."""
-    with np.errstate(invalid="ignore"):
-        return np.isfinite(levels) & (levels >= MIN_LEVELS)
-
-
-def usable_from_green(g, v):
-    """`usable_from_variance` of the green channel alone: g, v (H, W) radiance and variance.
-    In one compiled pass for two float32 maps, as the HDR loader has them (12 MP: 0.01 s
-    instead of 0.1 s per light)."""
-    if g.ndim == 2 and g.shape == v.shape and g.dtype == v.dtype == np.float32:
-        from facette.pipeline._pixels_jit import usable_green
-        return usable_green(g, v, MIN_SNR, np.empty(g.shape, bool))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.isfinite(g) & np.isfinite(v) & (g > 0) & (g * g >= MIN_SNR ** 2 * v)
 
 
 def check_samples(images, usable, object_mask, mask_source, light_names=None):

@@ -17,7 +17,7 @@ import numpy as np
 from facette._memory import decimated, masked_values
 from facette.io.atomic import write_text_atomic
 from facette.fit import FitModel, cell_spread_directions
-from facette.pipeline._inputs import NO_PITCH_NOTE
+from facette.capture import NO_PITCH_NOTE
 from facette.pipeline._viewer import viewer_data, viewer_section
 from facette.recon import srgb_encode
 
@@ -538,7 +538,7 @@ def _mask_overlay(res, st):
     obj = getattr(res, "object_mask", None)
     if obj is None or res.inputs is None or res.inputs.images is None:
         return None
-    from facette.pipeline._pixels_jit import median_over_lights   # numba: loaded on first use
+    from facette.capture._pixels_jit import median_over_lights   # numba: loaded on first use
     obj, ims = obj[::st, ::st], res.inputs.images[:, ::st, ::st]
     photo = np.empty(ims.shape[1:], ims.dtype)  # np.nanmedian: 9 s of 40 on the 16-bit DiLiGenT ball
     median_over_lights(ims.reshape(ims.shape[:2] + (-1,)), photo.reshape(photo.shape[0], -1), slice(None), workers=2)

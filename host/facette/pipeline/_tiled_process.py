@@ -4,14 +4,17 @@ A per-pixel method (`_tiles.TILED_METHODS`) gives each pixel's normal from that 
 alone, so the bands solved one after the other give the untiled normals. Two ways, chosen by
 the outputs asked for:
 
-- streamed (every output in STREAMED_OUTPUTS, which is all of them; a scan directory or a
-  DiLiGenT-style folder): the photographs are never held whole. A scan's
+- streamed (every output in STREAMED_OUTPUTS, which is all of them; any capture,
+  `capture.open_capture`): the photographs are never held whole. A scan's
   HDR images are read a window of scanlines at a time (OpenEXR's scanline reader), twice: once
   for the masks' two maps (the brightest value and the median over the lights, what
   `auto_masks` splits), once for photometric stereo; a DiLiGenT folder's PNGs are staged once
   to raw files (`_tiles._Staged`: PNG decodes whole images only) and read band by band. The
   quality counts (`check_samples`) add up over the bands and are judged after the bands (the
-  same verdict, later). The reflectance samples (samples, brdf, gltf) are taken in each band
+  same verdict, later). The normals are solved on the channel the untiled run uses by default,
+  the mean of R, G, B appended to each band (`_channels.with_solve_channel`; "weighted" needs
+  the whole images' noise: green, said): the same normals and heights as untiled (rank_trimmed:
+  the same bytes on a DiLiGenT crop, a scan and an RTI capture). The reflectance samples (samples, brdf, gltf) are taken in each band
   right after its photometric stereo (with its shadows), the bands' hemisphere sensors merged
   (the same cells as untiled; the raw subset kept beside them is drawn band by band).
   relight.ptm and relight.rti are fitted over the bands once photometric stereo is done, with
@@ -23,7 +26,7 @@ the outputs asked for:
   written as the bands come and read a band at a time by the EXR writers, the heights (whose
   divergence is built band by band, `recon._integrate`), the glTF's textures (block means at
   most 8192 texels wide) and the report.
-- in memory (an RTI capture, or outputs outside STREAMED_OUTPUTS): the input is loaded whole as
+- in memory (outputs outside STREAMED_OUTPUTS): the input is loaded whole as
   untiled; photometric stereo runs
   over bands of it, which bounds its own working set only; a note says which outputs came from
   the whole images.
@@ -39,26 +42,24 @@ finished bands do not pile up; a band whose worker dies is run again by the sche
 import shutil
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from facette._memory import disk_array, hand_back, release
-from facette.io.diligent import is_diligent_dir, read_diligent_lights
-from facette.io.png import read_mask
 from facette.methods import PS_METHODS, photometric_stereo
-from facette.pipeline._inputs import (NO_PITCH_NOTE, PSInput, _digest, _file_stamps, given_mask, masks_from,
-                                      source_path)
-from facette.pipeline._scan_input import merged_lights, profile_flat, scan_input, scan_lights, scan_manifest
-from facette.pipeline._bands import DiligentBands, ScanBands, open_bands
+from facette.capture import open_bands, open_capture, source_path
+from facette.pipeline._channels import SOLVE_CHANNEL, channel_weights, with_solve_channel
 from facette.pipeline._quality import add_counts, carried, check_counts, light_geometry, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
 from facette.pipeline._scheduler import connect_scheduler
-from facette.pipeline._tiles import FIELD_BYTES, PROCESS_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, rows_per_tile
+from facette.pipeline._tiles import (FIELD_BYTES, PROCESS_BYTES, SOLVE_CHANNEL_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS,
+                                    rows_per_tile)
 from facette.recon import PSResult, near_light_directions
 
-__all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "open_streamed", "ps_bands", "streamed_ps",
+__all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "ps_bands", "streamed_ps",
            "in_memory_ps"]
 
 STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
@@ -70,12 +71,6 @@ MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (th
 # the PS outputs a streamed run keeps on disk (`_memory.disk_array`): 30 of their 32 bytes per
 # pixel, 3 GB at 100 MP; written band by band, read band by band by the writers and the heights
 ON_DISK = ("normal", "albedo", "n_triplets", "residual")
-# a scan's maps held in memory at the image's size besides the mask and the two flags that
-# `rows_per_tile` counts, at their most (bytes per pixel): while the bands run, the brightest value
-# (float32, until the object mask is made) and the material, object and sample masks (1 byte each); before,
-# while the masks' maps are read, the brightest value, the median (float32) and the unknown pixels
-# (6); a DiLiGenT folder holds its mask only
-SCAN_MAPS_BYTES = 7
 
 
 def check_memory_options(method, interreflections):
@@ -92,17 +87,17 @@ def check_memory_options(method, interreflections):
 
 def streamed(source, outputs):
     """True when `process` can run without the whole images: every output in STREAMED_OUTPUTS
-    and a scan directory or a DiLiGenT-style folder (an RTI capture is read whole)."""
+    and a capture's folder (whichever its kind: `capture.open_capture` reads it band by band)."""
     if not set(outputs) <= set(STREAMED_OUTPUTS) | {"relight-web"}:     # the web planes: from the HSH fit's spill
         return False
     try:
         path = source_path(source)
     except TypeError:
         return False
-    return path.is_dir() and ((path / "scan.json").is_file() or is_diligent_dir(path))
+    return path.is_dir()
 
 
-def _rows(w, h, m, memory, method, rows, maps_bytes):
+def _rows(w, h, m, memory, method, rows, maps_bytes, extra=0):
     if rows is not None:
         if int(rows) < 1:
             raise ValueError(f"rows must be >= 1, got {rows}")
@@ -110,29 +105,16 @@ def _rows(w, h, m, memory, method, rows, maps_bytes):
     # the budget is the whole process's: the bands get what the libraries and the maps this run
     # holds at the image's size (maps_bytes per pixel) leave; the ON_DISK maps are not held
     return rows_per_tile(w, h, m, memory, method, tuple(k for k in FIELD_BYTES if k not in ON_DISK),
-                         held=PROCESS_BYTES + maps_bytes * w * h)
+                         held=PROCESS_BYTES + maps_bytes * w * h, extra_per_pixel_light=extra)
 
 
-def _maps_task(spec, r0, r1, flat):
-    """A band's part of the masks' maps: (r0, r1, brightest value, median over the lights,
-    unknown under some light) of the green channel."""
-    from facette.pipeline._pixels_jit import median_over_lights
-    reader = open_bands(spec)
-    try:
-        g = reader.read(r0, r1, flat)[0][..., 1]
-    finally:
-        reader.close()
-    med = np.empty(g.shape[1:], g.dtype)
-    median_over_lights(g, med, slice(0, r1 - r0))
-    return r0, r1, np.fmax.reduce(g, axis=0), med, np.isnan(g).any(axis=0)
-
-
-def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None):
+def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None, weights=None):
     """A band's photometric stereo: (r0, r1, PSResult without per-light flags or None when the
     mask leaves the band out, its quality counts or None, read seconds, PS seconds, its
     reflectance samples or None). samples: {sample_mask: the band's, theta0_deg, total} to take
     the band's samples (`_samples.samples_sensor`: (HemisphereSensor, raw samples)) with the
-    shadows it found."""
+    shadows it found. weights: (3,) the solve's channel as a sum of R, G, B appended to the band
+    (`_channels.with_solve_channel`, as the whole reading's `images_for_solve`), None: green."""
     t0 = time.perf_counter()
     reader = open_bands(spec)
     try:
@@ -150,7 +132,14 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
         positions, shape, pitch = near
         dirs, falloff = near_light_directions(positions, shape, pitch, rows=(r0, r1))
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
-    part = photometric_stereo(images, dirs, method=method, options=dict(bag, mask=carried(mask, usable)))
+    solve = images
+    if weights is not None:
+        solve = with_solve_channel(images, weights, bag.get("saturation"))
+        bag["channel"] = SOLVE_CHANNEL
+    part = photometric_stereo(solve, dirs, method=method, options=dict(bag, mask=carried(mask, usable)))
+    del solve
+    if weights is not None:                    # the albedo's R, G, B only (`_channels.results_in_rgb`)
+        part = replace(part, albedo=np.ascontiguousarray(part.albedo[..., :3]))
     taken = None
     if samples is not None:
         taken = samples_sensor(images, samples["sample_mask"], part, dirs, samples["theta0_deg"], seed=r0,
@@ -235,59 +224,6 @@ def _bands(h, rows):
     return [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
 
 
-def open_streamed(source, o, work, rows=None, client=None):
-    """(PSInput with images=None and usable=None, band reader with .spec(), .read(r0, r1) and
-    .close(), the brightest value over the lights (H, W) or None, band rows) of a scan or a
-    DiLiGenT-style folder; a scan's masks' maps are read band by band (on `client` if given)."""
-    path = source_path(source)
-    if (path / "scan.json").is_file():
-        data, complete = scan_manifest(path, o.allow_incomplete)
-        ids, lights, hdr_notes = merged_lights(path, data)
-        dirs, inten, positions, light_notes = scan_lights(path, data, lights)
-        bands = ScanBands(path, ids, inten)
-        try:
-            h, w = bands.h, bands.w
-            pitch, profile_notes, bands.flat = profile_flat(data, path, (w, h))
-            if bands.flat is not None and bands.flat.shape != (h, w, 3):
-                raise ValueError(f"the flat field is {bands.flat.shape} but the images are {(h, w, 3)}: the profile "
-                                 "was made at another resolution; recalibrate at this one (facette calibrate)")
-            if bands.flat is not None and not (np.all(np.isfinite(bands.flat)) and np.all(bands.flat > 0)):
-                raise ValueError("the flat field has non-positive or non-finite values: the profile is damaged")
-            n = _rows(w, h, len(ids), o.memory, o.method, rows, SCAN_MAPS_BYTES)
-            top, med = np.empty((h, w), np.float32), np.empty((h, w), np.float32)
-            unknown = np.zeros((h, w), bool)
-            flat = bands.flat
-            calls = [(bands.spec(), r0, r1, None if flat is None else flat[r0:r1]) for r0, r1 in _bands(h, n)]
-            for r0, r1, t, md, u in _map(_maps_task, calls, client):
-                top[r0:r1], med[r0:r1], unknown[r0:r1] = t, md, u
-            mask, material = masks_from(top, med)
-            del med
-            hand_back(o.memory_bytes)   # the maps' bands and the median: not under the bands
-            inp = scan_input(path, data, complete, None, dirs, positions, mask, material, None, mask | unknown,
-                             o.pixel_pitch_mm or pitch, hdr_notes, light_notes, profile_notes)
-        except BaseException:
-            bands.close()
-            raise
-    else:
-        names, dirs, inten, notes = read_diligent_lights(path)
-        bands = DiligentBands(path, names, inten, work)
-        h, w = bands.h, bands.w
-        n = _rows(w, h, len(names), o.memory, o.method, rows, 0)
-        mask = read_mask(path / "mask.png") if (path / "mask.png").is_file() else np.ones((h, w), bool)
-        if mask.shape != (h, w):
-            raise ValueError(f"mask.png is {mask.shape[1]}x{mask.shape[0]}, images are {w}x{h}")
-        inp = PSInput(None, dirs, None, mask, float(o.pixel_pitch_mm or 1.0), "diligent", path, object_mask=mask,
-                      mask_source=f"{path / 'mask.png'}" if (path / "mask.png").is_file() else "the image")
-        inp.digest = _digest(_file_stamps(path))
-        inp.notes.extend(notes)
-        if o.pixel_pitch_mm is None:
-            inp.notes.append(NO_PITCH_NOTE)
-        top = None
-    if o.mask is not None:
-        given_mask(inp, o.mask)
-    return inp, bands, (None if o.mask is not None else top), n
-
-
 def ps_bands(read, shape, m, light_dirs, method, bag, mask, rows, flags=False, count_in=None):
     """Photometric stereo of `method` over bands of `rows` rows, here.
 
@@ -335,10 +271,19 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
     t0 = time.perf_counter()
     work = Path(tempfile.mkdtemp(prefix="facette-tiles-"))
     client = None
+    # the mean of R, G, B needs no figure of the whole images: the same channel in every band as whole;
+    # "weighted" needs the whole images' noise: green
+    weights = channel_weights(np.zeros((1, 1, 1, 3), np.float32), None, "mean")[0] if o.channels == "mean" else None
+    used = ({"channels": "green", "weights": [0.0, 1.0, 0.0]} if weights is None else
+            {"channels": "mean", "weights": [round(float(x), 4) for x in weights]})
     try:
         if o.scheduler is not None:
             client = connect_scheduler(o.scheduler)      # bad input within seconds, not a 30 s traceback
-        inp, bands, top, n = open_streamed(source, o, work, rows, client)
+        inp, bands, top, n = open_capture(
+            source, work, lambda w, h, m, maps_bytes: _rows(w, h, m, o.memory, o.method, rows, maps_bytes,
+                                                            0 if weights is None else SOLVE_CHANNEL_BYTES),
+            lambda fn, calls: _map(fn, calls, client), o.allow_incomplete, o.pixel_pitch_mm, o.mask, o.capture,
+            lambda: hand_back(o.memory_bytes))
         try:
             res.inputs = inp
             res.notes.extend(inp.notes)
@@ -363,12 +308,11 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
                 return None if not samples else {"sample_mask": smask[r0:r1], "theta0_deg": o.theta0_deg,
                                                  "total": total}
             calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
-                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1)) for r0, r1 in _bands(h, n))
+                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1), weights) for r0, r1 in _bands(h, n))
             ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client), on_disk=True)
             hand_back(o.memory_bytes)   # the bands' heap: not under the stages after them
-            ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n,
-                           channels={"channels": "green", "weights": [0.0, 1.0, 0.0]})   # pipeline._channels
-            if o.channels != "green":
+            ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n, channels=used)   # pipeline._channels
+            if o.channels not in ("green", "mean"):
                 res.notes.append(f"channels: {o.channels} asked; with --memory the normals are solved on green")
             taken = ps.info.pop("samples", None)
             if samples:
@@ -398,13 +342,13 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
 
 def in_memory_ps(images, light_dirs, o, bag, outputs, res, rows=None):
     """Photometric stereo over bands of images held whole (outputs that need them after it, or
-    an RTI capture): the PSResult, with the per-light flags (the samples leave shadows out)."""
+    a source that is not a folder): the PSResult, with the per-light flags (the samples leave shadows out)."""
     m, h, w = images.shape[:3]
     n = int(rows) if rows is not None else rows_per_tile(w, h, m, o.memory, o.method, tuple(FIELD_BYTES),
                                                          per_light_flags=True)
     ps, _ = ps_bands(lambda r0, r1: (images[:, r0:r1], None), (h, w), m, light_dirs, o.method, bag,
                      bag["mask"], n, flags=True)
-    whole = [x for x in outputs if x not in STREAMED_OUTPUTS] or ["the input (an RTI capture is read whole)"]
+    whole = [x for x in outputs if x not in STREAMED_OUTPUTS] or ["the input"]
     if o.scheduler is not None:
         res.notes.append(f"--scheduler {o.scheduler}: not used, the images being held whole here (it runs the "
                          "bands of --memory of a scan directory or a DiLiGenT folder)")

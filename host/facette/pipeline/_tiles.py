@@ -17,8 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from facette._memory import parse_size
-from facette.io.diligent import png_radiance, read_diligent_lights, size_mismatch
-from facette.io.png import png_size, read_mask, read_png
+from facette.capture.diligent import _Staged
+from facette.io.diligent import read_diligent_lights
+from facette.io.png import png_size, read_mask
 from facette.methods import PS_DEFAULT, PS_METHODS
 from facette.recon import PSResult
 
@@ -48,6 +49,9 @@ PROCESS_BYTES = 450 * 10 ** 6
 # Bytes per pixel of each output `ps_tiled` can keep at the image's size.
 FIELD_BYTES = {"normal": 12, "albedo": 12, "valid": 1, "residual": 4, "n_triplets": 2, "skipped": 1}
 MIN_ROWS = 1
+# a band's photographs with the solve's channel appended (pipeline._channels.with_solve_channel: the
+# (m, rows, W, 4) float32 copy, 16 bytes, and the method's fourth channel in its temporaries)
+SOLVE_CHANNEL_BYTES = 24
 # The per-pixel methods: a pixel's normal from its own values only (tests check each tiled).
 TILED_METHODS = ("woodham1980", "hierarchical_tautzia2016", "rank_trimmed", "bipolynomial_shi2014",
                  "bivariate_ikehata2014", "consensus_higo2010")
@@ -59,14 +63,14 @@ def parse_memory(text):
 
 
 def rows_per_tile(width, height, lights, memory, method=PS_DEFAULT, keep=tuple(FIELD_BYTES),
-                  per_light_flags=False, held=0):
+                  per_light_flags=False, held=0, extra_per_pixel_light=0):
     """Rows of a band so that `ps_tiled` stays within `memory` (bytes, or a text for
     `parse_memory`). Staging (one decoded photograph and its RGB copy, 12 bytes per pixel at 16
     bits) comes first; then `held` (bytes the caller holds besides: the process's libraries and
     its maps at the image's size, so that the budget is the whole process's), the outputs kept
     whole (`keep`, FIELD_BYTES each, and 2 x lights bytes per pixel with `per_light_flags`), the
     mask, the band's fixed part and the band's rows, each the method's BYTES_PER_PIXEL_LIGHT x
-    lights x width bytes.
+    lights x width bytes (plus `extra_per_pixel_light`: the solve's channel appended, SOLVE_CHANNEL_BYTES).
 
     Raises ValueError when even one row does not fit."""
     memory = parse_memory(memory)
@@ -78,7 +82,7 @@ def rows_per_tile(width, height, lights, memory, method=PS_DEFAULT, keep=tuple(F
     fixed = int(held) + pixels * (per_out + 1) + BAND_FIXED_BYTES
     per_pixel_light = BYTES_PER_PIXEL_LIGHT.get(PS_METHODS.canonical(method),
                                                 max(BYTES_PER_PIXEL_LIGHT.values()))
-    per_row = width * lights * per_pixel_light
+    per_row = width * lights * (per_pixel_light + extra_per_pixel_light)
     if memory < staging or memory - fixed < per_row * MIN_ROWS:
         need = max(staging, fixed + per_row * MIN_ROWS) / 1e9
         besides = f" ({held / 1e9:.2f} GB held besides: libraries and maps)" if held else ""
@@ -93,37 +97,6 @@ def _check_keep(keep):
     unknown = set(keep) - set(FIELD_BYTES)
     if unknown:
         raise ValueError(f"keep names outputs of {', '.join(FIELD_BYTES)}; got {sorted(unknown)}")
-
-
-class _Staged:
-    """The photographs of a folder as raw uint16/uint8 (H, W, 3) files, one per light, so that a
-    band of rows is one contiguous read per light."""
-
-    def __init__(self, folder, names, work):
-        self.paths, self.shape, self.dtype = [], None, None
-        for i, name in enumerate(names):
-            arr = read_png(folder / name)
-            if arr.ndim == 2:
-                arr = np.repeat(arr[..., None], 3, axis=2)
-            arr = np.ascontiguousarray(arr[..., :3])
-            if self.shape is None:
-                self.shape, self.dtype = arr.shape, arr.dtype
-            elif arr.shape != self.shape:
-                raise ValueError(size_mismatch(name, arr.shape, names[0], self.shape))
-            path = Path(work) / f"{i:04d}.raw"
-            arr.astype(self.dtype, copy=False).tofile(path)
-            self.paths.append(path)
-            del arr
-
-    def band(self, r0, r1, intensities):
-        """(m, r1 - r0, W, 3) float32 radiance of rows r0..r1 (as `read_diligent`)."""
-        h, w, c = self.shape
-        item = np.dtype(self.dtype).itemsize
-        out = np.empty((len(self.paths), r1 - r0, w, 3), np.float32)
-        for i, path in enumerate(self.paths):
-            raw = np.fromfile(path, self.dtype, count=(r1 - r0) * w * c, offset=r0 * w * c * item)
-            png_radiance(raw.reshape(r1 - r0, w, c), intensities[i], out[i])
-        return out
 
 
 def _check_method(method):

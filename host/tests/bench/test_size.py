@@ -8,8 +8,10 @@ NUMBER = r"-?\d+\.\d+(?:e[+-]\d+)?|\b\d+\b"
 
 
 def test_tiny_slab_tiled_equals_untiled(tmp_path, capsys):
-    assert size.main(["--sizes", "64x48", "--memory", "1GB", "--keep", str(tmp_path), "--scan"]) == 0
+    assert size.main(["--sizes", "64x48", "--memory", "1GB", "--keep", str(tmp_path), "--scan", "--no-flag"]) == 0
     out = capsys.readouterr().out
+    no_flag = next(line for line in out.splitlines() if line.startswith("no flag 64x48: "))
+    assert "li_alternating; memory: a budget of" in no_flag and "is read whole" in no_flag
     slab, scan = [line for line in out.splitlines() if line.strip().startswith("64x48")]
     figures = [float(x) for x in re.findall(NUMBER, slab.split("|", 1)[1])]
     gen_s, gen_gb, u_s, u_spm, u_gb, u_load, u_ps, t_s, t_spm, t_gb, tiles, t_stage, t_ps, err_u, err_t, worst, over, \

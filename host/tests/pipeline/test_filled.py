@@ -75,7 +75,7 @@ def _sphere_samples(amplitude, exponent=None, seed=0):
     """12 rig lights on a sphere, green only, unit noise: a matte one (exponent None) or a sharp
     Blinn-Phong lobe; images (12, H, W, 3), usable, object mask."""
     from facette.bench._mitsuba_scenes import rig_light_directions
-    from facette.pipeline._quality import usable_from_green
+    from facette.capture.usable import usable_from_green
     yy, xx = (np.mgrid[:64, :64] - 31.5) / 30
     inside = xx ** 2 + yy ** 2 < 1
     n = np.dstack([xx, -yy, np.sqrt(np.clip(1 - xx ** 2 - yy ** 2, 0, 1))])

@@ -21,9 +21,11 @@ STREAMED = ["normals", "albedo", "mask", "height", "mesh", "report"]
 ROWS = 5
 M = "rank_trimmed"      # a per-pixel method (the process default, li_alternating, needs the whole image)
 
-# --memory solves the normals on green (pipeline._channels.images_for_solve): the untiled runs compared
-# with it do too
-WHOLE_CHANNELS = "green"
+# --memory solves the normals on the mean of R, G, B in every band, as the untiled run's default does
+# (pipeline._tiled_process: the same appended channel, `_channels.with_solve_channel`)
+WHOLE_CHANNELS = "mean"
+# and without the cast-shadow step, which needs the whole normal map (pipeline._shadows: left out with --memory)
+WHOLE = {"channels": WHOLE_CHANNELS, "shadows": "off"}
 
 
 def _angle_deg(a, b):
@@ -90,7 +92,7 @@ def _never_whole(monkeypatch):
 
 @pytest.mark.parametrize("method", ["rank_trimmed", "woodham1980"])
 def test_diligent_folder_in_bands_gives_the_untiled_results(diligent, tmp_path, small_bands, monkeypatch, method):
-    whole = process(diligent, channels=WHOLE_CHANNELS, outputs=STREAMED, out_dir=tmp_path / "whole", method=method)
+    whole = process(diligent, **WHOLE, outputs=STREAMED, out_dir=tmp_path / "whole", method=method)
     _never_whole(monkeypatch)
     tiled = process(diligent, outputs=STREAMED, out_dir=tmp_path / "tiled", method=method, memory="1GB")
     _same(whole, tiled)
@@ -104,10 +106,10 @@ def test_diligent_folder_in_bands_gives_the_untiled_results(diligent, tmp_path, 
 
 
 def test_scan_directory_in_bands_gives_the_untiled_results(scan, tmp_path, small_bands, monkeypatch):
-    whole = process(scan, channels=WHOLE_CHANNELS, outputs=STREAMED, out_dir=tmp_path / "whole", method=M)
+    whole = process(scan, **WHOLE, outputs=STREAMED, out_dir=tmp_path / "whole", method=M)
     _never_whole(monkeypatch)
     tiled = process(scan, outputs=STREAMED, out_dir=tmp_path / "tiled", memory="1GB", method=M)
-    assert tiled.ps.info["channels"]["channels"] == "green" and any("with --memory" in n for n in tiled.notes)
+    assert tiled.ps.info["channels"]["channels"] == "mean" and not any("solved on green" in n for n in tiled.notes)
     _same(whole, tiled)
     assert any("near lights" in n for n in tiled.notes)
     assert whole.errors and tiled.errors["normal_median_deg"] == pytest.approx(whole.errors["normal_median_deg"],
@@ -116,7 +118,7 @@ def test_scan_directory_in_bands_gives_the_untiled_results(scan, tmp_path, small
 
 def test_ptm_with_the_samples_is_fitted_over_bands_too(scan, tmp_path, small_bands, monkeypatch):
     outputs = ["normals", "height", "samples", "ptm"]
-    whole = process(scan, channels=WHOLE_CHANNELS, outputs=outputs, method=M)
+    whole = process(scan, **WHOLE, outputs=outputs, method=M)
     _never_whole(monkeypatch)
     tiled = process(scan, outputs=outputs, memory="1GB", method=M)
     _same(whole, tiled)
@@ -131,7 +133,7 @@ def test_samples_and_brdf_taken_band_by_band_give_the_untiled_sensor_and_fit(req
                                                                             monkeypatch, source):
     src = request.getfixturevalue(source)
     outputs = ["normals", "samples", "brdf", "gltf"]
-    whole = process(src, channels=WHOLE_CHANNELS, outputs=outputs, out_dir=tmp_path / "whole", method=M)
+    whole = process(src, **WHOLE, outputs=outputs, out_dir=tmp_path / "whole", method=M)
     _never_whole(monkeypatch)
     tiled = process(src, outputs=outputs, out_dir=tmp_path / "tiled", memory="1GB", method=M)
     _same(whole, tiled)
@@ -151,7 +153,7 @@ def test_samples_and_brdf_taken_band_by_band_give_the_untiled_sensor_and_fit(req
 def test_a_given_mask_is_used_in_bands(diligent, tmp_path, small_bands):
     mask = np.zeros((36, 44), bool)
     mask[6:30, 5:40] = True
-    whole = process(diligent, channels=WHOLE_CHANNELS, outputs=["normals"], mask=mask, method=M)
+    whole = process(diligent, **WHOLE, outputs=["normals"], mask=mask, method=M)
     tiled = process(diligent, outputs=["normals"], mask=mask, memory="1GB", method=M)
     _same(whole, tiled)
     assert not tiled.mask[:6].any()
@@ -213,7 +215,7 @@ def cluster():
 def test_bands_on_a_dask_cluster_give_the_untiled_results(request, cluster, tmp_path, small_bands, monkeypatch,
                                                           source):
     src = request.getfixturevalue(source)
-    whole = process(src, channels=WHOLE_CHANNELS, outputs=["normals", "height"], method=M)
+    whole = process(src, **WHOLE, outputs=["normals", "height"], method=M)
     _never_whole(monkeypatch)
     def bands_run():                     # _ps_task tasks the scheduler has seen finish (counts of transitions)
         prefix = cluster.scheduler.task_prefixes.get("ps_task")
@@ -230,3 +232,9 @@ def test_bands_on_a_dask_cluster_give_the_untiled_results(request, cluster, tmp_
 def test_a_scheduler_without_memory_is_refused():
     with pytest.raises(ValueError, match="give --memory too"):
         ProcessOptions(scheduler="tcp://127.0.0.1:8786")
+
+
+def test_weighted_channels_with_memory_fall_back_to_green_and_say_so(diligent):
+    tiled = process(diligent, outputs=["normals"], method=M, memory="1GB", channels="weighted")
+    assert tiled.ps.info["channels"]["channels"] == "green"
+    assert any("channels: weighted asked; with --memory the normals are solved on green" in n for n in tiled.notes)

@@ -150,7 +150,7 @@ def test_a_profile_light_below_the_horizon_is_said(tmp_path):
     data["lights"][4]["direction"][2] *= -1
     (folder / "scan.json").write_text(json.dumps(data))
     res = process(folder, outputs=["normals"])
-    assert any(n.startswith("light(s) [4] of scan.json lie below the horizon") for n in res.notes)
+    assert any("1 light(s) below the horizon (z < 0; light 4) left out" in n for n in res.notes)   # io.lights
 
 
 def test_a_scan_being_acquired_is_said_so_not_resume(tmp_path, capsys):

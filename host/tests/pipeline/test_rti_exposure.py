@@ -3,6 +3,8 @@ light, as RTIViewer and openlime read them, they give that photograph (its scale
 clipping), with no photometric stereo run; an HDR scan's files at the exposure that clips <= 0.1 %
 of the object, said in the header and process.json; the exposure over bands is the untiled one."""
 import json
+import sys
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -16,7 +18,8 @@ from facette.io.rti import read_hsh_rti
 from facette.pipeline import process
 from facette.pipeline._rti_exposure import CLIP_PERCENT, HDRWhite, exposure_of
 from test_process import L, _write_scan
-from test_rti_capture import _lights, _scene_images, _write
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "capture"))   # the RTI capture tests moved there
+from test_rti_capture import _lights, _scene_images, _write  # noqa: E402
 from facette.recon.synthetic import render, sphere_on_plane
 
 

@@ -2,7 +2,7 @@ import warnings
 
 import numpy as np
 
-from facette.pipeline._inputs import auto_masks, object_of
+from facette.capture.masks import auto_masks, object_of
 
 
 def _stack(albedo, m=12, seed=0):
@@ -38,8 +38,8 @@ def test_unknown_pixels_and_black_frames():
 
 
 def test_compiled_median_and_usable_test_give_numpys_values():
-    from facette.pipeline._pixels_jit import median_over_lights
-    from facette.pipeline._quality import MIN_SNR, usable_from_green
+    from facette.capture._pixels_jit import median_over_lights
+    from facette.capture.usable import MIN_SNR, usable_from_green
     rng = np.random.default_rng(3)
     for m in (1, 2, 5, 12, 96):                  # odd and even counts of known values; a dome's 96
         ch = rng.normal(size=(m, 30, 20, 3)).astype(np.float32)[..., 1]     # strided, as in auto_masks
@@ -79,7 +79,7 @@ def test_object_takes_its_dark_rim_and_leaves_the_table_and_its_specks():
 
 
 def test_masks_from_bands_of_rows_give_the_whole_images_masks():
-    from facette.pipeline._inputs import masks_from
+    from facette.capture.masks import masks_from
     rng = np.random.default_rng(3)
     yy, xx = np.mgrid[:97, :61]
     disc = (yy - 48) ** 2 + (xx - 30) ** 2 < 28 ** 2

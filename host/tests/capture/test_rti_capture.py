@@ -1,4 +1,4 @@
-"""facette.pipeline._rti_capture: RTI capture folders (photographs + .lp, or a mirror sphere in
+"""facette.capture.rti: RTI capture folders (photographs + .lp, or a mirror sphere in
 view) as the input of `process`, built here from rendered scenes."""
 import os
 
@@ -14,7 +14,7 @@ from facette.cli.main import main
 from facette.errors import BadInputError
 from facette.io.diligent import write_diligent
 from facette.pipeline import load_input, process
-from facette.pipeline._rti_capture import srgb_to_linear
+from facette.capture.rti import srgb_to_linear
 from facette.recon.synthetic import angular_error_deg, render, sphere_on_plane
 
 H, W = 72, 96

@@ -1,18 +1,22 @@
-"""The scan directory's part of `load_input`: hdr/ read (merged again where needed), the lights,
-the calibration profile (flat field, pixel pitch), the masks; in pieces that the band-by-band
-reading of `process --memory` (pipeline._tiled_process) shares."""
+"""A facette scan directory as a capture: hdr/ read (merged again where needed), whole
+(`load_scan`) or a window of scanlines at a time (`ScanBands`), the lights, the calibration
+profile (flat field, pixel pitch), the masks; in pieces that the band-by-band reading of
+`process --memory` (pipeline._tiled_process) shares."""
 import warnings
+from pathlib import Path
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
 from facette.calib import ProfileError, ResolutionError, apply_flat_field, load, pitch_at_size
 from facette.errors import BadInputError
-from facette.pipeline._inputs import PSInput, _digest, auto_masks
-from facette.pipeline._quality import usable_from_green
+from facette.io.lights import check_lights
+from facette.capture.base import Bands, PSInput, _digest
+from facette.capture.masks import auto_masks
+from facette.capture.usable import usable_from_green
 from facette.scan import MissingFrameWarning, ScanDirectory, merge_scan, stale_lights
 
-__all__ = ["load_scan", "merged_lights", "scan_manifest", "scan_lights", "scan_input", "profile_flat"]
+__all__ = ["ScanBands", "load_scan", "merged_lights", "scan_manifest", "scan_lights", "scan_input", "profile_flat"]
 
 
 def _unreadable(path, exc):
@@ -140,7 +144,24 @@ def merged_lights(scan_dir, data):
                 merge_scan(scan_dir)
         finally:
             sd.unlock()
+    ids, notes = _lights_checked(ids, by_index, notes)
     return ids, [by_index[i] for i in ids], notes
+
+
+def _lights_checked(ids, by_index, notes):
+    """The frames' lights after the checks every capture's lights pass (`io.lights.check_lights`):
+    those below the horizon (a direction or a position with z < 0: a profile measured wrong or a
+    sign flipped) left out, said; (ids kept, notes)."""
+    dirs = np.array([by_index[i].direction for i in ids], dtype=np.float64).reshape(-1, 3)
+    for k, i in enumerate(ids):
+        pos = by_index[i].position_mm
+        if pos is not None and pos[2] < 0 <= dirs[k, 2]:
+            dirs[k, 2] = -max(abs(dirs[k, 2]), 1e-6)      # the light's position is below: so is the light
+    keep, light_notes = check_lights(dirs, "scan.json (the calibration profile's lights)",
+                                     [f"light {i}" for i in ids])
+    if len(keep) < len(ids):
+        light_notes = [n + "; check the profile (facette calibrate)" for n in light_notes]
+    return [ids[k] for k in keep], notes + light_notes
 
 
 def scan_manifest(scan_dir, allow_incomplete=False):
@@ -179,14 +200,7 @@ def scan_lights(scan_dir, data, lights):
         inten = inten * np.asarray(scale, dtype=np.float64)[None, :]
     pos = [l.position_mm for l in lights]
     positions = np.array(pos, dtype=np.float64) if all(p is not None for p in pos) else None
-    below = [int(l.index) for k, l in enumerate(lights)
-             if dirs[k, 2] < 0 or (positions is not None and positions[k, 2] < 0)]
-    notes = []
-    if below:    # a profile measured wrong (or a light's sign flipped): said, not silently fitted
-        notes.append(f"light(s) {below} of scan.json lie below the horizon (z < 0 in the calibration "
-                     "profile's directions or positions): no such light can light a surface the camera "
-                     "sees, and the normals fitted with it err; check the profile (facette calibrate)")
-    return dirs, inten, positions, notes
+    return dirs, inten, positions, []      # checked, those below the horizon left out: `merged_lights`
 
 
 def load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None):
@@ -299,3 +313,87 @@ def profile_flat(data, scan_dir, size):
                  + ("" if at.flat_field is profile.flat_field else
                     f" (resampled from {measured[0]}×{measured[1]} px)"))
     return pitch, notes, np.asarray(at.flat_field, np.float32)
+
+
+class ScanBands(Bands):
+    """A scan's HDR images (hdr/light_XX.exr and _var.exr), read a band of scanlines at a time,
+    as `_scan_input._read_hdr_fast` then `load_scan` make them: NaN where the variance is not
+    finite, `usable` from the green channel before the light's intensity is divided out, then
+    divided by the intensity and the flat field."""
+
+    def __init__(self, scan_dir, ids, inten, flat=None):
+        import Imath
+        import OpenEXR
+        self.scan_dir, self.ids = Path(scan_dir), list(ids)
+        self.paths = [(self.scan_dir / "hdr" / f"light_{i:02d}.exr", self.scan_dir / "hdr" / f"light_{i:02d}_var.exr")
+                      for i in self.ids]
+        self.inten = np.asarray(inten, np.float64)
+        self.flat = flat
+        self.float = Imath.PixelType(Imath.PixelType.FLOAT)
+        self.files, self.windows = [], []
+        try:
+            for img, var in self.paths:
+                pair = []
+                for path in (img, var):
+                    if path is var and not var.is_file():
+                        pair.append(None)      # radiance without its variance (made elsewhere): no noise
+                        continue
+                    f = OpenEXR.InputFile(str(path))
+                    box = f.header()["dataWindow"]
+                    pair.append(f)
+                    self.windows.append((box.min.x, box.min.y, box.max.x - box.min.x + 1, box.max.y - box.min.y + 1))
+                self.files.append(pair)
+        except Exception as exc:
+            self.close()
+            raise ValueError(f"{path}: cannot read this HDR image ({exc}); delete {path.parent} to merge it "
+                             "again from raw/, or rescan that light") from exc
+        if len(set(self.windows)) != 1:
+            self.close()
+            raise ValueError(f"the HDR images of {self.scan_dir / 'hdr'} differ in size: merge them again")
+        self.x0, self.y0, self.w, self.h = self.windows[0]
+
+    def spec(self):
+        """What a task needs to open the same reader (`open_bands`), flat field apart."""
+        return ("scan", str(self.scan_dir), self.ids, self.inten.tolist())
+
+    def close(self):
+        for pair in self.files:
+            for f in pair:
+                if f is not None:
+                    f.close()
+        self.files = []
+
+    def _channels(self, f, r0, r1):
+        y = self.y0
+        raw = f.channels(["R", "G", "B"], self.float, y + r0, y + r1 - 1)
+        return [np.frombuffer(b, np.float32).reshape(r1 - r0, self.w) for b in raw]
+
+    def read(self, r0, r1, flat=None):
+        """(images (m, r1 - r0, W, 3) float32, usable (m, r1 - r0, W) bool) of rows r0..r1;
+        flat: the flat field's rows r0..r1 (default this reader's own, if any)."""
+        if flat is None and self.flat is not None:
+            flat = self.flat[r0:r1]
+        m, b, w = len(self.paths), r1 - r0, self.w
+        images = np.empty((m, b, w, 3), np.float32)
+        usable = np.empty((m, b, w), bool)
+        for k, (f_img, f_var) in enumerate(self.files):
+            for c, ch in enumerate(self._channels(f_img, r0, r1)):
+                images[k, :, :, c] = ch
+            if f_var is None:
+                images[k][~np.isfinite(images[k]).all(axis=-1)] = np.nan
+                usable[k] = np.isfinite(images[k][..., 1]) & (images[k][..., 1] > 0)
+            else:
+                v = self._channels(f_var, r0, r1)
+                bad = ~(np.isfinite(v[0]) & np.isfinite(v[1]) & np.isfinite(v[2]))
+                fin = np.isfinite(images[k])
+                wild = ~(fin[..., 0] | fin[..., 1] | fin[..., 2]) & ~bad
+                if wild.any():
+                    raise ValueError(f"{self.paths[k][0]} has {int(wild.sum())} non-finite values (Inf or NaN) "
+                                     f"where its variance is finite: the file is damaged; delete it: processing "
+                                     "merges it again from raw/")
+                images[k][bad] = np.nan
+                usable[k] = usable_from_green(images[k][..., 1], np.ascontiguousarray(v[1]))
+            images[k] /= self.inten[k].astype(np.float32)
+            if flat is not None:
+                np.divide(images[k], flat, out=images[k])
+        return images, usable
