@@ -27,7 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["MATERIALS", "NON_LI_SCENES", "SHAPES", "render_scene", "rig_light_directions"]
+__all__ = ["CONCAVE_SHAPES", "MATERIALS", "NON_LI_SCENES", "SHAPES", "render_scene", "rig_light_directions"]
+
+# concave height fields (`facette bench concave`): deep enough that the lights 30-45 deg off the axis
+# are hidden on their walls (cast shadows) and the walls light each other
+CONCAVE_SHAPES = ("bowl", "grooves", "craters", "cup")
 
 MATERIALS = {
     "plaster": {"type": "diffuse"},
@@ -54,7 +58,7 @@ MATERIALS = {
 NON_LI_SCENES = [("sphere", "gold", False), ("sphere", "aluminium", False),
                  ("sphere", "metallic_paint", True), ("sphere", "rough_plastic", False),
                  ("relief", "rough_plastic", True), ("relief", "gold", False)]
-SHAPES = ("sphere", "relief", "vase", "shell", "table")
+SHAPES = ("sphere", "relief", "vase", "shell", "table") + CONCAVE_SHAPES
 # "table": two domes in the scene's material on a dark, slightly glossy table filling the frame (a
 # fossil on black cloth): a hemisphere (radius 0.38, a vertical wall at its foot) and a spherical
 # cap 0.25 high (radius 0.5, meeting the table at 60°). Heights are checked against `positions`.
@@ -88,6 +92,8 @@ def _heightfield(name, n=160):
         th = np.arctan2(yy + 0.15, xx)
         z = 0.45 * np.maximum(1 - r ** 2, 0) + 0.035 * np.cos(14 * th) * np.minimum(r, 0.9) \
             - 0.1 * np.exp(-((xx - 0.3) ** 2 + (yy + 0.35) ** 2) / 0.01)
+    elif name in CONCAVE_SHAPES:
+        z = _concave(name, xx, yy)
     else:  # vase: a surface of revolution seen from above, concave neck around a bulge
         r = np.sqrt(xx ** 2 + yy ** 2)
         z = 0.5 * np.exp(-r ** 2 / 0.12) - 0.25 * np.exp(-(r - 0.55) ** 2 / 0.02) + 0.1 * np.cos(3 * r)
@@ -97,6 +103,26 @@ def _heightfield(name, n=160):
     faces = np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)])
     uv = np.stack([(xx.ravel() + 1) / 2, (yy.ravel() + 1) / 2], axis=1)
     return v, faces, uv
+
+
+def _concave(name, xx, yy):
+    """Heights of the concave scenes over [-1, 1]^2 (walls up to 60-75 deg steep)."""
+    r = np.sqrt(xx ** 2 + yy ** 2)
+    if name == "bowl":     # a spherical bowl (radius 0.8) cut 0.41 deep into a plane, rim 0.7
+        return -np.maximum(np.sqrt(np.maximum(0.64 - r ** 2, 0)) - np.sqrt(0.64 - 0.49), 0)
+    if name == "cup":      # a flat-bottomed cup 0.55 deep, its walls 75 deg steep at their middle
+        return -0.55 / (1 + np.exp((r - 0.5) / 0.04))
+    if name == "grooves":  # three parabolic grooves, two along y and one diagonal
+        z = np.zeros_like(xx)
+        for u, depth, half in ((xx + 0.55, 0.22, 0.18), (xx - 0.05, 0.3, 0.14), ((xx + yy) / np.sqrt(2) - 0.75, 0.18, 0.15)):
+            z = np.minimum(z, -depth * np.maximum(0, 1 - (u / half) ** 2))
+        return z
+    # craters: a field of pits with raised rims
+    z = np.zeros_like(xx)
+    for cx, cy, a in ((-0.45, 0.4, 0.35), (0.4, 0.45, 0.25), (0.05, -0.3, 0.4), (-0.55, -0.55, 0.2), (0.6, -0.5, 0.22)):
+        rr = np.sqrt((xx - cx) ** 2 + (yy - cy) ** 2)
+        z += -0.45 * a / 0.35 * np.exp(-(rr / (0.55 * a)) ** 2) + 0.08 * a / 0.35 * np.exp(-((rr - a) / (0.25 * a)) ** 2)
+    return z
 
 
 def _write_ply(path, v, faces, uv):

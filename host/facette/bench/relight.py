@@ -1,24 +1,23 @@
 """`facette bench relight`: relighting judged on lights it never saw.
 
-Each method is fitted on all but k photographs and predicts the k held out; the table gives,
-per method, the relative RMS error (sqrt(Σ|pred − photo|² / Σ|photo|²) over the mask and the
-known values), the PSNR (peak: the 99.9th percentile of the held-out values on the mask), the
-share of the object's pixels that come out negative under lights 75° from the axis (8 azimuths;
-counted before any clipping, which every RTI viewer then does), and the time (fit + predictions).
+Each method is fitted on all but the held-out photographs and predicts them; the score is the
+NeuralRTI benchmark's: the PSNR of the 8-bit display values (sRGB-encoded, clipped, rounded) over
+every pixel of the object and every channel, per held-out photograph, then averaged; the SSIM
+of the same 8-bit values (Wang et al. 2004: Gaussian window σ 1.5, K1 0.01, K2 0.03, per channel,
+averaged over the object); the share of the object's pixels whose raw value (before the viewer's
+clip) is negative under lights 75° from the axis (8 azimuths); the fit's time and its size
+(bytes per pixel as 8-bit planes = MB per megapixel).
 
-Methods: PTM LRGB (6 terms), HSH of order 2 and 3 (4 and 9 terms per channel), the fits of
-`facette.recon` as they are; an RBF interpolation over the lights' (x, y) as Relight's default
-basis does it (Gaussian kernel, its width and smoothing chosen on the fitted photographs alone,
-scipy's `RBFInterpolator`), the peer; and, from one `process` run on the fitted photographs
-(normals, albedo, the LI BRDF fitted to them; its time charged to each of these rows):
-Lambert's law with the photometric-stereo albedo; facette's physically based relighting as the
-report's viewer does it (`pipeline._relight.relight`, its Python reference, K_d map from the
-albedo); and the same with a per-pixel gain fitted to the fitted photographs.
+Methods (`bench._relight_methods`): PTM LRGB, HSH of order 2 and 3, Relight's RBF (principal
+components + Gaussian RBF over the lights), facette's report viewer before this change (process():
+normals, albedo, one LI BRDF; --no-before to skip it), and facette's relighting model
+(`recon._relight_model`: normals, a per-pixel diffuse, lobe and gathered-light map, cast shadows
+from the integrated heights (left out in "no shadows"), and a residual interpolated over the lights).
 
-Data (../shared/data, or --root DIR): the DiLiGenT objects (96 lights, every 8th held out: 12
-predicted from 84) and the DiLiGenT-Π reliefs (5 lights, each left out in turn: predicted from
-4; 1216×1216 px cropped to the object and taken every `--pi-step` px). A method with more terms
-than fitted lights is "n/a".
+Captures (../shared/data, or --root DIR): DiLiGenT (96 lights, every 8th held out), DiLiGenT-Π
+(5 lights, each left out in turn; every `--pi-step` px), the Loewenkopf dome (JPEG + .lp, 240
+lights, every 6th held out), the Harvard set (20 lights, every 6th held out; ≤ 320 px) and
+JPEG + .lp captures written from DiLiGenT's crops (8-bit sRGB, every 6th held out).
 """
 import argparse
 import shutil
@@ -27,19 +26,15 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import RBFInterpolator
+from scipy.ndimage import gaussian_filter
 
 import facette
-from facette.errors import InsufficientData
-from facette.io.diligent import read_diligent, write_diligent
-from facette.pipeline import process
-from facette.pipeline._relight import kd_map_from_albedo, relight, viewer_model
-from facette.recon import fit_hsh, fit_ptm_lrgb, hsh_basis, ptm_basis, relight_hsh, relight_ptm
+from facette.bench._relight_data import (diligent_capture, harvard_capture, hold_every, lp_capture,
+                                         make_jpeg_capture)
+from facette.bench._relight_methods import METHODS
 
-METHODS = ("PTM", "HSH 2", "HSH 3", "RBF (Relight)", "Lambert (PS)", "facette PB", "facette PB+gain")
-PB_METHODS = METHODS[4:]
-GAINS = []          # the per-pixel gains' median (green) of each process() run: the viewer's scale error
 RAKING_DEG = 75.0
+BASELINE = "HSH 3"
 
 
 def raking_lights(theta_deg=RAKING_DEG, n=8):
@@ -49,268 +44,149 @@ def raking_lights(theta_deg=RAKING_DEG, n=8):
     return np.c_[np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(n, np.cos(t))]
 
 
-def _load(folder, step=1, margin=8):
-    """(images (m, H, W, 3), dirs (m, 3), mask) cropped to the mask's box + margin, every step px."""
-    d = read_diligent(folder)
-    rows, cols = np.nonzero(d.mask)
-    r0, r1 = max(rows.min() - margin, 0), min(rows.max() + margin + 1, d.mask.shape[0])
-    c0, c1 = max(cols.min() - margin, 0), min(cols.max() + margin + 1, d.mask.shape[1])
-    sl = (slice(r0, r1, step), slice(c0, c1, step))
-    return np.ascontiguousarray(d.images[:, sl[0], sl[1]]), d.light_dirs, d.mask[sl]
+def to8(display):
+    """8-bit display values of display values (clipped to [0, 1], rounded), float64."""
+    return np.round(np.clip(np.nan_to_num(display), 0, 1) * 255.0)
 
 
-class _Scores:
-    """Sums of one method over the held-out photographs and the raking lights."""
-
-    def __init__(self):
-        self.num = self.den = 0.0
-        self.sq = []
-        self.neg = []
-        self.seconds = 0.0
-        self.why = ""
-        self.unknown = 0
-        self.failed = False
-
-    def add(self, pred, photo, mask):
-        sel = mask & np.all(np.isfinite(photo), axis=-1)
-        bad = sel & ~np.all(np.isfinite(pred), axis=-1)
-        self.unknown += int(bad.sum())              # a pixel the method gives no value: 0 counted
-        diff = (np.nan_to_num(pred) - photo)[sel]
-        self.num += float(np.sum(diff * diff))
-        self.den += float(np.sum(photo[sel].astype(np.float64) ** 2))
-        self.sq.append(np.mean(diff * diff))
-
-    def rel_rms(self):
-        return np.sqrt(self.num / self.den) if self.den > 0 else np.nan
-
-    def psnr(self, peak):
-        return 10 * np.log10(peak ** 2 / np.mean(self.sq)) if self.sq else np.nan
+def psnr8(pred8, photo8, mask):
+    mse = float(np.mean((pred8[mask] - photo8[mask]) ** 2))
+    return 10 * np.log10(255.0 ** 2 / max(mse, 1e-10))
 
 
-def _ptm(train, dirs, mask):
-    fit = fit_ptm_lrgb(train, dirs, mask=mask)
-    if fit.valid[mask].mean() < 0.5:
-        return None, "fewer lights than terms"
-    return (lambda d: relight_ptm(fit, d),
-            lambda d: (fit.coeffs @ ptm_basis(d)) < 0), ""
+def ssim8(pred8, photo8, mask, sigma=1.5):
+    """Mean SSIM (Wang et al. 2004, eq 13; Gaussian window σ 1.5) over the mask and channels."""
+    c1, c2 = (0.01 * 255) ** 2, (0.03 * 255) ** 2
+    vals = []
+    for c in range(pred8.shape[-1]):
+        x, y = pred8[..., c], photo8[..., c]
+        mx, my = gaussian_filter(x, sigma), gaussian_filter(y, sigma)
+        sxx = gaussian_filter(x * x, sigma) - mx * mx
+        syy = gaussian_filter(y * y, sigma) - my * my
+        sxy = gaussian_filter(x * y, sigma) - mx * my
+        s = ((2 * mx * my + c1) * (2 * sxy + c2)) / ((mx * mx + my * my + c1) * (sxx + syy + c2))
+        vals.append(s[mask])
+    return float(np.mean(vals))
 
 
-def _hsh(order):
-    def fit_fn(train, dirs, mask):
-        if len(dirs) < order * order:
-            return None, "fewer lights than terms"
-        fit = fit_hsh(train, dirs, order, mask=mask)
-        if fit.valid[mask].mean() < 0.5:
-            return None, "fewer lights than terms"
-        return (lambda d: relight_hsh(fit, d),
-                lambda d: np.any(fit.coeffs @ hsh_basis(d, order) < 0, axis=-1)), ""
-    return fit_fn
-
-
-def _rbf_fit(xy, vals, mult, smoothing, spacing):
-    return RBFInterpolator(xy, vals, kernel="gaussian", epsilon=1.0 / (mult * spacing), smoothing=smoothing)
-
-
-def _rbf(train, dirs, mask, widths=(1, 2, 4, 8), smoothings=(1e-3, 1e-2), n_check=20000):
-    """Gaussian RBF over the lights' (x, y), every pixel of the mask at once (one system, many
-    right-hand sides). A clipped (unknown) value is filled with its pixel's brightest known one.
-    The width (1–8 × the median spacing of the lights) and the smoothing are chosen on the
-    fitted photographs alone: every 8th of them (each in turn with fewer than 16) predicted from
-    the others, on up to `n_check` values."""
-    vals = train[:, mask].reshape(len(train), -1)                  # (m, N*3)
-    top = np.nanmax(np.where(np.isfinite(vals), vals, -np.inf), axis=0)
-    vals = np.where(np.isfinite(vals), vals, np.where(np.isfinite(top), top, 0.0)[None])
-    xy = dirs[:, :2]
-    dist = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
-    np.fill_diagonal(dist, np.inf)
-    spacing = float(np.median(dist.min(axis=1)))
-    m = len(xy)
-    folds = [np.arange(7, m, 8)] if m >= 16 else [[i] for i in range(m)]
-    cols = np.linspace(0, vals.shape[1] - 1, min(n_check, vals.shape[1])).astype(int)
-    best = None
-    for mult in widths:
-        for sm in smoothings:
-            err = 0.0
-            for f in folds:
-                keep = np.setdiff1d(np.arange(m), f)
-                if len(keep) < 2:
-                    continue
-                pred = _rbf_fit(xy[keep], vals[keep][:, cols], mult, sm, spacing)(xy[f])
-                err += float(np.sum((pred - vals[f][:, cols]) ** 2))
-            if best is None or err < best[0]:
-                best = (err, mult, sm)
-    interp = _rbf_fit(xy, vals, best[1], best[2], spacing)
-    shape = mask.shape + (3,)
-
-    def render(d):
-        out = np.zeros(shape)
-        out[mask] = interp(np.asarray(d, float)[None, :2]).reshape(-1, 3)
-        return out
-
-    return (lambda d: np.clip(render(d), 0, None), lambda d: np.any(render(d) < 0, axis=-1)), ""
-
-
-def _physically_based(train, dirs, mask, work, ps_method="rank_trimmed"):
-    """process() on the fitted photographs (a DiLiGenT folder of them, 16-bit PNGs scaled to the
-    brightest known value). Returns ({name: (render, negative)}, why): the viewer's relighting as
-    it is (K_d map from the albedo, `kd_map_from_albedo`); the same with a per-pixel, per-channel
-    gain fitted by least squares to the fitted photographs (what the K_d map's scale misses);
-    and Lambert's law with the photometric-stereo albedo (ρ/π n·l)."""
-    finite = np.isfinite(train)
-    top = float(np.max(train[finite])) if finite.any() else 1.0
-    u16 = np.where(finite, np.round(np.clip(train / top, 0, 1) * 65534), 65535).astype(np.uint16)
-    # The BRDF fit wants radiance factors (a K_d within [0, 1]): one intensity for every light
-    # that brings the typical bright pixel's albedo to about 0.8 (its median over the lights is
-    # about ρ/π · 0.8); the predictions are scaled back by the same factor.
-    with np.errstate(invalid="ignore"):
-        med = np.nanmedian(np.where(finite, train / top, np.nan)[:, mask][..., 1], axis=0)
-    c = float(np.nanpercentile(med, 99)) / (0.8 * 0.8 / np.pi) if np.isfinite(med).any() else 1.0
-    write_diligent(work, u16, dirs, light_intensities=np.full((len(dirs), 3), c), mask=mask)
-    top *= c
-    try:
-        res = process(work, outputs=["normals", "albedo", "brdf"], method=ps_method,
-                      fit_options={"model": "li"})
-    except InsufficientData as exc:
-        return None, f"process: {exc}"
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
-    n = res.normals
-    rho = np.nan_to_num(res.albedo)          # NaN where photometric stereo gave no albedo: dark
-
-    def lambert(d):
-        return top * rho / np.pi * np.clip(n @ np.asarray(d, float), 0, None)[..., None] * res.mask[..., None]
-
-    def never_negative(render):
-        return lambda d: np.any(render(d) < 0, axis=-1)
-
-    fns = {"Lambert (PS)": (lambert, never_negative(lambert))}
-    try:
-        m = viewer_model(res.brdf if res.brdf is not None else {"success": False, "message": "no BRDF fitted"})
-    except ValueError as exc:
-        return fns, str(exc)
-    kd = kd_map_from_albedo(rho, res.mask, m.kd, res.inputs.material_mask)
-
-    def viewer(d):
-        return top * relight(res.normals, kd, res.mask, m, d)
-
-    num = np.zeros(mask.shape + (3,))
-    den = np.zeros(mask.shape + (3,))
-    for img, d in zip(train, dirs):
-        pred = viewer(d)
-        ok = np.isfinite(img)
-        num += np.where(ok, pred * np.nan_to_num(img), 0.0)
-        den += np.where(ok, pred * pred, 0.0)
-    # where the model gives (almost) no light under every fitted light there is nothing to scale:
-    # gain 1; elsewhere bounded to [0, 4] (a pixel the model gets wrong is not rescued by a gain)
-    tiny = den <= 1e-6 * max(float(np.median(den[res.mask])) if res.mask.any() else 0.0, 1e-30)
-    gain = np.clip(np.where(tiny, 1.0, num / np.where(tiny, 1.0, den)), 0.0, 4.0)
-    GAINS.append(float(np.median(gain[res.mask][:, 1])))
-    fns.update({k: (f, never_negative(f)) for k, f in
-                (("facette PB", viewer), ("facette PB+gain", lambda d: gain * viewer(d)))})
-    return fns, ""
-
-
-FITS = {"PTM": _ptm, "HSH 2": _hsh(2), "HSH 3": _hsh(3), "RBF (Relight)": _rbf}
-
-
-def _score(sc, fns, why, images, dirs, held, mask, raking, t0):
-    if fns is None:              # one fold without a fit: the method is n/a on this object
-        sc.why = sc.why or why
-        sc.failed = True
-    else:
-        render, negative = fns
-        for h in held:
-            sc.add(render(dirs[h]), images[h], mask)
-        if raking:
-            sc.neg = [float(np.mean(negative(d)[mask])) for d in raking_lights()]
-    sc.seconds += time.perf_counter() - t0
-
-
-def evaluate(images, dirs, mask, folds, work, ps_method="rank_trimmed"):
-    """Scores of every method over the folds (lists of held-out indices)."""
-    scores = {name: _Scores() for name in METHODS}
-    held_all = []
-    for k, held in enumerate(folds):
-        fit_sel = np.setdiff1d(np.arange(len(dirs)), held)
-        train, tdirs = images[fit_sel], dirs[fit_sel]
-        held_all.extend(images[h][mask] for h in held)
-        for name in METHODS[:4]:
+def score(cap, names, work):
+    """{method: dict(psnr, ssim, neg, fit_s, size, why)} over the capture's folds; None: n/a."""
+    out = {}
+    for name in names:
+        ps, ss, neg, secs, size, why = [], [], [], 0.0, 0.0, ""
+        for k, held in enumerate(cap.folds):
+            train = np.setdiff1d(np.arange(len(cap.dirs)), held)
             t0 = time.perf_counter()
-            fns, why = FITS[name](train, tdirs, mask)
-            _score(scores[name], fns, why, images, dirs, held, mask, k == 0, t0)
-        t0 = time.perf_counter()
-        pb, why = _physically_based(train, tdirs, mask, work / f"fold{k}", ps_method)
-        shared = time.perf_counter() - t0          # one process() run: each PB row is charged it
-        for name in PB_METHODS:
-            _score(scores[name], (pb or {}).get(name), why, images, dirs, held, mask, k == 0,
-                   time.perf_counter() - shared)
-    vals = np.concatenate(held_all).ravel()
-    peak = float(np.percentile(vals[np.isfinite(vals)], 99.9))
-    return scores, peak
+            if "before" in name and len(cap.folds) > 1:
+                ps, why = None, "skipped: one process() per fold"
+                break
+            args = (cap, train, work / f"{name}{k}") if "before" in name else (cap, train)
+            fitted = METHODS[name](*args)
+            secs += time.perf_counter() - t0
+            if fitted is None or fitted.raw is None:
+                why = fitted.why if fitted is not None else "fewer lights than terms"
+                ps = None
+                break
+            size, why = fitted.size, fitted.why or why
+            for h in held:
+                pred8, photo8 = to8(fitted.raw(cap.dirs[h])), to8(cap.shown[h])
+                ps.append(psnr8(pred8, photo8, cap.mask))
+                ss.append(ssim8(pred8, photo8, cap.mask))
+            if k == 0:
+                neg = [float(np.mean(np.any(fitted.raw(d) < 0, axis=-1)[cap.mask])) for d in raking_lights()]
+        mpx = cap.mask.sum() / 1e6
+        out[name] = None if ps is None else dict(psnr=np.mean(ps), ssim=np.mean(ss), neg=100 * np.mean(neg),
+                                                 fit_s_mpx=secs / len(cap.folds) / mpx, size=size, why=why)
+        if ps is None:
+            out[name] = dict(why=why)
+    return out
 
 
-def _print(label, scores, peak):
-    if GAINS and not scores["facette PB+gain"].failed:
-        scores["facette PB+gain"].why = f"median gain {np.median(GAINS):.3f}"
-        GAINS.clear()
-    for name in METHODS:
-        sc = scores[name]
-        if sc.failed or not sc.sq:
-            print(f"  {label:22s} {name:15s} {'n/a':>8s} {'':>8s} {'':>11s} {sc.seconds:7.2f} s  ({sc.why})")
-        else:
-            neg = f"{100 * np.mean(sc.neg):9.2f} %" if sc.neg else f"{'n/a':>11s}"
-            why = "; ".join(filter(None, [sc.why, f"{sc.unknown} values NaN, counted 0" if sc.unknown else ""]))
-            print(f"  {label:22s} {name:15s} {100 * sc.rel_rms():7.2f} % {sc.psnr(peak):6.2f} dB {neg} "
-                  f"{sc.seconds:7.2f} s" + (f"  ({why})" if why else ""), flush=True)
-        label = ""
+def _row(label, name, r):
+    if "psnr" not in r:
+        return f"  {label:22s} {name:20s} {'n/a':>8s}   ({r['why']})"
+    return (f"  {label:22s} {name:20s} {r['psnr']:6.2f} dB {r['ssim']:6.3f} {r['neg']:8.2f} % "
+            f"{r['fit_s_mpx']:9.1f} s/MP {r['size']:5.0f} B/px" + (f"  ({r['why']})" if r["why"] else ""))
 
 
-def _header():
-    print(f"  {'object':22s} {'method':15s} {'rel. RMS':>8s} {'PSNR':>9s} {'neg. @75°':>11s} {'time':>9s}")
+def _captures(base, args, work):
+    """Yields the captures one by one (each loaded when its turn comes)."""
+    groups = set(args.groups.split(","))
+    crops = []
+    for n in filter(None, args.diligent.split(",")):
+        f = next((base / p / n for p in ("diligent_crop8", "diligent")
+                  if (base / p / n / "filenames.txt").is_file()), None)
+        if f is None:
+            continue
+        cap = diligent_capture(f, "DiLiGenT", lambda m: hold_every(m, 8))
+        crops.append(cap)
+        if "diligent" in groups:
+            yield cap
+    pi_base = base / "diligent_pi"
+    for n in filter(None, args.pi.split(",")) if "pi" in groups else []:
+        if (pi_base / n / "filenames.txt").is_file():
+            yield diligent_capture(pi_base / n, "DiLiGenT-Π", lambda m: [[j] for j in range(m)], args.pi_step)
+    lp = base / "rti_captures" / "loewenkopf_240" / "data" / "dirs.lp"
+    if "dome" in groups and lp.is_file():
+        yield lp_capture(lp, "dome (JPEG + .lp)", "loewenkopf_240")
+    for n in filter(None, args.harvard.split(",")) if "harvard" in groups else []:
+        if (base / "harvard_psdata" / n / "light_directions.txt").is_file():
+            yield harvard_capture(base / "harvard_psdata" / n)
+    for cap in crops if "jpeg" in groups else []:
+        yield make_jpeg_capture(cap, work / f"jpeg_{cap.name}")
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="facette bench relight", description=__doc__.splitlines()[0])
     default_root = Path(facette.__file__).resolve().parents[2].parent / "shared" / "data"
     ap.add_argument("--root", default=str(default_root), help=f"real data folder (default {default_root})")
+    ap.add_argument("--groups", default="diligent,pi,dome,harvard,jpeg",
+                    help="capture groups to run (default all: diligent,pi,dome,harvard,jpeg)")
     ap.add_argument("--diligent", default="ballPNG,catPNG,pot2PNG,buddhaPNG,readingPNG",
-                    help="DiLiGenT objects ('' for none)")
-    ap.add_argument("--pi", default="Bagua-R,Cloud-R,Bear,Bird",
-                    help="DiLiGenT-Π objects, comma separated, 'all' or '' (default: two rough plaques, a "
-                         "specular relief, a metal coin: 5 process() runs each)")
+                    help="DiLiGenT objects (their JPEG + .lp captures too)")
+    ap.add_argument("--pi", default="Bagua-R,Cloud-R,Bear,Bird", help="DiLiGenT-Π objects")
     ap.add_argument("--pi-step", type=int, default=8, help="DiLiGenT-Π: every N-th pixel (default 8)")
+    ap.add_argument("--harvard", default="frog,hippo,lizard,pig,scholar,turtle", help="Harvard objects")
+    ap.add_argument("--methods", default=",".join(METHODS), help="methods (default all)")
+    ap.add_argument("--no-before", action="store_true",
+                    help="skip the viewer before this change (a process() per fold)")
     args = ap.parse_args(argv)
-    base = Path(args.root)
+    names = [n for n in args.methods.split(",") if n in METHODS and not (args.no_before and "before" in n)]
     work = Path(tempfile.mkdtemp(prefix="facette_bench_relight_"))
+    table = {}
+    print(f"  {'capture':22s} {'method':20s} {'PSNR':>9s} {'SSIM':>6s} {'neg@75°':>10s} {'fit':>14s} {'size':>8s}")
     try:
-        names = [n for n in args.diligent.split(",") if n]
-        folders = [next((base / p / n for p in ("diligent", "diligent_crop8")
-                         if (base / p / n / "filenames.txt").is_file()), None) for n in names]
-        folders = [f for f in folders if f is not None]
-        if folders:
-            print("1. DiLiGenT, 96 lights: every 8th held out (12 predicted from 84)")
-            _header()
-            for f in folders:
-                images, dirs, mask = _load(f)
-                scores, peak = evaluate(images, dirs, mask, [np.arange(7, len(dirs), 8)], work)
-                _print(f"{f.name} {mask.shape[1]}x{mask.shape[0]}", scores, peak)
-        pi_base = base / "diligent_pi"
-        if args.pi == "all":
-            pi = sorted(p.name for p in pi_base.iterdir() if (p / "filenames.txt").is_file()) \
-                if pi_base.is_dir() else []
-        else:
-            pi = [n for n in args.pi.split(",") if n and (pi_base / n / "filenames.txt").is_file()]
-        if pi:
-            print(f"2. DiLiGenT-Π reliefs, 5 lights: each left out in turn (predicted from 4), every "
-                  f"{args.pi_step} px")
-            _header()
-            for n in pi:
-                images, dirs, mask = _load(pi_base / n, step=args.pi_step)
-                # 4 lights: least squares (rank_trimmed needs lights to trim)
-                scores, peak = evaluate(images, dirs, mask, [[k] for k in range(len(dirs))], work, "woodham1980")
-                _print(f"{n} {mask.shape[1]}x{mask.shape[0]}", scores, peak)
-        if not folders and not pi:
-            print(f"no DiLiGenT data under {base} (pass --root DIR); skipped")
+        for cap in _captures(Path(args.root), args, work):
+            label = f"{cap.name} ({len(cap.dirs)}, {cap.mask.sum() / 1e3:.0f}k px)"
+            rows = score(cap, names, work)
+            table[(cap.group, cap.name)] = rows
+            print(f"{cap.group}:")
+            for name in names:
+                print(_row(label, name, rows[name]), flush=True)
+                label = ""
     finally:
         shutil.rmtree(work, ignore_errors=True)
+    if not table:
+        print(f"no data under {args.root} (pass --root DIR); skipped")
+        return 0
+    _summary(table, names)
     return 0
+
+
+def _summary(table, names):
+    """The mean PSNR of every method over the captures it ran on, and the best's margin over HSH 3."""
+    print("mean over the captures (PSNR, SSIM; captures where the method is n/a left out):")
+    for name in names:
+        got = [r[name] for r in table.values() if "psnr" in r[name]]
+        if got:
+            print(f"  {name:20s} {np.mean([g['psnr'] for g in got]):6.2f} dB {np.mean([g['ssim'] for g in got]):6.3f}"
+                  f"  ({len(got)} of {len(table)} captures)")
+    for name in names:
+        if BASELINE not in names or name == BASELINE:
+            continue
+        both = [(r[name]["psnr"], r[BASELINE]["psnr"]) for r in table.values()
+                if "psnr" in r[name] and "psnr" in r[BASELINE]]
+        if both:
+            d = np.array([a - b for a, b in both])
+            print(f"  {name:20s} vs {BASELINE}: mean {d.mean():+.2f} dB, worst {d.min():+.2f} dB "
+                  f"over {len(d)} captures")

@@ -25,11 +25,12 @@ import numpy as np
 from facette.bench._browser import By, chromium, console_errors, viewer_pixels, wait_for_viewer
 from facette.bench._sim_scan import write_scan
 from facette.pipeline import process
-from facette.pipeline._relight import light_from_angles, relight, to_srgb8
+from facette.pipeline._relight import BACKGROUND, light_from_angles, relight, to_srgb8
 from facette.pipeline._viewer import viewer_data, viewer_section
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
 LIGHTS = [(135.0, 45.0), (0.0, 20.0), (270.0, 70.0)]
+RAKING = (135.0, 15.0)          # 75° from the camera axis
 GLOSSY_LI = {"model": "li", "distribution": "beckmann", "masking": "smith", "volume": "approx",
              "success": True, "parameters": {"sigma": 0.044, "n_i": 1.14, "kd": [0.65, 0.56, 0.45]}}
 
@@ -48,14 +49,23 @@ def _page(path, data):
                     f"{viewer_section(data)}</body></html>", encoding="utf-8")
 
 
+def reference_pixels(arr, light):
+    """The page's Python reference (8-bit): the relighting model as shipped when the page draws
+    it, else the fitted BRDF (pipeline._relight.relight)."""
+    if arr.get("sv_model") is not None:
+        shown = np.round(arr["sv_model"].display(light) * 255)
+        return np.where(arr["mask"][..., None], shown, np.round(BACKGROUND * 255)).astype(np.uint8)
+    return to_srgb8(relight(arr["normals"], arr["kd_map"], arr["mask"], arr["model"], light),
+                    arr["mask"], arr["exposure"])
+
+
 def pixel_differences(driver, arr, lights=LIGHTS):
     """{light: (mean, p99, max)} of |browser − reference| in 8-bit levels over the mask."""
     out = {}
     for az, el in lights:
         got = viewer_pixels(driver, az, el)
         t0 = time.perf_counter()
-        want = to_srgb8(relight(arr["normals"], arr["kd_map"], arr["mask"], arr["model"],
-                                light_from_angles(az, el)), arr["mask"], arr["exposure"])
+        want = reference_pixels(arr, light_from_angles(az, el))
         t_ref = time.perf_counter() - t0
         d = np.abs(got.astype(int) - want.astype(int))[arr["mask"]]
         out[(az, el)] = (float(d.mean()), float(np.percentile(d, 99)), int(d.max()), t_ref)
@@ -110,11 +120,12 @@ def bench_report(out, report=None):
         if report is None:
             sc = sphere_on_plane(48, 64)
             write_scan(Path(tmp) / "scan", sc, render(sc, thesis_light_directions(), "satin", noise=0.002))
-            res = process(Path(tmp) / "scan", outputs=["normals", "albedo", "height", "samples", "brdf", "report"],
-                          out_dir=Path(tmp) / "out")
+            res = process(Path(tmp) / "scan", outputs=["normals", "albedo", "height", "samples", "brdf", "relight",
+                                                       "report"], out_dir=Path(tmp) / "out")
             report = Path(tmp) / "out" / "report.html"
             _, arr = viewer_data(res.normals, res.mask, res.brdf, albedo=res.albedo, height=res.height,
-                                 pitch_mm=res.inputs.pixel_pitch_mm, material_mask=res.inputs.sample_mask())
+                                 pitch_mm=res.inputs.pixel_pitch_mm, material_mask=res.inputs.sample_mask(),
+                                 relight_model=res.relight_model)
         with chromium(1400, 1000) as driver:
             wait_for_viewer(driver, report)
             height = driver.execute_script("return document.body.scrollHeight")
@@ -122,17 +133,19 @@ def bench_report(out, report=None):
             driver.save_screenshot(str(out / "report.png"))
             canvas = driver.find_element(By.ID, "facette-relight")
             driver.execute_script("arguments[0].scrollIntoView()", canvas)
-            for name, (az, el) in (("viewer-light-a.png", LIGHTS[0]), ("viewer-light-b.png", LIGHTS[1])):
+            for name, (az, el) in (("viewer-light-a.png", LIGHTS[0]), ("viewer-light-b.png", LIGHTS[1]),
+                                   ("viewer-raking.png", RAKING)):
                 driver.execute_script("window.facetteViewer.setLight(arguments[0], arguments[1])", az, el)
                 driver.find_element(By.ID, "viewer").screenshot(str(out / name))
-            diffs = pixel_differences(driver, arr) if arr is not None else None
+            diffs = pixel_differences(driver, arr, LIGHTS + [RAKING]) if arr is not None else None
             errors = console_errors(driver)
     print(f"2. report {report if arr is None else '(process on a 64 × 48 simulated scan, satin material)'}")
     if diffs:
         _print_diffs(diffs)
     print(f"  console errors: {len(errors)}; screenshots: {out / 'report.png'}, {out / 'viewer-light-a.png'} "
           f"(az {LIGHTS[0][0]:.0f}°, el {LIGHTS[0][1]:.0f}°), {out / 'viewer-light-b.png'} "
-          f"(az {LIGHTS[1][0]:.0f}°, el {LIGHTS[1][1]:.0f}°)")
+          f"(az {LIGHTS[1][0]:.0f}°, el {LIGHTS[1][1]:.0f}°), {out / 'viewer-raking.png'} "
+          f"(az {RAKING[0]:.0f}°, el {RAKING[1]:.0f}°: 75° from the axis)")
 
 
 def main(argv=None):

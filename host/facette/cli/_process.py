@@ -37,14 +37,36 @@ def _number(kind, lo=None, hi=None, lo_open=False, what="value"):
     return parse
 
 
+def _size(text):
+    """--memory: a size (facette._memory.parse_size: units, > 0, within this machine's memory),
+    kept as written."""
+    from facette._memory import parse_size
+    try:
+        parse_size(text, "--memory")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def _scheduler(text):
+    """--scheduler: a scheduler's address (tcp://HOST:PORT), its form checked here."""
+    from facette.errors import BadInputError
+    from facette.pipeline._scheduler import scheduler_address
+    try:
+        scheduler_address(text)
+    except BadInputError as exc:
+        raise argparse.ArgumentTypeError(exc.message) from None
+    return text
+
+
 def _outputs(text):
-    from facette.pipeline import OUTPUTS
+    from facette.pipeline import ALL_OUTPUTS
 
     out = [o.strip() for o in text.split(",") if o.strip()]
-    bad = [o for o in out if o not in OUTPUTS]
+    bad = [o for o in out if o not in ALL_OUTPUTS]
     if bad or not out:
         raise argparse.ArgumentTypeError(f"unknown output(s) {', '.join(bad) or '(none given)'}; "
-                                         f"choose from {','.join(OUTPUTS)}")
+                                         f"choose from {','.join(ALL_OUTPUTS)}")
     return out
 
 
@@ -61,8 +83,8 @@ def register(sub):
                                   "(photographs with an .lp file, or with a mirror sphere in view)")
     p.add_argument("-o", "--out", required=True, help="output directory (created)")
     p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
-                   help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all); only the "
-                        "stages they need run")
+                   help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all), or relight-web "
+                        "(Relight's web format for openlime, asked for by name); only the stages they need run")
     p.add_argument("--method", default=None,
                    choices=list(PS_METHODS),
                    help=f"photometric stereo (default {d.method}: BRDF-aware, the LI model fitted per "
@@ -80,10 +102,13 @@ def register(sub):
                         "the albedo stays per channel")
     p.add_argument("--interreflections", action=argparse.BooleanOptionalAction, default=None,
                    help="take the light a concave surface gathers from itself out of the images first "
-                        "(craters, grooves, a vase's neck; needs a reflectance-calibrated scan); with "
-                        "li_alternating also what glossy walls mirror into each other. Default: on a "
-                        "reflectance-calibrated scan read whole, off elsewhere (a note says why); "
-                        "--no-interreflections: never")
+                        "(craters, grooves, a vase's neck); with li_alternating also what glossy walls mirror "
+                        "into each other. Default: on a reflectance-calibrated scan read whole, off elsewhere "
+                        "(a note says why); asked for on a folder or capture, the albedo's scale is estimated "
+                        "from the images; --no-interreflections: never")
+    p.add_argument("--shadows", choices=("auto", "on", "off"), default="auto",
+                   help="leave out the lights the surface hides from itself (a horizon test on its heights, "
+                        "alternated with the normals); auto (default): where they hide enough samples")
     p.add_argument("--light-gains", action=argparse.BooleanOptionalAction, default=None,
                    help="read each light's relative intensity from the photographs and correct the given "
                         "ones (light_intensities.txt, or none) before the normals. Default: for folders "
@@ -129,19 +154,20 @@ def register(sub):
                                     "(default: found in the photographs)")
     p.add_argument("--reference", help="RTI capture: x0,y0,x1,y1 (px) of a white or grey patch in every "
                                        "photograph; each photograph is divided by its level there")
-    p.add_argument("--memory", metavar="SIZE", default=d.memory,
+    p.add_argument("--memory", metavar="SIZE", type=_size, default=d.memory,
                    help="a memory budget such as 2GB or 3GiB for the whole process: photometric stereo runs over "
                         "bands of rows in what the libraries (0.45 GB) and the maps kept at the image's size leave "
                         "(a per-pixel --method); a scan's or DiLiGenT folder's images are read band by band, never "
                         "whole (default: untiled)")
-    p.add_argument("--scheduler", metavar="ADDRESS", default=d.scheduler,
+    p.add_argument("--scheduler", metavar="ADDRESS", type=_scheduler, default=d.scheduler,
                    help="with --memory: a running dask.distributed scheduler, e.g. tcp://host:8786, whose workers "
                         "run the bands (they must see the same paths; the same flag as facette batch)")
     p.add_argument("--hsh-order", type=int, default=d.hsh_order, choices=(2, 3),
                    help="hemispherical-harmonics order of relight.rti (2: 4 terms, 3: 9 terms)")
-    p.add_argument("--rti-encoding", default=d.rti_encoding, choices=("srgb", "linear"),
-                   help="colour of relight.ptm and relight.rti: srgb (default: display values, what "
-                        "RTIViewer and Relight show as photographed) or linear (proportional to radiance)")
+    p.add_argument("--rti-encoding", default=d.rti_encoding, choices=("auto", "srgb", "linear"),
+                   help="values of relight.ptm, relight.rti and relight_web: auto (default: as photographed, "
+                        "the photographs' scale and encoding; an HDR scan sRGB at an exposure that clips "
+                        "<= 0.1 %% of the object), srgb (display values) or linear (proportional to radiance)")
     return p
 
 
@@ -195,18 +221,50 @@ def options(args):
         ascii_ply=args.ascii_ply, fit_options={"model": args.brdf_model, "method": args.fit_method},
         hsh_order=args.hsh_order, rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
         interreflections=IR_AUTO if args.interreflections is None else args.interreflections,
-        light_gains=GAINS_AUTO if args.light_gains is None else args.light_gains,
+        light_gains=GAINS_AUTO if args.light_gains is None else args.light_gains, shadows=args.shadows,
         capture=_capture(args), memory=args.memory,
         scheduler=args.scheduler, channels=args.channels,
         ps_options={"init": args.init} if args.init else None)     # li_alternating takes it, the others leave it
 
 
+def _stopped_scan(source):
+    """(lights with a frame, lights planned) of a scan that stopped before its last light, or None."""
+    from pathlib import Path
+
+    from facette.scan import ScanDirectory
+    if not (Path(source) / "scan.json").is_file():
+        return None
+    try:
+        m = ScanDirectory(source).manifest
+    except (ValueError, OSError):
+        return None
+    taken = len({f.light for f in m.frames})
+    return (taken, len(m.lights)) if taken < len(m.lights) else None
+
+
+def _resume_advice(exc, source):
+    """Too few lights in a scan that stopped: the advice is to resume it, not to plan more lights."""
+    stopped = _stopped_scan(source)
+    if stopped and "lights" in exc.message:
+        exc.hint = (f"the scan stopped at {stopped[0]} of its {stopped[1]} lights: run the facette scan command that "
+                    f"made it again (the same directory: it resumes), then process it")
+    return exc
+
+
 def run(args):
+    from facette.errors import InsufficientData
     from facette.methods import PROCESS_DEFAULT
     from facette.pipeline import process
 
     _check_out(args.out)
-    res = process(args.source, outputs=args.outputs, out_dir=args.out, options=options(args))
+    opts = options(args)                          # every option checked before the scheduler is asked
+    if args.scheduler is not None:
+        from facette.pipeline._scheduler import check_scheduler
+        check_scheduler(args.scheduler)           # something listens there, within seconds
+    try:
+        res = process(args.source, outputs=args.outputs, out_dir=args.out, options=opts)
+    except InsufficientData as exc:
+        raise _resume_advice(exc, args.source) from None
     print_result(res)
     if _method(args) != PROCESS_DEFAULT and args.method is None:
         print(f"  note: --memory: photometric stereo with {_method(args)} (the default, {PROCESS_DEFAULT}, needs "
@@ -216,9 +274,10 @@ def run(args):
 
 def print_result(res):
     """What `process` did, for a person: the input, its figures, the notes, the files."""
-    h, w = res.normals.shape[:2]
+    h, w = res.mask.shape[:2]
     print(f"{res.inputs.kind} {res.inputs.source}: {len(res.inputs.light_dirs)} lights, {w}x{h} px, "
-          f"{int(res.mask.sum())} valid pixels, object {int(res.object_mask.sum())} ({res.options['method']})")
+          f"{int(res.mask.sum())} valid pixels, object {int(res.object_mask.sum())} "
+          + (f"({res.options['method']})" if res.ps is not None else "(no photometric stereo: not needed)"))
     ir = res.interreflections
     if ir is not None:
         print(f"  inter-reflections: {100 * ir['median_fraction']:.1f} % of the median value, "
@@ -235,14 +294,14 @@ def print_result(res):
     if lg is not None and lg["applied"]:
         print(f"  light gains: the given intensities {lg['rms_percent']:.1f} % RMS off (at most "
               f"{lg['max_percent']:.1f} %), corrected; {lg['seconds']:.1f} s")
-    info = res.ps.info
+    info = res.ps.info if res.ps is not None else {}
     if "skipped_fraction" in info:
         print(f"  least squares explained {100 * info['skipped_fraction']:.1f} % of the pixels "
               "(hierarchy skipped there)")
     for k, v in res.errors.items():
         print(f"  against truth: {k} = {v:.3f}")
     for k, v in res.fit_errors.items():
-        print(f"  relighting against the HDR images: {k} = {v:.4f}")
+        print(f"  relighting against the images: {k} = {v:.4f}")
     print("  times: " + ", ".join(f"{k} {v:.2f} s" for k, v in res.timings.items()))
     if res.brdf is not None:
         print(f"  brdf: {res.brdf}")

@@ -46,6 +46,7 @@ def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, re
     t0 = time.perf_counter()
     direct, first, info = without_interreflections(images, light_dirs, mask, saturation=saturation,
                                                    reflectance_scale=reflectance_scale, channel=options.get("channel"))
+    reflectance_scale = info["reflectance_scale"]         # "auto": the one estimated from the images
     info["removal_seconds"] = time.perf_counter() - t0
     info["glossy"] = None
 

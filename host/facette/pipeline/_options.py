@@ -17,10 +17,12 @@ from facette.recon import HSH_ORDERS, INTEGRATION_DEFAULT, INTEGRATION_METHODS, 
 from facette.recon._ps import T_OMBRE, T_RESIDUAL, T_SOURCE, T_SPEC
 from facette.reflect import THETA0_DEG
 
-__all__ = ["ProcessOptions", "GAINS_AUTO", "IR_AUTO"]
+__all__ = ["ProcessOptions", "GAINS_AUTO", "IR_AUTO", "SHADOWS_AUTO", "SHADOWS_CHOICES"]
 
 GAINS_AUTO = "auto"  # light_gains: for folders solved with the default (`process`)
 IR_AUTO = "auto"    # interreflections: removed where the input allows it (`process`)
+SHADOWS_AUTO = "auto"   # shadows: cast shadows found where the input shows them (pipeline._shadows)
+SHADOWS_CHOICES = (SHADOWS_AUTO, "on", "off")
 
 
 def _option(default, doc, record=True, report=False, factory=None):
@@ -64,10 +66,10 @@ class ProcessOptions:
     t_residual: float = _option(T_RESIDUAL, "least-squares residual under which a pixel is Lambertian "
                                 "(ps_hierarchical_tautzia2016, ps_li_alternating)", report=True)
     theta0_deg: float = _option(THETA0_DEG, "hemisphere-sensor cell size, deg", report=True)
-    rti_encoding: str = _option("srgb", "what relight.ptm and relight.rti hold: srgb, the display values "
-                                "RTIViewer and Relight show as they are (RTIBuilder fits sRGB photographs), the "
-                                "HDR images / their 99th percentile sRGB-encoded; linear: proportional to the "
-                                "radiance (darker and harsher in those viewers); said in relight.rti's header",
+    rti_encoding: str = _option("auto", "what relight.ptm and relight.rti hold: auto, the photographs as they "
+                                "are (their scale and encoding: sRGB for 8-bit files, linear for 16-bit ones; an "
+                                "HDR scan sRGB at an exposure that clips <= 0.1 % of the object, "
+                                "pipeline._rti_exposure); srgb or linear: that encoding; said in relight.rti's header",
                                 report=True)
     mask: object = _option(None, "(H, W) bool or a PNG path (recorded when a path)")
     pixel_pitch_mm: float = _option(None, "object-side pixel size, mm, > 0 (None: the scan's)")
@@ -89,6 +91,9 @@ class ProcessOptions:
                                        "images before photometric stereo (see `process`): True, False, or 'auto' "
                                        "(default): on a reflectance-calibrated scan read whole, off elsewhere "
                                        "(a note says why)", report=True)
+    shadows: str = _option(SHADOWS_AUTO, "cast shadows from the surface's own heights (pipeline._shadows): 'auto' "
+                           "(default: where the first pass's heights hide lights from enough samples), 'on' or "
+                           "'off'; a hidden light is no sample for that pixel", report=True)
     light_gains: object = _option(GAINS_AUTO, "read each light's relative intensity from the photographs and "
                                   "correct the given ones (pipeline._light_gains): True, False, or 'auto' (default): "
                                   "for folders (DiLiGenT, RTI captures) solved with li_alternating under lights where "
@@ -117,8 +122,9 @@ class ProcessOptions:
         # copies, so that a caller's dict changed later does not change these options
         object.__setattr__(self, "fit_options", dict(self.fit_options or {}))
         object.__setattr__(self, "ps_options", dict(self.ps_options or {}))
-        if self.rti_encoding not in RTI_ENCODINGS:
-            raise BadInputError(f"rti_encoding must be one of {', '.join(RTI_ENCODINGS)}, got {self.rti_encoding!r}")
+        if self.rti_encoding not in ("auto",) + RTI_ENCODINGS:
+            raise BadInputError(f"rti_encoding must be one of auto, {', '.join(RTI_ENCODINGS)}, "
+                                f"got {self.rti_encoding!r}")
         if self.pixel_pitch_mm is not None and not self.pixel_pitch_mm > 0:
             raise BadInputError(f"pixel_pitch_mm must be > 0 mm, got {self.pixel_pitch_mm}")
         if self.mesh_step is not None and not int(self.mesh_step) >= 1:
@@ -132,6 +138,8 @@ class ProcessOptions:
             raise BadInputError(f"interreflections must be True, False or {IR_AUTO!r}, got {self.interreflections!r}")
         if self.interreflections != IR_AUTO:
             object.__setattr__(self, "interreflections", bool(self.interreflections))
+        if self.shadows not in SHADOWS_CHOICES:
+            raise BadInputError(f"shadows must be one of {', '.join(SHADOWS_CHOICES)}, got {self.shadows!r}")
         if isinstance(self.light_gains, str) and self.light_gains != GAINS_AUTO \
                 or self.light_gains not in (True, False, GAINS_AUTO):
             raise BadInputError(f"light_gains must be True, False or {GAINS_AUTO!r}, got {self.light_gains!r}")

@@ -514,14 +514,14 @@ def _summary(res, viewer_note):
 
 def _viewer(res):
     """(html, kd_map, kd_mask, note): the relighting viewer, or why there is none."""
-    if res.brdf is None:
+    if res.brdf is None and res.relight_model is None:      # process's "relight": the viewer draws it
         return "", None, None, "relighting viewer: no BRDF was fitted (output brdf not requested or no data)"
     inp = res.inputs
     try:
         data, arrays = viewer_data(
             res.normals, res.mask, res.brdf, albedo=res.albedo, kd_map=getattr(res, "kd_map", None),
             height=res.height, pitch_mm=inp.pixel_pitch_mm if inp is not None else 1.0,
-            material_mask=inp.sample_mask() if inp is not None else None)
+            material_mask=inp.sample_mask() if inp is not None else None, relight_model=res.relight_model)
     except ValueError as e:
         return "", None, None, f"relighting viewer: {e}"
     kd_map = arrays["kd_map"]          # at the viewer's size (every `decimation`-th pixel)

@@ -16,6 +16,7 @@ from facette._data import package_text
 from facette._memory import decimated
 from facette.pipeline._relight import (BACKGROUND, DEFAULT_LIGHT, default_exposure, kd_map_from_albedo,
                                        viewer_model, volume_table)
+from facette.pipeline._viewer_model import model_data
 from facette.recon import MESH_MAX_SLOPE
 
 __all__ = ["viewer_data", "viewer_section", "MAX_SIDE", "MESH_MAX_SIDE"]
@@ -33,7 +34,7 @@ def _b64(a):
 
 
 def viewer_data(normals, mask, fit, albedo=None, kd_map=None, height=None, pitch_mm=1.0,
-                material_mask=None, max_side=MAX_SIDE, light=DEFAULT_LIGHT):
+                material_mask=None, max_side=MAX_SIDE, light=DEFAULT_LIGHT, relight_model=None):
     """The viewer's data (a JSON-ready dict) and the arrays it was made from.
 
     normals : (H, W, 3) unit normals, camera frame; mask : (H, W) bool; fit : a FitResult
@@ -43,8 +44,12 @@ def viewer_data(normals, mask, fit, albedo=None, kd_map=None, height=None, pitch
     (H, W) mm or None (no 3D view); pitch_mm : pixel size (mm); light : (azimuth, elevation) deg.
     Returns (data, arrays) with arrays = dict(normals, mask, kd_map, model): what was packed,
     at the viewer's size, for the Python reference render. Raises ValueError when the fit
-    cannot be drawn (see `viewer_model`).
+    cannot be drawn (see `viewer_model`). relight_model : a `facette.recon.RelightModel` (process's
+    "relight" output): the page draws it (`pipeline._viewer_model`) instead of the fitted BRDF (fit
+    may then be None), arrays["sv_model"] the model as shipped.
     """
+    if relight_model is not None and fit is None:
+        fit = {"model": "lambert", "success": True, "parameters": {"kd": [0.8, 0.8, 0.8]}}
     m = viewer_model(fit)
     mask = np.asarray(mask, dtype=bool)
     if np.ndim(normals) != 3 or np.shape(normals)[2] != 3 or mask.shape != np.shape(normals)[:2]:
@@ -85,8 +90,12 @@ def viewer_data(normals, mask, fit, albedo=None, kd_map=None, height=None, pitch
                   if m.distribution == "gaussian" and m.sigma > 0 else 0.0,
                   "kd_a": kd_a, "kd_b": r_i},
         "exposure": exposure, "light": [float(light[0]), float(light[1])], "background": BACKGROUND,
-        "mesh": None,
+        "mesh": None, "sv": None,
     }
+    arrays = {"normals": n, "mask": mk, "kd_map": kd, "model": m, "exposure": exposure}
+    if relight_model is not None:
+        data["sv"], arrays["sv_model"] = model_data(relight_model, st, mk)
+        data["exposure"] = 1.0           # the model's display values: 1 = the photographs' white
     if height is not None:
         hgt = np.asarray(height[::st, ::st], dtype=np.float64)
         ms = max(1, int(np.ceil(max(hgt.shape) / MESH_MAX_SIDE)))
@@ -95,22 +104,26 @@ def viewer_data(normals, mask, fit, albedo=None, kd_map=None, height=None, pitch
         data["mesh"] = {"cols": int(grid.shape[1]), "rows": int(grid.shape[0]), "step_px": ms,
                         "step_mm": float(pitch_mm) * st * ms, "max_slope": MESH_MAX_SLOPE,
                         "heights": _b64(grid.astype(np.float32))}
-    return data, {"normals": n, "mask": mk, "kd_map": kd, "model": m, "exposure": exposure}
+    return data, arrays
 
 
 def viewer_section(data):
     """HTML of the viewer (canvases, controls, the data and the script) for `viewer_data`."""
-    script = package_text("facette.pipeline", "viewer.js")
+    script = package_text("facette.pipeline", "viewer.js").replace(
+        "  // @relight-model", package_text("facette.pipeline", "viewer_model.js") + "\n  // relight-model")
     payload = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
     mdl = data["model"]
     what = (f"{mdl['name'].upper()} model, σ = {mdl['sigma']:.3g}, n_i = {mdl['n_i']:.3g}"
             if mdl["specular"] else f"{mdl['name']} model (no specular lobe)")
+    if data.get("sv"):
+        what = ("facette's relighting model: per-pixel diffuse, lobe and gathered-light maps, cast shadows "
+                f"from the heights, {data['sv']['n_planes']} residual planes interpolated over the captured lights")
     mesh = ('<figure><canvas id="facette-mesh" width="640" height="480"></canvas><figcaption>Mesh '
             '(from the integrated heights), shaded with the same model: drag to turn, wheel to zoom'
             '</figcaption></figure>') if data["mesh"] else "<p>No heights were computed: no 3D view.</p>"
     small = data["decimation"] > 1
     return f"""<section id="viewer"><h2>Relighting</h2>
-<p>The object re-rendered from its normals, its K_d map and the fitted BRDF ({html.escape(what)}),
+<p>The object re-rendered from its normals and its reflectance ({html.escape(what)}),
 under a distant light: drag on the picture to move the light (the centre is the camera's direction).
 {'The picture is decimated by ' + str(data['decimation']) + ' for the page.' if small else ''}</p>
 <div class="controls"><label>Light elevation <input id="facette-elevation" type="range" min="2" max="90" step="1"

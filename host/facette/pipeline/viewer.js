@@ -140,6 +140,9 @@ void main() {
   outColor = vec4(srgb(clamp(rad * uExposure, 0.0, 1.0)), 1.0);
 }`;
 
+
+  // @relight-model: viewer_model.js is inserted here by pipeline/_viewer.py (same scope)
+
   function program(gl, vs, fs) {
     const p = gl.createProgram();
     for (const [type, src] of [[gl.VERTEX_SHADER, vs], [gl.FRAGMENT_SHADER, fs]]) {
@@ -239,9 +242,10 @@ void main() {
     canvas.height = d.height;
     const gl = canvas.getContext("webgl2", { preserveDrawingBuffer: true, antialias: false });
     if (!gl) { fail("this browser has no WebGL 2"); return; }
-    const relight = program(gl, QUAD_VS, RELIGHT_FS);
+    const relight = program(gl, QUAD_VS, d.sv ? RELIGHT_SV_FS : RELIGHT_FS);
     textures(gl, d);
-    setModel(gl, relight, d);
+    if (d.sv) svTextures(gl, d, relight);
+    else setModel(gl, relight, d);
     const quad = gl.createBuffer();
     gl.bindBuffer(gl.ARRAY_BUFFER, quad);
     gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 1, -1, -1, 1, 1, 1]), gl.STATIC_DRAW);
@@ -272,6 +276,7 @@ void main() {
       gl.useProgram(relight);
       gl.bindVertexArray(quadVao);
       gl.uniform3fv(U("uLight"), lightVector());
+      if (d.sv) gl.uniform1fv(U("uE"), lightFunctions(d.sv, lightVector()));
       gl.uniform1f(U("uExposure"), exposure());
       gl.uniform1f(U("uBackground"), d.background);
       gl.uniform1i(U("uRows"), canvas.height);
@@ -422,6 +427,7 @@ void main() {
       gl.uniformMatrix4fv(U("uMVP"), false, new Float32Array(mvp));
       gl.uniform3fv(U("uEye"), eye);
       gl.uniform3fv(U("uLight"), lightVector());
+      if (d.sv) gl.uniform1fv(U("uE"), lightFunctions(d.sv, lightVector()));
       gl.uniform1f(U("uExposure"), exposure());
       gl.drawElements(gl.TRIANGLES, idx.length, gl.UNSIGNED_INT, 0);
     }

@@ -11,9 +11,11 @@ The dark level of each photograph (black level, ambient light: what pixels read 
 behind them), for the methods that predict 0 there: `dark_offsets`, `dark_level_notes`.
 Normals where none was measured (no light above the noise), interpolated from those around them:
 `fill_normals`. Inter-reflections of concave matte surfaces taken out of the images before photometric stereo:
-`remove_interreflections` (`without_interreflections`: with its first shape).
+`remove_interreflections` (`without_interreflections`: with its first shape). The lights a surface hides
+from itself (cast shadows), by a horizon test on its heights: `hidden_lights`.
 Relighting functions for RTI (PTM, Malzbender 2001; hemispherical harmonics, Gautron 2004):
-`fit_ptm_lrgb`, `fit_hsh`.
+`fit_ptm_lrgb`, `fit_hsh`; facette's relighting model (normals, per-pixel reflectance maps, cast
+shadows, a residual interpolated over the lights): `fit_relight_model`, saved by `save_relight_model`.
 """
 from ._ps import PSResult, ps_woodham1980, ps_hierarchical_tautzia2016, triplet_inverses, near_light_directions
 from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed
@@ -27,6 +29,9 @@ from ._dark import dark_offsets, dark_level_notes
 from ._fill import fill_normals, FILL_TOLERANCE
 from ._interreflect import (remove_interreflections, without_interreflections, IR_GRID, IR_MAX_FRACTION,
                             IR_PASSES, IR_SKIP_P95)
+from ._shadows import hidden_lights, horizon_excess, heights_in_pixels
+from ._relight_model import (RelightModel, fit_relight_model, save_relight_model, load_relight_model,
+                             cast_shadow)
 from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, fit_relight_error,
                    relight_error_parts, relight_ptm, relight_hsh, relight_error, HSH_ORDERS, RELIGHT_ERROR_VALUES,
                    relight_error_step, RTI_ENCODINGS, srgb_encode, srgb_decode, display_ptm, display_hsh)
@@ -42,4 +47,6 @@ __all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca
            "relight_hsh", "relight_error", "fit_relight_error", "relight_error_parts", "HSH_ORDERS", "RTI_ENCODINGS",
            "srgb_encode", "srgb_decode", "display_ptm", "display_hsh",
            "RELIGHT_ERROR_VALUES", "relight_error_step", "remove_interreflections", "without_interreflections",
-           "IR_GRID", "IR_MAX_FRACTION", "IR_PASSES", "IR_SKIP_P95"]
+           "IR_GRID", "IR_MAX_FRACTION", "IR_PASSES", "IR_SKIP_P95", "hidden_lights", "horizon_excess",
+           "heights_in_pixels",
+           "RelightModel", "fit_relight_model", "save_relight_model", "load_relight_model", "cast_shadow"]

@@ -356,7 +356,8 @@ def without_interreflections(images, light_dirs, mask, saturation=None, reflecta
 
     images, light_dirs, mask, saturation, channel : as `ps_rank_trimmed` (channel: the one its
     normals are solved on; None: its default); reflectance_scale and **options : as
-    `remove_interreflections`.
+    `remove_interreflections`, or reflectance_scale "auto": estimated from the images
+    (facette.recon._interreflect_scale, for an input without a Spectralon scale).
     Returns (images, first, info): the corrected images, or the given ones when under
     IR_SKIP_P95 of the values at the 95th percentile is gathered light (info "applied" False);
     the first pass's PSResult; the removal's info.
@@ -366,16 +367,27 @@ def without_interreflections(images, light_dirs, mask, saturation=None, reflecta
     """
     first = ps_rank_trimmed(images, light_dirs, mask=mask, saturation=saturation,
                             **({} if channel is None else {"channel": channel}))
-    if first.valid.any():
+    estimated = None
+    if isinstance(reflectance_scale, str):
+        if reflectance_scale != "auto":
+            raise ValueError(f"reflectance_scale must be a positive number or 'auto', got {reflectance_scale!r}")
+        from ._interreflect_scale import estimate_reflectance_scale
+        reflectance_scale, estimated = estimate_reflectance_scale(images, light_dirs, first.normal, first.albedo,
+                                                                  first.valid & mask, saturation, channel)
+    elif first.valid.any():
         p99 = float(np.percentile(first.albedo[first.valid].max(axis=-1), 99)) * reflectance_scale
         if p99 > 1.0:
             raise NotAReflectance(
                 f"removing inter-reflections needs the albedo as a reflectance, and this one reaches "
                 f"{p99:.2f} (99th percentile; a reflectance is at most 1): the light intensities are "
                 "relative, not calibrated",
-                hint="leave the removal out (no --interreflections), or give the calibration's scale "
-                     "(remove_interreflections(..., reflectance_scale=))")
+                hint="leave the removal out (no --interreflections), give the calibration's scale "
+                     "(remove_interreflections(..., reflectance_scale=)), or let it be estimated "
+                     "(reflectance_scale='auto')")
     out, info = remove_interreflections(images, light_dirs, first.normal, first.albedo, first.valid & mask,
                                         reflectance_scale=reflectance_scale, saturation=saturation, **options)
     info["applied"] = info["p95_fraction"] >= IR_SKIP_P95
+    info["reflectance_scale"] = float(reflectance_scale)
+    if estimated is not None:
+        info["scale_estimate"] = estimated
     return (out if info["applied"] else images), first, info

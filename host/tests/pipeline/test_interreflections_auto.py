@@ -1,5 +1,6 @@
 """`process`'s default for inter-reflections ("auto"): removed on a reflectance-calibrated scan read
-whole, left in with a note that says why everywhere else (pipeline._interreflections)."""
+whole, left in with a note that says why everywhere else; asked for on relative images, the albedo's
+scale is estimated from them (pipeline._interreflections)."""
 import json
 
 import numpy as np
@@ -33,7 +34,7 @@ def test_removed_by_default_on_a_calibrated_scan(tmp_path, relief):
 
 def test_left_in_with_the_reason_elsewhere(tmp_path, relief):
     # without the Spectralon step the images are relative: nothing removed, and the note says why
-    res = process(_scan(tmp_path / "relative", relief, scale=None), outputs=["normals"], method="woodham1980")
+    res = process(_scan(tmp_path / "relative0", relief, scale=None), outputs=["normals"], method="woodham1980")
     assert not res.inputs.reflectance and res.interreflections is None
     assert any("left in (interreflections 'auto'): the images are not reflectance-calibrated" in n for n in res.notes)
     # the rig simulator renders none (its truth carries the sensor model)
@@ -44,6 +45,20 @@ def test_left_in_with_the_reason_elsewhere(tmp_path, relief):
     banded = process(_scan(tmp_path / "banded", relief), outputs=["normals"], method="woodham1980", memory="1GB")
     assert banded.interreflections is None and any("--memory reads the images by bands" in n for n in banded.notes)
 
+
+def test_relative_images_have_their_scale_estimated_when_asked(tmp_path, relief):
+    # relative images (x 4 here, the intensities divided out) with --interreflections: the albedo's
+    # scale to a reflectance is estimated from them, and the removal brings the normals closer
+    res = process(_scan(tmp_path / "relative", relief, scale=None), outputs=["normals"], method="woodham1980",
+                  interreflections=True)
+    left = process(_scan(tmp_path / "relative2", relief, scale=None), outputs=["normals"], method="woodham1980",
+                   interreflections=False)
+    assert not res.inputs.reflectance and res.interreflections["applied"]
+    assert 0.7 < res.interreflections["reflectance_scale"] * SCALE < 1.6     # the truth: 1 / 4
+    assert any("scale to a reflectance estimated from the images" in n for n in res.notes)
+    sel = relief["mask"] & res.mask & left.mask
+    err = lambda r: angular_error_deg(r.normals, relief["normals"])[sel].mean()
+    assert err(res) < 0.9 * err(left), (err(res), err(left))
 
 def test_a_calibration_gone_wrong_is_said_not_fatal_by_default(tmp_path, relief):
     # images 3x too bright for the scale written: the albedo is no reflectance (p99 above 1)

@@ -14,15 +14,15 @@ from facette.pipeline import ProcessOptions
 RECORDED = ["method", "integration", "channels", "t_ombre", "t_spec", "t_source", "t_residual", "theta0_deg", "rti_encoding",
             "mask",
             "pixel_pitch_mm", "near_light", "mesh_step", "saturation", "fit_options", "ps_options", "hsh_order",
-            "interreflections", "light_gains"]
+            "interreflections", "shadows", "light_gains"]
 
 
 def test_recorded_and_reported_fields_and_defaults():
     o = ProcessOptions()
     assert list(o.recorded()) == RECORDED and o.recorded()["mask"] is None
     assert list(o.reported()) == ["method", "integration", "channels", "t_ombre", "t_spec", "t_source", "t_residual",
-                                  "theta0_deg", "rti_encoding", "interreflections", "light_gains"]
-    assert o.channels == "mean" and o.interreflections == "auto" and o.light_gains == "auto"
+                                  "theta0_deg", "rti_encoding", "interreflections", "shadows", "light_gains"]
+    assert o.channels == "mean" and o.interreflections == "auto" and o.light_gains == "auto" and o.shadows == "auto"
     assert o.method == PROCESS_DEFAULT == "li_alternating" and o.fit_options == {} and o.ps_options == {} and o.near_light
     assert replace(o, mask="m.png").recorded()["mask"] == "m.png"       # a path is recorded, an array not
     for name in RECORDED + ["ascii_ply", "allow_incomplete", "overwrite"]:

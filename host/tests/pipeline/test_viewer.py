@@ -6,8 +6,9 @@ import numpy as np
 from selenium.webdriver.common.action_chains import ActionChains
 
 from facette.bench._browser import By, chromium, console_errors, viewer_pixels, wait_for_viewer
+from facette.bench.viewer import reference_pixels
 from facette.pipeline._relight import light_from_angles, relight, to_srgb8
-from facette.pipeline._viewer import viewer_data
+from facette.pipeline._viewer import viewer_data, viewer_section
 
 # Browser against reference, 8-bit sRGB levels over the object's pixels. Sources of the
 # difference: float16 normals, 8-bit K_d, the volume table's trilinear interpolation, float32
@@ -17,17 +18,20 @@ TOL_MEAN, TOL_P99, TOL_MAX = 0.6, 2, 12
 LIGHTS = [(135.0, 45.0), (0.0, 20.0), (270.0, 70.0)]
 
 
-def _viewer_data(res, mask=None, height=None):
+def _viewer_data(res, mask=None, height=None, model=True):
     """The viewer's data and arrays, made as the report made them, for the Python reference
-    (mask and height: the result's unless given)."""
+    (mask and height: the result's unless given; model False: the fitted BRDF's viewer, as a
+    report without the relighting model draws it)."""
     return viewer_data(res.normals, res.mask if mask is None else mask, res.brdf, albedo=res.albedo,
                        height=res.height if height is None else height,
-                       pitch_mm=res.inputs.pixel_pitch_mm, material_mask=res.inputs.sample_mask())
+                       pitch_mm=res.inputs.pixel_pitch_mm, material_mask=res.inputs.sample_mask(),
+                       relight_model=res.relight_model if model else None)
 
 
 def test_viewer_in_chromium_matches_the_reference_render(simulated_result):
     res, path = simulated_result
     _, arr = _viewer_data(res)
+    assert arr.get("sv_model") is not None          # the report draws process's relighting model
     mask = arr["mask"]
     with chromium() as driver:
         wait_for_viewer(driver, path)
@@ -35,8 +39,7 @@ def test_viewer_in_chromium_matches_the_reference_render(simulated_result):
         shots = {}
         for az, el in LIGHTS:
             got = viewer_pixels(driver, az, el)
-            want = to_srgb8(relight(arr["normals"], arr["kd_map"], mask, arr["model"], light_from_angles(az, el)),
-                            mask, arr["exposure"])
+            want = reference_pixels(arr, light_from_angles(az, el))
             diff = np.abs(got.astype(int) - want.astype(int))[mask]
             assert diff.mean() <= TOL_MEAN and np.percentile(diff, 99) <= TOL_P99 and diff.max() <= TOL_MAX, \
                 (az, el, diff.mean(), np.percentile(diff, 99), diff.max())
@@ -60,25 +63,47 @@ def test_viewer_in_chromium_matches_the_reference_render(simulated_result):
 
 def test_viewer_at_a_raking_light_lights_what_faces_it_and_nothing_goes_negative(simulated_result):
     """Raking light, 60-80° from the camera's axis, where the rig's 12 lights (15° and 30°)
-    never were and PTM/HSH go negative: the physically based model (normals, K_d, roughness)
-    stays >= 0 and finite, the browser lights the surfaces facing the light, as the reference."""
+    never were and PTM/HSH go negative: the relighting model (normals, maps, shadows; its
+    residual fades out this far from the captured lights) stays >= 0 and finite, the browser
+    lights the surfaces facing the light, as the reference."""
     res, path = simulated_result
     _, arr = _viewer_data(res)
-    mask = arr["mask"]
+    mask, model = arr["mask"], arr["sv_model"]
     with chromium() as driver:
         wait_for_viewer(driver, path)
         for az, el in [(0.0, 10.0), (90.0, 20.0), (200.0, 30.0)]:
             light = light_from_angles(az, el)
-            rad = relight(arr["normals"], arr["kd_map"], mask, arr["model"], light)
-            assert np.isfinite(rad).all() and rad.min() >= 0, (az, el, rad.min())
+            raw = model.display_raw(light)
+            assert np.isfinite(raw).all() and raw.min() >= 0, (az, el, raw.min())
             got = viewer_pixels(driver, az, el)
             facing = mask & (arr["normals"] @ light > 0.5)
             away = mask & (arr["normals"] @ light < 0)
             assert facing.sum() > 20 and got[facing].mean() > 40, (az, el, got[facing].mean())
-            assert away.sum() == 0 or got[away].max() == 0                   # self-shadowed: black
-            want = to_srgb8(rad, mask, arr["exposure"])
+            assert away.sum() == 0 or got[away].mean() < 0.25 * got[facing].mean()   # self-shadowed: dark
+            want = reference_pixels(arr, light)
             diff = np.abs(got.astype(int) - want.astype(int))[mask]
             assert diff.mean() <= TOL_MEAN and diff.max() <= TOL_MAX, (az, el, diff.mean(), diff.max())
+        assert console_errors(driver) == []
+
+
+def test_brdf_viewer_without_the_model_matches_its_reference(simulated_result, tmp_path):
+    """Without a relighting model (its fit left out) the page draws the fitted BRDF, as before."""
+    res, _ = simulated_result
+    data, arr = _viewer_data(res, model=False)
+    assert data["sv"] is None
+    page = tmp_path / "viewer.html"
+    page.write_text(f"<!DOCTYPE html><html><head><meta charset='utf-8'></head><body>{viewer_section(data)}"
+                    "</body></html>", encoding="utf-8")
+    mask = arr["mask"]
+    with chromium() as driver:
+        wait_for_viewer(driver, page)
+        for az, el in LIGHTS:
+            got = viewer_pixels(driver, az, el)
+            want = to_srgb8(relight(arr["normals"], arr["kd_map"], mask, arr["model"], light_from_angles(az, el)),
+                            mask, arr["exposure"])
+            diff = np.abs(got.astype(int) - want.astype(int))[mask]
+            assert diff.mean() <= TOL_MEAN and np.percentile(diff, 99) <= TOL_P99 and diff.max() <= TOL_MAX, \
+                (az, el, diff.mean(), np.percentile(diff, 99), diff.max())
         assert console_errors(driver) == []
 
 

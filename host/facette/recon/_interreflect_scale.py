@@ -1,0 +1,99 @@
+"""The albedo's scale to a reflectance, estimated from the images themselves (no Spectralon).
+
+Removing inter-reflections needs ρ, the albedo as a reflectance (how much of what reaches a wall
+it sends on); a DiLiGenT folder, an RTI capture or an uncalibrated scan give the albedo times an
+unknown constant c (the lights' relative intensities). The light a concave surface gathers is
+proportional to ρ = albedo / c, so the scale s = 1 / c shows in the data: with too small an s the
+walls still look turned towards each other, with too large an s too much light is taken away,
+and in both cases the images are less like a Lambertian surface's than at the true s. So, on the
+gather's cells (as `remove_interreflections` makes them): G = the Lambertian light each cell
+gathers at s = 1 (linear in s), and for each candidate s in [0, 1 / p99(albedo)] (a reflectance
+is at most 1) the cells' images less s G are solved again (rank_trimmed) and their relative
+residual read where the most light is gathered (the top GATHER_QUANTILE of the cells); the s of
+the lowest median residual wins, refined by a parabola through its neighbours.
+"""
+import warnings
+
+import numpy as np
+
+from ._interreflect import IR_GRID, IR_MAX_FRACTION, _block_sum, _cell_lights, _cell_mean, _gather_cells
+from ._ps_robust import ps_rank_trimmed
+
+__all__ = ["estimate_reflectance_scale", "SCALE_CANDIDATES", "GATHER_QUANTILE"]
+
+SCALE_CANDIDATES = 9      # candidate scales from 0 to the largest a reflectance allows
+GATHER_QUANTILE = 0.75     # the residual is read on the cells above this quantile of gathered share
+
+
+def _cells(images, light_dirs, normals, albedo, mask, saturation, grid):
+    """(i_c (m, hc, wc, 1), ld_c, n_c, a_c (hc, wc, 1), cells) of one channel, as `remove_interreflections`."""
+    m, h, w = images.shape
+    ok = mask & np.all(np.isfinite(normals), -1) & (np.linalg.norm(normals, axis=-1) > 0.5)
+    f = max(1, int(np.ceil(max(h, w) / int(grid))))
+    hc, wc = -(-h // f), -(-w // f)
+    cells = _block_sum(ok[..., None].astype(np.float32), f, hc, wc)[..., 0] >= 0.5 * f * f
+    n_c = np.nan_to_num(_cell_mean(np.asarray(normals, np.float32), ok, f, hc, wc))
+    n_c /= np.maximum(np.linalg.norm(n_c, axis=-1, keepdims=True), 1e-9)
+    cells &= n_c[..., 2] > 0
+    a_c = np.nan_to_num(_cell_mean(np.asarray(albedo, np.float32)[..., None], ok, f, hc, wc))
+    sat = np.float32(np.inf if saturation is None else saturation)
+    with np.errstate(invalid="ignore"):
+        i_c = np.stack([_cell_mean(images[k][..., None], (ok & (images[k] < sat))[..., None], f, hc, wc)
+                        for k in range(m)])
+    return i_c, _cell_lights(np.asarray(light_dirs, np.float32), ok, f, hc, wc), n_c, a_c, cells
+
+
+def estimate_reflectance_scale(images, light_dirs, normals, albedo, mask, saturation=None, channel=None,
+                               grid=IR_GRID, candidates=SCALE_CANDIDATES):
+    """(scale, info): ρ = scale x albedo (module doc).
+
+    images : (m, H, W) or (m, H, W, C) as photometric stereo takes them; channel : the one read
+    (default: green of three, else the last); normals, albedo (H, W) or (H, W, C), mask : a first
+    pass's. info: "scale", "max_scale" (1 / the albedo's 99th percentile), "costs" (the median
+    residual per candidate), "gathered_p95" (the gathered share at the 95th percentile at the
+    chosen scale; 0 on a convex object, whose scale the data cannot tell: then max_scale / 2).
+    """
+    im = np.asarray(images)
+    if im.ndim == 4:
+        ch = channel if channel is not None else (1 if im.shape[-1] == 3 else im.shape[-1] - 1)
+        im, alb = im[..., ch], (albedo[..., min(ch, albedo.shape[-1] - 1)] if np.ndim(albedo) == 3 else albedo)
+    else:
+        alb = albedo[..., 0] if np.ndim(albedo) == 3 else albedo
+    mask = np.asarray(mask, bool)
+    lit = mask & np.isfinite(alb) & (alb > 0)
+    p99 = float(np.percentile(alb[lit], 99)) if lit.any() else 1.0
+    max_scale = 1.0 / max(p99, 1e-12)
+    i_c, ld_c, n_c, a_c, cells = _cells(im, light_dirs, normals, alb, mask, saturation, grid)
+    gathered, _ = _gather_cells(i_c, ld_c, n_c, a_c, cells)
+    g1 = gathered * a_c[None] / np.float32(np.pi)            # the gathered light at scale 1
+    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)       # a cell dark under every light: NaN
+        share = np.nanmedian(np.where(i_c > 0, g1 / i_c, np.nan), axis=0)[..., 0]
+    info = {"max_scale": max_scale, "costs": []}
+    strong = cells & np.isfinite(share)
+    if strong.sum() < 8 or not np.any(share[strong] * max_scale > 0.005):
+        info.update(scale=max_scale / 2, gathered_p95=0.0)
+        return max_scale / 2, info
+    scales = np.linspace(0.0, max_scale, int(candidates))
+    x = share[strong]
+    tilt = 1.0 - n_c[..., 2][strong]        # a glossy paint's diffuse light dims with the tilt: its own term
+    slopes = []
+    for s in scales:
+        direct = i_c - np.minimum(s * g1, IR_MAX_FRACTION * np.maximum(i_c, 0))
+        ps = ps_rank_trimmed(direct, ld_c, mask=cells)
+        good = ps.valid[strong] & (ps.albedo[strong][..., 0] > 0)
+        la = np.log(np.where(good, ps.albedo[strong][..., 0], 1.0))[good]
+        design = np.stack([np.ones(good.sum()), x[good], tilt[good]], 1)
+        slopes.append(float(np.linalg.lstsq(design, la, rcond=None)[0][1]))
+    costs = slopes
+    down = [k for k in range(len(slopes) - 1) if slopes[k] > 0 >= slopes[k + 1]]
+    if down:       # the albedo no longer grows with the gathered share: linear between the two
+        k = down[0]
+        scale = float(scales[k] + (scales[k + 1] - scales[k]) * slopes[k] / (slopes[k] - slopes[k + 1]))
+    else:
+        scale = float(scales[int(np.argmin(np.abs(slopes)))])
+    # no crossing above 0 (nothing gathered that the albedo shows): a scale that removes next to nothing
+    scale = max(scale, 1e-3 * max_scale)
+    info.update(scale=scale, costs=[round(c, 6) for c in costs],
+                gathered_p95=float(np.percentile(share[cells & np.isfinite(share)] * scale, 95)))
+    return scale, info

@@ -1,0 +1,39 @@
+"""The compiled horizon march of `facette.recon._shadows` (numba)."""
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["horizon_excess_kernel"]
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def horizon_excess_kernel(z, mask, dr, dc, steps, elevation_deg, out):
+    """out[r, c] = the horizon's elevation (deg) along (dr, dc) from pixel (r, c) less
+    `elevation_deg`; −90 − elevation_deg where nothing rises or off the mask. The heights between
+    pixels are bilinear; the march stops where it leaves the image or the mask."""
+    h, w = z.shape
+    for r in numba.prange(h):
+        for c in range(w):
+            if not mask[r, c]:
+                out[r, c] = -90.0
+                continue
+            z0 = z[r, c]
+            best = -np.inf
+            for t in steps:
+                y = r + t * dr
+                x = c + t * dc
+                if y < 0.0 or x < 0.0 or y > h - 1.0 or x > w - 1.0:
+                    break
+                r0 = min(int(y), h - 2) if h > 1 else 0
+                c0 = min(int(x), w - 2) if w > 1 else 0
+                if not (mask[r0, c0] and mask[r0 + 1, c0] and mask[r0, c0 + 1] and mask[r0 + 1, c0 + 1]):
+                    break
+                fy = y - r0
+                fx = x - c0
+                zq = ((1 - fy) * ((1 - fx) * z[r0, c0] + fx * z[r0, c0 + 1])
+                      + fy * ((1 - fx) * z[r0 + 1, c0] + fx * z[r0 + 1, c0 + 1]))
+                s = (zq - z0) / t
+                if s > best:
+                    best = s
+            out[r, c] = (math.degrees(math.atan(best)) if best > -np.inf else -90.0) - elevation_deg

@@ -1,0 +1,68 @@
+"""`process`'s cast-shadow step (pipeline._shadows): the lights the surface hides from itself are
+no samples, alternated with the normals."""
+import numpy as np
+import pytest
+
+from facette.errors import BadInputError
+from facette.io.diligent import write_diligent
+from facette.pipeline import ProcessOptions, process
+from facette.recon.synthetic import angular_error_deg
+
+from shadow_scenes import groove_scene
+
+
+def _folder(path, d):
+    top = 60000.0 / float(d["images"].max())
+    write_diligent(path, np.round(d["images"] * top).astype(np.uint16), d["light_dirs"],
+                   np.full((len(d["images"]), 3), top / 65535.0), d["mask"])
+    return path
+
+
+@pytest.fixture(scope="module")
+def groove(tmp_path_factory):
+    """The analytic groove, its hidden lights still at 40 % of their direct light (the walls' light)."""
+    d = groove_scene("groove", fill=0.4)
+    return d, _folder(tmp_path_factory.mktemp("groove") / "groove", d)
+
+
+def test_hidden_lights_are_no_samples(groove):
+    d, folder = groove
+    run = lambda s: process(folder, outputs=["normals"], method="woodham1980", shadows=s, interreflections=False)
+    off, on = run("off"), run("on")
+    hid = d["hidden"].any(0)                    # the pixels some light is hidden from
+    err = lambda r: angular_error_deg(r.normals, d["normals"])[hid].mean()
+    assert err(off) > 2.0                        # least squares takes the shadowed values as samples
+    assert err(on) < 0.3 * err(off), (err(on), err(off))
+    assert on.quality["shadows"]["applied"] and on.quality["shadows"]["hidden_share"][-1] > 0.01
+    assert any(n.startswith("shadows: the surface's own heights hide") for n in on.notes)
+    assert off.quality.get("shadows") is None
+    # the hidden lights join the shadow map the reflectance samples leave out
+    assert on.ps.shadow[hid].any()
+
+
+def test_the_default_method_gains_on_the_groove_and_a_convex_object_is_left_as_it_was(tmp_path, groove):
+    d, folder = groove
+    hid = d["hidden"].any(0)
+    res = process(folder, outputs=["normals"], interreflections=False)
+    off = process(folder, outputs=["normals"], interreflections=False, shadows="off")
+    err = lambda r: angular_error_deg(r.normals, d["normals"])[hid].mean()
+    assert res.quality["shadows"]["applied"] and err(res) <= err(off) + 0.05, (err(res), err(off))
+    # a dome hides nothing: "auto" says so and the images are used as they are
+    y, x = np.mgrid[:48, :48] - 23.5
+    z = np.sqrt(np.clip(30.0 ** 2 - x * x - y * y, 1, None))
+    n = np.dstack([x, -y, z]) / np.linalg.norm(np.dstack([x, -y, z]), axis=-1, keepdims=True)
+    im = 0.6 * np.clip(np.einsum("md,hwd->mhw", d["light_dirs"], n), 0, None)
+    dome = _folder(tmp_path / "dome", {"images": im.astype(np.float32), "light_dirs": d["light_dirs"],
+                                       "mask": np.ones((48, 48), bool)})
+    auto = process(dome, outputs=["normals"], method="woodham1980", interreflections=False)
+    plain = process(dome, outputs=["normals"], method="woodham1980", interreflections=False, shadows="off")
+    assert auto.quality["shadows"]["applied"] is False and any("too few to matter" in n for n in auto.notes)
+    np.testing.assert_array_equal(auto.normals, plain.normals)
+
+
+def test_the_option_is_checked_and_memory_leaves_the_step_out(groove):
+    with pytest.raises(BadInputError, match="shadows must be one of"):
+        ProcessOptions(shadows="maybe")
+    _, folder = groove
+    res = process(folder, outputs=["normals"], method="rank_trimmed", memory="1GB", interreflections=False)
+    assert res.quality.get("shadows") is None and any("shadows: left out with --memory" in n for n in res.notes)

@@ -1,0 +1,46 @@
+"""process's "relight" output (pipeline._relight_model_stage) and the viewer's packing of it
+(pipeline._viewer_model), on a rendered DiLiGenT-style folder."""
+import numpy as np
+
+from facette.io.diligent import write_diligent
+from facette.pipeline import process
+from facette.pipeline._relight import light_from_angles
+from facette.pipeline._relight_model_stage import relight_model_stage
+from facette.pipeline._viewer_model import packed_model
+from facette.recon import load_relight_model
+from facette.recon.synthetic import render, sphere_on_plane
+
+
+def _folder(tmp_path, m=24):
+    rng = np.random.default_rng(5)
+    d = rng.normal(size=(m, 3))
+    d[:, 2] = np.abs(d[:, 2]) + 1.2
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    sc = sphere_on_plane(40, 48, radius=14)
+    imgs = render(sc, d, "satin", albedo=(0.7, 0.6, 0.5))
+    write_diligent(tmp_path / "objPNG", np.round(imgs / imgs.max() * 60000).astype(np.uint16), d,
+                   mask=sc.mask)
+    return tmp_path / "objPNG"
+
+
+def test_process_writes_the_model_and_it_reads_back(tmp_path):
+    res = process(_folder(tmp_path), outputs=["relight"], out_dir=tmp_path / "out", method="woodham1980")
+    assert (tmp_path / "out" / "relight_model.npz").is_file()
+    model = res.relight_model
+    back = load_relight_model(tmp_path / "out" / "relight_model.npz")
+    light = light_from_angles(30.0, 20.0)
+    np.testing.assert_array_equal(back.display(light), model.display(light))
+    assert back.heights is not None and back.white == model.white > 0
+    # the viewer's packing (8-bit maps and planes, float16 heights) keeps the picture within ~1 level
+    shipped = packed_model(model, 1, model.mask)
+    for az, el in ((0.0, 15.0), (135.0, 45.0), (250.0, 70.0)):
+        light = light_from_angles(az, el)
+        diff = np.abs(shipped.display(light) - model.display(light))[model.mask] * 255
+        assert diff.mean() < 1.0 and np.percentile(diff, 99) < 4, (az, el, diff.mean())
+
+
+def test_stage_says_why_without_whole_images():
+    class Res:
+        relight_model = None
+    notes = relight_model_stage(Res(), None, np.eye(3))
+    assert Res.relight_model is None and "--memory" in notes[0]

@@ -1,0 +1,33 @@
+"""estimate_reflectance_scale: the albedo's scale to a reflectance, read from the images."""
+import numpy as np
+
+from facette.bench._mitsuba_scenes import render_scene
+from facette.recon import ps_rank_trimmed, without_interreflections
+from facette.recon._interreflect_scale import estimate_reflectance_scale
+
+
+def test_the_scale_follows_the_images_and_lands_near_the_truth(tmp_path):
+    # Mitsuba's relief in plaster (the images are radiance factors: the true scale is 1), then the
+    # same images x 3.7 (relative intensities: the true scale 1 / 3.7)
+    d = render_scene("relief", "plaster", size=64, spp=32, cache_dir=tmp_path)
+    found = []
+    for c in (1.0, 3.7):
+        im = d["images"] * c
+        first = ps_rank_trimmed(im, d["light_dirs"], mask=d["mask"])
+        s, info = estimate_reflectance_scale(im, d["light_dirs"], first.normal, first.albedo, first.valid)
+        assert 0 < s <= info["max_scale"]
+        found.append(s * c)
+    assert abs(found[0] - found[1]) < 1e-3 * found[0]
+    assert 0.7 < found[0] < 1.6, found
+
+
+def test_a_convex_dome_gathers_nothing_and_keeps_its_images():
+    y, x = np.mgrid[:40, :40] - 19.5
+    inside = x * x + y * y < 18 ** 2
+    z = np.sqrt(np.clip(18.0 ** 2 - x * x - y * y, 1, None))
+    n = (np.dstack([x, -y, z]) / np.linalg.norm(np.dstack([x, -y, z]), axis=-1, keepdims=True)).astype(np.float32)
+    L = np.array([[0, 0, 1.0], [0.5, 0, 0.866], [0, 0.5, 0.866], [-0.5, 0, 0.866], [0, -0.5, 0.866]])
+    im = (3.0 * np.clip(np.einsum("md,hwd->mhw", L, n), 0, None) * inside).astype(np.float32)
+    out, first, info = without_interreflections(im, L, inside, reflectance_scale="auto")
+    assert not info["applied"] and out is im
+    assert info["reflectance_scale"] > 0 and "scale_estimate" in info

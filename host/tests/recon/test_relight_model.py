@@ -1,0 +1,82 @@
+"""The relighting model on rendered scenes: held-out lights, raking lights, its file."""
+import numpy as np
+import pytest
+
+from facette.errors import BadInputError
+from facette.recon import fit_hsh, hsh_basis, integrate, srgb_encode
+from facette.recon._relight_model import (cast_shadow, fit_relight_model, load_relight_model,
+                                          save_relight_model)
+from facette.recon.synthetic import render, sphere_on_plane
+
+
+def _dome(n_rings=(8, 12, 16), elevations=(70.0, 45.0, 25.0)):
+    dirs = []
+    for k, el in zip(n_rings, elevations):
+        for j in range(k):
+            az, e = np.radians(360.0 * j / k + 11 * k), np.radians(el)
+            dirs.append([np.cos(e) * np.cos(az), np.cos(e) * np.sin(az), np.sin(e)])
+    return np.array(dirs)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    sc = sphere_on_plane(64, 64)
+    dirs = _dome()
+    lin = render(sc, dirs, material="satin", albedo=(0.7, 0.5, 0.3)).astype(np.float32)
+    lin /= np.percentile(lin, 99.5)
+    held = np.arange(5, len(dirs), 6)
+    train = np.setdiff1d(np.arange(len(dirs)), held)
+    return sc, dirs, lin, train, held
+
+
+def _psnr(pred, truth):
+    p8, t8 = np.round(np.clip(pred, 0, 1) * 255), np.round(np.clip(truth, 0, 1) * 255)
+    return 10 * np.log10(255 ** 2 / max(np.mean((p8 - t8) ** 2), 1e-9))
+
+
+def _fit(sc, dirs, lin, train, shadows=True):
+    heights = integrate(sc.normals, mask=sc.mask) if shadows else None
+    return fit_relight_model(lin[train], dirs[train], sc.mask, sc.normals, heights=heights)
+
+
+def test_beats_hsh3_at_held_out_lights(scene):
+    sc, dirs, lin, train, held = scene
+    model = _fit(sc, dirs, lin, train)
+    hsh = fit_hsh(lin[train], dirs[train], 3, white=1.0, encoding="srgb")
+    shown = srgb_encode(np.clip(lin, 0, 1))
+    ours = np.mean([_psnr(model.display(dirs[h]), shown[h]) for h in held])
+    theirs = np.mean([_psnr(hsh.coeffs @ hsh_basis(dirs[h], 3), shown[h]) for h in held])
+    assert ours > theirs + 2.0, (ours, theirs)
+
+
+def test_never_negative_at_raking_light(scene):
+    sc, dirs, lin, train, _ = scene
+    model = _fit(sc, dirs, lin, train)
+    for az in np.radians(np.arange(0, 360, 45)):
+        t = np.radians(75.0)
+        light = np.array([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.cos(t)])
+        assert model.display_raw(light).min() >= 0.0
+        assert model.physical(light).min() >= 0.0
+
+
+def test_cast_shadow_falls_behind_the_bump():
+    sc = sphere_on_plane(64, 64)
+    h = sc.height                    # pixels: the hemisphere's radius is in pixels
+    light = np.array([np.cos(np.radians(20)), 0.0, np.sin(np.radians(20))])   # low, from +x
+    vis = cast_shadow(h, light)
+    row = 32
+    assert vis[row, 2] < 0.5        # left of the sphere, away from the light: shadowed
+    assert vis[row, 61] > 0.99      # the lit side
+    assert vis[2, 2] > 0.99         # a corner the sphere does not shade
+
+
+def test_round_trips_through_its_file(scene, tmp_path):
+    sc, dirs, lin, train, held = scene
+    model = _fit(sc, dirs, lin, train)
+    save_relight_model(tmp_path / "m.npz", model)
+    back = load_relight_model(tmp_path / "m.npz")
+    for h in held[:3]:
+        np.testing.assert_array_equal(back.display(dirs[h]), model.display(dirs[h]))
+    (tmp_path / "other.npz").write_bytes(b"not a model")
+    with pytest.raises(BadInputError):
+        load_relight_model(tmp_path / "other.npz")
