@@ -4,7 +4,7 @@
 ``FitResult.to_json()`` is the content of brdf.json.
 """
 from ._cells import (FITS_RELATIVE_RMS, VERDICT_MODELS, cell_spread_directions, fit_cells_verdict,
-                     fit_hemisphere_cells, preferred_model)
+                     fit_hemisphere_cells, incidence_spread, preferred_model)
 from ._fit import METHODS, WEIGHTINGS, fit_brdf, fit_genetic, fit_least_squares, prepare_samples
 from ._models import BOUNDS, FitModel
 from ._result import FitResult
@@ -14,7 +14,7 @@ from ._ps_li import ps_li_alternating
 from ._light_gains import estimate_light_gains
 from ._ps_li_ir import glossy_lobes_text, ps_li_without_interreflections
 
-__all__ = ["fit_cells_verdict", "preferred_model", "FITS_RELATIVE_RMS", "VERDICT_MODELS", "fit_brdf", "fit_genetic", "fit_least_squares", "prepare_samples", "fit_hemisphere_cells",
+__all__ = ["fit_cells_verdict", "incidence_spread", "preferred_model", "FITS_RELATIVE_RMS", "VERDICT_MODELS", "fit_brdf", "fit_genetic", "fit_least_squares", "prepare_samples", "fit_hemisphere_cells",
            "cell_spread_directions", "FitResult", "FitModel",
            "BOUNDS", "METHODS", "WEIGHTINGS",
            "ps_li_alternating", "estimate_light_gains", "fit_li_per_pixel_kd", "li_fit_cost", "is_metal", "LI_FIT_BOUNDS", "LI_VOLUME_MODEL",

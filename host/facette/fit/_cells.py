@@ -11,7 +11,7 @@ import numpy as np
 from ._fit import fit_brdf
 from ._li_model import is_metal
 
-__all__ = ["cell_spread_directions", "fit_hemisphere_cells", "fit_cells_verdict", "FITS_RELATIVE_RMS", "VERDICT_MODELS", "METAL_N_I_MAX", "preferred_model"]
+__all__ = ["cell_spread_directions", "incidence_spread", "fit_hemisphere_cells", "fit_cells_verdict", "FITS_RELATIVE_RMS", "VERDICT_MODELS", "METAL_N_I_MAX", "preferred_model"]
 
 # The verdict of `fit_cells_verdict`: a material fits when the best model's relative RMS error on
 # the hemisphere cells is at most FITS_RELATIVE_RMS. Chosen on renders, ours and Mitsuba's
@@ -61,13 +61,37 @@ def cell_spread_directions(edges, counts, cells, k=4):
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
 
 
+def incidence_spread(edges, bins, k=4):
+    """(len(bins), k², 3) incidences stratified over each incidence bin (a ring of the partition,
+    φ_s = 0), paired with `cell_spread_directions`' k × k directions: point (a, b) of that grid
+    (a: its cos θ stratum, b: its φ stratum) gets the bin's stratum (a + b) mod k, so each stratum
+    of incidence meets every stratum of θ_o and of φ_o once (a Latin square), at no extra cost.
+    Uniform in cos θ_s inside the ring, as the cells are in solid angle.
+
+    The sensor bins the incidence in the same 5°-wide rings (at θ0 = 3°) as the observation cells,
+    and a value read at its bin's centre incidence put the ring's width into the fitted lobe:
+    Cook–Torrance σ 0.05 from the true normals of rendered scenes (a sphere and a field of small
+    hexagonal facets, 12 and 48 lights) +1.5 to +3.4 % with the observation spread alone, -2.3 to
+    +0.7 % with this. Samples all at the rings' centres (the thesis test) come out up to 5 % narrow."""
+    edges = np.asarray(edges, dtype=float)
+    bins = np.asarray(bins, dtype=np.int64)
+    k = int(k)
+    u = (np.arange(k) + 0.5) / k
+    a, b = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
+    stratum = u[((a + b) % k).ravel()]
+    c0, c1 = np.cos(edges[bins]), np.cos(edges[bins + 1])
+    z = c0[:, None] + (c1 - c0)[:, None] * stratum[None, :]
+    return np.stack([np.sqrt(np.clip(1 - z * z, 0, 1)), np.zeros_like(z), z], axis=-1)
+
+
 def fit_hemisphere_cells(filtered, model="li", min_count=1, spread=4, **options):
     """Fit a model to ``facette.reflect.FilteredReflectance`` (mean per incidence bin and cell).
 
     Parameters
     ----------
     filtered : object with ``flat(min_count)``, ``count`` (B, N), ``edges``, ``counts``.
-    spread : k for k × k directions per cell in the forward model; 0 or None = cell centres.
+    spread : k for k × k directions per cell in the forward model, each with an incidence spread over
+        its incidence bin (`incidence_spread`); 0 or None = cell and bin centres.
     **options : passed to ``fit_brdf`` (method, distribution, masking, weighting, …).
     The cell counts weight the residuals (√count). ``specular_weight`` defaults to "balance" here
     (the cells in the specular cone weigh as much in total as the rest, facette.fit._fit): the
@@ -79,8 +103,9 @@ def fit_hemisphere_cells(filtered, model="li", min_count=1, spread=4, **options)
     s, o, f, cnt = filtered.flat(min_count)
     extra = {}
     if spread:
-        cells = np.nonzero(filtered.count >= min_count)[1]
+        bins, cells = np.nonzero(filtered.count >= min_count)
         extra["o_spread"] = cell_spread_directions(filtered.edges, filtered.counts, cells, spread)
+        extra["s_spread"] = incidence_spread(filtered.edges, bins, spread)
     return fit_brdf(s, o, f, model=model, counts=cnt, **extra, **options)
 
 

@@ -47,9 +47,9 @@ class _Data:
     values (1/|noisy value| favours the draws that came out low and biases K_d down by
     several % at 30 % noise)."""
 
-    def __init__(self, s, o, values, base, relative, notes, o_spread=None):
+    def __init__(self, s, o, values, base, relative, notes, o_spread=None, s_spread=None):
         self.s, self.o, self.values, self.base, self.relative, self.notes = s, o, values, base, relative, notes
-        self.o_spread = o_spread
+        self.o_spread, self.s_spread = o_spread, s_spread
         self.floor = 0.05 * np.maximum(np.mean(np.abs(values), axis=0), 1e-12)  # for values near 0
         self.reweight(values)
 
@@ -65,10 +65,11 @@ class _Data:
 
 
 def prepare_samples(s, o, values, counts=None, weighting="relative", specular_weight=1.0, specular_cone_deg=10.0,
-                    o_spread=None):
+                    o_spread=None, s_spread=None):
     """Check and weight samples. s, o: (N, 3) local-frame unit vectors; values (N,) or (N, C) in 1/sr;
     counts: (N,) samples averaged in each value (hemisphere-filter cells), or None;
-    o_spread: (N, K, 3) directions spread over each value's observation cell, or None.
+    o_spread: (N, K, 3) directions spread over each value's observation cell, or None; s_spread: the
+    same over its incidence bin, paired with o_spread's (or None: s).
 
     specular_weight: a factor for the samples whose half-vector is within specular_cone_deg of the
     normal, or "balance" (the factor that makes their total count match the others', ≥ 1).
@@ -100,6 +101,11 @@ def prepare_samples(s, o, values, counts=None, weighting="relative", specular_we
         if o_spread.ndim != 3 or o_spread.shape[0] != len(s) or o_spread.shape[2] != 3:
             raise ValueError(f"o_spread must be (N, K, 3) with N = {len(s)}: K directions spread over each "
                              f"sample's observation cell; got {o_spread.shape}")
+    if s_spread is not None:
+        s_spread = np.asarray(s_spread, dtype=float)
+        if o_spread is None or s_spread.shape != o_spread.shape:
+            raise ValueError(f"s_spread must be (N, K, 3) as o_spread ({None if o_spread is None else o_spread.shape}):"
+                             f" K incidences paired with o_spread's directions; got {s_spread.shape}")
     c = np.ones(len(s)) if counts is None else np.asarray(counts, dtype=float).reshape(-1)
     if c.shape != (len(s),):
         raise ValueError(f"counts must be (N,) = ({len(s)},), one count per sample; got {c.shape}")
@@ -115,6 +121,8 @@ def prepare_samples(s, o, values, counts=None, weighting="relative", specular_we
     s, o, v, c = s[ok] / ns[ok, None], o[ok] / no[ok, None], v[ok], c[ok]
     if o_spread is not None:
         o_spread = o_spread[ok] / np.linalg.norm(o_spread[ok], axis=-1, keepdims=True)
+    if s_spread is not None:
+        s_spread = s_spread[ok] / np.linalg.norm(s_spread[ok], axis=-1, keepdims=True)
     base = np.sqrt(c)[:, None] * np.ones((1, v.shape[1]))
     if (balance or specular_weight != 1.0) and len(s):
         h = s + o
@@ -125,7 +133,7 @@ def prepare_samples(s, o, values, counts=None, weighting="relative", specular_we
             c_spec, c_rest = c[spec].sum(), c[~spec].sum()
             specular_weight = float(np.sqrt(c_rest / c_spec)) if c_spec > 0 and c_rest > c_spec else 1.0
         base[spec] *= specular_weight
-    return _Data(s, o, v, base, weighting == "relative", notes, o_spread)
+    return _Data(s, o, v, base, weighting == "relative", notes, o_spread, s_spread)
 
 
 def _residual_fn(model, data):
@@ -229,13 +237,14 @@ def _default_volume_options(volume, options):
 def _make_model(model, data, distribution, masking, volume, interreflection, volume_options, n_paths=256,
                 n_i_max=None):
     return FitModel(model, data.s, data.o, data.channels, distribution, masking, volume, interreflection,
-                    _default_volume_options(volume, volume_options or {}), n_paths, data.o_spread, n_i_max)
+                    _default_volume_options(volume, volume_options or {}), n_paths, data.o_spread, n_i_max,
+                    data.s_spread)
 
 
 def fit_least_squares(s, o, values, model="li", distribution="beckmann", masking="smith", volume="quadrature",
                       interreflection=False, counts=None, weighting="relative", specular_weight=1.0,
                       specular_cone_deg=10.0, n_starts=6, x0=None, volume_options=None, max_nfev=200,
-                      reweight_passes=2, o_spread=None, n_i_max=None):
+                      reweight_passes=2, o_spread=None, n_i_max=None, s_spread=None):
     """Bounded least squares (scipy ``least_squares``, TRF) from ``n_starts`` starts; the best kept.
 
     Starts: a grid over σ ∈ {0.05, 0.15, 0.4, 0.8} × n_i ∈ {1.15, 1.5} (first n_starts of it) with
@@ -248,7 +257,7 @@ def fit_least_squares(s, o, values, model="li", distribution="beckmann", masking
     Returns a FitResult (success False with the reason when it fails).
     """
     t0 = time.perf_counter()
-    data = prepare_samples(s, o, values, counts, weighting, specular_weight, specular_cone_deg, o_spread)
+    data = prepare_samples(s, o, values, counts, weighting, specular_weight, specular_cone_deg, o_spread, s_spread)
     fm = _make_model(model, data, distribution, masking, volume, interreflection, volume_options, n_i_max=n_i_max)
     bad = _check_enough(fm, data, "least_squares", t0)
     if bad:
@@ -299,7 +308,7 @@ def fit_least_squares(s, o, values, model="li", distribution="beckmann", masking
 def fit_genetic(s, o, values, model="li", distribution="beckmann", masking="smith", volume="quadrature",
                 interreflection=False, counts=None, weighting="relative", specular_weight=1.0,
                 specular_cone_deg=10.0, population=40, generations=60, keep=0.2, p_mutation=0.4,
-                error_threshold=0.0, rng=0, volume_options=None, o_spread=None, project_kd=False):
+                error_threshold=0.0, rng=0, volume_options=None, o_spread=None, project_kd=False, s_spread=None):
     """The thesis's genetic algorithm (§4.2.2, fig 4.18), seeded by ``rng``.
 
     1. ``population`` random parameter sets, uniform in the bounds;
@@ -315,7 +324,7 @@ def fit_genetic(s, o, values, model="li", distribution="beckmann", masking="smit
     search is over (σ, n_i) only; it removes the K_d–n_i drift the plain algorithm shows on LI.
     """
     t0 = time.perf_counter()
-    data = prepare_samples(s, o, values, counts, weighting, specular_weight, specular_cone_deg, o_spread)
+    data = prepare_samples(s, o, values, counts, weighting, specular_weight, specular_cone_deg, o_spread, s_spread)
     fm = _make_model(model, data, distribution, masking, volume, interreflection, volume_options)
     bad = _check_enough(fm, data, "genetic", t0)
     if bad:
@@ -381,7 +390,7 @@ METHODS.add("genetic", fit_genetic)
 def fit_brdf(s, o, values, model="li", method="least_squares", distribution="beckmann", masking=None,
              volume="quadrature", interreflection="auto", counts=None, weighting="relative", specular_weight=1.0,
              specular_cone_deg=10.0, select=True, n_i_tolerance=0.01, rel_error_tolerance=0.02, o_spread=None,
-             **options):
+             s_spread=None, **options):
     """Fit a BRDF to reflectance samples and keep only what the data needs.
 
     Parameters
@@ -396,6 +405,8 @@ def fit_brdf(s, o, values, model="li", method="least_squares", distribution="bec
     o_spread : (N, K, 3) or None. When each value averages a cell of the hemisphere filter, K
         directions spread over that cell: the model is then averaged over them (the filter's
         forward model), which removes the bias a cell as wide as the specular lobe puts on σ.
+    s_spread : (N, K, 3) or None: the incidences over each value's incidence bin, paired with
+        o_spread's directions (the bin is as wide as a cell: 5° rings at θ0 = 3°).
     weighting, specular_weight, specular_cone_deg : the residual weights (module doc).
     select : try the simpler models when the interface is not needed (n_i − 1 < max(n_i_tolerance,
         2 × its uncertainty)): Oren–Nayar, then Lambert; a simpler model is kept when its relative
@@ -411,7 +422,7 @@ def fit_brdf(s, o, values, model="li", method="least_squares", distribution="bec
     if masking is None:
         masking = "vcavity" if model == "cook_torrance" else "smith"
     common = dict(counts=counts, weighting=weighting, specular_weight=specular_weight,
-                  specular_cone_deg=specular_cone_deg, o_spread=o_spread)
+                  specular_cone_deg=specular_cone_deg, o_spread=o_spread, s_spread=s_spread)
     t0 = time.perf_counter()
     if interreflection not in ("auto", True, False):
         raise ValueError(f"interreflection = {interreflection!r}: use 'auto', True or False")

@@ -25,7 +25,8 @@ class FitModel:
     """One model with fixed options, evaluated on fixed sample directions s, o (N, 3)."""
 
     def __init__(self, name, s, o, channels, distribution="beckmann", masking="smith", volume="quadrature",
-                 interreflection=False, volume_options=None, n_paths=256, o_spread=None, n_i_max=None):
+                 interreflection=False, volume_options=None, n_paths=256, o_spread=None, n_i_max=None,
+                 s_spread=None):
         name = MODELS.canonical(name)
         # a metal's lobe (Cook–Torrance only): n_i up to n_i_max, a real index of the metal's F0
         # (facette.brdf._fresnel.check_n_i)
@@ -47,7 +48,8 @@ class FitModel:
             # each value is a cell average: evaluate at K directions spread over the cell and
             # average (exact for the K_d-free parts, which enter the model linearly). Only the
             # specular lobe varies inside a 2–6° cell; the volume parts are taken at the centre.
-            self.s, self.o = s[:, None, :], o_spread
+            # The incidence too where s_spread is given (its bin is as wide as a cell)
+            self.s, self.o = (s[:, None, :] if s_spread is None else s_spread), o_spread
         self.up = self._mean((self.s[..., 2] > 0) & (self.o[..., 2] > 0))
         # the lobe's directions unit and broadcast once, not at each of the fit's evaluations
         self._s_unit, self._o_unit = (np.ascontiguousarray(a) for a in prepare_directions(self.s, self.o))

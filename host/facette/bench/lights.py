@@ -1,0 +1,94 @@
+"""`facette bench lights`: the default method's cost per megapixel-light, on 12, 48 and 96 lights.
+
+A relief slab (facette.bench._large.relief_surface: slopes up to 50°, every orientation) in a
+glossy dielectric (Cook–Torrance: "satin", σ 0.15, or "glossy", σ 0.05; facette.recon.synthetic)
+is rendered under the rig's 12 lights and under domes of 48 and 96 (a spiral over elevations
+10–80°), 1 % noise, and solved by the robust Lambertian `rank_trimmed` and the BRDF-aware default
+`li_alternating`. Per size, light count and method: wall and CPU seconds, both per megapixel-light
+(the CPU figure counts every thread; on a busy machine the wall figure overstates the cost), the
+normals' mean angular error against the truth, and li_alternating's parts (initial solve, coarse
+pass, BRDF-aware step). The default sizes: 481x466 (a real dome capture's, below the coarse-to-fine
+threshold: the whole alternation at full size) and 1024x768 (coarse-to-fine, as every large capture).
+
+Usage: facette bench lights [--sizes 481x466,1024x768] [--lights 12,48,96] [--material satin|glossy]
+"""
+import argparse
+import os
+import time
+
+import numpy as np
+
+from facette.methods import photometric_stereo
+from facette.recon.synthetic import Scene, render, thesis_light_directions
+
+from ._large import relief_surface
+
+__all__ = ["main", "dome_lights", "relief_scene"]
+
+METHODS = ("rank_trimmed", "li_alternating")
+
+
+def dome_lights(m):
+    """(m, 3) unit directions on a spiral over elevations 10–80° (12: the rig's own)."""
+    if m == 12:
+        return thesis_light_directions()
+    i = np.arange(m) + 0.5
+    elev = np.radians(10 + 70 * i / m)
+    phi = i * np.pi * (3 - np.sqrt(5))
+    return np.stack([np.cos(elev) * np.cos(phi), np.cos(elev) * np.sin(phi), np.sin(elev)], axis=1)
+
+
+def relief_scene(h, w):
+    """The relief slab at h x w px as a recon.synthetic Scene (the whole frame masked)."""
+    _, normals = relief_surface(np.arange(h), np.arange(w), min(h, w))
+    return Scene(normals, np.zeros((h, w)), np.ones((h, w), bool), np.zeros((h, w), bool),
+                 ((h - 1) / 2, (w - 1) / 2), 1.0)
+
+
+def _parts(info):
+    """li_alternating's seconds: initial solve, coarse pass, BRDF-aware step (from its info)."""
+    levels = info.get("levels", {})
+    return (levels.get("init", {}).get("seconds", 0.0), info.get("coarse", {}).get("seconds", 0.0),
+            levels.get("brdf_aware", {}).get("seconds", 0.0))
+
+
+def run(h, w, m, material, methods=METHODS):
+    """Rows (method, wall s, CPU s, mean error deg, info) of each method on one rendered case."""
+    scene = relief_scene(h, w)
+    lights = dome_lights(m)
+    images = render(scene, lights, material, noise=0.01, rng=np.random.default_rng(1), cast_shadows=False)
+    rows = []
+    for name in methods:
+        t, c = time.perf_counter(), time.process_time()
+        res = photometric_stereo(images, lights, method=name, mask=scene.mask)
+        dt, dc = time.perf_counter() - t, time.process_time() - c
+        dot = np.clip(np.sum(res.normal[scene.mask] * scene.normals[scene.mask], -1), -1, 1)
+        rows.append((name, dt, dc, float(np.degrees(np.arccos(dot)).mean()), res.info or {}))
+    return rows
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(prog="facette bench lights", description=__doc__.split("\n")[0])
+    p.add_argument("--sizes", default="481x466,1024x768", help="WxH, comma-separated")
+    p.add_argument("--lights", default="12,48,96", help="light counts, comma-separated (12: the rig's)")
+    p.add_argument("--material", default="satin", choices=["satin", "glossy"])
+    p.add_argument("--methods", default=",".join(METHODS))
+    args = p.parse_args(argv)
+    methods = [s.strip() for s in args.methods.split(",") if s.strip()]
+    # the kernels compiled (or loaded from numba's cache) before anything is timed
+    run(32, 32, 12, args.material, methods)
+    print(f"-- relief slab, Cook-Torrance {args.material}, 1 % noise: seconds per megapixel-light "
+          "(wall and CPU), mean angular error")
+    print(f"{'size':>10s} {'lights':>6s} {'method':16s} {'wall s':>7s} {'CPU s':>7s} {'wall s/MPl':>10s} "
+          f"{'CPU s/MPl':>9s} {'error':>7s}   li_alternating: init / coarse / BRDF-aware s")
+    for size in args.sizes.split(","):
+        w, h = (int(v) for v in size.lower().split("x"))
+        for m in (int(v) for v in args.lights.split(",")):
+            for name, dt, dc, err, info in run(h, w, m, args.material, methods):
+                mpl = h * w * m / 1e6
+                extra = " / ".join(f"{v:.2f}" for v in _parts(info)) if name == "li_alternating" else ""
+                print(f"{size:>10s} {m:6d} {name:16s} {dt:7.2f} {dc:7.2f} {dt / mpl:10.3f} {dc / mpl:9.3f} "
+                      f"{err:6.3f}°   {extra}", flush=True)
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"(1-minute load average {load:.1f} on {os.cpu_count()} cores)")
+    return 0
