@@ -6,7 +6,7 @@ it instead of compiling (0.1 s against ~15 s for the whole set). On a fresh mach
 is empty, so the first `facette process` paid for the compilation (the demo scan's photometric
 stereo: 18.3 s the first time, 1.45 s the second). `make setup` runs this module: it runs the
 real chain, `process` with every output, on two tiny generated inputs (a scan directory and a
-DiLiGenT-style folder, 24x32 px) and every photometric-stereo method on the same images, so that
+DiLiGenT-style folder, 96x128 px) and every photometric-stereo method on the same images, so that
 each kernel is compiled for the array types the real runs hand it, and cached.
 
 A kernel whose source file changes (a `git pull`) is compiled again on its next use: numba keys
@@ -22,7 +22,8 @@ import numpy as np
 
 __all__ = ["warm_up"]
 
-SIZE = (24, 32)        # rows, columns: the kernels' types do not depend on the size
+SIZE = (96, 128)       # rows, columns: large enough for the light-gains step, which a smaller capture skips
+COARSE = 2000          # li_alternating's coarse-to-fine path (scans above 250 000 pixels), forced here
 
 
 def _scan_folder(folder, scene, images, lights):
@@ -67,11 +68,14 @@ def warm_up(verbose=True):
             process(src, out_dir=root / f"out-{name}")
             if verbose:
                 print(f"warm-up: process on a {name}: {time.perf_counter() - t:.1f} s", flush=True)
+        whole = np.ones_like(mask)         # a mask of every pixel takes other array layouts
         for method in dict.fromkeys(PS_METHODS.canonical(m) for m in PS_METHODS.names()):
             t = time.perf_counter()
-            photometric_stereo(images, lights, method=method, options={"mask": mask})
+            for m in (mask, whole):
+                photometric_stereo(images, lights, method=method, options={"mask": m})
             if verbose:
                 print(f"warm-up: {method}: {time.perf_counter() - t:.1f} s", flush=True)
+        photometric_stereo(images, lights, method="li_alternating", options={"mask": mask, "coarse_pixels": COARSE})
     return time.perf_counter() - t0
 
 
