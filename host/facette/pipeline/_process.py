@@ -42,6 +42,7 @@ from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_fro
                            near_light_directions, dark_level_notes)
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._channels import images_for_solve, results_in_rgb
+from facette.pipeline._confidence import normal_channels, uncertainty_stage
 from facette.pipeline._inputs import load_input, object_of
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
@@ -118,6 +119,7 @@ class ProcessResult:
     interreflections: dict = None
     light_gains: dict = None
     filled: np.ndarray = None
+    uncertainty: np.ndarray = None      # (H, W) deg, each normal's 90 % band (pipeline._confidence)
 
 
 def _fit_stage(filtered, fit_options, brdf_aware=False, material=None):
@@ -291,6 +293,7 @@ def _process(source, outputs, out_dir, o):
     res.ps = ps
     res.notes.extend(dark_level_notes(ps.info.get("dark_offset")))
     normals_of(res, inp, ps)
+    uncertainty_stage(res, direct, light_dirs, o.saturation)
     # mask.png: the object, without the dark table or cloth around it (when one surrounds it)
     res.object_mask = res.mask if inp.background_mask() is None else \
         res.mask & object_of(inp.images, inp.mask, inp.material_mask)
@@ -303,6 +306,7 @@ def _streamed_result(res, inp, ps, top):
     """res.ps, normals, albedo, mask and object mask of photometric stereo over bands (`streamed_ps`)."""
     res.ps = ps
     normals_of(res, inp, ps)
+    uncertainty_stage(res, None, None)
     res.object_mask = res.mask if inp.background_mask() is None else \
         res.mask & object_of(None, inp.mask, inp.material_mask, top=top)
 
@@ -454,7 +458,7 @@ def _writers(res, out, outputs, ascii_ply, relight=None):
     how = {
         # uncompressed: float32 maps of a real surface are noise to ZIP (12 MP normal, albedo
         # and height: 80.4 MB zipped against 85.6 MB, 1.1 s against 0.12 s to write)
-        "normals": lambda p: write_exr(p, res.normals, ("X", "Y", "Z"), header=meta, compression="none"),
+        "normals": lambda p: write_exr(p, *normal_channels(res), header=meta, compression="none"),
         "albedo": lambda p: write_exr(p, res.albedo, ("R", "G", "B"), header=meta, compression="none"),
         "height": lambda p: write_exr(p, res.height, ("Z",), header={**meta, "unit": "mm"}, compression="none"),
         "mask": lambda p: write_mask(p, res.object_mask, {"Comment": comment} if res.inputs.incomplete else None,
