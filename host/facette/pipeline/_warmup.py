@@ -42,12 +42,12 @@ def _scan_folder(folder, scene, images, lights):
     return folder
 
 
-def _inputs(root):
+def _inputs(root, size):
     """Two tiny inputs of a glossy sphere on a plane under the rig's 12 lights: (scan, folder)."""
     from facette.io.diligent import write_diligent
     from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
     lights = thesis_light_directions()
-    scene = sphere_on_plane(*SIZE)
+    scene = sphere_on_plane(*size)
     images = render(scene, lights, "glossy", noise=0.002, rng=np.random.default_rng(0))
     scan = _scan_folder(root / "scan", scene, images.astype(np.float32), lights)
     u16 = np.round(np.clip(images / images.max(), 0, 1) * 50000).astype(np.uint16)
@@ -55,14 +55,15 @@ def _inputs(root):
     return scan, root / "folder", images.astype(np.float32), lights, scene.mask
 
 
-def warm_up(verbose=True):
-    """Run `process` (every output) on a tiny scan and folder, and every method once; returns seconds."""
+def warm_up(verbose=True, size=SIZE):
+    """Run `process` (every output) on a tiny scan and folder of `size` (rows, columns), every
+    method once on a partial and a whole mask, li_alternating coarse-to-fine; returns seconds."""
     from facette.methods import PS_METHODS, photometric_stereo
     from facette.pipeline._process import process
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="facette-warmup-") as tmp:
         root = Path(tmp)
-        scan, folder, images, lights, mask = _inputs(root)
+        scan, folder, images, lights, mask = _inputs(root, size)
         for name, src in (("scan", scan), ("folder", folder)):
             t = time.perf_counter()
             process(src, out_dir=root / f"out-{name}")
