@@ -77,3 +77,12 @@ def test_summary():
     s = uncertainty_summary(u, np.array([[1, 1], [1, 0]], bool))
     assert s["median_deg"] == 2.0 and 2.5 < s["p90_deg"] < 3.0
     assert uncertainty_summary(u, np.zeros((2, 2), bool)) is None
+
+
+def test_large_maps_are_computed_on_a_coarser_grid():
+    sc, im = _noisy_sphere(48)
+    full = normal_uncertainty(im, L, sc.normals, sc.mask)
+    coarse = normal_uncertainty(im, L, sc.normals, sc.mask, max_pixels=400)
+    assert np.all(coarse[~sc.mask] == 0) and np.all(coarse[sc.mask] > 0)
+    # the same map, in cells of a few pixels: the medians agree
+    assert abs(np.median(coarse[sc.mask]) / np.median(full[sc.mask]) - 1) < 0.2
