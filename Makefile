@@ -14,7 +14,7 @@ SCAN_SIZE ?= 1024x768
 GLTF_VALIDATOR := tools/gltf-validator
 
 .PHONY: lock setup deps venv firmware-posix generate check-generated check-layers test c-test fuzz fuzz-smoke \
-        pytest firmware qemu-test check-fw-layers scan calibrate bench clean help node-deps warmup
+        pytest firmware qemu-test check-fw-layers scan calibrate bench clean help node-deps docs docs-check warmup
 
 help:
 	@echo "make scan             one-button scan on the simulated rig, then processing"
@@ -24,7 +24,8 @@ help:
 	@echo "make firmware         STM32F405 build (size printed)"
 	@echo "make qemu-test        boot the STM32 build in QEMU and talk Modbus to it"
 	@echo "make fuzz             libFuzzer on frames/registers and on the sequencer/safety, both at once ($(FUZZ_SECONDS) s each)"
-	@echo "make bench            benchmarks: error and run time side by side"
+	@echo "make bench            benchmarks: error and run time side by side (writes docs/benchmarks.md)"
+	@echo "make docs             the documentation site into site/ (its pictures made by running the tutorials)"
 	@echo "make lock             requirements.lock anew from pyproject.toml (pip-compile)"
 	@echo "make generate         regenerate protocol files from protocol/registers.toml"
 	@echo "make check-layers     host imports only go down the layers of docs/ARCHITECTURE.md"
@@ -102,7 +103,7 @@ qemu-test: setup firmware
 pytest: setup
 	$(VENV)/bin/pytest -q
 
-test: check-generated check-layers setup c-test check-fw-layers fuzz-smoke pytest qemu-test
+test: check-generated check-layers setup c-test check-fw-layers fuzz-smoke pytest qemu-test docs-check
 
 scan: setup
 	$(FACETTE) scan --sim --press-button --raw-size $(SCAN_SIZE) $(SCAN_OUT)
@@ -110,6 +111,19 @@ scan: setup
 # A fresh profile beside the committed one (calibration/profiles/sim-default is replaced only on purpose).
 calibrate: setup
 	$(FACETTE) calibrate --rig sim --yes -o out/calibration/sim
+
+# The documentation site (mkdocs.yml; tools/docs/hooks.py generates the command reference, the
+# register map and the messages page at each build). `make docs` first makes the tutorials'
+# pictures by running their steps (tools/docs/figures.py, cached in build/docs/: delete it to redo
+# them); `make docs-check` (part of `make test`) builds with warnings as errors, pictures not made
+# yet standing in as placeholders.
+DOCS_ENV := NO_MKDOCS_2_WARNING=1 PYTHONPATH=$(CURDIR)/host
+docs: setup
+	$(DOCS_ENV) $(PY) tools/docs/figures.py
+	$(DOCS_ENV) $(VENV)/bin/mkdocs build --strict --site-dir site
+
+docs-check: venv
+	$(DOCS_ENV) $(VENV)/bin/mkdocs build --strict --quiet --site-dir $(BUILD)/docs/site-check
 
 bench: setup
 	$(FACETTE) bench all

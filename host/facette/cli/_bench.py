@@ -3,6 +3,7 @@
 Each benchmark is a module `facette.bench.<name>` with ``main(argv) -> int``.
 """
 import argparse
+import functools
 import importlib
 import pkgutil
 
@@ -26,8 +27,13 @@ def run(args):
     unknown = [n for n in names if n not in available()]
     if unknown:
         raise SystemExit(f"unknown benchmark {unknown[0]!r}; choose from {', '.join(available())}")
-    status = 0
+    from facette.bench._page import run_teed, write_page
+
+    status, outputs = 0, {}
     for name in names:
         print(f"== facette bench {name}", flush=True)
-        status |= int(importlib.import_module(f"facette.bench.{name}").main(args.rest) or 0)
+        outputs[name] = run_teed(functools.partial(importlib.import_module(f"facette.bench.{name}").main, args.rest))
+        status |= outputs[name][0]
+    if args.name == "all" and not args.rest:          # a whole run writes the benchmarks page
+        print(f"wrote {write_page(outputs)}")
     return status
