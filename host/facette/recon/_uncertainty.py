@@ -39,8 +39,9 @@ BAND_SCALE = 1.2      # 90 % band radius / u: the 90th percentile of error / u o
                       # `facette bench uncertainty` (12 synthetic spheres, 4 Mitsuba scenes; li_alternating):
                       # 1.20 (rank_trimmed's normals: 1.23); never chosen on DiLiGenT
 MAX_DEG = 90.0
-MAX_PIXELS = 250_000  # computed pixels at most (a 12 MP scan: every 6th row and column): 512x512 px,
-                      # 12 lights took 13 s on 2 busy cores, so a 12 MP map in full would take minutes
+MAX_VALUES = 3_000_000   # pixels x lights computed at most (12 lights: 250 000 pixels, a 12 MP scan every
+                         # 7th row and column; DiLiGenT's 96: 31 000, a 45 000-pixel crop every 2nd): 512x512 px,
+                         # 12 lights took 13 s on 2 busy cores, a 12 MP map in full would take minutes
 _FD = 1e-3            # finite-difference step of the tangent angles (rad)
 _CHUNK = 8192
 VIEW = np.array([0.0, 0.0, 1.0])
@@ -108,7 +109,7 @@ def _block(e, ok, n, lights, halves):
 
 
 def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, channel=None,
-                       max_pixels=MAX_PIXELS):
+                       max_values=MAX_VALUES):
     """The radius (deg) of each normal's 90 % band: (H, W) float32, 0 outside the mask.
 
     images : (m, H, W) or (m, H, W, C) linear, divided by each light's intensity (as the solve
@@ -117,8 +118,8 @@ def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, 
         (zero where there is none: not rated). mask : (H, W) bool (default: where the normal
         is not zero). saturation : values at or above it are not used.
     Pixels with fewer than MIN_LIGHTS carrying lights, or no normal, get MAX_DEG (90°).
-    max_pixels : above this many mask pixels the map is computed on every s-th row and column
-        (s the smallest stride that brings them under it) and each pixel takes its cell's value.
+    max_values : above this many mask pixels x lights the map is computed on every s-th row and
+        column (s the smallest stride that brings them under it), each pixel taking its cell's value.
     """
     images = np.asarray(images)
     if images.ndim == 3:
@@ -134,11 +135,12 @@ def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, 
         raise ValueError(f"light_dirs must be (m, 3) or (m, H, W, 3) for {m} images, got {light_dirs.shape}")
     has_n = np.linalg.norm(normals, axis=2) > 0.5
     mask = has_n if mask is None else (np.asarray(mask, bool) & has_n)
-    stride = int(np.ceil(np.sqrt(mask.sum() / max_pixels))) if mask.sum() > max_pixels else 1
+    values = mask.sum() * m
+    stride = int(np.ceil(np.sqrt(values / max_values))) if values > max_values else 1
     if stride > 1:        # a cell's pixels take its corner's value (or its neighbours' at the edge)
         ld = light_dirs if light_dirs.ndim == 2 else light_dirs[:, ::stride, ::stride]
         coarse = normal_uncertainty(images[:, ::stride, ::stride], ld, normals[::stride, ::stride],
-                                    mask[::stride, ::stride], saturation, channel, max_pixels=np.inf)
+                                    mask[::stride, ::stride], saturation, channel, max_values=np.inf)
         coarse = np.where(mask[::stride, ::stride], coarse, grey_dilation(coarse, size=3))
         up = np.repeat(np.repeat(coarse, stride, axis=0), stride, axis=1)[:h, :w]
         return np.where(mask, up, np.float32(0)).astype(np.float32)

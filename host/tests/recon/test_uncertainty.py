@@ -82,7 +82,7 @@ def test_summary():
 def test_large_maps_are_computed_on_a_coarser_grid():
     sc, im = _noisy_sphere(48)
     full = normal_uncertainty(im, L, sc.normals, sc.mask)
-    coarse = normal_uncertainty(im, L, sc.normals, sc.mask, max_pixels=400)
+    coarse = normal_uncertainty(im, L, sc.normals, sc.mask, max_values=400 * 12)
     assert np.all(coarse[~sc.mask] == 0) and np.all(coarse[sc.mask] > 0)
     # the same map, in cells of a few pixels: the medians agree
     assert abs(np.median(coarse[sc.mask]) / np.median(full[sc.mask]) - 1) < 0.2
