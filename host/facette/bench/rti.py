@@ -8,9 +8,13 @@ photographs), with the fit time. Data sets:
 2. DiLiGenT ball (612x512, 16-bit PNG, 96 lights) and the 8-bit crops, when the real data
    is found (../shared/data beside the repository, or --root DIR); the time to read the 96
    16-bit PNGs (facette.io.png) is printed too.
-3. the reference tools' own files (rti_reference/: RTIBuilder's HSH, HP's JPEG PTM) read by
-   facette.io's readers (written from RTIViewer's and Relight's loaders): read time, and the
+3. the reference tools' own files (rti_reference/: RTIBuilder's HSH, HP's JPEG PTM, Relight's web
+   folders of openlime) read by facette.io's readers (written from RTIViewer's, Relight's and
+   openlime's loaders): read time, and the
    orientation figures (light from +x / +y brightens the right / upper side of the object);
+5. real captures (rti_captures/loewenkopf_240 and JPEG + .lp captures made of the DiLiGenT crops),
+   every 6th light held out: facette's files as RTIViewer and openlime read them against plain
+   least-squares fits of the same photographs, PSNR / SSIM in 8-bit display values (bench._rti_captures);
 4. with --results DIR (a `facette process` output of a scan): relight.ptm and relight.rti
    read back as RTIViewer (integer PTM coefficients) and Relight (float) read them, relative
    RMS against the (fall-off corrected) HDR images at the captured lights on the object
@@ -25,9 +29,11 @@ from pathlib import Path
 import numpy as np
 
 import facette
+from facette.bench._rti_captures import captures_section
 from facette.io.diligent import read_diligent
 from facette.io.png import read_mask
 from facette.io.ptm import read_ptm
+from facette.io.relight_web import read_relight_web
 from facette.io.rti import hsh_weights, read_hsh_rti
 from facette.recon import (fit_hsh, fit_ptm_lrgb, near_light_directions, relight_error, relight_hsh,
                            relight_ptm, srgb_decode, srgb_encode)
@@ -102,7 +108,8 @@ def _side_ratio(picture_at, coords, lit):
 
 def reference_files(root):
     base = Path(root) / "rti_reference"
-    files = sorted(base.glob("hsh/*.rti")) + sorted(base.glob("ptm/*.ptm"))
+    files = sorted(base.glob("hsh/*.rti")) + sorted(base.glob("ptm/*.ptm")) + \
+        sorted(p.parent for p in base.glob("relight_web/*/info.json"))
     if not files:
         print(f"3. reference RTI files: none under {base}; skipped")
         return
@@ -112,7 +119,7 @@ def reference_files(root):
     print(f"  {'file':28s} {'size':>9s} {'read':>8s} {'right/left':>11s} {'top/bottom':>11s}")
     for f in files:
         t0 = time.perf_counter()
-        rti = read_hsh_rti(f) if f.suffix == ".rti" else read_ptm(f)
+        rti = read_hsh_rti(f) if f.suffix == ".rti" else read_ptm(f) if f.suffix == ".ptm" else read_relight_web(f)
         dt = time.perf_counter() - t0
         lit = rti.relight([0, 0, 1]).mean(-1) > 0.15
         yy, xx = np.mgrid[0:rti.height, 0:rti.width]
@@ -141,14 +148,17 @@ def demo_results(results):
         dirs, falloff = near_light_directions(inp.positions_mm, (h, w), inp.pixel_pitch_mm)
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
     obj = read_mask(results / "mask.png")
-    enc = rec["options"].get("rti_encoding", "linear")
+    exposure = rec.get("quality", {}).get("rti_exposure", {})
+    enc = exposure.get("encoding", rec["options"].get("rti_encoding", "linear"))
     print(f"4. {results}: {m} lights, {w}x{h} px, object {int(obj.sum())} of {obj.size} px "
           f"(mask.png), files encoded {enc}")
     per_light = [np.moveaxis(dirs, 2, 0)[k] if dirs.ndim == 4 else dirs[k] for k in range(m)]
     fits = {}
-    for name, fn in (("ptm", lambda e: fit_ptm_lrgb(images, dirs, mask=obj, encoding=e)),
-                     ("hsh", lambda e: fit_hsh(images, dirs, rec["options"].get("hsh_order", 3),
-                                                mask=obj, encoding=e))):
+    white = exposure.get("white")          # the files' scale (pipeline._rti_exposure); older runs: a percentile
+    for name, fn in (("ptm", lambda e: fit_ptm_lrgb(images, dirs, mask=obj, encoding=e, white=white,
+                                                    photographed=white is not None)),
+                     ("hsh", lambda e: fit_hsh(images, dirs, rec["options"].get("hsh_order", 3), mask=obj,
+                                               encoding=e, white=white, photographed=white is not None))):
         for e in ("linear", "srgb"):
             t0 = time.perf_counter()
             fits[name, e] = fn(e)
@@ -191,7 +201,11 @@ def main(argv=None):
     ap.add_argument("--results", help="a `facette process` output folder of a scan: its relight.ptm and "
                                       "relight.rti against the scan's HDR images (section 4)")
     ap.add_argument("--files-only", action="store_true", help="sections 3 and 4 only (the files)")
+    ap.add_argument("--captures-only", action="store_true", help="section 5 only (the real captures)")
     args = ap.parse_args(argv)
+    if args.captures_only:
+        captures_section(args.root)
+        return 0
     if not args.files_only:
         simulated()
         if not args.skip_real:
@@ -200,4 +214,6 @@ def main(argv=None):
         reference_files(args.root)
     if args.results:
         demo_results(args.results)
+    if not args.skip_real and not args.files_only:
+        captures_section(args.root)
     return 0

@@ -38,13 +38,13 @@ def _number(kind, lo=None, hi=None, lo_open=False, what="value"):
 
 
 def _outputs(text):
-    from facette.pipeline import OUTPUTS
+    from facette.pipeline import ALL_OUTPUTS
 
     out = [o.strip() for o in text.split(",") if o.strip()]
-    bad = [o for o in out if o not in OUTPUTS]
+    bad = [o for o in out if o not in ALL_OUTPUTS]
     if bad or not out:
         raise argparse.ArgumentTypeError(f"unknown output(s) {', '.join(bad) or '(none given)'}; "
-                                         f"choose from {','.join(OUTPUTS)}")
+                                         f"choose from {','.join(ALL_OUTPUTS)}")
     return out
 
 
@@ -61,8 +61,8 @@ def register(sub):
                                   "(photographs with an .lp file, or with a mirror sphere in view)")
     p.add_argument("-o", "--out", required=True, help="output directory (created)")
     p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
-                   help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all); only the "
-                        "stages they need run")
+                   help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all), or relight-web "
+                        "(Relight's web format for openlime, asked for by name); only the stages they need run")
     p.add_argument("--method", default=None,
                    choices=list(PS_METHODS),
                    help=f"photometric stereo (default {d.method}: BRDF-aware, the LI model fitted per "
@@ -139,9 +139,10 @@ def register(sub):
                         "run the bands (they must see the same paths; the same flag as facette batch)")
     p.add_argument("--hsh-order", type=int, default=d.hsh_order, choices=(2, 3),
                    help="hemispherical-harmonics order of relight.rti (2: 4 terms, 3: 9 terms)")
-    p.add_argument("--rti-encoding", default=d.rti_encoding, choices=("srgb", "linear"),
-                   help="colour of relight.ptm and relight.rti: srgb (default: display values, what "
-                        "RTIViewer and Relight show as photographed) or linear (proportional to radiance)")
+    p.add_argument("--rti-encoding", default=d.rti_encoding, choices=("auto", "srgb", "linear"),
+                   help="values of relight.ptm, relight.rti and relight_web: auto (default: as photographed, "
+                        "the photographs' scale and encoding; an HDR scan sRGB at an exposure that clips "
+                        "<= 0.1 %% of the object), srgb (display values) or linear (proportional to radiance)")
     return p
 
 
@@ -216,9 +217,10 @@ def run(args):
 
 def print_result(res):
     """What `process` did, for a person: the input, its figures, the notes, the files."""
-    h, w = res.normals.shape[:2]
+    h, w = res.mask.shape[:2]
     print(f"{res.inputs.kind} {res.inputs.source}: {len(res.inputs.light_dirs)} lights, {w}x{h} px, "
-          f"{int(res.mask.sum())} valid pixels, object {int(res.object_mask.sum())} ({res.options['method']})")
+          f"{int(res.mask.sum())} valid pixels, object {int(res.object_mask.sum())} "
+          + (f"({res.options['method']})" if res.ps is not None else "(no photometric stereo: not needed)"))
     ir = res.interreflections
     if ir is not None:
         print(f"  inter-reflections: {100 * ir['median_fraction']:.1f} % of the median value, "
@@ -235,14 +237,14 @@ def print_result(res):
     if lg is not None and lg["applied"]:
         print(f"  light gains: the given intensities {lg['rms_percent']:.1f} % RMS off (at most "
               f"{lg['max_percent']:.1f} %), corrected; {lg['seconds']:.1f} s")
-    info = res.ps.info
+    info = res.ps.info if res.ps is not None else {}
     if "skipped_fraction" in info:
         print(f"  least squares explained {100 * info['skipped_fraction']:.1f} % of the pixels "
               "(hierarchy skipped there)")
     for k, v in res.errors.items():
         print(f"  against truth: {k} = {v:.3f}")
     for k, v in res.fit_errors.items():
-        print(f"  relighting against the HDR images: {k} = {v:.4f}")
+        print(f"  relighting against the images: {k} = {v:.4f}")
     print("  times: " + ", ".join(f"{k} {v:.2f} s" for k, v in res.timings.items()))
     if res.brdf is not None:
         print(f"  brdf: {res.brdf}")

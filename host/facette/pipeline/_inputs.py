@@ -53,6 +53,7 @@ class PSInput:
     digest: str = ""               # what the inputs were: changes when a frame or image changes
     lights_file: object = None     # RTI captures lit by a sphere: (file names, directions) of the .lp to write
     reflectance: bool = False      # the images are radiance factors (a scan with the Spectralon's radiometric scale)
+    photographed: object = None    # RTI captures: {"encoding", "gains" (m, 3) or None} (pipeline._rti_exposure)
 
     def sample_mask(self):
         """Pixels whose reflectance samples are taken: the mask, within the material mask."""

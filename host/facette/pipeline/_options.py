@@ -64,10 +64,10 @@ class ProcessOptions:
     t_residual: float = _option(T_RESIDUAL, "least-squares residual under which a pixel is Lambertian "
                                 "(ps_hierarchical_tautzia2016, ps_li_alternating)", report=True)
     theta0_deg: float = _option(THETA0_DEG, "hemisphere-sensor cell size, deg", report=True)
-    rti_encoding: str = _option("srgb", "what relight.ptm and relight.rti hold: srgb, the display values "
-                                "RTIViewer and Relight show as they are (RTIBuilder fits sRGB photographs), the "
-                                "HDR images / their 99th percentile sRGB-encoded; linear: proportional to the "
-                                "radiance (darker and harsher in those viewers); said in relight.rti's header",
+    rti_encoding: str = _option("auto", "what relight.ptm and relight.rti hold: auto, the photographs as they "
+                                "are (their scale and encoding: sRGB for 8-bit files, linear for 16-bit ones; an "
+                                "HDR scan sRGB at an exposure that clips <= 0.1 % of the object, "
+                                "pipeline._rti_exposure); srgb or linear: that encoding; said in relight.rti's header",
                                 report=True)
     mask: object = _option(None, "(H, W) bool or a PNG path (recorded when a path)")
     pixel_pitch_mm: float = _option(None, "object-side pixel size, mm, > 0 (None: the scan's)")
@@ -117,8 +117,9 @@ class ProcessOptions:
         # copies, so that a caller's dict changed later does not change these options
         object.__setattr__(self, "fit_options", dict(self.fit_options or {}))
         object.__setattr__(self, "ps_options", dict(self.ps_options or {}))
-        if self.rti_encoding not in RTI_ENCODINGS:
-            raise BadInputError(f"rti_encoding must be one of {', '.join(RTI_ENCODINGS)}, got {self.rti_encoding!r}")
+        if self.rti_encoding not in ("auto",) + RTI_ENCODINGS:
+            raise BadInputError(f"rti_encoding must be one of auto, {', '.join(RTI_ENCODINGS)}, "
+                                f"got {self.rti_encoding!r}")
         if self.pixel_pitch_mm is not None and not self.pixel_pitch_mm > 0:
             raise BadInputError(f"pixel_pitch_mm must be > 0 mm, got {self.pixel_pitch_mm}")
         if self.mesh_step is not None and not int(self.mesh_step) >= 1:

@@ -10,8 +10,9 @@ Stages run only when a requested output needs them (docs/outputs.md):
     mesh      load, ps, integrate, mesh      (mesh.ply)
     samples   load, ps, samples              (samples.npz)
     brdf      load, ps, samples, fit         (brdf.json; needs facette.fit)
-    ptm       load, ps, ptm                  (relight.ptm: PTM LRGB for RTIViewer)
-    rti       load, ps, hsh                  (relight.rti: HSH order 3 for RTIViewer)
+    ptm       load, ptm                      (relight.ptm: PTM LRGB for RTIViewer, as photographed)
+    rti       load, hsh                      (relight.rti: HSH order 3 for RTIViewer, as photographed)
+    relight-web load, hsh                    (relight_web/: Relight's web format, openlime's HSH)
     gltf      load, ps, integrate, mesh, samples, fit   (model.glb: mesh + PBR maps)
     report    load, ps (+ whatever else ran) (report.html)
 """
@@ -49,31 +50,35 @@ from facette.pipeline._interreflections import interreflections_wanted, solve_wi
 from facette.pipeline._light_gains import with_light_gains
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
-from facette.pipeline._rti_bands import relight_bands, relight_stage
+from facette.pipeline._rti_bands import relight_bands, relight_exposure, relight_stage, write_relight_web
+from facette.pipeline._rti_exposure import record_exposure
 from facette.pipeline._rti_capture import LP_NAME
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
 from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry, truth_errors
 from facette.pipeline._report import report_fit_section, write_report
 from facette.pipeline._samples import _samples_stage  # bench/recon.py imports it from here too
 
-__all__ = ["OUTPUTS", "STAGES_FOR", "ProcessOptions", "ProcessResult", "process", "stages_needed"]
+__all__ = ["OUTPUTS", "ALL_OUTPUTS", "STAGES_FOR", "ProcessOptions", "ProcessResult", "process", "stages_needed"]
 
 OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
+# asked for by name only (not in the default): relight_web/ costs ~0.4 CPU s per megapixel of JPEG tiles
+ALL_OUTPUTS = OUTPUTS + ("relight-web",)
 STAGES_FOR = {
     "normals": ("load", "ps"), "albedo": ("load", "ps"), "mask": ("load", "ps"),
     "height": ("load", "ps", "integrate"), "mesh": ("load", "ps", "integrate", "mesh"),
     "samples": ("load", "ps", "samples"), "brdf": ("load", "ps", "samples", "fit"),
-    "ptm": ("load", "ps", "ptm"), "rti": ("load", "ps", "hsh"), "report": ("load", "ps"),
+    # the polynomial files need the images and the object's mask, not the normals
+    "ptm": ("load", "ptm"), "rti": ("load", "hsh"), "relight-web": ("load", "hsh"), "report": ("load", "ps"),
     "gltf": ("load", "ps", "integrate", "mesh", "samples", "fit")}
 FILES = {"normals": "normal.exr", "albedo": "albedo.exr", "mask": "mask.png", "height": "height.exr",
          "mesh": "mesh.ply", "samples": "samples.npz", "brdf": "brdf.json", "ptm": "relight.ptm",
-         "rti": "relight.rti", "gltf": "model.glb", "report": "report.html"}
+         "rti": "relight.rti", "relight-web": "relight_web", "gltf": "model.glb", "report": "report.html"}
 
 def stages_needed(outputs):
     """Ordered stage names for a list of outputs (unknown names raise ValueError)."""
     bad = [o for o in outputs if o not in STAGES_FOR]
     if bad:
-        raise ValueError(f"unknown output(s) {bad}; choose from {', '.join(OUTPUTS)}")
+        raise ValueError(f"unknown output(s) {bad}; choose from {', '.join(ALL_OUTPUTS)}")
     order = ("load", "ps", "integrate", "mesh", "samples", "fit", "ptm", "hsh")
     want = {s for o in outputs for s in STAGES_FOR[o]}
     return [s for s in order if s in want]
@@ -118,6 +123,7 @@ class ProcessResult:
     quality: dict = field(default_factory=dict)
     interreflections: dict = None
     light_gains: dict = None
+    rti_exposure: object = None       # the relighting files' scale (pipeline._rti_exposure.Exposure)
     filled: np.ndarray = None
     uncertainty: np.ndarray = None      # (H, W) deg, each normal's 90 % band (pipeline._confidence)
 
@@ -241,7 +247,7 @@ def _process(source, outputs, out_dir, o):
 
         def fits(inp, ps, top, read, rows):     # ptm, rti: fitted over the same bands (pipeline._rti_bands)
             _streamed_result(res, inp, ps, top)
-            banded.append(relight_bands(read, res.object_mask, outputs, o, rows, len(inp.light_dirs)))
+            banded.append(relight_bands(read, res.object_mask, outputs, o, rows, len(inp.light_dirs), inp))
         inp, ps, light_dirs, top = streamed_ps(source, o, res, lambda i: claimed.update(previous=claim(i)),
                                                samples="samples" in stages,
                                                relight=fits if {"ptm", "rti"} & set(outputs) else None)
@@ -277,6 +283,11 @@ def _process(source, outputs, out_dir, o):
         light_dirs, falloff = near_light_directions(inp.positions_mm, (h, w), inp.pixel_pitch_mm)
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
         res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
+    if "ps" not in stages:       # the relighting files alone: the images and the object's mask
+        res.mask, res.object_mask = inp.mask, inp.mask if inp.background_mask() is None else \
+            inp.mask & object_of(inp.images, inp.mask, inp.material_mask)
+        return _from_ps(res, inp, stages, outputs, images, images, light_dirs, o, out_dir, record_options, previous,
+                        t_all, cpu_all)
     # one bag of options for whichever method: each takes its own (facette.methods)
     bag = o.ps_bag(mask=carried(inp.mask, inp.usable), saturation=o.saturation)
     method_name = PS_METHODS.canonical(o.method)
@@ -321,13 +332,8 @@ def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, 
     # --memory: the stages after photometric stereo one at a time (100 MP: 4.0 GB two at once)
     res.notes.extend(_after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, drawn,
                                workers=1 if o.memory else 2, relight=relight))
-    if res.ptm is not None or res.hsh is not None:
-        res.notes.append("relight.ptm / relight.rti: " + (
-            "sRGB display values (what RTIViewer and Relight show, as photographed; --rti-encoding "
-            "linear for values proportional to the radiance)" if o.rti_encoding == "srgb" else
-            "linear values (proportional to the radiance: RTIViewer and Relight show them darker "
-            "and harsher than the photographs)"))
-    res.errors = truth_errors(inp, res)
+    record_exposure(res)                 # the relighting files' scale: a note and process.json
+    res.errors = truth_errors(inp, res) if res.normals is not None else {}
     res.timings["total_compute"] = time.perf_counter() - t_all
     if out_dir is not None:
         t0 = time.perf_counter()
@@ -401,10 +407,16 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
             drawn["fit"] = _timed(res, "report_fit", report_fit_section, res)
         return [note] if note else []
 
+    photos = None
+    if relight is None and {"ptm", "hsh"} & set(stages):      # both fits' scale and images, once
+        photos = relight_exposure(res, inp, images, o)[1]
+
     def relit(name):      # relight.ptm, relight.rti (pipeline._rti_bands: whole images, or bands with --memory)
-        ok, notes = relight_stage(name, res, images, light_dirs, o, relight)
+        ok, notes = relight_stage(name, res, photos, light_dirs, o, relight)
         if ok:
             write(name)
+            if name == "rti":
+                write("relight-web")
         return notes
 
     def maps():
@@ -469,6 +481,7 @@ def _writers(res, out, outputs, ascii_ply, relight=None):
         "ptm": relight.write_ptm if relight else lambda p: write_ptm_lrgb(p, res.ptm.coeffs, res.ptm.rgb),
         "rti": lambda p: (relight.write_rti if relight else lambda q, c: write_hsh_rti(q, res.hsh.coeffs, c))(
             p, _rti_comments(res)),
+        "relight-web": lambda p: write_relight_web(p, res, relight),
     }
 
     def write(output):
@@ -484,7 +497,7 @@ def _rti_comments(res):
     how = ("sRGB (display values, as RTIBuilder's from sRGB photographs)" if enc == "srgb"
            else "linear (proportional to the radiance; viewers show it darker than the photographs)")
     lines = [f"facette relight.rti: HSH order {res.hsh.order}, first row = top of the picture",
-             f"encoding: {enc} - {how}; 1.0 = {res.hsh.white:.6g} in the HDR images' unit"]
+             f"encoding: {enc} - {how}", res.rti_exposure.comment()]
     if res.inputs.incomplete:
         lines.append(f"scan incomplete: {res.inputs.incomplete}")
     return lines

@@ -1,14 +1,13 @@
 """`process`'s ptm and hsh stages (`relight_stage`), and with --memory their fits over row bands.
 
-The PTM and HSH fits are per pixel once their scale `white` is known, and `white` is the 99th
-percentile of the masked values over the whole image; the files' quantisation needs each
-coefficient's range over the whole image before the first byte. So, after photometric stereo
-(the object mask it gives sets `white`), with the band reader it used (`relight_bands`):
+The PTM and HSH fits are per pixel once their scale is known (`_rti_exposure`: the photographs'
+own, or for an HDR scan the exposure that clips at most 0.1 % of the object); the files'
+quantisation needs each coefficient's range over the whole image before the first byte. So, after
+photometric stereo (the object mask it gives), with the band reader it used (`relight_bands`):
 
-1. a first pass over the bands keeps the count of the values that set `white` and their top
-   (1 - 0.99) share (`_TopValues`: at most 1 % of m x the masked pixels), which gives the same
-   percentile as the untiled `_top_percentile`, exactly;
-2. a second pass fits each band (`fit_ptm_lrgb`, `fit_hsh` with that white), fills what the fit
+1. an HDR scan only: a first pass over the bands keeps the count of the object's samples and their
+   top 0.1 % (`_rti_exposure.HDRWhite`), which gives the untiled exposure exactly;
+2. a pass fits each band (as photographed) (`fit_ptm_lrgb`, `fit_hsh` with that white), fills what the fit
    left out (`fill_left`, the verdict of `fill_unfitted` on the counts of every band), adds the
    band's part of the relighting error (`relight_error_parts`, the rows the untiled error samples)
    and spills the float32 coefficients (and the PTM's colour bytes) to temporary files
@@ -29,18 +28,20 @@ import numpy as np
 
 from facette._memory import disk_array, release
 from facette.io.ptm import column_range, ptm_rgb_bytes, write_ptm_lrgb_rows
+from facette.io.relight_web import write_relight_web as write_web_rows
 from facette.io.rti import write_hsh_rti_rows
 from facette.methods import PS_METHODS
 from facette.pipeline._exports import fill_left, fill_unfitted, hsh_order_for, unfitted_verdict
+from facette.pipeline._rti_exposure import HDRWhite, exposure_of
 from facette.pipeline._tiles import BYTES_PER_PIXEL_LIGHT as PS_BYTES_PER_PIXEL_LIGHT
 from facette.recon import _rti as fit_blocks        # its _BLOCK: the pixels solved together
 from facette.recon import (HSHFit, PTMFit, fit_hsh, fit_ptm_lrgb, fit_relight_error,
                            near_light_directions, relight_error_parts, relight_error_step)
 
-__all__ = ["RelightBands", "relight_bands", "relight_stage", "band_reader", "relight_rows", "PREVIEW_PIXELS"]
+__all__ = ["RelightBands", "relight_bands", "relight_stage", "relight_exposure", "band_reader", "relight_rows",
+           "write_relight_web", "PREVIEW_PIXELS"]
 
 PREVIEW_PIXELS = 1 << 20        # pixels of the fits kept in ProcessResult.ptm / .hsh at most
-WHITE_PERCENTILE = 99.0         # fit_ptm_lrgb's and fit_hsh's default
 # A fit band's working set per pixel (near lights, both fits): per light the float32 images, their
 # float64 copy divided by the fall-off, the fall-off, the directions (float64 x 3) and the PTM's
 # luminance (76 bytes), per pixel the PTM's colour and coefficients and the HSH's (~170 bytes)
@@ -86,64 +87,6 @@ def band_reader(bands, near, light_dirs):
         dirs, falloff = near_light_directions(positions, shape, pitch, rows=(r0, r1))
         return images / np.transpose(falloff, (2, 0, 1))[..., None], dirs
     return read
-
-
-class _TopValues:
-    """The count of a stream of values and its top share, enough for its `percentile` (numpy's
-    linear method) exactly: the values at or above rank floor(q (n - 1)) of n <= `most`."""
-
-    def __init__(self, percentile, most):
-        self.percentile = percentile
-        self.q = np.true_divide(percentile, 100)
-        self.keep = int(np.ceil((1 - self.q) * most)) + 2
-        self.n, self.top, self.floor = 0, None, None
-
-    def add(self, values):
-        self.n += values.size
-        if self.floor is not None:
-            values = values[values >= self.floor]
-        top = values.copy() if self.top is None else np.concatenate([self.top, values])
-        if top.size > self.keep:
-            top = np.partition(top, top.size - self.keep)[top.size - self.keep:]
-            self.floor = top.min()
-        self.top = top
-
-    def value(self):
-        """As recon._rti._top_percentile: 1.0 when there is no value."""
-        if self.n == 0:
-            return 1.0
-        vi = self.q * (self.n - 1)
-        lo = int(np.floor(vi))
-        hi = min(lo + 1, self.n - 1)
-        off = self.n - self.top.size
-        part = np.partition(self.top, [lo - off, hi - off])
-        pair = np.array([part[lo - off], part[hi - off]])
-        return float(np.quantile(pair, float(vi - lo)))
-
-
-def _white_values(images, sel, ptm, hsh):
-    """The band's values that set the PTM's white (the luminance as fit_ptm_lrgb projects it) and
-    the HSH's (the brightest channel), finite, > 0 and masked; None for a fit not asked for."""
-    from facette.recon._rti_jit import ptm_colour_block     # numba loads only when this runs
-    m, b, w, _ = images.shape
-    n = b * w
-    flat = images.reshape(m, n, 3)
-    sel = sel.reshape(-1)
-    out = [None, None]
-    if ptm:
-        rgb, peak, lum = np.empty((n, 3)), np.empty(n), np.empty((m, n))
-        block = fit_blocks._BLOCK
-        for a in range(0, n, block):
-            ptm_colour_block(flat[:, a:a + block], rgb, peak, lum, a)
-        with np.errstate(invalid="ignore"):
-            ok = lum > 0
-        out[0] = lum[ok & sel[None]]
-    if hsh:
-        fin = np.isfinite(flat)
-        ok = fin[..., 0] & fin[..., 1] & fin[..., 2] & sel[None]
-        top = np.maximum(np.maximum(flat[..., 0], flat[..., 1]), flat[..., 2])
-        out[1] = top[ok & (top > 0)]
-    return out
 
 
 class _Spill:
@@ -198,7 +141,7 @@ class RelightBands:
         self.shape, self.stride = shape, stride
         self.ptm = self.hsh = None
         self.ok, self.notes, self.fit_errors, self.timings = {}, {"ptm": [], "rti": []}, {}, {}
-        self.spills, self.rgb = {}, None
+        self.spills, self.rgb, self.exposure = {}, None, None
 
     def write_ptm(self, path):
         h, w = self.shape
@@ -220,15 +163,15 @@ class RelightBands:
         self.spills, self.rgb = {}, None
 
 
-def relight_bands(read, mask, outputs, o, ps_rows, lights):
+def relight_bands(read, mask, outputs, o, ps_rows, lights, inp):
     """relight.ptm and relight.rti fitted over bands (`relight_rows` of photometric stereo's
     `ps_rows` rows), as `process`'s ptm and hsh stages fit them on the whole images.
 
     read(r0, r1) -> (images (m, r1 - r0, W, 3), light directions (m, 3) or (r1 - r0, W, m, 3))
-    (`band_reader`); mask (H, W) bool, the object mask (sets white, fill_unfitted's pixels, the
-    relighting error's); outputs: what `process` was asked for (ptm, rti); o: ProcessOptions
-    (method, rti_encoding, hsh_order); lights: m. Returns a `RelightBands` (close it), or None when
-    neither ptm nor rti is asked for."""
+    (`band_reader`); mask (H, W) bool, the object mask (an HDR scan's exposure, fill_unfitted's
+    pixels, the relighting error's); outputs: what `process` was asked for (ptm, rti); o:
+    ProcessOptions (method, rti_encoding, hsh_order); lights: m; inp: the input (`exposure_of`).
+    Returns a `RelightBands` (close it), or None when neither ptm nor rti is asked for."""
     want_ptm = "ptm" in outputs
     order, order_note = hsh_order_for(lights, o.hsh_order) if "rti" in outputs else (None, None)
     if not want_ptm and "rti" not in outputs:
@@ -247,41 +190,44 @@ def relight_bands(read, mask, outputs, o, ps_rows, lights):
             "untiled file's by one quantisation step (float32 products summed in another order)")
     try:
         t0 = time.perf_counter()
-        most = lights * int(np.count_nonzero(mask))
-        tops = [_TopValues(WHITE_PERCENTILE, most) if want else None for want in (want_ptm, order is not None)]
-        for r0, r1 in spans:
-            for top, values in zip(tops, _white_values(read(r0, r1)[0], mask[r0:r1], *(t is not None for t in tops))):
-                if top is not None:
-                    top.add(values)
-        whites = [None if t is None else t.value() for t in tops]
+        exposure = exposure_of(inp, o.rti_encoding, white=(1.0, 0.0))
+        if exposure.source == "hdr":          # a pass over the bands for the exposure
+            top = HDRWhite(lights * int(np.count_nonzero(mask)))
+            for r0, r1 in spans:
+                top.add(read(r0, r1)[0], mask[r0:r1])
+            exposure = exposure_of(inp, o.rti_encoding, white=top.value())
+        out.exposure = exposure
         out.timings["relight_white"] = time.perf_counter() - t0
-        _fit_pass(out, read, mask, spans, whites, order, o.rti_encoding, lights)
-        _verdicts(out, order, whites, o.rti_encoding)
+        _fit_pass(out, read, mask, spans, (want_ptm, order), exposure, lights)
+        _verdicts(out, order, exposure)
     except BaseException:
         out.close()
         raise
     return out
 
 
-def _fit_pass(out, read, mask, spans, whites, order, encoding, lights):
+def _fit_pass(out, read, mask, spans, wanted, exposure, lights):
     """Each band fitted, filled, its error's parts summed and spilled (`_Spill`)."""
     h, w = out.shape
+    want_ptm, order = wanted
     step = relight_error_step(h, w, lights)        # fit_relight_error's sample of rows
-    if whites[0] is not None:
+    if want_ptm:
         out.spills["ptm"] = _Spill((h, w), (6,), out.stride)
         out.rgb = disk_array((h, w, 3), np.uint8)
-    if whites[1] is not None:
+    if order is not None:
         out.spills["rti"] = _Spill((h, w), (3, order * order), out.stride)
     seconds = {"read": 0.0, "ptm": 0.0, "hsh": 0.0}
+    kw = dict(white=exposure.white, encoding=exposure.encoding, photographed=True)
     for r0, r1 in spans:
         t0 = time.perf_counter()
         images, dirs = read(r0, r1)
+        images = exposure.photographs(images)
         band = mask[r0:r1]
         starts = [a - r0 for a in range(-(-r0 // step) * step, r1, step)]
         t1 = time.perf_counter()
         seconds["read"] += t1 - t0
-        if whites[0] is not None:
-            fit = fit_ptm_lrgb(images, dirs, mask=band, white=whites[0], encoding=encoding)
+        if want_ptm:
+            fit = fit_ptm_lrgb(images, dirs, mask=band, **kw)
             counts = fill_left(fit, images, band)
             out.spills["ptm"].add(r0, fit, counts, relight_error_parts(fit, images, dirs, band, starts))
             out.rgb[r0:r1] = ptm_rgb_bytes(fit.rgb)
@@ -290,8 +236,8 @@ def _fit_pass(out, read, mask, spans, whites, order, encoding, lights):
             t2 = time.perf_counter()
             seconds["ptm"] += t2 - t1
             t1 = t2
-        if whites[1] is not None:
-            fit = fit_hsh(images, dirs, order=order, mask=band, white=whites[1], encoding=encoding)
+        if order is not None:
+            fit = fit_hsh(images, dirs, order=order, mask=band, **kw)
             counts = fill_left(fit, images, band)
             out.spills["rti"].add(r0, fit, counts, relight_error_parts(fit, images, dirs, band, starts))
             del fit
@@ -299,36 +245,47 @@ def _fit_pass(out, read, mask, spans, whites, order, encoding, lights):
     out.timings.update(relight_read=seconds["read"], ptm=seconds["ptm"], hsh=seconds["hsh"])
 
 
-def _verdicts(out, order, whites, encoding):
+def _verdicts(out, order, exposure):
     """The previews, `fill_unfitted`'s verdicts and notes, and the relighting errors."""
-    if whites[0] is not None:
+    if "ptm" in out.spills:
         s = out.spills["ptm"]
-        out.ptm = PTMFit(s.joined("coeffs"), s.joined("rgb"), whites[0], s.joined("valid"), encoding)
+        out.ptm = PTMFit(s.joined("coeffs"), s.joined("rgb"), exposure.white, s.joined("valid"), exposure.encoding)
         out.ok["ptm"], note = unfitted_verdict(out.ptm, s.left, s.masked, FILE_NAMES["ptm"])
         out.notes["ptm"] += [note] if note else []
         if out.ok["ptm"]:
             out.fit_errors["ptm_relative_rms"] = s.error()
-    if whites[1] is not None:
+    if "rti" in out.spills:
         s = out.spills["rti"]
-        out.hsh = HSHFit(s.joined("coeffs"), order, whites[1], s.joined("valid"), encoding)
+        out.hsh = HSHFit(s.joined("coeffs"), order, exposure.white, s.joined("valid"), exposure.encoding)
         out.ok["rti"], note = unfitted_verdict(out.hsh, s.left, s.masked, FILE_NAMES["rti"])
         out.notes["rti"] += [note] if note else []
         if out.ok["rti"]:
             out.fit_errors["hsh_relative_rms"] = s.error()
 
 
+def relight_exposure(res, inp, images, o):
+    """(the `Exposure` of the relighting files, the images as photographed) of `process`'s whole
+    images (m, H, W, 3), over res.object_mask; res.rti_exposure set."""
+    res.rti_exposure = exposure_of(inp, o.rti_encoding, res.light_gains, images, res.object_mask)
+    return res.rti_exposure, res.rti_exposure.photographs(images)
+
+
 def relight_stage(name, res, images, light_dirs, o, banded=None):
     """`process`'s ptm (name "ptm") or hsh ("rti") stage: res.ptm or res.hsh, res.fit_errors,
-    res.timings, on the images (m, H, W, 3) as fitted with their light directions, or taken from
-    `banded` (a `RelightBands`, --memory). Returns (the file can be written, notes)."""
+    res.timings, on the images (m, H, W, 3) as photographed (`relight_exposure`, res.rti_exposure)
+    with their light directions, or taken from `banded` (a `RelightBands`, --memory).
+    Returns (the file can be written, notes)."""
     if banded is not None:
         setattr(res, "ptm" if name == "ptm" else "hsh", banded.ptm if name == "ptm" else banded.hsh)
+        res.rti_exposure = banded.exposure
         res.timings.update(banded.timings)
         res.fit_errors.update(banded.fit_errors)
         return banded.ok.get(name, False), banded.notes[name]
     t0 = time.perf_counter()
+    e = res.rti_exposure
+    kw = dict(mask=res.object_mask, white=e.white, encoding=e.encoding, photographed=True)
     if name == "ptm":
-        res.ptm = fit_ptm_lrgb(images, light_dirs, mask=res.object_mask, encoding=o.rti_encoding)
+        res.ptm = fit_ptm_lrgb(images, light_dirs, **kw)
         ok, note = fill_unfitted(res.ptm, images, res.object_mask, FILE_NAMES["ptm"])   # never a blank file
         if ok:
             res.fit_errors["ptm_relative_rms"] = fit_relight_error(res.ptm, images, light_dirs, res.object_mask)
@@ -337,10 +294,26 @@ def relight_stage(name, res, images, light_dirs, o, banded=None):
     order, note = hsh_order_for(len(images), o.hsh_order)
     notes, ok = [note] if note else [], False
     if order is not None:
-        res.hsh = fit_hsh(images, light_dirs, order=order, mask=res.object_mask, encoding=o.rti_encoding)
+        res.hsh = fit_hsh(images, light_dirs, order=order, **kw)
         ok, note = fill_unfitted(res.hsh, images, res.object_mask, FILE_NAMES["rti"])
         notes += [note] if note else []
         if ok:
             res.fit_errors["hsh_relative_rms"] = fit_relight_error(res.hsh, images, light_dirs, res.object_mask)
     res.timings["hsh"] = time.perf_counter() - t0
     return ok, notes
+
+
+def write_relight_web(path, res, banded=None):
+    """OUT/relight_web/ (Relight's web format, `io.relight_web`) of res.hsh: the whole fit, or the
+    spill of `banded` (--memory) read band by band."""
+    h, w = res.mask.shape
+    if banded is not None:
+        s = banded.spills["rti"]
+        rows, lo_hi = s.rows, (s.lo, s.hi)
+    else:
+        coeffs = res.hsh.coeffs
+        rows, lo_hi = (lambda r0, r1: coeffs[r0:r1]), column_range(coeffs.reshape(-1, coeffs.shape[-1]))
+    dirs = res.inputs.light_dirs
+    lights = dirs if dirs.ndim == 2 else dirs[h // 2, w // 2]
+    pitch = res.inputs.pixel_pitch_mm if res.inputs.kind == "scan" else None
+    return write_web_rows(path, w, h, "hsh", rows, lo_hi, lights, pixel_size_mm=pitch)

@@ -193,8 +193,10 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
         lp_ok = all(len(p.name.split()) == 1 for p in paths)
         dirs, sphere_circle = _sphere_directions(images, sphere, notes, lp_ok)
         lights_file = ([p.name for p in paths], dirs) if lp_ok else None
-    if reference is not None:
-        _divide_by_reference(images, reference, notes)
+    factors = None if inten is None else np.asarray(inten, float)
+    if reference is not None:      # what each photograph was divided by, to fit them as photographed
+        level = _divide_by_reference(images, reference, notes)[:, None]
+        factors = level if factors is None else factors * level
     mask_file = next((p for p in folder.iterdir() if p.name.lower() == "mask.png"), None)
     if mask_file is not None:          # the capture's own mask: the object, as a given mask
         mask = read_mask(mask_file)
@@ -216,7 +218,8 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
                 kind="rti", source=folder, notes=notes,
                 material_mask=None if mask_file else material, usable=usable,
                 object_mask=mask & material, mask_source=source,
-                digest=digest, lights_file=lights_file)
+                digest=digest, lights_file=lights_file,
+                photographed={"encoding": enc, "gains": factors})
 
 
 def _sphere_directions(images, sphere, notes, lp_written=True):
@@ -281,4 +284,5 @@ def _divide_by_reference(images, box, notes):
         images[k] /= np.float32(scale[k])
     notes.append(f"each photograph divided by its reference patch ({x0},{y0})-({x1},{y1}): light levels "
                  f"{scale.min():.3f}–{scale.max():.3f} of their mean")
+    return scale
 

@@ -92,7 +92,7 @@ def check_memory_options(method, interreflections):
 def streamed(source, outputs):
     """True when `process` can run without the whole images: every output in STREAMED_OUTPUTS
     and a scan directory or a DiLiGenT-style folder (an RTI capture is read whole)."""
-    if not set(outputs) <= set(STREAMED_OUTPUTS):
+    if not set(outputs) <= set(STREAMED_OUTPUTS) | {"relight-web"}:     # the web planes: from the HSH fit's spill
         return False
     try:
         path = source_path(source)

@@ -170,14 +170,14 @@ def _check(images, light_dirs):
     return images, d
 
 
-def _ridge_solve(ata, atb, n_terms):
-    """Batched (AᵀA + _RCOND·trace·I) x = Aᵀb: ata (n, T, T), atb (n, k, T) -> (n, k, T)."""
-    ridge = _RCOND * np.maximum(np.trace(ata, axis1=1, axis2=2), 1e-300)
+def _ridge_solve(ata, atb, n_terms, rcond=_RCOND):
+    """Batched (AᵀA + rcond·trace·I) x = Aᵀb: ata (n, T, T), atb (n, k, T) -> (n, k, T)."""
+    ridge = rcond * np.maximum(np.trace(ata, axis1=1, axis2=2), 1e-300)
     ata += ridge[:, None, None] * np.eye(n_terms)
     return np.linalg.solve(ata, np.swapaxes(atb, 1, 2)).swapaxes(1, 2)
 
 
-def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
+def _solve_blocks(images, dirs, basis, n_terms, values, workers=2, rcond=_RCOND):
     """Per-pixel weighted least squares, light-major: values(e (m, n, c)) -> (y (m, n, c),
     w (m, n)), e float32 for far lights (the pixels with every light known share one float32
     product; the others are solved in float64), float64 for per-pixel directions.
@@ -193,7 +193,7 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
         # the pixels whose every light is known share one matrix A = Σ_above b bᵀ (+ ridge):
         # their solution is one matrix product with proj = (above · B) A⁻¹, (m, T)
         a_full = (above.astype(np.float64) @ outer).reshape(1, n_terms, n_terms)
-        proj_t = _ridge_solve(a_full, (b_far * above[:, None])[None], n_terms)[0].T.copy()
+        proj_t = _ridge_solve(a_full, (b_far * above[:, None])[None], n_terms, rcond)[0].T.copy()
         # the shared solve in float32, as the coefficients are stored: half the memory
         # traffic of the largest product (12 MP HSH fit: 3.4 -> 3.0 CPU s)
         proj_t32 = proj_t.astype(np.float32)
@@ -222,7 +222,7 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
                 wp, yp = wt[:, part].T, y[:, part].transpose(1, 0, 2)   # (np, m), (np, m, c)
                 ata = (wp @ outer).reshape(-1, n_terms, n_terms)
                 atb = np.einsum("nmk,mi->nki", yp * wp[..., None], b_far, optimize=True)
-                sol[part] = _ridge_solve(ata, atb, n_terms)
+                sol[part] = _ridge_solve(ata, atb, n_terms, rcond)
         else:
             d = dirs.reshape(h * w, m, 3)[sl]
             b = basis(d)
@@ -230,7 +230,7 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2):
             y = np.where(wt[..., None] > 0, y.transpose(1, 0, 2), 0.0)  # (n, m, c)
             ata = np.einsum("nm,nmi,nmj->nij", wt, b, b, optimize=True)
             atb = np.einsum("nm,nmi,nmk->nki", wt, b, y, optimize=True)
-            sol = _ridge_solve(ata, atb, n_terms)                        # (n, k, T)
+            sol = _ridge_solve(ata, atb, n_terms, rcond)                 # (n, k, T)
             wt = wt.T
         ok = wt.sum(axis=0) >= n_terms
         coeffs[sl] = sol
@@ -274,7 +274,8 @@ def _top_percentile(select, starts, percentile, stride=37):
     return float(np.quantile(pair, float(vi - lo)))      # numpy's own interpolation, its dtype
 
 
-def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.0, encoding="linear"):
+def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.0, encoding="linear",
+                 photographed=False):
     """Fit a luminance PTM (LRGB, Malzbender et al. 2001 §3.2) to every pixel.
 
     images : (m, H, W, 3) linear values (NaN = unknown); light_dirs : (m, 3) or (H, W, m, 3)
@@ -285,6 +286,7 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
     sample's L is its projection on rgb (least squares), divided by `white`.
     encoding "srgb": rgb is sRGB-encoded and L fitted to the projections of the sRGB-encoded
     samples (images / white, clipped to [0, 1]) on it: L · rgb is what a viewer shows.
+    photographed=True: the samples as photographed, colour and all (`recon._rti_photo`).
     Returns a `PTMFit`.
     """
     from facette.recon._rti_jit import ptm_colour_block     # numba loads only when this runs
@@ -295,6 +297,9 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
     rgb = np.empty((h * w, 3))
     peak = np.empty(h * w)
     lum = np.empty((m, h * w))                            # NaN where the value is unknown
+    if photographed:
+        from facette.recon._rti_photo import fit_ptm_displayed
+        return fit_ptm_displayed(images, dirs, mask, white, white_percentile, encoding, rgb, peak, lum)
 
     def colour(a):     # a block of pixels, compiled: one pass instead of numpy's ten
         ptm_colour_block(flat[:, a:a + _BLOCK], rgb, peak, lum, a)
@@ -332,12 +337,14 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
                   valid.reshape(h, w), encoding)
 
 
-def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile=99.0, encoding="linear"):
+def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile=99.0, encoding="linear",
+            photographed=False):
     """Fit RGB hemispherical harmonics of `order` (2: 4 terms, 3: 9 terms) to every pixel.
 
     Same inputs as `fit_ptm_lrgb`; each colour channel gets its own coefficients, fitted to
     images / white (white: the `white_percentile` of the masked values by default); encoding
     "srgb": to their sRGB encoding (images / white clipped to [0, 1]), what a viewer shows.
+    photographed=True: the samples as photographed (`recon._rti_photo`).
     Returns an `HSHFit`.
     """
     _check_encoding(encoding)
@@ -346,19 +353,13 @@ def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile
     n_terms = order * order
     hsh_basis(np.array([0.0, 0.0, 1.0]), order)                 # validates `order`
     if white is None:
-        flat = images.reshape(m, h * w, 3)
-        sel = None if mask is None else np.asarray(mask, bool).reshape(-1)
-
-        def brightest(a):    # the brightest channel of the finite (masked) values, by blocks
-            sl = slice(a, a + _BLOCK)
-            e = flat[:, sl]
-            ok = _all3(np.isfinite(e)) if sel is None else _all3(np.isfinite(e)) & sel[None, sl]
-            top = np.maximum(np.maximum(e[..., 0], e[..., 1]), e[..., 2])
-            return top[ok & (top > 0)]
-
-        white = _top_percentile(brightest, range(0, h * w, _BLOCK), white_percentile)
+        from facette.recon._rti_photo import brightest_white
+        white = brightest_white(images, mask, white_percentile)
     if not white > 0:
         raise ValueError(f"white level must be > 0, got {white}")
+    if photographed:
+        from facette.recon._rti_photo import fit_hsh_displayed
+        return fit_hsh_displayed(images, dirs, order, white, encoding)
 
     if encoding == "srgb":
         from facette.recon._rti_jit import srgb_scale_inplace, srgb_table

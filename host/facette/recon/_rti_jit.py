@@ -6,7 +6,8 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["ptm_colour_block", "srgb_lum_block", "srgb_scale_inplace", "srgb_table", "SRGB_STEPS"]
+__all__ = ["ptm_colour_block", "srgb_lum_block", "srgb_scale_inplace", "srgb_table", "SRGB_STEPS", "linear_table",
+           "display_inplace", "display_colour_lum_block"]
 
 
 @njit(cache=True, nogil=True)
@@ -53,6 +54,11 @@ def srgb_table():
     return srgb_encode(np.linspace(0.0, 1.0, SRGB_STEPS + 1))
 
 
+def linear_table():
+    """The identity as a table of `srgb_table`'s size: the kernels' clipping to [0, 1] alone."""
+    return np.linspace(0.0, 1.0, SRGB_STEPS + 1)
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _encode(x, lut):
     if not x > 0.0:            # also NaN: callers test finiteness first
@@ -92,3 +98,45 @@ def srgb_lum_block(e, rgb, lum, start, scale, lut):
                               + _encode(c * scale, lut) * c2) / c_sq
             else:
                 lum[li, p] = np.nan
+
+
+@njit(cache=True, nogil=True)
+def display_inplace(e, scale, lut):
+    """e (any shape, C-contiguous float) <- lut(clip(e · scale, 0, 1)) in place, NaN (a value above
+    the top of the range: clipped) -> lut's top: the value a photograph shows, clipping included."""
+    flat = e.reshape(-1)
+    top = lut[lut.shape[0] - 1]
+    for k in range(flat.shape[0]):
+        v = flat[k]
+        flat[k] = _encode(v * scale, lut) if math.isfinite(v) else top
+
+
+@njit(cache=True, nogil=True)
+def display_colour_lum_block(e, rgb, peak, lum, start, scale, lut):
+    """The LRGB split of the displayed values lut(clip(e · scale, 0, 1)) (NaN: clipped, the top) of
+    the pixels start .. start + e.shape[1] (e : (m, n, 3)): rgb (pixels, 3) the colour of their sum
+    scaled to max channel 1 (0 when that maximum is 0), peak (pixels,) that maximum, lum (m, pixels)
+    each displayed sample projected on the colour (least squares: L · rgb is nearest the sample)."""
+    m, n = e.shape[0], e.shape[1]
+    top = lut[lut.shape[0] - 1]
+    d = np.empty((m, 3))
+    for j in range(n):
+        t0 = t1 = t2 = 0.0
+        for li in range(m):
+            for c in range(3):
+                v = e[li, j, c]
+                d[li, c] = _encode(v * scale, lut) if math.isfinite(v) else top
+            t0 += d[li, 0]
+            t1 += d[li, 1]
+            t2 += d[li, 2]
+        pk = max(max(t0, t1), t2)
+        if pk > 0:
+            c0, c1, c2 = t0 / pk, t1 / pk, t2 / pk
+        else:
+            c0 = c1 = c2 = 0.0
+        c_sq = max(c0 * c0 + c1 * c1 + c2 * c2, 1e-300)
+        p = start + j
+        rgb[p, 0], rgb[p, 1], rgb[p, 2] = c0, c1, c2
+        peak[p] = pk
+        for li in range(m):
+            lum[li, p] = (d[li, 0] * c0 + d[li, 1] * c1 + d[li, 2] * c2) / c_sq

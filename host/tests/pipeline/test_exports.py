@@ -28,8 +28,9 @@ def test_exports_are_default_outputs_and_validate(tmp_path, capsys, khronos_vali
 def test_outputs_can_leave_the_exports_out(tmp_path):
     sc = sphere_on_plane(24, 24)
     _write_scan(tmp_path / "scan", sc, render(sc, L, "matte"), pitch=0.1)
-    assert stages_needed(["ptm"]) == ["load", "ps", "ptm"]
-    assert stages_needed(["rti"]) == ["load", "ps", "hsh"]
+    assert stages_needed(["ptm"]) == ["load", "ptm"]          # the images and the mask, not the normals
+    assert stages_needed(["rti"]) == ["load", "hsh"]
+    assert stages_needed(["relight-web"]) == ["load", "hsh"]
     assert stages_needed(["gltf"]) == ["load", "ps", "integrate", "mesh", "samples", "fit"]
     res = process(tmp_path / "scan", outputs=["normals", "ptm"], out_dir=tmp_path / "o")
     assert res.ptm is not None and res.hsh is None and "hsh" not in res.timings
@@ -124,16 +125,22 @@ def test_too_few_lights_for_a_ptm_write_none_and_say_so(tmp_path, capsys):
     assert hsh_order_for(9, 3) == (3, None) and hsh_order_for(9, 2) == (2, None)
 
 
-def test_ptm_pixels_with_fewer_than_6_usable_lights_keep_their_mean_and_are_counted(tmp_path, capsys):
+def test_clipped_pixels_are_fitted_as_photographed_at_full_brightness(tmp_path):
+    """7 of 12 photographs clip on a patch (unknown to photometric stereo): the files show it white
+    there under those lights, as the photographs do, and nothing is left out."""
+    from facette.io.ptm import read_ptm
+    from facette.io.rti import read_hsh_rti
     rows, cols = slice(10, 14), slice(14, 18)                      # on the sphere
-    folder = _diligent(tmp_path / "sat", 12, (rows, cols, range(7)))   # 5 usable lights there
-    res = process(folder, outputs=["normals", "ptm"], out_dir=tmp_path / "o")
-    assert any("relight.ptm: 16 of" in n and "fewer than 6 usable lights" in n for n in res.notes)
-    coeffs, bias_line = _ptm_coeff_bytes(tmp_path / "o" / "relight.ptm", 32, 24)
-    bias = np.array([int(b) for b in bias_line.split()])
-    a5 = coeffs[rows, cols, 5].astype(int) - bias[5]
-    assert (a5 > 0).all()                           # lit, not black: their mean luminance
-    assert (coeffs[rows, cols, :5].astype(int) == bias[:5]).all()   # no relighting terms there
+    folder = _diligent(tmp_path / "sat", 12, (rows, cols, range(7)))
+    res = process(folder, outputs=["ptm", "rti"], out_dir=tmp_path / "o")
+    assert res.ps is None and not any("usable lights" in n for n in res.notes)
+    assert res.rti_exposure.source == "photographs" and res.rti_exposure.encoding == "linear"
+    ptm, rti = read_ptm(tmp_path / "o" / "relight.ptm"), read_hsh_rti(tmp_path / "o" / "relight.rti")
+    # unclipped, the patch shows 0.54-0.60 under every light; clipped, the fits reach 0.77-1.00 there
+    # (12 lights, 6 or 9 smooth terms: the clipped and the unclipped lights pull against each other)
+    for f in (ptm, rti):
+        clipped = np.mean([f.relight(L[k])[rows, cols].mean() for k in range(7)])
+        assert clipped > 0.9 and np.mean([f.relight(L[k])[rows, cols].mean() for k in range(7, 12)]) < clipped - 0.2
 
 
 def test_outputs_of_an_incomplete_scan_say_so_in_their_own_metadata(tmp_path):

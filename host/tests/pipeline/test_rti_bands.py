@@ -1,8 +1,8 @@
 """`process --memory` with ptm and rti (pipeline._rti_bands): relight.ptm and relight.rti fitted
 over bands of two rows are the untiled files byte for byte, for a scan directory (near lights,
 HDR with variances, values unknown) and a DiLiGenT-style folder, in both encodings, without the
-whole images ever loaded; the reference-format readers read them; the white level's percentile
-from the bands' top values is numpy's."""
+whole images ever loaded; the reference-format readers read them (the HDR exposure over bands:
+test_rti_exposure)."""
 import sys
 from pathlib import Path
 
@@ -11,7 +11,6 @@ import pytest
 
 from facette.pipeline import process
 from facette.pipeline import _rti_bands
-from facette.pipeline._rti_bands import _TopValues
 from facette.recon import _rti as rti_fit
 from test_exports import _diligent
 from test_process_memory import M, WHOLE_CHANNELS, _never_whole, diligent, scan, small_bands  # noqa: F401
@@ -19,7 +18,7 @@ from test_process_memory import M, WHOLE_CHANNELS, _never_whole, diligent, scan,
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "io"))
 from rti_spec_readers import hsh_colour, ptm_colour, read_hsh, read_ptm  # noqa: E402
 
-OUTPUTS = ["normals", "mask", "ptm", "rti"]
+OUTPUTS = ["normals", "mask", "ptm", "rti", "relight-web"]
 
 
 def _both(request, tmp_path, monkeypatch, source, encoding, rows, block):
@@ -47,6 +46,10 @@ def test_relight_files_over_bands_are_the_untiled_bytes(request, tmp_path, small
     for name in ("relight.ptm", "relight.rti"):
         a, b = (tmp_path / "whole" / name).read_bytes(), (tmp_path / "tiled" / name).read_bytes()
         assert len(a) == len(b) and a == b, name
+    web = sorted(p.relative_to(tmp_path / "whole") for p in (tmp_path / "whole" / "relight_web").rglob("*"))
+    assert len(web) == 10                 # info.json and 9 plane JPEGs: the same bytes from the spill
+    for p in web:
+        assert (tmp_path / "whole" / p).read_bytes() == (tmp_path / "tiled" / p).read_bytes(), p
     assert tiled.fit_errors == whole.fit_errors and set(whole.fit_errors) == {"ptm_relative_rms",
                                                                               "hsh_relative_rms"}
     assert tiled.ptm.white == whole.ptm.white and tiled.hsh.white == whole.hsh.white
@@ -77,7 +80,7 @@ def test_bands_off_the_fits_blocks_say_so_and_differ_by_a_step_at_most(request, 
 @pytest.mark.parametrize("lights,saturate", [(12, (slice(10, 14), slice(14, 18), range(7))), (6, None)])
 def test_unfitted_pixels_and_a_lower_hsh_order_over_bands_as_untiled(tmp_path, small_bands, monkeypatch, lights,
                                                                     saturate):
-    """5 usable lights on a patch (kept at their mean, counted over the bands); 6 lights: HSH order 2."""
+    """7 of 12 lights clipped on a patch (fitted as photographed, at full brightness); 6 lights: HSH order 2."""
     folder = _diligent(tmp_path / "dil", lights, saturate)
     monkeypatch.setattr(rti_fit, "_BLOCK", 16)
     whole = process(folder, channels=WHOLE_CHANNELS, outputs=OUTPUTS, out_dir=tmp_path / "whole", method=M)
@@ -85,8 +88,10 @@ def test_unfitted_pixels_and_a_lower_hsh_order_over_bands_as_untiled(tmp_path, s
     tiled = process(folder, outputs=OUTPUTS, out_dir=tmp_path / "tiled", method=M, memory="1GB")
     said = [n for n in whole.notes if n.startswith("relight.")]
     assert said and said == [n for n in tiled.notes if n.startswith("relight.")]
-    assert any(("16 of" in n and "fewer than 6 usable lights" in n) if saturate else "HSH order 2" in n
-               for n in said)
+    if saturate:          # clipped values are known as photographed (full brightness): nothing left out
+        assert not any("usable lights" in n for n in said)
+    else:
+        assert any("HSH order 2" in n for n in said)
     for name in ("relight.ptm", "relight.rti"):
         assert (tmp_path / "whole" / name).read_bytes() == (tmp_path / "tiled" / name).read_bytes(), name
 
@@ -102,14 +107,3 @@ def test_the_reference_readers_read_the_banded_files(scan, tmp_path, small_bands
     for shown in (ptm_colour(ptm, light), hsh_colour(rti, light)):
         assert shown.shape == (h, w, 3) and np.isfinite(shown).all()
         assert shown[sel].mean() > 0.02            # the object is lit, not a blank file
-
-
-@pytest.mark.parametrize("n,chunks", [(1, 1), (7, 3), (5000, 13), (5000, 1)])
-def test_top_values_give_numpys_percentile(n, chunks):
-    rng = np.random.default_rng(n)
-    values = np.round(rng.gamma(2.0, size=n), 2).astype(np.float32)        # ties included
-    top = _TopValues(99.0, n + 17)
-    for part in np.array_split(values, chunks):
-        top.add(part)
-    assert top.value() == float(np.percentile(values, 99.0)) and top.top.size <= top.keep
-    assert _TopValues(99.0, 10).value() == 1.0
