@@ -88,18 +88,17 @@ def stages_needed(outputs):
 class ProcessResult:
     """What `process` computed. Arrays at the input image size (H, W):
 
-    normals (H, W, 3) unit vectors, camera frame (0 where not valid); albedo (H, W, 3); mask (H, W) bool,
-    normals inside the input mask, measured or `filled` ((H, W) bool or None: pipeline._filled); object_mask
-    (H, W) bool, the object in it (mask.png: the mask without the dark table or cloth `auto_masks` finds
-    around the object; the mask itself where there is none, or a mask was given); height (H, W) mm or None;
-    mesh (vertices, faces) or None; filtered `FilteredReflectance` or None; samples raw
-    `ReflectanceSamples` subset or None; brdf a facette.fit FitResult or None; ps the full `PSResult`;
-    timings {stage: seconds}; files {output: path}; errors {name: value} against the
-    scan's truth.npz when present (angular error in degrees, height RMS in mm); ptm a PTMFit, hsh
-    an HSHFit (--memory: every k-th pixel, _rti_bands) or None; fit_errors {name: value}: rel. RMS of
-    the PTM / HSH relighting against the (fall-off corrected) HDR images on the object (above
-    6.3 M values, on an even sample of rows: `recon.RELIGHT_ERROR_VALUES`); interreflections the
-    figures of `without_interreflections` when it was asked for, else None; light_gains: pipeline._light_gains's.
+    normals (H, W, 3) unit vectors, camera frame (0 where not valid); albedo (H, W, 3); mask (H, W) bool, normals inside
+    the input mask, measured or `filled` ((H, W) bool or None: pipeline._filled); object_mask (H, W) bool, the object in
+    it (mask.png: the mask without the dark table or cloth `auto_masks` finds around the object; the mask itself where
+    there is none, or a mask was given); height (H, W) mm or None; mesh (vertices, faces) or None; filtered
+    `FilteredReflectance` or None; samples raw `ReflectanceSamples` subset or None; brdf a facette.fit FitResult or
+    None; ps the full `PSResult`; timings {stage: seconds}; files {output: path}; errors {name: value} against the
+    scan's truth.npz when present (angular error in degrees, height RMS in mm); ptm a PTMFit, hsh an HSHFit (--memory:
+    every k-th pixel, _rti_bands) or None; fit_errors {name: value}: rel. RMS of the PTM / HSH relighting against the
+    (fall-off corrected) HDR images on the object (above 6.3 M values, on an even sample of rows:
+    `recon.RELIGHT_ERROR_VALUES`); interreflections the figures of `without_interreflections` when it was asked for,
+    else None; light_gains: pipeline._light_gains's.
     """
     normals: np.ndarray = None
     albedo: np.ndarray = None
@@ -125,7 +124,7 @@ class ProcessResult:
     light_gains: dict = None
     rti_exposure: object = None       # the relighting files' scale (pipeline._rti_exposure.Exposure)
     filled: np.ndarray = None
-    uncertainty: np.ndarray = None      # (H, W) deg, each normal's 90 % band (pipeline._confidence)
+    uncertainty: np.ndarray = None      # (H, W) deg, each normal's 90 % band, or None: pipeline._confidence
 
 
 def _fit_stage(filtered, fit_options, brdf_aware=False, material=None):
@@ -304,7 +303,6 @@ def _process(source, outputs, out_dir, o):
     res.ps = ps
     res.notes.extend(dark_level_notes(ps.info.get("dark_offset")))
     normals_of(res, inp, ps)
-    uncertainty_stage(res, direct, light_dirs, o.saturation)
     # mask.png: the object, without the dark table or cloth around it (when one surrounds it)
     res.object_mask = res.mask if inp.background_mask() is None else \
         res.mask & object_of(inp.images, inp.mask, inp.material_mask)
@@ -317,7 +315,6 @@ def _streamed_result(res, inp, ps, top):
     """res.ps, normals, albedo, mask and object mask of photometric stereo over bands (`streamed_ps`)."""
     res.ps = ps
     normals_of(res, inp, ps)
-    uncertainty_stage(res, None, None)
     res.object_mask = res.mask if inp.background_mask() is None else \
         res.mask & object_of(None, inp.mask, inp.material_mask, top=top)
 
@@ -326,6 +323,7 @@ def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, 
              t_all, cpu_all, relight=None):
     """The stages after photometric stereo, the checks against truth and the files (relight:
     the fits of pipeline._rti_bands, when --memory made them over bands)."""
+    uncertainty_stage(res, direct, light_dirs, o.saturation)      # direct None (over bands): a note
     drawn = {}         # report sections drawn by the concurrent stages
     if out_dir is not None:            # before the first file: whose files these will be
         mark_running(Path(out_dir), record_options, inp, [FILES[name] for name in outputs if name in FILES])
@@ -361,8 +359,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
     receives the report sections they draw; `o` the ProcessOptions. The notes, in the stages' order."""
     integration, mesh_step = o.integration, o.mesh_step
     out = None if out_dir is None else Path(out_dir)
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
+    if out is not None: out.mkdir(parents=True, exist_ok=True)     # noqa: E701
     write = _writers(res, out, outputs, o.ascii_ply, relight)
 
     def shape():
