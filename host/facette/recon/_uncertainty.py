@@ -116,8 +116,8 @@ def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, 
 
     images : (m, H, W) or (m, H, W, C) linear, divided by each light's intensity (as the solve
         saw them; the mean of the channels unless `channel`). light_dirs : (m, 3) distant
-        lights, or (m, H, W, 3) per pixel (near lights). normals : (H, W, 3) the solution
-        (zero where there is none: not rated). mask : (H, W) bool (default: where the normal
+        lights, or (H, W, m, 3) per pixel (near lights, as photometric_stereo takes them).
+        normals : (H, W, 3) the solution (zero where there is none: not rated). mask : (H, W) bool (default: where the normal
         is not zero). saturation : values at or above it are not used.
     Pixels with fewer than MIN_LIGHTS carrying lights, or no normal, get MAX_DEG (90°).
     max_values : above this many mask pixels x lights the map is computed on every s-th row and
@@ -132,15 +132,16 @@ def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, 
     normals = np.asarray(normals, np.float64)
     if normals.shape != (h, w, 3):
         raise ValueError(f"normals must be (H, W, 3) = ({h}, {w}, 3), got {normals.shape}")
-    light_dirs = np.asarray(light_dirs, np.float64)
-    if light_dirs.shape not in ((m, 3), (m, h, w, 3)):
-        raise ValueError(f"light_dirs must be (m, 3) or (m, H, W, 3) for {m} images, got {light_dirs.shape}")
+    light_dirs = np.asarray(light_dirs)
+    if light_dirs.shape not in ((m, 3), (h, w, m, 3)):
+        raise ValueError(f"light_dirs must be (m, 3) or (H, W, m, 3) = ({h}, {w}, {m}, 3) for {m} images, "
+                         f"got {light_dirs.shape}")
     has_n = np.linalg.norm(normals, axis=2) > 0.5
     mask = has_n if mask is None else (np.asarray(mask, bool) & has_n)
     values = mask.sum() * m
     stride = int(np.ceil(np.sqrt(values / max_values))) if values > max_values else 1
     if stride > 1:        # a cell's pixels take its corner's value (or its neighbours' at the edge)
-        ld = light_dirs if light_dirs.ndim == 2 else light_dirs[:, ::stride, ::stride]
+        ld = light_dirs if light_dirs.ndim == 2 else light_dirs[::stride, ::stride]
         coarse = normal_uncertainty(images[:, ::stride, ::stride], ld, normals[::stride, ::stride],
                                     mask[::stride, ::stride], saturation, channel, max_values=np.inf)
         coarse = np.where(mask[::stride, ::stride], coarse, grey_dilation(coarse, size=3))
@@ -161,8 +162,8 @@ def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, 
         ok = np.isfinite(e) & (True if saturation is None else np.all(vals < saturation, axis=2).T)
         e = np.where(ok, e, 0.0)
         n = nflat[sl] / np.linalg.norm(nflat[sl], axis=1, keepdims=True)
-        ld = light_dirs if light_dirs.ndim == 2 else \
-            np.transpose(light_dirs.reshape(m, h * w, 3)[:, sl], (1, 0, 2))        # near lights: (N, m, 3)
+        ld = light_dirs.astype(np.float64) if light_dirs.ndim == 2 else \
+            light_dirs.reshape(h * w, m, 3)[sl].astype(np.float64)                 # near lights: (N, m, 3)
         u_all[a:a + _CHUNK] = _block(e, ok, n, ld, _halves(ld))
 
     run_blocks(block, range(0, idx.size, _CHUNK))

@@ -66,7 +66,7 @@ def test_pixels_without_lights_or_normal_and_bad_shapes():
 
 def test_near_lights_per_pixel_give_the_same_as_distant():
     sc, im = _noisy_sphere(16)
-    per_pixel = np.broadcast_to(L[:, None, None, :], (len(L), 16, 16, 3))
+    per_pixel = np.broadcast_to(L[None, None], (16, 16, len(L), 3))
     a = normal_uncertainty(im, L, sc.normals, sc.mask)
     b = normal_uncertainty(im, per_pixel, sc.normals, sc.mask)
     assert np.allclose(a, b, rtol=1e-4, atol=1e-4)
