@@ -12,6 +12,7 @@ keeps its own allocator settings. Only where the C library is glibc.
 """
 import ctypes
 import os
+import re
 
 # glibc's mallopt parameters (malloc.h)
 _M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_MAX, _M_ARENA_MAX = -1, -2, -4, -8
@@ -146,3 +147,38 @@ def decimated(array, step, rows=256):
         out[k:k + per_band] = array[k * step:(k + per_band) * step:step, ::step]
         release(array)
     return out
+
+
+# The sizes a person writes for a memory budget: SI (kB, MB, GB, TB) and binary (KiB ... TiB)
+# units, case-insensitive, "B" optional; a plain number is bytes.
+SIZE_UNITS = {"": 1, "B": 1, "K": 1e3, "KB": 1e3, "M": 1e6, "MB": 1e6, "G": 1e9, "GB": 1e9, "T": 1e12, "TB": 1e12,
+              "KIB": 2 ** 10, "MIB": 2 ** 20, "GIB": 2 ** 30, "TIB": 2 ** 40}
+
+
+def machine_bytes():
+    """This machine's physical memory (bytes); None where the system does not say."""
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def parse_size(text, what="memory", limit=None):
+    """'2GB', '1.5 GB', '512MB', '3GiB', '1TB' or a number of bytes -> bytes (int): the one size
+    parser of facette's options. ValueError naming the units when it is not a size, when it is
+    not > 0, or when it exceeds `limit` (bytes; default: this machine's memory, which a budget
+    above cannot be kept to; 0 for none)."""
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        value = float(text)
+    else:
+        match = re.fullmatch(r"\s*([0-9]*\.?[0-9]+(?:[eE][+-]?[0-9]+)?)\s*([A-Za-z]*)\s*", str(text))
+        if not match or match.group(2).upper() not in SIZE_UNITS:
+            raise ValueError(f"{what} must be a size such as 2GB, 512MB, 3GiB or 1TB, got {text!r}")
+        value = float(match.group(1)) * SIZE_UNITS[match.group(2).upper()]
+    if not value >= 1:
+        raise ValueError(f"{what} must be at least 1 byte, got {text!r}")
+    limit = machine_bytes() if limit is None else limit
+    if limit and value > limit:
+        raise ValueError(f"{what} {text} is more than this machine's {limit / 1e9:.1f} GB of memory: a budget it "
+                         f"cannot keep to; give at most {int(limit / 1e9)}GB")
+    return int(value)

@@ -35,3 +35,15 @@ def sim_device():
     dev = SimulatedDevice(speed=50, side=False)
     yield dev
     dev.close()
+
+
+@pytest.fixture
+def unchanged():
+    """unchanged(*paths): a context manager that sha256s every file under `paths` before and
+    after its block and fails when one changed, went or came (a command's inputs are never
+    written). Issue 51's tests wrap every case in it."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("_unchanged", Path(__file__).with_name("_unchanged.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.unchanged

@@ -118,3 +118,20 @@ print(before - kept, kept - rss())
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     still, given = map(int, out.split())
     assert still < 20e6 < 300e6 < given          # kept after the frees, gone after hand_back
+
+
+@pytest.mark.parametrize("text, want", [("2GB", 2e9), ("1.5 gb", 1.5e9), ("512MB", 512e6), ("3GiB", 3 * 2 ** 30),
+                                        ("1e9", 1e9), (1000, 1000), ("1TB", 1e12), ("2TiB", 2 * 2 ** 40)])
+def test_one_size_parser_reads_si_and_binary_units(text, want):
+    from facette._memory import parse_size
+    assert parse_size(text, limit=0) == int(want)
+
+
+def test_a_size_that_is_none_or_more_than_the_machine_is_said():
+    from facette._memory import machine_bytes, parse_size
+    for bad, words in (("2 apples", "a size such as"), ("0GB", "at least 1 byte"), ("-1GB", "a size such as")):
+        with pytest.raises(ValueError, match=words):
+            parse_size(bad)
+    with pytest.raises(ValueError, match="more than this machine's"):
+        parse_size("1TB", limit=24 * 10 ** 9)
+    assert machine_bytes() is None or parse_size(f"{machine_bytes()}") == machine_bytes()

@@ -22,6 +22,8 @@ import cv2
 import numpy as np
 from scipy import ndimage, optimize
 
+from facette.calib._sphere_rays import _normal_at, directions_from_origin, light_positions_from_rays, sphere_rays
+
 __all__ = ["Circle", "Highlight", "fit_circle", "sphere_mask", "fit_sphere_outline",
            "find_sphere_outline", "highlight_centroid", "mirror_direction", "mirror_sphere_directions",
            "light_positions_from_rays", "sphere_rays", "directions_from_origin"]
@@ -334,15 +336,6 @@ def highlight_centroid(image, circle, white_level=None, threshold=0.5, margin=0.
     return Highlight(x, y, peak, sat, int(core.sum()))
 
 
-def _normal_at(circle, x, y):
-    u = (x - circle.cx) / circle.r
-    v = -(y - circle.cy) / circle.r
-    rho2 = u * u + v * v
-    if rho2 >= 1:
-        raise ValueError(f"highlight at ({x:.1f}, {y:.1f}) lies outside the sphere's outline")
-    return np.array([u, v, np.sqrt(1 - rho2)])
-
-
 def mirror_direction(circle, x, y):
     """Light direction from a highlight at (x = column, y = row) on a mirror sphere.
 
@@ -375,25 +368,27 @@ def mirror_sphere_directions(images, white_level=None, outline_image=None, circl
     Returns (directions (m, 3), circle, [Highlight] * m). The outline is found otherwise by
     `find_sphere_outline` (a lit card, a dark or a busy background); with three photographs or
     more, what the sphere mirrors in all of them (their median) is taken off before each
-    highlight is located.
+    highlight is located. A sphere whose highlights cannot be on it is refused (ValueError,
+    `_check_horizon`, `_check_given_outline`): lights below the horizon, or for a circle or mask given, highlights
+    outside its disc or a rim the photographs show elsewhere.
     """
     img = np.asarray(images)
     if img.ndim not in (3, 4):
         raise ValueError(f"images must be (m, H, W) or (m, H, W, 3), got {np.shape(images)}")
+    if outline_image is None:
+        ref = _mean_image(img)
+    else:
+        ref = np.asarray(outline_image, float)
+        ref = ref.mean(axis=2) if ref.ndim == 3 else ref
+    given = circle is not None or mask is not None
     if circle is not None:
         circle = circle if isinstance(circle, Circle) else Circle(*[float(v) for v in circle][:3])
     elif mask is not None:
         circle = fit_sphere_outline(np.asarray(mask, bool))
     else:
-        if outline_image is None:
-            ref = np.zeros(img.shape[1:3])
-            for im in img:                       # one LED at a time: full-size stacks are large
-                ref += im.mean(axis=2) if im.ndim == 3 else im
-            ref /= len(img)
-        else:
-            ref = np.asarray(outline_image, float)
-            ref = ref.mean(axis=2) if ref.ndim == 3 else ref
         circle = find_sphere_outline(ref, highlight_points(img))
+    if given:
+        _check_given_outline(img, circle, ref)
     background = None
     if len(img) >= 3:                        # the median over the sphere's box only (cheap)
         h, w = img.shape[1:3]
@@ -410,85 +405,75 @@ def mirror_sphere_directions(images, white_level=None, outline_image=None, circl
                          f"{circle.cy:.0f}) px, radius {circle.r:.0f} px (a mirror's cover well under "
                          f"{100 * MAX_HIGHLIGHT_SHARE:.0f} %): that is no mirror sphere")
     dirs = np.array([mirror_direction(circle, h.x, h.y) for h in hl])
+    _check_horizon(circle, dirs)
     return dirs, circle, hl
 
 
-def sphere_rays(circle, highlights, shape, pixel_pitch_mm, sphere_radius_mm=None, center_z_mm=None):
-    """Rays (origins (m, 3) mm, directions (m, 3)) from the sphere's highlights to the LEDs.
-
-    The pixel pitch turns pixels into mm; with a known sphere radius and no pitch,
-    the pitch is radius_mm / radius_px. The sphere centre's height is `center_z_mm`
-    (default its radius: resting on the object plane z = 0).
-    """
-    if pixel_pitch_mm is None:
-        if sphere_radius_mm is None:
-            raise ValueError("give the pixel pitch or the sphere's radius in mm to place it")
-        pixel_pitch_mm = sphere_radius_mm / circle.r
-    h, w = shape[:2]
-    r_mm = circle.r * pixel_pitch_mm if sphere_radius_mm is None else sphere_radius_mm
-    c = np.array([(circle.cx - (w - 1) / 2) * pixel_pitch_mm,
-                  ((h - 1) / 2 - circle.cy) * pixel_pitch_mm,
-                  r_mm if center_z_mm is None else center_z_mm])
-    origins, dirs = [], []
-    for hl in highlights:
-        n = _normal_at(circle, hl.x, hl.y)
-        origins.append(c + r_mm * n)
-        dirs.append(2 * n[2] * n - np.array([0.0, 0.0, 1.0]))
-    return np.array(origins), np.array(dirs)
+# A light below the horizon cannot light the object the camera sees; a few degrees of
+# grazing light lost to a highlight's centroid are allowed.
+HORIZON_TOLERANCE_DEG = 3.0
+# A circle given that the found outline beats on the rim's evidence (`_rim_support`: the share
+# of rays whose strongest change lies at the rim) is refused. The renders of
+# tests/calib/test_mirror_sphere.py: the outline on a lit card or a dark background 0.88-1.00, a
+# circle 4 px off 0.21-0.33, the centre's x and y swapped 0.05; on a checkerboard, whose own edges
+# win most rays, 0.09 for the outline, 0.03-0.06 off it: any lead of the found outline decides.
+RIM_SUPPORT_LEAD = 0.0
 
 
-def light_positions_from_rays(origins, directions):
-    """Least-squares point nearest to k ≥ 2 rays, for each LED.
-
-    origins, directions : (k, m, 3) — placement k, LED m (mm; directions unit).
-    Minimises Σ_k |(I − d dᵀ)(P − o)|². Returns (positions (m, 3) mm, rms distance
-    of the rays to the point (m,) mm). Raises if the rays are (nearly) parallel:
-    move the sphere further between placements.
-    """
-    o = np.asarray(origins, float)
-    d = np.asarray(directions, float)
-    if o.ndim == 2:
-        o, d = o[:, None], d[:, None]
-    if o.shape != d.shape or o.shape[0] < 2:
-        raise ValueError("need rays from at least two sphere placements (k ≥ 2) to locate the "
-                         "LEDs; with one placement only directions are known")
-    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
-    P, rms = [], []
-    for j in range(o.shape[1]):
-        A = np.zeros((3, 3))
-        b = np.zeros(3)
-        projs = []
-        for k in range(o.shape[0]):
-            M = np.eye(3) - np.outer(d[k, j], d[k, j])
-            A += M
-            b += M @ o[k, j]
-            projs.append(M)
-        if np.linalg.cond(A) > 1e8:
-            raise ValueError(f"LED {j}: the rays are parallel; move the sphere further between "
-                             "placements (a few cm across the field)")
-        p = np.linalg.solve(A, b)
-        P.append(p)
-        rms.append(np.sqrt(np.mean([np.sum((M @ (p - o[k, j])) ** 2) for k, M in enumerate(projs)])))
-    return np.array(P), np.array(rms)
+def _rim_support(ref, c, n_angles=360):
+    """Share of rays from c's centre whose strongest radial change of the log image within
+    ±r/2 lies within 2 px of c's rim."""
+    g = _log_image(ref).astype(float)
+    th = np.linspace(0, 2 * np.pi, n_angles, endpoint=False)
+    rr = c.r + np.arange(-0.5 * c.r, 0.5 * c.r + 0.25, 0.5)
+    xs = c.cx + np.cos(th)[:, None] * rr[None]
+    ys = c.cy + np.sin(th)[:, None] * rr[None]
+    d = np.abs(np.gradient(ndimage.map_coordinates(g, [ys, xs], order=1, mode="nearest"), axis=1))
+    return float(np.mean(np.abs(rr[np.argmax(d, axis=1)] - c.r) <= 2.0))
 
 
-def directions_from_origin(origins, directions, distance_mm):
-    """Directions of LEDs seen from the field's origin, given rays from the sphere.
+def _mean_image(img):
+    ref = np.zeros(img.shape[1:3])
+    for im in img:                       # one LED at a time: full-size stacks are large
+        ref += im.mean(axis=2) if im.ndim == 3 else im
+    return ref / len(img)
 
-    A highlight gives the direction from its point on the sphere (mm above and
-    beside the object plane's origin); for LEDs at a finite `distance_mm` from the
-    origin (the rig's nominal distance, e.g. 1500 mm) the LED is the point of the
-    ray at that distance, and its direction from the origin differs from the ray's
-    by about offset/distance (≈ 0.7° for a 76 mm sphere at 1.5 m). origins,
-    directions (m, 3); returns unit (m, 3).
-    """
-    o = np.asarray(origins, float)
-    d = np.asarray(directions, float)
-    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
-    # |o + t d| = D  →  t = −o·d + sqrt((o·d)² − |o|² + D²)
-    od = np.sum(o * d, axis=-1)
-    disc = od ** 2 - np.sum(o * o, axis=-1) + float(distance_mm) ** 2
-    if np.any(disc < 0) or not distance_mm > 0:
-        raise ValueError("the LED distance must exceed the sphere's distance from the origin")
-    p = o + (-od + np.sqrt(disc))[..., None] * d
-    return p / np.linalg.norm(p, axis=-1, keepdims=True)
+
+def _where(circle):
+    return f"the sphere at ({circle.cx:.1f}, {circle.cy:.1f}) px, radius {circle.r:.1f} px"
+
+
+def _check_horizon(circle, dirs):
+    """Refuse directions below the horizon (ValueError): no such light lights what the camera sees."""
+    below = np.flatnonzero(dirs[:, 2] < -np.sin(np.radians(HORIZON_TOLERANCE_DEG)))
+    if len(below):
+        el = np.degrees(np.arcsin(np.clip(dirs[below, 2], -1, 1)))
+        raise ValueError(f"{_where(circle)} puts {len(below)} of {len(dirs)} lights below the horizon (photographs "
+                         f"{', '.join(str(i + 1) for i in below[:6])}: elevation {', '.join(f'{e:.0f}°' for e in el[:6])}), "
+                         "which cannot light what the camera sees: that circle is not the sphere's outline")
+
+
+def _check_given_outline(img, circle, ref):
+    """Refuse a circle or mask given whose disc leaves out the photographs' highlights (each one's
+    brightest change), or whose rim the photographs show less than the outline found (ValueError).
+    Both are looked for within three radii of the circle: the cost of a crop, not of the photographs."""
+    h, w = img.shape[1:3]
+    r0, c0 = max(int(circle.cy - 3 * circle.r), 0), max(int(circle.cx - 3 * circle.r), 0)
+    r1, c1 = min(int(circle.cy + 3 * circle.r) + 1, h), min(int(circle.cx + 3 * circle.r) + 1, w)
+    near = Circle(circle.cx - c0, circle.cy - r0, circle.r)
+    crop = ref[r0:r1, c0:c1]
+    pts = highlight_points(img, box=(r0, r1, c0, c1)) - [c0, r0]
+    outside = np.hypot(pts[:, 0] - near.cx, pts[:, 1] - near.cy) >= near.r
+    if outside.mean() > 0.1:
+        first = int(np.flatnonzero(outside)[0])
+        raise ValueError(f"{_where(circle)} leaves out the highlights of {int(outside.sum())} of {len(pts)} "
+                         f"photographs (photograph {first + 1}'s is at ({pts[first][0] + c0:.0f}, "
+                         f"{pts[first][1] + r0:.0f}) px): that circle is not the sphere's outline")
+    try:
+        found = find_sphere_outline(crop, pts)
+    except ValueError:
+        return                            # nothing to compare with: the circle given stands
+    far = np.hypot(found.cx - near.cx, found.cy - near.cy) + abs(found.r - near.r)
+    if far > max(3.0, 0.05 * circle.r) and _rim_support(crop, found) > _rim_support(crop, near) + RIM_SUPPORT_LEAD:
+        raise ValueError(f"{_where(circle)} is not the outline the photographs show: the sphere's rim is at "
+                         f"{found.cx + c0:.1f},{found.cy + r0:.1f},{found.r:.1f} (cx,cy,r px; x the column, y the row)")

@@ -14,15 +14,16 @@ import sys
 
 
 def register(sub):
-    from facette.cli._process import PROCESS_FIT_OPTIONS, _outputs, brdf_model_choices
+    from facette.cli._process import PROCESS_FIT_OPTIONS, _number, _outputs, _scheduler, brdf_model_choices
     from facette.pipeline import OUTPUTS
     p = sub.add_parser("batch", help="process many scans on Dask, with one summary table",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("scans", nargs="+", help="scan directories (scan.json, hdr/)")
     p.add_argument("-o", "--out", required=True, help="output directory: OUT/<scan>/ and OUT/summary.*")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=2, help="local worker processes (default 2)")
-    where.add_argument("--scheduler", metavar="ADDRESS",
+    where.add_argument("--workers", type=_number(int, 1, 256, what="--workers"), default=2,
+                       help="local worker processes, 1-256 (default 2)")
+    where.add_argument("--scheduler", metavar="ADDRESS", type=_scheduler,
                        help="a running dask.distributed scheduler, e.g. tcp://host:8786 (its workers "
                             "need facette installed and the same paths)")
     p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
@@ -32,6 +33,8 @@ def register(sub):
     p.add_argument("--allow-incomplete", action="store_true",
                    help="process scans that are not complete (every output then says so)")
     p.add_argument("--force", action="store_true", help="reprocess scans that are already done")
+    p.add_argument("--overwrite", action="store_true",
+                   help="write into result folders OUT/<scan> that hold files no facette run made")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -46,7 +49,8 @@ def run(args):
         options["allow_incomplete"] = True
     try:
         rows = batch(args.scans, args.out, workers=args.workers, scheduler=args.scheduler,
-                     outputs=args.outputs, options=options, force=args.force, progress=not args.quiet)
+                     outputs=args.outputs, options=options, force=args.force, progress=not args.quiet,
+                     overwrite=args.overwrite)
     except FacetteError:
         raise                     # its message and hint, with its exit code (facette.cli.main)
     except (ValueError, OSError) as exc:

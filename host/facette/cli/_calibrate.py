@@ -14,7 +14,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from facette.cli._scan import SIM_RAW_SIZE, SIM_RAW_SIZE_TEXT, _positive, _shape
+from facette.cli._process import _number
+from facette.cli._scan import SIM_RAW_SIZE, SIM_RAW_SIZE_TEXT, _current, _positive, _shape
 
 
 def _exposures(text):
@@ -53,19 +54,22 @@ def register(sub):
     p.add_argument("--base", help="profile (or an RTI .lp file) whose values are kept for steps not run "
                                   "(default nominal)")
     p.add_argument("--exposures", type=_exposures, help="bracket for every target, e.g. '1,1/4,1/16' (s)")
-    p.add_argument("--current", type=int, default=500, help="LED current during calibration, mA")
-    p.add_argument("--led-distance", type=float, metavar="MM",
+    p.add_argument("--current", type=_current, default=500, help="LED current during calibration, mA")
+    p.add_argument("--led-distance", type=_number(float, 0, None, True, "--led-distance"), metavar="MM",
                    help="LEDs' distance from the object (e.g. 1500): directions from the field's centre, "
                         "not from the sphere (default: distant LEDs)")
-    p.add_argument("--leds", type=int, default=12, help="number of LEDs fitted (default 12)")
+    p.add_argument("--leds", type=_number(int, 4, 16, what="--leds"), default=12,
+                   help="number of LEDs fitted, 4-16 (default 12)")
     p.add_argument("--keep-captures", metavar="DIR", help="keep the calibration captures in DIR")
     sim = p.add_argument_group("simulated rig")
-    sim.add_argument("--sim-direction-error", type=float, default=0.5, help="LED direction error, degrees RMS")
-    sim.add_argument("--sim-intensity-error", type=float, default=0.05, help="LED intensity error, relative RMS")
+    sim.add_argument("--sim-direction-error", type=_number(float, 0, 45, what="--sim-direction-error"), default=0.5,
+                     help="LED direction error, degrees RMS, 0-45")
+    sim.add_argument("--sim-intensity-error", type=_number(float, 0, 1, what="--sim-intensity-error"), default=0.05,
+                     help="LED intensity error, relative RMS, 0-1")
     sim.add_argument("--sim-raw-size", type=_shape, default=SIM_RAW_SIZE, metavar="WxH",
                      help=f"RAW size (default {SIM_RAW_SIZE_TEXT})")
     sim.add_argument("--sim-near", action="store_true", help="LEDs as near point sources at 1.5 m")
-    sim.add_argument("--sim-seed", type=int, default=0)
+    sim.add_argument("--sim-seed", type=_number(int, 0, None, what="--sim-seed"), default=0)
     sim.add_argument("--sim-speed", type=_positive(float), default=2000.0, help="device clock, × real time")
     sim.add_argument("--sim-target-fault", type=_faults, default={},
                      help="show a target wrongly, e.g. 'spectralon=missing' or 'mirror_sphere=overexposed'")

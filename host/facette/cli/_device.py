@@ -24,7 +24,7 @@ def register(sub):
     return p
 
 
-def _register(dev, name):
+def _register(dev, name, port="PORT"):
     """The register called `name`, or a BadInputError listing the closest names."""
     import difflib
 
@@ -37,7 +37,7 @@ def _register(dev, name):
         [n for n in names if name.lower() in n.lower()][:5]
     raise BadInputError(f"no register named {name!r}"
                         + (f"; did you mean {', '.join(close)}?" if close else ""),
-                        hint="facette device --port PORT registers lists them all with their values")
+                        hint=f"facette device --port {port} registers lists them all with their values")
 
 
 def _number(text, what):
@@ -106,7 +106,7 @@ def run(args):
     import facette
 
     if args.action == "read" and not args.args:
-        raise SystemExit("read NAME [INDEX]: say which register (facette device --port PORT registers "
+        raise SystemExit(f"read NAME [INDEX]: say which register (facette device --port {args.port} registers "
                          "lists them)")
     if args.action == "write" and len(args.args) < 2:
         raise SystemExit("write NAME VALUE [INDEX]")
@@ -135,12 +135,12 @@ def run(args):
             for name, reg in R.REGISTERS.items():
                 out[name] = dev.read_array(name) if reg.count > 1 else dev.read(name)
         elif args.action == "read":
-            reg = _register(dev, args.args[0])
+            reg = _register(dev, args.args[0], args.port)
             idx = _index(dev, reg, args.args, 1)
             out = {reg.name: dev.read_array(reg.name) if reg.count > 1 and idx is None
                    else dev.read(reg.name, idx)}
         else:  # write
-            reg = _register(dev, args.args[0])
+            reg = _register(dev, args.args[0], args.port)
             value = _number(args.args[1], f"value for {reg.name}")
             idx = _index(dev, reg, args.args, 2)
             if reg.count > 1 and idx is None:

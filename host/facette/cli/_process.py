@@ -37,6 +37,28 @@ def _number(kind, lo=None, hi=None, lo_open=False, what="value"):
     return parse
 
 
+def _size(text):
+    """--memory: a size (facette._memory.parse_size: units, > 0, within this machine's memory),
+    kept as written."""
+    from facette._memory import parse_size
+    try:
+        parse_size(text, "--memory")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def _scheduler(text):
+    """--scheduler: a scheduler's address (tcp://HOST:PORT), its form checked here."""
+    from facette.errors import BadInputError
+    from facette.pipeline._scheduler import scheduler_address
+    try:
+        scheduler_address(text)
+    except BadInputError as exc:
+        raise argparse.ArgumentTypeError(exc.message) from None
+    return text
+
+
 def _outputs(text):
     from facette.pipeline import ALL_OUTPUTS
 
@@ -129,12 +151,12 @@ def register(sub):
                                     "(default: found in the photographs)")
     p.add_argument("--reference", help="RTI capture: x0,y0,x1,y1 (px) of a white or grey patch in every "
                                        "photograph; each photograph is divided by its level there")
-    p.add_argument("--memory", metavar="SIZE", default=d.memory,
+    p.add_argument("--memory", metavar="SIZE", type=_size, default=d.memory,
                    help="a memory budget such as 2GB or 3GiB for the whole process: photometric stereo runs over "
                         "bands of rows in what the libraries (0.45 GB) and the maps kept at the image's size leave "
                         "(a per-pixel --method); a scan's or DiLiGenT folder's images are read band by band, never "
                         "whole (default: untiled)")
-    p.add_argument("--scheduler", metavar="ADDRESS", default=d.scheduler,
+    p.add_argument("--scheduler", metavar="ADDRESS", type=_scheduler, default=d.scheduler,
                    help="with --memory: a running dask.distributed scheduler, e.g. tcp://host:8786, whose workers "
                         "run the bands (they must see the same paths; the same flag as facette batch)")
     p.add_argument("--hsh-order", type=int, default=d.hsh_order, choices=(2, 3),
@@ -202,12 +224,44 @@ def options(args):
         ps_options={"init": args.init} if args.init else None)     # li_alternating takes it, the others leave it
 
 
+def _stopped_scan(source):
+    """(lights with a frame, lights planned) of a scan that stopped before its last light, or None."""
+    from pathlib import Path
+
+    from facette.scan import ScanDirectory
+    if not (Path(source) / "scan.json").is_file():
+        return None
+    try:
+        m = ScanDirectory(source).manifest
+    except (ValueError, OSError):
+        return None
+    taken = len({f.light for f in m.frames})
+    return (taken, len(m.lights)) if taken < len(m.lights) else None
+
+
+def _resume_advice(exc, source):
+    """Too few lights in a scan that stopped: the advice is to resume it, not to plan more lights."""
+    stopped = _stopped_scan(source)
+    if stopped and "lights" in exc.message:
+        exc.hint = (f"the scan stopped at {stopped[0]} of its {stopped[1]} lights: run the facette scan command that "
+                    f"made it again (the same directory: it resumes), then process it")
+    return exc
+
+
 def run(args):
+    from facette.errors import InsufficientData
     from facette.methods import PROCESS_DEFAULT
     from facette.pipeline import process
 
     _check_out(args.out)
-    res = process(args.source, outputs=args.outputs, out_dir=args.out, options=options(args))
+    opts = options(args)                          # every option checked before the scheduler is asked
+    if args.scheduler is not None:
+        from facette.pipeline._scheduler import check_scheduler
+        check_scheduler(args.scheduler)           # something listens there, within seconds
+    try:
+        res = process(args.source, outputs=args.outputs, out_dir=args.out, options=opts)
+    except InsufficientData as exc:
+        raise _resume_advice(exc, args.source) from None
     print_result(res)
     if _method(args) != PROCESS_DEFAULT and args.method is None:
         print(f"  note: --memory: photometric stereo with {_method(args)} (the default, {PROCESS_DEFAULT}, needs "

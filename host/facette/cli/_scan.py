@@ -6,12 +6,13 @@
 Running the same command again resumes an interrupted scan.
 """
 import argparse
+import math
 import os
 import threading
 import time
 from pathlib import Path
 
-from facette.cli._process import PROCESS_FIT_OPTIONS, _outputs, print_result
+from facette.cli._process import PROCESS_FIT_OPTIONS, _outputs, _size, print_result
 
 DEFAULT_SIM_PROFILE = "calibration/profiles/sim-default"
 
@@ -151,7 +152,7 @@ def register(sub):
     btn.add_argument("--press-button", action="store_true", help="simulated rig: press its button")
     btn.add_argument("--hid-button", metavar="VID:PID", help="wait for a USB HID button (hidapi) to start")
     p.add_argument("--no-process", action="store_true", help="acquire only")
-    p.add_argument("--memory", metavar="SIZE", help="a memory budget such as 2GB: each light's HDR is written "
+    p.add_argument("--memory", metavar="SIZE", type=_size, help="a memory budget such as 2GB: each light's HDR is written "
                    "to hdr/ and not kept in memory, and the processing after the last frame runs as "
                    "`facette process --memory SIZE` does (bands of rows, a per-pixel method; default outputs: "
                    "those that stream)")
@@ -251,13 +252,16 @@ def _check_arguments(args):
     if not args.sim and not args.device:
         raise SystemExit("say which rig: --sim, or --device PORT (e.g. /dev/ttyACM0, socket://host:5020)")
     _check_directory(args.directory)
-    if args.memory:
-        from facette.pipeline._tiles import parse_memory
+    if args.memory and not args.no_process:
+        from facette.errors import BadInputError
+        from facette.pipeline._tiles import BAND_FIXED_BYTES, PROCESS_BYTES, parse_memory
 
-        try:
-            parse_memory(args.memory)
-        except ValueError as exc:
-            raise SystemExit(f"--memory: {exc}") from None
+        least = PROCESS_BYTES + BAND_FIXED_BYTES           # whatever the image: libraries, one band's fixed part
+        if parse_memory(args.memory) < least:               # found here, not after the whole scan
+            raise BadInputError(f"--memory {args.memory} cannot hold the processing after the last frame: facette's "
+                                f"libraries and one band take {least / 1e9:.2f} GB whatever the image",
+                                hint=f"give --memory {math.ceil(least / 1e8) / 10:g}GB or more, or --no-process "
+                                     "(and facette process later)")
     profile = args.profile
     if profile is None and args.sim:
         from facette._data import sim_profile_dir
@@ -273,7 +277,19 @@ def _check_arguments(args):
     return profile
 
 
+def _scan_kept(exc, path):
+    """A processing after the last frame that failed: the scan is complete and kept; the hint says
+    so and gives the command that processes it (with what to change first)."""
+    from facette.errors import BadInputError
+    exc.message = f"the scan is complete and kept in {path}; its processing failed: {exc.message}"
+    if isinstance(exc, BadInputError):                 # an option or a folder: the scan itself is fine
+        exc.hint = (f"{exc.hint + '; then ' if exc.hint else ''}process it with: facette process {path} "
+                    f"-o {Path(path) / 'results'}")
+    return exc
+
+
 def run(args):
+    from facette.errors import FacetteError
     from facette.scan import ScanError
 
     profile = _check_arguments(args)
@@ -318,7 +334,10 @@ def run(args):
               f"boots {sim_summary['boots']}, link {link}")
     try:
         if not args.no_process:
-            out = _process(scan, args.memory, args.outputs)
+            try:
+                out = _process(scan, args.memory, args.outputs)
+            except FacetteError as exc:
+                raise _scan_kept(exc, scan.path) from None
             print(f"processing: facette process → {out}")
     finally:   # also when the processing stops: the scan is there
         print(f"results: {os.path.abspath(scan.path)}", flush=True)

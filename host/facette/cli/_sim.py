@@ -15,6 +15,7 @@ import time
 DEAD_CHECKS = 4          # the device's process seen ended this many times in a row (0.5 s apart):
                          # a restart (reset) takes far less
 
+from facette.cli._process import _number
 from facette.cli._scan import SIM_RAW_SIZE, SIM_RAW_SIZE_TEXT, _positive, _shape
 
 
@@ -30,7 +31,7 @@ def register(sub):
     p.add_argument("--faults", default="", help="e.g. 'biterr=1e-3,reset_at_shot=5,miss_sync_shots=3'")
     p.add_argument("--speed", type=_positive(float), default=1.0, help="device clock, × real time (default 1)")
     p.add_argument("--workdir", help="keep the camera folder and flash here (default: temporary)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_number(int, 0, None, what="--seed"), default=0, help="noise seed, >= 0")
     return p
 
 

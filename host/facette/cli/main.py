@@ -25,6 +25,15 @@ from facette.io.atomic import DiskFullError, disk_full_error, is_disk_full
 REPORT_URL_HINT = ("this is a bug in facette, not in what you did: please report it with the "
                    "command line and the traceback above")
 
+# What Ctrl-C leaves, per command (each is a test's: the command run again does what it says)
+INTERRUPTED = {
+    "scan": "whatever was captured is kept: the same command resumes the scan",
+    "process": "the inputs are untouched and the results folder is marked as interrupted: the same command "
+               "redoes it",
+    "batch": "the scans are untouched; the scans done are kept: the same command processes the others",
+    "calibrate": "the profile being made is not written; the same command starts the wizard again",
+}
+
 # name -> (module, one-line help)
 COMMANDS = {
     "scan": ("facette.cli._scan", "acquire a scan (simulated rig or a real device)"),
@@ -69,7 +78,7 @@ def main(argv=None):
     try:
         return int(module.run(args) or 0)
     except KeyboardInterrupt:
-        print("interrupted; whatever was captured is kept (the scan resumes with the same command)",
+        print(f"facette {command}: interrupted; {INTERRUPTED.get(command, 'nothing of yours was changed')}",
               file=sys.stderr)
         return EXIT_INTERRUPTED
     except BaseException as exc:   # noqa: B902 - sorted into expected failures and bugs below

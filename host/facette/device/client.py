@@ -156,8 +156,10 @@ class DeviceClient:
             if self.refused:
                 raise DeviceError(f"cannot open the port {self.url!r}: {self.refused}", exit_code=2)
             raise DeviceError(f"cannot open the port {self.url!r}",
-                              hint="check the port name (ls /dev/ttyACM* /dev/ttyUSB*) and that nothing "
-                                   "else holds it (another facette, a terminal program)", exit_code=2)
+                              hint="check the host and port, and that the device (or facette sim) listens there"
+                              if str(self.url).startswith("socket://") else
+                              "check the port name (ls /dev/ttyACM* /dev/ttyUSB*) and that nothing "
+                              "else holds it (another facette, a terminal program)", exit_code=2)
         ident = self.read_block(["fw_version", "protocol_version", "definition_hash", "serial_number",
                                  "uptime_s", "boot_count", "reset_cause", "max_leds", "ring_len"])
         expected = self.expected_hash

@@ -143,7 +143,15 @@ def read_hsh_rti(path):
         end = data.find(b"\n", pos)
         if end < 0:
             raise BadInputError(f"{path}: the .rti header ends early")
-        vals.append([int(t) for t in data[pos:end].split()])
+        line = data[pos:end].decode("latin-1").strip()
+        try:
+            vals.append([int(t) for t in line.split()])
+        except ValueError:
+            vals.append(None)
+        if vals[-1] is None or len(vals[-1]) != (1, 3, 3)[len(vals) - 1]:
+            raise BadInputError(f"{path}, line {len(comments) + len(vals)}: {line[:40]!r} is not the header's "
+                                f"{('file type', 'width height bands', 'terms basis element-size')[len(vals) - 1]}"
+                                " (whole numbers)", hint="rewrite the file with the tool that made it")
         pos = end + 1
     if vals[0] != [HSH_FILE_TYPE]:
         raise BadInputError(f"{path}: .rti file type {vals[0]} is not read (3, HSH, is)")
@@ -151,6 +159,8 @@ def read_hsh_rti(path):
     if bands != 3 or size != 1 or terms not in (4, 9):
         raise BadInputError(f"{path}: {bands} bands, {terms} terms, {size}-byte elements: "
                             "3 bands of 4 or 9 one-byte terms are read")
+    if len(data) < pos + 8 * terms:
+        raise BadInputError(f"{path}: the file ends in the scale and bias after the header")
     scale = np.frombuffer(data, "<f4", terms, pos).astype(np.float64)
     bias = np.frombuffer(data, "<f4", terms, pos + 4 * terms).astype(np.float64)
     n = w * h * 3 * terms

@@ -30,7 +30,8 @@ from facette.io.atomic import write_text_atomic
 from facette.io.checksum import sha256_file
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._process import process
-from facette.pipeline._record import read_record
+from facette.pipeline._record import foreign_files, read_record
+from facette.pipeline._scheduler import connect_scheduler
 
 __all__ = ["batch", "process_scan", "input_fingerprint", "write_summary", "result_folders",
            "SUMMARY_COLUMNS", "RECORD"]
@@ -189,6 +190,37 @@ def _check_out(scans, out_dir, names):
                                      f"{src.parent.parent / 'results'}")
 
 
+def _check_scans(scans):
+    """Every scan given is a folder with scan.json (a pattern the shell found no match for comes
+    as itself: 'scans/*'); BadInputError naming those that are not, before any folder is made."""
+    bad = [s for s in scans if not (Path(s) / "scan.json").is_file()]
+    if not bad:
+        return
+    globbed = [s for s in bad if any(c in str(s) for c in "*?[") and not Path(s).exists()]
+    if globbed:
+        raise BadInputError(f"no scan matches {globbed[0]} (the shell passed the pattern as it is)",
+                            hint="check the pattern and the folder it looks in; give scan folders (scan.json, hdr/)")
+    said = ", ".join(f"{s} ({'no such folder' if not Path(s).exists() else 'no scan.json'})" for s in bad[:4])
+    raise BadInputError(f"{len(bad)} of {len(scans)} given are not facette scans: {said}",
+                        hint="give scan folders (scan.json, hdr/); process a DiLiGenT folder or an RTI capture "
+                             "with facette process")
+
+
+def _check_foreign(out_dir, names, overwrite):
+    """Refuse, unless `overwrite`, result folders holding files no facette run made (a user's
+    normal.exr would be replaced), as `process` refuses such an -o folder (pipeline._record)."""
+    if overwrite:
+        return
+    held = {n: foreign_files(Path(out_dir) / n) for n in names}
+    held = {n: f for n, f in held.items() if f}
+    if held:
+        n, files = next(iter(held.items()))
+        raise BadInputError(f"{Path(out_dir) / n} already holds files that no facette run recorded "
+                            f"({', '.join(files[:4])}{'...' if len(files) > 4 else ''})"
+                            + (f", and {len(held) - 1} other result folder(s)" if len(held) > 1 else ""),
+                            hint="choose another -o folder, or pass --overwrite to write beside them")
+
+
 def _merged_rows(out_dir, rows, names):
     """This run's rows, merged with those of the other scans under `out_dir` (their batch.json),
     in the previous summary's order, this run's new scans after."""
@@ -262,7 +294,7 @@ are fractions.</p>
 
 
 def batch(scans, out_dir, workers=2, scheduler=None, outputs=None, options=None, force=False,
-          progress=True):
+          progress=True, overwrite=False):
     """Process many scans on Dask and write OUT/summary.csv and OUT/summary.html.
 
     scans : scan directories; out_dir : results go to out_dir/<folder>/ (`result_folders`);
@@ -273,17 +305,14 @@ def batch(scans, out_dir, workers=2, scheduler=None, outputs=None, options=None,
     outputs, options : as `process` (outputs list; options: fields of ProcessOptions as a dict,
         which the rerun check fingerprints; checked here once, before any scan).
     force : reprocess scans even when done. progress : a progress bar on stderr.
+    overwrite : write into result folders that hold files no facette run made (refused otherwise).
     Returns the rows (list of dicts, in the order of `scans`); summary.* holds them merged
     with the rows of the other scans under `out_dir`.
     """
-    # a deliberate lazy load: dask.distributed takes ~1 s to import, and `facette process`
-    # (which imports this package) never needs it
-    from dask.distributed import Client, LocalCluster, as_completed
-    from tqdm import tqdm
-
     scans = [Path(s) for s in scans]
     if not scans:
         raise ValueError("no scans given: pass one or more scan directories")
+    _check_scans(scans)
     if scheduler is None and workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     if outputs is not None and not list(outputs):
@@ -293,6 +322,12 @@ def batch(scans, out_dir, workers=2, scheduler=None, outputs=None, options=None,
     out_dir = Path(out_dir)
     names = result_folders(scans, out_dir)
     _check_out(scans, out_dir, names)
+    _check_foreign(out_dir, names, overwrite)
+    # a deliberate lazy load: dask.distributed takes ~1 s to import, and `facette process`
+    # (which imports this package) never needs it
+    from dask.distributed import Client, LocalCluster, as_completed
+    from tqdm import tqdm
+    client = connect_scheduler(scheduler) if scheduler is not None else None     # within seconds, exit 2
     out_dir.mkdir(parents=True, exist_ok=True)
     cluster = None
     if scheduler is None:
@@ -300,8 +335,6 @@ def batch(scans, out_dir, workers=2, scheduler=None, outputs=None, options=None,
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=":0")
         client = Client(cluster)
-    else:
-        client = Client(scheduler)
     rows = [None] * len(scans)
     try:
         futures = {client.submit(process_scan, str(s.resolve()), str((out_dir / n).resolve()),

@@ -12,6 +12,11 @@ any file) and when it is done (``"state": "done"``). A folder whose record still
 `overwrite`, so an interrupted processing (a scan's own, Ctrl-C, a full disk) is redone by
 the same command; a run of another source is refused as before. A run's inputs are never
 written: an output folder that is the input folder is refused, whatever the options.
+
+The same rule for every command (one owner, here): no command writes its input or a file it did
+not make. `claim_results` is it for a results folder (`process`, and `batch` for each scan's
+folder through `foreign_files`); `claim_file` for a single file (`relight`'s picture): never an
+input, and an existing file only when facette made it (`made_by_facette`) or with --overwrite.
 """
 import datetime as _dt
 import json
@@ -19,11 +24,14 @@ from pathlib import Path
 
 from facette.errors import BadInputError
 from facette.io.atomic import PARTIAL_SUFFIX, write_text_atomic
+from facette.io.png import read_png_text
 
-__all__ = ["RECORD", "claim_results", "mark_running", "write_record", "read_record"]
+__all__ = ["RECORD", "SOFTWARE", "claim_results", "claim_file", "foreign_files", "made_by_facette", "mark_running",
+           "write_record", "read_record"]
 
 RECORD = "process.json"
 BESIDE = ("batch.json",)      # facette batch's own record of a scan's row, kept beside ours
+SOFTWARE = "facette"          # the PNG text key "Software" of the pictures facette writes
 
 
 def _plain(obj):
@@ -45,6 +53,16 @@ def read_record(out):
     return rec
 
 
+def _results_beside(inp):
+    """Where results of `inp` may go: a scan's own results folder (SCAN/results, as its own
+    processing writes), beside any other input (a folder's files are left as they were)."""
+    src = Path(inp.source)
+    if inp.kind == "scan":
+        return src / "results"
+    folder = src.parent if src.is_file() else src
+    return folder.parent / f"{folder.name}-results"
+
+
 def _refuse_inputs(out, inp, mask=None):
     """An output folder must not be the input folder (a DiLiGenT folder's mask.png, a scan's
     scan.json would be replaced) nor hold the --mask file."""
@@ -53,7 +71,7 @@ def _refuse_inputs(out, inp, mask=None):
     if where == source or (source.is_file() and where == source.parent):
         raise BadInputError(f"-o {out} is the input folder {inp.source}: its files would be replaced by the "
                             "results (facette never writes its inputs)",
-                            hint=f"choose another -o folder, e.g. {Path(inp.source) / 'results'}")
+                            hint=f"choose another -o folder, e.g. {_results_beside(inp)}")
     if isinstance(mask, (str, Path)) and Path(mask).resolve().parent == where:
         raise BadInputError(f"-o {out} holds the --mask file {mask}, which the results' mask.png could replace",
                             hint="choose another -o folder, or keep the mask elsewhere")
@@ -73,6 +91,43 @@ def _remove(out, names):
             p.unlink()
 
 
+def foreign_files(out):
+    """The files in folder `out` that no facette run recorded (sorted names): all of them when it
+    has no process.json, none when it has one (`claim_results` sorts those) or is absent."""
+    out = Path(out)
+    if not out.is_dir() or (out / RECORD).is_file():
+        return []
+    return sorted(p.name for p in out.iterdir()
+                  if p.name not in BESIDE and not (p.name.startswith(".") and p.name.endswith(PARTIAL_SUFFIX)))
+
+
+def made_by_facette(path):
+    """True when `path` is a PNG that facette wrote (its "Software" text says so)."""
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(8) != b"\x89PNG\r\n\x1a\n":
+                return False
+        return str(read_png_text(path).get("Software", "")).startswith(SOFTWARE)
+    except (OSError, ValueError):
+        return False
+
+
+def claim_file(out, inputs, overwrite=False, flag="-o"):
+    """Check, before any work, that a command may write the single file `out`: never one of
+    `inputs` (whatever `overwrite`), never a folder, and a file that exists only when facette
+    made it (`made_by_facette`) or with `overwrite`. BadInputError otherwise."""
+    out = Path(out)
+    for src in inputs:
+        if out.resolve() == Path(src).resolve() or (out.exists() and out.samefile(src)):
+            raise BadInputError(f"{flag} {out} is the input {src}: it would be replaced (facette never writes its inputs)",
+                                hint=f"choose another {flag} file, e.g. {Path(src).with_suffix('.png')}")
+    if out.is_dir():
+        raise BadInputError(f"{flag} {out} is a folder", hint=f"give a file name for {flag}, e.g. {out / 'picture.png'}")
+    if out.exists() and not overwrite and not made_by_facette(out):
+        raise BadInputError(f"{flag} {out} already exists and facette did not make it",
+                            hint=f"choose another {flag} file, or pass --overwrite to replace it")
+
+
 def claim_results(out, options, inp, overwrite=False, names=(), mask=None):
     """Check, before any work, that this run may write into `out`; remove the earlier run's
     files that would otherwise stay beside this run's, and those of an interrupted run of the
@@ -87,7 +142,12 @@ def claim_results(out, options, inp, overwrite=False, names=(), mask=None):
     _refuse_inputs(out, inp, mask)
     if not out.is_dir():
         return None
-    rec = read_record(out)
+    try:
+        rec = read_record(out)
+    except BadInputError:
+        if not overwrite:
+            raise
+        rec = None                   # --overwrite, as the hint says: the damaged record is replaced
     for p in out.glob(f".*{PARTIAL_SUFFIX}"):          # temporaries of an interrupted write
         if p.is_file():
             p.unlink()

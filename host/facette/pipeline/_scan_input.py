@@ -155,8 +155,8 @@ def scan_manifest(scan_dir, allow_incomplete=False):
     if busy and not allow_incomplete:
         raise BadInputError(f"the scan {scan_dir} is being acquired by another facette process ({busy}): "
                             f"{len(data.frames)} of {expected} frames so far",
-                            hint="wait for the scan to finish, then process it (or pass --allow-incomplete "
-                                 "to process what is there now)")
+                            hint="wait for the scan command to end (its lock is held until then), then run "
+                                 "this command again")
     if not complete and not allow_incomplete:
         raise BadInputError(f"the scan is incomplete ({len(data.frames)} of {expected} frames in "
                             f"{scan_dir}): run the same scan command to resume",

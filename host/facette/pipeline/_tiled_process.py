@@ -54,6 +54,7 @@ from facette.pipeline._bands import DiligentBands, ScanBands, open_bands
 from facette.pipeline._quality import add_counts, carried, check_counts, light_geometry, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
+from facette.pipeline._scheduler import connect_scheduler
 from facette.pipeline._tiles import FIELD_BYTES, PROCESS_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS, rows_per_tile
 from facette.recon import PSResult, near_light_directions
 
@@ -336,8 +337,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
     client = None
     try:
         if o.scheduler is not None:
-            from dask.distributed import Client
-            client = Client(o.scheduler)
+            client = connect_scheduler(o.scheduler)      # bad input within seconds, not a 30 s traceback
         inp, bands, top, n = open_streamed(source, o, work, rows, client)
         try:
             res.inputs = inp

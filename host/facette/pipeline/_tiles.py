@@ -9,7 +9,6 @@ kept (up to 32 bytes per pixel, or none when each band is handed to `on_band` as
 and one band's working set (`rows_per_tile`); not the m x H x W x 3 float32 images (1.7 GB at
 12 MP, 14 GB at 100 MP).
 """
-import re
 import shutil
 import tempfile
 import time
@@ -17,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from facette._memory import parse_size
 from facette.io.diligent import png_radiance, read_diligent_lights, size_mismatch
 from facette.io.png import png_size, read_mask, read_png
 from facette.methods import PS_DEFAULT, PS_METHODS
@@ -52,22 +52,10 @@ MIN_ROWS = 1
 TILED_METHODS = ("woodham1980", "hierarchical_tautzia2016", "rank_trimmed", "bipolynomial_shi2014",
                  "bivariate_ikehata2014", "consensus_higo2010")
 
-_UNITS = {"": 1, "B": 1, "K": 1e3, "KB": 1e3, "M": 1e6, "MB": 1e6, "G": 1e9, "GB": 1e9,
-          "KIB": 2 ** 10, "MIB": 2 ** 20, "GIB": 2 ** 30}
-
-
 def parse_memory(text):
-    """'2GB', '1.5 GB', '512MB', '3GiB' or a number of bytes -> bytes (int)."""
-    if isinstance(text, (int, float)):
-        value = float(text)
-    else:
-        match = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([A-Za-z]*)\s*", str(text))
-        if not match or match.group(2).upper() not in _UNITS:
-            raise ValueError(f"memory must be a size such as 2GB, 512MB or 3GiB, got {text!r}")
-        value = float(match.group(1)) * _UNITS[match.group(2).upper()]
-    if not value > 0:
-        raise ValueError(f"memory must be > 0 bytes, got {text!r}")
-    return int(value)
+    """'2GB', '1.5 GB', '512MB', '3GiB', '1TB' or a number of bytes -> bytes (int): facette._memory's
+    one size parser (ValueError for what is not a size, or more than this machine's memory)."""
+    return parse_size(text, "memory")
 
 
 def rows_per_tile(width, height, lights, memory, method=PS_DEFAULT, keep=tuple(FIELD_BYTES),

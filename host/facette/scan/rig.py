@@ -214,7 +214,7 @@ class Rig:
                         f"limit max_current_mA = {max_ma} mA" if ma > max_ma else
                         f"{set_ma} mA for light {i} (LED {ch}) exposure {e} drives no current",
                         hint=f"use at most {allowed} mA (--current, or '@mA' in --exposures), or raise "
-                             f"the device's limit: facette device --port PORT write max_current_mA N "
+                             f"the device's limit: facette device --port {self.device.url} write max_current_mA N "
                              f"(hard limit {lim['hard_max_current_mA']} mA)")
         for e, (t_us, _) in enumerate(exps):
             pulse = t_us if mode == "led" else settle + t_us
@@ -223,7 +223,7 @@ class Rig:
                 raise BadInputError(
                     f"exposure {e} ({t_us / 1e6:g} s) keeps the LED on {pulse / 1e6:g} s{with_settle}, "
                     f"above the device's limit max_pulse_us = {max_pulse / 1e6:g} s",
-                    hint="shorten the exposure, or raise the limit: facette device --port PORT write "
+                    hint=f"shorten the exposure, or raise the limit: facette device --port {self.device.url} write "
                          f"max_pulse_us N (hard limit {lim['hard_max_pulse_us'] / 1e6:g} s)")
 
     def configure(self, exposures, lights=None, light_current_mA=500, mode="camera", retries=1,

@@ -220,3 +220,34 @@ def test_no_sphere_in_view_is_refused_with_what_to_give():
     flat = np.stack([_textured_background(s) for s in range(4)])
     with pytest.raises(ValueError, match="circle|outline|highlight"):
         mirror_sphere_directions(flat)
+
+
+@pytest.mark.parametrize("background", [None, _dark_background, _textured_background],
+                         ids=["card", "dark", "textured"])
+@pytest.mark.parametrize("circle", [(CENTER[1], CENTER[0], R), (CENTER[0] + 8, CENTER[1], R),
+                                    (CENTER[0], CENTER[1], 0.7 * R)], ids=["x-y-swapped", "8px-off", "too-small"])
+def test_a_circle_given_that_the_highlights_cannot_be_on_is_refused(background, circle):
+    dirs = nominal_light_directions()
+    stack = _nominal_stack() if background is None else _sphere_on(background(), dirs)
+    with pytest.raises(ValueError, match="not the outline|below the horizon|leaves out the highlights") as err:
+        mirror_sphere_directions(stack, circle=circle)
+    if "not the outline" in str(err.value):            # it names the outline the photographs show
+        found = [float(v) for v in str(err.value).split("rim is at ")[1].split(" ")[0].split(",")]
+        assert np.allclose(found, [*CENTER, R], atol=1.5), found
+
+
+def test_a_circle_a_pixel_off_is_taken_and_a_highlight_outside_it_refused():
+    dirs = nominal_light_directions()
+    got, _, _ = mirror_sphere_directions(_nominal_stack(), circle=(CENTER[0] + 1, CENTER[1], R))
+    assert _angle_deg(got, dirs).max() < 3.0
+    far = np.array([[np.sin(np.radians(70)), 0.0, np.cos(np.radians(70))]] * 3)   # highlights near the rim
+    stack = _mirror_stack(far, supersample=2)
+    with pytest.raises(ValueError, match="leaves out the highlights|not the outline"):
+        mirror_sphere_directions(stack, circle=(CENTER[0] - 20, CENTER[1], R - 20))
+
+
+def test_lights_below_the_horizon_are_refused():
+    from facette.calib.mirror_sphere import _check_horizon
+    dirs = np.array([[0.0, 0.0, 1.0], [0.99, 0.0, -0.14]])
+    with pytest.raises(ValueError, match="1 of 2 lights below the horizon.*photographs 2"):
+        _check_horizon(Circle(10, 10, 5), dirs)

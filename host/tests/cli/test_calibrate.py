@@ -17,6 +17,14 @@ def no_rig(monkeypatch):
     (["--only", "noise,focus"], "unknown step(s) ['focus']"),
     (["--sim-raw-size", "10"], "--sim-raw-size: '10' is not a size"),
     (["--sim-speed", "-1"], "'-1' must be > 0"),
+    (["--current", "0"], "--current 0 mA is outside 1..1500 mA"),          # issue 51: each was taken (or a
+    (["--current", "99999"], "outside 1..1500 mA"),                         # traceback) before
+    (["--leds", "-3"], "--leds must be in [4, 16]"),
+    (["--led-distance", "nan"], "--led-distance must be > 0"),
+    (["--led-distance", "-5"], "--led-distance must be > 0"),
+    (["--sim-intensity-error", "nan"], "--sim-intensity-error must be in [0, 1]"),
+    (["--sim-direction-error", "-1"], "--sim-direction-error must be in [0, 45]"),
+    (["--sim-seed", "-1"], "--sim-seed must be >= 0"),
 ])
 def test_bad_arguments(no_rig, capsys, tmp_path, args, words):
     try:

@@ -79,3 +79,23 @@ def test_ctrl_c_is_130(monkeypatch, capsys):
     monkeypatch.setattr(bench, "run", run)
     assert cli.main(["bench", "x"]) == 130
     assert "interrupted" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command, words", [("scan", "the same command resumes the scan"),
+                                            ("process", "the same command redoes it"),
+                                            ("batch", "the same command processes the others"),
+                                            ("relight", "nothing of yours was changed")])
+def test_ctrl_c_says_what_it_leaves_for_each_command(monkeypatch, capsys, command, words):
+    import importlib
+
+    from facette.cli.main import COMMANDS
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(importlib.import_module(COMMANDS[command][0]), "run", interrupted)
+    argv = {"scan": ["scan", "--sim", "x"], "process": ["process", "x", "-o", "y"], "batch": ["batch", "x", "-o", "y"],
+            "relight": ["relight", "x.ptm"]}[command]
+    assert cli.main(argv) == 130
+    err = capsys.readouterr().err
+    assert err.startswith(f"facette {command}: interrupted; ") and words in err
+    assert command == "scan" or "scan resumes" not in err

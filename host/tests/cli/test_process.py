@@ -238,3 +238,108 @@ def test_the_default_brdf_model_is_the_one_photometric_stereo_found(tmp_path, ca
     assert doc["photometric_stereo"]["materials"][0]["diffuse"] == "lambert"
     assert doc["model"] == "cook_torrance" and doc["models_tried"][0]["model"] == "cook_torrance", doc["models_tried"]
     assert abs(doc["parameters"]["sigma"] - 0.05) < 0.01
+
+
+# ---------------------------------------------------------------- issue 51: values checked, advice that works
+def _free_port():
+    import socket
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--memory", "1TB"], "more than this machine's"),
+    (["--memory", "5000GB"], "more than this machine's"),
+    (["--memory", "0GB"], "at least 1 byte"),
+    (["--memory", "2 apples"], "a size such as 2GB"),
+    (["--scheduler", "udp://host:8786", "--memory", "2GB"], "not a scheduler's address"),
+    (["--scheduler", "tcp://:8786", "--memory", "2GB"], "not a scheduler's address"),
+])
+def test_sizes_and_addresses_are_checked_before_any_work(capsys, folders, tmp_path, unchanged, args, words):
+    with unchanged(folders["good"], tmp_path):
+        code, out, err = run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r", *args)
+    assert code == 2 and words in err and len(err.splitlines()) == 2, err
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_scheduler_nothing_listens_at_is_bad_input_not_a_bug(capsys, folders, tmp_path, unchanged):
+    address = f"tcp://127.0.0.1:{_free_port()}"
+    with unchanged(folders["good"], tmp_path):
+        code, out, err = run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r", "--memory", "2GB",
+                                 "--scheduler", address)
+    assert code == 2 and f"--scheduler {address}: nothing listens at" in err and "Traceback" not in err, err
+    assert "leave --scheduler out" in err
+    with unchanged(folders["good"]):               # the hint followed: without --scheduler it runs here
+        assert run_cli(capsys, "process", folders["good"], "-o", tmp_path / "r", "--memory", "2GB",
+                       "--outputs", "normals")[0] == 0
+
+
+def test_ctrl_c_says_what_the_same_command_does_and_it_does(capsys, folders, tmp_path, unchanged, monkeypatch):
+    import facette.pipeline._process as proc
+
+    def interrupt(*a, **k):
+        raise KeyboardInterrupt
+    argv = ["process", folders["good"], "-o", tmp_path / "r", "--outputs", "normals,mask", "--method", "woodham1980"]
+    with unchanged(folders["good"]):
+        with monkeypatch.context() as m:
+            m.setattr(proc, "write_mask", interrupt)
+            code, out, err = run_cli(capsys, *argv)
+        assert code == 130 and "the same command redoes it" in err and "scan resumes" not in err, err
+        assert json.loads((tmp_path / "r" / "process.json").read_text())["state"] == "running"
+        code, out, err = run_cli(capsys, *argv)       # what the message says: the same command
+    assert code == 0, err
+    assert json.loads((tmp_path / "r" / "process.json").read_text())["state"] == "done"
+    assert sorted(p.name for p in (tmp_path / "r").iterdir()) == ["mask.png", "normal.exr", "process.json"]
+
+
+def test_foreign_files_hint_works(capsys, folders, tmp_path, unchanged):
+    out = tmp_path / "r"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    with unchanged(folders["good"], out):
+        code, _, err = run_cli(capsys, "process", folders["good"], "-o", out, "--outputs", "normals")
+    assert code == 2 and "--overwrite to write beside them" in err
+    with unchanged(folders["good"]):
+        assert run_cli(capsys, "process", folders["good"], "-o", out, "--outputs", "normals", "--overwrite")[0] == 0
+    assert (out / "notes.txt").read_text() == "mine" and (out / "normal.exr").is_file()   # beside them
+
+
+def test_the_input_folder_as_output_hint_works(capsys, folders, tmp_path, unchanged):
+    import shutil
+    src = tmp_path / "src"
+    shutil.copytree(folders["good"], src)
+    with unchanged(src):
+        code, _, err = run_cli(capsys, "process", src, "-o", src, "--outputs", "normals")
+        assert code == 2 and "never writes its inputs" in err
+        hinted = err.split("e.g. ")[1].split()[0]
+        assert hinted == str(tmp_path / "src-results")
+        assert run_cli(capsys, "process", src, "-o", hinted, "--outputs", "normals")[0] == 0
+
+
+def test_a_damaged_record_hint_works(capsys, folders, tmp_path, unchanged):
+    out = tmp_path / "r"
+    out.mkdir()
+    (out / "process.json").write_text("{not json")
+    with unchanged(folders["good"], out):
+        code, _, err = run_cli(capsys, "process", folders["good"], "-o", out, "--outputs", "normals")
+    assert code == 2 and "process.json is damaged" in err and "pass --overwrite" in err, err
+    with unchanged(folders["good"]):               # the hint followed
+        code, _, err = run_cli(capsys, "process", folders["good"], "-o", out, "--outputs", "normals", "--overwrite")
+    assert code == 0, err
+    assert json.loads((out / "process.json").read_text())["state"] == "done"
+
+
+def test_a_mask_inside_the_output_folder_hint_works(capsys, folders, tmp_path, unchanged):
+    import shutil
+    out = tmp_path / "r"
+    out.mkdir()
+    shutil.copy(folders["good"] / "mask.png", out / "m.png")
+    with unchanged(folders["good"], out):
+        code, _, err = run_cli(capsys, "process", folders["good"], "-o", out, "--mask", out / "m.png",
+                               "--outputs", "normals")
+    assert code == 2 and "keep the mask elsewhere" in err, err
+    shutil.move(out / "m.png", tmp_path / "m.png")   # the hint followed
+    with unchanged(folders["good"], tmp_path / "m.png"):
+        assert run_cli(capsys, "process", folders["good"], "-o", out, "--mask", tmp_path / "m.png",
+                       "--outputs", "normals")[0] == 0

@@ -9,7 +9,7 @@ import pytest
 
 import facette.scan
 from facette.cli import _scan
-from facette.cli.main import main
+from facette.cli.main import build_parser, main
 
 REPO = Path(__file__).resolve().parents[3]
 
@@ -195,3 +195,27 @@ def test_a_memory_budget_that_is_not_a_size_is_refused_before_the_rig_starts(no_
     code, err = _cli(capsys, "scan", "--sim", "--memory", "2 apples", tmp_path / "s")
     assert code == 2 and "--memory" in err and "2GB" in err, err
     assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("memory, words", [("100MB", "cannot hold the processing after the last frame"),
+                                           ("1TB", "more than this machine's")])
+def test_a_memory_budget_processing_cannot_keep_is_refused_before_the_scan(no_rig, capsys, tmp_path, memory, words):
+    code, err = _cli(capsys, "scan", "--sim", "--memory", memory, tmp_path / "s")
+    assert code == 2 and words in err, err
+    assert not (tmp_path / "s").exists()
+    if "give --memory" in err:             # the hint followed: its budget passes the checks made before the rig
+        hinted = err.split("give --memory ")[1].split()[0]
+        args = build_parser("scan").parse_args(["scan", "--sim", "--memory", hinted,
+                                                                     str(tmp_path / "s")])
+        assert _scan._check_arguments(args) is not None
+        code, err = _cli(capsys, "scan", "--sim", "--memory", memory, "--no-process", tmp_path / "s2")
+        assert "cannot hold" not in err and "a rig was started" in err    # --no-process, the other advice: checks pass
+
+
+def test_a_processing_that_failed_after_the_scan_says_the_scan_is_kept(tmp_path):
+    from facette.errors import BadInputError, InsufficientData
+    exc = _scan._scan_kept(BadInputError("0.50 GB cannot hold ...", hint="give at least 0.72 GB"), tmp_path / "s")
+    assert f"the scan is complete and kept in {tmp_path / 's'}" in exc.message
+    assert exc.hint.endswith(f"then process it with: facette process {tmp_path / 's'} -o {tmp_path / 's' / 'results'}")
+    exc = _scan._scan_kept(InsufficientData("too few lights", hint="capture with more lights"), tmp_path / "s")
+    assert exc.hint == "capture with more lights"        # the scan cannot give results: no command to redo

@@ -8,7 +8,8 @@ from facette.cli.main import main
 @pytest.mark.parametrize("args, words", [
     (["--speed", "0"], "--speed: '0' must be > 0"),
     (["--raw-size", "0x0"], "even and at least 8"),
-    (["--seed", "x"], "invalid int value"),
+    (["--seed", "x"], "'x' is not a whole number"),
+    (["--seed", "-1"], "--seed must be >= 0"),
 ])
 def test_bad_arguments(capsys, args, words):
     with pytest.raises(SystemExit) as exc:

@@ -88,9 +88,9 @@ def test_cli_exit_status_names_the_failed_scan(collection, tmp_path, capsys):
     assert status == 1
     assert "2 scans: 1 processed, 0 already done, 1 failed" in captured.out
     assert "failed: corrupted: BadInputError:" in captured.err
-    assert main(["batch", str(tmp_path / "nowhere"), "-o", str(out), "--quiet",
-                 "--outputs", "normals"]) == 1
-    assert "no scan.json" in capsys.readouterr().err
+    assert main(["batch", str(tmp_path / "nowhere"), "-o", str(out), "--quiet",     # bad input, before any
+                 "--outputs", "normals"]) == 2                                      # worker starts (issue 51)
+    assert "nowhere (no such folder)" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:          # checked by argparse, as `facette process` does
         main(["batch", str(collection[2]), "-o", str(out), "--outputs", "normal"])
     assert exc.value.code == 2 and "unknown output" in capsys.readouterr().err

@@ -174,7 +174,7 @@ def test_a_scan_being_acquired_is_said_so_not_resume(tmp_path, capsys):
         assert main(["process", str(folder), "-o", str(tmp_path / "o"), "--outputs", "normals"]) == EXIT_BAD_INPUT
         err = capsys.readouterr().err
         assert f"is being acquired by another facette process (pid {holder.pid}): 1 of 12 frames so far" in err
-        assert "wait for the scan to finish" in err and "resume" not in err
+        assert "wait for the scan command to end" in err and "resume" not in err and "--allow-incomplete" not in err
     finally:
         holder.kill()
         holder.wait()
