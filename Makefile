@@ -14,7 +14,7 @@ SCAN_SIZE ?= 1024x768
 GLTF_VALIDATOR := tools/gltf-validator
 
 .PHONY: lock setup deps venv firmware-posix generate check-generated check-layers test c-test fuzz fuzz-smoke \
-        pytest firmware qemu-test check-fw-layers scan calibrate bench clean help node-deps docs docs-check
+        pytest firmware qemu-test check-fw-layers scan calibrate bench clean help node-deps docs docs-check warmup
 
 help:
 	@echo "make scan             one-button scan on the simulated rig, then processing"
@@ -30,7 +30,16 @@ help:
 	@echo "make generate         regenerate protocol files from protocol/registers.toml"
 	@echo "make check-layers     host imports only go down the layers of docs/ARCHITECTURE.md"
 
-setup: deps venv node-deps firmware-posix
+setup: deps venv node-deps firmware-posix warmup
+
+# every numba kernel compiled once and cached (__pycache__ beside each module, git-ignored), so
+# that the first `facette process` does not compile them (a fresh clone's first run: see
+# facette/pipeline/_warmup.py). Again after each change of the kernels' files.
+warmup: $(VENV)/.warmed
+
+$(VENV)/.warmed: $(VENV)/.installed $(wildcard host/facette/*_jit.py host/facette/*/*_jit.py)
+	$(PY) -m facette.pipeline._warmup
+	touch $@
 
 deps:
 	@tools/install-debian-deps.sh

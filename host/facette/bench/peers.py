@@ -1,7 +1,8 @@
 """`facette bench peers`: published photometric-stereo methods beside ours, with the papers' figures.
 
 DiLiGenT (the shared objects: the 16-bit ball and the 8-bit crops, found as `facette bench
-diligent` finds them, the same grey input): per object and method the mean angular error and
+diligent` finds them, the same grey input; each 16-bit object also cut to 8 bits as the crops
+were, floor(value / 256), the row "16-bit cut to": what 8 bits cost on the same object): per object and method the mean angular error and
 the run time, and for the peers the figure their paper reports on that object (Shi et al.'s
 DiLiGenT table, all 96 lights, full 16-bit images; `facette.bench.diligent.PUBLISHED_OTHERS`).
 Methods: least squares, rank_trimmed (the default), li_alternating (the BRDF-aware solve) and
@@ -19,7 +20,9 @@ every image; the share of such pixels is printed with each scene.
 """
 import argparse
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.ndimage import binary_erosion
@@ -38,6 +41,13 @@ PAPER_OF = {"bipolynomial_shi2014": "Shi 2014 bi-polynomial", "bivariate_ikehata
             "consensus_higo2010": "Higo 2010 consensus"}
 
 
+def read_bit_depth(folder):
+    """8 or 16: the bit depth of the folder's first image."""
+    from facette.io.png import read_png
+    first = (folder / "filenames.txt").read_text().split()[0]
+    return 16 if read_png(folder / first).dtype == np.uint16 else 8
+
+
 def paper_figure(method, obj):
     """The paper's mean error (deg) for a peer on a DiLiGenT object, or None."""
     key = PAPER_OF.get(PS_METHODS.canonical(method)) if method in PS_METHODS else None
@@ -46,8 +56,27 @@ def paper_figure(method, obj):
     return PUBLISHED_OTHERS[key][PAPER_OBJECTS.index(obj)]
 
 
-def diligent_table(methods, root):
+def requantised(folder, dest):
+    """A copy of the DiLiGenT folder at dest with every 16-bit image cut to 8 bits as the shared
+    crops were made (floor(value / 256)): what the 8-bit crops cost, on the same object."""
+    import shutil
+    from facette.io.png import read_png, write_png
+    dest.mkdir(parents=True)
+    for f in folder.iterdir():
+        if f.suffix.lower() == ".png" and f.name != "mask.png":
+            img = read_png(f)
+            write_png(dest / f.name, (img // 256).astype(np.uint8) if img.dtype == np.uint16 else img)
+        elif f.is_file():
+            shutil.copy(f, dest / f.name)
+    return dest
+
+
+def diligent_table(methods, root, tmp=None):
     objects = [(f, t) for f, t in find_objects(root) if t is not None]
+    if tmp is not None:     # each 16-bit object again, cut to 8 bits (its truth beside it)
+        for f, t in [(f, t) for f, t in objects if read_bit_depth(f) == 16]:
+            q = requantised(f, Path(tmp) / "requantised_to_8_bit" / f.name)
+            objects.append((q, t))
     if not objects:
         print(f"no DiLiGenT-style folder with truth under {root}; give one with --root DIR")
         return 1
@@ -58,14 +87,16 @@ def diligent_table(methods, root):
     for folder, truth in objects:
         rows, _, data = run_object(folder, truth, methods, "all")
         obj = object_name(folder)
-        line = f"{folder.parent.name + '/' + obj + f' {data.bit_depth}-bit':28s}"
+        place = "16-bit cut to" if folder.parent.name == "requantised_to_8_bit" else folder.parent.name + "/"
+        line = f"{place + obj + f' {data.bit_depth}-bit':28s}"
         for name, mean, _, dt in rows:
             pub = paper_figure(name, obj)
             cell = f"{mean:6.2f} {dt:6.1f}s" + (f" [{pub:5.2f}]" if pub is not None else " " * 8)
             line += f" | {cell:>24s}"
-            sums[name].append((mean, dt, pub))
+            if data.bit_depth == 8 and place != "16-bit cut to":      # the shipped 8-bit crops
+                sums[name].append((mean, dt, pub))
         print(line, flush=True)
-    line = f"{'mean':28s}"
+    line = f"{'mean of the 8-bit crops':28s}"
     for m in methods:
         errs = [r[0] for r in sums[m]]
         pubs = [r[2] for r in sums[m]]
@@ -121,7 +152,8 @@ def main(argv=None):
         raise SystemExit(f"unknown method {unknown[0]!r}; choose from {', '.join(sorted(PS_METHODS))}")
     status = 0
     if not args.no_real:
-        status |= diligent_table(methods, args.root or default_root())
+        with tempfile.TemporaryDirectory() as tmp:
+            status |= diligent_table(methods, args.root or default_root(), tmp)
     if not args.no_mitsuba:
         status |= mitsuba_table(methods, args.cache, args.size, args.spp)
     return status

@@ -45,6 +45,7 @@ from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._budget import with_default_budget
 from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.capture import LP_NAME, load_input, object_of
+from facette.pipeline._confidence import normal_channels, uncertainty_stage
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
 from facette.pipeline._light_gains import with_light_gains
@@ -92,18 +93,17 @@ def stages_needed(outputs):
 class ProcessResult:
     """What `process` computed. Arrays at the input image size (H, W):
 
-    normals (H, W, 3) unit vectors, camera frame (0 where not valid); albedo (H, W, 3); mask (H, W) bool,
-    normals inside the input mask, measured or `filled` ((H, W) bool or None: pipeline._filled); object_mask
-    (H, W) bool, the object in it (mask.png: the mask without the dark table or cloth `auto_masks` finds
-    around the object; the mask itself where there is none, or a mask was given); height (H, W) mm or None;
-    mesh (vertices, faces) or None; filtered `FilteredReflectance` or None; samples raw
-    `ReflectanceSamples` subset or None; brdf a facette.fit FitResult or None; ps the full `PSResult`;
-    timings {stage: seconds}; files {output: path}; errors {name: value} against the
-    scan's truth.npz when present (angular error in degrees, height RMS in mm); ptm a PTMFit, hsh
-    an HSHFit (--memory: every k-th pixel, _rti_bands) or None; fit_errors {name: value}: rel. RMS of
-    the PTM / HSH relighting against the (fall-off corrected) HDR images on the object (above
-    6.3 M values, on an even sample of rows: `recon.RELIGHT_ERROR_VALUES`); interreflections the
-    figures of `without_interreflections` when it was asked for, else None; light_gains: pipeline._light_gains's.
+    normals (H, W, 3) unit vectors, camera frame (0 where not valid); albedo (H, W, 3); mask (H, W) bool, normals inside
+    the input mask, measured or `filled` ((H, W) bool or None: pipeline._filled); object_mask (H, W) bool, the object in
+    it (mask.png: the mask without the dark table or cloth `auto_masks` finds around the object; the mask itself where
+    there is none, or a mask was given); height (H, W) mm or None; mesh (vertices, faces) or None; filtered
+    `FilteredReflectance` or None; samples raw `ReflectanceSamples` subset or None; brdf a facette.fit FitResult or
+    None; ps the full `PSResult`; timings {stage: seconds}; files {output: path}; errors {name: value} against the
+    scan's truth.npz when present (angular error in degrees, height RMS in mm); ptm a PTMFit, hsh an HSHFit (--memory:
+    every k-th pixel, _rti_bands) or None; fit_errors {name: value}: rel. RMS of the PTM / HSH relighting against the
+    (fall-off corrected) HDR images on the object (above 6.3 M values, on an even sample of rows:
+    `recon.RELIGHT_ERROR_VALUES`); interreflections the figures of `without_interreflections` when it was asked for,
+    else None; light_gains: pipeline._light_gains's.
     """
     normals: np.ndarray = None
     albedo: np.ndarray = None
@@ -130,6 +130,7 @@ class ProcessResult:
     rti_exposure: object = None       # the relighting files' scale (pipeline._rti_exposure.Exposure)
     filled: np.ndarray = None
     relight_model: object = None
+    uncertainty: np.ndarray = None      # (H, W) deg, each normal's 90 % band, or None: pipeline._confidence
 
 
 def _fit_stage(filtered, fit_options, brdf_aware=False, material=None):
@@ -327,6 +328,7 @@ def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, 
              t_all, cpu_all, relight=None):
     """The stages after photometric stereo, the checks against truth and the files (relight:
     the fits of pipeline._rti_bands, when --memory made them over bands)."""
+    uncertainty_stage(res, direct, light_dirs, o.saturation)      # direct None (over bands): a note
     drawn = {}         # report sections drawn by the concurrent stages
     if out_dir is not None:            # before the first file: whose files these will be
         mark_running(Path(out_dir), record_options, inp, [FILES[name] for name in outputs if name in FILES])
@@ -362,8 +364,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
     receives the report sections they draw; `o` the ProcessOptions. The notes, in the stages' order."""
     integration, mesh_step = o.integration, o.mesh_step
     out = None if out_dir is None else Path(out_dir)
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
+    if out is not None: out.mkdir(parents=True, exist_ok=True)     # noqa: E701
     write = _writers(res, out, outputs, o.ascii_ply, relight)
 
     def shape():
@@ -473,7 +474,7 @@ def _writers(res, out, outputs, ascii_ply, relight=None):
     how = {
         # uncompressed: float32 maps of a real surface are noise to ZIP (12 MP normal, albedo
         # and height: 80.4 MB zipped against 85.6 MB, 1.1 s against 0.12 s to write)
-        "normals": lambda p: write_exr(p, res.normals, ("X", "Y", "Z"), header=meta, compression="none"),
+        "normals": lambda p: write_exr(p, *normal_channels(res), header=meta, compression="none"),
         "albedo": lambda p: write_exr(p, res.albedo, ("R", "G", "B"), header=meta, compression="none"),
         "height": lambda p: write_exr(p, res.height, ("Z",), header={**meta, "unit": "mm"}, compression="none"),
         "mask": lambda p: write_mask(p, res.object_mask, {"Comment": comment} if res.inputs.incomplete else None,

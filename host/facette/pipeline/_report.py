@@ -18,6 +18,7 @@ from facette._memory import decimated, masked_values
 from facette.io.atomic import write_text_atomic
 from facette.fit import FitModel, cell_spread_directions
 from facette.capture import NO_PITCH_NOTE
+from facette.pipeline._confidence import confidence_maps
 from facette.pipeline._viewer import viewer_data, viewer_section
 from facette.recon import srgb_encode
 
@@ -583,10 +584,8 @@ def write_report(res, path, fit_html=None):
     albedo = decimated(res.albedo, st)
     top = float(np.percentile(albedo[mask], 99)) if mask.any() else 1.0
     figs.append(_map("Albedo (scaled to the 99th percentile)", np.clip(albedo / max(top, 1e-12), 0, 1)))
-    resid = np.where(mask, decimated(ps.residual, st), np.nan)
-    figs.append(_map("Least-squares relative residual (confidence: low is Lambertian)", resid,
-                     cmap="magma", vmin=0,
-                     vmax=max(float(np.nanpercentile(resid, 99)) if mask.any() else 1, 1e-6)))
+    for args, kwargs in confidence_maps(res, st, mask, np.where(mask, decimated(ps.residual, st), np.nan)):
+        figs.append(_map(*args, **kwargs))
     if ps.method.startswith("hierarchical"):
         figs.append(_map("Triplets kept", np.where(mask, decimated(ps.n_triplets, st), np.nan),
                          cmap="viridis"))

@@ -21,6 +21,7 @@ from ._ps import PSResult, ps_woodham1980, ps_hierarchical_tautzia2016, triplet_
 from ._ps_robust import ps_rpca_wu2010, ps_rank_trimmed
 from ._ps_peers import ps_bipolynomial_shi2014, ps_bivariate_ikehata2014   # published peers
 from ._ps_consensus import ps_consensus_higo2010
+from ._uncertainty import normal_uncertainty, uncertainty_summary   # how far each normal may be off
 from ._integrate import (normals_to_gradients, integrate_frankot_chellappa1988,
                          integrate_simchony1990, integrate_poisson_flat_margin, integrate_least_squares,
                          integrate, INTEGRATION_DEFAULT, INTEGRATION_METHODS, mesh_from_height, MESH_MAX_SLOPE,
@@ -36,7 +37,7 @@ from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, 
                    relight_error_parts, relight_ptm, relight_hsh, relight_error, HSH_ORDERS, RELIGHT_ERROR_VALUES,
                    relight_error_step, RTI_ENCODINGS, srgb_encode, srgb_decode, display_ptm, display_hsh)
 
-__all__ = ["PSResult", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
+__all__ = ["PSResult", "normal_uncertainty", "uncertainty_summary", "ps_woodham1980", "ps_hierarchical_tautzia2016", "ps_rpca_wu2010",
            "ps_rank_trimmed", "ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "ps_consensus_higo2010",
            "triplet_inverses", "dark_offsets", "dark_level_notes", "fill_normals", "FILL_TOLERANCE",
            "near_light_directions",

@@ -8,7 +8,11 @@
     and the normal is the one whose best α leaves the smallest residual (variable projection,
     Levenberg-Marquardt on two tangent angles from the least-squares normal of those lights).
 `ps_bivariate_ikehata2014` : Ikehata, Aizawa, "Photometric stereo using constrained bivariate
-    regression for general isotropic surfaces", CVPR 2014 (IA14). Seen from the fixed view v,
+    regression for general isotropic surfaces", CVPR 2014 (IA14). By default (form="paper") as the
+    paper states it, step by step with its constants (`facette.recon._ia14_paper`, from
+    ../shared/reference/PEERS.md §1: orders (1, 5), the retro-reflection test): DiLiGenT's 16-bit
+    ball 3.15° against the paper's 3.34°, the five 8-bit crops 9.94° against 8.70° (cat 6.64/6.74,
+    pot2 8.96/8.77; buddha and reading 2.9° and 4.3° worse). form="variant", this module's first reading: Seen from the fixed view v,
     n·v is constant per pixel, so n·h_i = (n·l_i + n·v) / (2 l_i·h_i) and an isotropic
     (sum-of-lobes) pixel's value is a function of (n·l_i, l_i·v) alone, increasing in n·l_i;
     its inverse representation n·l_i = Ψ(E_i, l_i·v) separates the normal from the reflectance.
@@ -39,6 +43,7 @@ import numpy as np
 
 from facette._threads import run_blocks
 
+from ._ia14_paper import IA14_ORDERS, ia14_paper_normals
 from ._ps import _albedo, _check_inputs, _empty_result, _gather, _scatter, _usable
 from ._ps_robust import _unit, _wls
 
@@ -348,7 +353,7 @@ def _ia14_qp(basis, wb, lights, ll_safe, ke, kv, iterations):
 
 def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, saturation=None,
                              degrees=IA14_DEGREES, t_shadow=T_SHADOW, constrained=True,
-                             qp_iterations=300):
+                             qp_iterations=300, form="paper"):
     """Constrained bivariate regression (Ikehata, Aizawa, CVPR 2014; IA14).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
@@ -358,7 +363,12 @@ def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, satura
         l·v (rescaled to [0, 1] over the lights); k_v is 0 when every light has the same l·v.
         Default (5, 0) (see IA14_DEGREES).
     constrained : Ψ(0, ·) = 0 and increasing in E (a QP, the paper's); False: unconstrained.
-    qp_iterations : accelerated projected-gradient iterations of the QP at most.
+    qp_iterations : iterations of the QP (ADMM for "paper", accelerated projected gradient at most
+        for "variant").
+    form : "paper" (default): the paper's QP over [n; β] with its orders (N_y, N_z) = (1, 5) in l·v
+        and E / max E, monotone in both, Σ x = 1, and its retro-reflection test
+        (`facette.recon._ia14_paper`; `degrees` and `constrained` unused); "variant": the form below
+        (Ψ of E alone, the normal eliminated, a QP on the simplex), this module's first version.
     t_shadow : values below t_shadow x the pixel's brightest usable value are shadows (left out).
     Returns a `PSResult`: normal (facing the camera); albedo (Lambertian ρ per channel on the lit
     lights); valid (False where fewer lit lights than the unknowns + 3, or all black); shadow =
@@ -375,6 +385,8 @@ def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, satura
     """
     if not 0 <= t_shadow < 1:
         raise ValueError(f"t_shadow must be in [0, 1) (share of the pixel's brightest value), got {t_shadow}")
+    if form not in ("paper", "variant"):
+        raise ValueError(f"form must be 'paper' or 'variant', got {form!r}")
     ke, kv = (int(x) for x in degrees)
     if ke < 1 or kv < 0:
         raise ValueError(f"degrees must be (k_e >= 1, k_v >= 0), got {degrees}")
@@ -389,7 +401,8 @@ def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, satura
     yv = (lv - lv.min()) / span if span >= 1e-3 else np.zeros(m)
     bv = _bernstein(yv, kv)                                       # (m, kv + 1)
     p = ke * (kv + 1)
-    res.info = {"pixels": int(idx.size), "degrees": (ke, kv), "non_monotone": 0.0}
+    res.info = {"pixels": int(idx.size), "degrees": IA14_ORDERS if form == "paper" else (ke, kv),
+                "non_monotone": 0.0, "form": form}
     if idx.size == 0:
         return res
     ok, e, lit = _lit_values(e, saturation, t_shadow)
@@ -408,7 +421,11 @@ def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, satura
         good = wb.sum(1) >= p + 3
         ll = np.einsum("nm,mi,mj->nij", wb, lights, lights)       # L^T W L  (N, 3, 3)
         ll_safe = np.where(good[:, None, None], ll, np.eye(3))
-        if constrained:
+        if form == "paper":
+            good = wb.sum(1) >= 3 + (IA14_ORDERS[0] + 1) * IA14_ORDERS[1] + 3
+            nb, cost = ia14_paper_normals(eb * wb, wb, lights, IA14_ORDERS, True, qp_iterations)
+            coef = np.zeros((len(nb), ke * (kv + 1)))
+        elif constrained:
             nb, coef, cost = _ia14_qp(basis, wb, lights, ll_safe, ke, kv, qp_iterations)
         else:
             nb, coef, cost = _ia14_eigen(basis, wb, lights, ll, ll_safe, p)

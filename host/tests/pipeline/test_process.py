@@ -41,7 +41,8 @@ def test_cli_processes_a_diligent_folder_end_to_end(diligent_dir, tmp_path, caps
     text = capsys.readouterr().out
     assert "diligent" in text and "valid pixels" in text
     normals, names = read_exr(out / "normal.exr")
-    assert names == ("X", "Y", "Z") and normals.shape == (48, 64, 3)
+    assert names == ("X", "Y", "Z", "uncertainty_deg") and normals.shape == (48, 64, 4)
+    normals = normals[..., :3]
     got_mask = read_mask(out / "mask.png")
     assert not got_mask[:2].any() and got_mask[mask].mean() > 0.97
     err = angular_error_deg(normals, sc.normals, got_mask)

@@ -97,3 +97,30 @@ def test_empty_mask_gives_an_empty_result():
     for method in PEERS:
         res = photometric_stereo(img, lights, method=method, mask=np.zeros((8, 8), bool))
         assert not res.valid.any()
+
+
+def test_ia14_paper_form_and_the_variant_recover_a_glossy_sphere():
+    n, mask = sphere()
+    lights = scene_lights()
+    img = blinn_phong(n, lights, noise=0.005)
+    ls = _mean_error(photometric_stereo(img, lights, method="woodham1980", mask=mask), n, mask)
+    for form in ("paper", "variant"):
+        res = photometric_stereo(img, lights, method="ia14", mask=mask, form=form)
+        assert res.info["form"] == form
+        assert _mean_error(res, n, mask & res.valid) < 0.5 * ls
+    with pytest.raises(ValueError, match="form"):
+        photometric_stereo(img, lights, method="ia14", mask=mask, form="lsqlin")
+
+
+def test_ia14_retro_test_keeps_the_better_run():
+    from facette.recon._ia14_paper import ia14_paper_normals
+    n, mask = sphere(16)
+    lights = scene_lights(40)
+    img = blinn_phong(n, lights)
+    e = img[:, mask].T.astype(np.float64)
+    w = (e > 0.02 * e.max(axis=1, keepdims=True)).astype(float)
+    one, r_one = ia14_paper_normals(e, w, lights, retro=False)
+    both, r_both = ia14_paper_normals(e, w, lights, retro=True)
+    assert np.all(r_both <= r_one + 1e-12)
+    err = np.degrees(np.arccos(np.clip(np.sum(both * n[mask], 1), -1, 1)))
+    assert np.median(err) < 3.0
