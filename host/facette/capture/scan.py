@@ -152,6 +152,8 @@ def _lights_checked(ids, by_index, notes):
     """The frames' lights after the checks every capture's lights pass (`io.lights.check_lights`):
     those below the horizon (a direction or a position with z < 0: a profile measured wrong or a
     sign flipped) left out, said; (ids kept, notes)."""
+    if len(ids) < 3:      # a scan stopped early: photometric stereo says how many it needs (exit 3)
+        return list(ids), notes
     dirs = np.array([by_index[i].direction for i in ids], dtype=np.float64).reshape(-1, 3)
     for k, i in enumerate(ids):
         pos = by_index[i].position_mm

@@ -46,6 +46,7 @@ from facette.pipeline._budget import with_default_budget
 from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.capture import LP_NAME, load_input, object_of
 from facette.pipeline._confidence import normal_channels, uncertainty_stage
+from facette.pipeline._stages import ALL_OUTPUTS, FILES, OUTPUTS, STAGES_FOR, stages_needed
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
 from facette.pipeline._light_gains import with_light_gains
@@ -61,32 +62,6 @@ from facette.pipeline._relight_model_stage import relight_model_stage, save_reli
 from facette.pipeline._samples import _samples_stage  # bench/recon.py imports it from here too
 
 __all__ = ["OUTPUTS", "ALL_OUTPUTS", "STAGES_FOR", "ProcessOptions", "ProcessResult", "process", "stages_needed"]
-
-OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
-# asked for by name only (not in the default): relight_web/ costs ~0.4 CPU s per megapixel of JPEG
-# tiles, relight_model.npz fits every pixel (the report fits the model at its viewer's size only)
-ALL_OUTPUTS = OUTPUTS + ("relight-web", "relight")
-STAGES_FOR = {
-    "normals": ("load", "ps"), "albedo": ("load", "ps"), "mask": ("load", "ps"),
-    "height": ("load", "ps", "integrate"), "mesh": ("load", "ps", "integrate", "mesh"),
-    "samples": ("load", "ps", "samples"), "brdf": ("load", "ps", "samples", "fit"),
-    # the polynomial files need the images and the object's mask, not the normals
-    "ptm": ("load", "ptm"), "rti": ("load", "hsh"), "relight-web": ("load", "hsh"),
-    "relight": ("load", "ps", "integrate", "relight"), "report": ("load", "ps", "integrate", "relight"),
-    "gltf": ("load", "ps", "integrate", "mesh", "samples", "fit")}
-FILES = {"normals": "normal.exr", "albedo": "albedo.exr", "mask": "mask.png", "height": "height.exr",
-         "mesh": "mesh.ply", "samples": "samples.npz", "brdf": "brdf.json", "ptm": "relight.ptm",
-         "rti": "relight.rti", "relight-web": "relight_web", "relight": "relight_model.npz", "gltf": "model.glb",
-         "report": "report.html"}
-
-def stages_needed(outputs):
-    """Ordered stage names for a list of outputs (unknown names raise ValueError)."""
-    bad = [o for o in outputs if o not in STAGES_FOR]
-    if bad:
-        raise ValueError(f"unknown output(s) {bad}; choose from {', '.join(ALL_OUTPUTS)}")
-    order = ("load", "ps", "integrate", "mesh", "samples", "fit", "ptm", "hsh", "relight")
-    want = {s for o in outputs for s in STAGES_FOR[o]}
-    return [s for s in order if s in want]
 
 
 @dataclass
@@ -328,7 +303,8 @@ def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, 
              t_all, cpu_all, relight=None):
     """The stages after photometric stereo, the checks against truth and the files (relight:
     the fits of pipeline._rti_bands, when --memory made them over bands)."""
-    uncertainty_stage(res, direct, light_dirs, o.saturation)      # direct None (over bands): a note
+    if res.normals is not None and {"normals", "report"} & set(outputs):     # what shows it
+        uncertainty_stage(res, direct, light_dirs, o.saturation)      # direct None (over bands): a note
     drawn = {}         # report sections drawn by the concurrent stages
     if out_dir is not None:            # before the first file: whose files these will be
         mark_running(Path(out_dir), record_options, inp, [FILES[name] for name in outputs if name in FILES])

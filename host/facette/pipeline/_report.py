@@ -16,7 +16,7 @@ import numpy as np
 
 from facette._memory import decimated, masked_values
 from facette.io.atomic import write_text_atomic
-from facette.fit import FitModel, cell_spread_directions
+from facette.fit import FitModel, cell_spread_directions, incidence_spread
 from facette.capture import NO_PITCH_NOTE
 from facette.pipeline._confidence import confidence_maps
 from facette.pipeline._viewer import viewer_data, viewer_section
@@ -141,15 +141,16 @@ def _figures(figs):
 def fit_predictions(filtered, fit, min_count=1, spread=4):
     """The fitted model as the hemispherical sensor sees it, (B, N, C), NaN in cells with fewer
     than min_count samples: the fit's own forward model (facette.fit.FitModel, as
-    fit_hemisphere_cells builds it: the lobe averaged over spread² directions per cell)."""
+    fit_hemisphere_cells builds it: the lobe over spread² directions per cell and incidences per bin)."""
     b, c = np.nonzero(filtered.count >= min_count)
     pred = np.full(filtered.mean.shape, np.nan)
     if b.size:
         o_spread = cell_spread_directions(filtered.edges, filtered.counts, c, spread) if spread else None
+        s_spread = incidence_spread(filtered.edges, b, spread) if spread else None
         model = FitModel(fit.model, filtered.s[b], filtered.o[c], filtered.mean.shape[2],
                          distribution=fit.distribution or "beckmann", masking=fit.masking or "smith",
                          volume=fit.volume or "quadrature", interreflection=bool(fit.interreflection),
-                         o_spread=o_spread)
+                         o_spread=o_spread, s_spread=s_spread)
         kd = np.broadcast_to(np.asarray(fit.params["kd"], dtype=float), (filtered.mean.shape[2],))
         p = [fit.params[k] for k in model.names[:model.n_shared]] + list(kd)
         pred[b, c] = model.predict(np.asarray(p, dtype=float))

@@ -393,6 +393,9 @@ def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, satura
     images, light_dirs, res, idx, e_all, e, sub = _distant_start(images, light_dirs, mask, channel,
                                                                  "ps_bivariate_ikehata2014")
     m = images.shape[0]
+    # the paper's orders need 16 lit values a pixel: under fewer lights, the variant's smaller form
+    paper_short = form == "paper" and m < 3 + (IA14_ORDERS[0] + 1) * IA14_ORDERS[1] + 3
+    form = "variant" if paper_short else form
     lights = light_dirs.astype(np.float64)
     lv = lights @ VIEW
     span = lv.max() - lv.min()
@@ -402,7 +405,7 @@ def ps_bivariate_ikehata2014(images, light_dirs, mask=None, channel=None, satura
     bv = _bernstein(yv, kv)                                       # (m, kv + 1)
     p = ke * (kv + 1)
     res.info = {"pixels": int(idx.size), "degrees": IA14_ORDERS if form == "paper" else (ke, kv),
-                "non_monotone": 0.0, "form": form}
+                "non_monotone": 0.0, "form": form, "paper_form_needs_16_lights": paper_short}
     if idx.size == 0:
         return res
     ok, e, lit = _lit_values(e, saturation, t_shadow)
