@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from facette.errors import BadInputError
+from facette.io.rti import hsh_terms
 
 __all__ = ["write_relight_web", "read_relight_web", "RelightWeb", "openlime_weights", "TILE", "IMAGE_MAX"]
 
@@ -52,19 +53,7 @@ def openlime_weights(kind, light, terms=9):
     phi = np.arctan2(y, x)
     phi = np.where(phi < 0, 2 * pi + phi, phi)
     theta = np.minimum(np.arccos(np.clip(z, -1, 1)), pi / 2 - HSH_MIN_ELEVATION)
-    ct = np.cos(theta)
-    ct2 = ct * ct
-    s = np.sqrt(np.maximum(ct - ct2, 0.0))
-    w = [np.full_like(ct, 1 / np.sqrt(2 * pi)),
-         np.sqrt(6 / pi) * np.cos(phi) * s,
-         np.sqrt(3 / (2 * pi)) * (-1 + 2 * ct),
-         np.sqrt(6 / pi) * s * np.sin(phi),
-         np.sqrt(30 / pi) * np.cos(2 * phi) * (-ct + ct2),
-         np.sqrt(30 / pi) * np.cos(phi) * (-1 + 2 * ct) * s,
-         np.sqrt(5 / (2 * pi)) * (1 - 6 * ct + 6 * ct2),
-         np.sqrt(30 / pi) * (-1 + 2 * ct) * s * np.sin(phi),
-         np.sqrt(30 / pi) * (-ct + ct2) * np.sin(2 * phi)]
-    return np.stack(w[:terms], axis=-1)
+    return hsh_terms(phi, np.cos(theta), terms, pi)
 
 
 def _jpeg(path, rgb, quality):

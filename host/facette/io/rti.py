@@ -20,7 +20,7 @@ from facette.errors import BadInputError
 from facette.io.atomic import atomic_path
 from facette.io.ptm import column_range
 
-__all__ = ["write_hsh_rti", "write_hsh_rti_rows", "read_hsh_rti", "HSHFile", "hsh_weights"]
+__all__ = ["write_hsh_rti", "write_hsh_rti_rows", "read_hsh_rti", "HSHFile", "hsh_weights", "hsh_terms"]
 
 HSH_FILE_TYPE = 3          # RTIViewer's file types: 1 PTM, 2 spherical harmonics, 3 HSH
 HSH_BASIS_TYPE = 2
@@ -84,9 +84,16 @@ def hsh_weights(light, terms=9):
     d = np.asarray(light, dtype=np.float64)
     phi = np.arctan2(d[..., 1], d[..., 0])
     ct = np.clip(d[..., 2] / np.maximum(np.linalg.norm(d, axis=-1), 1e-300), 0.0, 1.0)
+    return hsh_terms(phi, ct, terms)
+
+
+def hsh_terms(phi, ct, terms=9, pi=np.pi):
+    """The hemispherical harmonics (Gautron 2004) at azimuth phi and cos θ ct -> (..., terms),
+    terms 4 or 9; `pi` as the viewer writes it (openlime's shader: 3.1415)."""
+    if terms not in (4, 9):
+        raise ValueError(f"HSH terms must be 4 or 9, got {terms}")
     ct2 = ct * ct
     s = np.sqrt(np.maximum(ct - ct2, 0.0))
-    pi = np.pi
     w = [np.full_like(ct, 1 / np.sqrt(2 * pi)),
          np.sqrt(6 / pi) * np.cos(phi) * s,
          np.sqrt(3 / (2 * pi)) * (-1 + 2 * ct),
@@ -96,8 +103,6 @@ def hsh_weights(light, terms=9):
          np.sqrt(5 / (2 * pi)) * (1 - 6 * ct + 6 * ct2),
          np.sqrt(30 / pi) * (-1 + 2 * ct) * s * np.sin(phi),
          np.sqrt(30 / pi) * (-ct + ct2) * np.sin(2 * phi)]
-    if terms not in (4, 9):
-        raise ValueError(f"HSH terms must be 4 or 9, got {terms}")
     return np.stack(w[:terms], axis=-1)
 
 
