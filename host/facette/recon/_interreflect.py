@@ -227,6 +227,22 @@ def _checked(im, shape, normals, albedo, mask, reflectance_scale, max_fraction, 
     return mask, alb
 
 
+def cell_grid(normals, albedo, mask, grid):
+    """The gather's cells: (ok (H, W) the pixels with a normal, f the cell's side in pixels, hc, wc,
+    cells (hc, wc) those half full and facing the camera, n_c (hc, wc, 3) their unit normals,
+    a_c (hc, wc, C) their mean albedo); albedo (H, W, C)."""
+    h, w = mask.shape
+    ok = mask & np.all(np.isfinite(normals), -1) & (np.linalg.norm(normals, axis=-1) > 0.5)
+    f = max(1, int(np.ceil(max(h, w) / int(grid))))
+    hc, wc = -(-h // f), -(-w // f)
+    cells = _block_sum(ok[..., None].astype(np.float32), f, hc, wc)[..., 0] >= 0.5 * f * f
+    n_c = np.nan_to_num(_cell_mean(np.asarray(normals, np.float32), ok, f, hc, wc))
+    n_c /= np.maximum(np.linalg.norm(n_c, axis=-1, keepdims=True), 1e-9)
+    cells &= n_c[..., 2] > 0
+    a_c = np.nan_to_num(_cell_mean(np.ascontiguousarray(albedo, np.float32), ok, f, hc, wc))
+    return ok, f, hc, wc, cells, n_c, a_c
+
+
 def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectance_scale=1.0,
                             grid=IR_GRID, max_fraction=IR_MAX_FRACTION, saturation=None, heights=None,
                             passes=IR_PASSES, tol_deg=0.1, lobe=None, diffuse_through=True, lobe_map=None):
@@ -275,15 +291,7 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
                          passes)
     m, h, w, c = im.shape
     alb = np.broadcast_to(alb, (h, w, c))
-    ok = mask & np.all(np.isfinite(normals), -1) & (np.linalg.norm(normals, axis=-1) > 0.5)
-
-    f = max(1, int(np.ceil(max(h, w) / int(grid))))
-    hc, wc = -(-h // f), -(-w // f)
-    cells = _block_sum(ok[..., None].astype(np.float32), f, hc, wc)[..., 0] >= 0.5 * f * f
-    n_c = np.nan_to_num(_cell_mean(np.asarray(normals, np.float32), ok, f, hc, wc))
-    n_c /= np.maximum(np.linalg.norm(n_c, axis=-1, keepdims=True), 1e-9)
-    cells &= n_c[..., 2] > 0
-    a_c = np.nan_to_num(_cell_mean(np.ascontiguousarray(alb), ok, f, hc, wc))
+    ok, f, hc, wc, cells, n_c, a_c = cell_grid(normals, alb, mask, grid)
     # cell radiance, light by light (no full-size copy of the stack); NaN, inf and clipped
     # values are missing
     sat = np.float32(np.inf if saturation is None else saturation)

@@ -16,7 +16,7 @@ import warnings
 
 import numpy as np
 
-from ._interreflect import IR_GRID, IR_MAX_FRACTION, _block_sum, _cell_lights, _cell_mean, _gather_cells
+from ._interreflect import IR_GRID, IR_MAX_FRACTION, _cell_lights, _cell_mean, _gather_cells, cell_grid
 from ._ps_robust import ps_rank_trimmed
 
 __all__ = ["estimate_reflectance_scale", "SCALE_CANDIDATES", "GATHER_QUANTILE"]
@@ -27,15 +27,8 @@ GATHER_QUANTILE = 0.75     # the residual is read on the cells above this quanti
 
 def _cells(images, light_dirs, normals, albedo, mask, saturation, grid):
     """(i_c (m, hc, wc, 1), ld_c, n_c, a_c (hc, wc, 1), cells) of one channel, as `remove_interreflections`."""
-    m, h, w = images.shape
-    ok = mask & np.all(np.isfinite(normals), -1) & (np.linalg.norm(normals, axis=-1) > 0.5)
-    f = max(1, int(np.ceil(max(h, w) / int(grid))))
-    hc, wc = -(-h // f), -(-w // f)
-    cells = _block_sum(ok[..., None].astype(np.float32), f, hc, wc)[..., 0] >= 0.5 * f * f
-    n_c = np.nan_to_num(_cell_mean(np.asarray(normals, np.float32), ok, f, hc, wc))
-    n_c /= np.maximum(np.linalg.norm(n_c, axis=-1, keepdims=True), 1e-9)
-    cells &= n_c[..., 2] > 0
-    a_c = np.nan_to_num(_cell_mean(np.asarray(albedo, np.float32)[..., None], ok, f, hc, wc))
+    m = images.shape[0]
+    ok, f, hc, wc, cells, n_c, a_c = cell_grid(normals, np.asarray(albedo, np.float32)[..., None], mask, grid)
     sat = np.float32(np.inf if saturation is None else saturation)
     with np.errstate(invalid="ignore"):
         i_c = np.stack([_cell_mean(images[k][..., None], (ok & (images[k] < sat))[..., None], f, hc, wc)
