@@ -7,7 +7,7 @@ def test_warm_up_runs_and_compiles_the_kernels():
     seconds = warm_up(verbose=False, size=(24, 32))
     assert seconds > 0
     from facette.fit._normals_li_jit import _refine_all
-    from facette.pipeline._pixels_jit import _median_rows, _usable
+    from facette.capture._pixels_jit import _median_rows, _usable
     from facette.recon._ps_consensus_jit import consensus_block
     from facette.recon._ps_robust_jit import rank_trimmed_pixels
     from facette.recon._rti_jit import ptm_colour_block
