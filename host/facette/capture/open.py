@@ -55,12 +55,16 @@ def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False, c
     elif is_rti_capture(path):
         inp = PSInput(**read_rti_capture(path, auto_masks, pixel_pitch_mm, **(capture or {})))
     else:
-        raise ValueError(f"{path} holds neither scan.json (a facette scan) nor filenames.txt and "
-                         "light_directions.txt (a DiLiGenT-style folder) nor photographs with an .lp "
-                         "file (an RTI capture)")
+        raise _not_a_capture(path)
     if mask is not None:
         given_mask(inp, mask)
     return inp
+
+
+def _not_a_capture(path):
+    return ValueError(f"{path} holds neither scan.json (a facette scan) nor filenames.txt and "
+                      "light_directions.txt (a DiLiGenT-style folder) nor photographs with an .lp "
+                      "file (an RTI capture)")
 
 
 def open_bands(spec):
@@ -157,9 +161,7 @@ def open_capture(source, work, rows_for, run=None, allow_incomplete=False, pixel
     elif is_rti_capture(path):
         inp, bands, top, n = _open_rti(path, work, rows_for, run, pixel_pitch_mm, capture)
     else:
-        raise ValueError(f"{path} holds neither scan.json (a facette scan) nor filenames.txt and "
-                         "light_directions.txt (a DiLiGenT-style folder) nor photographs with an .lp "
-                         "file (an RTI capture)")
+        raise _not_a_capture(path)
     if mask is not None:
         given_mask(inp, mask)
     return inp, bands, (None if mask is not None else top), n
