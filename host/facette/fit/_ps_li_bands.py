@@ -57,7 +57,7 @@ class LiModel:
 
 def sample_rows(h, w, pixels=SAMPLE_PIXELS):
     """The rows of the sample: evenly spaced, about `pixels` pixels in all (every row when fewer)."""
-    stride = max(1, h // max(1, -(-pixels // max(w, 1))))
+    stride = max(1, -(-h // max(1, -(-pixels // max(w, 1)))))
     return np.arange(stride // 2, h, stride)
 
 
