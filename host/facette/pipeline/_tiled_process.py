@@ -1,8 +1,11 @@
 """`process(..., memory="2GB")` (`facette process --memory 2GB`): photometric stereo over row bands.
 
 A per-pixel method (`_tiles.TILED_METHODS`) gives each pixel's normal from that pixel's values
-alone, so the bands solved one after the other give the untiled normals. Two ways, chosen by
-the outputs asked for:
+alone, so the bands solved one after the other give the untiled normals. li_alternating (the
+default) too: its material model is fitted first, on a sample drawn across the bands (`band_model`,
+`fit.li_model`: one pass over them, the coarse pass on the image binned, the dark level, the model
+choice), and each band solved with it fixed (shipped to the workers once with a scheduler); the
+image read whole runs the same steps as one band. Two ways, chosen by the outputs asked for:
 
 - streamed (every output in STREAMED_OUTPUTS, which is all of them; any capture,
   `capture.open_capture`): the photographs are never held whole. A scan's
