@@ -10,7 +10,8 @@ from ._models import BOUNDS, FitModel
 from ._result import FitResult
 from ._normals_li import RefineResult, refine_normals_li
 from ._li_model import LI_FIT_BOUNDS, LI_VOLUME_MODEL, fit_li_per_pixel_kd, is_metal, li_fit_cost
-from ._ps_li import li_model, ps_li_alternating
+from ._ps_li import ps_li_alternating
+from ._ps_li_bands import li_model
 from ._light_gains import estimate_light_gains
 from ._ps_li_ir import glossy_lobes_text, ps_li_without_interreflections
 

@@ -81,7 +81,6 @@ Code: this module holds the public function and the rounds of one material (`_fi
 `_ps_li_pixels` (`Pixels`), coarse-to-fine (binning, upsampling, the full-size round) in
 `_ps_li_coarse`.
 """
-import inspect
 import time
 
 import numpy as np
@@ -90,11 +89,11 @@ from facette.brdf import kd_from_kappa, li_shading_terms
 from facette.recon import PSResult, dark_offsets, ps_rank_trimmed
 from facette.recon._ps import T_RESIDUAL, _check_inputs
 from ._li_model import DIFFUSE, LI_VOLUME_MODEL, diffuse_name, fit_li_per_pixel_kd
-from ._ps_li_bands import fit_li_model, lowered
+from ._ps_li_bands import MODEL_OPTIONS, li_model, lowered, whole_reader
 from ._ps_li_coarse import bin_inputs, coarse_factor, material_from_coarse
 from ._ps_li_pixels import Pixels, Settings, angle_deg
 
-__all__ = ["ps_li_alternating", "li_model"]
+__all__ = ["ps_li_alternating"]
 
 DARK_NEGLIGIBLE = 1e-3    # a dark level below 0.1 % of the lit median is left in the images
 COARSE_PIXELS = 250_000    # above this many valid pixels the alternation runs coarse-to-fine
@@ -193,9 +192,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         initial normals) taken out of the images the BRDF-aware steps read, since the model
         predicts 0 there (`_without_dark_level`, info["dark_offset"]); "none": the images as given.
     neighbour_deg : step 5 (module doc): a second start from the neighbours' mean this far off; 0: none.
-    model, row0 : a band of rows of a larger image, from its row row0, solved with the model
-        `li_model` fitted over that image's bands (`_ps_li_bands`); None: the model is fitted here
-        (above coarse_pixels on the images read as one band: the same steps).
+    model, row0 : a band of a larger image from its row row0, solved with the `li_model` fitted over
+        its bands (`_ps_li_bands`); None: fitted here (above coarse_pixels: the image as one band).
     Returns a `PSResult` (method "li_alternating"): albedo is K_d (a reflectance, per channel); info
     holds "rounds" (per round: σ, n_i, pixels fitted and re-estimated, median change, seconds),
     "materials" (per region: σ, n_i, pixels, whether the BRDF step ran, neighbour starts, shadows
@@ -208,22 +206,15 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     settings = Settings(iterations=iterations, fine_iterations=fine_iterations, fit_pixels=fit_pixels,
                         t_residual=t_residual, engine=engine, highlight_start=highlight_start,
                         diffuse_models=diffuse_models, neighbour_deg=float(neighbour_deg))
-    if model is None:
-        h, w = mask.shape
-        model = li_model(lambda r0, r1: (images[:, r0:r1], light_dirs if light_dirs.ndim == 2 else light_dirs[r0:r1],
-                                         mask[r0:r1]), (h, w), int(mask.sum()), h, settings, channel=channel,
-                         saturation=saturation, init=init, rounds=rounds, tol_deg=tol_deg, fit_pixels=fit_pixels,
-                         t_residual=t_residual, iterations=iterations, materials=materials, seed=seed,
-                         init_options=init_options, coarse_pixels=coarse_pixels, engine=engine,
-                         volume_model=volume_model, highlight_start=highlight_start, diffuse=diffuse,
-                         dark_offset=dark_offset)
+    if model is None:      # the image read as one band: li_model takes the options it reads from these
+        model = li_model(whole_reader(images, light_dirs, mask), mask.shape, int(mask.sum()), mask.shape[0], settings,
+                         **{k: v for k, v in locals().items() if k in MODEL_OPTIONS})
+    t_base = time.perf_counter()          # the initial solution's time, not the model's (info["coarse"])
     base = init(images, light_dirs, mask=mask, channel=channel, saturation=saturation, **init_options)
-    if model is not None:        # a band of a larger image (or the whole as one): its model fixed
-        images, dark = lowered(images, model.offsets, saturation), model.dark
-    else:
-        images, dark = (images, None) if dark_offset == "none" else \
-            _without_dark_level(images, light_dirs, saturation, base)
-    t_init = time.perf_counter() - t_start
+    # a band of a larger image (or the whole as one): its model's dark level; else this image's own
+    images, dark = (lowered(images, model.offsets, saturation), model.dark) if model is not None else \
+        (images, None) if dark_offset == "none" else _without_dark_level(images, light_dirs, saturation, base)
+    t_init = time.perf_counter() - t_base
     res = _result_from(base, images.shape[1:3])
     info = res.info = {"init": base.method, "rounds": [], "materials": [],
                        "pixels": int(np.count_nonzero(base.valid)), **({"dark_offset": dark} if dark else {})}
@@ -231,18 +222,14 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         info["levels"] = {"init": {"pixels": 0, "seconds": t_init}}
         return res
     px = Pixels.start(images, light_dirs, channel, saturation, base, settings, seed)
-    px.mean_lights = None if model is None else model.mean_dirs
+    if model is not None:      # one material, the coarse pass's (coarse_factor)
+        px.mean_lights, info["coarse"] = model.mean_dirs, model.summary()
     labels, info["regions_found_by"] = (np.zeros(px.idx.size, np.int64), "one material") if model else \
         _regions(px.alb, px.idx.size, materials, min_region_fraction, seed)
-    if model is not None:
-        info["coarse"] = {k: model.coarse_info[k] for k in ("factor", "pixels", "seconds", "cpu_seconds", "rounds",
-                                                            "sample_rows")}
-    mats, t_brdf = [], 0.0
-    for region in range(int(labels.max()) + 1):
-        t_reg = time.perf_counter()
-        mats.append(_fit_material(px, np.flatnonzero(labels == region), region, model, rounds, tol_deg,
-                                  info["rounds"], row0))
-        t_brdf += time.perf_counter() - t_reg
+    t_reg = time.perf_counter()
+    mats = [_fit_material(px, np.flatnonzero(labels == region), region, model, rounds, tol_deg, info["rounds"], row0)
+            for region in range(int(labels.max()) + 1)]
+    t_brdf = time.perf_counter() - t_reg
     _finish(res, px, mats, labels, t_init, t_brdf)
     info["seconds"] = time.perf_counter() - t_start
     return res
@@ -286,49 +273,6 @@ def _without_dark_level(images, light_dirs, saturation, base):
     if saturation is not None:
         np.copyto(lowered, images, where=images >= saturation)
     return lowered, dark
-
-
-# the options of ps_li_alternating its coarse pass takes (`li_model`)
-ALTERNATION = ("rounds", "tol_deg", "fit_pixels", "t_residual", "iterations", "engine", "volume_model",
-               "highlight_start", "diffuse")
-
-
-def li_model(read, shape, n_valid, rows, settings=None, **options):
-    """The model every band of an image shares (`_ps_li_bands.LiModel`: the alternation on the
-    image binned f × f, the dark level and, where the coarse pass finds no lobe, the model choice
-    on full-size pixels), fitted in one pass of read(r0, r1) -> (images, light_dirs, mask) over
-    bands of about `rows` rows; None when the image is solved whole instead (at most
-    `coarse_pixels` of its `n_valid` pixels, or several materials: coarse_factor). options:
-    ps_li_alternating's keywords (those the model does not read are ignored: mask, model, ...);
-    settings: the Settings of its full-size steps (from the same options when None)."""
-    defaults = {k: p.default for k, p in inspect.signature(ps_li_alternating).parameters.items()
-                if p.default is not inspect.Parameter.empty}
-    o = {**defaults, **{k: v for k, v in options.items() if k in defaults}}
-    f = coarse_factor(int(n_valid), o["coarse_pixels"], o["materials"])
-    if f is None:
-        return None
-    if settings is None:
-        diffuse_models = _check_options(o["rounds"], o["init"], o["highlight_start"], o["diffuse"],
-                                        o["volume_model"], o["dark_offset"], o["neighbour_deg"])
-        settings = Settings(iterations=o["iterations"], fine_iterations=o["fine_iterations"],
-                            fit_pixels=o["fit_pixels"], t_residual=o["t_residual"], engine=o["engine"],
-                            highlight_start=o["highlight_start"], diffuse_models=diffuse_models,
-                            neighbour_deg=float(o["neighbour_deg"]))
-    init, init_options, seed, saturation = o["init"], dict(o["init_options"] or {}), o["seed"], o["saturation"]
-
-    def coarse_pass(ci, cl, cm, channel):     # the whole alternation on the binned images (never coarse-to-fine again)
-        return ps_li_alternating(ci, cl, mask=cm, saturation=None, materials=1, coarse_pixels=None, channel=channel,
-                                 init=init, init_options=init_options, seed=seed, dark_offset="none",
-                                 **{k: o[k] for k in ALTERNATION})
-
-    def choose(images, dirs, channel, base):   # the coarse pass found no lobe: asked again of full-size pixels
-        px = Pixels.start(images, dirs, channel, saturation, base, settings, seed)
-        pix = np.arange(px.idx.size)
-        fit, _, choice = px.choose_model(px.draw(_trusted(px, pix)), pix)
-        return fit, choice
-
-    return fit_li_model(read, shape, f, rows, o["channel"], saturation, init, init_options,
-                        None if o["dark_offset"] == "none" else DARK_NEGLIGIBLE, coarse_pass, choose)
 
 
 def _coarse_pass(images, light_dirs, mask, f, saturation, **options):

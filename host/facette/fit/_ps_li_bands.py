@@ -21,6 +21,7 @@ An image held whole runs the same steps as one band (`ps_li_alternating` calls t
 bands and the whole image give the same normals (a test). Memory: the binned images and the
 sample, each ~m x SAMPLE_PIXELS x C x 4 bytes, and one band.
 """
+import inspect
 import time
 from dataclasses import dataclass
 
@@ -28,10 +29,17 @@ import numpy as np
 
 from facette.recon import dark_offsets
 
-from ._ps_li_coarse import bin_inputs
+from ._ps_li_coarse import bin_inputs, coarse_factor
+from ._ps_li_pixels import Pixels, Settings
 
-__all__ = ["LiModel", "SAMPLE_PIXELS", "fit_li_model", "sample_rows", "lowered"]
+__all__ = ["LiModel", "MODEL_OPTIONS", "SAMPLE_PIXELS", "li_model", "fit_li_model", "sample_rows", "lowered",
+           "whole_reader"]
 
+# the options of ps_li_alternating its coarse pass takes (`li_model`), and those the model reads besides
+ALTERNATION = ("rounds", "tol_deg", "fit_pixels", "t_residual", "iterations", "engine", "volume_model",
+               "highlight_start", "diffuse")
+MODEL_OPTIONS = ALTERNATION + ("channel", "saturation", "init", "init_options", "materials", "coarse_pixels",
+                               "dark_offset", "seed", "fine_iterations", "neighbour_deg")
 # full-size pixels of the sample (rows spread down the image): the dark level's and, where the
 # coarse pass finds no lobe, the model choice's; as many as the coarse pass has at most
 SAMPLE_PIXELS = 250_000
@@ -54,6 +62,10 @@ class LiModel:
     choice: tuple = None
     mean_dirs: np.ndarray = None     # (m, 3) per-pixel lights' mean over the image (the Lambertian correction's)
 
+    def summary(self):
+        """info["coarse"] of the bands' results."""
+        return {k: self.coarse_info[k] for k in ("factor", "pixels", "seconds", "cpu_seconds", "rounds", "sample_rows")}
+
 
 def sample_rows(h, w, pixels=SAMPLE_PIXELS):
     """The rows of the sample: evenly spaced, about `pixels` pixels in all (every row when fewer)."""
@@ -71,6 +83,50 @@ def lowered(images, offsets, saturation):
     if saturation is not None:
         np.copyto(out, images, where=images >= saturation)
     return out
+
+
+def li_model(read, shape, n_valid, rows, settings=None, **options):
+    """The model every band of an image shares (`_ps_li_bands.LiModel`: the alternation on the
+    image binned f × f, the dark level and, where the coarse pass finds no lobe, the model choice
+    on full-size pixels), fitted in one pass of read(r0, r1) -> (images, light_dirs, mask) over
+    bands of about `rows` rows; None when the image is solved whole instead (at most
+    `coarse_pixels` of its `n_valid` pixels, or several materials: coarse_factor). options:
+    ps_li_alternating's keywords (those the model does not read are ignored: mask, model, ...);
+    settings: the Settings of its full-size steps (from the same options when None)."""
+    from ._ps_li import DARK_NEGLIGIBLE, _check_options, _trusted, ps_li_alternating   # it calls these
+    defaults = {k: p.default for k, p in inspect.signature(ps_li_alternating).parameters.items()
+                if p.default is not inspect.Parameter.empty}
+    o = {**defaults, **{k: v for k, v in options.items() if k in defaults}}
+    f = coarse_factor(int(n_valid), o["coarse_pixels"], o["materials"])
+    if f is None:
+        return None
+    if settings is None:
+        diffuse_models = _check_options(o["rounds"], o["init"], o["highlight_start"], o["diffuse"],
+                                        o["volume_model"], o["dark_offset"], o["neighbour_deg"])
+        settings = Settings(iterations=o["iterations"], fine_iterations=o["fine_iterations"],
+                            fit_pixels=o["fit_pixels"], t_residual=o["t_residual"], engine=o["engine"],
+                            highlight_start=o["highlight_start"], diffuse_models=diffuse_models,
+                            neighbour_deg=float(o["neighbour_deg"]))
+    init, init_options, seed, saturation = o["init"], dict(o["init_options"] or {}), o["seed"], o["saturation"]
+
+    def coarse_pass(ci, cl, cm, channel):     # the whole alternation on the binned images (never coarse-to-fine again)
+        return ps_li_alternating(ci, cl, mask=cm, saturation=None, materials=1, coarse_pixels=None, channel=channel,
+                                 init=init, init_options=init_options, seed=seed, dark_offset="none",
+                                 **{k: o[k] for k in ALTERNATION})
+
+    def choose(images, dirs, channel, base):   # the coarse pass found no lobe: asked again of full-size pixels
+        px = Pixels.start(images, dirs, channel, saturation, base, settings, seed)
+        pix = np.arange(px.idx.size)
+        fit, _, choice = px.choose_model(px.draw(_trusted(px, pix)), pix)
+        return fit, choice
+
+    return fit_li_model(read, shape, f, rows, o["channel"], saturation, init, init_options,
+                        None if o["dark_offset"] == "none" else DARK_NEGLIGIBLE, coarse_pass, choose)
+
+
+def whole_reader(images, light_dirs, mask):
+    """read(r0, r1) of `li_model` over images held whole."""
+    return lambda r0, r1: (images[:, r0:r1], light_dirs if light_dirs.ndim == 2 else light_dirs[r0:r1], mask[r0:r1])
 
 
 def fit_li_model(read, shape, factor, rows, channel, saturation, init, init_options, dark_negligible,
