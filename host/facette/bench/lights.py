@@ -77,7 +77,8 @@ def run(h, w, m, material, methods=METHODS):
 def banded(w, h, m, material, rows=256):
     """li_alternating over bands of `rows` rows of a w x h relief rendered band by band (never whole:
     sizes a machine cannot hold as one image), its model fitted across the bands (fit.li_model):
-    (model CPU s, bands' CPU s, wall s, mean error deg, the bands' info of the first)."""
+    (model CPU s, bands' CPU s, wall s, mean error deg, the bands' wall s in the initial solve and the
+    BRDF-aware step)."""
     from facette.fit import li_model
 
     lights = dome_lights(m)
@@ -100,32 +101,33 @@ def banded(w, h, m, material, rows=256):
     t, c = time.perf_counter(), time.process_time()
     model = li_model(read, (h, w), h * w, rows)
     model_c = time.process_time() - c - render_c
-    total, count, info, bands_c = 0.0, 0, None, 0.0
+    total, count, parts, bands_c = 0.0, 0, np.zeros(2), 0.0
     for r0 in range(0, h, rows):
         r1 = min(h, r0 + rows)
         images, normals = band(r0, r1)
         c = time.process_time()
         part = photometric_stereo(images, lights, method="li_alternating", model=model, row0=r0)
         bands_c += time.process_time() - c
-        info = info or part.info
+        parts += _parts(part.info)[::2]          # the initial solve's and the BRDF-aware step's wall s
         dot = np.clip(np.sum(part.normal * normals, -1), -1, 1)
         total, count = total + float(np.degrees(np.arccos(dot)).sum()), count + dot.size
-    return model_c, bands_c, time.perf_counter() - t, total / count, info
+    return model_c, bands_c, time.perf_counter() - t, total / count, parts
 
 
 def _banded_main(sizes, lights, material):
     print(f"-- li_alternating over bands of 256 rows, its model fitted across them (rendered band by band, "
           f"Cook-Torrance {material}, 1 % noise); CPU s without the rendering")
     print(f"{'size':>10s} {'lights':>6s} {'model CPU s':>11s} {'bands CPU s':>11s} {'CPU s/MPl':>9s} "
-          f"{'bands s/MPl':>11s} {'error':>7s}   24 MP x 60 lights at these rates")
+          f"{'bands s/MPl':>11s} {'error':>7s}   24 MP x 60 lights at these rates; the bands' wall s: init / BRDF")
     for size in sizes.split(","):
         w, h = (int(v) for v in size.lower().split("x"))
         for m in (int(v) for v in lights.split(",")):
-            model_c, bands_c, _, err, _ = banded(w, h, m, material)
+            model_c, bands_c, _, err, parts = banded(w, h, m, material)
             mpl = h * w * m / 1e6
             at = model_c + bands_c / mpl * 24 * 60        # the model's cost is bounded (SAMPLE_PIXELS, coarse_pixels)
             print(f"{size:>10s} {m:6d} {model_c:11.1f} {bands_c:11.1f} {(model_c + bands_c) / mpl:9.3f} "
-                  f"{bands_c / mpl:11.3f} {err:6.3f}°   {at:.0f} CPU s ({at / 2:.0f} s on 2 cores)", flush=True)
+                  f"{bands_c / mpl:11.3f} {err:6.3f}°   {at:.0f} CPU s ({at / 2:.0f} s on 2 cores); "
+                  f"{parts[0]:.1f} / {parts[1]:.1f}", flush=True)
 
 
 def main(argv=None):
