@@ -27,11 +27,12 @@ brightest DROP_BRIGHT share is left out of the fit (the sharp specular peak a lo
 not follow), as in ST14. Fewer than MIN_LIGHTS left: the uncertainty is 90° (nothing known).
 """
 import numpy as np
-from scipy.ndimage import grey_dilation
+from scipy.ndimage import gaussian_filter, grey_dilation
 
 from facette._threads import run_blocks
 
-__all__ = ["normal_uncertainty", "uncertainty_summary", "BAND_SCALE", "T_DARK", "DROP_BRIGHT", "DEGREE"]
+__all__ = ["normal_uncertainty", "uncertainty_summary", "curl_angle", "BAND_SCALE", "K_CURL", "CURL_SIGMA", "T_DARK",
+           "DROP_BRIGHT", "DEGREE"]
 
 DEGREE = 2            # polynomial degree in n·h of the local reflectance
 T_DARK = 0.05         # values below this share of the pixel's brightest are shadows
@@ -40,6 +41,11 @@ MIN_LIGHTS = DEGREE + 4
 BAND_SCALE = 1.2      # 90 % band radius / u: the 90th percentile of error / u over the renders of
                       # `facette bench uncertainty` (12 synthetic spheres, 4 Mitsuba scenes; li_alternating):
                       # 1.20 (rank_trimmed's normals: 1.23); never chosen on DiLiGenT
+K_CURL = 4.0         # band (deg) per degree of the field's curl (`curl_angle`), chosen on the path-traced renders of
+                     # `facette bench uncertainty` (4 Mitsuba scenes, 11 concave scenes): their Spearman rises with it
+                     # up to about 4 (Mitsuba 0.57 at 0 -> 0.61 at 4, 0.63 at 8) and the concave scenes' band reaches
+                     # 90 % there (0.81 at 0, 0.89 at 2, 0.94 at 4); never chosen on DiLiGenT
+CURL_SIGMA = 1.5     # pixels the curl is gathered over (Gaussian): inter-reflection and shadow errors span several
 MAX_DEG = 90.0
 MAX_VALUES = 3_000_000   # pixels x lights computed at most (12 lights: 250 000 pixels, a 12 MP scan every
                          # 7th row and column; DiLiGenT's 96: 31 000, a 45 000-pixel crop every 2nd): 512x512 px,
@@ -119,9 +125,12 @@ def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, 
         lights, or (H, W, m, 3) per pixel (near lights, as photometric_stereo takes them).
         normals : (H, W, 3) the solution (zero where there is none: not rated). mask : (H, W) bool (default: where the normal
         is not zero). saturation : values at or above it are not used.
+    The band is sqrt((BAND_SCALE u)^2 + (K_CURL c)^2): u the local fit's (module doc), c the
+    normal field's own non-integrability around the pixel (`curl_angle`, over every pixel with a normal).
     Pixels with fewer than MIN_LIGHTS carrying lights, or no normal, get MAX_DEG (90°).
-    max_values : above this many mask pixels x lights the map is computed on every s-th row and
-        column (s the smallest stride that brings them under it), each pixel taking its cell's value.
+    max_values : above this many mask pixels x lights the local fit is computed on every s-th row and
+        column (s the smallest stride that brings them under it), each pixel taking its cell's value;
+        the curl is always computed on every pixel.
     """
     images = np.asarray(images)
     if images.ndim == 3:
@@ -138,12 +147,22 @@ def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, 
                          f"got {light_dirs.shape}")
     has_n = np.linalg.norm(normals, axis=2) > 0.5
     mask = has_n if mask is None else (np.asarray(mask, bool) & has_n)
+    band = _fit_band(images, light_dirs, normals, mask, saturation, channel, max_values)
+    if K_CURL > 0 and mask.any():
+        curl = np.degrees(K_CURL * curl_angle(normals, has_n))
+        band = np.where(mask, np.minimum(np.hypot(band, curl), MAX_DEG), 0).astype(np.float32)
+    return band
+
+
+def _fit_band(images, light_dirs, normals, mask, saturation, channel, max_values):
+    """BAND_SCALE x u (deg) of the local fit, MAX_DEG where it has too few lights; 0 off the mask."""
+    m, h, w, _ = images.shape
     values = mask.sum() * m
     stride = int(np.ceil(np.sqrt(values / max_values))) if values > max_values else 1
     if stride > 1:        # a cell's pixels take its corner's value (or its neighbours' at the edge)
         ld = light_dirs if light_dirs.ndim == 2 else light_dirs[::stride, ::stride]
-        coarse = normal_uncertainty(images[:, ::stride, ::stride], ld, normals[::stride, ::stride],
-                                    mask[::stride, ::stride], saturation, channel, max_values=np.inf)
+        coarse = _fit_band(images[:, ::stride, ::stride], ld, normals[::stride, ::stride],
+                           mask[::stride, ::stride], saturation, channel, max_values=np.inf)
         coarse = np.where(mask[::stride, ::stride], coarse, grey_dilation(coarse, size=3))
         up = np.repeat(np.repeat(coarse, stride, axis=0), stride, axis=1)[:h, :w]
         return np.where(mask, up, np.float32(0)).astype(np.float32)
@@ -170,6 +189,36 @@ def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, 
     deg = np.minimum(BAND_SCALE * np.degrees(u_all), MAX_DEG)
     out.reshape(-1)[idx] = np.where(np.isfinite(deg), deg, MAX_DEG)
     return out
+
+
+def curl_angle(normals, mask, sigma=CURL_SIGMA):
+    """(H, W) radians: how far the normal field around each pixel is from any surface's.
+
+    The slopes g = (-n_x/n_z, n_y/n_z) (per column, per row) of a surface's normals sum to zero
+    round every 2x2 plaquette of pixels (the curl of a gradient); each plaquette's loop sum, over
+    1 + |g|² (a slope's change as an angle), is an angle no surface explains. A pixel takes the
+    root mean square over its plaquettes whose corners all lie in the mask, then over the mask's
+    pixels within `sigma` (Gaussian). Inter-reflections, cast shadows and a wrong reflectance bend normals in ways no
+    height field has; noise alone leaves a small curl."""
+    n = np.asarray(normals, np.float32)
+    mask = np.asarray(mask, bool)
+    nz = np.maximum(n[..., 2], np.float32(1e-3))
+    p = np.clip(-n[..., 0] / nz, -50, 50)
+    q = np.clip(n[..., 1] / nz, -50, 50)
+    ok = mask[:-1, :-1] & mask[:-1, 1:] & mask[1:, :-1] & mask[1:, 1:]
+    loop = 0.5 * (p[:-1, :-1] + p[:-1, 1:] - p[1:, :-1] - p[1:, 1:] + q[:-1, 1:] + q[1:, 1:] - q[:-1, :-1] - q[1:, :-1])
+    g2 = p * p + q * q
+    g2 = 0.25 * (g2[:-1, :-1] + g2[:-1, 1:] + g2[1:, :-1] + g2[1:, 1:])
+    c2 = np.where(ok, (loop / (1 + g2)) ** 2, np.float32(0))
+    acc = np.zeros(mask.shape, np.float32)
+    cnt = np.zeros(mask.shape, np.float32)
+    for a in (0, 1):          # each plaquette to its four corner pixels
+        for b in (0, 1):
+            acc[a:a + c2.shape[0], b:b + c2.shape[1]] += c2
+            cnt[a:a + c2.shape[0], b:b + c2.shape[1]] += ok
+    own = np.where(mask, acc / np.maximum(cnt, 1), np.float32(0))       # each pixel's mean square
+    spread = gaussian_filter(own, sigma) / np.maximum(gaussian_filter(mask.astype(np.float32), sigma), 1e-6)
+    return np.where(mask, np.sqrt(spread), 0).astype(np.float32)
 
 
 def _halves(lights):
