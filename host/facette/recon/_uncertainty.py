@@ -15,11 +15,20 @@ far the data's own best normal lies from n. The uncertainty combines both (radia
 
 the first term the sandwich (heteroscedastic) covariance of the normal, which grows with the
 misfit and with a poor spread of the lights that carried the pixel (few lights, all on one
-side, near grazing); the second the disagreement between the solution and the data. The map
-written is the radius of the 90 % band, BAND_SCALE × u in degrees: on renders 90 % of the normals
-are within it of the truth (BAND_SCALE chosen there, `facette bench uncertainty`: Spearman 0.65
-pooled); on DiLiGenT's photographs it held 58-87 % and ranked the errors at Spearman 0.11-0.45 (their
-errors from inter-reflections and cast shadows leave little misfit for it to see).
+side, near grazing); the second the disagreement between the solution and the data.
+
+What a local fit cannot see: inter-reflections, cast shadows and a wrong reflectance leave data a
+smooth reflectance explains well at the wrong normal. Their errors are not a surface's: the normal
+field's curl (`curl_angle`, the slopes' loop sum round each 2x2 plaquette, as an angle, gathered over
+CURL_SIGMA pixels) is ~0 for any height field and grows where such errors bend the normals. The map
+written is the radius of the 90 % band, in degrees,
+
+    band = sqrt((BAND_SCALE u)² + (K_CURL curl)²)
+
+BAND_SCALE chosen on renders so that 90 % of their normals lie within the local fit's band, K_CURL on
+the path-traced renders (`facette bench uncertainty`); DiLiGenT's photographs only confirm them (the
+figures are in the constants' comments and the bench). Noise alone also has a curl: on noise-only
+renders the band over-covers (≈ 1.0) and ranks worse than the local fit's alone.
 
 Lights carry a pixel where their value is usable (finite, below saturation) and above
 T_DARK × the pixel's brightest (a dark value is a shadow the model does not describe); the
