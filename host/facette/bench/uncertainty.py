@@ -176,8 +176,8 @@ def main(argv=None):
                       rendered[-1])
     u, e = np.concatenate([x for t in rendered for x in t.u]), np.concatenate([x for t in rendered for x in t.e])
     print(f"pooled over the renders: spearman {spearmanr(u, e).statistic:.2f}, coverage "
-          f"{np.mean(e <= unc.BAND_SCALE * u):.2f}; the BAND_SCALE that would hold 90 %: "
-          f"{np.percentile(e / np.maximum(u, 1e-9), 90):.2f} (now {unc.BAND_SCALE})")
+          f"{np.mean(e <= unc.BAND_SCALE * u):.2f}; the band times "
+          f"{np.percentile(e / np.maximum(unc.BAND_SCALE * u, 1e-9), 90):.2f} would hold 90 % of them")
     if not args.no_real:
         diligent_table(args.root or default_root(), Tally("the DiLiGenT objects"))
     return 0

@@ -54,7 +54,8 @@ K_CURL = 4.0         # band (deg) per degree of the field's curl (`curl_angle`),
                      # `facette bench uncertainty` (4 Mitsuba scenes, 11 concave scenes): their Spearman rises with it
                      # up to about 4 (Mitsuba 0.57 at 0 -> 0.61 at 4, 0.63 at 8) and the concave scenes' band reaches
                      # 90 % there (0.81 at 0, 0.89 at 2, 0.94 at 4); never chosen on DiLiGenT
-CURL_SIGMA = 1.5     # pixels the curl is gathered over (Gaussian): inter-reflection and shadow errors span several
+CURL_SIGMA = 1.0     # pixels the curl is gathered over (Gaussian), on the same renders: the synthetic spheres'
+                     # Spearman 0.24 at 1, 0.18 at 1.5, 0.07 at 3; the path-traced ones' equal (0.61 / 0.88) from 1 to 3
 MAX_DEG = 90.0
 MAX_VALUES = 3_000_000   # pixels x lights computed at most (12 lights: 250 000 pixels, a 12 MP scan every
                          # 7th row and column; DiLiGenT's 96: 31 000, a 45 000-pixel crop every 2nd): 512x512 px,
