@@ -87,13 +87,13 @@ def diligent_table(methods, root, tmp=None):
     for folder, truth in objects:
         rows, _, data = run_object(folder, truth, methods, "all")
         obj = object_name(folder)
-        place = "16-bit cut to" if folder.parent.name == "requantised_to_8_bit" else folder.parent.name + "/"
+        place = "16-bit cut to " if folder.parent.name == "requantised_to_8_bit" else folder.parent.name + "/"
         line = f"{place + obj + f' {data.bit_depth}-bit':28s}"
         for name, mean, _, dt in rows:
             pub = paper_figure(name, obj)
             cell = f"{mean:6.2f} {dt:6.1f}s" + (f" [{pub:5.2f}]" if pub is not None else " " * 8)
             line += f" | {cell:>24s}"
-            if data.bit_depth == 8 and place != "16-bit cut to":      # the shipped 8-bit crops
+            if data.bit_depth == 8 and place != "16-bit cut to ":      # the shipped 8-bit crops
                 sums[name].append((mean, dt, pub))
         print(line, flush=True)
     line = f"{'mean of the 8-bit crops':28s}"
@@ -172,7 +172,8 @@ def st14_choice():
     """ST14's shadow threshold and low-frequency share on renders (how ST14_T_SHADOW and
     ST14_T_LOW were chosen): mean error (deg) per render and setting, and the mean."""
     from facette.recon import ps_bipolynomial_shi2014
-    print("\n-- ST14 constants on rendered spheres (96 lights, 0.5 % noise): mean error (deg) per (t_shadow, t_low)")
+    print("\n-- ST14 constants on rendered spheres (96 lights, 0.5 % noise): mean error (deg) per "
+          "(t_shadow, t_low)")
     print(f"{'render':30s}" + "".join(f" | {f'{a:g}, {b:g}':>10s}" for a, b in ST14_GRID))
     sums = np.zeros(len(ST14_GRID))
     cases = [(mat, lv, fl) for mat in ("blinn", "satin", "glossy") for lv in (40, 10000) for fl in (0.0, 0.02)]

@@ -131,22 +131,28 @@ def _projected_lstsq(a, y, w, ridge=RIDGE):
 
 # ----------------------------------------------------------------------------- ST14
 
-def _nonneg_lstsq(a, y, w):
+def _nonneg_lstsq(a, y, w, ridge=RIDGE):
     """Per pixel min_c ||W^(1/2) (y - A c)||² with c >= 0 (a reflectance that does not fall towards
-    the specular direction), by the least-squares solution on every support of c (p <= 6: at most
-    63 small solves). a : (N, m, p), y, w : (N, m). Returns (c (N, p), residual vector (N, m))."""
+    the specular direction): the normal equations solved on every support of c (p <= 6: at most 63
+    small solves of the Gram's sub-blocks), the feasible one of least cost kept. a : (N, m, p),
+    y, w : (N, m). Returns (c (N, p), residual vector (N, m)); the ridge as `_projected_lstsq`'s."""
     n_pix, _, p = a.shape
-    best_c, best_r = np.zeros((n_pix, p)), y * w                 # c = 0 is always feasible
-    best = np.sum(best_r * best_r, axis=1)
+    aw = a * w[..., None]
+    g = np.matmul(aw.transpose(0, 2, 1), a)                       # (N, p, p)
+    g += (ridge * np.maximum(np.trace(g, axis1=1, axis2=2) / p, 1e-30))[:, None, None] * np.eye(p)
+    rhs = np.einsum("nmp,nm->np", aw, y)
+    best_c, best = np.zeros((n_pix, p)), np.zeros(n_pix)          # c = 0: cost y'Wy, taken as 0 here
     for k in range(1, p + 1):
         for sup in combinations(range(p), k):
-            c, r = _projected_lstsq(a[..., list(sup)], y, w)
-            cost = np.where(np.all(c >= 0, axis=1), np.sum(r * r, axis=1), np.inf)
-            b = cost < best
-            best[b], best_r[b] = cost[b], r[b]
+            s = list(sup)
+            gs = g[:, s][:, :, s]
+            c = np.linalg.solve(gs, rhs[:, s, None])[..., 0]
+            cost = np.einsum("nk,nkj,nj->n", c, gs, c) - 2 * np.einsum("nk,nk->n", c, rhs[:, s])
+            b = np.all(c >= 0, axis=1) & (cost < best)           # cost relative to y'Wy
+            best[b] = cost[b]
             best_c[b] = 0.0
-            best_c[np.ix_(b, list(sup))] = c[b]
-    return best_c, best_r
+            best_c[np.ix_(b, s)] = c[b]
+    return best_c, (y - np.einsum("nmp,np->nm", a, best_c)) * w
 
 
 def _st14_basis(n, lights, halves, ld, degrees):
