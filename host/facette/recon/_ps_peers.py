@@ -13,7 +13,8 @@
     read: α >= 0 (ρ never falls towards the specular direction; unconstrained, a falling ρ takes the
     photographs' dark floor of stray light for reflectance: 16-bit ball 2.33°, its 8-bit crop 6.29°
     and cat 12.8° against 2.13°, 4.07°, 7.40° with α >= 0), and the constants chosen on renders
-    (ST14_T_SHADOW, ST14_T_LOW, ST14_DEGREES).
+    (ST14_T_SHADOW, ST14_T_LOW, ST14_DEGREES). Through `process` (`facette bench peers`): the 16-bit
+    ball 2.11° [paper 1.74], the five 8-bit crops 9.64° [8.17]; the ball cut to 8 bits 4.06°.
 `ps_bivariate_ikehata2014` : Ikehata, Aizawa, "Photometric stereo using constrained bivariate
     regression for general isotropic surfaces", CVPR 2014 (IA14). By default (form="paper") as the
     paper states it, step by step with its constants (`facette.recon._ia14_paper`, from
