@@ -174,20 +174,20 @@ def st14_choice():
     from facette.recon import ps_bipolynomial_shi2014
     print("\n-- ST14 constants on rendered spheres (96 lights, 0.5 % noise): mean error (deg) per "
           "(t_shadow, t_low)")
-    print(f"{'render':30s}" + "".join(f" | {f'{a:g}, {b:g}':>10s}" for a, b in ST14_GRID))
+    print(f"{'render':34s}" + "".join(f" | {f'{a:g}, {b:g}':>10s}" for a, b in ST14_GRID))
     sums = np.zeros(len(ST14_GRID))
     cases = [(mat, lv, fl) for mat in ("blinn", "satin", "glossy") for lv in (40, 10000) for fl in (0.0, 0.02)]
     for mat, lv, fl in cases:
         img, lights, mask, n = st14_render(mat, lv, fl)
         line = f"{mat} {'8-bit, 40 levels' if lv < 256 else '16-bit'} floor {fl:g}"
-        line = f"{line:30s}"
+        line = f"{line:34s}"
         for j, (ts, tl) in enumerate(ST14_GRID):
             r = ps_bipolynomial_shi2014(img, lights, mask, t_shadow=ts, t_low=tl)
             e = np.degrees(np.arccos(np.clip(np.sum(r.normal * n, -1), -1, 1)))[mask].mean()
             sums[j] += e / len(cases)
             line += f" | {e:10.2f}"
         print(line, flush=True)
-    print(f"{'mean':30s}" + "".join(f" | {s:10.2f}" for s in sums))
+    print(f"{'mean':34s}" + "".join(f" | {s:10.2f}" for s in sums))
     return 0
 
 

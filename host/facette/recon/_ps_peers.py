@@ -62,8 +62,9 @@ ST14_DEGREES = (2, 0) # bi-polynomial degrees in cos θ_h and cos θ_d (the prev
                       # --st14-choice`: Blinn-Phong, satin, glossy; 16 and 8 bits; with and without a
                       # 2 % stray-light floor), never on DiLiGenT: mean 0.53° for (0.1, 0.5) and
                       # (0.02, 0.5), 0.62-0.82 for (0.02|0.1, 0.25|0.75); 0.1 taken for its lead on
-                      # the renders with stray light (0.83-0.94° against 0.94-1.03°), as every
-                      # photograph has some. PEERS.md's third-party T_low 0.25: 0.75 / 0.62°
+                      # the 16-bit renders with stray light (0.83-0.94° against 0.94-1.03°; at 8 bits
+                      # the floor is under a grey level), as every photograph has some. PEERS.md's
+                      # third-party T_low 0.25: 0.75 / 0.62°
 IA14_DEGREES = (5, 0)   # Bernstein degrees of Ψ in E (normalised) and in l·v, with the monotone QP;
                         # chosen on the same spheres among (5..12, 0..2): mean 2.10° against 2.14 for
                         # (8, 1), 2.29-2.77 for the others (unconstrained (3, 2): 1.99, but Ψ is not
