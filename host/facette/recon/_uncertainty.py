@@ -51,9 +51,10 @@ BAND_SCALE = 1.2      # 90 % band radius / u: the 90th percentile of error / u o
                       # `facette bench uncertainty` (12 synthetic spheres, 4 Mitsuba scenes; li_alternating):
                       # 1.20 (rank_trimmed's normals: 1.23); never chosen on DiLiGenT
 K_CURL = 4.0         # band (deg) per degree of the field's curl (`curl_angle`), chosen on the path-traced renders of
-                     # `facette bench uncertainty` (4 Mitsuba scenes, 11 concave scenes): their Spearman rises with it
-                     # up to about 4 (Mitsuba 0.57 at 0 -> 0.61 at 4, 0.63 at 8) and the concave scenes' band reaches
-                     # 90 % there (0.81 at 0, 0.89 at 2, 0.94 at 4); never chosen on DiLiGenT
+                     # `facette bench uncertainty` (4 Mitsuba scenes, 12 concave ones): their Spearman rises with it up to
+                     # about 4 (Mitsuba 0.57 at 0 -> 0.61 at 4, 0.63 at 8; concave 0.87 -> 0.89) and there the concave
+                     # scenes' band holds 90 % (12 lights 0.87 -> 0.98, 96 lights in plaster 0.67 -> 0.82); never
+                     # chosen on DiLiGenT
 CURL_SIGMA = 1.0     # pixels the curl is gathered over (Gaussian), on the same renders: the synthetic spheres'
                      # Spearman 0.24 at 1, 0.18 at 1.5, 0.07 at 3; the path-traced ones' equal (0.61 / 0.88) from 1 to 3
 MAX_DEG = 90.0
