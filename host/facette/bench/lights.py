@@ -102,6 +102,7 @@ def banded(w, h, m, material, rows=256):
     model = li_model(read, (h, w), h * w, rows)
     model_c = time.process_time() - c - render_c
     total, count, parts, bands_c = 0.0, 0, np.zeros(2), 0.0
+    rows = rows if model is not None else h      # no model (below coarse_pixels): the image is one band
     for r0 in range(0, h, rows):
         r1 = min(h, r0 + rows)
         images, normals = band(r0, r1)
