@@ -13,7 +13,7 @@ Stages run only when a requested output needs them (docs/outputs.md):
     ptm       load, ptm                      (relight.ptm: PTM LRGB for RTIViewer, as photographed)
     rti       load, hsh                      (relight.rti: HSH order 3 for RTIViewer, as photographed)
     relight-web load, hsh                    (relight_web/: Relight's web format, openlime's HSH)
-    gltf      load, ps, integrate, mesh, samples, fit   (model.glb: mesh + PBR maps)
+    gltf      load, ps, integrate, mesh, relight   (model.glb: mesh + the model's per-pixel PBR maps)
     report    load, ps (+ whatever else ran) (report.html)
 """
 import json
