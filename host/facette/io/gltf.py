@@ -27,6 +27,22 @@ def _u8_image(name, img, channels):
     return encode_png(img, compression=PNG_LEVEL)
 
 
+def _specular(specular, texture):
+    """(KHR_materials_specular's dict or None, the PNG of its colour texture or None); `texture`: the
+    index that texture gets."""
+    if specular is None:
+        return None, None
+    factor, colour_factor = float(specular.get("factor", 1.0)), float(specular.get("color_factor", 1.0))
+    if not (0.0 <= factor <= 1.0 and np.isfinite(colour_factor) and colour_factor >= 0):
+        raise ValueError(f"specular factor must be in [0, 1] and color_factor finite >= 0, got {factor}, "
+                         f"{colour_factor}")
+    ext = {"specularFactor": factor, "specularColorFactor": [colour_factor] * 3}
+    if specular.get("color") is None:
+        return ext, None
+    ext["specularColorTexture"] = {"index": texture}
+    return ext, _u8_image("specular color", specular["color"], 3)
+
+
 def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, normal_map,
               metallic_roughness, ior=None, name="facette scan", extras=None, specular=None):
     """Write a .glb.
@@ -64,17 +80,10 @@ def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, norma
     pngs = [_u8_image("base_color", base_color, 3), _u8_image("normal_map", normal_map, 3),
             _u8_image("metallic_roughness", metallic_roughness, 3)]
     labels = ["baseColor", "normal", "metallicRoughness"]
-    spec_ext = None
-    if specular is not None:
-        factor, colour_factor = float(specular.get("factor", 1.0)), float(specular.get("color_factor", 1.0))
-        if not (0.0 <= factor <= 1.0 and np.isfinite(colour_factor) and colour_factor >= 0):
-            raise ValueError(f"specular factor must be in [0, 1] and color_factor finite >= 0, got {factor}, "
-                             f"{colour_factor}")
-        spec_ext = {"specularFactor": factor, "specularColorFactor": [colour_factor] * 3}
-        if specular.get("color") is not None:
-            pngs.append(_u8_image("specular color", specular["color"], 3))
-            labels.append("specularColor")
-            spec_ext["specularColorTexture"] = {"index": 3}
+    spec_ext, spec_png = _specular(specular, len(pngs))
+    if spec_png is not None:
+        pngs.append(spec_png)
+        labels.append("specularColor")
 
     pos = (v * 1e-3).astype("<f4")
     arrays = [pos, n.astype("<f4"), t.astype("<f4"), uv.astype("<f4"), f.astype("<u4").ravel()]

@@ -1,30 +1,33 @@
 """The glTF material's spatially varying maps, from the relighting model (recon._relight_model).
 
-The model holds, per pixel and channel, a diffuse reflectance ρ and a Blinn–Phong lobe s (n·h)^k
-(one exponent k per capture, or a map of them), in display-white units: a pixel's value under a
-distant light of irradiance E is ρ (n·l) + s (n·h)^k, with E/π = 1. glTF's metallic-roughness BRDF
-(glTF 2.0, Appendix B) gives (c/π) E (n·l) for its base colour c and, for the specular part,
-F D V E (n·l) with GGX D(h) of α = roughness², D(n) = 1 / (π α²), and V = 1/4 at n = l = v. So
+The model holds, per pixel and channel, a diffuse reflectance ρ, a Blinn–Phong lobe s (n·h)^k (one
+exponent k per capture, or a map of them) and gathered light a l_z, in display-white units: a
+pixel's value under a distant light of irradiance E = π is ρ (n·l) + s (n·h)^k + a l_z. glTF's
+metallic-roughness BRDF (glTF 2.0, Appendix B) gives c (n·l) for its base colour c and, for the
+specular part, F D V π (n·l) with GGX D of α = roughness², height-correlated Smith V, F ≈ F0. So
 
-    base colour c = ρ                                          (the K_d map)
-    α = sqrt(2 / (k + 2))                                      (Walter et al. 2007, eq. 33: the Beckmann
-                                                                α of Phong exponent k; GGX of the same α,
-                                                                as `pipeline._exports.gltf_roughness`)
+    α = sqrt(2 / (k + 2))              (Walter et al. 2007, eq. 33: the Beckmann α of Phong exponent
+                                        k; GGX of the same α, as `pipeline._exports.gltf_roughness`)
     roughness = sqrt(α) = (2 / (k + 2))^(1/4)
-    F0 = 4 α² s = 8 s / (k + 2)                                (the lobes' peaks equal at n = l = v)
+    (c_d, F0) per pixel and colour: the least-squares fit, ≥ 0, of c_d (n·l) + F0 π D V (n·l) to the
+              model's physics (without its cast shadows) under the captured lights (`_project`);
+              at n = l = v the lobes' peaks alone would give F0 = 4 α² s = 8 s / (k + 2), which
+              misses where a broad lobe (k = 8) stands in for diffuse or gathered light
+    base colour c = c_d / (1 - max F0) (glTF's diffuse is c (1 - max F), KHR_materials_specular)
 
 F0 per pixel and colour goes into KHR_materials_specular (specularColorTexture × specularColorFactor
 × glTF's F0 of IOR 1.5, 0.04); viewers without the extension keep F0 = 0.04 everywhere, so for them
 the roughness texture also carries where the lobe is weaker than glass's: roughness rises from
-(2/(k+2))^¼ at F0 ≥ 0.04 linearly to 1 at F0 = 0 (`roughness_of_lobe`). Metallic is 0: the model
-has no metals, a coloured lobe is a coloured F0.
+(2/(k+2))^¼ at F0 ≥ 0.04 linearly to 1 at F0 = 0 (`roughness_of_lobe`). Metallic is 0 unless a BRDF
+fit beside it finds a metal (pipeline._exports.gltf_material).
 """
 import numpy as np
 
 from facette._memory import decimated
 from facette.pipeline._exports import block_means, srgb_encode, texture_step
+from facette.recon._relight_model import physical_basis
 
-__all__ = ["relight_maps", "ggx_alpha_of_exponent", "roughness_of_lobe", "f0_of_lobe", "model_step",
+__all__ = ["relight_maps", "ggx_alpha_of_exponent", "ggx_lobe", "roughness_of_lobe", "model_step",
            "DIELECTRIC_F0", "model_textures"]
 
 DIELECTRIC_F0 = 0.04        # glTF's F0 at its default IOR 1.5: ((1.5 - 1) / (1.5 + 1))²
@@ -35,11 +38,6 @@ BASE_TOP_PERCENTILE = 99.5  # the base colour's: as the albedo's (pipeline._expo
 def ggx_alpha_of_exponent(k):
     """GGX α of a Blinn–Phong exponent k: sqrt(2 / (k + 2)) (Walter et al. 2007, eq. 33)."""
     return np.sqrt(2.0 / (np.asarray(k, np.float64) + 2.0))
-
-
-def f0_of_lobe(spec, k):
-    """F0 (..., C) whose GGX lobe has the peak of the model's s (n·h)^k: 4 α² s (k a number or (...))."""
-    return 4.0 * (ggx_alpha_of_exponent(k) ** 2)[..., None] * np.asarray(spec, np.float64)
 
 
 def roughness_of_lobe(f0, k):
@@ -74,6 +72,89 @@ def _gain(albedo, rho, mask, st):
             gain[c] = float(np.median(r[ok, c] / ac[ok]))
     return gain
 
+PROJECT_VALUES = 1 << 22    # pixel-light pairs per block of the projection (~50 MB per float32 array)
+VIEW_LIGHTS_MAX_DEG = 75.0  # lights of the projection without captured ones: a dome up to 75° from the axis
+
+
+def _view_lights(light_dirs):
+    """The lights the glTF material is fitted under: the captured ones (m, 3), or a dome."""
+    d = None if light_dirs is None else np.asarray(light_dirs, np.float64)
+    if d is not None and d.ndim == 2 and d.shape[1] == 3 and len(d) >= 3:
+        return d / np.linalg.norm(d, axis=1, keepdims=True)
+    th, ph = np.meshgrid(np.radians(np.linspace(5, VIEW_LIGHTS_MAX_DEG, 8)), np.radians(np.arange(0, 360, 30)))
+    return np.c_[(np.sin(th) * np.cos(ph)).ravel(), (np.sin(th) * np.sin(ph)).ravel(), np.cos(th).ravel()]
+
+
+def ggx_lobe(normals, lights, alpha2):
+    """glTF's specular radiance per unit F0 (m, ...) under lights (m, 3) of irradiance π, seen along
+    +z: π D V (n·l), GGX D and height-correlated Smith V (glTF 2.0 Appendix B; F ≈ F0, as within
+    75° of the axis (1 - v·h)^5 < 5e-4)."""
+    n = np.asarray(normals, np.float32)
+    lights = np.asarray(lights, np.float32)
+    half = lights + np.array([0, 0, 1], np.float32)
+    half /= np.linalg.norm(half, axis=1, keepdims=True)
+    nl = np.einsum("...c,mc->m...", n, lights)
+    nh = np.clip(np.einsum("...c,mc->m...", n, half), 0, 1)
+    nv = np.clip(n[..., 2], 1e-3, 1)
+    a2 = np.float32(alpha2)
+    d = a2 / (np.float32(np.pi) * (nh * nh * (a2 - 1) + 1) ** 2)
+    nlp = np.clip(nl, 0, 1)
+    v = 0.5 / np.maximum(nlp * np.sqrt(nv * nv * (1 - a2) + a2) + nv * np.sqrt(nlp * nlp * (1 - a2) + a2), 1e-6)
+    return np.where(nl > 0, np.float32(np.pi) * d * v * nlp, 0).astype(np.float32)
+
+
+def _project(model, lights, alpha2):
+    """(c_d, F0) (h, w, 3) per pixel: glTF's diffuse c_d (n·l) and GGX lobe F0 · `ggx_lobe` (α² alpha2)
+    closest, in least squares over `lights` and ≥ 0, to the model's physics without its cast shadows
+    (ρ (n·l) + s (n·h)^k + a l_z: what a glTF viewer can show); the model's pixels only."""
+    mask = np.asarray(model.mask, bool)
+    cd, f0 = np.zeros(mask.shape + (3,)), np.zeros(mask.shape + (3,))
+    rows, cols = np.nonzero(mask)
+    step = max(1024, PROJECT_VALUES // len(lights))
+    terms = np.stack([np.asarray(model.rho, np.float64), np.asarray(model.spec, np.float64),
+                      np.asarray(model.amb, np.float64)], axis=-2)                      # (h, w, 3 terms, C)
+    for a in range(0, len(rows), step):
+        r, c = rows[a:a + step], cols[a:a + step]
+        n = np.asarray(model.normals[r, c], np.float32)
+        basis = physical_basis(n, lights, model.shininess if np.ndim(model.shininess) == 0
+                               else np.asarray(model.shininess)[r, c])                # (m, N, 3)
+        y = np.einsum("mnj,njc->mnc", basis, terms[r, c])                               # (m, N, C)
+        g = np.stack([np.clip(np.einsum("nc,mc->mn", n, lights.astype(np.float32)), 0, None),
+                      ggx_lobe(n, lights, alpha2)], axis=-1).astype(np.float64)         # (m, N, 2)
+        gram = np.einsum("mnj,mnk->njk", g, g) + 1e-9 * np.eye(2)
+        rhs = np.einsum("mnj,mnc->njc", g, y)
+        both = np.linalg.solve(gram, rhs)                                               # (N, 2, C)
+        # non-negative: where one coefficient is < 0, the other alone
+        alone = rhs / np.maximum(np.diagonal(gram, axis1=1, axis2=2)[..., None], 1e-12)
+        x = np.where((both < 0).any(axis=1, keepdims=True),
+                     np.where(alone[:, :1] * rhs[:, :1] >= alone[:, 1:] * rhs[:, 1:],
+                              np.concatenate([alone[:, :1], 0 * alone[:, 1:]], 1),
+                              np.concatenate([0 * alone[:, :1], alone[:, 1:]], 1)), both)
+        x = np.maximum(x, 0)
+        cd[r, c], f0[r, c] = x[:, 0], x[:, 1]
+    return cd, f0
+
+def _base_top(cd, lobe, sample=200_000):
+    """The exposure `top` ≥ 1 that the maps are divided by (a viewer lights them `top` times brighter):
+    the smallest with the base colours c_d / (top (1 - max F0)), F0 = min(lobe / top, 1), at most 1 on
+    BASE_TOP_PERCENTILE % of the pixels (cd, lobe (N, 3)); by bisection (the base colours fall as top grows)."""
+    pick = np.linspace(0, len(cd) - 1, min(sample, len(cd))).astype(int)
+    cd, lobe = cd[pick], lobe[pick]
+
+    def over(top):
+        fm = np.minimum(lobe / top, 1.0).max(axis=-1, keepdims=True)
+        return float(np.percentile(cd / (top * np.maximum(1.0 - fm, 0.1)), BASE_TOP_PERCENTILE)) > 1.0
+
+    if not len(cd) or not over(1.0):
+        return 1.0
+    lo, hi = 1.0, 2.0
+    while over(hi) and hi < 1e6:
+        lo, hi = hi, 2 * hi
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if over(mid) else (lo, mid)
+    return hi
+
 
 def relight_maps(res):
     """(maps or None, notes): the material maps of `res.relight_model` for the glTF.
@@ -93,15 +174,20 @@ def relight_maps(res):
         return None, [f"glTF: the relighting model ({model.mask.shape[1]}x{model.mask.shape[0]}) does not cover "
                       "the image or no pixel: base colour from the albedo, one roughness from the BRDF fit"]
     k = model.shininess
-    rho = np.nan_to_num(np.asarray(model.rho, np.float32))
+    # the glTF material closest to the model's physics under the captured lights: its diffuse and a
+    # GGX lobe of the model's width (α of k), per pixel and colour (the peak-matched F0 = 8 s / (k + 2)
+    # differs where the broad lobes stand in for light the surface gathers, k = 8)
+    rho, lobe = _project(model, _view_lights(getattr(res.inputs, "light_dirs", None)),
+                         float(np.mean(ggx_alpha_of_exponent(k) ** 2)))
+    top = _base_top(rho[mask], lobe[mask])
+    f0 = np.minimum(lobe / top, 1.0)
+    # glTF (KHR_materials_specular): diffuse × (1 - max F), F ≈ F0 for the lights a viewer looks under
+    # (|v·h| > 0.7: F0 + 0.002): the base colour c_d / (1 - max F0) shows c_d (at most 10x)
+    kd_model = rho / np.maximum(1.0 - f0.max(axis=-1, keepdims=True), 0.1)
     if st == 1:
-        kd, gain = rho, np.ones(3)
+        kd, gain = kd_model.astype(np.float32), np.ones(3)
     else:
-        kd, gain = res.albedo, _gain(res.albedo, rho, mask, st)
-    vals = (decimated(kd, st).astype(np.float64)[mask].reshape(int(mask.sum()), -1) * gain).ravel()
-    top = max(1.0, float(np.percentile(vals, BASE_TOP_PERCENTILE))) if vals.size else 1.0
-    f0 = np.where(mask[..., None], f0_of_lobe(np.nan_to_num(np.asarray(model.spec, np.float64)), k), 0.0) / top
-    f0 = np.minimum(f0, 1.0)
+        kd, gain = res.albedo, _gain(res.albedo, kd_model, mask, st)
     rough = roughness_of_lobe(f0, k)
     f0_top = float(np.percentile(np.max(f0[mask], axis=-1), F0_TOP_PERCENTILE))
     h, w = mask.shape
@@ -113,7 +199,8 @@ def relight_maps(res):
                 "relight fits every pixel") + "): base colour " + ("its K_d map" if st == 1 else
                                                      "the albedo at full size in its K_d map's unit")
              + (f" divided by {top:.3g}" if top > 1 else "")
-             + f"; specular F0 = 8 s / (k + 2) per pixel and colour (KHR_materials_specular, up to {f0_top:.3g})"
+             + f"; diffuse and F0 per pixel and colour fitted to its physics under the captured lights "
+             f"(KHR_materials_specular, F0 up to {f0_top:.3g})"
              + f"; roughness (2 / (k + 2))^(1/4) = {r_k:.3g} (Blinn-Phong k = {k_text}) where the lobe is at least "
              f"glass's ({100 * lobed:.0f} % of the object), towards 1 where it is weaker"]
     if f0_top <= 0:

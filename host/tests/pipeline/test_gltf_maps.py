@@ -9,9 +9,9 @@ from PIL import Image
 
 from facette.io.diligent import write_diligent
 from facette.pipeline import process
-from facette.pipeline._exports import srgb_encode
-from facette.pipeline._gltf_maps import (DIELECTRIC_F0, f0_of_lobe, ggx_alpha_of_exponent, model_step,
-                                         roughness_of_lobe)
+from facette.pipeline._gltf_maps import (DIELECTRIC_F0, ggx_alpha_of_exponent, ggx_lobe, model_step,
+                                         relight_maps, roughness_of_lobe)
+from facette.recon._relight_model import physical_basis
 from facette.recon.synthetic import render, sphere_on_plane
 
 H, W = 40, 48
@@ -59,14 +59,27 @@ def test_the_glb_carries_the_models_maps_and_they_follow_the_materials(tmp_path,
     spec = ext["KHR_materials_specular"]
     model, mask = res.relight_model, res.relight_model.mask
     assert tex["baseColor"].shape == tex["specularColor"].shape == (H, W, 3)
-    # every pixel's model: the base colour is its K_d map (ρ), in sRGB
-    scale = 1 / max(1.0, np.percentile(model.rho[mask], 99.5))
-    np.testing.assert_array_equal(tex["baseColor"][mask], srgb_encode(model.rho * scale)[mask])
-    # F0 = 0.04 x specularColorFactor x texel = 8 s / (k + 2)
+    # what a glTF viewer computes from the textures (diffuse c (1 - max F0) (n·l), GGX lobe of the
+    # roughness' α) is the model's physics under the captured lights, to a few per cent of white
     f0 = DIELECTRIC_F0 * spec["specularColorFactor"][0] * _linear(tex["specularColor"].astype(float))
-    want = np.minimum(8 * model.spec * scale / (model.shininess + 2), 1.0)
-    lit = mask & (want.max(-1) < DIELECTRIC_F0 * spec["specularColorFactor"][0])     # below the texture's white
-    assert np.abs(f0 - want)[lit].max() < 0.01 * want.max() + 1e-4
+    top = 1 / relight_maps(res)[0]["scale"][0]
+    kd = _linear(tex["baseColor"].astype(float)) * (1 - f0.max(-1, keepdims=True))
+    alpha2 = (tex["metallicRoughness"][..., 1] / 255.0) ** 4
+    lights = res.inputs.light_dirs
+    lobe_k = float(ggx_alpha_of_exponent(model.shininess) ** 2)
+    glossy = alpha2 < lobe_k * 1.05          # texels of the model's lobe width (elsewhere weaker ones)
+    errs, peak_errs = [], []
+    for light in lights[::4]:
+        b = physical_basis(model.normals, light[None], model.shininess)[0]
+        want = model.rho * b[..., :1] + model.spec * b[..., 1:2] + model.amb * b[..., 2:3]
+        nl = np.clip(model.normals @ light, 0, None)[..., None]
+        lobe = ggx_lobe(model.normals, light[None], lobe_k)[0][..., None]
+        got = top * (kd * nl + f0 * lobe)
+        errs.append(np.abs(got - want)[mask & glossy].mean())
+        # the lobes' peaks matched alone (F0 = 8 s / (k + 2), the rest diffuse): further off
+        peak = (model.rho + model.amb) * nl + 8 * model.spec / (model.shininess + 2) * lobe
+        peak_errs.append(np.abs(peak - want)[mask & glossy].mean())
+    assert np.median(errs) < 0.05 and np.median(errs) < 0.8 * np.median(peak_errs), (errs, peak_errs)
     # the satin half has a lobe, the matte half next to none; the roughness says so too
     sphere = mask & (np.hypot(*np.mgrid[0:H, 0:W] - np.array([(H - 1) / 2, (W - 1) / 2])[:, None, None]) < 12)
     f0_l, f0_r = (np.median(f0[sphere & side].max(-1)) for side in (left, ~left))
@@ -101,25 +114,52 @@ def test_without_a_model_the_glb_says_so_and_keeps_one_roughness(tmp_path):
     class Res:
         relight_model = None
         mask = np.ones((4, 4), bool)
-    from facette.pipeline._gltf_maps import relight_maps
     maps, notes = relight_maps(Res())
     assert maps is None and "no relighting model" in notes[0] and "one roughness" in notes[0]
 
 
 @pytest.mark.parametrize("k", [8.0, 32.0, 128.0])
-def test_the_gltf_lobe_has_the_models_peak(k):
-    """glTF's specular BRDF (glTF 2.0 Appendix B: GGX D, height-correlated Smith V, Schlick F) with
-    F0 = 8 s / (k + 2) and α = sqrt(2 / (k + 2)), at n = l = v, times (n·l) E with E = π (the model's
-    unit), is the model's lobe peak s."""
-    s = 0.3
+def test_the_gltf_lobe_is_glTFs_and_the_roughness_blends_to_1(k):
+    """ggx_lobe is glTF 2.0 Appendix B's π D V (n·l): at n = l = v, 1 / (4 α²) (with F0 = 4 α² s it
+    peaks at s, the model's lobe); it falls with the half-vector's angle as GGX does."""
     alpha = float(ggx_alpha_of_exponent(k))
-    f0 = float(f0_of_lobe(np.array([s]), k)[0])
     a2 = alpha ** 2
-    ndh = ndl = ndv = 1.0
-    d = a2 / (np.pi * (ndh ** 2 * (a2 - 1) + 1) ** 2)
-    v = 0.5 / (ndl * np.sqrt(ndv ** 2 * (1 - a2) + a2) + ndv * np.sqrt(ndl ** 2 * (1 - a2) + a2))
-    assert f0 * d * v * ndl * np.pi == pytest.approx(s)
+    z = np.array([[0.0, 0.0, 1.0]])
+    assert ggx_lobe(z, z, a2)[0, 0] == pytest.approx(1 / (4 * a2), rel=1e-5)
+    th = np.radians(30.0)
+    light = np.array([[np.sin(th), 0.0, np.cos(th)]])
+    c = np.cos(th / 2)
+    d = a2 / (np.pi * (c * c * (a2 - 1) + 1) ** 2)
+    v = 0.5 / (np.cos(th) * np.sqrt(a2 + (1 - a2)) + np.sqrt(np.cos(th) ** 2 * (1 - a2) + a2))
+    assert ggx_lobe(z, light, a2)[0, 0] == pytest.approx(np.pi * d * v * np.cos(th), rel=1e-4)
     # the roughness: sqrt(α) for a lobe at least glass's, 1 for none, between in between
     r = roughness_of_lobe(np.array([[0.05, 0.0, 0.0], [0.0, 0.0, 0.0], [0.02, 0.01, 0.0]]), k)
     assert r[0] == pytest.approx(np.sqrt(alpha)) and r[1] == 1.0
     assert r[2] == pytest.approx(np.sqrt(alpha) + (1 - np.sqrt(alpha)) * 0.5)
+
+
+def test_three_js_draws_the_glb_as_the_models_physics(tmp_path):
+    """three.js (GLTFLoader, MeshPhysicalMaterial, headless Chromium) draws model.glb under a light
+    as the model's physics without cast shadows, in 8-bit display values: the maps' colour spaces,
+    the exposure, the normal map's frame and the UVs are what a viewer reads."""
+    from facette.bench._three import three_view
+    from facette.recon import srgb_encode
+    folder, left = _two_materials(tmp_path)
+    res = process(folder, outputs=["gltf", "relight"], out_dir=tmp_path / "o", method="woodham1980",
+                  shadows="off")
+    model = res.relight_model
+    top = 1 / relight_maps(res)[0]["scale"][0]
+    inner = np.zeros((H, W), bool)
+    inner[2:-2, 2:-2] = True                       # the mesh's outer half-pixel is no texel's centre
+    inner &= model.mask
+    with three_view(tmp_path / "o" / "model.glb", W, H, res.inputs.pixel_pitch_mm) as (draw, materials):
+        assert materials == ["MeshPhysicalMaterial"]              # KHR_materials_specular read
+        for light in res.inputs.light_dirs[::6]:
+            pic = draw(light, np.pi * top).astype(float)
+            b = physical_basis(model.normals, light[None], model.shininess)[0]
+            phys = model.rho * b[..., :1] + model.spec * b[..., 1:2] + model.amb * b[..., 2:3]
+            want = np.round(255 * srgb_encode(np.clip(phys, 0, 1)))
+            diff = np.abs(pic - want)[inner]
+            assert np.median(diff) <= 3 and diff.mean() < 8, (light, np.median(diff), diff.mean())
+            dark = np.abs(pic - want)[inner & ~left[None, :].repeat(H, 0)]
+            assert np.median(dark) <= 2                           # the matte half: diffuse alone
