@@ -108,17 +108,17 @@ def _project(model, lights, alpha2):
     closest, in least squares over `lights` and ≥ 0, to the model's physics without its cast shadows
     (ρ (n·l) + s (n·h)^k + a l_z: what a glTF viewer can show); the model's pixels only."""
     mask = np.asarray(model.mask, bool)
-    cd, f0 = np.zeros(mask.shape + (3,)), np.zeros(mask.shape + (3,))
+    cd, f0 = np.zeros(mask.shape + (3,), np.float32), np.zeros(mask.shape + (3,), np.float32)
     rows, cols = np.nonzero(mask)
     step = max(1024, PROJECT_VALUES // len(lights))
-    terms = np.stack([np.asarray(model.rho, np.float64), np.asarray(model.spec, np.float64),
-                      np.asarray(model.amb, np.float64)], axis=-2)                      # (h, w, 3 terms, C)
     for a in range(0, len(rows), step):
         r, c = rows[a:a + step], cols[a:a + step]
+        terms = np.stack([np.asarray(model.rho[r, c], np.float64), np.asarray(model.spec[r, c], np.float64),
+                          np.asarray(model.amb[r, c], np.float64)], axis=1)             # (N, 3 terms, C)
         n = np.asarray(model.normals[r, c], np.float32)
         basis = physical_basis(n, lights, model.shininess if np.ndim(model.shininess) == 0
                                else np.asarray(model.shininess)[r, c])                # (m, N, 3)
-        y = np.einsum("mnj,njc->mnc", basis, terms[r, c])                               # (m, N, C)
+        y = np.einsum("mnj,njc->mnc", basis, terms)                                     # (m, N, C)
         g = np.stack([np.clip(np.einsum("nc,mc->mn", n, lights.astype(np.float32)), 0, None),
                       ggx_lobe(n, lights, alpha2)], axis=-1).astype(np.float64)         # (m, N, 2)
         gram = np.einsum("mnj,mnk->njk", g, g) + 1e-9 * np.eye(2)
