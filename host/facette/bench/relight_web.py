@@ -85,7 +85,8 @@ def main(argv=None):
               f"({cpu / mp:.2f} CPU s/MP), peak {peak:.2f} GB; {len(files)} files, {size:.1f} MB ({size / mp:.2f} MB/MP)")
         wall, cpu, peak = _timed(["relight", out / "relight_web", "--light", "45,30", "-o", base / "lit.png",
                                   "--overwrite"])
-        print(f"relight OUT/relight_web ({json.loads((out / "relight_web" / "info.json").read_text())["layout"]}, one light): {wall:.1f} s wall, {cpu:.1f} CPU s, peak {peak:.2f} GB")
+        layout = json.loads((out / "relight_web" / "info.json").read_text())["layout"]
+        print(f"relight OUT/relight_web ({layout}, one light): {wall:.1f} s wall, {cpu:.1f} CPU s, peak {peak:.2f} GB")
     return 0
 
 
