@@ -197,7 +197,7 @@ def write_relight_web(folder, width, height, kind, coeff_rows, coeff_range, ligh
 
 
 HINT = "give the relight_web folder `facette process --outputs relight-web` wrote (or one Relight wrote), whole"
-BAND_ROWS = 256            # rows relit at a time: float64 work arrays of a band, not of the whole picture
+BAND_ROWS = 64             # rows relit at a time: work arrays of a band, not of the whole picture
 
 
 @dataclass
@@ -221,30 +221,32 @@ class RelightWeb:
     def height(self):
         return self.planes.shape[1]
 
-    def _coeffs(self, r0, r1):
-        """(r1 - r0, W, 3, terms) float64: (byte / 255 - bias) · scale, as openlime's shader."""
-        x = self.planes[:, r0:r1].astype(np.float64) / 255.0
-        x -= self.bias[:, None, None, :]
-        x *= self.scale[:, None, None, :]
-        return np.moveaxis(x, 0, -1)
+    def _coeffs(self, r0, r1, dtype=np.float64):
+        """(terms, r1 - r0, W, 3): (byte / 255 - bias) · scale, as openlime's shader."""
+        x = self.planes[:, r0:r1].astype(dtype)
+        x *= dtype(1 / 255.0)
+        x -= self.bias[:, None, None, :].astype(dtype)
+        x *= self.scale[:, None, None, :].astype(dtype)
+        return x
 
     @property
     def coeffs(self):
         """(H, W, 3, terms) float64 dequantised coefficients (the whole picture's: 8 bytes each)."""
-        return self._coeffs(0, self.height)
+        return np.moveaxis(self._coeffs(0, self.height), 0, -1)
 
     def relight(self, light):
-        """The picture (H, W, 3) openlime shows at a light (3,) (x right, y up, z to the camera; its
-        x, y as openlime's light control takes them, z from them), clipped to [0, 1]; relit
-        BAND_ROWS rows at a time."""
+        """The picture (H, W, 3) float32 openlime shows at a light (3,) (x right, y up, z to the camera;
+        its x, y as openlime's light control takes them, z from them), clipped to [0, 1]; relit
+        BAND_ROWS rows at a time in float32 (the shader's precision; 12 MP: ~0.5 GB with the planes)."""
         d = np.asarray(light, np.float64)
         r = np.hypot(d[0], d[1])
         x, y = (d[0] / r, d[1] / r) if r > 1 else (d[0], d[1])      # openlime: the square onto the disc
         wts = openlime_weights(self.kind, [x, y, np.sqrt(max(0.0, 1 - x * x - y * y))], self.terms)
-        out = np.empty((self.height, self.width, 3))
+        wts = wts.astype(np.float32)
+        out = np.empty((self.height, self.width, 3), np.float32)
         for r0 in range(0, self.height, BAND_ROWS):
             r1 = min(self.height, r0 + BAND_ROWS)
-            np.clip(self._coeffs(r0, r1) @ wts, 0.0, 1.0, out=out[r0:r1])
+            np.clip(np.tensordot(wts, self._coeffs(r0, r1, np.float32), axes=1), 0.0, 1.0, out=out[r0:r1])
         return out
 
 

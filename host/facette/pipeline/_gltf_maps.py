@@ -196,11 +196,10 @@ def relight_maps(res):
     lobed = float(np.mean(np.max(f0[mask], axis=-1) >= DIELECTRIC_F0))
     notes = [f"glTF maps from the relighting model ({w}x{h}"
              + (", every pixel" if st == 1 else f", one pixel in {st} along each side: the report's size; --outputs "
-                "relight fits every pixel") + "): base colour " + ("its K_d map" if st == 1 else
-                                                     "the albedo at full size in its K_d map's unit")
-             + (f" divided by {top:.3g}" if top > 1 else "")
-             + f"; diffuse and F0 per pixel and colour fitted to its physics under the captured lights "
-             f"(KHR_materials_specular, F0 up to {f0_top:.3g})"
+                "relight fits every pixel") + "): a diffuse and an F0 per pixel and colour fitted to its physics "
+             f"under the captured lights (F0 up to {f0_top:.3g}, KHR_materials_specular); base colour "
+             + ("that diffuse" if st == 1 else "the albedo at full size in that diffuse's unit")
+             + (f", the maps divided by {top:.3g}" if top > 1 else "")
              + f"; roughness (2 / (k + 2))^(1/4) = {r_k:.3g} (Blinn-Phong k = {k_text}) where the lobe is at least "
              f"glass's ({100 * lobed:.0f} % of the object), towards 1 where it is weaker"]
     if f0_top <= 0:

@@ -181,4 +181,4 @@ def test_relit_band_by_band_is_the_coefficients_relit_whole(tmp_path, monkeypatc
     assert got.planes.dtype == np.uint8 and got.planes.shape == (9, 30, 26, 3)
     light = np.array([0.4, -0.3, np.sqrt(1 - 0.25)])
     whole = np.clip(got.coeffs @ openlime_weights("hsh", light), 0, 1)
-    np.testing.assert_allclose(got.relight(light), whole, atol=1e-12)
+    np.testing.assert_allclose(got.relight(light), whole, atol=1e-5)     # float32, as the shader
