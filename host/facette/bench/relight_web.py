@@ -75,7 +75,11 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(a.out) if a.out else Path(tmp)
         t0 = time.perf_counter()
-        _capture(base / "capture", h, w, a.lights)
+        # made in a process of its own: a child's peak memory starts from its parent's at the fork (Linux
+        # keeps the high-water mark across exec), so this process stays small
+        subprocess.run([sys.executable, "-c", "import sys; from pathlib import Path; from facette.bench.relight_web "
+                        "import _capture; _capture(Path(sys.argv[1]), *map(int, sys.argv[2:]))",
+                        str(base / "capture"), str(h), str(w), str(a.lights)], check=True)
         print(f"capture: {w}x{h} ({mp:.1f} MP), {a.lights} JPEG photographs, made in {time.perf_counter() - t0:.0f} s")
         out = base / "out"
         wall, cpu, peak = _timed(["process", base / "capture", "-o", out, "--outputs", "relight-web", "--overwrite"])
