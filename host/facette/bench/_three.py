@@ -44,19 +44,10 @@ const camera = new THREE.OrthographicCamera(-p / 2, (W - 0.5) * p, p / 2, -(H - 
 camera.position.set(0, 0, 100);
 const light = new THREE.DirectionalLight(0xffffff, 1);
 scene.add(light, light.target);
-// cast shadows from the mesh itself (a viewer's shadow map): the light's box covers the image
 const cx = (W - 1) * p / 2, cy = -(H - 1) * p / 2, reach = Math.hypot(W, H) * p;
-renderer.shadowMap.enabled = P.get('shadows') === '1';
-renderer.shadowMap.type = THREE.PCFSoftShadowMap;
-light.castShadow = renderer.shadowMap.enabled;
-Object.assign(light.shadow.camera, {left: -reach, right: reach, top: reach, bottom: -reach, near: 0, far: 4 * reach});
-light.shadow.mapSize.set(2048, 2048);
-light.shadow.bias = -0.0005;
-light.shadow.normalBias = 2 * p;
 light.target.position.set(cx, cy, 0);
 window.relight = (x, y, z, intensity) => {
   light.position.set(cx + 2 * reach * x, cy + 2 * reach * y, 2 * reach * z);
-  light.shadow.camera.updateProjectionMatrix();
   light.intensity = intensity;
   renderer.render(scene, camera);
   return renderer.domElement.toDataURL('image/png');
@@ -64,7 +55,7 @@ window.relight = (x, y, z, intensity) => {
 new GLTFLoader().load('model.glb', (gltf) => {
   scene.add(gltf.scene);
   const kinds = [];
-  gltf.scene.traverse((o) => { if (o.material) { kinds.push(o.material.type); o.castShadow = o.receiveShadow = true; } });
+  gltf.scene.traverse((o) => { if (o.material) kinds.push(o.material.type); });
   window.loaded = {materials: kinds};
 }, undefined, (e) => { window.loaded = {error: String(e)}; });
 </script></body></html>
@@ -77,12 +68,12 @@ class _Quiet(SimpleHTTPRequestHandler):
 
 
 @contextmanager
-def three_view(glb, width, height, pitch_mm, shadows=False, timeout=120):
+def three_view(glb, width, height, pitch_mm, timeout=120):
     """Yield (draw, materials): draw(light (3,), intensity) -> (height, width, 3) uint8, what three.js
     shows of `glb` under a directional light from `light` (unit, camera frame) of that intensity
     (π: a white Lambertian face-on to it shows its base colour); materials: three.js's material
-    types. shadows: the mesh casts shadows (three.js's soft shadow map), as a viewer with shadows on
-    shows it. RuntimeError when three.js is not installed or cannot load the file."""
+    types (no shadow map: three.js's did not darken the sphere's cast shadow on the plane, not
+    debugged). RuntimeError when three.js is not installed or cannot load the file."""
     if not (THREE_MODULES / "three" / "build" / "three.module.js").is_file():
         raise RuntimeError(f"three.js is not installed in {THREE_MODULES.parent}: run `make setup` (npm ci there)")
     site = Path(tempfile.mkdtemp(prefix="facette-three-"))
@@ -95,7 +86,7 @@ def three_view(glb, width, height, pitch_mm, shadows=False, timeout=120):
         threading.Thread(target=server.serve_forever, daemon=True).start()
         with chromium(int(width) + 40, int(height) + 160) as driver:
             driver.get(f"http://127.0.0.1:{server.server_port}/index.html?w={int(width)}&h={int(height)}"
-                       f"&p={float(pitch_mm) * 1e-3}&shadows={int(bool(shadows))}")
+                       f"&p={float(pitch_mm) * 1e-3}")
             t0 = time.monotonic()
             loaded = None
             while loaded is None and time.monotonic() - t0 < timeout:

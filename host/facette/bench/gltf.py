@@ -4,11 +4,11 @@ after (the relighting model's per-pixel K_d, F0 and roughness maps, pipeline._gl
 
 For each capture every k-th light is held out, the rest given to `process --outputs
 gltf,brdf,samples,relight`; both .glb files are drawn by three.js under each held-out light
-(directional, no shadows, no environment) and compared with the photograph in 8-bit display values
+(directional, no shadow map, no environment) and compared with the photograph in 8-bit display values
 over the object's pixels (PSNR over every pixel and channel, as `bench relight`), beside the
 relighting model's own display (normals, maps, cast shadows, residual: what the report's viewer
 draws). "glb vs physics": the mean |8-bit difference| between three.js's picture of the new .glb
-and the model's diffuse + lobe terms it encodes (no shadows, no gathered light): what the glTF
+and the model's physics it was fitted to (no cast shadows, no residual): what the glTF
 encoding itself costs. Times: the model's fit and the .glb's writing (wall, this machine's load).
 
 Captures: a rendered sphere on a plane whose left half is a satin orange and right half a matte
@@ -87,22 +87,18 @@ def _case(label, images, dirs, mask, k, work, method):
     h, w = obj.shape
     # the photographs in the fitted images' unit, shown as the model shows them (display white = its white)
     shown = [np.round(255 * srgb_encode(np.clip(images[j] * scale / 65535.0 / white, 0, 1))) for j in held]
-    rows = {k: [] for k in ("before", "after", "before unshadowed", "after unshadowed", "model", "phys")}
+    rows = {k: [] for k in ("before", "after", "model", "phys")}
     # before: base colour = albedo × scale, the albedo a reflectance (π radiance / irradiance): intensity
     # 1 / (scale white) shows albedo (n·l) / white; after: base colour = c_d × scale in display units
     for name, glb, intensity in (("before", work / "before.glb", 1.0 / (float(np.mean(before["scale"])) * white)),
                                  ("after", work / "out" / "model.glb", np.pi / after_scale)):
-        with three_view(glb, w, h, res.inputs.pixel_pitch_mm, shadows=True) as (draw, materials):
-            for j, photo in zip(held, shown):
-                pic = draw(dirs[j], intensity)
-                rows[name].append(_psnr(pic[obj], photo[obj]))
         with three_view(glb, w, h, res.inputs.pixel_pitch_mm) as (draw, materials):
             for j, photo in zip(held, shown):
                 pic = draw(dirs[j], intensity)
-                rows[name + " unshadowed"].append(_psnr(pic[obj], photo[obj]))
+                rows[name].append(_psnr(pic[obj], photo[obj]))
                 if name == "after":
                     b = physical_basis(model.normals, dirs[j][None] / np.linalg.norm(dirs[j]), model.shininess)[0]
-                    phys = model.rho * b[..., 0:1] + model.spec * b[..., 1:2]
+                    phys = model.rho * b[..., 0:1] + model.spec * b[..., 1:2] + model.amb * b[..., 2:3]
                     want = np.round(255 * srgb_encode(np.clip(phys, 0, 1)))
                     rows["phys"].append(float(np.abs(pic[obj].astype(float) - want[obj]).mean()))
                     rows["model"].append(_psnr(np.round(255 * model.display(dirs[j]))[obj], photo[obj]))
@@ -111,9 +107,6 @@ def _case(label, images, dirs, mask, k, work, method):
     print(f"  held-out PSNR (dB, median / mean): before {np.median(rows['before']):6.2f} / {np.mean(rows['before']):6.2f}"
           f"   after {np.median(rows['after']):6.2f} / {np.mean(rows['after']):6.2f}"
           f"   model's own display {np.median(rows['model']):6.2f} / {np.mean(rows['model']):6.2f}")
-    print(f"  without the viewer's shadow map: before {np.median(rows['before unshadowed']):6.2f} / "
-          f"{np.mean(rows['before unshadowed']):6.2f}   after {np.median(rows['after unshadowed']):6.2f} / "
-          f"{np.mean(rows['after unshadowed']):6.2f}")
     print(f"  glb vs physics: mean |diff| {np.median(rows['phys']):.2f} levels (median over lights);"
           f" glb {size['before'] / 1e6:.2f} -> {size['after'] / 1e6:.2f} MB")
     print(f"  times (s, wall): process {wall:.1f} (relight model {res.timings.get('relight_model', 0):.1f}, "
