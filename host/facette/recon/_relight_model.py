@@ -179,16 +179,31 @@ def cast_shadow(heights, light, softness=SHADOW_SOFTNESS, max_steps=64, max_pixe
     dx, dy = light[0] / horiz, -light[1] / horiz  # image columns right, rows down
     low = np.float32(-1e30)                      # no surface: never above a ray (finite: no inf - inf)
     hh = np.where(np.isfinite(h), h, low)
-    rows, cols = np.indices(h.shape)
     over = np.full(h.shape, -np.inf, np.float32)
     for t in range(1, min(max_steps, max(h.shape)) + 1):
-        r = np.rint(rows + t * dy).astype(int)
-        c = np.rint(cols + t * dx).astype(int)
-        ok = (r >= 0) & (r < h.shape[0]) & (c >= 0) & (c < h.shape[1])
-        other = np.where(ok, hh[np.clip(r, 0, h.shape[0] - 1), np.clip(c, 0, h.shape[1] - 1)], low)
-        np.maximum(over, other - hh - np.float32(t * rise), out=over)
+        _march_step(hh, over, t * dy, t * dx, np.float32(t * rise), low)
     vis = np.clip(1.0 - over / softness, 0, 1).astype(np.float32)     # 1 wherever the ray clears
     return np.where(np.isfinite(h), vis, 1.0).astype(np.float32)
+
+
+def _march_step(hh, over, oy, ox, drop, low):
+    """over = max(over, hh at (row + oy, col + ox) rounded half to even − hh − drop), in place;
+    off the image: `low`. Rows are integers, so round(row + oy) = row + round(oy) unless oy is
+    (nearly) a half (round half to even then depends on the row): a shifted slice, else an index
+    per pixel (the viewer's shader rounds the same way)."""
+    h, w = hh.shape
+    if abs(abs(oy) % 1 - 0.5) > 1e-6 and abs(abs(ox) % 1 - 0.5) > 1e-6:     # (row + oy can round to a half)
+        r, c = int(np.rint(oy)), int(np.rint(ox))
+        rs, cs = slice(max(0, -r), min(h, h - r)), slice(max(0, -c), min(w, w - c))
+        if rs.start < rs.stop and cs.start < cs.stop:
+            shifted = hh[rs.start + r:rs.stop + r, cs.start + c:cs.stop + c]
+            np.maximum(over[rs, cs], shifted - hh[rs, cs] - drop, out=over[rs, cs])
+        return
+    rows, cols = np.indices(hh.shape)
+    r, c = np.rint(rows + oy).astype(int), np.rint(cols + ox).astype(int)
+    ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+    other = np.where(ok, hh[np.clip(r, 0, h - 1), np.clip(c, 0, w - 1)], low)
+    np.maximum(over, other - hh - drop, out=over)
 
 
 DARK_FLOOR = 0.01       # linear value below which the display weight stops growing (display 0.1)
