@@ -44,7 +44,7 @@ HSH_MIX = (0.0, 0.1, 1.0)            # weights of the HSH order-2 kernel tried b
 RBF_SMOOTHING = (1e-3, 1e-2, 1e-1, 1.0)  # ridges tried, relative to the kernel's mean diagonal
 MIN_PREDICTED = 0.01                 # a residual is kept if it predicts this share of itself (left out)
 MAX_PLANES = 48                      # residual planes kept at most (the report's viewer draws the first 16)
-PLANES_BYTES = 1 << 30               # the planes' memory at most (float16): fewer planes on large images
+PLANES_BYTES = 1 << 29               # the planes' memory at most (float16): fewer planes on large images
 AMBIENT_PRIOR = 0.05                 # relative ridge on the gathered-light term (see `_nnls3`)
 BLOCK_VALUES = 1 << 22              # pixel-light pairs per block of the fit (~50 MB per array)
 SHADOW_SOFTNESS = 1.0                # height (px) over which a cast shadow's edge goes from 1 to 0
@@ -409,7 +409,7 @@ def fit_relight_model(images, light_dirs, mask, normals, heights=None, n_planes=
 def default_planes(m, n_pixels=0):
     """Residual planes for m fitted lights: the principal components of the residual over the
     lights, as many as the lights, at most MAX_PLANES and what PLANES_BYTES holds for n_pixels
-    (12 MP: 14 planes), at least 4; none below 6 lights. More planes predict better (DiLiGenT's
+    (12 MP: 7 planes), at least 4; none below 6 lights. More planes predict better (DiLiGenT's
     crops, 84 lights, held out: 16 → 48 planes +0.3 to +0.7 dB; the dome, 200: +1.6 dB)."""
     if m < 6:
         return 0
