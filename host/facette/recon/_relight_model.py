@@ -75,6 +75,7 @@ class RelightModel:
     reach: float = 1.0
     notes: list = field(default_factory=list)
     trend: np.ndarray = None
+    loo_error: float = None
 
     def decimated(self, st):
         """The model at every st-th pixel (heights in the decimated grid's pixels)."""
@@ -322,10 +323,11 @@ def _kernel_choice(gram, dirs, spacing):
                 err = _loo_error(kern, sm * scale, gram)
                 if err < best_err:
                     best, best_err = (1.0 / (mult * spacing), mix, sm * scale), err
-    return best
+    return best, (best_err if best is not None else float(np.trace(gram)))
 
 
-def fit_relight_model(images, light_dirs, mask, normals, heights=None, n_planes=None, shown=None, white=1.0):
+def fit_relight_model(images, light_dirs, mask, normals, heights=None, n_planes=None, shown=None, white=1.0,
+                      shadows="auto"):
     """Fit the model of this module to photographs.
 
     images : (m, H, W, 3) linear, scaled so that 1 is the display's white (values above 1 are
@@ -335,8 +337,25 @@ def fit_relight_model(images, light_dirs, mask, normals, heights=None, n_planes=
     the display values (m, H, W, 3) if known (8-bit photographs), else sRGB of the clipped images;
     white : the images' value shown as white (they are divided by it, block by block).
     Pixels are fitted by blocks (memory: the images, the maps, ~0.2 GB a block, and the
-    shadows' m bytes per pixel). Returns a `RelightModel`.
+    shadows' m bytes per pixel). shadows "auto" (with heights): the model is fitted with and
+    without cast shadows and the one whose residual predicts the fitted lights left out better
+    (`RelightModel.loo_error`) is kept; True: with them. Returns a `RelightModel`.
     """
+    args = (images, light_dirs, mask, normals)
+    kw = dict(n_planes=n_planes, shown=shown, white=white)
+    model = _fit_model(*args, heights=heights, **kw)
+    if heights is None or shadows is True or model.loo_error is None:
+        return model
+    flat = _fit_model(*args, heights=None, **kw)
+    if flat.loo_error < model.loo_error:
+        flat.notes.append(f"no cast shadows: without them the fitted lights left out are predicted better "
+                          f"({flat.loo_error:.4g} against {model.loo_error:.4g})")
+        return flat
+    return model
+
+
+def _fit_model(images, light_dirs, mask, normals, heights=None, n_planes=None, shown=None, white=1.0):
+    """`fit_relight_model` with or without cast shadows (heights or None)."""
     dirs = np.asarray(light_dirs, float)
     dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
     mask = np.asarray(mask, bool) & np.all(np.isfinite(normals), axis=-1)
@@ -391,7 +410,9 @@ def fit_relight_model(images, light_dirs, mask, normals, heights=None, n_planes=
     model.spacing = float(np.median(dist.min(axis=1)))
     model.reach = float(np.max(np.linalg.norm(xy, axis=1)))
     # the kernel judged on the residual the planes keep (what the model will interpolate)
-    choice = _kernel_choice((funcs * energy) @ funcs.T, dirs, model.spacing)
+    choice, loo = _kernel_choice((funcs * energy) @ funcs.T, dirs, model.spacing)
+    # the model's error at the fitted lights left out: the planes' (interpolated) and what they leave
+    model.loo_error = loo + float(np.trace(gram) - energy.sum())
     if choice is None:
         model.notes.append("no residual: interpolating it did not predict the fitted lights left out")
         return model

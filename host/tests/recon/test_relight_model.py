@@ -101,4 +101,14 @@ def test_residual_of_noise_alone_is_not_kept(scene):
     sc, dirs, lin, train, _ = scene
     rng = np.random.default_rng(2)
     rows = rng.normal(size=(500, len(train)))
-    assert _kernel_choice(rows.T @ rows, dirs[train], 0.2) is None
+    assert _kernel_choice(rows.T @ rows, dirs[train], 0.2)[0] is None
+
+
+def test_auto_keeps_cast_shadows_where_they_predict_better(scene):
+    # the rendered sphere casts shadows on its plane: the model with them predicts the fitted
+    # lights left out better, and "auto" keeps it
+    sc, dirs, lin, train, _ = scene
+    heights = integrate(sc.normals, mask=sc.mask)
+    auto = fit_relight_model(lin[train], dirs[train], sc.mask, sc.normals, heights=heights)
+    flat = fit_relight_model(lin[train], dirs[train], sc.mask, sc.normals)
+    assert auto.heights is not None and auto.loo_error < flat.loo_error
