@@ -12,7 +12,7 @@ Methods (`bench._relight_methods`): PTM LRGB, HSH of order 2 and 3, Relight's RB
 components + Gaussian RBF over the lights), facette's report viewer before this change (process():
 normals, albedo, one LI BRDF; --no-before to skip it), and facette's relighting model
 (`recon._relight_model`: normals, a per-pixel diffuse, lobe and gathered-light map, cast shadows
-from the integrated heights (left out in "no shadows"), and a residual interpolated over the lights).
+from the integrated heights (kept per capture by leave-one-light-out error; never in "no shadows"), and a residual interpolated over the lights).
 
 Captures (../shared/data, or --root DIR): DiLiGenT (96 lights, every 8th held out), DiLiGenT-Π
 (5 lights, each left out in turn; every `--pi-step` px), the Loewenkopf dome (JPEG + .lp, 240

@@ -6,7 +6,8 @@ in the photographs' linear unit scaled to their white (1 = display white):
     phys(p, l) = ρ_c(p) max(n·l, 0) V(p, l) + s_c(p) max(n·h, 0)^k [n·l > 0] V(p, l) + a_c(p) max(l_z, 0)
 
 n the pixel's normal, h the half vector of l and the camera (+z), V the cast-shadow visibility
-from the integrated heights (soft at the edge; 1 without heights), k one Blinn–Phong exponent per
+from the integrated heights (soft at the edge; 1 without heights; kept only where they
+predict the fitted lights left out better, `fit_relight_model`'s shadows="auto"), k one Blinn–Phong exponent per
 capture (the one of `SHININESS` the fitted photographs fit best), a the light the surface
 gathers from the room and from itself, taken proportional to the irradiance of the object's
 plane (max(l_z, 0)). ρ, s, a ≥ 0 per pixel and channel (non-negative least squares, the
