@@ -12,7 +12,7 @@ Methods (`bench._relight_methods`): PTM LRGB, HSH of order 2 and 3, Relight's RB
 components + Gaussian RBF over the lights), facette's report viewer before this change (process():
 normals, albedo, one LI BRDF; --no-before to skip it), and facette's relighting model
 (`recon._relight_model`: normals, a per-pixel diffuse, lobe and gathered-light map, cast shadows
-from the integrated heights (left out in "no shadows"), and a residual interpolated over the lights).
+from the integrated heights (kept per capture by leave-one-light-out error; never in "no shadows"), and a residual interpolated over the lights).
 
 Captures (../shared/data, or --root DIR): DiLiGenT (96 lights, every 8th held out), DiLiGenT-Π
 (5 lights, each left out in turn; every `--pi-step` px), the Loewenkopf dome (JPEG + .lp, 240
@@ -31,6 +31,7 @@ from scipy.ndimage import gaussian_filter
 import facette
 from facette.bench._relight_data import (diligent_capture, harvard_capture, hold_every, lp_capture,
                                          make_jpeg_capture)
+from facette.bench._relight_large import run_large
 from facette.bench._relight_methods import METHODS
 
 RAKING_DEG = 75.0
@@ -150,6 +151,9 @@ def main(argv=None):
     ap.add_argument("--methods", default=",".join(METHODS), help="methods (default all)")
     ap.add_argument("--no-before", action="store_true",
                     help="skip the viewer before this change (a process() per fold)")
+    ap.add_argument("--large", default=None, metavar="WxH",
+                    help="also fit the model on a generated WxH slab through process (e.g. 4000x3000: "
+                         "12 MP); prints its time and peak memory")
     args = ap.parse_args(argv)
     names = [n for n in args.methods.split(",") if n in METHODS and not (args.no_before and "before" in n)]
     work = Path(tempfile.mkdtemp(prefix="facette_bench_relight_"))
@@ -164,6 +168,8 @@ def main(argv=None):
             for name in names:
                 print(_row(label, name, rows[name]), flush=True)
                 label = ""
+        if args.large:
+            run_large(tuple(int(v) for v in args.large.lower().split("x")), work)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     if not table:

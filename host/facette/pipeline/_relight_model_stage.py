@@ -14,6 +14,7 @@ import time
 import numpy as np
 
 from facette.pipeline._viewer import MAX_SIDE
+from facette.pipeline._viewer_model import VIEWER_PLANES
 from facette.recon import fit_relight_model, save_relight_model
 
 __all__ = ["relight_model_stage", "save_relight_model", "WHITE_PERCENTILE"]
@@ -50,7 +51,7 @@ def relight_model_stage(res, images, light_dirs, pixel_pitch_mm=1.0, write=None,
     cut = (slice(None, None, st), slice(None, None, st))
     res.relight_model = fit_relight_model(images[:, cut[0], cut[1]], light_dirs, mask[cut], res.normals[cut],
                                           heights=None if heights is None else heights[cut] / np.float32(st),
-                                          white=white)
+                                          white=white, n_planes=None if every_pixel else VIEWER_PLANES)
     res.timings["relight_model"] = time.perf_counter() - t0
     if write is not None:
         write("relight")

@@ -3,9 +3,9 @@
 Shipped at the viewer's size (every st-th pixel): the diffuse, lobe and gathered-light maps as
 RGBA8, each channel v = sqrt(x / scale) (a square-root code: dark values keep their levels), the
 heights as float16 (pixels of the viewer's grid; the shader marches them for the cast shadows),
-the residual's planes as RGBA8 layers (plane j = bias_j + scale_j · byte / 255), and the
-Gaussian RBF of the planes' light functions (centres, weights, ε), which viewer.js evaluates per
-frame. `packed_model` returns the model rebuilt from exactly what was shipped: the Python
+the residual's first 16 planes as RGBA8 layers (plane j = bias_j + scale_j · byte / 255), and
+the kernel of the planes' light functions (centres, weights, ε and the HSH order-2 trend), which
+viewer.js evaluates per frame. `packed_model` returns the model rebuilt from exactly what was shipped: the Python
 reference of the page (`RelightModel.display`).
 """
 import base64
@@ -17,6 +17,7 @@ from facette.recon import RelightModel
 __all__ = ["model_data", "packed_model"]
 
 NO_HEIGHT = -60000.0        # float16 stand-in for "no surface" (never casts a shadow)
+VIEWER_PLANES = 16          # residual planes the shader draws (its uniform arrays)
 
 
 def _b64(a):
@@ -52,7 +53,7 @@ def model_data(model, st, mask):
     """(JSON-ready dict, the model as shipped) of `model` at every st-th pixel; mask: the
     viewer's pixels (at that size)."""
     # process fits the model at the viewer's size when relight_model.npz is not asked for
-    small = model if model.mask.shape == np.shape(mask) else model.decimated(st)
+    small = (model if model.mask.shape == np.shape(mask) else model.decimated(st)).first_planes(VIEWER_PLANES)
     mask = np.asarray(mask, bool) & small.mask
     maps, scales = [], []
     for x in (small.rho, small.spec, small.amb):
@@ -74,14 +75,16 @@ def model_data(model, st, mask):
         data.update(planes=_b64(p8), n_planes=int(p8.shape[0]), plane_bias=bias.tolist(),
                     plane_scale=scale.tolist(), centres=small.centres.ravel().tolist(),
                     weights=small.weights.ravel().tolist(), epsilon=small.epsilon, n_lights=len(small.centres),
-                    spacing=small.spacing, reach=small.reach)
+                    spacing=small.spacing, reach=small.reach,
+                    trend=None if small.trend is None else small.trend.ravel().tolist())
         planes = (bias + scale * p8[..., :3].astype(np.float32).transpose(1, 2, 3, 0) / 255).astype(np.float32)
     shipped = RelightModel(small.normals, mask, decoded[0], decoded[1], decoded[2], small.shininess, heights,
                            planes, small.centres, small.weights, small.epsilon, small.white, small.softness,
-                           small.spacing, small.reach)
+                           small.spacing, small.reach, trend=small.trend)
     return data, shipped
 
 
 def packed_model(model, st, mask):
-    """The model rebuilt from what `model_data` ships (the page's Python reference)."""
+    """The model rebuilt from what `model_data` ships (the page's Python reference: its first
+    VIEWER_PLANES residual planes)."""
     return model_data(model, st, mask)[1]

@@ -108,7 +108,7 @@ void main() {
     gl.uniform1fv(u("uPScale"), pad(sv.plane_scale));
   }
 
-  function lightFunctions(sv, l) {       // e_j(l): the Gaussian RBF over the captured lights' (x, y)
+  function lightFunctions(sv, l) {       // e_j(l): the Gaussian RBF over the captured lights' (x, y), + the trend
     const e = new Float32Array(16), K = sv.n_planes;
     let nearest = Infinity;
     for (let i = 0; i < sv.n_lights; i++) {
@@ -116,6 +116,13 @@ void main() {
       const dist = Math.hypot(dx, dy), r = sv.epsilon * dist, g = Math.exp(-r * r);
       nearest = Math.min(nearest, dist);
       for (let j = 0; j < Math.min(K, 16); j++) e[j] += g * sv.weights[i * K + j];
+    }
+    if (sv.trend) {                      // the HSH order-2 part (recon._rti.hsh_basis(l, 2)) @ trend (4, K)
+      const c = Math.min(Math.max(l[2] / Math.hypot(l[0], l[1], l[2]), 0), 1), rho = Math.hypot(l[0], l[1]);
+      const s = 2 * Math.sqrt(Math.max(c - c * c, 0)), k1 = Math.sqrt(2) * Math.sqrt(3 / (4 * Math.PI));
+      const h = [1 / Math.sqrt(2 * Math.PI), k1 * s * (rho > 0 ? l[0] / rho : 1),
+                 Math.sqrt(3 / (2 * Math.PI)) * (2 * c - 1), k1 * s * (rho > 0 ? l[1] / rho : 0)];
+      for (let i = 0; i < 4; i++) for (let j = 0; j < Math.min(K, 16); j++) e[j] += h[i] * sv.trend[i * K + j];
     }
     // beyond twice the lights' spacing from the nearest one, or below the lowest, the residual fades out
     const beyond = Math.max(nearest - 2 * sv.spacing, Math.hypot(l[0], l[1]) - sv.reach, 0);

@@ -79,3 +79,10 @@ def test_main_on_a_diligent_style_folder(tmp_path, capsys):
                  "--methods", "HSH 3,facette model", "--no-before"]) == 0
     out = capsys.readouterr().out
     assert "ballPNG" in out and "ballPNG.jpg" in out and "facette model" in out and "vs HSH 3" in out
+
+
+def test_large_section_reports_time_and_peak_memory(tmp_path, capsys):
+    from facette.bench._relight_large import run_large
+    run_large((48, 40), tmp_path)
+    out = capsys.readouterr().out
+    assert "peak" in out and "planes" in out and "process failed" not in out, out

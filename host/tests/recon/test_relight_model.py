@@ -4,8 +4,8 @@ import pytest
 
 from facette.errors import BadInputError
 from facette.recon import fit_hsh, hsh_basis, integrate, srgb_encode
-from facette.recon._relight_model import (cast_shadow, fit_relight_model, load_relight_model,
-                                          save_relight_model)
+from facette.recon._relight_model import (_kernel, _kernel_choice, _loo_error, cast_shadow, fit_relight_model,
+                                          load_relight_model, save_relight_model)
 from facette.recon.synthetic import render, sphere_on_plane
 
 
@@ -80,3 +80,35 @@ def test_round_trips_through_its_file(scene, tmp_path):
     (tmp_path / "other.npz").write_bytes(b"not a model")
     with pytest.raises(BadInputError):
         load_relight_model(tmp_path / "other.npz")
+
+
+def test_leave_one_light_out_error_is_the_refitted_one():
+    # the closed form the residual's kernel is chosen by equals refitting without each light
+    rng = np.random.default_rng(1)
+    dirs = _dome((5, 7), (60.0, 30.0))
+    rows = rng.normal(size=(9, len(dirs)))
+    kern = _kernel(dirs, dirs, 3.0, 0.1)
+    brute = 0.0
+    for i in range(len(dirs)):
+        keep = np.setdiff1d(np.arange(len(dirs)), [i])
+        wts = np.linalg.solve(kern[np.ix_(keep, keep)] + 0.05 * np.eye(len(keep)), rows[:, keep].T)
+        brute += np.sum((kern[i, keep] @ wts - rows[:, i]) ** 2)
+    assert np.isclose(_loo_error(kern, 0.05, rows.T @ rows), brute, rtol=1e-9)
+
+
+def test_residual_of_noise_alone_is_not_kept(scene):
+    # a residual no light predicts (independent noise per light) is left out: physics alone
+    sc, dirs, lin, train, _ = scene
+    rng = np.random.default_rng(2)
+    rows = rng.normal(size=(500, len(train)))
+    assert _kernel_choice(rows.T @ rows, dirs[train], 0.2)[0] is None
+
+
+def test_auto_keeps_cast_shadows_where_they_predict_better(scene):
+    # the rendered sphere casts shadows on its plane: the model with them predicts the fitted
+    # lights left out better, and "auto" keeps it
+    sc, dirs, lin, train, _ = scene
+    heights = integrate(sc.normals, mask=sc.mask)
+    auto = fit_relight_model(lin[train], dirs[train], sc.mask, sc.normals, heights=heights)
+    flat = fit_relight_model(lin[train], dirs[train], sc.mask, sc.normals)
+    assert auto.heights is not None and auto.loo_error < flat.loo_error

@@ -1,0 +1,57 @@
+"""`facette bench relight --large WxH`: the relighting model on a large generated capture.
+
+A relief slab (`bench._large.write_relief_capture`: 12 lights, 16-bit PNGs, written band by
+band) goes through `process(folder, outputs=["relight"])` in a process of its own, as
+`facette process SLAB -o OUT --outputs relight` runs it; printed: the whole run's wall time, the
+model stage's (`res.timings["relight_model"]`) in s/MP, the planes kept, relight_model.npz's
+size, and the child's peak memory (its max RSS, from wait4).
+"""
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["run_large"]
+
+CHILD = [sys.executable, "-m", "facette.bench._relight_large"]
+
+
+def run_large(size, work, method="woodham1980"):
+    """Generate the slab (w, h) in `work`, fit the model in a child process, print its figures."""
+    from facette.bench._large import write_relief_capture
+    w, h = size
+    folder = Path(work) / f"slab_{w}x{h}"
+    t0 = time.perf_counter()
+    write_relief_capture(folder, w, h)
+    print(f"large: {w}x{h} slab ({w * h / 1e6:.1f} MP, 12 lights) written in {time.perf_counter() - t0:.0f} s",
+          flush=True)
+    t0 = time.perf_counter()
+    log = Path(work) / "large_child.txt"
+    with open(log, "w") as fh:
+        proc = subprocess.Popen(CHILD + [str(folder), str(Path(work) / "out_large"), method], stdout=fh)
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)     # reaped here: Popen must not wait again
+    out = log.read_text()
+    wall = time.perf_counter() - t0
+    if proc.returncode:
+        print(f"large: process failed ({proc.returncode})")
+        return
+    print(f"large: process --outputs relight ({method}) {wall:.0f} s wall, peak {usage.ru_maxrss / 1e6:.2f} GB; "
+          + out.strip(), flush=True)
+
+
+def _child(folder, out, method):
+    import numpy as np
+    from facette.pipeline import process
+    res = process(folder, outputs=["relight"], out_dir=out, method=method)
+    mpx = res.relight_model.mask.sum() / 1e6
+    k = 0 if res.relight_model.planes is None else res.relight_model.planes.shape[-1]
+    size = os.path.getsize(Path(out) / "relight_model.npz") / 1e6
+    print(f"model stage {res.timings['relight_model']:.0f} s ({res.timings['relight_model'] / mpx:.1f} s/MP, "
+          f"{mpx:.1f} MP fitted), {k} planes, relight_model.npz {size:.0f} MB "
+          f"({size / mpx:.0f} B/px), mean ρ {np.mean(res.relight_model.rho):.3f}")
+
+
+if __name__ == "__main__":
+    _child(*sys.argv[1:4])
