@@ -19,7 +19,7 @@ from facette.errors import NotAReflectance
 from facette.fit import glossy_lobes_text, ps_li_without_interreflections
 from facette.methods import options_for
 from facette.pipeline._options import IR_AUTO
-from facette.recon import IR_MAX_FRACTION, without_interreflections
+from facette.recon import IR_MAX_FRACTION, scale_from_images, unidentified_info, without_interreflections
 
 __all__ = ["interreflections_wanted", "solve_without_interreflections", "SIM_INTERREFLECTIONS_NOTE"]
 
@@ -27,6 +27,7 @@ SIM_INTERREFLECTIONS_NOTE = ("--interreflections on a simulated scan: the simula
                              "so their removal takes away light that no wall gathered (errors against truth grow); "
                              "leave it out for simulated scans")
 AUTO_OFF = "inter-reflections left in (interreflections 'auto'): "
+AUTO_SCALE = "identified"      # "auto" without a Spectralon: the scale estimated, nothing removed unless identified
 
 
 def interreflections_wanted(o, inp, notes):
@@ -39,11 +40,7 @@ def interreflections_wanted(o, inp, notes):
     if o.interreflections != IR_AUTO:
         return o.interreflections
     why = ("the simulator renders none" if simulated else
-           "--memory reads the images by bands and the removal needs them whole" if o.memory else
-           None if inp.reflectance else
-           "the images are not reflectance-calibrated (no Spectralon scale: a DiLiGenT folder, an RTI capture, "
-           "a scan without the calibration's Spectralon step); --interreflections removes it with the albedo's "
-           "scale estimated from the images")
+           "--memory reads the images by bands and the removal needs them whole" if o.memory else None)
     if why:
         notes.append(AUTO_OFF + why)
     return why is None
@@ -57,11 +54,18 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
     out with a note; asked for explicitly, it raises (NotAReflectance, an InsufficientData).
     mask : (H, W) bool, or the PSInput (its mask; and reflectance_scale 1 when its images are
     reflectance-calibrated, else "auto": estimated from the images)."""
-    if hasattr(mask, "reflectance"):
-        reflectance_scale, mask = (1.0 if mask.reflectance else "auto"), mask.mask
+    if hasattr(mask, "reflectance"):       # "auto": only a scale the data identify (AUTO_SCALE)
+        reflectance_scale = 1.0 if mask.reflectance else "auto" if o.interreflections is True else AUTO_SCALE
+        mask = mask.mask
     t0 = time.perf_counter()
     try:
         if method_name == "li_alternating":
+            if reflectance_scale == AUTO_SCALE:     # decided before li runs twice: only a scale the data tell
+                first, scale, estimate = scale_from_images(solve_in, light_dirs, mask, o.saturation, bag.get("channel"))
+                if not estimate["identified"]:
+                    note_interreflections(res, unidentified_info(scale, estimate), time.perf_counter() - t0)
+                    return solve_in, None
+                reflectance_scale = "auto"
             ps, direct, info = ps_li_without_interreflections(solve_in, light_dirs, reflectance_scale=reflectance_scale,
                                                               **options_for(method_name, bag))
             note_interreflections(res, info, info["removal_seconds"])
@@ -83,6 +87,14 @@ def note_interreflections(res, info, seconds):
     """The removal's info, seconds and note into `res`."""
     res.interreflections = info
     res.timings["interreflections"] = seconds
+    if info.get("scale_identified") is False:
+        est = info["scale_estimate"]
+        res.notes.append(AUTO_OFF + "the images do not tell the albedo's scale to a reflectance (the albedo "
+                         + ("does not grow with the light the surface gathers" if est.get("growth_kept") is None
+                            or est["growth_kept"] == float("inf") else
+                            f"grows with the light gathered, but removing it keeps {est['growth_kept']:.0%} of "
+                            "that growth") + "); --interreflections removes it with the scale estimated anyway")
+        return
     how = (f"{info['median_fraction']:.1%} of the median value, {info['p95_fraction']:.1%} at the 95th "
            f"percentile, on {info['grid'][1]}x{info['grid'][0]} cells, {len(info['passes'])} pass(es)")
     if not info["applied"]:
