@@ -119,7 +119,8 @@ def main(argv=None):
                         ratio = e.mean() / ls if ls else np.nan
                         ratios.setdefault((lights, v), []).append(ratio)
                         shadows = res.quality.get("shadows")
-                        extra = "" if shadows is None else f"  hidden {shadows['hidden_share']}"
+                        extra = "" if shadows is None else \
+                            f"  hidden {shadows.get('decided_on')} (binned {shadows.get('bin')}) -> {shadows['hidden_share']}"
                         ir = res.interreflections
                         if ir is not None:
                             extra += (f"  ir scale {ir.get('reflectance_scale', np.nan):.2f} "

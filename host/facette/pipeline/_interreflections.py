@@ -5,13 +5,15 @@ The removal needs the albedo as a reflectance (it decides how much light each wa
 whose images are radiance factors (the calibration's Spectralon step, `PSInput.reflectance`) has
 it; elsewhere (a DiLiGenT folder, an RTI capture, a scan without the Spectralon step) its scale is
 estimated from the images (facette.recon._interreflect_scale: the scale at which the albedo no
-longer grows with the light gathered). "auto" runs it on a reflectance-calibrated scan read whole;
-on other inputs it runs when asked for (--interreflections), with the estimated scale: on the
-Mitsuba concave scenes it takes the default from 1.05x to 0.56x least squares' error (plaster) and
-0.56x to 0.43x (paint) under 12 rig lights, but on the DiLiGenT crops (96 lights) 6.26 -> 6.78 deg
-(reading 12.9 deg) for twice li_alternating's time, so not by default. A convex
-object gathers no light: the removal then finds too little to matter and the images stay as they
-are (`facette.recon.without_interreflections`, IR_SKIP_P95).
+longer grows with the light gathered). "auto" runs it on every input read whole (not the rig
+simulator's, which renders none): on a calibrated scan with its scale; elsewhere only where the
+images tell the scale (AUTO_SCALE: the albedo grows with the light the heights say each wall gathers,
+and removing that light takes the growth away). Before this, "auto" left it in on every folder,
+because with the scale estimated whatever the data said DiLiGenT's crops got worse (reading, dark
+and glossy: 9.7 -> 12.9 deg; a dark glossy Mitsuba bowl 0.48 -> 4.62 deg); where the scale is
+identified (the plaster and paint 0.10 renders) it takes the default from 0.80x to about 0.5x least
+squares' error under 12 rig lights. A convex object gathers no light: it is not identified, and the
+images stay as they are. li_alternating is decided before it runs (its removal runs it twice).
 """
 import time
 

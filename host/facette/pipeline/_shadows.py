@@ -14,9 +14,9 @@ alone does not tell it (a lit wall fills the shadow). The step:
 3. the chosen method solves once on the images without the hidden values. Its `shadow` map
    gains them (the reflectance samples leave them out).
 
-"auto" leaves the images as they are (after step 1, which costs a rank_trimmed pass, an
-integration and the horizon test) when under SHADOW_MIN_SHARE of the lit samples are hidden: a
-convex object hides nothing.
+"auto" decides first, on the images binned to at most SHADOW_PIXELS object pixels (a rank_trimmed
+pass, an integration and the horizon test there): under SHADOW_MIN_SHARE of the lit samples hidden,
+the images are used as they are (a convex object hides nothing, and pays that small pass only).
 """
 import time
 import warnings
