@@ -21,7 +21,8 @@ from facette.errors import NotAReflectance
 from facette.fit import glossy_lobes_text, ps_li_without_interreflections
 from facette.methods import options_for
 from facette.pipeline._options import IR_AUTO
-from facette.recon import IR_MAX_FRACTION, scale_from_images, unidentified_info, without_interreflections
+from facette.pipeline._shadows import binned as _binned
+from facette.recon import IR_GRID, IR_MAX_FRACTION, scale_from_images, unidentified_info, without_interreflections
 
 __all__ = ["interreflections_wanted", "solve_without_interreflections", "SIM_INTERREFLECTIONS_NOTE"]
 
@@ -30,6 +31,14 @@ SIM_INTERREFLECTIONS_NOTE = ("--interreflections on a simulated scan: the simula
                              "leave it out for simulated scans")
 AUTO_OFF = "inter-reflections left in (interreflections 'auto'): "
 AUTO_SCALE = "identified"      # "auto" without a Spectralon: the scale estimated, nothing removed unless identified
+# li_alternating's decision reads the images binned to at most this many pixels a side: the estimate
+# works on the gather's cells (IR_GRID a side), each then still 4 x 4 binned pixels (a 12 MP capture:
+# bins of 11 x 11, one robust pass of 0.1 MP instead of 12)
+DECIDE_SIDE = 4 * IR_GRID
+
+
+def _decide_bin(mask):
+    return max(1, -(-max(mask.shape) // DECIDE_SIDE))
 
 
 def interreflections_wanted(o, inp, notes):
@@ -59,13 +68,15 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
     if hasattr(mask, "reflectance"):       # "auto": only a scale the data identify (AUTO_SCALE)
         reflectance_scale = 1.0 if mask.reflectance else "auto" if o.interreflections is True else AUTO_SCALE
         mask = mask.mask
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         if method_name == "li_alternating":
             if reflectance_scale == AUTO_SCALE:     # decided before li runs twice: only a scale the data tell
-                first, scale, estimate = scale_from_images(solve_in, light_dirs, mask, o.saturation, bag.get("channel"))
+                first, scale, estimate = scale_from_images(*_binned(solve_in, light_dirs, mask, _decide_bin(mask)),
+                                                           o.saturation, bag.get("channel"))
                 if not estimate["identified"]:
-                    note_interreflections(res, unidentified_info(scale, estimate), time.perf_counter() - t0)
+                    info = unidentified_info(scale, estimate) | {"cpu_seconds": round(time.process_time() - c0, 3)}
+                    note_interreflections(res, info, time.perf_counter() - t0)
                     return solve_in, None
                 reflectance_scale = "auto"
             ps, direct, info = ps_li_without_interreflections(solve_in, light_dirs, reflectance_scale=reflectance_scale,
@@ -79,6 +90,7 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
             raise
         res.notes.append(AUTO_OFF + str(exc))
         return solve_in, None
+    info["cpu_seconds"] = round(time.process_time() - c0, 3)
     note_interreflections(res, info, time.perf_counter() - t0)
     if not info["applied"]:
         return solve_in, (first if method_name == "rank_trimmed" else None)

@@ -27,7 +27,8 @@ from facette.methods import photometric_stereo
 from facette.pipeline._options import SHADOWS_AUTO
 from facette.recon import hidden_lights
 
-__all__ = ["shadows_wanted", "solve_with_shadows", "with_shadows", "SHADOW_MARGIN_DEG", "SHADOW_MIN_SHARE", "SHADOW_ROUNDS"]
+__all__ = ["binned", "shadows_wanted", "solve_with_shadows", "with_shadows", "SHADOW_MARGIN_DEG", "SHADOW_MIN_SHARE",
+           "SHADOW_PIXELS", "SHADOW_ROUNDS"]
 
 # a light is hidden when the horizon is above it less this (degrees). Negative: integrated heights round
 # a wall's rim off, so the horizon comes out low (the analytic groove's true heights: truly hidden lights
@@ -87,7 +88,7 @@ def _lit_share(hidden, normals, valid, L):
     return float((hidden & lit).sum()) / n if n else 0.0
 
 
-def _binned(direct, light_dirs, mask, f):
+def binned(direct, light_dirs, mask, f):
     """(images, light directions, mask) binned f x f (the mean of each block's values that are not
     missing; a block is on the mask when all its pixels are); f 1: as given."""
     if f == 1:
@@ -125,7 +126,7 @@ def solve_with_shadows(res, o, direct, light_dirs, mask, method_name, bag, first
     ("shadows") and res.quality["shadows"] (the figures, which process.json records) are filled in.
     "auto" decides on the images binned to at most SHADOW_PIXELS pixels of the object (a convex
     object pays one small robust pass and horizon test); the alternation runs at full size."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     L = _distant(light_dirs)
 
     def hidden_of(images, dirs, m, f, given=None):       # a robust pass (or `given`'s normals), its hidden lights
@@ -139,12 +140,12 @@ def solve_with_shadows(res, o, direct, light_dirs, mask, method_name, bag, first
 
     # the decision, on the images binned to at most SHADOW_PIXELS object pixels
     f = max(1, int(np.ceil(np.sqrt(np.count_nonzero(mask) / SHADOW_PIXELS))))
-    coarse, coarse_dirs, coarse_mask = _binned(direct, light_dirs, mask, f)
+    coarse, coarse_dirs, coarse_mask = binned(direct, light_dirs, mask, f)
     hidden, share = hidden_of(coarse, coarse_dirs, coarse_mask, f, first)
     info = {"margin_deg": SHADOW_MARGIN_DEG, "decided_on": round(share, 5), "bin": f, "hidden_share": []}
     res.quality["shadows"] = info
     if o.shadows == SHADOWS_AUTO and share < SHADOW_MIN_SHARE:
-        info["applied"] = False
+        info.update(applied=False, cpu_seconds=round(time.process_time() - c0, 3))
         res.timings["shadows"] = time.perf_counter() - t0
         res.notes.append(f"shadows: the surface hides {share:.2%} of the lit samples from itself; "
                          "too few to matter, the images are used as they are")
@@ -156,10 +157,11 @@ def solve_with_shadows(res, o, direct, light_dirs, mask, method_name, bag, first
     for _ in range(SHADOW_ROUNDS - 1):
         hidden, share = hidden_of(_without(direct, hidden, "rank_trimmed"), light_dirs, mask, 1)
         rounds.append(round(share, 5))
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.process_time()
     ps = photometric_stereo(_without(direct, hidden, method_name), light_dirs, method=o.method, options=bag)
     ps.shadow |= np.moveaxis(hidden, 0, -1) & ps.valid[..., None]
-    info.update(applied=True, seconds_before_solve=round(t1 - t0, 3))
+    # the step's own cost is what comes before the method's solve (which runs in any case)
+    info.update(applied=True, seconds_before_solve=round(t1 - t0, 3), cpu_seconds_before_solve=round(c1 - c0, 3))
     res.timings["shadows"] = time.perf_counter() - t0
     res.notes.append(f"shadows: the surface's own heights hide {rounds[-1]:.2%} of the lit samples (lights "
                      f"under the horizon + {-SHADOW_MARGIN_DEG:g}°); those values were left out of the normals "
