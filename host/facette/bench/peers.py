@@ -87,13 +87,13 @@ def diligent_table(methods, root, tmp=None):
     for folder, truth in objects:
         rows, _, data = run_object(folder, truth, methods, "all")
         obj = object_name(folder)
-        place = "16-bit cut to" if folder.parent.name == "requantised_to_8_bit" else folder.parent.name + "/"
+        place = "16-bit cut to " if folder.parent.name == "requantised_to_8_bit" else folder.parent.name + "/"
         line = f"{place + obj + f' {data.bit_depth}-bit':28s}"
         for name, mean, _, dt in rows:
             pub = paper_figure(name, obj)
             cell = f"{mean:6.2f} {dt:6.1f}s" + (f" [{pub:5.2f}]" if pub is not None else " " * 8)
             line += f" | {cell:>24s}"
-            if data.bit_depth == 8 and place != "16-bit cut to":      # the shipped 8-bit crops
+            if data.bit_depth == 8 and place != "16-bit cut to ":      # the shipped 8-bit crops
                 sums[name].append((mean, dt, pub))
         print(line, flush=True)
     line = f"{'mean of the 8-bit crops':28s}"
@@ -135,6 +135,62 @@ def mitsuba_table(methods, cache, size, spp):
     return 0
 
 
+ST14_GRID = ((0.02, 0.25), (0.02, 0.5), (0.02, 0.75), (0.1, 0.25), (0.1, 0.5), (0.1, 0.75))   # (t_shadow, t_low)
+
+
+def st14_render(material, levels, floor, size=64, m=96, seed=0):
+    """A rendered sphere for choosing ST14's constants (never DiLiGenT): (images, lights, mask,
+    normals). m lights 10-60° from the view (DiLiGenT's spread); material "blinn" (Lambert 0.5 +
+    Blinn-Phong 0.6, exponent 40), "satin" or "glossy" (Cook-Torrance as facette.recon.synthetic);
+    `floor` stray light in every image (share of the diffuse peak), 0.5 % noise, values cut down
+    to `levels` grey levels at the diffuse peak (floor(v), as the shared 8-bit crops were)."""
+    from facette.recon.synthetic import _cook_torrance
+    rng = np.random.default_rng(seed)
+    th = np.arccos(rng.uniform(np.cos(np.radians(60)), np.cos(np.radians(10)), m))
+    ph = rng.uniform(0, 2 * np.pi, m)
+    lights = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)
+    y, x = np.mgrid[1:-1:size * 1j, -1:1:size * 1j]
+    mask = x * x + y * y < 0.9 ** 2
+    n = np.where(mask[..., None], np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0, 1))], -1), 0)
+    v = np.array([0.0, 0.0, 1.0])
+    nl = np.clip(np.einsum("hwk,mk->mhw", n, lights), 0, None)
+    if material == "blinn":
+        h = (lights + v) / np.linalg.norm(lights + v, axis=1, keepdims=True)
+        img = 0.5 / np.pi * nl + 0.6 * np.clip(np.einsum("hwk,mk->mhw", n, h), 0, None) ** 40 * nl
+    else:
+        sig, n_i = {"satin": (0.15, 1.3), "glossy": (0.05, 1.2)}[material]
+        img = np.nan_to_num(np.stack([_cook_torrance(n, np.broadcast_to(s, n.shape), np.broadcast_to(v, n.shape),
+                                                     [0.5], 1.0, sig, n_i)[..., 0] * nl[i]
+                                      for i, s in enumerate(lights)]))
+    img = (img + floor * 0.5 / np.pi) * (1 + 0.005 * rng.standard_normal(img.shape))
+    scale, top = levels / (0.5 / np.pi), (255 if levels < 256 else 65535)
+    q = np.floor(np.clip(img * scale, 0, top))
+    return np.where(q >= top, np.nan, q / scale).astype(np.float32), lights, mask, n
+
+
+def st14_choice():
+    """ST14's shadow threshold and low-frequency share on renders (how ST14_T_SHADOW and
+    ST14_T_LOW were chosen): mean error (deg) per render and setting, and the mean."""
+    from facette.recon import ps_bipolynomial_shi2014
+    print("\n-- ST14 constants on rendered spheres (96 lights, 0.5 % noise): mean error (deg) per "
+          "(t_shadow, t_low)")
+    print(f"{'render':34s}" + "".join(f" | {f'{a:g}, {b:g}':>10s}" for a, b in ST14_GRID))
+    sums = np.zeros(len(ST14_GRID))
+    cases = [(mat, lv, fl) for mat in ("blinn", "satin", "glossy") for lv in (40, 10000) for fl in (0.0, 0.02)]
+    for mat, lv, fl in cases:
+        img, lights, mask, n = st14_render(mat, lv, fl)
+        line = f"{mat} {'8-bit, 40 levels' if lv < 256 else '16-bit'} floor {fl:g}"
+        line = f"{line:34s}"
+        for j, (ts, tl) in enumerate(ST14_GRID):
+            r = ps_bipolynomial_shi2014(img, lights, mask, t_shadow=ts, t_low=tl)
+            e = np.degrees(np.arccos(np.clip(np.sum(r.normal * n, -1), -1, 1)))[mask].mean()
+            sums[j] += e / len(cases)
+            line += f" | {e:10.2f}"
+        print(line, flush=True)
+    print(f"{'mean':34s}" + "".join(f" | {s:10.2f}" for s in sums))
+    return 0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="facette bench peers", description=__doc__.splitlines()[0])
     ap.add_argument("--root", default=None, help="folder searched for DiLiGenT-style folders (default ../shared/data)")
@@ -142,6 +198,8 @@ def main(argv=None):
     ap.add_argument("--no-real", action="store_true", help="skip the DiLiGenT table")
     ap.add_argument("--no-mitsuba", action="store_true",
                     help="skip the Mitsuba renders of metals, metallic paint, rough plastic (about 4 min to render once)")
+    ap.add_argument("--st14-choice", action="store_true",
+                    help="only the renders on which ST14's shadow threshold and low-frequency share were chosen")
     ap.add_argument("--cache", default="out/mitsuba-cache", help="folder for the cached renders")
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--spp", type=int, default=64)
@@ -150,6 +208,8 @@ def main(argv=None):
     unknown = [m for m in methods if m not in PS_METHODS]
     if unknown:
         raise SystemExit(f"unknown method {unknown[0]!r}; choose from {', '.join(sorted(PS_METHODS))}")
+    if args.st14_choice:
+        return st14_choice()
     status = 0
     if not args.no_real:
         with tempfile.TemporaryDirectory() as tmp:

@@ -1,12 +1,20 @@
 """Published photometric-stereo methods for general isotropic BRDFs, written here from their papers.
 
 `ps_bipolynomial_shi2014` : Shi, Tan, Matsushita, Ikeuchi, "Bi-polynomial modeling of
-    low-frequency reflectances", TPAMI 36(6) 2014 (ST14 in DiLiGenT). The low-frequency part of
-    an isotropic BRDF, seen from a fixed view, is a bi-polynomial in cos θ_h = n·h and
-    cos θ_d = l·h; per pixel the observations outside shadows and the sharp specular peak are
-    fitted by E_i = (n·l_i) Σ_ab α_ab (n·h_i)^a (l_i·h_i)^b, linear in α for a given normal,
-    and the normal is the one whose best α leaves the smallest residual (variable projection,
-    Levenberg-Marquardt on two tangent angles from the least-squares normal of those lights).
+    low-frequency reflectances", TPAMI 36(6) 2014 (ST14 in DiLiGenT). The paper's method section
+    could not be read (../shared/reference/PEERS.md §2: its abstract, and the steps third parties
+    used, IA14 and CNN-PS re-implementing it); it is written from those steps, so no equation
+    numbers are given. Per pixel: 1. shadows out (values below ST14_T_SHADOW of the pixel's
+    brightest); 2. the low-frequency part kept: the darkest ST14_T_LOW share of the lit values
+    (third parties: "T_low"); 3. the Lambertian normal on them, the start (IA14: the fit depends
+    strongly on it); 4. the normal minimising the residual of E_i = (n·l_i) ρ(cos θ_h, cos θ_d),
+    ρ = Σ_ab α_ab cos^a θ_h cos^b θ_d (θ_h = angle(n, h_i), θ_d = angle(l_i, h_i)), the α solved for
+    each trial normal (variable projection), Levenberg-Marquardt on two tangent angles. Ours, not
+    read: α >= 0 (ρ never falls towards the specular direction; unconstrained, a falling ρ takes the
+    photographs' dark floor of stray light for reflectance: 16-bit ball 2.33°, its 8-bit crop 6.29°
+    and cat 12.8° against 2.13°, 4.07°, 7.40° with α >= 0), and the constants chosen on renders
+    (ST14_T_SHADOW, ST14_T_LOW, ST14_DEGREES). Through `process` (`facette bench peers`): the 16-bit
+    ball 2.11° [paper 1.74], the five 8-bit crops 9.64° [8.17]; the ball cut to 8 bits 4.06°.
 `ps_bivariate_ikehata2014` : Ikehata, Aizawa, "Photometric stereo using constrained bivariate
     regression for general isotropic surfaces", CVPR 2014 (IA14). By default (form="paper") as the
     paper states it, step by step with its constants (`facette.recon._ia14_paper`, from
@@ -20,23 +28,19 @@
     is linear in (n, c) jointly: per pixel, n is the eigenvector of the smallest eigenvalue of
     the 3x3 matrix L^T (I - P_B) L (c projected out), |n| = 1.
 
-How far these follow the papers (read this before quoting a figure): the search corpus
-available when this was written gave the papers' abstracts and first pages only, not their
-method sections, so the equations above are reconstructed from the abstracts and the models
-they name; equation numbers could not be checked and are not given. The parameters are ours
-where the paper's could not be read: ST14's degrees (2 in cos θ_h, 0 in cos θ_d), its
-low-frequency selection (values above T_SHADOW of the pixel's brightest, the brightest
-DROP_BRIGHT share, 40 %, left out); IA14's Bernstein degrees (5 in E, 0 in l·v) and the same shadow
-threshold (the degrees chosen on our own synthetic spheres, see ST14_DEGREES). IA14's
-constraints are imposed as a QP of our own form (Ψ(0) = 0 and increasing in E through
+How far IA14's variant follows its paper: its parameters are ours: Bernstein degrees (5 in E, 0 in
+l·v) and the shadow threshold T_SHADOW (degrees chosen on our own synthetic spheres, see
+IA14_DEGREES); its constraints a QP of our own form (Ψ(0) = 0 and increasing in E through
 non-negative increments of its Bernstein coefficients, its scale fixed by their sum: a QP on
 the simplex, `_ia14_qp`); `constrained=False` gives the unconstrained minimiser (an
-eigenvector), with `info["non_monotone"]` the share of pixels whose Ψ is not increasing. `facette bench peers` prints both beside the papers' DiLiGenT figures.
+eigenvector), with `info["non_monotone"]` the share of pixels whose Ψ is not increasing.
+`facette bench peers` prints every peer beside the papers' DiLiGenT figures.
 
 Conventions of `facette.recon._ps`: camera frame x right, y up, z towards the camera (the view
 v = (0, 0, 1), orthographic); images linear, divided by each light's intensity; `PSResult`.
 Both need distant lights, light_dirs (m, 3).
 """
+from itertools import combinations
 from math import comb
 
 import numpy as np
@@ -47,16 +51,20 @@ from ._ia14_paper import IA14_ORDERS, ia14_paper_normals
 from ._ps import _albedo, _check_inputs, _empty_result, _gather, _scatter, _usable
 from ._ps_robust import _unit, _wls
 
-__all__ = ["ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "T_SHADOW", "DROP_BRIGHT"]
+__all__ = ["ps_bipolynomial_shi2014", "ps_bivariate_ikehata2014", "T_SHADOW", "ST14_T_SHADOW", "ST14_T_LOW"]
 
 T_SHADOW = 0.02       # values below this share of the pixel's brightest usable value are shadows
-DROP_BRIGHT = 0.4     # ST14: share of each pixel's brightest lit values left out (the sharp peak);
-                      # chosen on the Blinn-Phong spheres of ST14_DEGREES among 0.1-0.4: mean 1.78,
-                      # 1.04, 0.71, 0.50° (the largest tried was best: those spheres have no cast
-                      # shadow or inter-reflection, so the dark end is clean), never on DiLiGenT
-ST14_DEGREES = (2, 0)   # bi-polynomial degrees in cos θ_h and cos θ_d; chosen among (1..3, 0..2) on a
-                        # Blinn-Phong sphere, 96 lights, shininess 10/40/150 (mean 1.66° against 2.01
-                        # for (1, 0), 3.5-4.2 with a θ_d term), never on DiLiGenT
+ST14_T_SHADOW = 0.1   # ST14: values below this share of the pixel's brightest are shadows
+ST14_T_LOW = 0.5      # ST14: share of the lit values kept, darkest first (the low-frequency part)
+ST14_DEGREES = (2, 0) # bi-polynomial degrees in cos θ_h and cos θ_d (the previous helper's choice on
+                      # Blinn-Phong spheres: 1.66° against 2.01 for (1, 0), 3.5-4.2 with a θ_d term).
+                      # T_SHADOW, T_LOW chosen on 12 rendered spheres (`facette bench peers
+                      # --st14-choice`: Blinn-Phong, satin, glossy; 16 and 8 bits; with and without a
+                      # 2 % stray-light floor), never on DiLiGenT: mean 0.53° for (0.1, 0.5) and
+                      # (0.02, 0.5), 0.62-0.82 for (0.02|0.1, 0.25|0.75); 0.1 taken for its lead on
+                      # the 16-bit renders with stray light (0.83-0.94° against 0.94-1.03°; at 8 bits
+                      # the floor is under a grey level), as every photograph has some. PEERS.md's
+                      # third-party T_low 0.25: 0.75 / 0.62°
 IA14_DEGREES = (5, 0)   # Bernstein degrees of Ψ in E (normalised) and in l·v, with the monotone QP;
                         # chosen on the same spheres among (5..12, 0..2): mean 2.10° against 2.14 for
                         # (8, 1), 2.29-2.77 for the others (unconstrained (3, 2): 1.99, but Ψ is not
@@ -125,17 +133,36 @@ def _projected_lstsq(a, y, w, ridge=RIDGE):
 
 # ----------------------------------------------------------------------------- ST14
 
+def _nonneg_lstsq(a, y, w, ridge=RIDGE):
+    """Per pixel min_c ||W^(1/2) (y - A c)||² with c >= 0 (a reflectance that does not fall towards
+    the specular direction): the normal equations solved on every support of c (p <= 6: at most 63
+    small solves of the Gram's sub-blocks), the feasible one of least cost kept. a : (N, m, p),
+    y, w : (N, m). Returns (c (N, p), residual vector (N, m)); the ridge as `_projected_lstsq`'s."""
+    n_pix, _, p = a.shape
+    aw = a * w[..., None]
+    g = np.matmul(aw.transpose(0, 2, 1), a)                       # (N, p, p)
+    g += (ridge * np.maximum(np.trace(g, axis1=1, axis2=2) / p, 1e-30))[:, None, None] * np.eye(p)
+    rhs = np.einsum("nmp,nm->np", aw, y)
+    best_c, best = np.zeros((n_pix, p)), np.zeros(n_pix)          # c = 0: cost y'Wy, taken as 0 here
+    for k in range(1, p + 1):
+        for sup in combinations(range(p), k):
+            s = list(sup)
+            gs = g[:, s][:, :, s]
+            c = np.linalg.solve(gs, rhs[:, s, None])[..., 0]
+            cost = np.einsum("nk,nkj,nj->n", c, gs, c) - 2 * np.einsum("nk,nk->n", c, rhs[:, s])
+            b = np.all(c >= 0, axis=1) & (cost < best)           # cost relative to y'Wy
+            best[b] = cost[b]
+            best_c[b] = 0.0
+            best_c[np.ix_(b, s)] = c[b]
+    return best_c, (y - np.einsum("nmp,np->nm", a, best_c)) * w
+
+
 def _st14_basis(n, lights, halves, ld, degrees):
     """(N, m, p) columns (n·l)_+ (n·h)^a (l·h)^b of the bi-polynomial model for normals n (N, 3)."""
     kh, kd = degrees
     nl = np.maximum(n @ lights.T, 0.0)                            # (N, m)
     nh = np.clip(n @ halves.T, 0.0, 1.0)
-    cols = []
-    for a in range(kh + 1):
-        pa = nh ** a
-        for b in range(kd + 1):
-            cols.append(nl * pa * ld[None, :] ** b)
-    return np.stack(cols, axis=-1)
+    return np.stack([nl * nh ** a * ld[None, :] ** b for a in range(kh + 1) for b in range(kd + 1)], axis=-1)
 
 
 def _tangent_frame(n):
@@ -152,13 +179,14 @@ def _rotate(n, t1, t2, d):
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
-def _st14_block(e, w, n0, lights, halves, ld, degrees, iterations, tol):
-    """Levenberg-Marquardt on two tangent angles of each pixel's normal; e, w (N, m), n0 (N, 3)."""
-    def resid(n):
-        return _projected_lstsq(_st14_basis(n, lights, halves, ld, degrees), e, w)[1]
+def _st14_block(e, w, n0, geometry, degrees, iterations, tol):
+    """Levenberg-Marquardt on two tangent angles of each pixel's normal, the bi-polynomial's
+    coefficients solved (c >= 0) for each trial normal; e, w (N, m), n0 (N, 3)."""
+    def resid(n, ea, wa):
+        return _nonneg_lstsq(_st14_basis(n, *geometry, degrees), ea, wa)[1]
 
     n = n0.copy()
-    r = resid(n)
+    r = resid(n, e, w)
     cost = np.sum(r * r, axis=1)
     mu = np.full(len(n), 1e-3)
     active = np.ones(len(n), bool)
@@ -168,14 +196,11 @@ def _st14_block(e, w, n0, lights, halves, ld, degrees, iterations, tol):
         idx = np.flatnonzero(active)
         if idx.size == 0:
             break
-        na, ra = n[idx], r[idx]
+        na, ra, ea, wa = n[idx], r[idx], e[idx], w[idx]
         t1, t2 = _tangent_frame(na)
-        ea, wa = e[idx], w[idx]
         jac = np.empty(ra.shape + (2,))
         for k, t in enumerate((t1, t2)):
-            nk = na + h * t
-            nk /= np.linalg.norm(nk, axis=1, keepdims=True)
-            jac[..., k] = (_projected_lstsq(_st14_basis(nk, lights, halves, ld, degrees), ea, wa)[1] - ra) / h
+            jac[..., k] = (resid(_rotate(na, t1, t2, h * np.eye(2)[k][None]), ea, wa) - ra) / h
         jtj = np.einsum("nmi,nmj->nij", jac, jac)
         jtr = np.einsum("nmi,nm->ni", jac, ra)
         damp = jtj + (mu[idx] * np.maximum(np.trace(jtj, axis1=1, axis2=2), 1e-30))[:, None, None] * np.eye(2)
@@ -183,7 +208,7 @@ def _st14_block(e, w, n0, lights, halves, ld, degrees, iterations, tol):
         big = np.linalg.norm(step, axis=1)
         step *= np.minimum(1.0, np.radians(5.0) / np.maximum(big, 1e-30))[:, None]   # at most 5° a step
         n_try = _rotate(na, t1, t2, step)
-        r_try = _projected_lstsq(_st14_basis(n_try, lights, halves, ld, degrees), ea, wa)[1]
+        r_try = resid(n_try, ea, wa)
         c_try = np.sum(r_try * r_try, axis=1)
         better = c_try < cost[idx]
         take = idx[better]
@@ -194,54 +219,57 @@ def _st14_block(e, w, n0, lights, halves, ld, degrees, iterations, tol):
     return n, cost, it
 
 
+def _low_frequency(e, lit, t_low):
+    """(m, N) bool: each pixel's darkest ceil(t_low x its lit count) lit values (ST14's
+    low-frequency observations; ties with the last one kept)."""
+    m = e.shape[0]
+    n_keep = np.ceil(t_low * lit.sum(0)).astype(np.intp)
+    srt = np.sort(np.where(lit, e, np.inf), axis=0)               # ascending per pixel
+    cut = srt[np.clip(n_keep - 1, 0, m - 1), np.arange(e.shape[1])]
+    return lit & (e <= cut)
+
+
 def ps_bipolynomial_shi2014(images, light_dirs, mask=None, channel=None, saturation=None,
-                            degrees=ST14_DEGREES, t_shadow=T_SHADOW, drop_bright=DROP_BRIGHT,
+                            degrees=ST14_DEGREES, t_shadow=ST14_T_SHADOW, t_low=ST14_T_LOW,
                             iterations=20, tol_deg=0.01):
     """Bi-polynomial photometric stereo (Shi, Tan, Matsushita, Ikeuchi, TPAMI 2014; ST14).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m >= 4.
     light_dirs : (m, 3) unit vectors towards the lights (distant lights only).
     mask, channel, saturation : as `ps_woodham1980` (NaN, inf, values >= saturation are missing).
-    degrees : (k_h, k_d) polynomial degrees in cos θ_h and cos θ_d (default (2, 0)).
+    degrees : (k_h, k_d) polynomial degrees in cos θ_h and cos θ_d, (k_h+1)(k_d+1) <= 6 (default (2, 0)).
     t_shadow : values below t_shadow x the pixel's brightest usable value are shadows, in [0, 1).
-    drop_bright : share of each pixel's lit values left out from the top (the specular peak,
-        the high-frequency part the model does not describe), in [0, 0.5).
+    t_low : share of each pixel's lit values kept, darkest first (the low-frequency part), in (0, 1].
     iterations, tol_deg : Levenberg-Marquardt iterations at most, and the step (deg) under
         which a pixel stops.
     Returns a `PSResult`: normal; albedo (Lambertian ρ per channel on the kept lights, for the
     later stages); valid (False where fewer kept lights than the model's unknowns + 2, or all
-    black); shadow = usable lights below t_shadow; specular = lit lights left out at the top;
-    residual = relative residual of the bi-polynomial fit. info: iterations, pixels.
+    black); shadow = usable lights below t_shadow; specular = lit lights above the low-frequency
+    share; residual = relative residual of the bi-polynomial fit. info: iterations, pixels.
 
-    Notes: model E_i = (n·l_i) ρ(cos θ_h, cos θ_d), ρ = Σ_{a≤k_h, b≤k_d} α_ab cos^a θ_h cos^b θ_d,
-    h_i = (l_i + v) / |l_i + v|; for a normal the α are linear least squares, and the normal
-    minimises the residual that remains (start: least squares on the kept lights).
+    Steps (module doc): 1. shadows out; 2. the darkest t_low of the rest kept; 3. the Lambertian
+    normal on them as the start; 4. n minimising the residual of E_i = (n·l_i) Σ α_ab (n·h_i)^a
+    (l_i·h_i)^b over the kept lights, α >= 0 solved for each trial normal (variable projection).
     """
     if not 0 <= t_shadow < 1:
         raise ValueError(f"t_shadow must be in [0, 1) (share of the pixel's brightest value), got {t_shadow}")
-    if not 0 <= drop_bright < 0.5:
-        raise ValueError(f"drop_bright must be in [0, 0.5) (share of the brightest values), got {drop_bright}")
+    if not 0 < t_low <= 1:
+        raise ValueError(f"t_low must be in (0, 1] (share of the lit values kept, darkest first), got {t_low}")
     kh, kd = (int(x) for x in degrees)
-    if kh < 0 or kd < 0:
-        raise ValueError(f"degrees must be two whole numbers >= 0, got {degrees}")
+    if kh < 0 or kd < 0 or (kh + 1) * (kd + 1) > 6:
+        raise ValueError(f"degrees must be two whole numbers >= 0 with (k_h+1)(k_d+1) <= 6, got {degrees}")
     images, light_dirs, res, idx, e_all, e, sub = _distant_start(images, light_dirs, mask, channel,
                                                                  "ps_bipolynomial_shi2014")
-    m = images.shape[0]
     res.info = {"pixels": int(idx.size), "degrees": (kh, kd)}
     if idx.size == 0:
         return res
     lights = light_dirs.astype(np.float64)
     halves = lights + VIEW
     halves /= np.linalg.norm(halves, axis=1, keepdims=True)
-    ld = np.sum(lights * halves, axis=1)                          # cos θ_d per light
+    geometry = (lights, halves, np.sum(lights * halves, axis=1))  # cos θ_d per light
     p = (kh + 1) * (kd + 1)
     ok, e, lit = _lit_values(e, saturation, t_shadow)
-    # the brightest floor(drop_bright x lit) values of each pixel are left out
-    n_lit = lit.sum(0)
-    n_drop = np.floor(drop_bright * n_lit).astype(np.intp)
-    srt = -np.sort(-np.where(lit, e, -np.inf), axis=0)            # descending per pixel
-    cut = srt[np.clip(n_drop, 0, m - 1), np.arange(e.shape[1])]
-    keep = lit & (e <= cut)                                      # ties with the cut kept
+    keep = _low_frequency(e, lit, t_low)
     n_pix = idx.size
     normal = np.zeros((3, n_pix), np.float32)
     found = np.zeros(n_pix, bool)
@@ -251,8 +279,7 @@ def ps_bipolynomial_shi2014(images, light_dirs, mask=None, channel=None, saturat
     def block(a):
         sl = slice(a, a + _CHUNK)
         eb, kb = e[:, sl], keep[:, sl]
-        g = _wls(eb, light_dirs, kb)
-        n0, f0 = _unit(g)
+        n0, f0 = _unit(_wls(eb, light_dirs, kb))
         f0 &= kb.sum(0) >= p + 2
         sel = np.flatnonzero(f0)
         if sel.size == 0:
@@ -262,15 +289,13 @@ def ps_bipolynomial_shi2014(images, light_dirs, mask=None, channel=None, saturat
         n0 /= np.linalg.norm(n0, axis=1, keepdims=True)
         y = eb[:, sel].T.astype(np.float64)
         wt = kb[:, sel].T.astype(np.float64)
-        scale = np.maximum(y.max(axis=1, keepdims=True), 1e-30)   # residuals relative to the pixel
-        nn, cost, it = _st14_block(y / scale, wt, n0, lights, halves, ld, (kh, kd), iterations,
-                                   np.radians(tol_deg))
+        y /= np.maximum(y.max(axis=1, keepdims=True), 1e-30)      # residuals relative to the pixel
+        nn, cost, it = _st14_block(y, wt, n0, geometry, (kh, kd), iterations, np.radians(tol_deg))
         iters.append(it)
         cols = a + sel
         normal[:, cols] = nn.T
         found[cols] = np.all(np.isfinite(nn), axis=1)
-        ynorm = np.sqrt(np.sum((y / scale) ** 2 * wt, axis=1))
-        resid[cols] = np.sqrt(cost) / np.maximum(ynorm, 1e-30)
+        resid[cols] = np.sqrt(cost) / np.maximum(np.sqrt(np.sum(y * y * wt, axis=1)), 1e-30)
 
     run_blocks(block, range(0, n_pix, _CHUNK))
     normal = np.where(found, normal, np.float32(0))

@@ -124,3 +124,40 @@ def test_ia14_retro_test_keeps_the_better_run():
     assert np.all(r_both <= r_one + 1e-12)
     err = np.degrees(np.arccos(np.clip(np.sum(both * n[mask], 1), -1, 1)))
     assert np.median(err) < 3.0
+
+
+def test_st14_recovers_a_bi_polynomial_sphere_and_its_darkest_half_is_kept():
+    """A reflectance inside ST14's model, ρ = 0.2 + 0.5 cos²θ_h (α >= 0), on a sphere under
+    48 lights with a sharp lobe on top: the normals within 0.3°, far better than least squares;
+    the lights above the kept darkest half are marked specular, the kept ones never."""
+    n, mask = sphere(24)
+    lights = scene_lights(48)
+    h = (lights + [0, 0, 1.0]) / np.linalg.norm(lights + [0, 0, 1.0], axis=1, keepdims=True)
+    nl = np.clip(np.einsum("hwk,mk->mhw", n, lights), 0, None)
+    nh = np.clip(np.einsum("hwk,mk->mhw", n, h), 0, None)
+    img = (nl * (0.2 + 0.5 * nh ** 2) + 2.0 * nh ** 200 * nl).astype(np.float32)
+    ls = _mean_error(photometric_stereo(img, lights, method="woodham1980", mask=mask), n, mask)
+    res = photometric_stereo(img, lights, method="st14", mask=mask)
+    good = mask & res.valid
+    assert good.sum() > 0.95 * mask.sum()
+    assert _mean_error(res, n, good) < 0.3 < ls
+    lit = (img > 0.1 * img.max(axis=0))[:, good]
+    kept = lit & ~res.specular.transpose(2, 0, 1)[:, good]
+    assert np.all(kept.sum(0) == np.ceil(0.5 * lit.sum(0)))
+    with pytest.raises(ValueError, match="t_low"):
+        photometric_stereo(img, lights, method="st14", mask=mask, t_low=0.0)
+
+
+def test_st14_coefficients_are_never_negative():
+    from facette.recon._ps_peers import _nonneg_lstsq, _projected_lstsq
+    rng = np.random.default_rng(1)
+    a = rng.uniform(0, 1, (200, 12, 3))
+    y = np.einsum("nmp,np->nm", a, rng.normal(0, 1, (200, 3)))
+    w = np.ones((200, 12))
+    c, r = _nonneg_lstsq(a, y, w)
+    c_free, r_free = _projected_lstsq(a, y, w)
+    assert np.all(c >= 0)
+    free_ok = np.all(c_free >= 0, axis=1)          # where the free solution is feasible, it is the answer
+    assert free_ok.any() and (~free_ok).any()
+    assert np.allclose(c[free_ok], c_free[free_ok], atol=1e-6)
+    assert np.all(np.sum(r * r, 1) >= np.sum(r_free * r_free, 1) - 1e-9)
