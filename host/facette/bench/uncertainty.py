@@ -2,16 +2,20 @@
 the true errors, and does its 90 % band hold 90 % of the normals?
 
 Per case: Spearman's rank correlation between the uncertainty and the angular error against the
-truth, the share of pixels whose error is within the band (coverage; the aim: 0.9), the
-medians of both, and the seconds the uncertainty took. Three sources:
+truth, the share of pixels whose error is within the band (coverage; the aim: 0.9), before (the
+local fit's band alone, BAND_SCALE u) and after (with the normal field's curl, K_CURL), the medians
+of the band and of the error, and the seconds the uncertainty took (and per megapixel of image).
+Four sources:
 - synthetic renders (facette.recon.synthetic: a sphere on a plane, cast shadows, matte, satin
   and glossy Cook-Torrance, noise 0.5 % and 2 %, the rig's 12 lights and 40 lights over the
   upper hemisphere): made here in seconds;
 - Mitsuba 3 renders (path-traced: inter-reflections, a relief, a vase), unless --no-mitsuba;
+- the path-traced concave scenes of `facette bench concave` (bowl, grooves, craters, cup; plaster
+  and paint; 12 rig lights and 96) through `facette process`, unless --no-concave (rendering the
+  ones not cached takes minutes each);
 - DiLiGenT with truth (`facette bench diligent`'s folders, through `facette process`), unless --no-real.
-The renders choose BAND_SCALE: the line "pooled over the renders" prints the scale that would
-put 90 % of their normals inside the band (`--calibrate`: from the raw u, whatever BAND_SCALE
-is now); DiLiGenT only confirms it.
+The renders choose BAND_SCALE and K_CURL (the line "pooled over the renders" prints the scale
+that would put 90 % of their normals inside the band); DiLiGenT only confirms them.
 """
 import argparse
 import time
@@ -62,49 +66,86 @@ def score(u, err):
     return rho, float(np.mean(err <= u)), float(np.median(u)), float(np.median(err))
 
 
-def _line(name, s, dt):
-    rho, cov, mu, me = s
-    return f"{name:46s} | {rho:8.2f} | {cov:8.2f} | {mu:7.2f} | {me:7.2f} | {dt:6.2f}s"
+def before_after(u, normals):
+    """(before, after) bands (H, W): `after` the map as written, `before` the local fit's band alone
+    (the curl term taken out: after² − (K_CURL·curl)², exact below MAX_DEG)."""
+    has = np.linalg.norm(normals, axis=-1) > 0.5
+    curl = np.degrees(unc.K_CURL * unc.curl_angle(normals, has))
+    before = np.where(u < unc.MAX_DEG, np.sqrt(np.maximum(u.astype(np.float64) ** 2 - curl ** 2, 0)), u)
+    return before, u
 
 
-HEAD = f"{'case':46s} | {'spearman':>8s} | {'coverage':>8s} | {'u med':>7s} | {'err med':>7s} | time"
+def _line(name, sb, sa, dt, mpix):
+    return (f"{name:40s} | {sb[0]:5.2f} {sb[1]:5.2f} | {sa[0]:5.2f} {sa[1]:5.2f} | {sa[2]:6.2f} | {sa[3]:6.2f} | "
+            f"{dt:6.2f}s {dt / max(mpix, 1e-9):7.1f} s/MP")
 
 
-def render_table(cases, method):
-    """Rows for rendered cases; returns the pooled (u / BAND_SCALE, error) for calibration."""
-    pooled_u, pooled_e = [], []
+HEAD = (f"{'case':40s} | before: rho   cov | after: rho   cov | u med° | err med° | time (uncertainty), per MP\n"
+        "(rho: Spearman of the band against the error; cov: share of errors within the band, aim 0.9)")
+
+
+class Tally:
+    """The rows of one group of cases: per-case (rho, cov) before and after, and the pooled band/errors."""
+    def __init__(self, name):
+        self.name, self.before, self.after, self.u, self.e = name, [], [], [], []
+
+    def add(self, name, u, normals, err, sel, dt):
+        b, a = before_after(u, normals)
+        sb, sa = score(b[sel], err), score(a[sel], err)
+        self.before.append(sb[:2])
+        self.after.append(sa[:2])
+        self.u.append(a[sel] / unc.BAND_SCALE)
+        self.e.append(err)
+        print(_line(name, sb, sa, dt, sel.size / 1e6), flush=True)
+
+    def summary(self):
+        if self.before:
+            b, a = np.mean(self.before, axis=0), np.mean(self.after, axis=0)
+            print(f"{'mean over ' + self.name:40s} | {b[0]:5.2f} {b[1]:5.2f} | {a[0]:5.2f} {a[1]:5.2f} |", flush=True)
+
+
+def render_table(cases, method, tally):
+    """Rows for rendered cases (the method's normals straight from photometric_stereo)."""
     for name, im, lights, truth, mask in cases:
         r = photometric_stereo(im, lights, method=method, options={"mask": mask})
         t = time.perf_counter()
+        sel = mask & r.valid & (np.linalg.norm(truth, axis=-1) > 0.5)
         u = normal_uncertainty(im, lights, r.normal, mask & r.valid)
-        dt = time.perf_counter() - t
-        sel = mask & r.valid
-        err = angular_errors(r.normal, truth, sel)
-        uu = u[sel & (np.linalg.norm(truth, axis=-1) > 0.5)]
-        print(_line(name, score(uu, err), dt), flush=True)
-        pooled_u.append(uu / unc.BAND_SCALE)
-        pooled_e.append(err)
-    return np.concatenate(pooled_u), np.concatenate(pooled_e)
+        tally.add(name, u, r.normal, angular_errors(r.normal, truth, sel), sel, time.perf_counter() - t)
+    tally.summary()
 
 
-def diligent_table(root, method):
+def concave_table(cache, light_sets, materials, tally):
+    """The path-traced concave scenes of `facette bench concave`, through `facette process` (its default)."""
+    import tempfile
+    from scipy.ndimage import binary_erosion
+    from facette.bench import concave
+    with tempfile.TemporaryDirectory() as work:
+        for lights in light_sets:
+            for material in materials:
+                for shape in concave.CONCAVE_SHAPES:
+                    d = concave.scene(shape, material, lights, cache)
+                    folder = concave._folder(d, work, f"{shape}_{material}_{lights}")
+                    _, _, res = concave.run(folder)
+                    sel = binary_erosion(d["mask"], iterations=1) & res.mask
+                    err = angular_errors(res.normals, d["normals"], sel)
+                    tally.add(f"concave {shape}/{material}/{lights}", res.uncertainty, res.normals, err, sel,
+                              res.timings.get("uncertainty", float("nan")))
+    tally.summary()
+
+
+def diligent_table(root, tally):
     from facette.pipeline import process
-    rows = []
     for folder, truth_path in find_objects(root):
         if truth_path is None:
             continue
-        res = process(folder, outputs=["normals"], method=method)
+        res = process(folder, outputs=["normals"])
         truth = np.load(truth_path)
         good = res.mask & (np.linalg.norm(truth, axis=-1) > 0.5)
         err = angular_errors(res.normals, truth, good)
-        s = score(res.uncertainty[good], err)
-        rows.append(s)
-        name = f"{folder.parent.name}/{object_name(folder)}"
-        print(_line(name, s, res.timings.get("uncertainty", float("nan"))) + f"  (mean error {err.mean():.2f})",
-              flush=True)
-    if rows:
-        print(f"{'mean over the DiLiGenT objects':46s} | {np.mean([r[0] for r in rows]):8.2f} | "
-              f"{np.mean([r[1] for r in rows]):8.2f} |")
+        name = f"{folder.parent.name}/{object_name(folder)} ({err.mean():.2f}° mean)"
+        tally.add(name, res.uncertainty, res.normals, err, good, res.timings.get("uncertainty", float("nan")))
+    tally.summary()
 
 
 def main(argv=None):
@@ -116,17 +157,27 @@ def main(argv=None):
     ap.add_argument("--cache", default="out/mitsuba-cache", help="folder for the cached renders")
     ap.add_argument("--size", type=int, default=96)
     ap.add_argument("--spp", type=int, default=64)
+    ap.add_argument("--no-concave", action="store_true", help="skip the concave renders of `facette bench concave`")
+    ap.add_argument("--concave-lights", default="rig12,96", help="their light sets (rig12, 96)")
+    ap.add_argument("--concave-materials", default="plaster,paint_0.10", help="their materials")
+    ap.add_argument("--concave-cache", default="/tmp/facette-concave", help="their cached renders")
     args = ap.parse_args(argv)
-    print(f"uncertainty of {args.method}'s normals: the 90 % band = {unc.BAND_SCALE} x u (recon._uncertainty)")
+    print(f"uncertainty of the normals: the 90 % band = sqrt(({unc.BAND_SCALE} u)^2 + ({unc.K_CURL} curl)^2) "
+          "(recon._uncertainty); before: the local fit's band alone")
     print(HEAD)
-    u, e = render_table(synthetic_cases(), args.method)
+    rendered = [Tally("the synthetic spheres")]
+    render_table(synthetic_cases(), args.method, rendered[0])
     if not args.no_mitsuba:
-        mu, me = render_table(mitsuba_cases(args.cache, args.size, args.spp), args.method)
-        u, e = np.concatenate([u, mu]), np.concatenate([e, me])
-    scale = float(np.percentile(e / np.maximum(u, 1e-9), 90))
+        rendered.append(Tally("the Mitsuba scenes"))
+        render_table(mitsuba_cases(args.cache, args.size, args.spp), args.method, rendered[-1])
+    if not args.no_concave:
+        rendered.append(Tally("the concave scenes"))
+        concave_table(args.concave_cache, args.concave_lights.split(","), args.concave_materials.split(","),
+                      rendered[-1])
+    u, e = np.concatenate([x for t in rendered for x in t.u]), np.concatenate([x for t in rendered for x in t.e])
     print(f"pooled over the renders: spearman {spearmanr(u, e).statistic:.2f}, coverage "
-          f"{np.mean(e <= unc.BAND_SCALE * u):.2f}; the scale that holds 90 %: {scale:.2f} "
-          f"(BAND_SCALE {unc.BAND_SCALE})")
+          f"{np.mean(e <= unc.BAND_SCALE * u):.2f}; the band times "
+          f"{np.percentile(e / np.maximum(unc.BAND_SCALE * u, 1e-9), 90):.2f} would hold 90 % of them")
     if not args.no_real:
-        diligent_table(args.root or default_root(), args.method)
+        diligent_table(args.root or default_root(), Tally("the DiLiGenT objects"))
     return 0

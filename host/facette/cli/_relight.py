@@ -1,5 +1,7 @@
-"""`facette relight FILE`: open a PTM (.ptm) or HSH (.rti) file as RTIViewer and Relight read
-it, and write the picture it shows under a light as a PNG."""
+"""`facette relight FILE`: open what `facette process` writes for relighting (relight.ptm, relight.rti,
+a relight_web/ folder, relight_model.npz) as its viewer shows it, and write the picture under a light
+as a PNG: a PTM or HSH file as RTIViewer and Relight read it, a web folder as openlime does, the
+relighting model as the report's viewer draws it."""
 import argparse
 import math
 
@@ -20,9 +22,10 @@ def _light(text):
 
 
 def register(sub):
-    p = sub.add_parser("relight", help="render a .ptm or .rti file under a light, as RTIViewer shows it",
-                       description=__doc__.splitlines()[0])
-    p.add_argument("file", help="a PTM (PTM_FORMAT_LRGB or PTM_FORMAT_JPEG_LRGB) or an HSH .rti file")
+    p = sub.add_parser("relight", help="render a .ptm, .rti, relight_web folder or relight_model.npz under a light",
+                       description=" ".join(__doc__.split("\n\n")[0].split()))
+    p.add_argument("file", help="a PTM (PTM_FORMAT_LRGB or PTM_FORMAT_JPEG_LRGB), an HSH .rti file, a Relight web "
+                                "folder (info.json + planes, deep zoom included) or process's relight_model.npz")
     p.add_argument("--light", type=_light, default="0,90", metavar="AZ,EL",
                    help="light azimuth and elevation in degrees (azimuth 0 = from the right, 90 = "
                         "from the top of the picture; elevation 0-90, 90 = along the camera's axis); default 0,90")
@@ -39,35 +42,26 @@ def run(args):
 
     import numpy as np
 
+    from facette.cli._relight_open import relit_picture
     from facette.errors import BadInputError
     from facette.io.png import write_png
-    from facette.io.ptm import read_ptm
-    from facette.io.rti import read_hsh_rti
     from facette.pipeline._record import SOFTWARE, claim_file
 
     path = Path(args.file)
-    if not path.is_file():
-        raise BadInputError(f"{path} is not a file", hint="give a .ptm or .rti file")
+    if not path.exists():
+        raise BadInputError(f"{path} does not exist", hint="give a .ptm, .rti, relight_web folder or relight_model.npz")
     out = Path(args.out) if args.out else path.with_suffix(".png")
     claim_file(out, [path], overwrite=args.overwrite)
+    if path.is_dir() and path.resolve() in out.resolve().parents:
+        raise BadInputError(f"-o {out} is inside the folder {path} (facette never writes into its inputs)",
+                            hint=f"choose a file outside it, e.g. -o {path.with_suffix('.png')}")
     if out.suffix.lower() != ".png":
         raise BadInputError(f"-o {out}: relight writes PNG pictures, not {out.suffix or 'files without an extension'}",
                             hint=f"give a .png file, e.g. -o {out.with_suffix('.png')}")
     az, el = args.light
     a, e = np.radians(az), np.radians(el)
     light = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
-    with open(path, "rb") as fh:          # the signature only: the reader reads the file once
-        head = fh.read(8)
-    if head.startswith(b"PTM_1."):
-        f = read_ptm(path)
-        picture = f.relight(light, rtiviewer=args.rtiviewer)
-        what = f"{f.format}, {f.width}x{f.height}"
-    elif head.startswith(b"#HSH1.2"):
-        f = read_hsh_rti(path)
-        picture = f.relight(light)
-        what = f"HSH {f.terms} terms, {f.width}x{f.height}, {f.encoding}"
-    else:
-        raise BadInputError(f"{path} is neither a PTM nor an HSH .rti file (it starts {head!r})")
+    picture, what = relit_picture(path, light, args.rtiviewer)
     write_png(out, np.round(picture * 255).astype(np.uint8),
               text={"Software": f"{SOFTWARE} relight", "Source": str(path.resolve())})
     print(f"{path}: {what}; light azimuth {az:g}°, elevation {el:g}° -> {out}")

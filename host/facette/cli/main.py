@@ -43,7 +43,7 @@ COMMANDS = {
     "device": ("facette.cli._device", "device info, faults and registers"),
     "sim": ("facette.cli._sim", "start the simulated rig"),
     "bench": ("facette.cli._bench", "benchmarks: error and run time side by side"),
-    "relight": ("facette.cli._relight", "render a .ptm or .rti file under a light, as RTIViewer shows it"),
+    "relight": ("facette.cli._relight", "render a .ptm, .rti, relight_web folder or relight_model.npz under a light"),
 }
 
 

@@ -1,7 +1,8 @@
 """glTF 2.0 binary (.glb) of a textured mesh with a metallic-roughness material (pygltflib).
 
 One mesh, one primitive (triangles; POSITION, NORMAL, TANGENT, TEXCOORD_0), one material
-with base colour, normal and metallic-roughness textures embedded as PNG. glTF's frame is
+with base colour, normal and metallic-roughness textures embedded as PNG, and optionally a
+per-pixel F0 colour (KHR_materials_specular's specularColorTexture). glTF's frame is
 the camera frame of facette (x right, y up, z towards the viewer) and its unit is the metre.
 """
 import json
@@ -26,8 +27,24 @@ def _u8_image(name, img, channels):
     return encode_png(img, compression=PNG_LEVEL)
 
 
+def _specular(specular, texture):
+    """(KHR_materials_specular's dict or None, the PNG of its colour texture or None); `texture`: the
+    index that texture gets."""
+    if specular is None:
+        return None, None
+    factor, colour_factor = float(specular.get("factor", 1.0)), float(specular.get("color_factor", 1.0))
+    if not (0.0 <= factor <= 1.0 and np.isfinite(colour_factor) and colour_factor >= 0):
+        raise ValueError(f"specular factor must be in [0, 1] and color_factor finite >= 0, got {factor}, "
+                         f"{colour_factor}")
+    ext = {"specularFactor": factor, "specularColorFactor": [colour_factor] * 3}
+    if specular.get("color") is None:
+        return ext, None
+    ext["specularColorTexture"] = {"index": texture}
+    return ext, _u8_image("specular color", specular["color"], 3)
+
+
 def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, normal_map,
-              metallic_roughness, ior=None, name="facette scan", extras=None):
+              metallic_roughness, ior=None, name="facette scan", extras=None, specular=None):
     """Write a .glb.
 
     vertices_mm (V, 3) float, mm (written in metres); faces (F, 3) int indices in [0, V),
@@ -37,7 +54,10 @@ def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, norma
     tangent-space, (n + 1) / 2 · 255; metallic_roughness with roughness in G and metallic
     in B (glTF's channels). ior : index of refraction (KHR_materials_ior), or None for
     glTF's default 1.5. extras : a dict stored as the asset's extras (e.g. that the scan was
-    incomplete), shown by viewers that list the asset's metadata.
+    incomplete), shown by viewers that list the asset's metadata. specular : None, or
+    KHR_materials_specular's {"color": (h, w, 3) uint8 sRGB-encoded F0 colour or None,
+    "color_factor": its multiplier (glTF's F0 = 0.04 · color_factor · texel, may exceed 1),
+    "factor": the specular strength in [0, 1]}. Textures may differ in size (uv spans each).
     """
     v = np.asarray(vertices_mm, np.float64)
     f = np.asarray(faces)
@@ -59,6 +79,11 @@ def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, norma
             raise ValueError(f"{label} must be finite")
     pngs = [_u8_image("base_color", base_color, 3), _u8_image("normal_map", normal_map, 3),
             _u8_image("metallic_roughness", metallic_roughness, 3)]
+    labels = ["baseColor", "normal", "metallicRoughness"]
+    spec_ext, spec_png = _specular(specular, len(pngs))
+    if spec_png is not None:
+        pngs.append(spec_png)
+        labels.append("specularColor")
 
     pos = (v * 1e-3).astype("<f4")
     arrays = [pos, n.astype("<f4"), t.astype("<f4"), uv.astype("<f4"), f.astype("<u4").ravel()]
@@ -82,8 +107,7 @@ def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, norma
     view = add(arrays[4].tobytes(), gl.ELEMENT_ARRAY_BUFFER)
     acc.append(gl.Accessor(bufferView=view, componentType=gl.UNSIGNED_INT, count=int(arrays[4].size),
                            type=gl.SCALAR))
-    images = [gl.Image(bufferView=add(png), mimeType=gl.IMAGEPNG, name=label)
-              for png, label in zip(pngs, ("baseColor", "normal", "metallicRoughness"))]
+    images = [gl.Image(bufferView=add(png), mimeType=gl.IMAGEPNG, name=label) for png, label in zip(pngs, labels)]
 
     material = gl.Material(
         name="facette LI fit",
@@ -91,12 +115,16 @@ def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, norma
             baseColorTexture=gl.TextureInfo(index=0), metallicRoughnessTexture=gl.TextureInfo(index=2),
             metallicFactor=1.0, roughnessFactor=1.0),
         normalTexture=gl.NormalMaterialTexture(index=1), doubleSided=False)
-    extensions = []
+    ext = {}
     if ior is not None:
         if not 1.0 <= float(ior) <= 10.0:
             raise ValueError(f"ior must be in [1, 10], got {ior}")
-        material.extensions = {"KHR_materials_ior": {"ior": float(ior)}}
-        extensions.append("KHR_materials_ior")
+        ext["KHR_materials_ior"] = {"ior": float(ior)}
+    if spec_ext is not None:
+        ext["KHR_materials_specular"] = spec_ext
+    if ext:
+        material.extensions = ext
+    extensions = sorted(ext)
     doc = gl.GLTF2(
         asset=gl.Asset(version="2.0", generator="facette", extras=dict(extras or {})),
         scene=0, scenes=[gl.Scene(nodes=[0])], nodes=[gl.Node(mesh=0, name=name)],
@@ -106,7 +134,7 @@ def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, norma
         accessors=acc, bufferViews=views, buffers=[gl.Buffer(byteLength=0)],
         images=images, samplers=[gl.Sampler(magFilter=gl.LINEAR, minFilter=gl.LINEAR_MIPMAP_LINEAR,
                                             wrapS=gl.CLAMP_TO_EDGE, wrapT=gl.CLAMP_TO_EDGE)],
-        textures=[gl.Texture(sampler=0, source=i) for i in range(3)],
+        textures=[gl.Texture(sampler=0, source=i) for i in range(len(pngs))],
         materials=[material], extensionsUsed=extensions)
     while len(blob) % 4:
         blob.append(0)

@@ -196,87 +196,147 @@ def write_relight_web(folder, width, height, kind, coeff_rows, coeff_range, ligh
     return info
 
 
+HINT = "give the relight_web folder `facette process --outputs relight-web` wrote (or one Relight wrote), whole"
+BAND_ROWS = 64             # rows relit at a time: work arrays of a band, not of the whole picture
+
+
 @dataclass
 class RelightWeb:
-    """A Relight web folder as openlime's shader holds it: info (the json), kind, terms, coeffs
-    (H, W, 3, terms) float64 dequantised ((byte / 255 - bias) · scale), row 0 at the top."""
+    """A Relight web folder as openlime's shader holds it: info (the json), kind, terms, planes
+    (terms, H, W, 3) uint8 as in the JPEGs (row 0 at the top), scale and bias (terms, 3) per plane.
+    One byte per coefficient (a 12 MP HSH folder: 0.32 GB, not 2.6 GB of float64); `coeffs` gives
+    them dequantised."""
     info: dict
     kind: str
     terms: int
-    coeffs: np.ndarray
+    planes: np.ndarray
+    scale: np.ndarray
+    bias: np.ndarray
 
     @property
     def width(self):
-        return self.coeffs.shape[1]
+        return self.planes.shape[2]
 
     @property
     def height(self):
-        return self.coeffs.shape[0]
+        return self.planes.shape[1]
+
+    def _coeffs(self, r0, r1, dtype=np.float64):
+        """(terms, r1 - r0, W, 3): (byte / 255 - bias) · scale, as openlime's shader."""
+        x = self.planes[:, r0:r1].astype(dtype)
+        x *= dtype(1 / 255.0)
+        x -= self.bias[:, None, None, :].astype(dtype)
+        x *= self.scale[:, None, None, :].astype(dtype)
+        return x
+
+    @property
+    def coeffs(self):
+        """(H, W, 3, terms) float64 dequantised coefficients (the whole picture's: 8 bytes each)."""
+        return np.moveaxis(self._coeffs(0, self.height), 0, -1)
 
     def relight(self, light):
-        """The picture (H, W, 3) openlime shows at a light (3,) (x right, y up, z to the camera; its
-        x, y as openlime's light control takes them, z from them), clipped to [0, 1]."""
+        """The picture (H, W, 3) float32 openlime shows at a light (3,) (x right, y up, z to the camera;
+        its x, y as openlime's light control takes them, z from them), clipped to [0, 1]; relit
+        BAND_ROWS rows at a time in float32 (the shader's precision; 12 MP: ~0.5 GB with the planes)."""
         d = np.asarray(light, np.float64)
         r = np.hypot(d[0], d[1])
         x, y = (d[0] / r, d[1] / r) if r > 1 else (d[0], d[1])      # openlime: the square onto the disc
         wts = openlime_weights(self.kind, [x, y, np.sqrt(max(0.0, 1 - x * x - y * y))], self.terms)
-        return np.clip(self.coeffs @ wts, 0.0, 1.0)
+        wts = wts.astype(np.float32)
+        out = np.empty((self.height, self.width, 3), np.float32)
+        for r0 in range(0, self.height, BAND_ROWS):
+            r1 = min(self.height, r0 + BAND_ROWS)
+            np.clip(np.tensordot(wts, self._coeffs(r0, r1, np.float32), axes=1), 0.0, 1.0, out=out[r0:r1])
+        return out
 
 
 def _dzi_size(path):
-    text = path.read_text()
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BadInputError(f"{path}: cannot read the deep-zoom descriptor ({exc})", hint=HINT) from None
     get = {k: re.search(rf'{k}="(\d+)"', text) for k in ("Width", "Height", "TileSize", "Overlap")}
     if not all(get.values()):
-        raise BadInputError(f"{path}: not a deep-zoom descriptor (Width, Height, TileSize, Overlap)")
+        raise BadInputError(f"{path}: not a deep-zoom descriptor (Width, Height, TileSize, Overlap)", hint=HINT)
     return {k: int(v.group(1)) for k, v in get.items()}
+
+
+def _jpeg_rgb(path, what):
+    """(h, w, 3) uint8 of one JPEG; a missing, truncated or unreadable one: BadInputError."""
+    from PIL import Image
+    if not path.is_file():
+        raise BadInputError(f"{path}: {what} is missing", hint=HINT)
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("RGB"))
+    except (OSError, SyntaxError, ValueError) as exc:       # PIL: truncated, not an image, bad markers
+        raise BadInputError(f"{path}: {what} is not a readable JPEG ({exc})",
+                            hint="the file is damaged or cut short (an interrupted copy?): copy the folder "
+                                 "again, or write it anew with `facette process --outputs relight-web`") from None
 
 
 def _read_plane(folder, j, w, h):
     """(H, W, 3) uint8 of plane j: plane_j.jpg, or the full-size level of plane_j.dzi's tiles."""
-    from PIL import Image
     single = folder / f"plane_{j}.jpg"
-    if single.is_file():
-        with Image.open(single) as im:
-            a = np.asarray(im.convert("RGB"))
+    dzi = folder / f"plane_{j}.dzi"
+    if single.is_file() or not dzi.is_file():
+        if not dzi.is_file() and not single.is_file():
+            raise BadInputError(f"{folder}: plane {j} is missing (neither plane_{j}.jpg nor plane_{j}.dzi)", hint=HINT)
+        a = _jpeg_rgb(single, f"plane {j}")
     else:
-        dzi = folder / f"plane_{j}.dzi"
-        if not dzi.is_file():
-            raise BadInputError(f"{folder}: neither plane_{j}.jpg nor plane_{j}.dzi")
         size = _dzi_size(dzi)
         if size["Overlap"] != 0:
-            raise BadInputError(f"{dzi}: tiles with an overlap ({size['Overlap']}) are not read")
+            raise BadInputError(f"{dzi}: tiles with an overlap ({size['Overlap']}) are not read",
+                                hint="write the folder with Relight's default overlap 0")
         tiles = folder / f"plane_{j}_files"
-        top = max((int(p.name) for p in tiles.iterdir() if p.name.isdigit()), default=None)
-        if top is None:
-            raise BadInputError(f"{tiles}: no level folders")
+        levels = [int(p.name) for p in tiles.iterdir() if p.name.isdigit()] if tiles.is_dir() else []
+        if not levels:
+            raise BadInputError(f"{tiles}: no level folders (plane {j}'s tiles)", hint=HINT)
+        top = max(levels)
         t = size["TileSize"]
         a = np.zeros((size["Height"], size["Width"], 3), np.uint8)
         for row in range(-(-size["Height"] // t)):
             for col in range(-(-size["Width"] // t)):
-                with Image.open(tiles / str(top) / f"{col}_{row}.jpg") as im:
-                    tile = np.asarray(im.convert("RGB"))
+                tile = _jpeg_rgb(tiles / str(top) / f"{col}_{row}.jpg", f"plane {j}'s tile {col}_{row}")
                 a[row * t:row * t + tile.shape[0], col * t:col * t + tile.shape[1]] = tile
     if a.shape[:2] != (h, w):
-        raise BadInputError(f"{folder}: plane {j} is {a.shape[1]}x{a.shape[0]}, info.json says {w}x{h}")
+        raise BadInputError(f"{folder}: plane {j} is {a.shape[1]}x{a.shape[0]}, info.json says {w}x{h}", hint=HINT)
     return a
 
 
-def read_relight_web(folder):
-    """Read a Relight web folder (info.json + planes, "hsh" or "ptm", colour space "rgb") -> `RelightWeb`."""
-    folder = Path(folder)
+def _info(folder):
+    """info.json's dict, checked for what the reader needs."""
+    if not folder.is_dir():
+        raise BadInputError(f"{folder} is not a folder", hint=HINT)
     try:
         info = json.loads((folder / "info.json").read_text())
     except (OSError, ValueError) as exc:
-        raise BadInputError(f"{folder}: no readable info.json ({exc})") from None
-    kind, space, n = info.get("type"), info.get("colorspace"), int(info.get("nplanes", 0))
-    if kind not in ("hsh", "ptm") or space != "rgb" or n % 3:
-        raise BadInputError(f"{folder}: type {kind!r}, colour space {space!r}, {n} planes: HSH or PTM in rgb is read")
-    mat = info["materials"][0]
-    scale, bias = np.asarray(mat["scale"], float), np.asarray(mat["bias"], float)
-    terms = n // 3
-    w, h = int(info["width"]), int(info["height"])
-    coeffs = np.empty((h, w, 3, terms))
+        raise BadInputError(f"{folder}: no readable info.json, so not a Relight web folder ({exc})",
+                            hint=HINT) from None
+    try:
+        kind, space, n = info.get("type"), info.get("colorspace"), int(info.get("nplanes", 0))
+        w, h = int(info["width"]), int(info["height"])
+        mat = info["materials"][0]
+        scale, bias = np.asarray(mat["scale"], float), np.asarray(mat["bias"], float)
+    except (AttributeError, KeyError, IndexError, TypeError, ValueError) as exc:
+        raise BadInputError(f"{folder}/info.json lacks what a Relight web folder holds (width, height, nplanes, "
+                            f"materials[0].scale and .bias): {exc!r}", hint=HINT) from None
+    if kind not in ("hsh", "ptm") or space != "rgb" or n <= 0 or n % 3:
+        raise BadInputError(f"{folder}: type {kind!r}, colour space {space!r}, {n} planes: HSH or PTM in rgb is read",
+                            hint="facette reads Relight's HSH and PTM folders (RBF and bilinear ones are not read)")
+    if scale.shape != (n,) or bias.shape != (n,) or not (np.isfinite(scale).all() and np.isfinite(bias).all()) \
+            or w <= 0 or h <= 0:
+        raise BadInputError(f"{folder}/info.json: {n} planes of {w}x{h} but {scale.size} scales and {bias.size} "
+                            "biases (finite, one per plane, and a positive size are needed)", hint=HINT)
+    return info, kind, n // 3, w, h, scale.reshape(-1, 3), bias.reshape(-1, 3)
+
+
+def read_relight_web(folder):
+    """Read a Relight web folder (info.json + planes, "hsh" or "ptm", colour space "rgb") -> `RelightWeb`.
+    A folder that is not one, a missing plane or tile, a truncated JPEG: BadInputError with a hint."""
+    folder = Path(folder)
+    info, kind, terms, w, h, scale, bias = _info(folder)
+    planes = np.empty((terms, h, w, 3), np.uint8)
     for j in range(terms):
-        plane = _read_plane(folder, j, w, h) / 255.0
-        coeffs[..., j] = (plane - bias[3 * j:3 * j + 3]) * scale[3 * j:3 * j + 3]
-    return RelightWeb(info, kind, terms, coeffs)
+        planes[j] = _read_plane(folder, j, w, h)
+    return RelightWeb(info, kind, terms, planes, scale, bias)

@@ -200,10 +200,26 @@ def tangent_space_normal_map(normals, height_mm, mask, pixel_pitch_mm, step=1):
 
 def gltf_material(res):
     """What the glTF material takes from a `ProcessResult` and the notes that say so (cheap:
-    the report lists the notes while `gltf_inputs` builds the arrays): a dict with the
-    albedo's scale `top`, the roughness `r` (None: 1 everywhere) and the `ior`, and notes."""
+    the report lists the notes while `gltf_inputs` builds the arrays): a dict with the base
+    colour's per-channel `scale`, the roughness `r` (None: 1 everywhere), the `ior`, a metal's
+    `metal_f0` and, when the run has a relighting model, its per-pixel `maps`
+    (pipeline._gltf_maps), and notes."""
     notes = []
     f = texture_step(res.mask.shape)
+    if f > 1:
+        h, w = res.mask.shape
+        notes.append(f"glTF textures {-(-w // f)} x {-(-h // f)} (block means of {f} x {f} pixels; the "
+                     "full-size maps are normal.exr and albedo.exr)")
+    from facette.pipeline._gltf_maps import relight_maps      # it builds on this module's textures
+    maps, map_notes = relight_maps(res)
+    r, ior, metal_f0, brdf_notes = _brdf_material(res)
+    if maps is not None:          # per-pixel K_d, F0 and roughness: the relighting model's
+        if metal_f0 is not None:  # the BRDF fit's verdict: a metal (glTF's metal: F0 is its base colour)
+            map_notes.append(f"glTF: metallic 1, base colour F0 = {metal_f0:.2f} on the fitted pixels (the BRDF fit "
+                             "found a metal's lobe stronger than its diffuse part); roughness from the model")
+        return {"scale": maps["scale"], "r": None, "ior": None, "metal_f0": metal_f0, "maps": maps}, \
+            notes + map_notes
+    notes += map_notes
     # the scale from every st-th row and column (the same distribution), of at most ~SCALE_PIXELS:
     # a 50 MP albedo's masked values in float64 and the percentile's copies were 4 GB
     st = max(f, int(np.ceil(np.sqrt(res.mask.size / SCALE_PIXELS))))
@@ -213,12 +229,14 @@ def gltf_material(res):
         vals = np.nan_to_num(albedo[mask].astype(np.float64), copy=False)
         del albedo
         top = float(np.percentile(vals, 99.5, overwrite_input=True))
-    if f > 1:
-        h, w = res.mask.shape
-        notes.append(f"glTF textures {-(-w // f)} x {-(-h // f)} (block means of {f} x {f} pixels; the "
-                     "full-size maps are normal.exr and albedo.exr)")
     if top > 1.0:
         notes.append(f"glTF base colour: albedo divided by {top:.3g} (its 99.5th percentile) to fit [0, 1]")
+    return {"scale": np.full(3, 1.0 / max(top, 1.0)), "r": r, "ior": ior, "metal_f0": metal_f0}, notes + brdf_notes
+
+
+def _brdf_material(res):
+    """(roughness or None, IOR or None, a metal's F0 or None, notes) of the BRDF fit (one material)."""
+    notes = []
     r, ior, metal_f0 = None, None, None
     fit = res.brdf
     params = getattr(fit, "params", None) or {}
@@ -246,7 +264,7 @@ def gltf_material(res):
             notes.append(what + "metallic 0" + (f"; IOR = n_i = {ior:.3g}" if ior else ""))
     else:
         notes.append("glTF roughness 1 (no successful microfacet BRDF fit to take sigma from)")
-    return {"top": top, "r": r, "ior": ior, "metal_f0": metal_f0}, notes
+    return r, ior, metal_f0, notes
 
 
 def gltf_inputs(res, step, material=None):
@@ -269,12 +287,21 @@ def gltf_inputs(res, step, material=None):
     uv = np.stack([(verts[:, 0] / pitch + 0.5) / (f * tw), (-verts[:, 1] / pitch + 0.5) / (f * th)], axis=1)
     normals = vertex_normals(verts, faces)
     fitted_px = res.inputs.sample_mask() & res.mask
+    maps = material.get("maps")
+    kd = res.albedo if maps is None else maps["kd"]       # the base colour's source, at full size
     if f == 1:              # full size: the maps as they are (on disk with --memory), read by bands
         mask, fitted = res.mask, fitted_px
-        base = _base_colour(res.albedo, fitted, material)
+        base = _base_colour(kd, fitted, material)
         normal_map = tangent_space_normal_map(res.normals, res.height, mask, pitch, step)
     else:
-        mask, fitted, base, normal_map = _block_textures(res, fitted_px, f, material, pitch, step)
+        mask, fitted, base, normal_map = _block_textures(res, kd, fitted_px, f, material, pitch, step)
+    extras = {"scan_incomplete": res.inputs.incomplete} if res.inputs.incomplete else None
+    kw = dict(vertices_mm=verts, faces=faces, normals=normals, tangents=vertex_tangents(normals), uv=uv,
+              base_color=base, normal_map=normal_map, extras=extras)
+    if maps is not None:
+        from facette.pipeline._gltf_maps import model_textures
+        mr, specular = model_textures(maps, metal=material["metal_f0"] is not None)
+        return dict(kw, metallic_roughness=mr, specular=specular), notes
     ior = material["ior"]
     mr = np.zeros(mask.shape + (3,), np.uint8)
     mr[..., 0] = 255                                        # unused (occlusion lives elsewhere)
@@ -283,14 +310,10 @@ def gltf_inputs(res, step, material=None):
         mr[..., 1][fitted] = np.round(np.float32(material["r"]) * 255).astype(np.uint8)
     if material.get("metal_f0") is not None:                # metallic in B; a metal's colour is its F0
         mr[..., 2] = np.where(fitted, 255, 0).astype(np.uint8)
-    return dict(vertices_mm=verts, faces=faces, normals=normals, tangents=vertex_tangents(normals),
-                uv=uv, base_color=base,
-                normal_map=normal_map,
-                metallic_roughness=mr, ior=None if ior is None else float(ior),
-                extras={"scan_incomplete": res.inputs.incomplete} if res.inputs.incomplete else None), notes
+    return dict(kw, metallic_roughness=mr, ior=None if ior is None else float(ior)), notes
 
 
-def _block_textures(res, fitted_px, f, material, pitch, step):
+def _block_textures(res, kd, fitted_px, f, material, pitch, step):
     """(texel mask, fitted texels, base colour, normal map) of the maps' f x f block means, made a
     band of TEXEL_ROWS texel rows at a time (the normal map's band with the halo its smoothing and
     gradient reach; the same bytes as whole): 100 MP held 0.7 GB of float block means at once."""
@@ -306,7 +329,7 @@ def _block_textures(res, fitted_px, f, material, pitch, step):
         rows = slice(a * f, b * f)
         # the fitted pixels as one more map: its block mean > 1/2 is "most of the block" (fitted ⊂ mask)
         (albedo, n_small, height, share), count = block_means(
-            (res.albedo[rows], res.normals[rows], res.height[rows], fitted_px[rows]), res.mask[rows], f)
+            (kd[rows], res.normals[rows], res.height[rows], fitted_px[rows]), res.mask[rows], f)
         inner = slice(t0 - a, t1 - a)
         m = count > 0
         mask[t0:t1] = m[inner]
@@ -318,13 +341,15 @@ def _block_textures(res, fitted_px, f, material, pitch, step):
 
 
 def _base_colour(albedo, fitted, material):
-    """(H, W, 3) uint8 sRGB base colour of `albedo` (in memory or on disk) scaled by the material's
-    top, F0 on the `fitted` texels of a metal; a band of rows at a time (no full-size float copy)."""
+    """(H, W, 3) uint8 sRGB base colour of `albedo` (in memory or on disk) times the material's
+    per-channel scale, F0 on the `fitted` texels of a metal; a band of rows at a time (no full-size
+    float copy)."""
     base = np.empty(albedo.shape[:2] + (3,), np.uint8)
+    scale = np.asarray(material["scale"], np.float32)
     for r0 in range(0, base.shape[0], ROWS):
         band = np.nan_to_num(np.asarray(albedo[r0:r0 + ROWS], np.float32))
-        if material["top"] > 1.0:
-            band /= np.float32(material["top"])
+        if np.any(scale != 1):
+            band = band * scale
         if material.get("metal_f0") is not None:
             band[fitted[r0:r0 + ROWS]] = np.float32(material["metal_f0"])
         base[r0:r0 + ROWS] = srgb_encode(band)

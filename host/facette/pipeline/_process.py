@@ -13,7 +13,7 @@ Stages run only when a requested output needs them (docs/outputs.md):
     ptm       load, ptm                      (relight.ptm: PTM LRGB for RTIViewer, as photographed)
     rti       load, hsh                      (relight.rti: HSH order 3 for RTIViewer, as photographed)
     relight-web load, hsh                    (relight_web/: Relight's web format, openlime's HSH)
-    gltf      load, ps, integrate, mesh, samples, fit   (model.glb: mesh + PBR maps)
+    gltf      load, ps, integrate, mesh, relight   (model.glb: mesh + the model's per-pixel PBR maps)
     report    load, ps (+ whatever else ran) (report.html)
 """
 import json
@@ -231,7 +231,7 @@ def _process(source, outputs, out_dir, o):
             banded.append(relight_bands(read, res.object_mask, outputs, o, rows, len(inp.light_dirs), inp))
         inp, ps, light_dirs, top = streamed_ps(source, o, res, lambda i: claimed.update(previous=claim(i)),
                                                samples="samples" in stages,
-                                               relight=fits if {"ptm", "rti"} & set(outputs) else None)
+                                               relight=fits if {"ptm", "rti", "relight-web"} & set(outputs) else None)
         previous, images, direct = claimed["previous"], None, None
         interreflections_wanted(o, inp, res.notes), shadows_wanted(o, light_dirs, res.notes)   # their notes: why not
         if res.ps is None:

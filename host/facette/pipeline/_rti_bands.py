@@ -172,9 +172,9 @@ def relight_bands(read, mask, outputs, o, ps_rows, lights, inp):
     pixels, the relighting error's); outputs: what `process` was asked for (ptm, rti); o:
     ProcessOptions (method, rti_encoding, hsh_order); lights: m; inp: the input (`exposure_of`).
     Returns a `RelightBands` (close it), or None when neither ptm nor rti is asked for."""
-    want_ptm = "ptm" in outputs
-    order, order_note = hsh_order_for(lights, o.hsh_order) if "rti" in outputs else (None, None)
-    if not want_ptm and "rti" not in outputs:
+    want_ptm, want_hsh = "ptm" in outputs, bool({"rti", "relight-web"} & set(outputs))   # the web folder: HSH's
+    order, order_note = hsh_order_for(lights, o.hsh_order) if want_hsh else (None, None)
+    if not want_ptm and not want_hsh:
         return None
     h, w = mask.shape
     rows, aligned = _aligned(relight_rows(ps_rows, w, lights, o.method), w, h)

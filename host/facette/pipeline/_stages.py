@@ -14,7 +14,9 @@ STAGES_FOR = {
     # the polynomial files need the images and the object's mask, not the normals
     "ptm": ("load", "ptm"), "rti": ("load", "hsh"), "relight-web": ("load", "hsh"),
     "relight": ("load", "ps", "integrate", "relight"), "report": ("load", "ps", "integrate", "relight"),
-    "gltf": ("load", "ps", "integrate", "mesh", "samples", "fit")}
+    # the glTF's material: the relighting model's per-pixel maps (pipeline._gltf_maps); a BRDF fit
+    # asked for beside it (brdf) still says whether the object is a metal
+    "gltf": ("load", "ps", "integrate", "mesh", "relight")}
 FILES = {"normals": "normal.exr", "albedo": "albedo.exr", "mask": "mask.png", "height": "height.exr",
          "mesh": "mesh.ply", "samples": "samples.npz", "brdf": "brdf.json", "ptm": "relight.ptm",
          "rti": "relight.rti", "relight-web": "relight_web", "relight": "relight_model.npz", "gltf": "model.glb",

@@ -15,11 +15,20 @@ far the data's own best normal lies from n. The uncertainty combines both (radia
 
 the first term the sandwich (heteroscedastic) covariance of the normal, which grows with the
 misfit and with a poor spread of the lights that carried the pixel (few lights, all on one
-side, near grazing); the second the disagreement between the solution and the data. The map
-written is the radius of the 90 % band, BAND_SCALE × u in degrees: on renders 90 % of the normals
-are within it of the truth (BAND_SCALE chosen there, `facette bench uncertainty`: Spearman 0.65
-pooled); on DiLiGenT's photographs it held 58-87 % and ranked the errors at Spearman 0.11-0.45 (their
-errors from inter-reflections and cast shadows leave little misfit for it to see).
+side, near grazing); the second the disagreement between the solution and the data.
+
+What a local fit cannot see: inter-reflections, cast shadows and a wrong reflectance leave data a
+smooth reflectance explains well at the wrong normal. Their errors are not a surface's: the normal
+field's curl (`curl_angle`, the slopes' loop sum round each 2x2 plaquette, as an angle, gathered over
+CURL_SIGMA pixels) is ~0 for any height field and grows where such errors bend the normals. The map
+written is the radius of the 90 % band, in degrees,
+
+    band = sqrt((BAND_SCALE u)² + (K_CURL curl)²)
+
+BAND_SCALE chosen on renders so that 90 % of their normals lie within the local fit's band, K_CURL on
+the path-traced renders (`facette bench uncertainty`); DiLiGenT's photographs only confirm them (the
+figures are in the constants' comments and the bench). Noise alone also has a curl: on noise-only
+renders the band over-covers (≈ 1.0) and ranks worse than the local fit's alone.
 
 Lights carry a pixel where their value is usable (finite, below saturation) and above
 T_DARK × the pixel's brightest (a dark value is a shadow the model does not describe); the
@@ -27,11 +36,12 @@ brightest DROP_BRIGHT share is left out of the fit (the sharp specular peak a lo
 not follow), as in ST14. Fewer than MIN_LIGHTS left: the uncertainty is 90° (nothing known).
 """
 import numpy as np
-from scipy.ndimage import grey_dilation
+from scipy.ndimage import gaussian_filter, grey_dilation
 
 from facette._threads import run_blocks
 
-__all__ = ["normal_uncertainty", "uncertainty_summary", "BAND_SCALE", "T_DARK", "DROP_BRIGHT", "DEGREE"]
+__all__ = ["normal_uncertainty", "uncertainty_summary", "curl_angle", "BAND_SCALE", "K_CURL", "CURL_SIGMA", "T_DARK",
+           "DROP_BRIGHT", "DEGREE"]
 
 DEGREE = 2            # polynomial degree in n·h of the local reflectance
 T_DARK = 0.05         # values below this share of the pixel's brightest are shadows
@@ -40,6 +50,13 @@ MIN_LIGHTS = DEGREE + 4
 BAND_SCALE = 1.2      # 90 % band radius / u: the 90th percentile of error / u over the renders of
                       # `facette bench uncertainty` (12 synthetic spheres, 4 Mitsuba scenes; li_alternating):
                       # 1.20 (rank_trimmed's normals: 1.23); never chosen on DiLiGenT
+K_CURL = 4.0         # band (deg) per degree of the field's curl (`curl_angle`), chosen on the path-traced renders of
+                     # `facette bench uncertainty` (4 Mitsuba scenes, 12 concave ones): their Spearman rises with it up to
+                     # about 4 (Mitsuba 0.57 at 0 -> 0.61 at 4, 0.63 at 8; concave 0.87 -> 0.89) and there the concave
+                     # scenes' band holds 90 % (12 lights 0.87 -> 0.98, 96 lights in plaster 0.67 -> 0.82); never
+                     # chosen on DiLiGenT
+CURL_SIGMA = 1.0     # pixels the curl is gathered over (Gaussian), on the same renders: the synthetic spheres'
+                     # Spearman 0.24 at 1, 0.18 at 1.5, 0.07 at 3; the path-traced ones' equal (0.61 / 0.88) from 1 to 3
 MAX_DEG = 90.0
 MAX_VALUES = 3_000_000   # pixels x lights computed at most (12 lights: 250 000 pixels, a 12 MP scan every
                          # 7th row and column; DiLiGenT's 96: 31 000, a 45 000-pixel crop every 2nd): 512x512 px,
@@ -119,9 +136,12 @@ def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, 
         lights, or (H, W, m, 3) per pixel (near lights, as photometric_stereo takes them).
         normals : (H, W, 3) the solution (zero where there is none: not rated). mask : (H, W) bool (default: where the normal
         is not zero). saturation : values at or above it are not used.
+    The band is sqrt((BAND_SCALE u)^2 + (K_CURL c)^2): u the local fit's (module doc), c the
+    normal field's own non-integrability around the pixel (`curl_angle`, over every pixel with a normal).
     Pixels with fewer than MIN_LIGHTS carrying lights, or no normal, get MAX_DEG (90°).
-    max_values : above this many mask pixels x lights the map is computed on every s-th row and
-        column (s the smallest stride that brings them under it), each pixel taking its cell's value.
+    max_values : above this many mask pixels x lights the local fit is computed on every s-th row and
+        column (s the smallest stride that brings them under it), each pixel taking its cell's value;
+        the curl is always computed on every pixel.
     """
     images = np.asarray(images)
     if images.ndim == 3:
@@ -138,12 +158,22 @@ def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, 
                          f"got {light_dirs.shape}")
     has_n = np.linalg.norm(normals, axis=2) > 0.5
     mask = has_n if mask is None else (np.asarray(mask, bool) & has_n)
+    band = _fit_band(images, light_dirs, normals, mask, saturation, channel, max_values)
+    if K_CURL > 0 and mask.any():
+        curl = np.degrees(K_CURL * curl_angle(normals, has_n))
+        band = np.where(mask, np.minimum(np.hypot(band, curl), MAX_DEG), 0).astype(np.float32)
+    return band
+
+
+def _fit_band(images, light_dirs, normals, mask, saturation, channel, max_values):
+    """BAND_SCALE x u (deg) of the local fit, MAX_DEG where it has too few lights; 0 off the mask."""
+    m, h, w, _ = images.shape
     values = mask.sum() * m
     stride = int(np.ceil(np.sqrt(values / max_values))) if values > max_values else 1
     if stride > 1:        # a cell's pixels take its corner's value (or its neighbours' at the edge)
         ld = light_dirs if light_dirs.ndim == 2 else light_dirs[::stride, ::stride]
-        coarse = normal_uncertainty(images[:, ::stride, ::stride], ld, normals[::stride, ::stride],
-                                    mask[::stride, ::stride], saturation, channel, max_values=np.inf)
+        coarse = _fit_band(images[:, ::stride, ::stride], ld, normals[::stride, ::stride],
+                           mask[::stride, ::stride], saturation, channel, max_values=np.inf)
         coarse = np.where(mask[::stride, ::stride], coarse, grey_dilation(coarse, size=3))
         up = np.repeat(np.repeat(coarse, stride, axis=0), stride, axis=1)[:h, :w]
         return np.where(mask, up, np.float32(0)).astype(np.float32)
@@ -172,6 +202,36 @@ def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, 
     return out
 
 
+def curl_angle(normals, mask, sigma=CURL_SIGMA):
+    """(H, W) radians: how far the normal field around each pixel is from any surface's.
+
+    The slopes g = (-n_x/n_z, n_y/n_z) (per column, per row) of a surface's normals sum to zero
+    round every 2x2 plaquette of pixels (the curl of a gradient); each plaquette's loop sum, over
+    1 + |g|² (a slope's change as an angle), is an angle no surface explains. A pixel takes the
+    root mean square over its plaquettes whose corners all lie in the mask, then over the mask's
+    pixels within `sigma` (Gaussian). Inter-reflections, cast shadows and a wrong reflectance bend normals in ways no
+    height field has; noise alone leaves a small curl."""
+    n = np.asarray(normals, np.float32)
+    mask = np.asarray(mask, bool)
+    nz = np.maximum(n[..., 2], np.float32(1e-3))
+    p = np.clip(-n[..., 0] / nz, -50, 50)
+    q = np.clip(n[..., 1] / nz, -50, 50)
+    ok = mask[:-1, :-1] & mask[:-1, 1:] & mask[1:, :-1] & mask[1:, 1:]
+    loop = 0.5 * (p[:-1, :-1] + p[:-1, 1:] - p[1:, :-1] - p[1:, 1:] + q[:-1, 1:] + q[1:, 1:] - q[:-1, :-1] - q[1:, :-1])
+    g2 = p * p + q * q
+    g2 = 0.25 * (g2[:-1, :-1] + g2[:-1, 1:] + g2[1:, :-1] + g2[1:, 1:])
+    c2 = np.where(ok, (loop / (1 + g2)) ** 2, np.float32(0))
+    acc = np.zeros(mask.shape, np.float32)
+    cnt = np.zeros(mask.shape, np.float32)
+    for a in (0, 1):          # each plaquette to its four corner pixels
+        for b in (0, 1):
+            acc[a:a + c2.shape[0], b:b + c2.shape[1]] += c2
+            cnt[a:a + c2.shape[0], b:b + c2.shape[1]] += ok
+    own = np.where(mask, acc / np.maximum(cnt, 1), np.float32(0))       # each pixel's mean square
+    spread = gaussian_filter(own, sigma) / np.maximum(gaussian_filter(mask.astype(np.float32), sigma), 1e-6)
+    return np.where(mask, np.sqrt(spread), 0).astype(np.float32)
+
+
 def _halves(lights):
     h = lights + VIEW
     return h / np.linalg.norm(h, axis=-1, keepdims=True)
@@ -183,4 +243,5 @@ def uncertainty_summary(uncertainty, mask):
     if vals.size == 0:
         return None
     return {"median_deg": round(float(np.median(vals)), 3), "p90_deg": round(float(np.percentile(vals, 90)), 3),
-            "band": "uncertainty_deg holds 90 % of rendered normals' errors (DiLiGenT's photographs: 58-87 %)"}
+            "band": "uncertainty_deg is each normal's 90 % band: it held 76-100 % of the errors on path-traced renders, "
+                    "51-92 % on DiLiGenT's photographs"}

@@ -116,3 +116,80 @@ def test_a_bad_rti_header_names_the_file_and_line(tmp_path, capsys, unchanged, h
     with unchanged(tmp_path):
         code, said = _run(capsys, "relight", tmp_path / "x.rti")
     assert code == 2 and words in said and "x.rti" in said, said
+
+
+def _web_folder(tmp_path, layout):
+    from facette.io.relight_web import write_relight_web
+    h, w = 300, 270                              # deep zoom: 2 x 2 tiles at full size, 2 levels
+    yy, xx = np.mgrid[0:h, 0:w] / 300.0
+    coeffs = np.zeros((h, w, 3, 9))
+    coeffs[..., 0] = 0.6 + 0.2 * np.sin(5 * xx)[..., None]
+    coeffs[..., 3] = 0.3 * yy[..., None]         # an HSH term that follows the light's x
+    flat = coeffs.reshape(-1, 9)
+    write_relight_web(tmp_path / "web", w, h, "hsh", lambda a, b: coeffs[a:b], (flat.min(0), flat.max(0)),
+                      np.array([[0.0, 0.0, 1.0]]), layout=layout)
+    return tmp_path / "web"
+
+
+@pytest.mark.parametrize("layout", ["deepzoom", "image"])
+def test_relight_opens_a_web_folder_as_openlime_shows_it(tmp_path, capsys, unchanged, layout):
+    from facette.io.relight_web import read_relight_web
+    folder = _web_folder(tmp_path, layout)
+    with unchanged(folder):
+        assert main(["relight", str(folder), "--light", "30,40"]) == 0
+    got = read_png(tmp_path / "web.png")                   # beside the folder, never inside it
+    d = np.array([np.cos(np.radians(40)) * np.cos(np.radians(30)), np.cos(np.radians(40)) * np.sin(np.radians(30)),
+                  np.sin(np.radians(40))])
+    np.testing.assert_array_equal(got, np.round(read_relight_web(folder).relight(d) * 255))
+    assert got.shape == (300, 270, 3) and got.std() > 5
+    assert ("deep zoom" if layout == "deepzoom" else "one JPEG per plane") in capsys.readouterr().out
+
+
+def test_relight_refuses_broken_web_folders_with_a_hint(tmp_path, capsys, unchanged):
+    folder = _web_folder(tmp_path, "deepzoom")
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "relight_web").symlink_to(folder)
+    with unchanged(tmp_path):
+        code, said = _run(capsys, "relight", tmp_path / "out")       # process's folder, not the web one
+        assert code == 2 and "without info.json" in said and str(tmp_path / "out" / "relight_web") in said
+        code, said = _run(capsys, "relight", folder, "-o", folder / "x.png")
+        assert code == 2 and "inside the folder" in said
+    tile = folder / "plane_5_files" / "1" / "0_1.jpg"
+    tile.write_bytes(tile.read_bytes()[:300])
+    with unchanged(tmp_path):
+        code, said = _run(capsys, "relight", folder)
+    assert code == 2 and "plane 5's tile 0_1 is not a readable JPEG" in said and "cut short" in said
+    tile.unlink()
+    code, said = _run(capsys, "relight", folder)
+    assert code == 2 and "tile 0_1 is missing" in said
+    assert not (tmp_path / "web.png").exists()
+
+
+def test_relight_at_a_captured_light_of_what_process_wrote(tmp_path, capsys):
+    """`process --outputs relight-web,relight` on a JPEG capture: the web folder and relight_model.npz,
+    relit at a captured light, are the readers' own pictures, and that photograph within a few levels."""
+    import sys
+    from pathlib import Path
+
+    from facette.io.relight_web import read_relight_web
+    from facette.recon import load_relight_model
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "pipeline"))
+    from test_rti_exposure import _jpeg_capture
+    from test_rti_capture import _lights
+
+    photos = _jpeg_capture(tmp_path / "cap")
+    out = tmp_path / "o"
+    assert main(["process", str(tmp_path / "cap"), "-o", str(out), "--outputs", "relight-web,relight",
+                 "--method", "woodham1980", "--shadows", "off"]) == 0
+    web, model = read_relight_web(out / "relight_web"), load_relight_model(out / "relight_model.npz")
+    for k in (2, 5, 11):
+        d = _lights()[k]
+        light = f"{np.degrees(np.arctan2(d[1], d[0]))},{np.degrees(np.arcsin(d[2]))}"
+        for src, reader, most in ((out / "relight_web", web.relight, 7.0), (out / "relight_model.npz", model.display,
+                                                                               6.0)):
+            assert main(["relight", str(src), f"--light={light}", "-o", str(tmp_path / "lit.png")]) == 0
+            got = read_png(tmp_path / "lit.png")
+            np.testing.assert_array_equal(got, np.round(reader(d) * 255))
+            err = np.abs(got.astype(float) - photos[k])[model.mask].mean()
+            assert err < most, (src.name, k, err)
+    assert "relighting model" in capsys.readouterr().out

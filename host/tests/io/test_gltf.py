@@ -115,3 +115,20 @@ def test_bad_input_is_refused(tmp_path, change, match):
 def test_srgb_encoding_values_and_edges():
     out = srgb_encode([-1.0, 0.0, 0.0031308, 0.5, 1.0, 7.0, np.nan])
     assert out.tolist() == [0, 0, 10, 188, 255, 255, 0]   # 12.92 x 0.0031308 = 0.0404
+
+
+def test_a_per_pixel_f0_colour_of_its_own_size_validates(tmp_path, khronos_validate):
+    """KHR_materials_specular: an F0 colour texture smaller than the others (the relighting model's
+    size), its factor above 1 (F0 = 0.04 x factor x texel), accepted by the Khronos validator."""
+    _, kw = _scene()
+    colour = np.zeros((10, 12, 3), np.uint8)
+    colour[:, 6:] = 200
+    write_glb(tmp_path / "m.glb", specular={"color": colour, "color_factor": 12.5, "factor": 1.0}, **kw)
+    report = khronos_validate(tmp_path / "m.glb")
+    assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0, report["issues"]["messages"]
+    doc = pygltflib.GLTF2().load(str(tmp_path / "m.glb"))
+    ext = doc.materials[0].extensions["KHR_materials_specular"]
+    assert ext == {"specularFactor": 1.0, "specularColorFactor": [12.5] * 3, "specularColorTexture": {"index": 3}}
+    assert doc.extensionsUsed == ["KHR_materials_specular"] and doc.images[3].name == "specularColor"
+    with pytest.raises(ValueError, match="specular factor"):
+        write_glb(tmp_path / "n.glb", specular={"color": colour, "color_factor": 1.0, "factor": 2.0}, **kw)

@@ -141,3 +141,44 @@ def test_a_rewrite_replaces_the_folder_and_bad_input_is_refused(tmp_path):
     (folder / "plane_4.jpg").unlink()
     with pytest.raises(BadInputError, match="plane_4"):
         read_relight_web(folder)
+
+
+def test_reading_bad_folders_says_what_is_wrong_with_a_hint(tmp_path):
+    """A missing tile, a JPEG cut short, an info.json without its materials: BadInputError with a hint,
+    never PIL's or json's own exception."""
+    coeffs = _smooth_coeffs(300, 280, 4, seed=2)
+    _, folder = _write(tmp_path, coeffs, layout="deepzoom")
+    tile = folder / "plane_2_files" / "1" / "1_0.jpg"
+    data = tile.read_bytes()
+    tile.write_bytes(data[:len(data) // 3])
+    with pytest.raises(BadInputError, match="plane 2's tile 1_0 is not a readable JPEG") as err:
+        read_relight_web(folder)
+    assert "cut short" in err.value.hint
+    tile.unlink()
+    with pytest.raises(BadInputError, match="tile 1_0 is missing") as err:
+        read_relight_web(folder)
+    assert "relight-web" in err.value.hint
+    _, flat = _write(tmp_path, coeffs[:20, :20], name="flat")
+    (flat / "plane_1.jpg").write_bytes((flat / "plane_1.jpg").read_bytes()[:200])
+    with pytest.raises(BadInputError, match="plane 1 is not a readable JPEG"):
+        read_relight_web(flat)
+    info = json.loads((flat / "info.json").read_text())
+    del info["materials"]
+    (flat / "info.json").write_text(json.dumps(info))
+    with pytest.raises(BadInputError, match="materials"):
+        read_relight_web(flat)
+    with pytest.raises(BadInputError, match="not a folder"):
+        read_relight_web(flat / "info.json")
+
+
+def test_relit_band_by_band_is_the_coefficients_relit_whole(tmp_path, monkeypatch):
+    """The reader holds the planes' bytes (one per coefficient) and relights a band of rows at a time:
+    the same picture as the dequantised coefficients times openlime's weights, clipped."""
+    monkeypatch.setattr(web, "BAND_ROWS", 7)
+    coeffs = _smooth_coeffs(30, 26, 9, seed=3)
+    _, folder = _write(tmp_path, coeffs)
+    got = read_relight_web(folder)
+    assert got.planes.dtype == np.uint8 and got.planes.shape == (9, 30, 26, 3)
+    light = np.array([0.4, -0.3, np.sqrt(1 - 0.25)])
+    whole = np.clip(got.coeffs @ openlime_weights("hsh", light), 0, 1)
+    np.testing.assert_allclose(got.relight(light), whole, atol=1e-5)     # float32, as the shader

@@ -22,7 +22,7 @@ def test_exports_are_default_outputs_and_validate(tmp_path, capsys, khronos_vali
         assert (tmp_path / "o" / name).stat().st_size > 0
     assert (tmp_path / "o" / "relight.ptm").read_bytes().startswith(b"PTM_1.2\nPTM_FORMAT_LRGB\n40\n32\n")
     assert khronos_validate(tmp_path / "o" / "model.glb")["issues"]["numErrors"] == 0
-    assert "glTF roughness 1 (no successful microfacet BRDF fit" in text
+    assert "glTF maps from the relighting model (40x32, every pixel)" in text
 
 
 def test_outputs_can_leave_the_exports_out(tmp_path):
@@ -31,7 +31,7 @@ def test_outputs_can_leave_the_exports_out(tmp_path):
     assert stages_needed(["ptm"]) == ["load", "ptm"]          # the images and the mask, not the normals
     assert stages_needed(["rti"]) == ["load", "hsh"]
     assert stages_needed(["relight-web"]) == ["load", "hsh"]
-    assert stages_needed(["gltf"]) == ["load", "ps", "integrate", "mesh", "samples", "fit"]
+    assert stages_needed(["gltf"]) == ["load", "ps", "integrate", "mesh", "relight"]
     res = process(tmp_path / "scan", outputs=["normals", "ptm"], out_dir=tmp_path / "o")
     assert res.ptm is not None and res.hsh is None and "hsh" not in res.timings
     assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["normal.exr", "process.json", "relight.ptm"]

@@ -107,3 +107,18 @@ def test_the_reference_readers_read_the_banded_files(scan, tmp_path, small_bands
     for shown in (ptm_colour(ptm, light), hsh_colour(rti, light)):
         assert shown.shape == (h, w, 3) and np.isfinite(shown).all()
         assert shown[sel].mean() > 0.02            # the object is lit, not a blank file
+
+
+def test_the_web_folder_alone_over_bands_is_the_untiled_folder(tmp_path, small_bands, monkeypatch, diligent):
+    """--memory with `--outputs relight-web` alone (no .rti asked for): the HSH is fitted over the bands all
+    the same (before: no fit, and a TypeError in the hsh stage), the folder the untiled one byte for byte."""
+    process(diligent, channels=WHOLE_CHANNELS, outputs=["relight-web"], out_dir=tmp_path / "whole", method=M)
+    _never_whole(monkeypatch)
+    monkeypatch.setattr(_rti_bands, "relight_rows", lambda *a: 8)
+    monkeypatch.setattr(rti_fit, "_BLOCK", 16)
+    process(diligent, outputs=["relight-web"], out_dir=tmp_path / "tiled", method=M, memory="1GB")
+    assert not (tmp_path / "tiled" / "relight.rti").exists()
+    web = sorted(p.relative_to(tmp_path / "whole") for p in (tmp_path / "whole" / "relight_web").rglob("*"))
+    assert len(web) == 10
+    for p in web:
+        assert (tmp_path / "whole" / p).read_bytes() == (tmp_path / "tiled" / p).read_bytes(), p

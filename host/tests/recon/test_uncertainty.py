@@ -6,7 +6,8 @@ from scipy.stats import spearmanr
 
 from facette.methods import photometric_stereo
 from facette.recon import normal_uncertainty, uncertainty_summary
-from facette.recon._uncertainty import MAX_DEG
+from facette.recon import _uncertainty as unc
+from facette.recon._uncertainty import MAX_DEG, curl_angle
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
 L = thesis_light_directions()
@@ -26,15 +27,61 @@ def _errors(n, truth, sel):
 
 
 @pytest.mark.parametrize("method", ["woodham1980", "rank_trimmed"])
-def test_uncertainty_ranks_the_errors_and_its_band_holds_them(method):
+def test_uncertainty_ranks_the_errors_and_its_band_holds_them(method, monkeypatch):
     sc, im = _noisy_sphere()
     r = photometric_stereo(im, L, method=method, mask=sc.mask)
     sel = sc.mask & r.valid
     u = normal_uncertainty(im, L, r.normal, sel)
     err, uu = _errors(r.normal, sc.normals, sel), u[sel]
     assert spearmanr(uu, err).statistic >= 0.5
-    assert 0.8 <= np.mean(err <= uu) <= 0.99
+    assert np.mean(err <= uu) >= 0.9           # the curl adds to the band: noise alone is over-covered
     assert np.all(u[~sel] == 0) and u.dtype == np.float32
+    monkeypatch.setattr(unc, "K_CURL", 0.0)    # the local fit's band alone is calibrated on noise
+    fit_only = normal_uncertainty(im, L, r.normal, sel)[sel]
+    assert 0.8 <= np.mean(err <= fit_only) <= 0.99 and np.all(fit_only <= uu + 1e-4)
+
+
+def _bumps(size=48):
+    """Unit normals (size, size, 3) of the height field z = 3 sin(x/5) cos(y/7) (pixels)."""
+    y, x = np.mgrid[0:size, 0:size].astype(np.float64)
+    zx, zy = 0.6 * np.cos(x / 5) * np.cos(y / 7), -3 / 7 * np.sin(x / 5) * np.sin(y / 7)
+    n = np.stack([-zx, zy, np.ones_like(zx)], -1)         # rows run down as y runs up
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+
+def _swirled(n, centre=(24, 24), radius=6.0, slope=0.3):
+    """n with a swirl of slopes (curl, no surface's) added in a disc: the kind of error
+    inter-reflections and shadows leave. Returns (normals, the disc)."""
+    y, x = np.mgrid[0:n.shape[0], 0:n.shape[1]].astype(np.float64)
+    dy, dx = y - centre[0], x - centre[1]
+    g = slope * np.exp(-(dx * dx + dy * dy) / (2 * radius ** 2))
+    p, q = -n[..., 0] / n[..., 2] - g * dy / radius, n[..., 1] / n[..., 2] + g * dx / radius
+    out = np.stack([-p, q, np.ones_like(p)], -1)
+    return out / np.linalg.norm(out, axis=-1, keepdims=True), dx * dx + dy * dy < radius ** 2
+
+
+def test_curl_is_nil_on_a_surface_and_finds_a_swirl():
+    n = _bumps()
+    mask = np.ones(n.shape[:2], bool)
+    assert np.degrees(curl_angle(n, mask)).max() < 0.3       # every field of a surface: ~0
+    sw, disc = _swirled(n)
+    c = np.degrees(curl_angle(sw, mask))
+    y, x = np.mgrid[0:48, 0:48]
+    far = np.hypot(y - 24, x - 24) > 20           # beyond the swirl's reach (3.3 radii and the gather)
+    assert np.median(c[disc]) > 2 and c[far].max() < 0.3
+    assert np.all(curl_angle(n, np.zeros_like(mask)) == 0)
+
+
+def test_a_swirl_the_data_explain_is_less_certain():
+    """Images rendered from the swirled normals (the data agree with the wrong normal, as with
+    inter-reflections): the local fit sees nothing, the curl does."""
+    n = _bumps()
+    sw, disc = _swirled(n)
+    im = np.maximum(np.einsum("hwi,mi->mhw", sw, L), 0).astype(np.float32)
+    u = normal_uncertainty(im, L, sw, None)
+    err = _errors(sw, n, np.ones(disc.shape, bool)).reshape(disc.shape)
+    inside = disc & (err > 2)
+    assert np.median(u[inside]) > 5 * np.median(u[~disc]) and np.mean(err[inside] <= u[inside]) > 0.6
 
 
 def test_wrong_normals_are_less_certain():
