@@ -10,7 +10,14 @@ normals' mean angular error against the truth, and li_alternating's parts (initi
 pass, BRDF-aware step). The default sizes: 481x466 (a real dome capture's, below the coarse-to-fine
 threshold: the whole alternation at full size) and 1024x768 (coarse-to-fine, as every large capture).
 
+With --banded WxH[,WxH] the default runs instead over bands of 256 rows of a relief rendered band by
+band (never held whole), its model fitted across the bands (`fit.li_model`): the model's and the
+bands' CPU seconds, both per megapixel-light, the error, and 24 MP x 60 lights estimated at these
+rates (the model's cost is bounded by its sample and coarse pass; the bands' grows with pixels x
+lights).
+
 Usage: facette bench lights [--sizes 481x466,1024x768] [--lights 12,48,96] [--material satin|glossy]
+       facette bench lights --banded 4096x1024 --lights 60
 """
 import argparse
 import os
@@ -67,13 +74,76 @@ def run(h, w, m, material, methods=METHODS):
     return rows
 
 
+def banded(w, h, m, material, rows=256):
+    """li_alternating over bands of `rows` rows of a w x h relief rendered band by band (never whole:
+    sizes a machine cannot hold as one image), its model fitted across the bands (fit.li_model):
+    (model CPU s, bands' CPU s, wall s, mean error deg, the bands' wall s in the initial solve and the
+    BRDF-aware step)."""
+    from facette.fit import li_model
+
+    lights = dome_lights(m)
+    scale = min(h, w)
+
+    def band(r0, r1):       # the same values whichever band asks (noise seeded by the rows)
+        _, normals = relief_surface(np.arange(r0, r1), np.arange(w), scale)
+        scene = Scene(normals, np.zeros((r1 - r0, w)), np.ones((r1 - r0, w), bool), np.zeros((r1 - r0, w), bool),
+                      ((r1 - r0 - 1) / 2, (w - 1) / 2), 1.0)
+        images = render(scene, lights, material, noise=0.01, rng=np.random.default_rng(r0), cast_shadows=False)
+        return images, normals
+    render_c = 0.0
+
+    def read(r0, r1):
+        nonlocal render_c
+        c = time.process_time()
+        images = np.concatenate([band(a, min(a + rows, r1))[0] for a in range(r0, r1, rows)], axis=1)
+        render_c += time.process_time() - c
+        return images, lights, np.ones((r1 - r0, w), bool)
+    t, c = time.perf_counter(), time.process_time()
+    model = li_model(read, (h, w), h * w, rows)
+    model_c = time.process_time() - c - render_c
+    total, count, parts, bands_c = 0.0, 0, np.zeros(2), 0.0
+    rows = rows if model is not None else h      # no model (below coarse_pixels): the image is one band
+    for r0 in range(0, h, rows):
+        r1 = min(h, r0 + rows)
+        images, normals = band(r0, r1)
+        c = time.process_time()
+        part = photometric_stereo(images, lights, method="li_alternating", model=model, row0=r0)
+        bands_c += time.process_time() - c
+        parts += _parts(part.info)[::2]          # the initial solve's and the BRDF-aware step's wall s
+        dot = np.clip(np.sum(part.normal * normals, -1), -1, 1)
+        total, count = total + float(np.degrees(np.arccos(dot)).sum()), count + dot.size
+    return model_c, bands_c, time.perf_counter() - t, total / count, parts
+
+
+def _banded_main(sizes, lights, material):
+    print(f"-- li_alternating over bands of 256 rows, its model fitted across them (rendered band by band, "
+          f"Cook-Torrance {material}, 1 % noise); CPU s without the rendering")
+    print(f"{'size':>10s} {'lights':>6s} {'model CPU s':>11s} {'bands CPU s':>11s} {'CPU s/MPl':>9s} "
+          f"{'bands s/MPl':>11s} {'error':>7s}   24 MP x 60 lights at these rates; the bands' wall s: init / BRDF")
+    for size in sizes.split(","):
+        w, h = (int(v) for v in size.lower().split("x"))
+        for m in (int(v) for v in lights.split(",")):
+            model_c, bands_c, _, err, parts = banded(w, h, m, material)
+            mpl = h * w * m / 1e6
+            at = model_c + bands_c / mpl * 24 * 60        # the model's cost is bounded (SAMPLE_PIXELS, coarse_pixels)
+            print(f"{size:>10s} {m:6d} {model_c:11.1f} {bands_c:11.1f} {(model_c + bands_c) / mpl:9.3f} "
+                  f"{bands_c / mpl:11.3f} {err:6.3f}°   {at:.0f} CPU s ({at / 2:.0f} s on 2 cores); "
+                  f"{parts[0]:.1f} / {parts[1]:.1f}", flush=True)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(prog="facette bench lights", description=__doc__.split("\n")[0])
     p.add_argument("--sizes", default="481x466,1024x768", help="WxH, comma-separated")
     p.add_argument("--lights", default="12,48,96", help="light counts, comma-separated (12: the rig's)")
     p.add_argument("--material", default="satin", choices=["satin", "glossy"])
     p.add_argument("--methods", default=",".join(METHODS))
+    p.add_argument("--banded", metavar="WxH", help="instead: li_alternating over bands of these sizes (comma-"
+                                                   "separated), rendered band by band, and the 24 MP x 60 estimate")
     args = p.parse_args(argv)
+    if args.banded:
+        run(32, 32, 12, args.material, ["li_alternating"])       # the kernels compiled first
+        _banded_main(args.banded, args.lights, args.material)
+        return 0
     methods = [s.strip() for s in args.methods.split(",") if s.strip()]
     # the kernels compiled (or loaded from numba's cache) before anything is timed
     run(32, 32, 12, args.material, methods)

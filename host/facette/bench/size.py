@@ -7,7 +7,8 @@ each of these runs in a process of its own (peak memory = that child's max RSS, 
 - untiled: `facette process SLAB -o OUT --outputs normals,height` as a user runs it (every
   photograph held as float32, photometric stereo of the whole image, then the integration);
 - tiled: `pipeline.ps_tiled` with a memory budget (`--memory`, default 2GB), each band's normals
-  written to a .npy as it comes (nothing kept at the image's size), the same method;
+  written to a .npy as it comes (nothing kept at the image's size), the same method (a per-pixel
+  one: li_alternating skips it, and its "tiled" error column is the `process --memory` run's);
 - process --memory: `facette process SLAB -o OUT --outputs normals,height --memory 2GB` (the
   photographs read band by band, photometric stereo over bands, its maps kept in temporary
   files, the heights' divergence built band by band and solved as one float32 array): wall s,
@@ -61,8 +62,8 @@ import numpy as np
 from facette.bench._large import npy_band_writer, write_relief_capture
 from facette.bench.e2e import _times   # the stage times `facette process` prints
 from facette.io.exr import read_exr
-from facette.methods import PS_DEFAULT
-from facette.pipeline import ps_tiled
+from facette.methods import PS_DEFAULT, PS_METHODS
+from facette.pipeline import TILED_METHODS, ps_tiled
 
 SIZES = {"3": (2144, 1424), "12": (4288, 2848), "50": (8192, 6144), "100": (11648, 8736)}
 DEFAULT_SIZES = "12"
@@ -166,6 +167,20 @@ def _compare(folder, tiled_npy, untiled_exr):
     if untiled is None:
         return sums[0] / count, float("nan"), float("nan"), -1
     return sums[0] / count, sums[1] / count, worst, over
+
+
+def _truth_error(folder, normal_exr):
+    """Mean angle (deg) of the normals of `normal_exr` to the slab's truth, where they have one."""
+    truth = np.load(Path(folder) / "normal_gt.npy", mmap_mode="r")
+    n = read_exr(normal_exr)[0][..., :3]
+    total, count = 0.0, 0
+    for r0 in range(0, truth.shape[0], BAND_ROWS):
+        sl = slice(r0, r0 + BAND_ROWS)
+        t, u = np.asarray(truth[sl]), n[sl]
+        ok = np.linalg.norm(u, axis=-1) > 0.5
+        total += _angles_deg(u[ok], t[ok]).sum()
+        count += int(ok.sum())
+    return total / max(count, 1)
 
 
 def _compare_process(untiled_dir, memory_dir):
@@ -345,6 +360,12 @@ def one_size(size, work, memory, method, untiled):
                mem_ps=_times(stdout).get("ps", float("nan")))
     row["mem_deg"], row["mem_over"], row["mem_height"] = (
         _compare_process(exr.parent, out_mem) if exr is not None else (float("nan"), -1, float("nan")))
+    nan = float("nan")
+    if PS_METHODS.canonical(method) not in TILED_METHODS:     # ps_tiled solves each band on its own: no model
+        row.update(tiled_s=nan, tiled_gb=nan, tiles=-1, rows=-1, tiled_stage=nan, tiled_ps=nan, over=-1,
+                   err_tiled=_truth_error(folder, out_mem / "normal.exr"), tiled_vs_untiled=nan,
+                   err_untiled=nan if exr is None else _truth_error(folder, exr))
+        return row
     npy = work / f"tiled_{w}x{h}.npy"
     stdout, wall, gb = _run_rss(_measured(SELF + ["--_tiled", folder, npy, memory, method]), ALLOCATOR_ENV)
     info = json.loads(stdout.strip().splitlines()[-1])

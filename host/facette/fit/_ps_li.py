@@ -89,6 +89,7 @@ from facette.brdf import kd_from_kappa, li_shading_terms
 from facette.recon import PSResult, dark_offsets, ps_rank_trimmed
 from facette.recon._ps import T_RESIDUAL, _check_inputs
 from ._li_model import DIFFUSE, LI_VOLUME_MODEL, diffuse_name, fit_li_per_pixel_kd
+from ._ps_li_bands import MODEL_OPTIONS, li_model, lowered, whole_reader
 from ._ps_li_coarse import bin_inputs, coarse_factor, material_from_coarse
 from ._ps_li_pixels import Pixels, Settings, angle_deg
 
@@ -137,7 +138,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                       t_residual=T_RESIDUAL, iterations=24, materials=1, min_region_fraction=0.05,
                       seed=0, init_options=None, coarse_pixels=COARSE_PIXELS, fine_iterations=2,
                       engine="auto", volume_model=LI_VOLUME_MODEL, highlight_start="all",
-                      diffuse="auto", dark_offset="auto", neighbour_deg=NEIGHBOUR_START_DEG):
+                      diffuse="auto", dark_offset="auto", neighbour_deg=NEIGHBOUR_START_DEG, model=None, row0=0):
     """BRDF-aware photometric stereo with the LI model (module doc).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m ≥ 4.
@@ -191,6 +192,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         initial normals) taken out of the images the BRDF-aware steps read, since the model
         predicts 0 there (`_without_dark_level`, info["dark_offset"]); "none": the images as given.
     neighbour_deg : step 5 (module doc): a second start from the neighbours' mean this far off; 0: none.
+    model, row0 : a band of a larger image from its row row0, solved with the `li_model` fitted over
+        its bands (`_ps_li_bands`); None: fitted here (above coarse_pixels: the image as one band).
     Returns a `PSResult` (method "li_alternating"): albedo is K_d (a reflectance, per channel); info
     holds "rounds" (per round: σ, n_i, pixels fitted and re-estimated, median change, seconds),
     "materials" (per region: σ, n_i, pixels, whether the BRDF step ran, neighbour starts, shadows
@@ -200,35 +203,33 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
     diffuse_models = _check_options(rounds, init, highlight_start, diffuse, volume_model, dark_offset, neighbour_deg)
     init_options = dict(init_options or {})
+    settings = Settings(iterations=iterations, fine_iterations=fine_iterations, fit_pixels=fit_pixels,
+                        t_residual=t_residual, engine=engine, highlight_start=highlight_start,
+                        diffuse_models=diffuse_models, neighbour_deg=float(neighbour_deg))
+    if model is None:      # the image read as one band: li_model takes the options it reads from these
+        model = li_model(whole_reader(images, light_dirs, mask), mask.shape, int(mask.sum()), mask.shape[0], settings,
+                         **{k: v for k, v in locals().items() if k in MODEL_OPTIONS})
+    t_base = time.perf_counter()          # the initial solution's time, not the model's (info["coarse"])
     base = init(images, light_dirs, mask=mask, channel=channel, saturation=saturation, **init_options)
-    images, dark = (images, None) if dark_offset == "none" else \
-        _without_dark_level(images, light_dirs, saturation, base)
-    t_init = time.perf_counter() - t_start
-    f = coarse_factor(int(mask.sum()), coarse_pixels, materials)
-    coarse = None if f is None else _coarse_pass(
-        images, light_dirs, mask, f, saturation, channel=channel, init=init, rounds=rounds, tol_deg=tol_deg,
-        fit_pixels=fit_pixels, t_residual=t_residual, iterations=iterations, seed=seed, init_options=init_options,
-        engine=engine, volume_model=volume_model, highlight_start=highlight_start, diffuse=diffuse,
-        dark_offset="none")
+    # a band of a larger image (or the whole as one): its model's dark level; else this image's own
+    images, dark = (lowered(images, model.offsets, saturation), model.dark) if model is not None else \
+        (images, None) if dark_offset == "none" else _without_dark_level(images, light_dirs, saturation, base)
+    t_init = time.perf_counter() - t_base
     res = _result_from(base, images.shape[1:3])
     info = res.info = {"init": base.method, "rounds": [], "materials": [],
                        "pixels": int(np.count_nonzero(base.valid)), **({"dark_offset": dark} if dark else {})}
     if info["pixels"] == 0:
         info["levels"] = {"init": {"pixels": 0, "seconds": t_init}}
         return res
-    settings = Settings(iterations=iterations, fine_iterations=fine_iterations, fit_pixels=fit_pixels,
-                        t_residual=t_residual, engine=engine, highlight_start=highlight_start,
-                        diffuse_models=diffuse_models, neighbour_deg=float(neighbour_deg))
     px = Pixels.start(images, light_dirs, channel, saturation, base, settings, seed)
-    labels, info["regions_found_by"] = _regions(px.alb, px.idx.size, materials, min_region_fraction, seed)
-    if coarse is not None:
-        info["coarse"] = {k: coarse.info[k] for k in ("factor", "pixels", "seconds", "cpu_seconds", "rounds")}
-    mats, t_brdf = [], 0.0
-    for region in range(int(labels.max()) + 1):
-        t_reg = time.perf_counter()
-        mats.append(_fit_material(px, np.flatnonzero(labels == region), region, coarse, rounds, tol_deg,
-                                  info["rounds"]))
-        t_brdf += time.perf_counter() - t_reg
+    if model is not None:      # one material, the coarse pass's (coarse_factor)
+        px.mean_lights, info["coarse"] = model.mean_dirs, model.summary()
+    labels, info["regions_found_by"] = (np.zeros(px.idx.size, np.int64), "one material") if model else \
+        _regions(px.alb, px.idx.size, materials, min_region_fraction, seed)
+    t_reg = time.perf_counter()
+    mats = [_fit_material(px, np.flatnonzero(labels == region), region, model, rounds, tol_deg, info["rounds"], row0)
+            for region in range(int(labels.max()) + 1)]
+    t_brdf = time.perf_counter() - t_reg
     _finish(res, px, mats, labels, t_init, t_brdf)
     info["seconds"] = time.perf_counter() - t_start
     return res
@@ -275,14 +276,13 @@ def _without_dark_level(images, light_dirs, saturation, base):
 
 
 def _coarse_pass(images, light_dirs, mask, f, saturation, **options):
-    """The whole alternation on the images binned f × f (one material, never coarse-to-fine again):
-    its PSResult, with "factor", "seconds" and "cpu_seconds" in its info."""
+    """The whole alternation on images held whole binned f × f (one material, never coarse-to-fine
+    again; the inter-reflection gather's first pass, `_ps_li_ir`): its PSResult, with "factor",
+    "seconds" and "cpu_seconds" in its info."""
     ci, cl, cm = bin_inputs(images, light_dirs, mask, f, saturation)
     t_c, c_c = time.perf_counter(), time.process_time()
     coarse = ps_li_alternating(ci, cl, mask=cm, saturation=None, materials=1, coarse_pixels=None, **options)
-    coarse.info["factor"] = f
-    coarse.info["seconds"] = time.perf_counter() - t_c
-    coarse.info["cpu_seconds"] = time.process_time() - c_c
+    coarse.info.update(factor=f, seconds=time.perf_counter() - t_c, cpu_seconds=time.process_time() - c_c)
     return coarse
 
 
@@ -293,27 +293,34 @@ def _result_from(base, shape):
                     residual=base.residual.copy(), skipped=np.ones(shape, bool), method="li_alternating")
 
 
-def _fit_material(px, pix, region, coarse, rounds, tol_deg, rounds_log):
-    """One material (the pixels `pix` of one region): its rounds, or after a coarse pass its
-    full-size step; then K_d of the pixels that kept their Lambertian solution. Returns its entry
-    of info["materials"]."""
-    t_reg = time.perf_counter()
-    mat = {"region": region, "pixels": int(pix.size), "brdf_step": True}
+def _trusted(px, pix):
+    """The pixels of `pix` round 1 draws its fit pixels from: not too oblique, the brighter half
+    (the better signal to noise)."""
     trust = pix[px.nrm[pix, 2] > 0.3]
     if trust.size < 10:
         trust = pix
-    if trust.size >= 20:     # round 1 draws from the brighter half: the better signal to noise
+    if trust.size >= 20:
         a_t = px.alb[trust, px.channel]
         trust = trust[a_t >= np.median(a_t)]
+    return trust
+
+
+def _fit_material(px, pix, region, model, rounds, tol_deg, rounds_log, row0=0):
+    """One material (the pixels `pix` of one region): its rounds, or with the `model` of a coarse
+    pass (`li_model`) its full-size step on the band from row `row0`; then K_d of the pixels that kept their Lambertian solution. Returns its entry
+    of info["materials"]."""
+    t_reg = time.perf_counter()
+    mat = {"region": region, "pixels": int(pix.size), "brdf_step": True}
     px.vm = px.settings.diffuse_models[0]
-    if coarse is not None:
-        x0 = material_from_coarse(px, coarse, pix, trust, mat, rounds_log)
+    if model is not None:
+        x0 = material_from_coarse(px, model, pix, mat, rounds_log, row0)
     else:
+        trust = _trusted(px, pix)
         x0 = _rounds(px, pix, trust, region, mat, int(rounds), tol_deg, rounds_log)
     # not after a coarse pass: its alternation had its own neighbour starts, and the full-size
     # round's few steps from its upsampled normals are the solve there (converged from the
     # neighbours' mean on the simulated 12 MP scan's dark table: heights 0.180 -> 0.204 pitches)
-    if coarse is None and x0 is not None and px.settings.neighbour_deg > 0 and px.refined[pix].any():
+    if model is None and x0 is not None and px.settings.neighbour_deg > 0 and px.refined[pix].any():
         t_nb = time.perf_counter()
         tried, moved = px.neighbour_round(pix, *x0)
         mat["neighbour_starts"] = {"above_deg": px.settings.neighbour_deg, "pixels_tried": sum(tried),

@@ -21,41 +21,42 @@ def coarse_factor(n_valid, coarse_pixels, materials):
     return None
 
 
-def material_from_coarse(px, coarse, pix, trust, mat, rounds_log):
-    """The full-size step of the one material after the coarse pass (a PSResult with "factor" in
-    its info): its (σ, n_i) kept, or, where the coarse pass found no lobe, the model choice asked
-    again of full-size pixels. Updates `mat` and px.vm; returns (σ, n_i) or None."""
+def material_from_coarse(px, model, pix, mat, rounds_log, row0=0):
+    """The full-size step of the one material (the pixels `pix` of a band from row `row0`, or of
+    the whole image) with the `model` of the coarse pass (`_ps_li_bands.LiModel`): its (σ, n_i)
+    kept, or, where the coarse pass found no lobe, the model choice made on full-size pixels of the
+    sample. Updates `mat` and px.vm; returns (σ, n_i) or None."""
     st = px.settings
-    cmat = coarse.info["materials"][0] if coarse.info.get("materials") else {"brdf_step": False}
+    cinfo = model.coarse_info
+    cmat = cinfo["materials"][0] if cinfo.get("materials") else {"brdf_step": False}
     px.vm = cmat.get("volume_model", px.vm)
     if "model_choice" in cmat:     # made on the coarse images: say so at full size too
         mat["model_choice"] = dict(cmat["model_choice"], made_on="the coarse pass")
-    no_lobe = not cmat.get("brdf_step") or cmat.get("sigma") is None
-    if no_lobe:
+    if model.choice is not None:
         # binning smears a sharp highlight over its block, and the lobe no longer fits it:
         # a glossy sphere at 2144x1424 binned by 4 showed a 1.9 % gain (Lambertian), 67 % at
-        # 536x356 unbinned. So "no lobe" is asked again of full-size pixels.
-        fit, _, choice = px.choose_model(px.draw(trust), pix)
+        # 536x356 unbinned. So "no lobe" was asked again of full-size pixels (the sample's).
+        fit, choice = model.choice
         if choice["model"] == "lobe":
             px.vm = fit["volume_model"]
             mat["model_choice"] = dict(choice, made_on="full-size pixels (the coarse pass found no lobe)")
             x0 = (fit["sigma"], fit["n_i"])
             # the coarse normals are Lambertian ones: converge
-            fine_round(px, coarse, pix, x0, st.iterations or st.fine_iterations, rounds_log)
+            fine_round(px, model, pix, x0, st.iterations or st.fine_iterations, rounds_log, row0)
             return x0
         mat.update(brdf_step=False, note="coarse pass: " + cmat.get("note", "no BRDF step"))
         px.lambertian_material(pix)
         return (cmat["sigma"], cmat["n_i"]) if cmat.get("sigma") is not None else None
     x0 = (cmat["sigma"], cmat["n_i"])
-    fine_round(px, coarse, pix, x0, st.fine_iterations, rounds_log)
+    fine_round(px, model, pix, x0, st.fine_iterations, rounds_log, row0)
     return x0
 
 
-def fine_round(px, coarse, pix, x0, steps, rounds_log):
+def fine_round(px, model, pix, x0, steps, rounds_log, row0=0):
     """Full size after the coarse pass: (σ, n_i) kept, `steps` steps from the upsampled normal."""
     t_r, c_r = time.perf_counter(), time.process_time()
     sigma, n_i = x0
-    up = upsample_normals(coarse.normal, px.shape, coarse.info["factor"]).reshape(-1, 3)[px.idx]
+    up = upsample_normals(model.coarse_normal, px.shape, model.factor, row0).reshape(-1, 3)[px.idx]
     # at a silhouette the upsampled normal blends the object's rim with the table's, and a few
     # steps do not bring it back (the simulated 12 MP scan: a 3° ring round its sphere, heights
     # 0.45 mm off); where it is > FINE_START_DEG from the pixel's own initial normal, that is the start
@@ -102,9 +103,10 @@ def bin_inputs(images, light_dirs, mask, f, saturation):
     return out, dirs, cmask
 
 
-def upsample_normals(coarse, shape, f):
+def upsample_normals(coarse, shape, f, row0=0):
     """(H, W, 3) unit normals bilinearly interpolated from the (hc, wc, 3) coarse normals (cell
-    centres); coarse pixels without a normal take their nearest valid neighbour's first."""
+    centres); coarse pixels without a normal take their nearest valid neighbour's first. row0: the
+    first of the H rows in the whole image (a band's), whose blocks the coarse cells are."""
     from scipy.ndimage import distance_transform_edt, map_coordinates
     valid = np.linalg.norm(coarse, axis=-1) > 0.5
     if not valid.any():
@@ -113,7 +115,7 @@ def upsample_normals(coarse, shape, f):
         _, (iy, ix) = distance_transform_edt(~valid, return_indices=True)
         coarse = coarse[iy, ix]
     h, w = shape
-    yy = (np.arange(h, dtype=np.float32) + 0.5) / f - 0.5
+    yy = (np.arange(row0, row0 + h, dtype=np.float32) + 0.5) / f - 0.5
     xx = (np.arange(w, dtype=np.float32) + 0.5) / f - 0.5
     gy, gx = np.meshgrid(yy, xx, indexing="ij")
     out = np.empty((h, w, 3), np.float32)

@@ -79,6 +79,7 @@ class Pixels:
     shadow: np.ndarray         # (N, m) lights left out
     rel: np.ndarray            # (N,) relative residual
     vm: str = ""               # the current material's diffuse part (volume model)
+    mean_lights: np.ndarray = None   # per-pixel lights: the image's mean (m, 3) for the correction, None: these pixels'
 
     @classmethod
     def start(cls, images, light_dirs, channel, saturation, base, settings, seed):
@@ -173,8 +174,9 @@ class Pixels:
         lam_ok = (self.resid_ls[pix] < self.settings.t_residual) & self.all_ok[pix].all(1) & ~lobe
         lam_pix = pix[lam_ok]
         if lam_pix.size:
-            self.nrm[lam_pix] = _lambertian_correction(self.nrm_ls[lam_pix], self.lights_of(lam_pix), sigma, n_i,
-                                                       self.vm)
+            lights = self.lights_of(lam_pix) if self.mean_lights is None else self.mean_lights
+            self.nrm[lam_pix] = _lambertian_correction(self.nrm_ls[lam_pix], lights, sigma, n_i, self.vm,
+                                                       passes=CORRECTION_PASSES if self.s_all.ndim == 2 else 1)
             self.refined[lam_pix] = False
         return lobe, lam_ok, pix[~lam_ok & lobe]
 
@@ -361,13 +363,14 @@ def _lambertian_correction(normals, lights, sigma, n_i, volume_model, grid=65, p
     normals and interpolated, and n = n_LS + δ(n) is solved by `passes` fixed-point passes from
     n = n_LS (one pass, δ taken at n_LS, left 0.15-0.38° at the 95th percentile at 40-70° of tilt
     on the model's own values, σ 0.1-0.2; three passes 0.09-0.11°). Cost: grid² pixels, not N.
-    lights : (m, 3), or (N, m, 3) whose mean direction is used (near lights vary little); then one
+    lights : (m, 3), or (N, m, 3) whose mean direction is used (near lights vary little; or their
+        mean over a whole image, given as (m, 3) with passes=1, for a band of it); then one
         pass only: the table is the mean directions', and solving its fixed point moved the
         Mitsuba near-light sphere from 0.26° to 0.31°.
     """
     s = lights if lights.ndim == 2 else lights.mean(axis=0)
     s = s / np.linalg.norm(s, axis=1, keepdims=True)
-    passes = passes if lights.ndim == 2 else 1
+    passes = passes if lights.ndim == 2 else 1      # (m, 3) given for per-pixel lights: the caller's passes
     u = np.linspace(-1, 1, grid, dtype=np.float32)
     gx, gy = np.meshgrid(u, u)
     r2 = gx * gx + gy * gy

@@ -9,7 +9,7 @@ from dataclasses import replace
 from facette.capture import capture_size
 from facette.methods import PS_DEFAULT, PS_METHODS
 from facette.pipeline._tiled_process import streamed
-from facette.pipeline._tiles import PROCESS_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS
+from facette.pipeline._tiles import BANDED_METHODS, PROCESS_BYTES, WHOLE_IMAGE_METHODS
 
 __all__ = ["FREE_SHARE", "RESERVE_BYTES", "WHOLE_BYTES_PER_PIXEL_LIGHT", "free_memory", "default_budget",
            "with_default_budget"]
@@ -67,7 +67,7 @@ def with_default_budget(source, o, outputs, free=None):
         return o, [f"{said} cannot hold the capture read whole (~{need / 1e9:.1f} GB) and the outputs asked for "
                    "need it whole: the run may exceed the machine's memory; give --memory to read it band by band"]
     method = PS_METHODS.canonical(o.method)
-    switched = method not in TILED_METHODS
+    switched = method not in BANDED_METHODS
     note = (f"{said}: the capture ({m} photographs of {w}x{h} px) needs ~{need / 1e9:.1f} GB whole: read band by "
             "band in the budget")
     if switched:

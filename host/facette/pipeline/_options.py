@@ -106,7 +106,7 @@ class ProcessOptions:
                             "(its values as text, a mask array left out)", record=False)
 
     memory: str = _option(None, "a memory budget ('2GB', '512MB', '3GiB' or bytes): photometric stereo then runs "
-                          "over bands of rows in it (a per-pixel method only: pipeline._tiles.TILED_METHODS); any capture's "
+                          "over bands of rows in it (pipeline._tiles.BANDED_METHODS: the per-pixel ones, li_alternating); any capture's "
                           "photographs are read band by band, never whole (the samples, PTM and HSH fits too); recorded "
                           "only when given; None: a budget from the free memory (pipeline._budget), used when the "
                           "capture does not fit whole")

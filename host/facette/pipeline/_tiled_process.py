@@ -1,8 +1,11 @@
 """`process(..., memory="2GB")` (`facette process --memory 2GB`): photometric stereo over row bands.
 
 A per-pixel method (`_tiles.TILED_METHODS`) gives each pixel's normal from that pixel's values
-alone, so the bands solved one after the other give the untiled normals. Two ways, chosen by
-the outputs asked for:
+alone, so the bands solved one after the other give the untiled normals. li_alternating (the
+default) too: its material model is fitted first, on a sample drawn across the bands (`band_model`,
+`fit.li_model`: one pass over them, the coarse pass on the image binned, the dark level, the model
+choice), and each band solved with it fixed (shipped to the workers once with a scheduler); the
+image read whole runs the same steps as one band. Two ways, chosen by the outputs asked for:
 
 - streamed (every output in STREAMED_OUTPUTS, which is all of them; any capture,
   `capture.open_capture`): the photographs are never held whole. A scan's
@@ -48,14 +51,15 @@ from pathlib import Path
 import numpy as np
 
 from facette._memory import disk_array, hand_back, release
-from facette.methods import PS_METHODS, photometric_stereo
+from facette.fit import li_model
+from facette.methods import PS_METHODS, options_for, photometric_stereo
 from facette.capture import open_bands, open_capture, source_path
 from facette.pipeline._channels import SOLVE_CHANNEL, channel_weights, with_solve_channel
 from facette.pipeline._quality import add_counts, carried, check_counts, light_geometry, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
 from facette.pipeline._scheduler import connect_scheduler
-from facette.pipeline._tiles import (FIELD_BYTES, PROCESS_BYTES, SOLVE_CHANNEL_BYTES, TILED_METHODS, WHOLE_IMAGE_METHODS,
+from facette.pipeline._tiles import (BANDED_METHODS, FIELD_BYTES, PROCESS_BYTES, SOLVE_CHANNEL_BYTES, WHOLE_IMAGE_METHODS,
                                     rows_per_tile)
 from facette.recon import PSResult, near_light_directions
 
@@ -76,10 +80,10 @@ ON_DISK = ("normal", "albedo", "n_triplets", "residual")
 def check_memory_options(method, interreflections):
     """ValueError unless `method` can run over bands and nothing asks for the whole images first."""
     name = PS_METHODS.canonical(method)
-    if name not in TILED_METHODS:
+    if name not in BANDED_METHODS:
         why = WHOLE_IMAGE_METHODS.get(name, "it is not known to be per-pixel")
         raise ValueError(f"--memory runs photometric stereo over bands of rows, which {name} cannot: {why}; "
-                         f"choose a per-pixel method ({', '.join(TILED_METHODS)}), or leave --memory out")
+                         f"choose one of {', '.join(BANDED_METHODS)}, or leave --memory out")
     if interreflections:
         raise ValueError("--interreflections needs the whole images at once (the light a surface gathers "
                          "from itself comes from everywhere): leave --memory out to remove them")
@@ -108,13 +112,45 @@ def _rows(w, h, m, memory, method, rows, maps_bytes, extra=0):
                          held=PROCESS_BYTES + maps_bytes * w * h, extra_per_pixel_light=extra)
 
 
-def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None, weights=None):
+def _solve_inputs(images, usable, r0, r1, mask, near, bag, weights):
+    """A band as photometric stereo sees it: (images with the near lights' fall-off divided out,
+    those with the solve's channel appended, light directions, the mask it solves, the options)."""
+    bag = dict(bag)
+    dirs = bag.pop("light_dirs", None)          # far lights: (m, 3)
+    if near is not None:
+        positions, shape, pitch = near
+        dirs, falloff = near_light_directions(positions, shape, pitch, rows=(r0, r1))
+        images = images / np.transpose(falloff, (2, 0, 1))[..., None]
+    solve = images
+    if weights is not None:
+        solve = with_solve_channel(images, weights, bag.get("saturation"))
+        bag["channel"] = SOLVE_CHANNEL
+    return images, solve, dirs, carried(mask, usable), bag
+
+
+def band_model(method, read, shape, n_valid, rows, bag):
+    """The model the bands of li_alternating share (`fit.li_model`: fitted on a sample drawn across
+    the bands, read(r0, r1) -> (images, light_dirs, mask) as the solve sees them), or None: a
+    per-pixel method, or an image li_alternating solves whole (`rows_for_model`)."""
+    if PS_METHODS.canonical(method) != "li_alternating":
+        return None
+    return li_model(read, shape, n_valid, rows, **options_for("li_alternating", bag))
+
+
+def rows_for_model(method, model, h, rows):
+    """The band height: `rows`, or every row when li_alternating has no model for the bands (at
+    most COARSE_PIXELS valid pixels: its alternation needs them all at once)."""
+    return h if model is None and PS_METHODS.canonical(method) == "li_alternating" else rows
+
+
+def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None, weights=None, model=None):
     """A band's photometric stereo: (r0, r1, PSResult without per-light flags or None when the
     mask leaves the band out, its quality counts or None, read seconds, PS seconds, its
     reflectance samples or None). samples: {sample_mask: the band's, theta0_deg, total} to take
     the band's samples (`_samples.samples_sensor`: (HemisphereSensor, raw samples)) with the
     shadows it found. weights: (3,) the solve's channel as a sum of R, G, B appended to the band
-    (`_channels.with_solve_channel`, as the whole reading's `images_for_solve`), None: green."""
+    (`_channels.with_solve_channel`, as the whole reading's `images_for_solve`), None: green.
+    model: li_alternating's, fitted over the bands (`band_model`)."""
     t0 = time.perf_counter()
     reader = open_bands(spec)
     try:
@@ -126,17 +162,10 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
     if not mask.any():
         return r0, r1, None, counts, read_s, 0.0, None
     t0 = time.perf_counter()
-    bag = dict(bag)
-    dirs = bag.pop("light_dirs", None)          # far lights: (m, 3)
-    if near is not None:
-        positions, shape, pitch = near
-        dirs, falloff = near_light_directions(positions, shape, pitch, rows=(r0, r1))
-        images = images / np.transpose(falloff, (2, 0, 1))[..., None]
-    solve = images
-    if weights is not None:
-        solve = with_solve_channel(images, weights, bag.get("saturation"))
-        bag["channel"] = SOLVE_CHANNEL
-    part = photometric_stereo(solve, dirs, method=method, options=dict(bag, mask=carried(mask, usable)))
+    images, solve, dirs, solved, bag = _solve_inputs(images, usable, r0, r1, mask, near, bag, weights)
+    if model is not None:
+        bag.update(model=model, row0=r0)
+    part = photometric_stereo(solve, dirs, method=method, options=dict(bag, mask=solved))
     del solve
     if weights is not None:                    # the albedo's R, G, B only (`_channels.results_in_rgb`)
         part = replace(part, albedo=np.ascontiguousarray(part.albedo[..., :3]))
@@ -236,6 +265,16 @@ def ps_bands(read, shape, m, light_dirs, method, bag, mask, rows, flags=False, c
     """
     h, w = shape
 
+    def dirs_of(r0, r1):
+        return light_dirs if np.ndim(light_dirs) == 2 else light_dirs[r0:r1]
+
+    def for_model(r0, r1):
+        band, usable = read(r0, r1)
+        return band, dirs_of(r0, r1), carried(mask[r0:r1], usable)
+    model = band_model(method, for_model, shape, int(np.count_nonzero(mask)), rows, bag)
+    rows = rows_for_model(method, model, h, rows)
+    more = {} if model is None else {"model": model}
+
     def one(r0, r1):
         t0 = time.perf_counter()
         band, usable = read(r0, r1)
@@ -244,8 +283,8 @@ def ps_bands(read, shape, m, light_dirs, method, bag, mask, rows, flags=False, c
         if not mask[r0:r1].any():
             return r0, r1, None, counts, read_s, 0.0, None
         t0 = time.perf_counter()
-        dirs = light_dirs if np.ndim(light_dirs) == 2 else light_dirs[r0:r1]
-        part = photometric_stereo(band, dirs, method=method, options=dict(bag, mask=carried(mask[r0:r1], usable)))
+        options = dict(bag, mask=carried(mask[r0:r1], usable), **more, **({"row0": r0} if more else {}))
+        part = photometric_stereo(band, dirs_of(r0, r1), method=method, options=options)
         return r0, r1, part, counts, read_s, time.perf_counter() - t0, None
 
     spans = [b for b in _bands(h, rows) if count_in is not None or mask[b[0]:b[1]].any()]
@@ -307,8 +346,19 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
             def take(r0, r1):
                 return None if not samples else {"sample_mask": smask[r0:r1], "theta0_deg": o.theta0_deg,
                                                  "total": total}
+
+            def for_model(r0, r1):         # li_alternating's model: a pass over the bands here
+                images, usable = bands.read(r0, r1, None if flat is None else flat[r0:r1])
+                return _solve_inputs(images, usable, r0, r1, inp.mask[r0:r1], near, bag, weights)[1:4]
+            model_bag = {k: v for k, v in bag.items() if k != "light_dirs"}
+            model_bag.update({} if weights is None else {"channel": SOLVE_CHANNEL})
+            model = band_model(o.method, for_model, (h, w), int(np.count_nonzero(inp.mask)), n, model_bag)
+            n = rows_for_model(o.method, model, h, n)
+            hand_back(o.memory_bytes)
+            if model is not None and client is not None:
+                model = client.scatter(model, broadcast=True)     # once to every worker, not with each band
             calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
-                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1), weights) for r0, r1 in _bands(h, n))
+                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1), weights, model) for r0, r1 in _bands(h, n))
             ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client), on_disk=True)
             hand_back(o.memory_bytes)   # the bands' heap: not under the stages after them
             ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n, channels=used)   # pipeline._channels

@@ -23,13 +23,12 @@ from facette.io.png import png_size, read_mask
 from facette.methods import PS_DEFAULT, PS_METHODS
 from facette.recon import PSResult
 
-__all__ = ["WHOLE_IMAGE_METHODS", "TILED_METHODS", "FIELD_BYTES", "PROCESS_BYTES", "parse_memory", "rows_per_tile", "ps_tiled"]
+__all__ = ["WHOLE_IMAGE_METHODS", "TILED_METHODS", "BANDED_METHODS", "FIELD_BYTES", "PROCESS_BYTES", "parse_memory", "rows_per_tile", "ps_tiled"]
 
 # Methods that need every pixel at once, and why: they cannot run over tiles.
 WHOLE_IMAGE_METHODS = {
     "rpca_wu2010": "its RPCA makes the lights x pixels matrix of the whole image low-rank: every "
                    "pixel's normal depends on the others",
-    "li_alternating": "it clusters the image's pixels into materials and fits one BRDF per material",
 }
 
 # A band's working set per pixel and per light (float32 RGB images of the band, the green
@@ -40,7 +39,8 @@ WHOLE_IMAGE_METHODS = {
 # consensus_higo2010 40.5 (131k pixels: 40.5; the same measure gave woodham1980 38.6, st14 47.4):
 # its kernel holds blocks of 1024 pixels only
 BYTES_PER_PIXEL_LIGHT = {"woodham1980": 40, "rank_trimmed": 48, "hierarchical_tautzia2016": 66,
-                         "bipolynomial_shi2014": 52, "bivariate_ikehata2014": 66, "consensus_higo2010": 42}
+                         "bipolynomial_shi2014": 52, "bivariate_ikehata2014": 66, "consensus_higo2010": 42,
+                         "li_alternating": 100}
 BAND_FIXED_BYTES = 256 * 2 ** 20
 # The `facette` command's own resident memory once photometric stereo has run (Python, numpy,
 # scipy, numba and its compiled kernels, OpenEXR): 0.45 GB on the DiLiGenT cat crop with
@@ -55,6 +55,9 @@ SOLVE_CHANNEL_BYTES = 24
 # The per-pixel methods: a pixel's normal from its own values only (tests check each tiled).
 TILED_METHODS = ("woodham1980", "hierarchical_tautzia2016", "rank_trimmed", "bipolynomial_shi2014",
                  "bivariate_ikehata2014", "consensus_higo2010")
+# What `process` runs over bands: the per-pixel methods, and li_alternating, whose material model
+# is fitted once on a sample drawn across the bands and held fixed in each (fit._ps_li_bands)
+BANDED_METHODS = TILED_METHODS + ("li_alternating",)
 
 def parse_memory(text):
     """'2GB', '1.5 GB', '512MB', '3GiB', '1TB' or a number of bytes -> bytes (int): facette._memory's
@@ -102,7 +105,9 @@ def _check_keep(keep):
 def _check_method(method):
     name = PS_METHODS.canonical(method)
     if name not in TILED_METHODS:
-        why = WHOLE_IMAGE_METHODS.get(name, "it is not known to be per-pixel")
+        why = WHOLE_IMAGE_METHODS.get(name, "each tile would fit its own material model (`process --memory` "
+                                            "fits one across the bands)" if name in BANDED_METHODS
+                                            else "it is not known to be per-pixel")
         raise ValueError(f"{name} cannot run over tiles: {why}; use a "
                          f"per-pixel method ({', '.join(TILED_METHODS)}) or the untiled photometric_stereo")
     return name

@@ -11,7 +11,7 @@ from facette.bench._sim_scan import write_scan
 from facette.cli.main import main
 from facette.io.diligent import write_diligent
 from facette.io.exr import write_exr
-from facette.pipeline import ProcessOptions, TILED_METHODS, process
+from facette.pipeline import BANDED_METHODS, ProcessOptions, process
 from facette.pipeline import _process as process_module
 from facette.pipeline import _tiled_process
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
@@ -161,11 +161,27 @@ def test_a_given_mask_is_used_in_bands(diligent, tmp_path, small_bands):
     assert not tiled.mask[:6].any()
 
 
-@pytest.mark.parametrize("method", ["li_alternating", "rpca_wu2010"])
-def test_a_whole_image_method_with_memory_is_refused_naming_the_per_pixel_ones(method):
-    with pytest.raises(ValueError, match="per-pixel method") as err:
-        ProcessOptions(method=method, memory="2GB")
-    assert all(name in str(err.value) for name in TILED_METHODS)
+def test_a_whole_image_method_with_memory_is_refused_naming_the_banded_ones():
+    with pytest.raises(ValueError, match="over bands of rows") as err:
+        ProcessOptions(method="rpca_wu2010", memory="2GB")
+    assert all(name in str(err.value) for name in BANDED_METHODS)
+
+
+# li_alternating with its coarse pass (and so its model fitted across the bands) at this small size
+LI = {"method": "li_alternating", "ps_options": {"coarse_pixels": 400}}
+
+
+def test_the_default_method_in_bands_gives_the_untiled_results(scan, tmp_path, small_bands, monkeypatch):
+    # a scan: near lights (per-pixel directions, fall-off), variances; the DiLiGenT folder on Dask below
+    src = scan
+    whole = process(src, **WHOLE, **LI, outputs=["normals", "height"])
+    _never_whole(monkeypatch)
+    tiled = process(src, **LI, outputs=["normals", "height"], memory="1GB")
+    assert tiled.ps.method == "li_alternating" and tiled.ps.info["coarse"]["factor"] == 2
+    assert tiled.ps.info["materials"][0]["sigma"] == whole.ps.info["materials"][0]["sigma"]
+    _same(whole, tiled)
+    np.testing.assert_array_equal(tiled.normals, whole.normals)        # the same values
+    np.testing.assert_array_equal(tiled.albedo, whole.albedo)
 
 
 def test_interreflections_with_memory_are_refused():
@@ -191,9 +207,9 @@ def test_cli_memory(capsys, diligent, tmp_path):
     err = capsys.readouterr().err
     assert stop.value.code == 2 and "memory must be a size" in err and not (tmp_path / "a").exists()
     code = main(["process", str(diligent), "-o", str(tmp_path / "b"), "--outputs", "normals,height",
-                 "--memory", "2GB", "--method", "li_alternating"])
+                 "--memory", "2GB", "--method", "rpca_wu2010"])
     err = capsys.readouterr().err
-    assert code == 2 and "rank_trimmed" in err
+    assert code == 2 and "li_alternating" in err
     code = main(["process", str(diligent), "-o", str(tmp_path / "d"), "--outputs", "normals,height",
                  "--memory", "500MB"])          # the libraries alone take 0.45 GB of it
     err = capsys.readouterr().err
@@ -202,7 +218,7 @@ def test_cli_memory(capsys, diligent, tmp_path):
                  "--memory", "1GB"])
     out = capsys.readouterr().out
     assert code == 0 and "read band by band" in out
-    assert "--memory: photometric stereo with rank_trimmed (the default, li_alternating, needs the whole" in out
+    assert json.loads((tmp_path / "c" / "process.json").read_text())["options"]["method"] == "li_alternating"
     assert json.loads((tmp_path / "c" / "process.json").read_text())["options"]["memory"] == "1GB"
 
 
@@ -214,19 +230,18 @@ def cluster():
         yield c
 
 
-@pytest.mark.parametrize("source", ["scan", "diligent"])
+@pytest.mark.parametrize("source, how", [("scan", {"method": M}), ("diligent", {"method": M}), ("diligent", LI)])
 def test_bands_on_a_dask_cluster_give_the_untiled_results(request, cluster, tmp_path, small_bands, monkeypatch,
-                                                          source):
+                                                          source, how):
     src = request.getfixturevalue(source)
-    whole = process(src, **WHOLE, outputs=["normals", "height"], method=M)
+    whole = process(src, **WHOLE, outputs=["normals", "height"], **how)
     _never_whole(monkeypatch)
     def bands_run():                     # _ps_task tasks the scheduler has seen finish (counts of transitions)
         prefix = cluster.scheduler.task_prefixes.get("ps_task")
         return 0 if prefix is None else prefix.state_counts.get("memory", 0)
 
     before = bands_run()
-    tiled = process(src, outputs=["normals", "height"], memory="1GB", scheduler=cluster.scheduler_address,
-                    method=M)
+    tiled = process(src, outputs=["normals", "height"], memory="1GB", scheduler=cluster.scheduler_address, **how)
     _same(whole, tiled)
     assert bands_run() - before == tiled.ps.info["tiles"]
     assert any(f"on the scheduler {cluster.scheduler_address}" in n for n in tiled.notes)
