@@ -2,12 +2,14 @@
 
 Mitsuba 3 (`path` integrator, max_depth 4: every wall lights the others, and a wall hides the
 lights behind it) renders four concave height fields of our own (bench._mitsuba_scenes.CONCAVE_SHAPES:
-a bowl, three grooves, a crater field, a flat-bottomed cup) in matte plaster and a glossy paint,
+a bowl, three grooves, a crater field, a flat-bottomed cup) in matte plaster, a glossy paint and a
+dark glossy paint (MATERIALS),
 under 96 lights (a DiLiGenT-like grid of 8 x 12, up to 45 deg from the axis) and under the rig's
 12 (15 and 30 deg from the axis). Each scene goes through `facette process` as a user's folder
 (16-bit PNGs, DiLiGenT-style, relative intensities: no Spectralon): least squares; the default as
 it was before the shadow step ("before": no inter-reflection removal, no shadows); the default
-(shadows "auto"); the default with `--interreflections` (the albedo's scale estimated from the
+(shadows "auto", inter-reflections "auto": removed where the images tell the albedo's scale); the
+default without the shadow step; the default with `--interreflections` (the albedo's scale estimated from the
 images, facette.recon._interreflect_scale), without and with the shadows. Printed per scene: mean, median
 and 95th percentile of the angular error, the ratio to least squares' mean, process's seconds.
 Renders are cached (--cache, default /tmp/facette-concave); the first run renders them
@@ -26,7 +28,10 @@ from facette.bench._mitsuba_scenes import CONCAVE_SHAPES, render_scene, rig_ligh
 __all__ = ["grid_light_directions", "main"]
 
 SIZE, SPP = 128, 32
-MATERIALS = ("plaster", "paint_0.10")
+# "@dark": the material with a dark K_d (a dark glossy object, as DiLiGenT's reading: little light
+# gathered, a highlight that is most of what the camera sees)
+MATERIALS = ("plaster", "paint_0.10", "paint_0.05@dark")
+KD = {"": (0.6, 0.5, 0.4), "dark": (0.06, 0.05, 0.04)}
 PNG_TOP = 60000.0
 
 
@@ -43,8 +48,10 @@ LIGHT_SETS = {"96": grid_light_directions, "rig12": rig_light_directions}
 
 
 def scene(shape, material, lights, cache, size=SIZE, spp=SPP):
-    return render_scene(shape, material, size=size, spp=spp, lights=LIGHT_SETS[lights](), max_depth=4,
-                        cache_dir=cache)
+    """The render (cached) of `shape` in `material` ("name" or "name@dark", KD) under a light set."""
+    name, _, kd = material.partition("@")
+    return render_scene(shape, name, size=size, spp=spp, lights=LIGHT_SETS[lights](), max_depth=4,
+                        cache_dir=cache, kd=KD[kd])
 
 
 def _folder(d, workdir, name):
@@ -71,6 +78,7 @@ VARIANTS = {   # label: process options
     "least squares": {"method": "woodham1980", "shadows": "off", "interreflections": False},
     "before (no ir or shadows)": {"shadows": "off", "interreflections": False},
     "default": {},
+    "default, no shadows": {"shadows": "off"},
     "default +ir (no shadows)": {"interreflections": True, "shadows": "off"},
     "default +ir": {"interreflections": True},
 }
@@ -87,7 +95,8 @@ def main(argv=None):
     ap.add_argument("--lights", default="rig12,96", help="light sets: rig12, 96 (comma-separated)")
     ap.add_argument("--shapes", default=",".join(CONCAVE_SHAPES))
     ap.add_argument("--materials", default=",".join(MATERIALS))
-    ap.add_argument("--variants", default=",".join(VARIANTS), help="comma-separated labels of VARIANTS")
+    ap.add_argument("--variants", default="least squares,before (no ir or shadows),default",
+                    help=f"comma-separated labels of: {', '.join(VARIANTS)}")
     args = ap.parse_args(argv)
     variants = [v.strip() for v in args.variants.split(",")]
     print(f"Mitsuba 3 path-traced concave scenes, {SIZE}x{SIZE} px, {SPP} spp, max_depth 4, through "
@@ -110,9 +119,14 @@ def main(argv=None):
                         ratio = e.mean() / ls if ls else np.nan
                         ratios.setdefault((lights, v), []).append(ratio)
                         shadows = res.quality.get("shadows")
-                        extra = "" if shadows is None else f"  hidden {shadows['hidden_share']}"
-                        if res.interreflections is not None:
-                            extra += f"  ir scale {res.interreflections.get('reflectance_scale', np.nan):.2f}"
+                        extra = "" if shadows is None else \
+                            f"  hidden {shadows.get('decided_on')} (binned {shadows.get('bin')}) -> {shadows['hidden_share']}"
+                        ir = res.interreflections
+                        if ir is not None:
+                            extra += (f"  ir scale {ir.get('reflectance_scale', np.nan):.2f} "
+                                      + ("removed" if ir["applied"] else "left in"))
+                            kept = (ir.get("scale_estimate") or {}).get("growth_kept")
+                            extra += "" if kept is None else f" (growth kept {kept:.2f})"
                         print(f"{label:28s} {v:22s} {e.mean():6.2f} {np.median(e):7.2f} {np.percentile(e, 95):6.2f} "
                               f"{ratio:6.2f} {dt[0]:6.2f} {dt[1]:6.2f}{extra}", flush=True)
     print("\nMean ratio to least squares over the scenes:")

@@ -9,10 +9,11 @@ process uses (the RGB images divided by the light intensities, saturated values 
 normals solved on the channels process chooses, by default the mean of R, G, B, `--channels`
 to choose another: pipeline._channels; the albedo, li_alternating's K_d, per channel).
 The time is process's wall time for the normals (reading included); `facette process` with every
-output adds the integration, BRDF fit, PTM/HSH and report. Rows of a name ending in "+ir" are
-NOT process's (process refuses to remove inter-reflections from an albedo that is not a
-reflectance, as DiLiGenT's is not): `run_ps` on the same images, the albedo's scale assumed, the
-steps and channels as `process --interreflections`.
+output adds the integration, BRDF fit, PTM/HSH and report. The default's rows are process's
+"auto" (inter-reflections removed where the images tell the albedo's scale, cast shadows where the
+heights hide enough lit samples). Rows of a name ending in "+ir" are NOT process's: `run_ps` on the
+same images, the albedo's scale assumed (IR_ASSUMED_P99), the steps and channels as
+`process --interreflections`.
 Per object and method: mean and median angular error over the mask (zero-length truth normals
 left out), run time, and the published least-squares figure (Shi et al. 2016/2019, all 96
 lights) beside it; then the mean over each group of objects. "rank_trimmed+ir": the same after

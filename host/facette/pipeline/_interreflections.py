@@ -5,13 +5,15 @@ The removal needs the albedo as a reflectance (it decides how much light each wa
 whose images are radiance factors (the calibration's Spectralon step, `PSInput.reflectance`) has
 it; elsewhere (a DiLiGenT folder, an RTI capture, a scan without the Spectralon step) its scale is
 estimated from the images (facette.recon._interreflect_scale: the scale at which the albedo no
-longer grows with the light gathered). "auto" runs it on a reflectance-calibrated scan read whole;
-on other inputs it runs when asked for (--interreflections), with the estimated scale: on the
-Mitsuba concave scenes it takes the default from 1.05x to 0.56x least squares' error (plaster) and
-0.56x to 0.43x (paint) under 12 rig lights, but on the DiLiGenT crops (96 lights) 6.26 -> 6.78 deg
-(reading 12.9 deg) for twice li_alternating's time, so not by default. A convex
-object gathers no light: the removal then finds too little to matter and the images stay as they
-are (`facette.recon.without_interreflections`, IR_SKIP_P95).
+longer grows with the light gathered). "auto" runs it on every input read whole (not the rig
+simulator's, which renders none): on a calibrated scan with its scale; elsewhere only where the
+images tell the scale (AUTO_SCALE: the albedo grows with the light the heights say each wall gathers,
+and removing that light takes the growth away). Before this, "auto" left it in on every folder,
+because with the scale estimated whatever the data said DiLiGenT's crops got worse (reading, dark
+and glossy: 9.7 -> 12.9 deg; a dark glossy Mitsuba bowl 0.48 -> 4.62 deg); where the scale is
+identified (the plaster and paint 0.10 renders) it takes the default from 0.80x to about 0.5x least
+squares' error under 12 rig lights. A convex object gathers no light: it is not identified, and the
+images stay as they are. li_alternating is decided before it runs (its removal runs it twice).
 """
 import time
 
@@ -19,7 +21,8 @@ from facette.errors import NotAReflectance
 from facette.fit import glossy_lobes_text, ps_li_without_interreflections
 from facette.methods import options_for
 from facette.pipeline._options import IR_AUTO
-from facette.recon import IR_MAX_FRACTION, without_interreflections
+from facette.pipeline._shadows import binned as _binned
+from facette.recon import IR_GRID, IR_MAX_FRACTION, scale_from_images, unidentified_info, without_interreflections
 
 __all__ = ["interreflections_wanted", "solve_without_interreflections", "SIM_INTERREFLECTIONS_NOTE"]
 
@@ -27,6 +30,15 @@ SIM_INTERREFLECTIONS_NOTE = ("--interreflections on a simulated scan: the simula
                              "so their removal takes away light that no wall gathered (errors against truth grow); "
                              "leave it out for simulated scans")
 AUTO_OFF = "inter-reflections left in (interreflections 'auto'): "
+AUTO_SCALE = "identified"      # "auto" without a Spectralon: the scale estimated, nothing removed unless identified
+# li_alternating's decision reads the images binned to at most this many pixels a side: the estimate
+# works on the gather's cells (IR_GRID a side), each then still 4 x 4 binned pixels (a 12 MP capture:
+# bins of 11 x 11, one robust pass of 0.1 MP instead of 12)
+DECIDE_SIDE = 4 * IR_GRID
+
+
+def _decide_bin(mask):
+    return max(1, -(-max(mask.shape) // DECIDE_SIDE))
 
 
 def interreflections_wanted(o, inp, notes):
@@ -39,11 +51,7 @@ def interreflections_wanted(o, inp, notes):
     if o.interreflections != IR_AUTO:
         return o.interreflections
     why = ("the simulator renders none" if simulated else
-           "--memory reads the images by bands and the removal needs them whole" if o.memory else
-           None if inp.reflectance else
-           "the images are not reflectance-calibrated (no Spectralon scale: a DiLiGenT folder, an RTI capture, "
-           "a scan without the calibration's Spectralon step); --interreflections removes it with the albedo's "
-           "scale estimated from the images")
+           "--memory reads the images by bands and the removal needs them whole" if o.memory else None)
     if why:
         notes.append(AUTO_OFF + why)
     return why is None
@@ -57,11 +65,20 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
     out with a note; asked for explicitly, it raises (NotAReflectance, an InsufficientData).
     mask : (H, W) bool, or the PSInput (its mask; and reflectance_scale 1 when its images are
     reflectance-calibrated, else "auto": estimated from the images)."""
-    if hasattr(mask, "reflectance"):
-        reflectance_scale, mask = (1.0 if mask.reflectance else "auto"), mask.mask
-    t0 = time.perf_counter()
+    if hasattr(mask, "reflectance"):       # "auto": only a scale the data identify (AUTO_SCALE)
+        reflectance_scale = 1.0 if mask.reflectance else "auto" if o.interreflections is True else AUTO_SCALE
+        mask = mask.mask
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         if method_name == "li_alternating":
+            if reflectance_scale == AUTO_SCALE:     # decided before li runs twice: only a scale the data tell
+                first, scale, estimate = scale_from_images(*_binned(solve_in, light_dirs, mask, _decide_bin(mask)),
+                                                           o.saturation, bag.get("channel"))
+                if not estimate["identified"]:
+                    info = unidentified_info(scale, estimate) | {"cpu_seconds": round(time.process_time() - c0, 3)}
+                    note_interreflections(res, info, time.perf_counter() - t0)
+                    return solve_in, None
+                reflectance_scale = "auto"
             ps, direct, info = ps_li_without_interreflections(solve_in, light_dirs, reflectance_scale=reflectance_scale,
                                                               **options_for(method_name, bag))
             note_interreflections(res, info, info["removal_seconds"])
@@ -73,6 +90,7 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
             raise
         res.notes.append(AUTO_OFF + str(exc))
         return solve_in, None
+    info["cpu_seconds"] = round(time.process_time() - c0, 3)
     note_interreflections(res, info, time.perf_counter() - t0)
     if not info["applied"]:
         return solve_in, (first if method_name == "rank_trimmed" else None)
@@ -83,6 +101,14 @@ def note_interreflections(res, info, seconds):
     """The removal's info, seconds and note into `res`."""
     res.interreflections = info
     res.timings["interreflections"] = seconds
+    if info.get("scale_identified") is False:
+        est = info["scale_estimate"]
+        res.notes.append(AUTO_OFF + "the images do not tell the albedo's scale to a reflectance (the albedo "
+                         + ("does not grow with the light the surface gathers" if est.get("growth_kept") is None
+                            or est["growth_kept"] == float("inf") else
+                            f"grows with the light gathered, but removing it keeps {est['growth_kept']:.0%} of "
+                            "that growth") + "); --interreflections removes it with the scale estimated anyway")
+        return
     how = (f"{info['median_fraction']:.1%} of the median value, {info['p95_fraction']:.1%} at the 95th "
            f"percentile, on {info['grid'][1]}x{info['grid'][0]} cells, {len(info['passes'])} pass(es)")
     if not info["applied"]:

@@ -30,6 +30,7 @@ from ._dark import dark_offsets, dark_level_notes
 from ._fill import fill_normals, FILL_TOLERANCE
 from ._interreflect import (remove_interreflections, without_interreflections, IR_GRID, IR_MAX_FRACTION,
                             IR_PASSES, IR_SKIP_P95)
+from ._interreflect_scale import estimate_reflectance_scale, scale_from_images, unidentified_info
 from ._shadows import hidden_lights, horizon_excess, heights_in_pixels
 from ._relight_model import (RelightModel, fit_relight_model, save_relight_model, load_relight_model,
                              cast_shadow)
@@ -48,6 +49,7 @@ __all__ = ["PSResult", "normal_uncertainty", "uncertainty_summary", "ps_woodham1
            "relight_hsh", "relight_error", "fit_relight_error", "relight_error_parts", "HSH_ORDERS", "RTI_ENCODINGS",
            "srgb_encode", "srgb_decode", "display_ptm", "display_hsh",
            "RELIGHT_ERROR_VALUES", "relight_error_step", "remove_interreflections", "without_interreflections",
-           "IR_GRID", "IR_MAX_FRACTION", "IR_PASSES", "IR_SKIP_P95", "hidden_lights", "horizon_excess",
+           "IR_GRID", "IR_MAX_FRACTION", "IR_PASSES", "IR_SKIP_P95", "estimate_reflectance_scale",
+           "scale_from_images", "unidentified_info", "hidden_lights", "horizon_excess",
            "heights_in_pixels",
            "RelightModel", "fit_relight_model", "save_relight_model", "load_relight_model", "cast_shadow"]

@@ -365,7 +365,8 @@ def without_interreflections(images, light_dirs, mask, saturation=None, reflecta
     images, light_dirs, mask, saturation, channel : as `ps_rank_trimmed` (channel: the one its
     normals are solved on; None: its default); reflectance_scale and **options : as
     `remove_interreflections`, or reflectance_scale "auto": estimated from the images
-    (facette.recon._interreflect_scale, for an input without a Spectralon scale).
+    (facette.recon._interreflect_scale, for an input without a Spectralon scale), or "identified":
+    the same, and nothing removed (info "scale_identified" False) when the data do not tell it.
     Returns (images, first, info): the corrected images, or the given ones when under
     IR_SKIP_P95 of the values at the 95th percentile is gathered light (info "applied" False);
     the first pass's PSResult; the removal's info.
@@ -373,16 +374,20 @@ def without_interreflections(images, light_dirs, mask, saturation=None, reflecta
     (its 99th percentile above 1, as with a DiLiGenT folder's relative intensities): the wrong
     amount of light would be removed without a word.
     """
-    first = ps_rank_trimmed(images, light_dirs, mask=mask, saturation=saturation,
-                            **({} if channel is None else {"channel": channel}))
     estimated = None
     if isinstance(reflectance_scale, str):
-        if reflectance_scale != "auto":
-            raise ValueError(f"reflectance_scale must be a positive number or 'auto', got {reflectance_scale!r}")
-        from ._interreflect_scale import estimate_reflectance_scale
-        reflectance_scale, estimated = estimate_reflectance_scale(images, light_dirs, first.normal, first.albedo,
-                                                                  first.valid & mask, saturation, channel)
-    elif first.valid.any():
+        if reflectance_scale not in ("auto", "identified"):
+            raise ValueError("reflectance_scale must be a positive number, 'auto' or 'identified', "
+                             f"got {reflectance_scale!r}")
+        from ._interreflect_scale import scale_from_images, unidentified_info
+        only_identified = reflectance_scale == "identified"
+        first, reflectance_scale, estimated = scale_from_images(images, light_dirs, mask, saturation, channel)
+        if only_identified and not estimated["identified"]:      # the data do not tell it: nothing removed
+            return images, first, unidentified_info(reflectance_scale, estimated)
+    else:
+        first = ps_rank_trimmed(images, light_dirs, mask=mask, saturation=saturation,
+                                **({} if channel is None else {"channel": channel}))
+    if estimated is None and first.valid.any():
         p99 = float(np.percentile(first.albedo[first.valid].max(axis=-1), 99)) * reflectance_scale
         if p99 > 1.0:
             raise NotAReflectance(

@@ -79,10 +79,27 @@ def horizon_excess(z, mask, light_dirs):
 
 def hidden_lights(normals, mask, light_dirs, margin_deg):
     """(m, H, W) bool: the lights the surface of `normals` hides from each pixel of `mask` (its
-    horizon more than `margin_deg` above them), at the normals' size; and the heights' bin factor."""
+    horizon more than `margin_deg` above them), at the normals' size; and the heights' bin factor.
+    The same test as `horizon_excess(...) > margin_deg`, each march stopped once it is decided."""
+    from ._shadows_jit import hidden_kernel
     mask = np.asarray(mask, bool)
+    L = np.asarray(light_dirs, np.float64)
+    if L.ndim != 2 or L.shape[1] != 3:
+        raise ValueError(f"light_dirs must be (m, 3) distant directions, got {L.shape}")
     z, m, f = heights_in_pixels(normals, mask)
-    hidden = horizon_excess(z, m, light_dirs) > margin_deg
+    z = np.ascontiguousarray(z, np.float32)
+    hc, wc = z.shape
+    hidden = np.zeros((len(L), hc, wc), bool)
+    horizontal = np.hypot(L[:, 0], L[:, 1])
+    steps = _steps(float(np.hypot(hc, wc)))
+    z_top = float(z[m].max()) if m.any() else 0.0
+    m = np.ascontiguousarray(m)
+    for k in range(len(L)):
+        above = np.degrees(np.arctan2(L[k, 2], horizontal[k])) + margin_deg     # the horizon that hides it
+        if horizontal[k] < 1e-6 or above >= 90.0:       # a light on the axis: nothing hides it
+            continue
+        dc, dr = L[k, 0] / horizontal[k], -L[k, 1] / horizontal[k]      # image rows run down as y runs up
+        hidden_kernel(z, m, float(dr), float(dc), steps, float(np.tan(np.radians(above))), z_top, hidden[k])
     if f > 1:
         h, w = mask.shape
         hidden = np.repeat(np.repeat(hidden, f, axis=1), f, axis=2)

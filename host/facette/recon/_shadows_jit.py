@@ -4,7 +4,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["horizon_excess_kernel"]
+__all__ = ["hidden_kernel", "horizon_excess_kernel"]
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
@@ -37,3 +37,36 @@ def horizon_excess_kernel(z, mask, dr, dc, steps, elevation_deg, out):
                 if s > best:
                     best = s
             out[r, c] = (math.degrees(math.atan(best)) if best > -np.inf else -90.0) - elevation_deg
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def hidden_kernel(z, mask, dr, dc, steps, threshold, z_top, out):
+    """out[r, c] = whether the surface rises above the slope `threshold` (tan of the light's
+    elevation plus the margin) along (dr, dc) from pixel (r, c): `horizon_excess_kernel`'s test,
+    the march stopped as soon as it is decided (a higher point found, or none of the surface, whose
+    top is z_top, could rise that steeply from so far)."""
+    h, w = z.shape
+    for r in numba.prange(h):
+        for c in range(w):
+            out[r, c] = False
+            if not mask[r, c]:
+                continue
+            z0 = z[r, c]
+            for t in steps:
+                if z_top - z0 <= threshold * t:
+                    break
+                y = r + t * dr
+                x = c + t * dc
+                if y < 0.0 or x < 0.0 or y > h - 1.0 or x > w - 1.0:
+                    break
+                r0 = min(int(y), h - 2) if h > 1 else 0
+                c0 = min(int(x), w - 2) if w > 1 else 0
+                if not (mask[r0, c0] and mask[r0 + 1, c0] and mask[r0, c0 + 1] and mask[r0 + 1, c0 + 1]):
+                    break
+                fy = y - r0
+                fx = x - c0
+                zq = ((1 - fy) * ((1 - fx) * z[r0, c0] + fx * z[r0, c0 + 1])
+                      + fy * ((1 - fx) * z[r0 + 1, c0] + fx * z[r0 + 1, c0 + 1]))
+                if zq - z0 > threshold * t:
+                    out[r, c] = True
+                    break

@@ -73,8 +73,9 @@ def test_interreflections_flag_reports_what_was_gathered(capsys, folders, tmp_pa
                              "normals", "--interreflections")
     assert code == 0 and "inter-reflections" in out, err
     assert json.loads((tmp_path / "r2" / "process.json").read_text())["options"]["interreflections"] is True
-    # by default ('auto') a DiLiGenT folder keeps its light (relative intensities), recorded as such;
-    # --no-interreflections records False
+    # by default ('auto') a DiLiGenT folder keeps its light where the images do not tell the albedo's
+    # scale (this sphere on a plane: its albedo does not grow with the light it gathers), recorded as
+    # such; --no-interreflections records False
     for flag, recorded in (([], "auto"), (["--no-interreflections"], False)):
         code, out, err = run_cli(capsys, "process", folder, "-o", tmp_path / f"r_{recorded}", "--outputs", "normals",
                                  *flag)

@@ -9,11 +9,12 @@ from facette.io.exr import write_exr
 SCALE = 4.0            # the Spectralon's HDR units per unit irradiance written into scan.json
 
 
-def render(shape, material, size=64, spp=32):
-    """One Mitsuba scene (facette.bench._mitsuba_scenes.render_scene), rendered afresh."""
+def render(shape, material, size=64, spp=32, max_depth=4):
+    """One Mitsuba scene (facette.bench._mitsuba_scenes.render_scene), rendered afresh; max_depth 2:
+    direct light only (no inter-reflections)."""
     from facette.bench._mitsuba_scenes import render_scene
     with tempfile.TemporaryDirectory() as tmp:
-        return render_scene(shape, material, size=size, spp=spp, cache_dir=tmp)
+        return render_scene(shape, material, size=size, spp=spp, cache_dir=tmp, max_depth=max_depth)
 
 
 def calibrated_scan(folder, d, scale=SCALE, truth=None, noise=None):

@@ -1,6 +1,7 @@
 """`process`'s default for inter-reflections ("auto"): removed on a reflectance-calibrated scan read
-whole, left in with a note that says why everywhere else; asked for on relative images, the albedo's
-scale is estimated from them (pipeline._interreflections)."""
+whole; on relative images with the albedo's scale estimated from them where the images tell it (a
+direct-light render does not: left in, with a note); left in with a note that says why for the
+simulator and --memory (pipeline._interreflections)."""
 import json
 
 import numpy as np
@@ -19,6 +20,12 @@ def relief():
     return render("relief", "plaster")
 
 
+@pytest.fixture(scope="module")
+def direct_relief():
+    """The same relief with the direct light only (max_depth 2): no light gathered in its images."""
+    return render("relief", "plaster", max_depth=2)
+
+
 def test_removed_by_default_on_a_calibrated_scan(tmp_path, relief):
     scan = _scan(tmp_path / "scan", relief)
     res = process(scan, outputs=["normals"], out_dir=tmp_path / "out", method="woodham1980", mask=relief["mask"])
@@ -32,11 +39,38 @@ def test_removed_by_default_on_a_calibrated_scan(tmp_path, relief):
     assert json.loads((tmp_path / "out" / "process.json").read_text())["options"]["interreflections"] == "auto"
 
 
-def test_left_in_with_the_reason_elsewhere(tmp_path, relief):
-    # without the Spectralon step the images are relative: nothing removed, and the note says why
+def test_relative_images_by_default_only_where_they_tell_the_scale(tmp_path, relief, direct_relief):
+    # without the Spectralon step the images are relative: the path-traced relief gathers its own
+    # light, its albedo grows with it and the removal takes that away: removed with the estimated scale
     res = process(_scan(tmp_path / "relative0", relief, scale=None), outputs=["normals"], method="woodham1980")
-    assert not res.inputs.reflectance and res.interreflections is None
-    assert any("left in (interreflections 'auto'): the images are not reflectance-calibrated" in n for n in res.notes)
+    left = process(_scan(tmp_path / "relative1", relief, scale=None), outputs=["normals"], method="woodham1980",
+                   interreflections=False)
+    assert not res.inputs.reflectance and res.interreflections["applied"]
+    assert res.interreflections["scale_estimate"]["identified"]
+    sel = relief["mask"] & res.mask & left.mask
+    err = lambda r: angular_error_deg(r.normals, relief["normals"])[sel].mean()
+    assert err(res) < 0.9 * err(left), (err(res), err(left))
+    # the same relief with the direct light only: nothing gathered in the images, nothing removed, the
+    # normals those of the images as they are, and the note says why
+    direct = direct_relief
+    auto = process(_scan(tmp_path / "direct0", direct, scale=None), outputs=["normals"], method="woodham1980")
+    plain = process(_scan(tmp_path / "direct1", direct, scale=None), outputs=["normals"], method="woodham1980",
+                    interreflections=False)
+    assert not auto.interreflections["applied"] and not auto.interreflections["scale_identified"]
+    assert any("left in (interreflections 'auto'): the images do not tell the albedo's scale" in n
+               for n in auto.notes)
+    np.testing.assert_array_equal(auto.normals, plain.normals)
+
+
+def test_the_default_method_decides_before_it_runs(tmp_path, relief, direct_relief):
+    # li_alternating (which a removal runs twice) is told first whether the images tell the scale
+    res = process(_scan(tmp_path / "relative", relief, scale=None), outputs=["normals"])
+    assert res.ps.method == "li_alternating" and res.interreflections["applied"]
+    direct = process(_scan(tmp_path / "direct", direct_relief, scale=None), outputs=["normals"])
+    assert direct.interreflections["scale_identified"] is False and direct.interreflections["cpu_seconds"] >= 0
+
+
+def test_left_in_with_the_reason_elsewhere(tmp_path, relief):
     # the rig simulator renders none (its truth carries the sensor model)
     sim = process(_scan(tmp_path / "sim", relief, truth={"sensor": np.zeros(1)}), outputs=["normals"],
                   method="woodham1980")

@@ -66,3 +66,32 @@ def test_the_option_is_checked_and_memory_leaves_the_step_out(groove):
     _, folder = groove
     res = process(folder, outputs=["normals"], method="rank_trimmed", memory="1GB", interreflections=False)
     assert res.quality.get("shadows") is None and any("shadows: left out with --memory" in n for n in res.notes)
+
+
+def test_auto_decides_on_binned_images_and_solves_at_full_size(groove, monkeypatch):
+    # "auto" reads the hidden share on images binned to SHADOW_PIXELS object pixels (here 3 x 3):
+    # the groove still hides enough, and the alternation then runs at full size, so the normals are
+    # those of the unbinned decision
+    import facette.pipeline._shadows as shadows
+    d, folder = groove
+    full = process(folder, outputs=["normals"], method="woodham1980", interreflections=False)
+    monkeypatch.setattr(shadows, "SHADOW_PIXELS", 1000)
+    coarse = process(folder, outputs=["normals"], method="woodham1980", interreflections=False)
+    q = coarse.quality["shadows"]
+    assert q["bin"] == 4 and full.quality["shadows"]["bin"] == 1 and q["applied"]
+    assert abs(q["decided_on"] - full.quality["shadows"]["decided_on"]) < 0.5 * full.quality["shadows"]["decided_on"]
+    np.testing.assert_array_equal(coarse.normals, full.normals)
+
+
+def test_binned_images_keep_what_is_missing_out():
+    from facette.pipeline._shadows import binned
+    im = np.arange(2 * 4 * 6, dtype=np.float32).reshape(2, 4, 6)
+    im[0, 0, 0] = np.nan
+    im[1, :2, :2] = np.nan                     # a block missing whole under light 1
+    mask = np.ones((4, 6), bool)
+    mask[3, 5] = False
+    out, dirs, m = binned(im, np.eye(3)[:2], mask, 2)
+    assert out.shape == (2, 2, 3) and m.tolist() == [[True, True, True], [True, True, False]]
+    assert out[0, 0, 0] == pytest.approx(np.mean([1, 6, 7])) and np.isnan(out[1, 0, 0])
+    assert out[1, 1, 2] == pytest.approx(np.mean(im[1, 2:4, 4:6]))
+    assert binned(im, np.eye(3)[:2], mask, 1)[0] is im
