@@ -7,6 +7,23 @@ import numpy as np
 __all__ = ["hidden_kernel", "horizon_excess_kernel"]
 
 
+@numba.njit(cache=True, inline="always")
+def _height_at(z, mask, y, x):
+    """(inside, the bilinear height at (y, x)); not inside off the image or where a corner is off
+    the mask (the march stops there)."""
+    h, w = z.shape
+    if y < 0.0 or x < 0.0 or y > h - 1.0 or x > w - 1.0:
+        return False, z[0, 0]
+    r0 = min(int(y), h - 2) if h > 1 else 0
+    c0 = min(int(x), w - 2) if w > 1 else 0
+    if not (mask[r0, c0] and mask[r0 + 1, c0] and mask[r0, c0 + 1] and mask[r0 + 1, c0 + 1]):
+        return False, z[0, 0]
+    fy = y - r0
+    fx = x - c0
+    return True, ((1 - fy) * ((1 - fx) * z[r0, c0] + fx * z[r0, c0 + 1])
+                  + fy * ((1 - fx) * z[r0 + 1, c0] + fx * z[r0 + 1, c0 + 1]))
+
+
 @numba.njit(cache=True, nogil=True, parallel=True)
 def horizon_excess_kernel(z, mask, dr, dc, steps, elevation_deg, out):
     """out[r, c] = the horizon's elevation (deg) along (dr, dc) from pixel (r, c) less
@@ -21,18 +38,9 @@ def horizon_excess_kernel(z, mask, dr, dc, steps, elevation_deg, out):
             z0 = z[r, c]
             best = -np.inf
             for t in steps:
-                y = r + t * dr
-                x = c + t * dc
-                if y < 0.0 or x < 0.0 or y > h - 1.0 or x > w - 1.0:
+                inside, zq = _height_at(z, mask, r + t * dr, c + t * dc)
+                if not inside:
                     break
-                r0 = min(int(y), h - 2) if h > 1 else 0
-                c0 = min(int(x), w - 2) if w > 1 else 0
-                if not (mask[r0, c0] and mask[r0 + 1, c0] and mask[r0, c0 + 1] and mask[r0 + 1, c0 + 1]):
-                    break
-                fy = y - r0
-                fx = x - c0
-                zq = ((1 - fy) * ((1 - fx) * z[r0, c0] + fx * z[r0, c0 + 1])
-                      + fy * ((1 - fx) * z[r0 + 1, c0] + fx * z[r0 + 1, c0 + 1]))
                 s = (zq - z0) / t
                 if s > best:
                     best = s
@@ -55,18 +63,9 @@ def hidden_kernel(z, mask, dr, dc, steps, threshold, z_top, out):
             for t in steps:
                 if z_top - z0 <= threshold * t:
                     break
-                y = r + t * dr
-                x = c + t * dc
-                if y < 0.0 or x < 0.0 or y > h - 1.0 or x > w - 1.0:
+                inside, zq = _height_at(z, mask, r + t * dr, c + t * dc)
+                if not inside:
                     break
-                r0 = min(int(y), h - 2) if h > 1 else 0
-                c0 = min(int(x), w - 2) if w > 1 else 0
-                if not (mask[r0, c0] and mask[r0 + 1, c0] and mask[r0, c0 + 1] and mask[r0 + 1, c0 + 1]):
-                    break
-                fy = y - r0
-                fx = x - c0
-                zq = ((1 - fy) * ((1 - fx) * z[r0, c0] + fx * z[r0, c0 + 1])
-                      + fy * ((1 - fx) * z[r0 + 1, c0] + fx * z[r0 + 1, c0 + 1]))
                 if zq - z0 > threshold * t:
                     out[r, c] = True
                     break
