@@ -7,17 +7,10 @@ import time
 import pytest
 
 from facette.bench._sim_scan import write_scan
-from facette.cli.main import main
+
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
-
-def _run(capsys, *argv):
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:             # argparse refuses before anything runs
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out + err
+from . import run_cli_joined as _run
 
 
 @pytest.fixture(scope="module")

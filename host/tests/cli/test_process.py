@@ -7,21 +7,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from facette.cli.main import main
 from facette.io.checksum import sha256_file
 from facette.io.diligent import write_diligent
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
+from . import run_cli
+
 L = thesis_light_directions()
-
-
-def run_cli(capsys, *argv):
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:         # argparse refuses before anything runs
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def _folder(root, name, u16=None, mask=None):

@@ -7,6 +7,8 @@ from facette.io.png import read_png
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
 
+from . import run_cli_joined as _run
+
 
 def test_relight_writes_the_picture_of_a_ptm_and_an_rti(tmp_path, capsys, unchanged):
     h, w = 6, 10
@@ -41,15 +43,6 @@ def _ptm(tmp_path):
     coeffs[..., 5] = 0.5
     write_ptm_lrgb(tmp_path / "a.ptm", coeffs, np.ones((4, 5, 3)))
     return tmp_path / "a.ptm"
-
-
-def _run(capsys, *argv):
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:             # argparse refuses before anything runs
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out + err
 
 
 def test_relight_never_writes_its_input_nor_a_file_it_did_not_make(tmp_path, capsys, unchanged):
