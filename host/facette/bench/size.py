@@ -399,17 +399,17 @@ def _print(rows):
               flush=True)
 
 
-def no_flag(size, work):
+def no_flag(size, work, kind="slab"):
     """`facette process SLAB -o OUT --outputs normals,height` with no flag at all, as a user runs it:
     the default method and the default memory budget (pipeline._budget); prints wall s, s/MP, peak,
-    the method that ran and the budget's note."""
+    the method that ran and the budget's note. kind: "slab" (the folder) or "scan" (its scan directory)."""
     w, h = size
-    out = work / f"noflag_{w}x{h}"
-    stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", work / f"slab_{w}x{h}", "-o", out, "--outputs",
+    out = work / f"noflag_{'' if kind == 'slab' else 'scan_'}{w}x{h}"
+    stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", work / f"{kind}_{w}x{h}", "-o", out, "--outputs",
                                                      "normals,height", "--overwrite"]))
     method = re.search(r"\((\w+)\)\s*$", stdout.splitlines()[0])
     budget = next((line.strip()[len("note: "):] for line in stdout.splitlines() if "note: memory:" in line), "")
-    print(f"no flag {w}x{h}: {wall:.1f} s, {wall / (w * h / 1e6):.2f} s/MP, peak {gb:.2f} GB, "
+    print(f"no flag {'' if kind == 'slab' else 'scan '}{w}x{h}: {wall:.1f} s, {wall / (w * h / 1e6):.2f} s/MP, peak {gb:.2f} GB, "
           f"{method.group(1) if method else '?'}; {budget}", flush=True)
 
 
@@ -446,8 +446,8 @@ def main(argv=None):
                                                         "LocalCluster of 2 workers x 1 thread")
     p.add_argument("--kill-worker", type=float, default=0.0, metavar="S",
                    help="with --dask: kill one worker S seconds into the run (default: none)")
-    p.add_argument("--no-flag", action="store_true", help="also `facette process SLAB` with no flag (the "
-                                                           "default method and memory budget)")
+    p.add_argument("--no-flag", action="store_true", help="also `facette process SLAB` (and SCAN with "
+                                                           "--scan) with no flag (the default method and budget)")
     p.add_argument("--keep", help="keep the captures and results in this folder (default: temporary); "
                                   "a slab already there is reused")
     args = p.parse_args(argv)
@@ -470,6 +470,8 @@ def main(argv=None):
                     no_flag(size, work)
             if args.scan or args.only_scan:
                 scan_rows.append(scan_size(size, work, args.memory, args.method, untiled, args.scan_outputs))
+                if args.no_flag:
+                    no_flag(size, work, "scan")
                 if args.dask:
                     scan_dask(scan_rows[-1], size, work, args.memory, args.method, args.kill_worker)
         if scan_rows:

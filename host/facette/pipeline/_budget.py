@@ -11,12 +11,18 @@ from facette.methods import PS_DEFAULT, PS_METHODS
 from facette.pipeline._tiled_process import streamed
 from facette.pipeline._tiles import BANDED_METHODS, PROCESS_BYTES, WHOLE_IMAGE_METHODS
 
-__all__ = ["FREE_SHARE", "RESERVE_BYTES", "WHOLE_BYTES_PER_PIXEL_LIGHT", "free_memory", "default_budget",
-           "with_default_budget"]
+__all__ = ["FREE_SHARE", "RESERVE_BYTES", "BANDS_MAX_BYTES", "WHOLE_BYTES_PER_PIXEL_LIGHT", "free_memory",
+           "default_budget", "with_default_budget"]
 
-# of the free memory, the share a run takes, and what it leaves besides (the system, a viewer)
-FREE_SHARE = 0.8
+# of the free memory, the share a run takes, and what it leaves besides (the system, a viewer): half,
+# because the free memory is a reading of one moment on a machine others use too (6 engineers on 24 GB:
+# MemAvailable went 22 -> 12 GB within minutes), and the whole reading's peak comes minutes after it
+FREE_SHARE = 0.5
 RESERVE_BYTES = 1 * 10 ** 9
+# a capture read band by band needs no more than this: larger bands buy no speed (12 MP, 12 lights,
+# li_alternating: --memory 2GB 94.1 s / 1.07 GB against 120.6 s / 9.56 GB read whole), and a run that
+# holds 4 GB survives what a run that holds most of the free memory does not
+BANDS_MAX_BYTES = 4 * 10 ** 9
 # the whole reading's peak per pixel and light (float32 RGB photographs, their usable flags, the
 # channel chosen for the solve, the light gains' copy, the method's temporaries), less the process's
 # own PROCESS_BYTES: the 12 MP relief slab of `facette bench size`, 12 lights, normals and height,
@@ -68,9 +74,10 @@ def with_default_budget(source, o, outputs, free=None):
                    "need it whole: the run may exceed the machine's memory; give --memory to read it band by band"]
     method = PS_METHODS.canonical(o.method)
     switched = method not in BANDED_METHODS
+    bands = min(budget, BANDS_MAX_BYTES)
     note = (f"{said}: the capture ({m} photographs of {w}x{h} px) needs ~{need / 1e9:.1f} GB whole: read band by "
-            "band in the budget")
+            f"band in {bands / 1e9:.1f} GB" + ("" if bands == budget else " (larger bands buy no speed)"))
     if switched:
         why = WHOLE_IMAGE_METHODS.get(method, "it is not known to be per-pixel")
         note += f", photometric stereo with {PS_DEFAULT} ({method} needs every pixel at once: {why})"
-    return replace(o, memory=str(budget), method=PS_DEFAULT if switched else o.method), [note]
+    return replace(o, memory=str(bands), method=PS_DEFAULT if switched else o.method), [note]
