@@ -45,7 +45,7 @@ from ._li_model import is_metal
 from ._ps_li import ps_li_alternating
 from ._ps_li_coarse import bin_inputs, coarse_factor
 
-__all__ = ["estimate_light_gains", "GAIN_PIXELS", "MAX_RMS", "MIN_AGREEMENT", "MIN_RMS", "MIN_SPREAD_DEG"]
+__all__ = ["estimate_light_gains", "light_gains_over_bands", "GAIN_PIXELS", "MAX_RMS", "MIN_AGREEMENT", "MIN_RMS", "MIN_SPREAD_DEG"]
 
 GAIN_PIXELS = 10_000     # the first solve's valid pixels at most (binned f × f above)
 MIN_SHARE = 0.2          # a light's ratio is read where the model gives it ≥ this share of the pixel's brightest
@@ -64,22 +64,50 @@ MIN_AGREEMENT = 0.5
 MAX_RMS = 0.15
 
 
-def estimate_light_gains(images, light_dirs, mask, channel=None, saturation=None, seed=0):
+def light_gains_over_bands(read, shape, mask, rows, channel=None, saturation=None, seed=0):
+    """`estimate_light_gains` of an image read band by band, never whole: read(r0, r1) -> images
+    (m, r1 - r0, W, C) of those rows as `estimate_light_gains` takes them. Each band (a multiple of
+    the binning factor's rows: the same blocks as the whole image's) is binned as it comes; the
+    binned image is what the estimate reads, so the gains are the whole image's, bit for bit. An
+    image the estimate does not bin (at most GAIN_PIXELS valid pixels) is read as one band."""
+    h = shape[0]
+    mask = np.asarray(mask, bool)
+    f = coarse_factor(int(np.count_nonzero(mask)), GAIN_PIXELS, 1)
+    if f is None:
+        images, light_dirs = read(0, h)
+        return estimate_light_gains(images, light_dirs, mask, channel, saturation, seed)
+    step = max(f, int(rows) // f * f)
+    parts = []
+    for r0 in range(0, h, step):
+        r1 = min(h, r0 + step)
+        images, light_dirs = read(r0, r1)
+        parts.append(bin_inputs(images, light_dirs, mask[r0:r1], f, saturation))
+        del images
+    binned = (np.concatenate([p[0] for p in parts], axis=1), parts[0][1], np.concatenate([p[2] for p in parts]), f)
+    return estimate_light_gains(None, parts[0][1], mask, channel, saturation, seed, binned=binned)
+
+
+def estimate_light_gains(images, light_dirs, mask, channel=None, saturation=None, seed=0, binned=None):
     """(gains (m,) float64 to divide the images by, or None where they are not applied; info dict:
     "applied", "why" (when not), "gains", "rms_percent", "max_percent", "noise_percent",
     "halves_agreement", "spread_deg", "pixels", "factor", "seconds").
 
     images : (m, H, W, C) linear, divided by the given intensities; light_dirs : (m, 3) unit
-    vectors (directional lights only); mask : (H, W) bool; channel : the channel solved on."""
+    vectors (directional lights only); mask : (H, W) bool; channel : the channel solved on.
+    binned : (images, light_dirs, mask, f) already binned f x f (`light_gains_over_bands`)."""
     t0 = time.perf_counter()
+    if binned is not None:
+        ci, cl, cm, f = binned
+        images = ci
     images = np.asarray(images)
     m = images.shape[0]
     info = {"applied": False}
-    if light_dirs.ndim != 2:
+    if np.ndim(light_dirs) != 2:
         return _done(None, info, t0, "near lights: their fall-off, not only their intensities, decides the values")
     ch = images.shape[-1] - 1 if channel is None else channel
-    f = coarse_factor(int(np.count_nonzero(mask)), GAIN_PIXELS, 1)
-    ci, cl, cm = (images, light_dirs, mask) if f is None else bin_inputs(images, light_dirs, mask, f, saturation)
+    if binned is None:
+        f = coarse_factor(int(np.count_nonzero(mask)), GAIN_PIXELS, 1)
+        ci, cl, cm = (images, light_dirs, mask) if f is None else bin_inputs(images, light_dirs, mask, f, saturation)
     ps = ps_li_alternating(ci, cl, mask=cm, channel=ch, saturation=None if f else saturation,
                            coarse_pixels=None, seed=seed, neighbour_deg=0)
     info["factor"] = f or 1

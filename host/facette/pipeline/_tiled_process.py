@@ -55,6 +55,7 @@ from facette.fit import li_model
 from facette.methods import PS_METHODS, options_for, photometric_stereo
 from facette.capture import open_bands, open_capture, source_path
 from facette.pipeline._channels import SOLVE_CHANNEL, channel_weights, with_solve_channel
+from facette.pipeline._light_gains import divided, gained, light_gains_of_bands
 from facette.pipeline._quality import add_counts, carried, check_counts, light_geometry, sample_counts
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
@@ -143,14 +144,16 @@ def rows_for_model(method, model, h, rows):
     return h if model is None and PS_METHODS.canonical(method) == "li_alternating" else rows
 
 
-def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None, weights=None, model=None):
+def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None, weights=None, model=None,
+             gains=None):
     """A band's photometric stereo: (r0, r1, PSResult without per-light flags or None when the
     mask leaves the band out, its quality counts or None, read seconds, PS seconds, its
     reflectance samples or None). samples: {sample_mask: the band's, theta0_deg, total} to take
     the band's samples (`_samples.samples_sensor`: (HemisphereSensor, raw samples)) with the
     shadows it found. weights: (3,) the solve's channel as a sum of R, G, B appended to the band
     (`_channels.with_solve_channel`, as the whole reading's `images_for_solve`), None: green.
-    model: li_alternating's, fitted over the bands (`band_model`)."""
+    model: li_alternating's, fitted over the bands (`band_model`). gains: (m,) the lights' gains the
+    images are divided by (`_light_gains.light_gains_of_bands`) or None."""
     t0 = time.perf_counter()
     reader = open_bands(spec)
     try:
@@ -163,6 +166,7 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
         return r0, r1, None, counts, read_s, 0.0, None
     t0 = time.perf_counter()
     images, solve, dirs, solved, bag = _solve_inputs(images, usable, r0, r1, mask, near, bag, weights)
+    images, solve = divided(images, solve, gains)
     if model is not None:
         bag.update(model=model, row0=r0)
     part = photometric_stereo(solve, dirs, method=method, options=dict(bag, mask=solved))
@@ -347,18 +351,27 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
                 return None if not samples else {"sample_mask": smask[r0:r1], "theta0_deg": o.theta0_deg,
                                                  "total": total}
 
-            def for_model(r0, r1):         # li_alternating's model: a pass over the bands here
+            gains = None
+
+            def read_solve(r0, r1):        # a band as the solve sees it, here (the light gains', the model's passes)
                 images, usable = bands.read(r0, r1, None if flat is None else flat[r0:r1])
-                return _solve_inputs(images, usable, r0, r1, inp.mask[r0:r1], near, bag, weights)[1:4]
+                images, solve, dirs, solved, _ = _solve_inputs(images, usable, r0, r1, inp.mask[r0:r1], near, bag,
+                                                               weights)
+                return divided(images, solve, gains) + (dirs, solved)
+
+            def for_model(r0, r1):         # li_alternating's model: a pass over the bands here
+                return read_solve(r0, r1)[1:4]
             model_bag = {k: v for k, v in bag.items() if k != "light_dirs"}
             model_bag.update({} if weights is None else {"channel": SOLVE_CHANNEL})
+            gains = light_gains_of_bands(res, o, inp, PS_METHODS.canonical(o.method),
+                                         lambda r0, r1: read_solve(r0, r1)[1:3], n, model_bag)
             model = band_model(o.method, for_model, (h, w), int(np.count_nonzero(inp.mask)), n, model_bag)
             n = rows_for_model(o.method, model, h, n)
             hand_back(o.memory_bytes)
             if model is not None and client is not None:
                 model = client.scatter(model, broadcast=True)     # once to every worker, not with each band
             calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
-                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1), weights, model) for r0, r1 in _bands(h, n))
+                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1), weights, model, gains) for r0, r1 in _bands(h, n))
             ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client), on_disk=True)
             hand_back(o.memory_bytes)   # the bands' heap: not under the stages after them
             ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n, channels=used)   # pipeline._channels
@@ -369,7 +382,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
                 res.filtered, res.samples = _samples_result(taken, o.theta0_deg)
             if relight is not None:          # ptm, rti: fitted over the same bands (pipeline._rti_bands)
                 t1 = time.perf_counter()
-                relight(inp, ps, top, band_reader(bands, near, None if near else inp.light_dirs), n)
+                relight(inp, ps, top, gained(band_reader(bands, near, None if near else inp.light_dirs), gains), n)
                 hand_back(o.memory_bytes)
                 t0 += time.perf_counter() - t1
         finally:

@@ -59,3 +59,23 @@ def test_lights_bunched_near_the_axis_or_many_keep_their_intensities_and_say_why
             assert process(tmp_path / name, outputs=["normals"], light_gains=True).light_gains["applied"]
     with pytest.raises(BadInputError, match="light_gains must be True, False or 'auto'"):
         process(tmp_path / "many", outputs=["normals"], light_gains="yes")
+
+
+
+def test_the_gains_read_over_bands_are_the_whole_images_gains(tmp_path, monkeypatch):
+    from facette.fit import _light_gains
+    from facette.pipeline import _tiled_process
+    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: 14)     # bands of 14 rows,
+    monkeypatch.setattr(_light_gains, "GAIN_PIXELS", 1000)                         # binned 2 x 2 as they come
+    lights = thesis_light_directions()
+    sc = sphere_on_plane(48, 56)
+    im = render(sc, lights, "satin") * (1 + 0.03 * np.sin(np.arange(len(lights)) * 1.7))[:, None, None, None]
+    write_diligent(tmp_path / "g", np.round(im / im.max() * 60000).astype(np.uint16), lights, np.ones((len(lights), 3)))
+    # the cast-shadow step needs the whole normal map: left out over bands (pipeline._shadows), off here
+    whole = process(tmp_path / "g", outputs=["normals"], shadows="off")
+    bands = process(tmp_path / "g", outputs=["normals"], memory="1GB", shadows="off")
+    assert whole.light_gains["applied"] and whole.light_gains["factor"] == 2
+    assert bands.light_gains["gains"] == whole.light_gains["gains"]
+    assert any("read band by band (never held whole)" in n for n in bands.notes)
+    np.testing.assert_array_equal(bands.normals, whole.normals)
+    np.testing.assert_array_equal(bands.albedo, whole.albedo)
