@@ -45,17 +45,19 @@ from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._budget import with_default_budget
 from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.capture import LP_NAME, load_input, object_of
-from facette.pipeline._confidence import normal_channels, uncertainty_stage
+from facette.pipeline._band_uncertainty import uncertainty_of
+from facette.pipeline._confidence import normal_channels
 from facette.pipeline._stages import ALL_OUTPUTS, FILES, OUTPUTS, STAGES_FOR, stages_needed
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
 from facette.pipeline._light_gains import with_light_gains
-from facette.pipeline._shadows import shadows_wanted, with_shadows
+from facette.pipeline._shadows import with_shadows
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
-from facette.pipeline._rti_bands import relight_bands, relight_exposure, relight_stage, write_relight_web
+from facette.pipeline._rti_bands import relight_exposure, relight_stage, write_relight_web
 from facette.pipeline._rti_exposure import record_exposure
-from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
+from facette.pipeline._streamed import banded_process
+from facette.pipeline._tiled_process import in_memory_ps, streamed
 from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry, truth_errors
 from facette.pipeline._report import report_fit_section, write_report
 from facette.pipeline._relight_model_stage import relight_model_stage, save_relight_model
@@ -223,28 +225,14 @@ def _process(source, outputs, out_dir, o):
 
     if o.memory is not None and streamed(source, outputs):
         # --memory, outputs that need no image after photometric stereo: the images are read band by
-        # band, never whole (pipeline._tiled_process); the stages after photometric stereo as untiled
-        claimed, banded = {}, []
-
-        def fits(inp, ps, top, read, rows):     # ptm, rti: fitted over the same bands (pipeline._rti_bands)
-            _streamed_result(res, inp, ps, top)
-            banded.append(relight_bands(read, res.object_mask, outputs, o, rows, len(inp.light_dirs), inp))
-        inp, ps, light_dirs, top = streamed_ps(source, o, res, lambda i: claimed.update(previous=claim(i)),
-                                               samples="samples" in stages,
-                                               relight=fits if {"ptm", "rti", "relight-web"} & set(outputs) else None)
-        previous, images, direct = claimed["previous"], None, None
-        interreflections_wanted(o, inp, res.notes), shadows_wanted(o, light_dirs, res.notes)   # their notes: why not
-        if res.ps is None:
-            _streamed_result(res, inp, ps, top)
-        del top                    # its object mask made: 4 bytes per pixel no later stage reads (100 MP: 0.4 GB)
-        if "report" in outputs:
-            res.notes.append(MEMORY_FLAGS_NOTE)
+        # band, never whole (pipeline._streamed); the stages after photometric stereo as untiled
+        inp, light_dirs, previous, relight = banded_process(source, o, res, outputs, stages, claim)
         try:
-            return _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options,
-                            previous, t_all, cpu_all, relight=banded[0] if banded else None)
+            return _from_ps(res, inp, stages, outputs, None, None, light_dirs, o, out_dir, record_options,
+                            previous, t_all, cpu_all, relight=relight)
         finally:
-            for b in banded:
-                b.close()
+            if relight is not None:
+                relight.close()
     t0 = time.perf_counter()
     inp = load_input(source, mask=o.mask, pixel_pitch_mm=o.pixel_pitch_mm, allow_incomplete=o.allow_incomplete,
                      capture=o.capture)
@@ -291,20 +279,12 @@ def _process(source, outputs, out_dir, o):
                     t_all, cpu_all)
 
 
-def _streamed_result(res, inp, ps, top):
-    """res.ps, normals, albedo, mask and object mask of photometric stereo over bands (`streamed_ps`)."""
-    res.ps = ps
-    normals_of(res, inp, ps)
-    res.object_mask = res.mask if inp.background_mask() is None else \
-        res.mask & object_of(None, inp.mask, inp.material_mask, top=top)
-
-
 def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options, previous,
              t_all, cpu_all, relight=None):
     """The stages after photometric stereo, the checks against truth and the files (relight:
     the fits of pipeline._rti_bands, when --memory made them over bands)."""
     if res.normals is not None and {"normals", "report"} & set(outputs):     # what shows it
-        uncertainty_stage(res, direct, light_dirs, o.saturation)      # direct None (over bands): a note
+        uncertainty_of(res, direct, light_dirs, o.saturation)      # over bands: made with them already
     drawn = {}         # report sections drawn by the concurrent stages
     if out_dir is not None:            # before the first file: whose files these will be
         mark_running(Path(out_dir), record_options, inp, [FILES[name] for name in outputs if name in FILES])

@@ -351,21 +351,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
                 return None if not samples else {"sample_mask": smask[r0:r1], "theta0_deg": o.theta0_deg,
                                                  "total": total}
 
-            gains = None
-
-            def read_solve(r0, r1):        # a band as the solve sees it, here (the light gains', the model's passes)
-                images, usable = bands.read(r0, r1, None if flat is None else flat[r0:r1])
-                images, solve, dirs, solved, _ = _solve_inputs(images, usable, r0, r1, inp.mask[r0:r1], near, bag,
-                                                               weights)
-                return divided(images, solve, gains) + (dirs, solved)
-
-            def for_model(r0, r1):         # li_alternating's model: a pass over the bands here
-                return read_solve(r0, r1)[1:4]
-            model_bag = {k: v for k, v in bag.items() if k != "light_dirs"}
-            model_bag.update({} if weights is None else {"channel": SOLVE_CHANNEL})
-            gains = light_gains_of_bands(res, o, inp, PS_METHODS.canonical(o.method),
-                                         lambda r0, r1: read_solve(r0, r1)[1:3], n, model_bag)
-            model = band_model(o.method, for_model, (h, w), int(np.count_nonzero(inp.mask)), n, model_bag)
+            gains, model = _gains_and_model(res, o, inp, bands, near, bag, weights, n)
             n = rows_for_model(o.method, model, h, n)
             hand_back(o.memory_bytes)
             if model is not None and client is not None:
@@ -401,6 +387,24 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
                      "the images read band by band (never held whole)")
     res.timings["ps"] = time.perf_counter() - t0
     return inp, ps, (None if near else inp.light_dirs), top
+
+
+def _gains_and_model(res, o, inp, bands, near, bag, weights, rows):
+    """(the lights' gains or None, li_alternating's model or None), each from a pass over the bands
+    here (`_light_gains.light_gains_of_bands`, `band_model`), the model's on the bands divided by the gains."""
+    flat, gains = getattr(bands, "flat", None), None
+
+    def read_solve(r0, r1):        # a band as the solve sees it: (its images, the solve's, directions, mask)
+        images, usable = bands.read(r0, r1, None if flat is None else flat[r0:r1])
+        images, solve, dirs, solved, _ = _solve_inputs(images, usable, r0, r1, inp.mask[r0:r1], near, bag, weights)
+        return divided(images, solve, gains) + (dirs, solved)
+    model_bag = {k: v for k, v in bag.items() if k != "light_dirs"}
+    model_bag.update({} if weights is None else {"channel": SOLVE_CHANNEL})
+    gains = light_gains_of_bands(res, o, inp, PS_METHODS.canonical(o.method),
+                                 lambda r0, r1: read_solve(r0, r1)[1:3], rows, model_bag)
+    model = band_model(o.method, lambda r0, r1: read_solve(r0, r1)[1:4], inp.mask.shape,
+                       int(np.count_nonzero(inp.mask)), rows, model_bag)
+    return gains, model
 
 
 def in_memory_ps(images, light_dirs, o, bag, outputs, res, rows=None):
