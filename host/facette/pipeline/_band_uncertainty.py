@@ -14,11 +14,12 @@ import time
 
 import numpy as np
 
-from facette.pipeline._confidence import uncertainty_stage
+from facette._memory import disk_array, release
+from facette.pipeline._confidence import UNCERTAINTY_CHANNEL, normal_channels, uncertainty_stage
 from facette.recon import normal_uncertainty, uncertainty_summary
 from facette.recon._uncertainty import MAX_VALUES
 
-__all__ = ["uncertainty_over_bands", "uncertainty_of", "HALO_ROWS"]
+__all__ = ["uncertainty_over_bands", "uncertainty_of", "banded_uncertainty", "normal_image", "HALO_ROWS"]
 
 # rows of context a band's curl needs: its plaquettes (1 row) and the Gaussian's reach (4 sigma, 4 rows)
 HALO_ROWS = 8
@@ -29,13 +30,13 @@ def _stride(values, max_values):
     return int(np.ceil(np.sqrt(values / max_values))) if values > max_values else 1
 
 
-def uncertainty_over_bands(read, normals, mask, m, rows, saturation=None, max_values=MAX_VALUES):
+def uncertainty_over_bands(read, normals, mask, m, rows, saturation=None, max_values=MAX_VALUES, on_disk=False):
     """(H, W) float32 deg: `normal_uncertainty` of the images read band by band, read(r0, r1) ->
     (images (m, r1 - r0, W, C) as the solve saw them, light directions (m, 3) or per pixel of those
     rows); normals (H, W, 3) (an array on disk too: read a band at a time); mask (H, W) bool;
-    max_values: `normal_uncertainty`'s."""
+    max_values: `normal_uncertainty`'s; on_disk: the map in a temporary file (`_memory.disk_array`)."""
     h = mask.shape[0]
-    out = np.zeros(mask.shape, np.float32)
+    out = disk_array(mask.shape, np.float32) if on_disk else np.zeros(mask.shape, np.float32)
     has_n = np.empty(mask.shape, bool)
     for r0 in range(0, h, rows):            # its mask as normal_uncertainty makes it, a band at a time
         has_n[r0:r0 + rows] = np.linalg.norm(np.asarray(normals[r0:r0 + rows], np.float64), axis=2) > 0.5
@@ -51,6 +52,7 @@ def uncertainty_over_bands(read, normals, mask, m, rows, saturation=None, max_va
         band = normal_uncertainty(images, dirs, np.asarray(normals[a:b]), mask[a:b], saturation=saturation,
                                   max_values=most)
         out[r0:r1] = band[r0 - a:r1 - a]
+        release(out)
         del images, band
     return out
 
@@ -69,5 +71,20 @@ def uncertainty_of(res, direct, light_dirs, saturation):
 def banded_uncertainty(res, read, m, rows, saturation):
     """res.uncertainty over bands (`uncertainty_over_bands`), its time in res.timings."""
     t0 = time.perf_counter()
-    res.uncertainty = uncertainty_over_bands(read, res.normals, res.mask, m, rows, saturation)
+    res.uncertainty = uncertainty_over_bands(read, res.normals, res.mask, m, rows, saturation, on_disk=True)
     res.timings["uncertainty"] = time.perf_counter() - t0
+
+
+def normal_image(res, rows=256):
+    """normal.exr's (image, channel names) as `_confidence.normal_channels`, but with the normals in a
+    temporary file (over bands) the four channels joined in one too, a band at a time: the
+    (H, W, 4) float32 image is 0.8 GB at 50 MP, more than a 2 GB budget has left."""
+    if getattr(res, "uncertainty", None) is None or not isinstance(res.normals, np.memmap):
+        return normal_channels(res)
+    h, w = res.normals.shape[:2]
+    out = disk_array((h, w, 4), np.float32)
+    for r0 in range(0, h, rows):
+        out[r0:r0 + rows, :, :3] = res.normals[r0:r0 + rows]
+        out[r0:r0 + rows, :, 3] = res.uncertainty[r0:r0 + rows]
+        release(out)
+    return out, ("X", "Y", "Z", UNCERTAINTY_CHANNEL)

@@ -45,8 +45,7 @@ from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._budget import with_default_budget
 from facette.pipeline._channels import images_for_solve, results_in_rgb
 from facette.capture import LP_NAME, load_input, object_of
-from facette.pipeline._band_uncertainty import uncertainty_of
-from facette.pipeline._confidence import normal_channels
+from facette.pipeline._band_uncertainty import normal_image, uncertainty_of
 from facette.pipeline._stages import ALL_OUTPUTS, FILES, OUTPUTS, STAGES_FOR, stages_needed
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
@@ -430,7 +429,7 @@ def _writers(res, out, outputs, ascii_ply, relight=None):
     how = {
         # uncompressed: float32 maps of a real surface are noise to ZIP (12 MP normal, albedo
         # and height: 80.4 MB zipped against 85.6 MB, 1.1 s against 0.12 s to write)
-        "normals": lambda p: write_exr(p, *normal_channels(res), header=meta, compression="none"),
+        "normals": lambda p: write_exr(p, *normal_image(res), header=meta, compression="none"),
         "albedo": lambda p: write_exr(p, res.albedo, ("R", "G", "B"), header=meta, compression="none"),
         "height": lambda p: write_exr(p, res.height, ("Z",), header={**meta, "unit": "mm"}, compression="none"),
         "mask": lambda p: write_mask(p, res.object_mask, {"Comment": comment} if res.inputs.incomplete else None,

@@ -29,13 +29,15 @@ def test_process_writes_the_uncertainty(tmp_path):
     assert "Uncertainty of the normal" in (tmp_path / "out" / "report.html").read_text()
 
 
-def test_memory_bands_say_there_is_no_uncertainty(tmp_path):
+def test_memory_bands_give_the_whole_images_uncertainty(tmp_path):
     L = thesis_light_directions()
     sc = sphere_on_plane(24, 32)
     imgs = render(sc, L, "matte")
     write_diligent(tmp_path / "in", np.round(imgs / imgs.max() * 50000).astype(np.uint16), L, None, sc.mask)
+    whole = process(tmp_path / "in", outputs=["normals"], method="rank_trimmed", shadows="off")
     res = process(tmp_path / "in", outputs=["normals"], out_dir=tmp_path / "out", method="rank_trimmed",
                   memory="2GB")
-    _, channels = read_exr(tmp_path / "out" / "normal.exr")     # normals only: streamed over bands
-    assert res.uncertainty is None and channels == ("X", "Y", "Z")
-    assert any("uncertainty" in n for n in res.notes)
+    _, channels = read_exr(tmp_path / "out" / "normal.exr")     # over bands too (pipeline._band_uncertainty)
+    assert channels == ("X", "Y", "Z", "uncertainty_deg") and any("bands" in n for n in res.notes)
+    np.testing.assert_array_equal(res.uncertainty, whole.uncertainty)
+    assert res.quality["normal_uncertainty"] == whole.quality["normal_uncertainty"]
