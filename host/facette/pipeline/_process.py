@@ -404,9 +404,9 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
             write(name)
         return []
 
-    tasks = [(reflectance, "samples" in stages), (lambda: relit("rti"), "hsh" in stages),
-             (lambda: relit("ptm"), "ptm" in stages),
-             (shape, "integrate" in stages), (maps, out is not None)]
+    # started in this order: the maps (on disk in a second), the shape (heights, then the longest chain)
+    tasks = [(maps, out is not None), (shape, "integrate" in stages), (reflectance, "samples" in stages),
+             (lambda: relit("rti"), "hsh" in stages), (lambda: relit("ptm"), "ptm" in stages)]
     t0, budget = time.perf_counter(), o.memory_bytes     # with a budget, the heap back after each stage
     with ThreadPoolExecutor(workers) as pool:
         futures = [pool.submit(handing_back(fn, budget) if budget else fn) for fn, wanted in tasks if wanted]
