@@ -53,12 +53,12 @@ from facette.pipeline._light_gains import with_light_gains
 from facette.pipeline._shadows import shadows_wanted, with_shadows
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
-from facette.pipeline._rti_bands import relight_bands, relight_exposure, relight_stage, write_relight_web
+from facette.pipeline._rti_bands import BANDED_OUTPUTS, relight_bands, relight_exposure, relight_stage, write_relight_web
 from facette.pipeline._rti_exposure import record_exposure
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
 from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry, truth_errors
 from facette.pipeline._report import report_fit_section, write_report
-from facette.pipeline._relight_model_stage import relight_model_stage, save_relight_model
+from facette.pipeline._relight_model_stage import model_input, relight_model_stage, save_relight_model
 from facette.pipeline._samples import _samples_stage  # bench/recon.py imports it from here too
 
 __all__ = ["OUTPUTS", "ALL_OUTPUTS", "STAGES_FOR", "ProcessOptions", "ProcessResult", "process", "stages_needed"]
@@ -231,7 +231,7 @@ def _process(source, outputs, out_dir, o):
             banded.append(relight_bands(read, res.object_mask, outputs, o, rows, len(inp.light_dirs), inp))
         inp, ps, light_dirs, top = streamed_ps(source, o, res, lambda i: claimed.update(previous=claim(i)),
                                                samples="samples" in stages,
-                                               relight=fits if {"ptm", "rti", "relight-web"} & set(outputs) else None)
+                                               relight=fits if BANDED_OUTPUTS & set(outputs) else None)
         previous, images, direct = claimed["previous"], None, None
         interreflections_wanted(o, inp, res.notes), shadows_wanted(o, light_dirs, res.notes)   # their notes: why not
         if res.ps is None:
@@ -363,7 +363,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
                               inp.pixel_pitch_mm, step, MESH_MAX_SLOPE)
             res.options["mesh_step"] = step
             write("mesh")
-        notes += relight_model_stage(res, images, light_dirs, inp.pixel_pitch_mm, write,
+        notes += relight_model_stage(res, model_input(images, relight), light_dirs, inp.pixel_pitch_mm, write,
                                      "relight" in outputs) if "relight" in stages else []
         return notes
 

@@ -32,15 +32,18 @@ from facette.io.relight_web import write_relight_web as write_web_rows
 from facette.io.rti import write_hsh_rti_rows
 from facette.methods import PS_METHODS
 from facette.pipeline._exports import fill_left, fill_unfitted, hsh_order_for, unfitted_verdict
+from facette.pipeline._relight_model_stage import ImagesSpill
 from facette.pipeline._rti_exposure import HDRWhite, exposure_of
 from facette.pipeline._tiles import BYTES_PER_PIXEL_LIGHT as PS_BYTES_PER_PIXEL_LIGHT
 from facette.recon import _rti as fit_blocks        # its _BLOCK: the pixels solved together
 from facette.recon import (HSHFit, PTMFit, fit_hsh, fit_ptm_lrgb, fit_relight_error,
                            near_light_directions, relight_error_parts, relight_error_step)
 
-__all__ = ["RelightBands", "relight_bands", "relight_stage", "relight_exposure", "band_reader", "relight_rows",
+__all__ = ["BANDED_OUTPUTS", "RelightBands", "relight_bands", "relight_stage", "relight_exposure", "band_reader", "relight_rows",
            "write_relight_web", "PREVIEW_PIXELS"]
 
+# the outputs `relight_bands` serves over the band reader (the model: its photographs kept, `ImagesSpill`)
+BANDED_OUTPUTS = frozenset({"ptm", "rti", "relight-web", "relight"})
 PREVIEW_PIXELS = 1 << 20        # pixels of the fits kept in ProcessResult.ptm / .hsh at most
 # A fit band's working set per pixel (near lights, both fits): per light the float32 images, their
 # float64 copy divided by the fall-off, the fall-off, the directions (float64 x 3) and the PTM's
@@ -135,11 +138,12 @@ class RelightBands:
     """The banded fits of `relight_bands`: ptm, hsh (`PTMFit`, `HSHFit` of every `stride`-th
     pixel, or None), ok {"ptm", "rti": the file can be written}, notes {"ptm", "rti": [...]},
     fit_errors, timings; `write_ptm(path)`, `write_rti(path, comments)` write the files from the
-    spill (temporary files without a name, gone with this object or at `close()`)."""
+    spill (temporary files without a name, gone with this object or at `close()`); model_images:
+    the photographs for the relighting model (`ImagesSpill`, output "relight") or None."""
 
     def __init__(self, shape, stride):
         self.shape, self.stride = shape, stride
-        self.ptm = self.hsh = None
+        self.ptm = self.hsh = self.model_images = None
         self.ok, self.notes, self.fit_errors, self.timings = {}, {"ptm": [], "rti": []}, {}, {}
         self.spills, self.rgb, self.exposure = {}, None, None
 
@@ -160,7 +164,7 @@ class RelightBands:
 
     def close(self):
         """The temporary files go (their space is given back once nothing maps them)."""
-        self.spills, self.rgb = {}, None
+        self.spills, self.rgb, self.model_images = {}, None, None
 
 
 def relight_bands(read, mask, outputs, o, ps_rows, lights, inp):
@@ -171,16 +175,23 @@ def relight_bands(read, mask, outputs, o, ps_rows, lights, inp):
     (`band_reader`); mask (H, W) bool, the object mask (an HDR scan's exposure, fill_unfitted's
     pixels, the relighting error's); outputs: what `process` was asked for (ptm, rti); o:
     ProcessOptions (method, rti_encoding, hsh_order); lights: m; inp: the input (`exposure_of`).
-    Returns a `RelightBands` (close it), or None when neither ptm nor rti is asked for."""
+    Output "relight": the photographs are kept for the relighting model (`RelightBands.model_images`)
+    in the same pass. Returns a `RelightBands` (close it), or None when none of these is asked for."""
     want_ptm, want_hsh = "ptm" in outputs, bool({"rti", "relight-web"} & set(outputs))   # the web folder: HSH's
     order, order_note = hsh_order_for(lights, o.hsh_order) if want_hsh else (None, None)
-    if not want_ptm and not want_hsh:
+    if not want_ptm and not want_hsh and "relight" not in outputs:
         return None
     h, w = mask.shape
     rows, aligned = _aligned(relight_rows(ps_rows, w, lights, o.method), w, h)
     spans = [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
     stride = max(1, int(np.ceil(np.sqrt(h * w / PREVIEW_PIXELS))))
     out = RelightBands((h, w), stride)
+    if "relight" in outputs:
+        out.model_images = ImagesSpill(lights, h, w)
+    if not want_ptm and not want_hsh:
+        for r0, r1 in spans:
+            out.model_images.add(r0, *read(r0, r1))
+        return out
     if order_note:
         out.notes["rti"].append(order_note)
     if not aligned:
@@ -221,6 +232,8 @@ def _fit_pass(out, read, mask, spans, wanted, exposure, lights):
     for r0, r1 in spans:
         t0 = time.perf_counter()
         images, dirs = read(r0, r1)
+        if out.model_images is not None:
+            out.model_images.add(r0, images, dirs)
         images = exposure.photographs(images)
         band = mask[r0:r1]
         starts = [a - r0 for a in range(-(-r0 // step) * step, r1, step)]
