@@ -87,8 +87,8 @@ def relight_model_stage(res, images, light_dirs, pixel_pitch_mm=1.0, write=None,
     model does not take); every_pixel False: the model at the report viewer's size (every st-th
     pixel, heights in its pixels)."""
     if images is None or (isinstance(images, ImagesSpill) and images.data is None):
-        return ["relighting model: not fitted with --memory for the report alone (it needs the photographs "
-                "again after the heights): ask for the relight output"]
+        return ["relighting model: not fitted with --memory unless the relight output is asked for (it reads "
+                "the photographs again after the heights, from a copy that output keeps)"]
     if light_dirs is None or np.ndim(light_dirs) != 2:
         return ["relighting model: not fitted for near lights (it takes one direction per light)"]
     t0 = time.perf_counter()
