@@ -306,7 +306,7 @@ def _loo_error(kern, ridge, gram):
     regression through r: e = A r / diag(A), A = (K + ridge I)⁻¹ (exact, no refit)."""
     a = np.linalg.inv(kern + ridge * np.eye(len(kern)))
     loo = a / np.diag(a)[None]
-    return float(np.einsum("ij,ik,kj->", loo, gram, loo))
+    return float(np.sum(loo * (gram @ loo)))         # Σ_j loo_jᵀ G loo_j (a product, not a triple loop)
 
 
 def _kernel_choice(gram, dirs, spacing):
