@@ -30,6 +30,7 @@ __all__ = ["fit_relight_bands", "fit_relight_model", "WHITE_PERCENTILE"]
 
 SAMPLE = 20_000             # the object's pixels the exponent and the shadows are chosen on
 WHITE_SAMPLE = 200_000      # the object's pixels the white is taken from
+EXPONENT_ONCE = True        # shadows "auto": the lobe's exponent chosen on the fit without them only
 WHITE_PERCENTILE = 99.9     # the white: this percentile of the sample's brightest channel over the lights
 
 
@@ -137,14 +138,14 @@ def _white_of(top):
     return float(np.percentile(vals, WHITE_PERCENTILE)) if vals.size else 1.0
 
 
-def _sample_choice(fit, sample, white, shadow, n_planes):
+def _sample_choice(fit, sample, white, shadow, n_planes, exponents=SHININESS):
     """(exponent, leave-one-light-out error) of the model fitted to the sample pixels alone
-    (with the cast shadows `shadow`, a _Shadows, or None)."""
+    (with the cast shadows `shadow`, a _Shadows, or None), the exponent the best of `exponents`."""
     r, c, lin, shown = sample
     vis = None if shadow is None else shadow.at(r, c)
     y, s = fit.values(lin[:, None], None if shown is None else shown[:, None], 0, slice(None), white)   # (m, n, C)
     best = None
-    for k in SHININESS if 1 in fit.terms else SHININESS[:1]:
+    for k in exponents if 1 in fit.terms else SHININESS[:1]:
         b = fit.basis(r, c, k, vis)
         pred = _predict(b, _fit_block(y, s, b, fit.terms))
         ok = np.all(s < SATURATED, axis=-1)[..., None]
@@ -193,14 +194,17 @@ def fit_relight_bands(read, light_dirs, mask, normals, heights=None, n_planes=No
         white = _white_of(top) if white is None else float(white)
         shadow = None if heights is None or shadows is False else _Shadows(heights, fit.dirs)
         judge = planes if planes > 0 else None
-        k, loo = _sample_choice(fit, sample, white, shadow, judge)
         notes = []
-        if shadow is not None and shadows == "auto" and loo is not None:
+        if shadow is not None and shadows == "auto" and judge is not None:
+            # the exponent chosen without the shadows, kept with them (EXPONENT_ONCE)
             k_flat, loo_flat = _sample_choice(fit, sample, white, None, judge)
+            k, loo = _sample_choice(fit, sample, white, shadow, judge, (k_flat,) if EXPONENT_ONCE else SHININESS)
             if loo_flat < loo:
                 notes.append(f"no cast shadows: without them the fitted lights left out are predicted better "
                              f"(on {len(picks)} pixels: {loo_flat:.4g} against {loo:.4g})")
                 shadow, k = None, k_flat
+        else:
+            k = _sample_choice(fit, sample, white, shadow, None)[0]
         return _fit_passes(fit, k, shadow, white, heights if shadow is not None else None, planes, notes)
 
 

@@ -47,7 +47,7 @@ MIN_PREDICTED = 0.01                 # a residual is kept if it predicts this sh
 MAX_PLANES = 48                      # residual planes kept at most (the report's viewer draws the first 16)
 PLANES_BYTES = 1 << 29               # the planes' memory at most (float16): fewer planes on large images
 AMBIENT_PRIOR = 0.05                 # relative ridge on the gathered-light term (see `_nnls3`)
-BLOCK_VALUES = 1 << 22              # pixel-light pairs per block of the fit (~50 MB per array)
+BLOCK_VALUES = 1 << 21              # pixel-light pairs per block of the fit (~25 MB per array, ~0.25 GB in all)
 SHADOW_SOFTNESS = 1.0                # height (px) over which a cast shadow's edge goes from 1 to 0
 
 

@@ -1,0 +1,471 @@
+"""A relighting model from physics first, then a small residual: `fit_relight_model`.
+
+Per pixel p, channel c and distant light l (unit vector towards the light, camera frame),
+in the photographs' linear unit scaled to their white (1 = display white):
+
+    phys(p, l) = ρ_c(p) max(n·l, 0) V(p, l) + s_c(p) max(n·h, 0)^k [n·l > 0] V(p, l) + a_c(p) max(l_z, 0)
+
+n the pixel's normal, h the half vector of l and the camera (+z), V the cast-shadow visibility
+from the integrated heights (soft at the edge; 1 without heights; kept only where they
+predict the fitted lights left out better, `fit_relight_model`'s shadows="auto"), k one Blinn–Phong exponent per
+capture (the one of `SHININESS` the fitted photographs fit best), a the light the surface
+gathers from the room and from itself, taken proportional to the irradiance of the object's
+plane (max(l_z, 0)). ρ, s, a ≥ 0 per pixel and channel (non-negative least squares, the
+clipped values left out): the physical part is never negative.
+
+What it misses (inter-reflections it does not model, the BRDF's other lobes, the normals'
+errors) is kept as a residual in display values (sRGB-encoded): the fitted photographs' minus
+phys's, compressed to `n_planes` planes per pixel (principal components over the lights,
+as Relight's RBF basis does with the pixels themselves; as many as the lights, at most 16), each
+plane's light function interpolated by kernel ridge regression over the lights: a Gaussian of
+the lights' (x, y) distance plus a share of the HSH order-2 kernel (a smooth trend over the
+dome). The width, the share and the ridge, and whether a residual is kept at all, are chosen by
+the exact leave-one-light-out error over every pixel of the fitted photographs alone. The
+residual fades to 0 away from the captured lights (at a raking light no dome photographed,
+phys alone is shown).
+
+    display(p, l) = clip(srgb(phys(p, l)) + Σ_j C_j(p) e_j(l), 0, 1)
+"""
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from facette.errors import BadInputError
+from facette.io.atomic import atomic_path
+
+from ._rti import hsh_basis, srgb_decode, srgb_encode
+
+__all__ = ["RelightModel", "fit_relight_model", "SHININESS", "cast_shadow", "physical_basis",
+           "save_relight_model", "load_relight_model", "default_planes"]
+
+SHININESS = (8.0, 32.0, 128.0)       # Blinn–Phong exponents tried (lobes of ~20°, 10°, 5°)
+SATURATED = 254.0 / 255.0            # display values at or above this are clipped: not fitted
+RBF_WIDTHS = (0.5, 1.0, 2.0, 4.0, 8.0)   # Gaussian widths tried, in median spacings of the lights
+HSH_MIX = (0.0, 0.1, 1.0)            # weights of the HSH order-2 kernel tried beside the Gaussian
+RBF_SMOOTHING = (1e-3, 1e-2, 1e-1, 1.0)  # ridges tried, relative to the kernel's mean diagonal
+MIN_PREDICTED = 0.01                 # a residual is kept if it predicts this share of itself (left out)
+MAX_PLANES = 48                      # residual planes kept at most (the report's viewer draws the first 16)
+PLANES_BYTES = 1 << 29               # the planes' memory at most (float16): fewer planes on large images
+AMBIENT_PRIOR = 0.05                 # relative ridge on the gathered-light term (see `_nnls3`)
+BLOCK_VALUES = 1 << 22              # pixel-light pairs per block of the fit (~50 MB per array)
+SHADOW_SOFTNESS = 1.0                # height (px) over which a cast shadow's edge goes from 1 to 0
+
+
+@dataclass
+class RelightModel:
+    """A fitted model (see the module's docstring); arrays (H, W, ...), float32.
+
+    normals (H, W, 3); mask (H, W) bool; rho, spec, amb (H, W, 3); shininess k; heights (H, W)
+    in pixels or None; planes (H, W, 3, K) residual coefficients; centres (m, 2) the fitted
+    lights' (x, y); weights (m, K) and epsilon: the Gaussian RBF of the planes' light functions,
+    trend (4, K) or None: their HSH order-2 part (weights None: no residual)."""
+    normals: np.ndarray
+    mask: np.ndarray
+    rho: np.ndarray
+    spec: np.ndarray
+    amb: np.ndarray
+    shininess: float
+    heights: np.ndarray = None
+    planes: np.ndarray = None
+    centres: np.ndarray = None
+    weights: np.ndarray = None
+    epsilon: float = 1.0
+    white: float = 1.0
+    softness: float = SHADOW_SOFTNESS
+    spacing: float = np.inf
+    reach: float = 1.0
+    notes: list = field(default_factory=list)
+    trend: np.ndarray = None
+    loo_error: float = None
+
+    def decimated(self, st):
+        """The model at every st-th pixel (heights in the decimated grid's pixels)."""
+        if st == 1:
+            return self
+        cut = (slice(None, None, st), slice(None, None, st))
+        return RelightModel(self.normals[cut], self.mask[cut], self.rho[cut], self.spec[cut], self.amb[cut],
+                            self.shininess, None if self.heights is None else self.heights[cut] / np.float32(st),
+                            None if self.planes is None else self.planes[cut], self.centres, self.weights,
+                            self.epsilon, self.white, self.softness / st, self.spacing, self.reach,
+                            list(self.notes), self.trend)
+
+    def first_planes(self, k):
+        """The model with the residual's first k planes (its k largest principal components):
+        the best k-plane residual at the fitted lights."""
+        if self.weights is None or self.planes.shape[-1] <= k:
+            return self
+        return replace(self, planes=self.planes[..., :k], weights=self.weights[:, :k],
+                       trend=None if self.trend is None else self.trend[:, :k], notes=list(self.notes))
+
+    def light_functions(self, light):
+        """The residual planes' weights e_j(l) (K,) under one light (0 without a residual).
+        The residual is known near the captured lights only: beyond twice their median spacing
+        from the nearest one, or lower than the lowest of them (|l_xy| above their largest,
+        `reach`), it fades out (a Gaussian of that spacing), leaving the physics."""
+        if self.weights is None:
+            return np.zeros(0)
+        light = np.asarray(light, float)
+        d = np.linalg.norm(self.centres - light[:2], axis=1)
+        beyond = max(float(d.min()) - 2 * self.spacing, float(np.hypot(light[0], light[1])) - self.reach, 0.0)
+        fade = np.exp(-(beyond / self.spacing) ** 2)
+        e = np.exp(-(self.epsilon * d) ** 2) @ self.weights
+        if self.trend is not None:
+            e = e + hsh_basis(light / np.linalg.norm(light), 2) @ self.trend
+        return fade * e
+
+    def physical(self, light):
+        """phys (H, W, 3) under one light, linear (1 = display white), ≥ 0."""
+        light = np.asarray(light, float) / np.linalg.norm(light)
+        vis = None if self.heights is None else cast_shadow(self.heights, light, self.softness)
+        b = physical_basis(self.normals, light[None], self.shininess, vis if vis is None else vis[None])
+        out = (self.rho * b[0, ..., 0:1] + self.spec * b[0, ..., 1:2] + self.amb * b[0, ..., 2:3])
+        return np.where(self.mask[..., None], out, 0.0)
+
+    def display_unfloored(self, light):
+        """srgb(phys) + residual (H, W, 3) before the residual's floor (see `display_raw`)."""
+        out = srgb_encode(np.clip(self.physical(light), 0, 1))
+        e = self.light_functions(light)
+        if e.size:
+            out = out + self.planes @ e.astype(np.float32)
+        return np.where(self.mask[..., None], out, 0.0)
+
+    def display_raw(self, light):
+        """The model's display values (H, W, 3) before a viewer's clip at white: the residual
+        darkens a pixel at most to black (it corrects the light the physics predicts; it is no
+        light of its own), so the values are never negative."""
+        return np.maximum(self.display_unfloored(light), 0.0)
+
+    def display(self, light):
+        """Display values (H, W, 3) in [0, 1] under one light (sRGB-encoded, 1 = white)."""
+        return np.clip(self.display_raw(light), 0.0, 1.0)
+
+    def relight(self, light):
+        """Linear values (H, W, 3) under one light, in the fitted photographs' unit."""
+        return self.white * srgb_decode(self.display(light))
+
+
+def physical_basis(normals, lights, shininess, visibility=None):
+    """The three terms (m, ..., 3): max(n·l,0) V, the lobe max(n·h,0)^k [n·l>0] V, max(l_z,0).
+    normals (..., 3); lights (m, 3) unit; visibility (m, ...) in [0, 1] or None."""
+    n = np.asarray(normals, np.float32)
+    lights = np.asarray(lights, np.float32)
+    ndl = np.einsum("...c,mc->m...", n, lights)
+    half = lights + np.array([0, 0, 1], np.float32)
+    half /= np.linalg.norm(half, axis=1, keepdims=True)
+    ndh = np.clip(np.einsum("...c,mc->m...", n, half), 0, 1)
+    lit = ndl > 0
+    diff = np.where(lit, ndl, 0)
+    lobe = np.where(lit, ndh ** np.float32(shininess), 0)
+    if visibility is not None:
+        diff, lobe = diff * visibility, lobe * visibility
+    amb = np.broadcast_to(np.clip(lights[:, 2], 0, None).reshape((-1,) + (1,) * (ndl.ndim - 1)), ndl.shape)
+    return np.stack([diff, lobe, amb], axis=-1).astype(np.float32)
+
+
+def cast_shadow(heights, light, softness=SHADOW_SOFTNESS, max_steps=64, max_pixels=1 << 20):
+    """Visibility (H, W) in [0, 1] of a distant light over a height map (pixels; NaN = no
+    surface): 1 where no height along the light's azimuth rises above the ray to the light,
+    falling to 0 as a height rises `softness` pixels above that ray. Marched one pixel at a time (row 0 at the top,
+    y up), up to `max_steps`; a light within 5° of the axis casts no shadow. A map above
+    `max_pixels` is marched every s-th pixel (its heights divided by s) and the result repeated."""
+    h = np.asarray(heights, np.float32)
+    st = int(np.ceil(np.sqrt(h.size / max_pixels)))
+    if st > 1:
+        small = cast_shadow(h[::st, ::st] / np.float32(st), light, softness / st, max_steps, max_pixels)
+        return np.repeat(np.repeat(small, st, axis=0), st, axis=1)[:h.shape[0], :h.shape[1]]
+    light = np.asarray(light, float)
+    horiz = float(np.hypot(light[0], light[1]))
+    vis = np.ones(h.shape, np.float32)
+    if horiz < np.sin(np.radians(5.0)):
+        return vis
+    rise = light[2] / horiz                      # height gained per pixel towards the light
+    dx, dy = light[0] / horiz, -light[1] / horiz  # image columns right, rows down
+    low = np.float32(-1e30)                      # no surface: never above a ray (finite: no inf - inf)
+    hh = np.where(np.isfinite(h), h, low)
+    over = np.full(h.shape, -np.inf, np.float32)
+    for t in range(1, min(max_steps, max(h.shape)) + 1):
+        _march_step(hh, over, t * dy, t * dx, np.float32(t * rise), low)
+    vis = np.clip(1.0 - over / softness, 0, 1).astype(np.float32)     # 1 wherever the ray clears
+    return np.where(np.isfinite(h), vis, 1.0).astype(np.float32)
+
+
+def _march_step(hh, over, oy, ox, drop, low):
+    """over = max(over, hh at (row + oy, col + ox) rounded half to even − hh − drop), in place;
+    off the image: `low`. Rows are integers, so round(row + oy) = row + round(oy) unless oy is
+    (nearly) a half (round half to even then depends on the row): a shifted slice, else an index
+    per pixel (the viewer's shader rounds the same way)."""
+    h, w = hh.shape
+    if abs(abs(oy) % 1 - 0.5) > 1e-6 and abs(abs(ox) % 1 - 0.5) > 1e-6:     # (row + oy can round to a half)
+        r, c = int(np.rint(oy)), int(np.rint(ox))
+        rs, cs = slice(max(0, -r), min(h, h - r)), slice(max(0, -c), min(w, w - c))
+        if rs.start < rs.stop and cs.start < cs.stop:
+            shifted = hh[rs.start + r:rs.stop + r, cs.start + c:cs.stop + c]
+            np.maximum(over[rs, cs], shifted - hh[rs, cs] - drop, out=over[rs, cs])
+        return
+    rows, cols = np.indices(hh.shape)
+    r, c = np.rint(rows + oy).astype(int), np.rint(cols + ox).astype(int)
+    ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+    other = np.where(ok, hh[np.clip(r, 0, h - 1), np.clip(c, 0, w - 1)], low)
+    np.maximum(over, other - hh - drop, out=over)
+
+
+DARK_FLOOR = 0.01       # linear value below which the display weight stops growing (display 0.1)
+
+
+def display_weight(lin):
+    """(d srgb / d x)² at max(lin, DARK_FLOOR), relative to its value at 1."""
+    x = np.maximum(np.asarray(lin, np.float32), DARK_FLOOR)
+    return x ** np.float32(-2 * (1 - 1 / 2.4))
+
+
+_SUBSETS = [s for s in ((0, 1, 2), (0, 1), (0, 2), (1, 2), (0,), (1,), (2,))]
+
+
+def _nnls3(basis, values, weights, terms):
+    """Per pixel and channel, the non-negative least-squares coefficients (N, 3, 3) of the
+    three basis terms (m, N, 3) for values (m, N, 3) with weights (m, N), the terms not in
+    `terms` held at 0: every subset solved in closed form, the best feasible kept."""
+    m, npx, _ = basis.shape
+    wb = basis * weights[..., None]
+    gram = np.einsum("mnj,mnk->njk", wb, basis, dtype=np.float64)          # (N, 3, 3)
+    rhs = np.einsum("mnj,mnc->njc", wb, values, dtype=np.float64)          # (N, 3, C)
+    ridge = 1e-9 * (np.trace(gram, axis1=1, axis2=2)[:, None] + 1e-12)
+    # a prior towards no gathered light: on a face the lights all see alike (n·l ∝ l_z) the
+    # diffuse and the room's terms are one, and the diffuse is the one that casts shadows
+    gram[:, 2, 2] *= 1.0 + AMBIENT_PRIOR
+    best = np.zeros((npx, 3, values.shape[-1]))
+    best_gain = np.zeros((npx, values.shape[-1]))         # the fit's decrease of Σ w y², all-zero = 0
+    for sub in _SUBSETS:
+        if not set(sub) <= set(terms):
+            continue
+        idx = np.array(sub)
+        g = gram[:, idx][:, :, idx] + ridge[:, :, None] * np.eye(len(idx))
+        x = np.linalg.solve(g, rhs[:, idx])                                 # (N, s, C)
+        gain = np.einsum("nsc,nsc->nc", x, rhs[:, idx])                     # x·b at the optimum
+        ok = np.all(x >= 0, axis=1) & (gain > best_gain)
+        for c in range(values.shape[-1]):
+            sel = ok[:, c]
+            full = np.zeros((int(sel.sum()), 3))
+            full[:, idx] = x[sel, :, c]
+            best[sel, :, c] = full
+            best_gain[sel, c] = gain[sel, c]
+    return best
+
+
+def _fit_block(y, shown, b, terms):
+    """Coefficients (N, 3, C) of one block: values y (m, N, C) linear, shown (m, N, C) display,
+    basis b (m, N, 3). Least squares in display values, linearised: a first fit in linear
+    values, then each value weighted by the square of the sRGB curve's slope at the first fit's
+    prediction (dark values count as much as a viewer shows them; the prediction's, not the
+    photograph's, so that a cast shadow the model does not know does not drag a pixel's
+    reflectance down). Clipped values are left out."""
+    ok = np.all(shown < SATURATED, axis=-1).astype(np.float32)
+    x = _nnls3(b, y, ok, terms)
+    pred = np.einsum("mnj,njc->mnc", b, x)
+    return _nnls3(b, y, ok * display_weight(pred.mean(axis=-1)), terms)
+
+
+def _blocks(n, m):
+    step = max(4096, BLOCK_VALUES // max(m, 1))
+    return [slice(a, min(a + step, n)) for a in range(0, n, step)]
+
+
+def _choose_shininess(values, dirs, n, vis, sel, terms, sample=20_000):
+    """The exponent of SHININESS whose fit is the closest to the fitted photographs in display
+    values, on up to `sample` of the object's pixels evenly spread; values(rows, cols) gives
+    their (linear, display) values (m, n, C)."""
+    if 1 not in terms:
+        return SHININESS[0]
+    pick = np.linspace(0, len(sel[0]) - 1, min(sample, len(sel[0]))).astype(int)
+    r, c = sel[0][pick], sel[1][pick]
+    y, target = values(r, c)
+    ok = np.all(target < SATURATED, axis=-1)[..., None]
+    errs = []
+    for k in SHININESS:
+        b = physical_basis(n[r, c], dirs, k, None if vis is None else vis[:, r, c] / np.float32(255))
+        pred = np.einsum("mnj,njc->mnc", b, _fit_block(y, target, b, terms))
+        errs.append(float(np.sum(ok * (srgb_encode(np.clip(pred, 0, 1)) - target) ** 2)))
+    return SHININESS[int(np.argmin(errs))]
+
+
+def _kernel(a, b, eps, mix):
+    """The residual's kernel between unit lights a (p, 3) and b (q, 3): a Gaussian of their (x, y)
+    distance, exp(-(eps d)²), plus `mix` × the HSH order-2 kernel h(a)·h(b) (a smooth trend over
+    the dome the Gaussians alone would let fall to 0 between sparse lights)."""
+    d = np.linalg.norm(np.asarray(a)[:, None, :2] - np.asarray(b)[None, :, :2], axis=-1)
+    out = np.exp(-(eps * d) ** 2)
+    if mix:
+        out = out + mix * (hsh_basis(a, 2) @ hsh_basis(b, 2).T)
+    return out
+
+
+def _loo_error(kern, ridge, gram):
+    """Σ over rows r of R (gram = RᵀR) of the squared leave-one-out errors of kernel ridge
+    regression through r: e = A r / diag(A), A = (K + ridge I)⁻¹ (exact, no refit)."""
+    a = np.linalg.inv(kern + ridge * np.eye(len(kern)))
+    loo = a / np.diag(a)[None]
+    return float(np.einsum("ij,ik,kj->", loo, gram, loo))
+
+
+def _kernel_choice(gram, dirs, spacing):
+    """(epsilon, mix, ridge) of the kernel ridge regression that interpolates the residual's
+    light functions, or None when none predicts MIN_PREDICTED of the residual's energy at the
+    fitted lights left out (noise: ~0.004 %).
+    gram (m, m) = Σ over pixel-channels of r rᵀ (the residual kept). Judged by the exact
+    leave-one-light-out error of kernel ridge (Rasmussen & Williams 2006, eq. 5.12: e = A r / diag A,
+    A = (K + λI)⁻¹), summed over every pixel and channel: trace(D⁻¹A G A D⁻¹), from the gram alone."""
+    m = len(dirs)
+    best, best_err = None, (1.0 - MIN_PREDICTED) * float(np.trace(gram))
+    for mult in RBF_WIDTHS:
+        for mix in HSH_MIX:
+            kern = _kernel(dirs, dirs, 1.0 / (mult * spacing), mix)
+            scale = float(np.trace(kern)) / m
+            for sm in RBF_SMOOTHING:
+                err = _loo_error(kern, sm * scale, gram)
+                if err < best_err:
+                    best, best_err = (1.0 / (mult * spacing), mix, sm * scale), err
+    return best, (best_err if best is not None else float(np.trace(gram)))
+
+
+def fit_relight_model(images, light_dirs, mask, normals, heights=None, n_planes=None, shown=None, white=1.0,
+                      shadows="auto"):
+    """Fit the model of this module to photographs.
+
+    images : (m, H, W, 3) linear, scaled so that 1 is the display's white (values above 1 are
+    clipped in display); light_dirs : (m, 3) unit; mask (H, W); normals (H, W, 3) unit, camera
+    frame (from photometric stereo); heights : (H, W) in pixels (integrated normals) for cast
+    shadows, or None; n_planes : residual planes at most (`default_planes` caps them); shown :
+    the display values (m, H, W, 3) if known (8-bit photographs), else sRGB of the clipped images;
+    white : the images' value shown as white (they are divided by it, block by block).
+    Pixels are fitted by blocks (memory: the images, the maps, ~0.2 GB a block, and the
+    shadows' m bytes per pixel). shadows "auto" (with heights): the model is fitted with and
+    without cast shadows and the one whose residual predicts the fitted lights left out better
+    (`RelightModel.loo_error`) is kept; True: with them. Returns a `RelightModel`.
+    """
+    args = (images, light_dirs, mask, normals)
+    kw = dict(n_planes=n_planes, shown=shown, white=white)
+    model = _fit_model(*args, heights=heights, **kw)
+    if heights is None or shadows is True or model.loo_error is None:
+        return model
+    flat = _fit_model(*args, heights=None, **kw)
+    if flat.loo_error < model.loo_error:
+        flat.notes.append(f"no cast shadows: without them the fitted lights left out are predicted better "
+                          f"({flat.loo_error:.4g} against {model.loo_error:.4g})")
+        return flat
+    return model
+
+
+def _fit_model(images, light_dirs, mask, normals, heights=None, n_planes=None, shown=None, white=1.0):
+    """`fit_relight_model` with or without cast shadows (heights or None)."""
+    dirs = np.asarray(light_dirs, float)
+    dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    mask = np.asarray(mask, bool) & np.all(np.isfinite(normals), axis=-1)
+    n = np.where(mask[..., None], np.nan_to_num(np.asarray(normals, np.float32)), np.float32(0))
+    m = len(dirs)
+    lin = np.asarray(images)
+    # as many terms as the lights support: the lobe and the room's light need a dozen lights
+    terms = (0, 1, 2) if m >= 12 else (0,)
+    vis = None if heights is None else np.stack([np.round(cast_shadow(heights, d) * 255).astype(np.uint8)
+                                                 for d in dirs])
+    sel = np.nonzero(mask)
+
+    def values(r, c):        # (linear, display) values (m, n, C) of some pixels; unknown = white
+        y = np.nan_to_num(lin[:, r, c].astype(np.float32) / np.float32(white), nan=1.0)
+        s = srgb_encode(np.clip(y, 0, 1)) if shown is None else np.asarray(shown[:, r, c], np.float32)
+        return y, s.astype(np.float32)
+
+    def block_values(b):
+        r, c = sel[0][b], sel[1][b]
+        return (r, c) + values(r, c)
+
+    k = _choose_shininess(values, dirs, n, vis, sel, terms)
+    maps = np.zeros((3,) + mask.shape + (3,), np.float32)
+    blocks = _blocks(len(sel[0]), m)
+    for b in blocks:
+        r, c, y, s = block_values(b)
+        basis = physical_basis(n[r, c], dirs, k, None if vis is None else vis[:, r, c] / np.float32(255))
+        maps[:, r, c] = _fit_block(y, s, basis, terms).transpose(1, 0, 2)
+    model = RelightModel(n.astype(np.float32), mask, maps[0], maps[1], maps[2], float(k),
+                         None if heights is None else np.asarray(heights, np.float32), white=float(white))
+    n_planes = min(default_planes(m, len(sel[0])), m if n_planes is None else int(n_planes))
+    if n_planes <= 0 or m < 3:
+        return model
+
+    def residual_rows(b):          # (n_b * 3, m): display values minus srgb(phys), per light
+        r, c, y, s = block_values(b)
+        basis = physical_basis(n[r, c], dirs, k, None if vis is None else vis[:, r, c] / np.float32(255))
+        x = np.stack([maps[j, r, c] for j in range(3)], axis=1)             # (n_b, 3, C)
+        phys = np.einsum("mnj,njc->mnc", basis, x)
+        return (s - srgb_encode(np.clip(phys, 0, 1))).transpose(1, 2, 0).reshape(-1, m).astype(np.float64)
+
+    gram = np.zeros((m, m))
+    for b in blocks:
+        rows = residual_rows(b)
+        gram += rows.T @ rows
+    evals, evecs = np.linalg.eigh(gram)
+    funcs = evecs[:, ::-1][:, :n_planes]                                 # (m, K): the light functions
+    energy = np.clip(evals[::-1][:n_planes], 0, None)
+    xy = dirs[:, :2]
+    dist = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
+    np.fill_diagonal(dist, np.inf)
+    model.spacing = float(np.median(dist.min(axis=1)))
+    model.reach = float(np.max(np.linalg.norm(xy, axis=1)))
+    # the kernel judged on the residual the planes keep (what the model will interpolate)
+    choice, loo = _kernel_choice((funcs * energy) @ funcs.T, dirs, model.spacing)
+    # the model's error at the fitted lights left out: the planes' (interpolated) and what they leave
+    model.loo_error = loo + float(np.trace(gram) - energy.sum())
+    if choice is None:
+        model.notes.append("no residual: interpolating it did not predict the fitted lights left out")
+        return model
+    eps, mix, ridge = choice
+    # float16: 5e-4 of white where 8-bit display steps are 4e-3 (half the memory at 12 MP)
+    model.planes = np.zeros(mask.shape + (3, funcs.shape[1]), np.float16)
+    for b in blocks:
+        model.planes[sel[0][b], sel[1][b]] = (residual_rows(b) @ funcs).reshape(-1, 3, funcs.shape[1])
+    weights = np.linalg.solve(_kernel(dirs, dirs, eps, mix) + ridge * np.eye(m), funcs)      # (m, K)
+    model.centres, model.weights, model.epsilon = xy, weights, eps
+    model.trend = mix * (hsh_basis(dirs, 2).T @ weights) if mix else None                   # (4, K)
+    return model
+
+
+def default_planes(m, n_pixels=0):
+    """Residual planes for m fitted lights: the principal components of the residual over the
+    lights, as many as the lights, at most MAX_PLANES and what PLANES_BYTES holds for n_pixels
+    (12 MP: 7 planes), at least 4; none below 6 lights. More planes predict better (DiLiGenT's
+    crops, 84 lights, held out: 16 → 48 planes +0.3 to +0.7 dB; the dome, 200: +1.6 dB)."""
+    if m < 6:
+        return 0
+    fits = PLANES_BYTES // max(6 * int(n_pixels), 1)
+    return int(max(4, min(m, MAX_PLANES, fits)))
+
+
+_ARRAYS = ("normals", "mask", "rho", "spec", "amb", "heights", "planes", "centres", "weights", "trend")
+
+
+def save_relight_model(path, model):
+    """Write a `RelightModel` to an .npz (uncompressed, written whole or not at all)."""
+    arrays = {k: getattr(model, k) for k in _ARRAYS if getattr(model, k) is not None}
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, format=np.array("facette relight model 1"), shininess=model.shininess,
+                 epsilon=model.epsilon, white=model.white, softness=model.softness, spacing=model.spacing,
+                 reach=model.reach,
+                 **arrays)
+
+
+def load_relight_model(path):
+    """Read what `save_relight_model` wrote. Raises BadInputError for another file."""
+    try:
+        with np.load(path) as z:
+            if "format" not in z or not str(z["format"]).startswith("facette relight model"):
+                raise BadInputError(f"{path} is not a facette relighting model",
+                                    hint="give the relight_model.npz that facette process wrote")
+            got = {k: z[k] for k in _ARRAYS if k in z}
+            return RelightModel(shininess=float(z["shininess"]), epsilon=float(z["epsilon"]),
+                                white=float(z["white"]), softness=float(z["softness"]),
+                                spacing=float(z["spacing"]), reach=float(z["reach"]),
+                                **{k: got.get(k) for k in _ARRAYS})
+    except BadInputError:
+        raise
+    except (OSError, ValueError, KeyError) as exc:
+        raise BadInputError(f"cannot read the relighting model {path}: {exc}",
+                            hint="give the relight_model.npz that facette process wrote") from exc
