@@ -30,7 +30,7 @@ __all__ = ["fit_relight_bands", "fit_relight_model", "WHITE_PERCENTILE"]
 
 SAMPLE = 20_000             # the object's pixels the exponent and the shadows are chosen on
 WHITE_SAMPLE = 200_000      # the object's pixels the white is taken from
-EXPONENT_ONCE = True        # shadows "auto": the lobe's exponent chosen on the fit without them only
+EXPONENT_ONCE = True        # shadows "auto": judged with the exponent of the fit without them (chosen again if kept)
 WHITE_PERCENTILE = 99.9     # the white: this percentile of the sample's brightest channel over the lights
 
 
@@ -196,13 +196,15 @@ def fit_relight_bands(read, light_dirs, mask, normals, heights=None, n_planes=No
         judge = planes if planes > 0 else None
         notes = []
         if shadow is not None and shadows == "auto" and judge is not None:
-            # the exponent chosen without the shadows, kept with them (EXPONENT_ONCE)
+            # the shadows judged with the exponent chosen without them (EXPONENT_ONCE); kept, their own
             k_flat, loo_flat = _sample_choice(fit, sample, white, None, judge)
             k, loo = _sample_choice(fit, sample, white, shadow, judge, (k_flat,) if EXPONENT_ONCE else SHININESS)
             if loo_flat < loo:
                 notes.append(f"no cast shadows: without them the fitted lights left out are predicted better "
                              f"(on {len(picks)} pixels: {loo_flat:.4g} against {loo:.4g})")
                 shadow, k = None, k_flat
+            elif EXPONENT_ONCE:
+                k = _sample_choice(fit, sample, white, shadow, None)[0]
         else:
             k = _sample_choice(fit, sample, white, shadow, None)[0]
         return _fit_passes(fit, k, shadow, white, heights if shadow is not None else None, planes, notes)
