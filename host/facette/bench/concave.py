@@ -8,7 +8,8 @@ under 96 lights (a DiLiGenT-like grid of 8 x 12, up to 45 deg from the axis) and
 12 (15 and 30 deg from the axis). Each scene goes through `facette process` as a user's folder
 (16-bit PNGs, DiLiGenT-style, relative intensities: no Spectralon): least squares; the default as
 it was before the shadow step ("before": no inter-reflection removal, no shadows); the default
-(shadows "auto", inter-reflections "auto": removed where the images tell the albedo's scale); the
+(shadows "auto", inter-reflections "auto": removed where the images identify the albedo's scale); the
+default with the inter-reflections left in (as "auto" was before it removed them on relative images); the
 default without the shadow step; the default with `--interreflections` (the albedo's scale estimated from the
 images, facette.recon._interreflect_scale), without and with the shadows. Printed per scene: mean, median
 and 95th percentile of the angular error, the ratio to least squares' mean, process's seconds.
@@ -78,6 +79,7 @@ VARIANTS = {   # label: process options
     "least squares": {"method": "woodham1980", "shadows": "off", "interreflections": False},
     "before (no ir or shadows)": {"shadows": "off", "interreflections": False},
     "default": {},
+    "default, ir left in": {"interreflections": False},
     "default, no shadows": {"shadows": "off"},
     "default +ir (no shadows)": {"interreflections": True, "shadows": "off"},
     "default +ir": {"interreflections": True},
