@@ -86,6 +86,7 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
         if method_name == "li_alternating":
             ps, direct, info = ps_li_without_interreflections(solve_in, light_dirs, reflectance_scale=reflectance_scale,
                                                               **options_for(method_name, bag))
+            info["cpu_seconds"] = round(time.process_time() - c0, 3)
             if found is not None:
                 info["identified_on"] = {k: found[k] for k in ("scale", "gather_correlation", "growth_kept")}
             note_interreflections(res, info, info["removal_seconds"])
