@@ -45,8 +45,9 @@ def _decide_bin(mask):
 
 
 def interreflections_wanted(o, inp, notes):
-    """Whether `process` removes the inter-reflections: the option when True or False; for "auto",
-    on a reflectance-calibrated scan read whole that is not the rig simulator's. A note in `notes`
+    """Whether `process` runs the inter-reflection step: the option when True or False; for "auto",
+    on every input read whole that is not the rig simulator's (on relative images the step then
+    removes them only where the images identify the albedo's scale, AUTO_SCALE). A note in `notes`
     says why it is left out ("auto") or that a simulated scan has none to remove (True)."""
     simulated = inp.truth is not None and "sensor" in inp.truth      # the rig simulator's truth
     if o.interreflections is True and simulated:
