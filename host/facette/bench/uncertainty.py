@@ -16,6 +16,10 @@ Four sources:
 - DiLiGenT with truth (`facette bench diligent`'s folders, through `facette process`), unless --no-real.
 The renders choose BAND_SCALE and K_CURL (the line "pooled over the renders" prints the scale
 that would put 90 % of their normals inside the band); DiLiGenT only confirms them.
+Each case also prints how rankable its errors are: their 10th-90th percentile (an error that is about the
+same everywhere, as the 16-bit ball's ~2 deg, has no order for any measure to find). --candidates adds a line
+per case with the Spearman of the measures tried and not taken (bench._uncertainty_candidates: a
+leave-one-light-out jackknife, the kept lights' count, conditioning and spread, residuals).
 """
 import argparse
 import time
@@ -75,28 +79,41 @@ def before_after(u, normals):
     return before, u
 
 
-def _line(name, sb, sa, dt, mpix):
+def _line(name, sb, sa, dt, mpix, err):
+    p10, p90 = np.percentile(err, [10, 90]) if len(err) else (np.nan, np.nan)
     return (f"{name:40s} | {sb[0]:5.2f} {sb[1]:5.2f} | {sa[0]:5.2f} {sa[1]:5.2f} | {sa[2]:6.2f} | {sa[3]:6.2f} | "
-            f"{dt:6.2f}s {dt / max(mpix, 1e-9):7.1f} s/MP")
+            f"{p10:5.2f}-{p90:5.2f} | {dt:6.2f}s {dt / max(mpix, 1e-9):7.1f} s/MP")
 
 
-HEAD = (f"{'case':40s} | before: rho   cov | after: rho   cov | u med° | err med° | time (uncertainty), per MP\n"
+HEAD = (f"{'case':40s} | before: rho   cov | after: rho   cov | u med° | err med° | err p10-p90 | "
+        "time (uncertainty), per MP\n"
         "(rho: Spearman of the band against the error; cov: share of errors within the band, aim 0.9)")
+
+
+def candidates_line(images, light_dirs, normals, sel, err, saturation=None):
+    """The Spearman of each measure tried and not taken (bench._uncertainty_candidates), one line."""
+    from facette.bench._uncertainty_candidates import candidate_spearman
+    rho = candidate_spearman(images, light_dirs, normals, sel, err, saturation)
+    return "    candidates (rho): " + ", ".join(f"{k} {v:+.2f}" for k, v in rho.items())
 
 
 class Tally:
     """The rows of one group of cases: per-case (rho, cov) before and after, and the pooled band/errors."""
-    def __init__(self, name):
+    def __init__(self, name, candidates=False):
         self.name, self.before, self.after, self.u, self.e = name, [], [], [], []
+        self.candidates = candidates          # print the candidates' line (--candidates)
 
-    def add(self, name, u, normals, err, sel, dt):
+    def add(self, name, u, normals, err, sel, dt, data=None):
+        """data: a callable giving (images, light_dirs) as the solve saw them, for the candidates' line."""
         b, a = before_after(u, normals)
         sb, sa = score(b[sel], err), score(a[sel], err)
         self.before.append(sb[:2])
         self.after.append(sa[:2])
         self.u.append(a[sel] / unc.BAND_SCALE)
         self.e.append(err)
-        print(_line(name, sb, sa, dt, sel.size / 1e6), flush=True)
+        print(_line(name, sb, sa, dt, sel.size / 1e6, err), flush=True)
+        if self.candidates and data is not None:
+            print(candidates_line(*data(), normals, sel, err), flush=True)
 
     def summary(self):
         if self.before:
@@ -111,7 +128,8 @@ def render_table(cases, method, tally):
         t = time.perf_counter()
         sel = mask & r.valid & (np.linalg.norm(truth, axis=-1) > 0.5)
         u = normal_uncertainty(im, lights, r.normal, mask & r.valid)
-        tally.add(name, u, r.normal, angular_errors(r.normal, truth, sel), sel, time.perf_counter() - t)
+        tally.add(name, u, r.normal, angular_errors(r.normal, truth, sel), sel, time.perf_counter() - t,
+                  data=lambda: (im, lights))
     tally.summary()
 
 
@@ -130,8 +148,14 @@ def concave_table(cache, light_sets, materials, tally):
                     sel = binary_erosion(d["mask"], iterations=1) & res.mask
                     err = angular_errors(res.normals, d["normals"], sel)
                     tally.add(f"concave {shape}/{material}/{lights}", res.uncertainty, res.normals, err, sel,
-                              res.timings.get("uncertainty", float("nan")))
+                              res.timings.get("uncertainty", float("nan")), data=lambda: (d["images"], d["light_dirs"]))
     tally.summary()
+
+
+def _diligent_images(folder):
+    from facette.io.diligent import read_diligent
+    data = read_diligent(folder)
+    return data.images, data.light_dirs
 
 
 def diligent_table(root, tally):
@@ -144,7 +168,8 @@ def diligent_table(root, tally):
         good = res.mask & (np.linalg.norm(truth, axis=-1) > 0.5)
         err = angular_errors(res.normals, truth, good)
         name = f"{folder.parent.name}/{object_name(folder)} ({err.mean():.2f}° mean)"
-        tally.add(name, res.uncertainty, res.normals, err, good, res.timings.get("uncertainty", float("nan")))
+        tally.add(name, res.uncertainty, res.normals, err, good, res.timings.get("uncertainty", float("nan")),
+                  data=lambda: _diligent_images(folder))
     tally.summary()
 
 
@@ -161,17 +186,19 @@ def main(argv=None):
     ap.add_argument("--concave-lights", default="rig12,96", help="their light sets (rig12, 96)")
     ap.add_argument("--concave-materials", default="plaster,paint_0.10", help="their materials")
     ap.add_argument("--concave-cache", default="/tmp/facette-concave", help="their cached renders")
+    ap.add_argument("--candidates", action="store_true",
+                    help="also print each case's Spearman of the measures tried and not taken (a jackknife, ...)")
     args = ap.parse_args(argv)
     print(f"uncertainty of the normals: the 90 % band = sqrt(({unc.BAND_SCALE} u)^2 + ({unc.K_CURL} curl)^2) "
           "(recon._uncertainty); before: the local fit's band alone")
     print(HEAD)
-    rendered = [Tally("the synthetic spheres")]
+    rendered = [Tally("the synthetic spheres", args.candidates)]
     render_table(synthetic_cases(), args.method, rendered[0])
     if not args.no_mitsuba:
-        rendered.append(Tally("the Mitsuba scenes"))
+        rendered.append(Tally("the Mitsuba scenes", args.candidates))
         render_table(mitsuba_cases(args.cache, args.size, args.spp), args.method, rendered[-1])
     if not args.no_concave:
-        rendered.append(Tally("the concave scenes"))
+        rendered.append(Tally("the concave scenes", args.candidates))
         concave_table(args.concave_cache, args.concave_lights.split(","), args.concave_materials.split(","),
                       rendered[-1])
     u, e = np.concatenate([x for t in rendered for x in t.u]), np.concatenate([x for t in rendered for x in t.e])
@@ -179,5 +206,5 @@ def main(argv=None):
           f"{np.mean(e <= unc.BAND_SCALE * u):.2f}; the band times "
           f"{np.percentile(e / np.maximum(unc.BAND_SCALE * u, 1e-9), 90):.2f} would hold 90 % of them")
     if not args.no_real:
-        diligent_table(args.root or default_root(), Tally("the DiLiGenT objects"))
+        diligent_table(args.root or default_root(), Tally("the DiLiGenT objects", args.candidates))
     return 0

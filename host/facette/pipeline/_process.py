@@ -53,12 +53,12 @@ from facette.pipeline._light_gains import with_light_gains
 from facette.pipeline._shadows import shadows_wanted, with_shadows
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
-from facette.pipeline._rti_bands import relight_bands, relight_exposure, relight_stage, write_relight_web
+from facette.pipeline._rti_bands import BANDED_OUTPUTS, relight_bands, relight_stage, whole_bands, write_relight_web
 from facette.pipeline._rti_exposure import record_exposure
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, in_memory_ps, streamed, streamed_ps
 from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry, truth_errors
 from facette.pipeline._report import report_fit_section, write_report
-from facette.pipeline._relight_model_stage import relight_model_stage, save_relight_model
+from facette.pipeline._relight_model_stage import model_input, relight_model_stage, save_relight_model
 from facette.pipeline._samples import _samples_stage  # bench/recon.py imports it from here too
 
 __all__ = ["OUTPUTS", "ALL_OUTPUTS", "STAGES_FOR", "ProcessOptions", "ProcessResult", "process", "stages_needed"]
@@ -231,7 +231,7 @@ def _process(source, outputs, out_dir, o):
             banded.append(relight_bands(read, res.object_mask, outputs, o, rows, len(inp.light_dirs), inp))
         inp, ps, light_dirs, top = streamed_ps(source, o, res, lambda i: claimed.update(previous=claim(i)),
                                                samples="samples" in stages,
-                                               relight=fits if {"ptm", "rti", "relight-web"} & set(outputs) else None)
+                                               relight=fits if BANDED_OUTPUTS & set(outputs) else None)
         previous, images, direct = claimed["previous"], None, None
         interreflections_wanted(o, inp, res.notes), shadows_wanted(o, light_dirs, res.notes)   # their notes: why not
         if res.ps is None:
@@ -341,6 +341,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
     integration, mesh_step = o.integration, o.mesh_step
     out = None if out_dir is None else Path(out_dir)
     if out is not None: out.mkdir(parents=True, exist_ok=True)     # noqa: E701
+    relight = whole_bands(relight, res, inp, images, light_dirs, o, outputs)     # ptm, rti: over bands
     write = _writers(res, out, outputs, o.ascii_ply, relight)
 
     def shape():
@@ -363,7 +364,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
                               inp.pixel_pitch_mm, step, MESH_MAX_SLOPE)
             res.options["mesh_step"] = step
             write("mesh")
-        notes += relight_model_stage(res, images, light_dirs, inp.pixel_pitch_mm, write,
+        notes += relight_model_stage(res, model_input(images, relight), light_dirs, inp.pixel_pitch_mm, write,
                                      "relight" in outputs) if "relight" in stages else []
         return notes
 
@@ -387,9 +388,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
             drawn["fit"] = _timed(res, "report_fit", report_fit_section, res)
         return [note] if note else []
 
-    photos = None
-    if relight is None and {"ptm", "hsh"} & set(stages):      # both fits' scale and images, once
-        photos = relight_exposure(res, inp, images, o)[1]
+    photos = None       # the fits over bands (`whole_bands`): the photographs' scale applied a band at a time
 
     def relit(name):      # relight.ptm, relight.rti (pipeline._rti_bands: whole images, or bands with --memory)
         ok, notes = relight_stage(name, res, photos, light_dirs, o, relight)
