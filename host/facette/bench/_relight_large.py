@@ -17,7 +17,7 @@ __all__ = ["run_large"]
 CHILD = [sys.executable, "-m", "facette.bench._relight_large"]
 
 
-def run_large(size, work, method="woodham1980"):
+def run_large(size, work, method="woodham1980", memory=None):
     """Generate the slab (w, h) in `work`, fit the model in a child process, print its figures."""
     from facette.bench._large import write_relief_capture
     w, h = size
@@ -29,7 +29,7 @@ def run_large(size, work, method="woodham1980"):
     t0 = time.perf_counter()
     log = Path(work) / "large_child.txt"
     with open(log, "w") as fh:
-        proc = subprocess.Popen(CHILD + [str(folder), str(Path(work) / "out_large"), method], stdout=fh)
+        proc = subprocess.Popen(CHILD + [str(folder), str(Path(work) / "out_large"), method, str(memory)], stdout=fh)
         _, status, usage = os.wait4(proc.pid, 0)
         proc.returncode = os.waitstatus_to_exitcode(status)     # reaped here: Popen must not wait again
     out = log.read_text()
@@ -37,14 +37,16 @@ def run_large(size, work, method="woodham1980"):
     if proc.returncode:
         print(f"large: process failed ({proc.returncode})")
         return
-    print(f"large: process --outputs relight ({method}) {wall:.0f} s wall, peak {usage.ru_maxrss / 1e6:.2f} GB; "
+    print(f"large: process --outputs relight ({method}, --memory {memory}) {wall:.0f} s wall, "
+          f"peak {usage.ru_maxrss / 1e6:.2f} GB; "
           + out.strip(), flush=True)
 
 
-def _child(folder, out, method):
+def _child(folder, out, method, memory="None"):
     import numpy as np
     from facette.pipeline import process
-    res = process(folder, outputs=["relight"], out_dir=out, method=method)
+    res = process(folder, outputs=["relight"], out_dir=out, method=method,
+                  **({} if memory == "None" else {"memory": memory}))
     mpx = res.relight_model.mask.sum() / 1e6
     k = 0 if res.relight_model.planes is None else res.relight_model.planes.shape[-1]
     size = os.path.getsize(Path(out) / "relight_model.npz") / 1e6
@@ -54,4 +56,4 @@ def _child(folder, out, method):
 
 
 if __name__ == "__main__":
-    _child(*sys.argv[1:4])
+    _child(*sys.argv[1:5])

@@ -17,7 +17,7 @@ from facette.pipeline import process
 from facette.pipeline._relight import kd_map_from_albedo, relight, viewer_model
 from facette.recon import (fit_hsh, fit_ptm_lrgb, hsh_basis, ptm_basis, ps_rank_trimmed, ps_woodham1980,
                            srgb_encode, integrate)
-from facette.recon._relight_model import fit_relight_model
+from facette.recon import fit_relight_model
 
 __all__ = ["Fitted", "METHODS", "model_normals"]
 

@@ -8,7 +8,8 @@ under 96 lights (a DiLiGenT-like grid of 8 x 12, up to 45 deg from the axis) and
 12 (15 and 30 deg from the axis). Each scene goes through `facette process` as a user's folder
 (16-bit PNGs, DiLiGenT-style, relative intensities: no Spectralon): least squares; the default as
 it was before the shadow step ("before": no inter-reflection removal, no shadows); the default
-(shadows "auto", inter-reflections "auto": removed where the images tell the albedo's scale); the
+(shadows "auto", inter-reflections "auto": removed where the images identify the albedo's scale); the
+default with the inter-reflections left in (as "auto" was before it removed them on relative images); the
 default without the shadow step; the default with `--interreflections` (the albedo's scale estimated from the
 images, facette.recon._interreflect_scale), without and with the shadows. Printed per scene: mean, median
 and 95th percentile of the angular error, the ratio to least squares' mean, process's seconds.
@@ -78,6 +79,7 @@ VARIANTS = {   # label: process options
     "least squares": {"method": "woodham1980", "shadows": "off", "interreflections": False},
     "before (no ir or shadows)": {"shadows": "off", "interreflections": False},
     "default": {},
+    "default (ir left in)": {"interreflections": False},
     "default, no shadows": {"shadows": "off"},
     "default +ir (no shadows)": {"interreflections": True, "shadows": "off"},
     "default +ir": {"interreflections": True},
@@ -89,6 +91,45 @@ def errors(n, d):
     return np.degrees(np.arccos(np.clip(np.sum(n * d["normals"], -1), -1, 1)))[sel]
 
 
+def _row(label, d, folder, variants, ratios, key):
+    """`process` on one scene's folder under each variant: a printed row per variant; the ratio to least
+    squares (or to the first variant when there is no least squares) appended to ratios[(key, variant)]."""
+    ref = None
+    for v in variants:
+        n, dt, res = run(folder, **VARIANTS[v])
+        e = errors(n, d)
+        ref = e.mean() if ref is None or v == "least squares" else ref
+        ratio = e.mean() / ref if ref else np.nan
+        ratios.setdefault((key, v), []).append(ratio)
+        shadows = res.quality.get("shadows")
+        extra = "" if shadows is None else \
+            f"  hidden {shadows.get('decided_on')} (binned {shadows.get('bin')}) -> {shadows['hidden_share']}"
+        ir = res.interreflections
+        if ir is not None:
+            est = ir.get("identified_on") or ir.get("scale_estimate") or {}
+            extra += (f"  ir scale {ir.get('reflectance_scale', np.nan):.2f} "
+                      + ("removed" if ir["applied"] else "left in")
+                      + "".join(f" {k} {est[k]:.2f}" for k in ("gather_correlation", "growth_kept")
+                                if est.get(k) is not None)
+                      + f" ({ir.get('cpu_seconds', np.nan):.2f} cpu s)")
+        print(f"{label:34s} {v:22s} {e.mean():6.2f} {np.median(e):7.2f} {np.percentile(e, 95):6.2f} "
+              f"{ratio:6.2f} {dt[0]:6.2f} {dt[1]:6.2f}{extra}", flush=True)
+
+
+def _scenes(args):
+    """(label, lights, scene) of the concave renders, or with --controls of the convex controls."""
+    for lights in args.lights.split(","):
+        if args.controls:
+            from facette.bench._convex_controls import local_controls, mitsuba_controls
+            dirs = LIGHT_SETS[lights]()
+            for name, d in (local_controls(dirs) | mitsuba_controls(dirs, args.cache)).items():
+                yield f"{name}/{lights}", lights, d
+            continue
+        for material in args.materials.split(","):
+            for shape in args.shapes.split(","):
+                yield f"{shape}/{material}/{lights}", lights, scene(shape, material, lights, args.cache)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="facette bench concave", description=__doc__.splitlines()[0])
     ap.add_argument("--cache", default="/tmp/facette-concave", help="folder for the cached renders")
@@ -97,39 +138,21 @@ def main(argv=None):
     ap.add_argument("--materials", default=",".join(MATERIALS))
     ap.add_argument("--variants", default="least squares,before (no ir or shadows),default",
                     help=f"comma-separated labels of: {', '.join(VARIANTS)}")
+    ap.add_argument("--controls", action="store_true",
+                    help="the convex controls instead (bench._convex_controls: textured, no inter-reflections; "
+                         "'auto' must leave them as they are)")
     args = ap.parse_args(argv)
     variants = [v.strip() for v in args.variants.split(",")]
     print(f"Mitsuba 3 path-traced concave scenes, {SIZE}x{SIZE} px, {SPP} spp, max_depth 4, through "
           f"`facette process` on 16-bit DiLiGenT-style folders (cached in {args.cache}); error on the frame "
-          "eroded by 1 px; ratio = mean / least squares' mean; s: process's wall seconds, cpu s its CPU seconds")
-    print(f"{'scene':28s} {'variant':22s} {'mean°':>6s} {'median°':>7s} {'p95°':>6s} {'ratio':>6s} {'s':>6s} {'cpu s':>6s}")
+          "eroded by 1 px; ratio = mean / least squares' mean (or the first variant's); s: process's wall "
+          "seconds, cpu s its CPU seconds")
+    print(f"{'scene':34s} {'variant':22s} {'mean°':>6s} {'median°':>7s} {'p95°':>6s} {'ratio':>6s} {'s':>6s} {'cpu s':>6s}")
     ratios = {}
     with tempfile.TemporaryDirectory() as work:
-        for lights in args.lights.split(","):
-            for material in args.materials.split(","):
-                for shape in args.shapes.split(","):
-                    d = scene(shape, material, lights, args.cache)
-                    folder = _folder(d, work, f"{shape}_{material}_{lights}")
-                    label = f"{shape}/{material}/{lights}"
-                    ls = None
-                    for v in variants:
-                        n, dt, res = run(folder, **VARIANTS[v])
-                        e = errors(n, d)
-                        ls = e.mean() if v == "least squares" else ls
-                        ratio = e.mean() / ls if ls else np.nan
-                        ratios.setdefault((lights, v), []).append(ratio)
-                        shadows = res.quality.get("shadows")
-                        extra = "" if shadows is None else \
-                            f"  hidden {shadows.get('decided_on')} (binned {shadows.get('bin')}) -> {shadows['hidden_share']}"
-                        ir = res.interreflections
-                        if ir is not None:
-                            extra += (f"  ir scale {ir.get('reflectance_scale', np.nan):.2f} "
-                                      + ("removed" if ir["applied"] else "left in"))
-                            kept = (ir.get("scale_estimate") or {}).get("growth_kept")
-                            extra += "" if kept is None else f" (growth kept {kept:.2f})"
-                        print(f"{label:28s} {v:22s} {e.mean():6.2f} {np.median(e):7.2f} {np.percentile(e, 95):6.2f} "
-                              f"{ratio:6.2f} {dt[0]:6.2f} {dt[1]:6.2f}{extra}", flush=True)
-    print("\nMean ratio to least squares over the scenes:")
+        for label, lights, d in _scenes(args):
+            _row(label, d, _folder(d, work, label.replace("/", "_").replace(" ", "_")), variants, ratios, lights)
+    print("\nMean ratio over the scenes:")
     for (lights, v), r in ratios.items():
         print(f"  {lights:6s} {v:22s} {np.nanmean(r):.2f} (scenes: {', '.join(f'{x:.2f}' for x in r)})")
     return 0

@@ -10,8 +10,12 @@ in a process of its own, and the bench reports:
   the `facette` command's allocator settings, facette._memory);
 - reconstruction (photometric stereo + integration) and BRDF fit, from `facette process`;
 - "results ready after the last frame": from the last frame's capture (journal) to the
-  last result file written (results/process.json, written last); and to the command's end
-  (the interpreter's exit after that: freeing gigabytes takes a few tenths of a second);
+  last result file written (results/process.json, written last: every output asked for, the
+  report and model.glb included); "maps ready": to the last of the maps (normal.exr, albedo.exr,
+  mask.png, height.exr: what photometric stereo and the integration give, written before the
+  report and model.glb are made); and to the command's end (the interpreter's exit after that:
+  freeing gigabytes takes a few tenths of a second); the scan command's CPU seconds (simulator
+  included: on a shared machine, wall time waits for a core);
 - peak memory (max RSS) of the scan command (simulator included) and of `facette process`
   alone on the finished scan;
 - "rig apart": the same scan with the simulated rig in a process of its own (`facette sim`)
@@ -154,9 +158,23 @@ def _journal_last_frame(scan_dir):
     return _dt.datetime.fromisoformat(last)
 
 
+MAPS = ("normal.exr", "albedo.exr", "mask.png", "height.exr")    # the maps, before the report and model.glb
+
+
+def _maps_written(results):
+    """When the last of the maps (MAPS, those there) was written (POSIX seconds); NaN when none is."""
+    times = [(results / name).stat().st_mtime for name in MAPS if (results / name).is_file()]
+    return max(times) if times else float("nan")
+
+
 def _ready_s(scan_dir):
     """Seconds from the scan's last frame to its last result file."""
     return _results_written(scan_dir / "results") - _journal_last_frame(scan_dir).timestamp()
+
+
+def _maps_ready_s(scan_dir):
+    """Seconds from the scan's last frame to the last of its maps (MAPS)."""
+    return _maps_written(scan_dir / "results") - _journal_last_frame(scan_dir).timestamp()
 
 
 def _size_args(size):
@@ -199,7 +217,7 @@ def one_run(size, work, exposures=None, rig_apart=True, memory=None, outputs=Non
         cmd[-1:-1] = ["--memory", memory]
     if outputs:
         cmd[-1:-1] = ["--outputs", outputs]
-    out, wall, rss, end, _ = _run_rss(cmd)
+    out, wall, rss, end, cpu = _run_rss(cmd)
     data = read_scan_manifest(d)
     merge_s = sum(r.seconds() for r in data.hdr.lights) if data.hdr is not None else 0.0
     times = _times(out)
@@ -213,7 +231,8 @@ def one_run(size, work, exposures=None, rig_apart=True, memory=None, outputs=Non
            "bracket": (data.bracketing or {}).get("name"),
            "frames": len(data.frames), "rig_s": data.rig_time_s, "wall_s": wall, "merge_s": merge_s,
            "recon_s": times.get("ps", np.nan) + times.get("integrate", np.nan),
-           "fit_s": times.get("fit", np.nan), "ready_s": _ready_s(d),
+           "fit_s": times.get("fit", np.nan), "maps_ready_s": _maps_ready_s(d), "ready_s": _ready_s(d),
+           "scan_cpu_s": cpu,
            "exit_s": (end - _journal_last_frame(d)).total_seconds(), "peak_gb": rss,
            "shadow_db": shadow, "mid_db": mid, "clipped": clipped,
            "height_rms_mm": global_, "height_rms_px": global_ / pitch,
@@ -240,7 +259,8 @@ COLUMNS = [("size", "size", "s"), ("bracket", "bracket", "s"), ("frames", "frame
            ("rig_s", "rig s", ".1f"), ("wall_s", "wall s", ".1f"), ("merge_s", "merge s", ".2f"),
            ("merge_alone_s", "merge alone s", ".2f"), ("merge_alone_cpu_s", "(CPU s)", ".2f"),
            ("recon_s", "recon s", ".2f"),
-           ("fit_s", "fit s", ".2f"), ("ready_s", "ready after last frame s", ".2f"),
+           ("fit_s", "fit s", ".2f"), ("maps_ready_s", "maps ready after last frame s", ".2f"),
+           ("ready_s", "ready after last frame s", ".2f"), ("scan_cpu_s", "scan command CPU s", ".1f"),
            ("exit_s", "command end s", ".2f"),
            ("process_s", "process alone s", ".2f"), ("process_cpu_s", "(CPU s)", ".2f"),
            ("peak_gb", "peak GB (scan+sim)", ".2f"), ("process_gb", "peak GB process", ".2f"),
@@ -306,8 +326,9 @@ def main(argv=None):
     _print(rows)
     print("  rig s: device timeline (metering included); merge s: decode + merge + EXR write summed "
           "over lights on the worker during the scan; merge alone: the same scan merged again in "
-          "a fresh process; recon: photometric stereo + integration; ready: last frame captured -> "
-          "last result file written; command end: -> the scan command's exit; rig apart: the scan command (no simulator in its process) against `facette sim`; process alone: `facette process` on the finished scan (HDR up to date); "
+          "a fresh process; recon: photometric stereo + integration; maps ready: last frame captured -> "
+          "the last of normal.exr, albedo.exr, mask.png, height.exr written; ready: -> the last result file written "
+          "(report and model.glb included); scan command CPU s: simulator included; command end: -> the scan command's exit; rig apart: the scan command (no simulator in its process) against `facette sim`; process alone: `facette process` on the finished scan (HDR up to date); "
           "CPU s: of that process (wall > CPU/cores means it waited for a core); SNR from the merge's variance on the object, green, median over lights; "
           "height RMS: result against the truth on the object up to one constant, also in pixel pitches, "
           "and up to one constant per object")

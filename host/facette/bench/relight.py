@@ -5,8 +5,8 @@ NeuralRTI benchmark's: the PSNR of the 8-bit display values (sRGB-encoded, clipp
 every pixel of the object and every channel, per held-out photograph, then averaged; the SSIM
 of the same 8-bit values (Wang et al. 2004: Gaussian window σ 1.5, K1 0.01, K2 0.03, per channel,
 averaged over the object); the share of the object's pixels whose raw value (before the viewer's
-clip) is negative under lights 75° from the axis (8 azimuths); the fit's time and its size
-(bytes per pixel as 8-bit planes = MB per megapixel).
+clip) is negative under lights 75° from the axis (8 azimuths); the fit's time (wall and CPU, which
+holds on a busy machine) and its size (bytes per pixel as 8-bit planes = MB per megapixel).
 
 Methods (`bench._relight_methods`): PTM LRGB, HSH of order 2 and 3, Relight's RBF (principal
 components + Gaussian RBF over the lights), facette's report viewer before this change (process():
@@ -74,16 +74,17 @@ def score(cap, names, work):
     """{method: dict(psnr, ssim, neg, fit_s, size, why)} over the capture's folds; None: n/a."""
     out = {}
     for name in names:
-        ps, ss, neg, secs, size, why = [], [], [], 0.0, 0.0, ""
+        ps, ss, neg, secs, cpu, size, why = [], [], [], 0.0, 0.0, 0.0, ""
         for k, held in enumerate(cap.folds):
             train = np.setdiff1d(np.arange(len(cap.dirs)), held)
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             if "before" in name and len(cap.folds) > 1:
                 ps, why = None, "skipped: one process() per fold"
                 break
             args = (cap, train, work / f"{name}{k}") if "before" in name else (cap, train)
             fitted = METHODS[name](*args)
             secs += time.perf_counter() - t0
+            cpu += time.process_time() - c0
             if fitted is None or fitted.raw is None:
                 why = fitted.why if fitted is not None else "fewer lights than terms"
                 ps = None
@@ -97,7 +98,8 @@ def score(cap, names, work):
                 neg = [float(np.mean(np.any(fitted.raw(d) < 0, axis=-1)[cap.mask])) for d in raking_lights()]
         mpx = cap.mask.sum() / 1e6
         out[name] = None if ps is None else dict(psnr=np.mean(ps), ssim=np.mean(ss), neg=100 * np.mean(neg),
-                                                 fit_s_mpx=secs / len(cap.folds) / mpx, size=size, why=why)
+                                                 fit_s_mpx=secs / len(cap.folds) / mpx,
+                                                 fit_cpu_mpx=cpu / len(cap.folds) / mpx, size=size, why=why)
         if ps is None:
             out[name] = dict(why=why)
     return out
@@ -107,7 +109,7 @@ def _row(label, name, r):
     if "psnr" not in r:
         return f"  {label:22s} {name:20s} {'n/a':>8s}   ({r['why']})"
     return (f"  {label:22s} {name:20s} {r['psnr']:6.2f} dB {r['ssim']:6.3f} {r['neg']:8.2f} % "
-            f"{r['fit_s_mpx']:9.1f} s/MP {r['size']:5.0f} B/px" + (f"  ({r['why']})" if r["why"] else ""))
+            f"{r['fit_s_mpx']:9.1f} s/MP {r['fit_cpu_mpx']:9.1f} CPU s/MP {r['size']:5.0f} B/px" + (f"  ({r['why']})" if r["why"] else ""))
 
 
 def _captures(base, args, work):
@@ -154,11 +156,13 @@ def main(argv=None):
     ap.add_argument("--large", default=None, metavar="WxH",
                     help="also fit the model on a generated WxH slab through process (e.g. 4000x3000: "
                          "12 MP); prints its time and peak memory")
+    ap.add_argument("--large-memory", default=None, metavar="SIZE",
+                    help="--large: process's --memory (e.g. 3GB: read band by band; default: none given)")
     args = ap.parse_args(argv)
     names = [n for n in args.methods.split(",") if n in METHODS and not (args.no_before and "before" in n)]
     work = Path(tempfile.mkdtemp(prefix="facette_bench_relight_"))
     table = {}
-    print(f"  {'capture':22s} {'method':20s} {'PSNR':>9s} {'SSIM':>6s} {'neg@75°':>10s} {'fit':>14s} {'size':>8s}")
+    print(f"  {'capture':22s} {'method':20s} {'PSNR':>9s} {'SSIM':>6s} {'neg@75°':>10s} {'fit':>14s} {'fit CPU':>18s} {'size':>8s}")
     try:
         for cap in _captures(Path(args.root), args, work):
             label = f"{cap.name} ({len(cap.dirs)}, {cap.mask.sum() / 1e3:.0f}k px)"
@@ -169,7 +173,7 @@ def main(argv=None):
                 print(_row(label, name, rows[name]), flush=True)
                 label = ""
         if args.large:
-            run_large(tuple(int(v) for v in args.large.lower().split("x")), work)
+            run_large(tuple(int(v) for v in args.large.lower().split("x")), work, memory=args.large_memory)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     if not table:

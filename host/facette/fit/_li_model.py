@@ -64,6 +64,18 @@ PROFILE_N_I0_METAL = 15.0
 PROFILE_KEEP = 0.8
 PROFILE_VALUES = 12_000
 PROFILE_TABLE_GRID = 65
+# The grid search's solves (`_profile_lobe`: one per grid point and diffuse part, ~55 with 3 diffuse
+# parts) interpolate the volume part B from a table per (σ, n_i) of this many points per axis; at 65
+# the ~55 tables took 3.2 of DiLiGenT cat's 15.4 CPU s (96 lights, one thread). At 33 a table costs a
+# quarter; B is within 0.25 % at the median (65: 0.06 %) but 8 % at the 99th percentile (65: 1.5 %),
+# at grazing normals. The search only ranks grid points; the warm-ups and the check (`_gain_on`,
+# `_diffuse_at_fits`), which fit (σ, n_i) and decide the bar and the diffuse part on oblique pixels,
+# keep PROFILE_TABLE_GRID: all at 33, the test sphere of the coupled diffuse part was still chosen
+# but at 0.94 of LI's cost, not < 0.8 (tests/fit/test_ps_li.py).
+# Renders (`bench lights` relief 481x466, 65 -> 33): satin 12/48/96 lights 0.3194/0.0715/0.0510 ->
+# 0.3194/0.0715/0.0511°, glossy 12/48 0.4404/0.0703 -> 0.4405/0.0692°; DiLiGenT crops, 96 lights:
+# 6.263 -> 6.237° (no crop worse by more than 0.001°).
+PROFILE_SEARCH_GRID = 33
 # The diffuse part beside the lobe: the LI substrate under the interface (eq 3.15: Fresnel
 # transmissions in and out through the facets), a Lambertian term with no transmission
 # (Cook–Torrance), or a Lambertian substrate weighted by the interface's transmittance in and out
@@ -190,7 +202,7 @@ def _trimmed(costs, keep=PROFILE_KEEP):
 def _profile_lobe(e, lights, usable, solve, volume_models):
     """Round 1's model choice on the profile pixels: for each diffuse part (`volume_models`), the
     normals solved against each (σ, n_i) of a coordinate search (σ along PROFILE_SIGMAS at
-    PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ; `solve(sigma, n_i, volume_model)` ->
+    PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ; `solve(sigma, n_i, volume_model, grid=...)` ->
     (N, 3)), each scored by the trimmed robust cost of the result (`_trimmed`: a pixel whose solve
     stopped in a wrong minimum does not decide the model).
     Returns ({(is a metal's lobe, volume_model): the best such candidate, a dict(cost,
@@ -202,7 +214,7 @@ def _profile_lobe(e, lights, usable, solve, volume_models):
 
         def score(sigma, n_i):
             nonlocal low, solves
-            n = solve(sigma, n_i, vm)
+            n = solve(sigma, n_i, vm, grid=PROFILE_SEARCH_GRID)
             solves += 1
             cost, kept = _trimmed(_pixel_costs(e, lights, n, usable, sigma, n_i, vm))
             low = min(low, cost)
@@ -229,7 +241,7 @@ def _profile_lobe(e, lights, usable, solve, volume_models):
         solves += k
     # the Lambertian solution scored on each candidate's kept pixels: trimmed on its own, it would
     # drop the highlights, the very pixels that show a lobe (a glossy sphere's few % of pixels)
-    n = solve(LAMBERTIAN_SIGMA, 1.0, volume_models[0])
+    n = solve(LAMBERTIAN_SIGMA, 1.0, volume_models[0], grid=PROFILE_SEARCH_GRID)
     costs = _pixel_costs(e, lights, n, usable, LAMBERTIAN_SIGMA, 1.0, volume_models[0])
     for b in best.values():
         b["cost_lambertian"] = float(costs[b["kept"]].sum())
@@ -326,8 +338,9 @@ def choose_material_model(e, lights, usable, solve, volume_models, check=None):
     """Round 1 of ps_li_alternating for one material: lobe or none, which diffuse part, and (σ, n_i).
 
     e, lights, usable : the profile pixels' values (N, m, C), directions, usable flags.
-    solve(sigma, n_i, volume_model, search=True) -> (N, 3): those pixels' normals solved against a
-        model (search=False: the converged solve of the rounds).
+    solve(sigma, n_i, volume_model, search=True, grid=PROFILE_TABLE_GRID) -> (N, 3): those pixels' normals
+        solved against a model (search=False: the converged solve of the rounds; grid: the volume
+        part's table, PROFILE_SEARCH_GRID in the grid search).
     check : None, or (e, lights, usable, solve) of other pixels on which each diffuse part's best
         candidate (and the metals') is measured again, the choice among them and the bar decided
         there. `ps_li_alternating` gives a draw of all the material's pixels: the profile's are

@@ -199,9 +199,9 @@ class Pixels:
         compiled = "compiled" if engine == "auto" and self.s_all.ndim == 2 else arrays
 
         def solve_on(sel):
-            def solve(sigma, n_i, vm, search=True):
+            def solve(sigma, n_i, vm, search=True, grid=PROFILE_TABLE_GRID):
                 eng = arrays if not search and is_metal(n_i) else compiled
-                return self.refine(sel, sigma, n_i, engine=eng, diffuse_vm=vm, table_grid=PROFILE_TABLE_GRID).normals
+                return self.refine(sel, sigma, n_i, engine=eng, diffuse_vm=vm, table_grid=grid).normals
             return solve
 
         # each diffuse part's best candidate is scored again on a draw of all the material's pixels

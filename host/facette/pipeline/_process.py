@@ -53,13 +53,13 @@ from facette.pipeline._light_gains import with_light_gains
 from facette.pipeline._shadows import with_shadows
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
-from facette.pipeline._rti_bands import relight_exposure, relight_stage, write_relight_web
+from facette.pipeline._rti_bands import relight_stage, whole_bands, write_relight_web
 from facette.pipeline._rti_exposure import record_exposure
 from facette.pipeline._streamed import banded_process
 from facette.pipeline._tiled_process import in_memory_ps, streamed
 from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry, truth_errors
 from facette.pipeline._report import report_fit_section, write_report
-from facette.pipeline._relight_model_stage import relight_model_stage, save_relight_model
+from facette.pipeline._relight_model_stage import model_input, relight_model_stage, save_relight_model
 from facette.pipeline._samples import _samples_stage  # bench/recon.py imports it from here too
 
 __all__ = ["OUTPUTS", "ALL_OUTPUTS", "STAGES_FOR", "ProcessOptions", "ProcessResult", "process", "stages_needed"]
@@ -320,6 +320,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
     integration, mesh_step = o.integration, o.mesh_step
     out = None if out_dir is None else Path(out_dir)
     if out is not None: out.mkdir(parents=True, exist_ok=True)     # noqa: E701
+    relight = whole_bands(relight, res, inp, images, light_dirs, o, outputs)     # ptm, rti: over bands
     write = _writers(res, out, outputs, o.ascii_ply, relight)
 
     def shape():
@@ -342,7 +343,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
                               inp.pixel_pitch_mm, step, MESH_MAX_SLOPE)
             res.options["mesh_step"] = step
             write("mesh")
-        notes += relight_model_stage(res, images, light_dirs, inp.pixel_pitch_mm, write,
+        notes += relight_model_stage(res, model_input(images, relight), light_dirs, inp.pixel_pitch_mm, write,
                                      "relight" in outputs) if "relight" in stages else []
         return notes
 
@@ -366,9 +367,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
             drawn["fit"] = _timed(res, "report_fit", report_fit_section, res)
         return [note] if note else []
 
-    photos = None
-    if relight is None and {"ptm", "hsh"} & set(stages):      # both fits' scale and images, once
-        photos = relight_exposure(res, inp, images, o)[1]
+    photos = None       # the fits over bands (`whole_bands`): the photographs' scale applied a band at a time
 
     def relit(name):      # relight.ptm, relight.rti (pipeline._rti_bands: whole images, or bands with --memory)
         ok, notes = relight_stage(name, res, photos, light_dirs, o, relight)
@@ -383,9 +382,9 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
             write(name)
         return []
 
-    tasks = [(reflectance, "samples" in stages), (lambda: relit("rti"), "hsh" in stages),
-             (lambda: relit("ptm"), "ptm" in stages),
-             (shape, "integrate" in stages), (maps, out is not None)]
+    # started in this order: the maps (on disk in a second), the shape (heights, then the longest chain)
+    tasks = [(maps, out is not None), (shape, "integrate" in stages), (reflectance, "samples" in stages),
+             (lambda: relit("rti"), "hsh" in stages), (lambda: relit("ptm"), "ptm" in stages)]
     t0, budget = time.perf_counter(), o.memory_bytes     # with a budget, the heap back after each stage
     with ThreadPoolExecutor(workers) as pool:
         futures = [pool.submit(handing_back(fn, budget) if budget else fn) for fn, wanted in tasks if wanted]

@@ -2,56 +2,106 @@
 
 The model of `facette.recon._relight_model` fitted to the photographs process loaded (linear,
 divided by the lights' intensities), with process's normals and its heights (for the cast
-shadows). Its white (display 1) is the 99.9th percentile of the object's brightest channel over
-the lights: the photographs' own scale, highlights above it clip as in a photograph.
+shadows), by `recon.fit_relight_bands`: read a band of rows at a time, from the whole images
+or, with --memory (or a default budget the whole capture does not fit), from `ImagesSpill`: the
+photographs as the band reader gave them, written to a temporary file during the PTM/HSH pass
+(the heights the cast shadows need come after the reader is closed). Its white (display 1) is
+the 99.9th percentile of the object's brightest channel over the lights (`recon.WHITE_PERCENTILE`):
+the photographs' own scale, highlights above it clip as in a photograph.
 
-Its cost grows with pixels x lights (about 5 us per pixel and light on one core), so the full
-model is fitted only when relight_model.npz is asked for; for the report alone it is fitted at
-the viewer's size (every st-th pixel, pipeline._viewer.MAX_SIDE), which is all the page shows.
+Its cost grows with pixels x lights, so the full model is fitted only when relight_model.npz is
+asked for; for the report alone it is fitted at the viewer's size (every st-th pixel,
+pipeline._viewer.MAX_SIDE), which is all the page shows.
 """
 import time
 
 import numpy as np
 
+from facette._memory import disk_array, release
 from facette.pipeline._viewer import MAX_SIDE
 from facette.pipeline._viewer_model import VIEWER_PLANES
-from facette.recon import fit_relight_model, save_relight_model
+from facette.recon import fit_relight_bands, save_relight_model
+from facette.recon._relight_fit import WHITE_PERCENTILE
 
-__all__ = ["relight_model_stage", "save_relight_model", "WHITE_PERCENTILE"]
+__all__ = ["relight_model_stage", "save_relight_model", "WHITE_PERCENTILE", "ImagesSpill", "MODEL_BAND_BYTES",
+           "model_input"]
 
-WHITE_PERCENTILE = 99.9
+MODEL_BAND_BYTES = 256 * 2 ** 20     # the photographs of one band of the model's fit read from a spill, at most
 
 
-def _white(images, mask, sample=200_000):
-    rows, cols = np.nonzero(mask)
-    pick = np.linspace(0, len(rows) - 1, min(sample, len(rows))).astype(int)
-    vals = np.max(images[:, rows[pick], cols[pick]], axis=-1)
-    vals = vals[np.isfinite(vals) & (vals > 0)]
-    return float(np.percentile(vals, WHITE_PERCENTILE)) if vals.size else 1.0
+class ImagesSpill:
+    """The photographs (m, H, W, C) float32 written band by band to a temporary file (no name:
+    gone with this object), read back band by band (`read`), pages handed back after each."""
+
+    def __init__(self, m, h, w, c=3):
+        self.data, self.shape = None, (m, h, w, c)
+        self.rows = max(1, MODEL_BAND_BYTES // (m * w * c * 4))
+
+    def add(self, r0, images, dirs):
+        """Rows r0.. of the images (m, b, W, C); nothing with per-pixel light directions (near
+        lights: the model takes one direction per light)."""
+        if np.ndim(dirs) != 2:
+            return
+        if self.data is None:
+            self.data = disk_array(self.shape, np.float32)
+        self.data[:, r0:r0 + images.shape[1]] = images
+        release(self.data)
+
+    def read(self, r0, r1):
+        band = np.array(self.data[:, r0:r1])
+        release(self.data)
+        return band
+
+    def close(self):
+        self.data = None
+
+
+def model_input(images, banded):
+    """What the stage fits: the whole images, else the photographs `banded` (a
+    `_rti_bands.RelightBands`, --memory) kept, else None."""
+    return images if images is not None or banded is None else banded.model_images
+
+
+def _reader(images, st):
+    """(read(r0, r1) -> (linear (m, b, W, 3), None), band rows) at every st-th pixel, from whole
+    images (m, H, W, C) or an `ImagesSpill`."""
+    spill = isinstance(images, ImagesSpill)
+    rows = max(1, images.rows // st) if spill else None
+
+    def read(r0, r1):
+        if spill:
+            band = images.read(r0 * st, min(images.shape[1], r1 * st))[:, ::st, ::st]
+        else:
+            band = images[:, r0 * st:r1 * st:st, ::st]
+        if band.shape[-1] == 1:
+            band = np.broadcast_to(band, band.shape[:-1] + (3,))
+        return band, None
+    return read, rows
 
 
 def relight_model_stage(res, images, light_dirs, pixel_pitch_mm=1.0, write=None, every_pixel=True):
     """res.relight_model fitted (and res.timings["relight_model"]), then write("relight") (process's
     writer of relight_model.npz; run after the heights: the cast shadows need them); returns the notes. images
-    (m, H, W, C) linear or None (read by bands with --memory: no model, a note says so);
-    light_dirs (m, 3) or None (near lights: per-pixel directions, which the model does not take);
-    every_pixel False: the model at the report viewer's size (every st-th pixel, heights in its pixels)."""
-    if images is None:
-        return ["relighting model: not fitted with --memory (it reads every photograph whole)"]
+    (m, H, W, C) linear, an `ImagesSpill` (read by bands), or None (read by bands with no spill: no
+    model, a note says so); light_dirs (m, 3) or None (near lights: per-pixel directions, which the
+    model does not take); every_pixel False: the model at the report viewer's size (every st-th
+    pixel, heights in its pixels)."""
+    if images is None or (isinstance(images, ImagesSpill) and images.data is None):
+        return ["relighting model: not fitted with --memory unless the relight output is asked for (it reads "
+                "the photographs again after the heights, from a copy that output keeps)"]
     if light_dirs is None or np.ndim(light_dirs) != 2:
         return ["relighting model: not fitted for near lights (it takes one direction per light)"]
     t0 = time.perf_counter()
     mask = np.asarray(res.object_mask if res.object_mask is not None else res.mask, bool)
-    mask = mask & np.all(np.isfinite(res.normals), axis=-1) & (np.linalg.norm(res.normals, axis=-1) > 0.5)
-    if images.shape[-1] == 1:
-        images = np.broadcast_to(images, images.shape[:-1] + (3,))
+    normals = np.asarray(res.normals)
+    mask = mask & np.all(np.isfinite(normals), axis=-1) & (np.linalg.norm(normals, axis=-1) > 0.5)
     heights = None if res.height is None else np.where(mask, res.height / float(pixel_pitch_mm), np.nan)
-    white = _white(images, mask)
     st = 1 if every_pixel else max(1, int(np.ceil(max(mask.shape) / MAX_SIDE)))
     cut = (slice(None, None, st), slice(None, None, st))
-    res.relight_model = fit_relight_model(images[:, cut[0], cut[1]], light_dirs, mask[cut], res.normals[cut],
+    read, rows = _reader(images, st)
+    res.relight_model = fit_relight_bands(read, light_dirs, mask[cut], normals[cut],
                                           heights=None if heights is None else heights[cut] / np.float32(st),
-                                          white=white, n_planes=None if every_pixel else VIEWER_PLANES)
+                                          white=None, n_planes=None if every_pixel else VIEWER_PLANES, rows=rows)
     res.timings["relight_model"] = time.perf_counter() - t0
     if write is not None:
         write("relight")

@@ -21,6 +21,7 @@ runs: 27 bytes per pixel for the PTM, 12 x order² for the HSH (order 3: 135 byt
 together, 13.5 GB at 100 MP), in the temporary folder (TMPDIR), taken before the first band (a
 full disk is said at once), gone with `close`.
 """
+import threading
 import time
 from math import gcd
 
@@ -32,15 +33,18 @@ from facette.io.relight_web import write_relight_web as write_web_rows
 from facette.io.rti import write_hsh_rti_rows
 from facette.methods import PS_METHODS
 from facette.pipeline._exports import fill_left, fill_unfitted, hsh_order_for, unfitted_verdict
+from facette.pipeline._relight_model_stage import ImagesSpill
 from facette.pipeline._rti_exposure import HDRWhite, exposure_of
 from facette.pipeline._tiles import BYTES_PER_PIXEL_LIGHT as PS_BYTES_PER_PIXEL_LIGHT
 from facette.recon import _rti as fit_blocks        # its _BLOCK: the pixels solved together
 from facette.recon import (HSHFit, PTMFit, fit_hsh, fit_ptm_lrgb, fit_relight_error,
                            near_light_directions, relight_error_parts, relight_error_step)
 
-__all__ = ["RelightBands", "relight_bands", "relight_stage", "relight_exposure", "band_reader", "relight_rows",
+__all__ = ["BANDED_OUTPUTS", "RelightBands", "WholeBands", "whole_bands", "relight_bands", "relight_stage", "relight_exposure", "band_reader", "relight_rows",
            "write_relight_web", "PREVIEW_PIXELS"]
 
+# the outputs `relight_bands` serves over the band reader (the model: its photographs kept, `ImagesSpill`)
+BANDED_OUTPUTS = frozenset({"ptm", "rti", "relight-web", "relight"})
 PREVIEW_PIXELS = 1 << 20        # pixels of the fits kept in ProcessResult.ptm / .hsh at most
 # A fit band's working set per pixel (near lights, both fits): per light the float32 images, their
 # float64 copy divided by the fall-off, the fall-off, the directions (float64 x 3) and the PTM's
@@ -135,11 +139,12 @@ class RelightBands:
     """The banded fits of `relight_bands`: ptm, hsh (`PTMFit`, `HSHFit` of every `stride`-th
     pixel, or None), ok {"ptm", "rti": the file can be written}, notes {"ptm", "rti": [...]},
     fit_errors, timings; `write_ptm(path)`, `write_rti(path, comments)` write the files from the
-    spill (temporary files without a name, gone with this object or at `close()`)."""
+    spill (temporary files without a name, gone with this object or at `close()`); model_images:
+    the photographs for the relighting model (`ImagesSpill`, output "relight") or None."""
 
     def __init__(self, shape, stride):
         self.shape, self.stride = shape, stride
-        self.ptm = self.hsh = None
+        self.ptm = self.hsh = self.model_images = None
         self.ok, self.notes, self.fit_errors, self.timings = {}, {"ptm": [], "rti": []}, {}, {}
         self.spills, self.rgb, self.exposure = {}, None, None
 
@@ -160,10 +165,10 @@ class RelightBands:
 
     def close(self):
         """The temporary files go (their space is given back once nothing maps them)."""
-        self.spills, self.rgb = {}, None
+        self.spills, self.rgb, self.model_images = {}, None, None
 
 
-def relight_bands(read, mask, outputs, o, ps_rows, lights, inp):
+def relight_bands(read, mask, outputs, o, ps_rows, lights, inp, exposure=None, rows=None):
     """relight.ptm and relight.rti fitted over bands (`relight_rows` of photometric stereo's
     `ps_rows` rows), as `process`'s ptm and hsh stages fit them on the whole images.
 
@@ -171,27 +176,36 @@ def relight_bands(read, mask, outputs, o, ps_rows, lights, inp):
     (`band_reader`); mask (H, W) bool, the object mask (an HDR scan's exposure, fill_unfitted's
     pixels, the relighting error's); outputs: what `process` was asked for (ptm, rti); o:
     ProcessOptions (method, rti_encoding, hsh_order); lights: m; inp: the input (`exposure_of`).
-    Returns a `RelightBands` (close it), or None when neither ptm nor rti is asked for."""
+    Output "relight": the photographs are kept for the relighting model (`RelightBands.model_images`)
+    in the same pass. exposure: the files' `Exposure` when known (the whole images': `whole_bands`),
+    rows: the fit bands' rows (None: from `ps_rows`). Returns a `RelightBands` (close it), or None
+    when none of these is asked for."""
     want_ptm, want_hsh = "ptm" in outputs, bool({"rti", "relight-web"} & set(outputs))   # the web folder: HSH's
     order, order_note = hsh_order_for(lights, o.hsh_order) if want_hsh else (None, None)
-    if not want_ptm and not want_hsh:
+    if not want_ptm and not want_hsh and "relight" not in outputs:
         return None
     h, w = mask.shape
-    rows, aligned = _aligned(relight_rows(ps_rows, w, lights, o.method), w, h)
+    rows, aligned = _aligned(relight_rows(ps_rows, w, lights, o.method) if rows is None else rows, w, h)
     spans = [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
     stride = max(1, int(np.ceil(np.sqrt(h * w / PREVIEW_PIXELS))))
     out = RelightBands((h, w), stride)
+    if "relight" in outputs:
+        out.model_images = ImagesSpill(lights, h, w)
+    if not want_ptm and not want_hsh:
+        for r0, r1 in spans:
+            out.model_images.add(r0, *read(r0, r1))
+        return out
     if order_note:
         out.notes["rti"].append(order_note)
-    if not aligned:
+    if not aligned and exposure is None:          # (whole images, exposure given: no other file to differ from)
         out.notes["ptm" if want_ptm else "rti"].append(
             f"relight.ptm / relight.rti: fitted over bands of {rows} rows that do not start on the fit's blocks of "
             f"{fit_blocks._BLOCK} pixels (the image is {w} pixels wide): a coefficient may differ from the "
             "untiled file's by one quantisation step (float32 products summed in another order)")
     try:
         t0 = time.perf_counter()
-        exposure = exposure_of(inp, o.rti_encoding, white=(1.0, 0.0))
-        if exposure.source == "hdr":          # a pass over the bands for the exposure
+        given, exposure = exposure is not None, exposure or exposure_of(inp, o.rti_encoding, white=(1.0, 0.0))
+        if exposure.source == "hdr" and not given:          # a pass over the bands for the exposure
             top = HDRWhite(lights * int(np.count_nonzero(mask)))
             for r0, r1 in spans:
                 top.add(read(r0, r1)[0], mask[r0:r1])
@@ -221,6 +235,8 @@ def _fit_pass(out, read, mask, spans, wanted, exposure, lights):
     for r0, r1 in spans:
         t0 = time.perf_counter()
         images, dirs = read(r0, r1)
+        if out.model_images is not None:
+            out.model_images.add(r0, images, dirs)
         images = exposure.photographs(images)
         band = mask[r0:r1]
         starts = [a - r0 for a in range(-(-r0 // step) * step, r1, step)]
@@ -242,7 +258,8 @@ def _fit_pass(out, read, mask, spans, wanted, exposure, lights):
             out.spills["rti"].add(r0, fit, counts, relight_error_parts(fit, images, dirs, band, starts))
             del fit
             seconds["hsh"] += time.perf_counter() - t1
-    out.timings.update(relight_read=seconds["read"], ptm=seconds["ptm"], hsh=seconds["hsh"])
+    out.timings.update(relight_read=seconds["read"], **{k: seconds[k] for k, on in (("ptm", want_ptm), ("hsh", order))
+                                                        if on})
 
 
 def _verdicts(out, order, exposure):
@@ -263,6 +280,50 @@ def _verdicts(out, order, exposure):
             out.fit_errors["hsh_relative_rms"] = s.error()
 
 
+WHOLE_BAND_BYTES = 256 * 2 ** 20     # a fit band's working set from whole images (`whole_bands`)
+
+
+class WholeBands:
+    """`relight_bands` over the whole images, run once when a stage first asks (`fitted`, under a
+    lock: the ptm and rti stages run on two threads); the writers delegate to its result."""
+
+    def __init__(self, fit):
+        self._fit, self._done, self._lock = fit, None, threading.Lock()
+
+    def fitted(self):
+        with self._lock:
+            if self._done is None:
+                self._done = self._fit()
+            return self._done
+
+    def write_ptm(self, path):
+        return self.fitted().write_ptm(path)
+
+    def write_rti(self, path, comments):
+        return self.fitted().write_rti(path, comments)
+
+    def close(self):
+        if self._done is not None:
+            self._done.close()
+
+
+def whole_bands(relight, res, inp, images, light_dirs, o, outputs):
+    """`relight` when given (--memory's fits), else with the whole images (m, H, W, C) and ptm,
+    rti or relight-web asked: their fits over bands of rows of them (a `WholeBands`), the
+    photographs' exposure applied a band at a time: `Exposure.photographs` copies the images
+    when it multiplies gains back (16 photographs of 12 MP: 2.3 GB more). res.rti_exposure set."""
+    if relight is not None or images is None or not ({"ptm", "rti", "relight-web"} & set(outputs)):
+        return relight
+    res.rti_exposure = exposure_of(inp, o.rti_encoding, res.light_gains, images, res.object_mask)
+    m, h, w = images.shape[:3]
+    rows = max(2, WHOLE_BAND_BYTES // (w * (BYTES_PER_PIXEL_LIGHT * m + BYTES_PER_PIXEL)) // 2 * 2)
+
+    def read(r0, r1):
+        return images[:, r0:r1], light_dirs if np.ndim(light_dirs) == 2 else light_dirs[r0:r1]
+    return WholeBands(lambda: relight_bands(read, res.object_mask, [x for x in outputs if x != "relight"], o, None, m,
+                                            inp, exposure=res.rti_exposure, rows=rows))
+
+
 def relight_exposure(res, inp, images, o):
     """(the `Exposure` of the relighting files, the images as photographed) of `process`'s whole
     images (m, H, W, 3), over res.object_mask; res.rti_exposure set."""
@@ -276,6 +337,7 @@ def relight_stage(name, res, images, light_dirs, o, banded=None):
     with their light directions, or taken from `banded` (a `RelightBands`, --memory).
     Returns (the file can be written, notes)."""
     if banded is not None:
+        banded = banded.fitted() if isinstance(banded, WholeBands) else banded
         setattr(res, "ptm" if name == "ptm" else "hsh", banded.ptm if name == "ptm" else banded.hsh)
         res.rti_exposure = banded.exposure
         res.timings.update(banded.timings)
@@ -308,7 +370,7 @@ def write_relight_web(path, res, banded=None):
     spill of `banded` (--memory) read band by band."""
     h, w = res.mask.shape
     if banded is not None:
-        s = banded.spills["rti"]
+        s = (banded.fitted() if isinstance(banded, WholeBands) else banded).spills["rti"]
         rows, lo_hi = s.rows, (s.lo, s.hi)
     else:
         coeffs = res.hsh.coeffs

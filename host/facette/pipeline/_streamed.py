@@ -6,7 +6,7 @@ from facette.capture import object_of
 from facette.pipeline._band_uncertainty import banded_uncertainty
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted
-from facette.pipeline._rti_bands import relight_bands
+from facette.pipeline._rti_bands import BANDED_OUTPUTS, relight_bands
 from facette.pipeline._shadows import shadows_wanted
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, streamed_ps
 
@@ -23,7 +23,7 @@ def banded_process(source, o, res, outputs, stages, claim):
         _streamed_result(res, inp, ps, top)
         if {"normals", "report"} & set(outputs):
             banded_uncertainty(res, read, len(inp.light_dirs), rows, o.saturation)
-        if {"ptm", "rti", "relight-web"} & set(outputs):
+        if BANDED_OUTPUTS & set(outputs):
             banded.append(relight_bands(read, res.object_mask, outputs, o, rows, len(inp.light_dirs), inp))
     inp, ps, light_dirs, top = streamed_ps(source, o, res, lambda i: claimed.update(previous=claim(i)),
                                            samples="samples" in stages, relight=after_bands)

@@ -93,7 +93,8 @@ def check_memory_options(method, interreflections):
 def streamed(source, outputs):
     """True when `process` can run without the whole images: every output in STREAMED_OUTPUTS
     and a capture's folder (whichever its kind: `capture.open_capture` reads it band by band)."""
-    if not set(outputs) <= set(STREAMED_OUTPUTS) | {"relight-web"}:     # the web planes: from the HSH fit's spill
+    # _rti_bands' spills: the web planes (the HSH fit's), the relighting model's photographs
+    if not set(outputs) <= set(STREAMED_OUTPUTS) | {"relight-web", "relight"}:
         return False
     try:
         path = source_path(source)

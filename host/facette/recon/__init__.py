@@ -32,8 +32,8 @@ from ._interreflect import (remove_interreflections, without_interreflections, I
                             IR_PASSES, IR_SKIP_P95)
 from ._interreflect_scale import estimate_reflectance_scale, scale_from_images, unidentified_info
 from ._shadows import hidden_lights, horizon_excess, heights_in_pixels
-from ._relight_model import (RelightModel, fit_relight_model, save_relight_model, load_relight_model,
-                             cast_shadow)
+from ._relight_model import RelightModel, save_relight_model, load_relight_model, cast_shadow
+from ._relight_fit import fit_relight_model, fit_relight_bands
 from ._rti import (ptm_basis, hsh_basis, PTMFit, HSHFit, fit_ptm_lrgb, fit_hsh, fit_relight_error,
                    relight_error_parts, relight_ptm, relight_hsh, relight_error, HSH_ORDERS, RELIGHT_ERROR_VALUES,
                    relight_error_step, RTI_ENCODINGS, srgb_encode, srgb_decode, display_ptm, display_hsh)
@@ -52,4 +52,4 @@ __all__ = ["PSResult", "normal_uncertainty", "uncertainty_summary", "ps_woodham1
            "IR_GRID", "IR_MAX_FRACTION", "IR_PASSES", "IR_SKIP_P95", "estimate_reflectance_scale",
            "scale_from_images", "unidentified_info", "hidden_lights", "horizon_excess",
            "heights_in_pixels",
-           "RelightModel", "fit_relight_model", "save_relight_model", "load_relight_model", "cast_shadow"]
+           "RelightModel", "fit_relight_model", "fit_relight_bands", "save_relight_model", "load_relight_model", "cast_shadow"]

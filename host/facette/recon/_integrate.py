@@ -225,14 +225,16 @@ def _solve_poisson_dct(div):
     return scipy.fft.idctn(f, type=2, norm="ortho", overwrite_x=True)
 
 
-def integrate_least_squares(normals, pixel_pitch_mm=1.0, mask=None):
+def integrate_least_squares(normals, pixel_pitch_mm=1.0, mask=None, rtol=None):
     """Heights (H, W) float32 in mm by sparse least squares restricted to the mask.
 
     One equation per pair of 4-neighbours both in the mask: z_b - z_a = mean of their
     gradients. Works on any mask (holes, one-pixel strands, several pieces): each connected
     piece is integrated on its own and has mean 0; isolated pixels get 0.
     Solved by the normal equations (sparse Cholesky-like direct solve up to ~1e6 pixels,
-    conjugate gradients above).
+    conjugate gradients above). rtol: solved instead by classical algebraic multigrid (pyamg) to
+    that relative residual, for heights that need not be exact (recon._shadows' horizon test:
+    0.28 M pixels 1.3 CPU s against the direct solve's 3.2, heights within 2e-7 at rtol 1e-8).
     """
     normals = np.asarray(normals)
     h, w = normals.shape[:2]
@@ -266,7 +268,10 @@ def integrate_least_squares(normals, pixel_pitch_mm=1.0, mask=None):
     pin[first] = 1.0
     lhs = (d.T @ d + scipy.sparse.diags(pin)).tocsc()
     rhs_v = d.T @ b
-    if n <= 1_000_000:
+    if rtol is not None:
+        import pyamg
+        sol = pyamg.ruge_stuben_solver(lhs.tocsr()).solve(rhs_v, tol=rtol, accel="cg")
+    elif n <= 1_000_000:
         sol = scipy.sparse.linalg.spsolve(lhs, rhs_v)
     else:
         diag = lhs.diagonal()

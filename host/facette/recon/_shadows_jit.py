@@ -4,7 +4,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["hidden_kernel", "horizon_excess_kernel"]
+__all__ = ["bin_mean_kernel", "hidden_kernel", "horizon_excess_kernel"]
 
 
 @numba.njit(cache=True, inline="always")
@@ -69,3 +69,23 @@ def hidden_kernel(z, mask, dr, dc, steps, threshold, z_top, out):
                 if zq - z0 > threshold * t:
                     out[r, c] = True
                     break
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def bin_mean_kernel(images, f, out):
+    """out[k, i, j, c] = the mean of images[k, f i : f i + f, f j : f j + f, c] over its values that
+    are not NaN (NaN where all are). images (m, H, W, C) float32, out (m, H // f, W // f, C)."""
+    m, hc, wc, nc = out.shape
+    for kr in numba.prange(m * hc):
+        k, i = kr // hc, kr % hc
+        for j in range(wc):
+            for c in range(nc):
+                s = 0.0
+                n = 0
+                for r in range(f * i, f * i + f):
+                    for q in range(f * j, f * j + f):
+                        v = images[k, r, q, c]
+                        if not math.isnan(v):
+                            s += v
+                            n += 1
+                out[k, i, j, c] = s / n if n else np.nan

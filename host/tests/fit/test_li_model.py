@@ -15,9 +15,9 @@ def _pixels(material, lights, sc, rng):
 
 
 def _solver(e, lights, usable, n0):
-    def solve(sigma, n_i, vm, search=True):
+    def solve(sigma, n_i, vm, search=True, grid=65):
         return refine_normals_li(e, lights, n0, sigma, n_i, usable=usable, iterations=12, volume_model=vm,
-                                 engine="compiled", table_grid=65).normals
+                                 engine="compiled", table_grid=grid).normals
     return solve
 
 

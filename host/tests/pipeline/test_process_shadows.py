@@ -83,6 +83,40 @@ def test_auto_decides_on_binned_images_and_solves_at_full_size(groove, monkeypat
     np.testing.assert_array_equal(coarse.normals, full.normals)
 
 
+def test_the_alternation_runs_at_the_horizon_test_s_bin_and_keeps_its_gain(groove, monkeypatch):
+    # at most HORIZON_PIXELS cells for the horizon test's heights: the robust passes solve the images
+    # binned as much (here 2 x 2), the hidden lights are those bins', the method solves every pixel.
+    # Heights binned 2 x 2 round the groove's rims off (0.02 -> 0.92 deg with woodham1980, the same
+    # when the robust passes ran at full size): still well under the shadows left in
+    import facette.pipeline._shadows as shadows
+    d, folder = groove
+    hid = d["hidden"].any(0)
+    run = lambda s: process(folder, outputs=["normals"], method="woodham1980", shadows=s, interreflections=False)
+    full, off = run("on"), run("off")
+    monkeypatch.setattr(shadows, "HORIZON_PIXELS", d["mask"].sum() // 4)
+    coarse = run("on")
+    q = coarse.quality["shadows"]
+    assert q["alternation_bin"] == 2 and full.quality["shadows"]["alternation_bin"] == 1 and q["applied"]
+    err = lambda r: angular_error_deg(r.normals, d["normals"])[hid].mean()
+    assert err(coarse) < 0.5 * err(off), (err(coarse), err(full), err(off))
+    # found per bin, taken out at every pixel of it: the shadow map holds whole bins
+    assert coarse.normals.shape == full.normals.shape and coarse.ps.shadow[hid].any()
+
+
+def test_hidden_lights_of_bins_cover_every_pixel_of_the_mask():
+    from facette.pipeline._shadows import upsampled
+    hidden = np.zeros((2, 2, 3), bool)
+    hidden[0, 1, 2] = True
+    hidden[1, 0, 0] = True
+    mask = np.ones((5, 7), bool)              # 5 x 7 by bins of 2: the last row and column take the nearest bin's
+    mask[0, 0] = False
+    up = upsampled(hidden, 2, mask)
+    assert up.shape == (2, 5, 7)
+    assert up[0, 2:, 4:].all() and up[0].sum() == 9
+    assert not up[1, 0, 0] and up[1, :2, :2].sum() == 3 and up[1].sum() == 3
+    np.testing.assert_array_equal(upsampled(hidden, 1, np.ones((2, 3), bool)), hidden)
+
+
 def test_binned_images_keep_what_is_missing_out():
     from facette.pipeline._shadows import binned
     im = np.arange(2 * 4 * 6, dtype=np.float32).reshape(2, 4, 6)

@@ -46,3 +46,24 @@ def test_stage_says_why_without_whole_images():
         relight_model = None
     notes = relight_model_stage(Res(), None, np.eye(3))
     assert Res.relight_model is None and "--memory" in notes[0]
+
+
+def test_memory_fits_the_model_from_the_bands(tmp_path, monkeypatch):
+    # --memory: the photographs never held whole, the model fitted from their spill after the
+    # heights (pipeline._rti_bands keeps them), close to the untiled run's (the same normals and
+    # heights; the residual's gram summed in another order)
+    from test_process_memory import WHOLE, _never_whole
+    from facette.pipeline import _relight_model_stage as stage, _tiled_process
+    folder = _folder(tmp_path)
+    whole = process(folder, outputs=["relight"], method="rank_trimmed", **WHOLE)
+    _never_whole(monkeypatch)
+    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: 8)
+    monkeypatch.setattr(stage, "MODEL_BAND_BYTES", 24 * 48 * 3 * 4 * 5)      # the model's bands: 5 rows
+    banded = process(folder, outputs=["relight"], out_dir=tmp_path / "out", method="rank_trimmed", memory="1GB")
+    assert banded.ps.info["tiles"] > 1 and banded.relight_model is not None
+    assert (tmp_path / "out" / "relight_model.npz").is_file()
+    a, b = whole.relight_model, banded.relight_model
+    assert a.white == b.white and a.shininess == b.shininess and (a.heights is None) == (b.heights is None)
+    for az, el in ((0.0, 15.0), (135.0, 45.0), (250.0, 70.0)):
+        light = light_from_angles(az, el)
+        assert np.abs(a.display(light) - b.display(light)).max() < 0.01

@@ -136,6 +136,23 @@ def test_least_squares_on_a_mask_with_holes_strands_and_isolated_pixels():
     assert got[2, 2] == 0.0
 
 
+def test_least_squares_by_multigrid_gives_the_direct_solve_s_heights():
+    # rtol: pyamg to that residual (the horizon test's heights), same mask rules: holes, a strand,
+    # an isolated pixel at 0, each piece centred
+    n, z = surface_normals(bump, 48, 48)
+    mask = np.zeros((48, 48), bool)
+    mask[5:40, 5:40] = True
+    mask[15:25, 15:25] = False
+    mask[44, 2:46] = True
+    mask[2, 2] = True
+    exact = integrate_least_squares(n, 1.0, mask)
+    close = integrate_least_squares(n, 1.0, mask, rtol=1e-8)
+    assert np.all(close[~mask] == 0) and close[2, 2] == 0.0
+    np.testing.assert_allclose(close, exact, atol=1e-4 * z.max())
+    rough = integrate_least_squares(n, 1.0, mask, rtol=1e-3)
+    assert 0 < np.max(np.abs(rough - exact)) < 0.05 * z.max()
+
+
 def test_normals_to_gradients_edges():
     n = np.zeros((2, 3, 3))
     n[..., 2] = 1

@@ -57,3 +57,22 @@ def test_a_slope_that_falls_only_at_the_largest_scales_is_not_the_light_gathered
     slopes = info["costs"]
     assert slopes[0] > 0 and info["growth_kept"] <= 0.25          # the other two conditions hold
     assert not info["identified"]
+
+
+def test_an_albedo_pattern_that_leans_with_the_gathered_share_is_not_the_light_gathered():
+    # bench size's slab: local shading (no inter-reflections) with a smooth albedo pattern; its albedo
+    # grows a little with the share the heights say it gathers and the removal takes that lean away,
+    # but it does not follow the share cell by cell (GATHER_CORRELATION): not identified
+    from facette.bench._large import relief_surface, _albedo
+    from facette.recon.synthetic import thesis_light_directions
+    from facette.recon._interreflect_scale import GATHER_CORRELATION
+    rows, cols = np.arange(48), np.arange(64)
+    _, n = relief_surface(rows, cols, 48)
+    rho, L = _albedo(rows, cols, 48)[..., 1], thesis_light_directions()
+    im = (rho / np.pi * np.clip(np.einsum("md,hwd->mhw", L, n), 0, None)).astype(np.float32)
+    mask = np.ones(rho.shape, bool)
+    first = ps_rank_trimmed(im, L, mask=mask)
+    _, info = estimate_reflectance_scale(im, L, first.normal, first.albedo, first.valid)
+    slopes = info["costs"]
+    assert slopes[0] > 0 and info["growth_kept"] <= 0.25          # the slope tests alone pass it
+    assert info["gather_correlation"] < GATHER_CORRELATION and not info["identified"]

@@ -4,8 +4,9 @@ import pytest
 
 from facette.errors import BadInputError
 from facette.recon import fit_hsh, hsh_basis, integrate, srgb_encode
-from facette.recon._relight_model import (_kernel, _kernel_choice, _loo_error, cast_shadow, fit_relight_model,
-                                          load_relight_model, save_relight_model)
+from facette.recon import fit_relight_model
+from facette.recon._relight_model import (_kernel, _kernel_choice, _loo_error, cast_shadow, load_relight_model,
+                                          save_relight_model)
 from facette.recon.synthetic import render, sphere_on_plane
 
 
