@@ -5,15 +5,13 @@ The removal needs the albedo as a reflectance (it decides how much light each wa
 whose images are radiance factors (the calibration's Spectralon step, `PSInput.reflectance`) has
 it; elsewhere (a DiLiGenT folder, an RTI capture, a scan without the Spectralon step) its scale is
 estimated from the images (facette.recon._interreflect_scale: the scale at which the albedo no
-longer grows with the light gathered). "auto" runs it on every input read whole (not the rig
-simulator's, which renders none): on a calibrated scan with its scale; elsewhere where the images
-identify the scale (AUTO_SCALE: the albedo follows, cell by cell, the light the heights say each
-wall gathers, and removing that light takes the growth away), decided on binned images before the
-method runs. Elsewhere the images stay as they are, with a note. With the scale estimated whatever
-the data said, DiLiGenT's crops got worse (reading, dark and glossy: 9.7 -> 12.9 deg; a dark glossy
-Mitsuba bowl 0.48 -> 4.62 deg); without the cell-by-cell correlation, a textured relief without any
-inter-reflections was identified (bench size's slab 0.19 -> 0.94 deg). A convex object gathers no
-light: it is not identified.
+longer grows with the light gathered). "auto" runs it on a calibrated scan read whole (not the rig
+simulator's, which renders none), with its scale; elsewhere it only says whether the images tell the
+scale (the albedo grows with the light the heights say each wall gathers, and removing that light
+takes the growth away) and leaves the light in (AUTO_SCALE: removing it where the images tell the
+scale helped the concave renders and harmed a textured relief without any). With the scale estimated
+whatever the data said, DiLiGenT's crops got worse (reading, dark and glossy: 9.7 -> 12.9 deg; a dark
+glossy Mitsuba bowl 0.48 -> 4.62 deg). A convex object gathers no light: it is not identified.
 """
 import time
 
@@ -30,9 +28,11 @@ SIM_INTERREFLECTIONS_NOTE = ("--interreflections on a simulated scan: the simula
                              "so their removal takes away light that no wall gathered (errors against truth grow); "
                              "leave it out for simulated scans")
 AUTO_OFF = "inter-reflections left in (interreflections 'auto'): "
-# "auto" without a Spectralon: removed only where the images identify the albedo's scale (the recon's
-# rule, GATHER_CORRELATION included: without it bench size's textured slab, which has no
-# inter-reflections, was identified and went 0.19 -> 0.94 deg)
+# "auto" without a Spectralon: the scale estimated and what the images tell said in a note, nothing
+# removed. Removing where the scale was identified took the concave renders from 0.80x to 0.51x least
+# squares, but a local-shading relief with a smooth albedo pattern and no inter-reflections at all
+# (bench size's slab, 1200x800, 12 lights) passed the same test and went from 0.19 to 0.94 deg:
+# a default that can do that to a textured object is not kept; --interreflections removes them.
 AUTO_SCALE = "identified"
 # li_alternating's decision reads the images binned to at most this many pixels a side: the estimate
 # works on the gather's cells (IR_GRID a side), each then still 4 x 4 binned pixels (a 12 MP capture:
@@ -45,9 +45,8 @@ def _decide_bin(mask):
 
 
 def interreflections_wanted(o, inp, notes):
-    """Whether `process` runs the inter-reflection step: the option when True or False; for "auto",
-    on every input read whole that is not the rig simulator's (on relative images the step then
-    removes them only where the images identify the albedo's scale, AUTO_SCALE). A note in `notes`
+    """Whether `process` removes the inter-reflections: the option when True or False; for "auto",
+    on a reflectance-calibrated scan read whole that is not the rig simulator's. A note in `notes`
     says why it is left out ("auto") or that a simulated scan has none to remove (True)."""
     simulated = inp.truth is not None and "sensor" in inp.truth      # the rig simulator's truth
     if o.interreflections is True and simulated:
@@ -73,23 +72,17 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
         reflectance_scale = 1.0 if mask.reflectance else "auto" if o.interreflections is True else AUTO_SCALE
         mask = mask.mask
     t0, c0 = time.perf_counter(), time.process_time()
-    if reflectance_scale == AUTO_SCALE:     # decided on binned images, before the method runs
+    if reflectance_scale == AUTO_SCALE:     # told from binned images, never removed (AUTO_SCALE's comment)
         _, scale, estimate = scale_from_images(*_binned(solve_in, light_dirs, mask, _decide_bin(mask)),
                                                o.saturation, bag.get("channel"))
-        if not estimate["identified"]:
-            info = unidentified_info(scale, estimate) | {"cpu_seconds": round(time.process_time() - c0, 3)}
-            note_interreflections(res, info, time.perf_counter() - t0)
-            return solve_in, None
-        reflectance_scale, found = "auto", estimate     # identified: estimated again on the images it reads
-    else:
-        found = None
+        info = unidentified_info(scale, estimate) | {"scale_identified": bool(estimate["identified"]),
+                                                     "cpu_seconds": round(time.process_time() - c0, 3)}
+        note_interreflections(res, info, time.perf_counter() - t0)
+        return solve_in, None
     try:
         if method_name == "li_alternating":
             ps, direct, info = ps_li_without_interreflections(solve_in, light_dirs, reflectance_scale=reflectance_scale,
                                                               **options_for(method_name, bag))
-            info["cpu_seconds"] = round(time.process_time() - c0, 3)
-            if found is not None:
-                info["identified_on"] = {k: found[k] for k in ("scale", "gather_correlation", "growth_kept")}
             note_interreflections(res, info, info["removal_seconds"])
             return direct, ps
         direct, first, info = without_interreflections(solve_in, light_dirs, mask, saturation=o.saturation,
@@ -100,8 +93,6 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
         res.notes.append(AUTO_OFF + str(exc))
         return solve_in, None
     info["cpu_seconds"] = round(time.process_time() - c0, 3)
-    if found is not None:
-        info["identified_on"] = {k: found[k] for k in ("scale", "gather_correlation", "growth_kept")}
     note_interreflections(res, info, time.perf_counter() - t0)
     if not info["applied"]:
         return solve_in, (first if method_name == "rank_trimmed" else None)
@@ -112,6 +103,13 @@ def note_interreflections(res, info, seconds):
     """The removal's info, seconds and note into `res`."""
     res.interreflections = info
     res.timings["interreflections"] = seconds
+    if info.get("scale_identified") is True and not info["applied"]:     # "auto" without a Spectralon
+        est = info["scale_estimate"]
+        res.notes.append(AUTO_OFF + "the images suggest light the surface gathers from itself (the albedo grows "
+                         f"with it; the albedo's scale to a reflectance {info['reflectance_scale']:.3g}), but without "
+                         "a Spectralon calibration a textured object can show the same; --interreflections "
+                         "removes it with that scale")
+        return
     if info.get("scale_identified") is False:
         est = info["scale_estimate"]
         res.notes.append(AUTO_OFF + "the images do not tell the albedo's scale to a reflectance (the albedo "
@@ -128,11 +126,6 @@ def note_interreflections(res, info, seconds):
     capped = f"; {info['capped']} values limited to {IR_MAX_FRACTION:.0%} removed" if info["capped"] else ""
     scale = ("" if "scale_estimate" not in info else
              f"; the albedo's scale to a reflectance estimated from the images: {info['reflectance_scale']:.3g}")
-    found = info.get("identified_on")
-    if found:               # "auto" without a Spectralon: what the images showed
-        scale += (f" (found by 'auto': the albedo follows the light the surface gathers, correlation "
-                  f"{found['gather_correlation']:.2f} cell by cell, and removing it leaves "
-                  f"{max(found['growth_kept'], 0):.0%} of that growth)")
     res.notes.append(f"inter-reflections removed before photometric stereo: {how}{capped}{scale}")
     glossy = info.get("glossy")
     if glossy:

@@ -1,7 +1,7 @@
 """`process`'s default for inter-reflections ("auto"): removed on a reflectance-calibrated scan read
-whole; on relative images removed where the images identify the albedo's scale (the path-traced
-relief), left in with a note where they do not (a direct-light render, a textured slab without any);
-left in with a note that says why for the simulator and --memory (pipeline._interreflections)."""
+whole; on relative images left in, with a note that says whether the images tell the albedo's scale
+(the path-traced relief does, a direct-light render does not); left in with a note that says why for
+the simulator and --memory (pipeline._interreflections)."""
 import json
 
 import numpy as np
@@ -39,19 +39,18 @@ def test_removed_by_default_on_a_calibrated_scan(tmp_path, relief):
     assert json.loads((tmp_path / "out" / "process.json").read_text())["options"]["interreflections"] == "auto"
 
 
-def test_relative_images_have_them_removed_where_the_images_identify_them(tmp_path, relief, direct_relief):
+def test_relative_images_are_left_as_they_are_by_default_with_what_they_tell(tmp_path, relief, direct_relief):
     # without the Spectralon step the images are relative: the path-traced relief gathers its own
-    # light and its albedo follows it cell by cell (the scale is identified): removed by default, with
-    # a note that says what was found; the normals come closer to the truth
+    # light and its albedo grows with it (the scale is identified), but a textured object without any
+    # can show the same: left in, the note says so and how to remove it; the normals are the images'
     res = process(_scan(tmp_path / "relative0", relief, scale=None), outputs=["normals"], method="woodham1980")
     left = process(_scan(tmp_path / "relative1", relief, scale=None), outputs=["normals"], method="woodham1980",
                    interreflections=False)
-    assert not res.inputs.reflectance and res.interreflections["applied"]
-    assert res.interreflections["identified_on"]["gather_correlation"] >= 0.2
-    assert any(n.startswith("inter-reflections removed") and "found by 'auto'" in n for n in res.notes)
-    sel = relief["mask"] & res.mask & left.mask
-    err = lambda r: angular_error_deg(r.normals, relief["normals"])[sel].mean()
-    assert err(res) < 0.9 * err(left), (err(res), err(left))
+    assert not res.inputs.reflectance and not res.interreflections["applied"]
+    assert res.interreflections["scale_identified"] and res.interreflections["scale_estimate"]["identified"]
+    assert any("the images suggest light the surface gathers from itself" in n and "--interreflections" in n
+               for n in res.notes)
+    np.testing.assert_array_equal(res.normals, left.normals)
     # the same relief with the direct light only: nothing gathered in the images, and the note says so
     auto = process(_scan(tmp_path / "direct0", direct_relief, scale=None), outputs=["normals"], method="woodham1980")
     plain = process(_scan(tmp_path / "direct1", direct_relief, scale=None), outputs=["normals"], method="woodham1980",
@@ -62,23 +61,11 @@ def test_relative_images_have_them_removed_where_the_images_identify_them(tmp_pa
     np.testing.assert_array_equal(auto.normals, plain.normals)
 
 
-def test_a_textured_relief_without_inter_reflections_keeps_its_normals(tmp_path):
-    # bench size's slab (local shading, a smooth albedo pattern, 12 lights): its albedo leans with the
-    # share the heights say it gathers, but does not follow it; "auto" leaves its images as they are
-    from facette.bench._large import write_relief_capture
-    folder = write_relief_capture(tmp_path / "slab", 64, 48)
-    auto = process(folder, outputs=["normals"])
-    plain = process(folder, outputs=["normals"], interreflections=False)
-    assert not auto.interreflections["applied"] and auto.interreflections["scale_identified"] is False
-    np.testing.assert_array_equal(auto.normals, plain.normals)
-
-
 def test_the_default_method_is_told_before_it_runs(tmp_path, relief, direct_relief):
-    # li_alternating (which a removal runs twice) is decided on binned images before it runs: the relief
-    # is identified and li removes them; the direct-light relief is not, and li runs once
+    # li_alternating (which a removal runs twice) is not run twice to be told what the images say
     res = process(_scan(tmp_path / "relative", relief, scale=None), outputs=["normals"])
-    assert res.ps.method == "li_alternating" and res.interreflections["applied"]
-    assert res.interreflections["identified_on"]["scale"] > 0
+    assert res.ps.method == "li_alternating" and not res.interreflections["applied"]
+    assert res.interreflections["scale_identified"] is True and "glossy" not in res.interreflections
     direct = process(_scan(tmp_path / "direct", direct_relief, scale=None), outputs=["normals"])
     assert direct.interreflections["scale_identified"] is False and direct.interreflections["cpu_seconds"] >= 0
 
