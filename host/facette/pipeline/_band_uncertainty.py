@@ -17,17 +17,12 @@ import numpy as np
 from facette._memory import disk_array, release
 from facette.pipeline._confidence import UNCERTAINTY_CHANNEL, normal_channels, uncertainty_stage
 from facette.recon import normal_uncertainty, uncertainty_summary
-from facette.recon._uncertainty import MAX_VALUES
+from facette.recon._uncertainty import MAX_VALUES, fit_stride
 
 __all__ = ["uncertainty_over_bands", "uncertainty_of", "banded_uncertainty", "normal_image", "HALO_ROWS"]
 
 # rows of context a band's curl needs: its plaquettes (1 row) and the Gaussian's reach (4 sigma, 4 rows)
 HALO_ROWS = 8
-
-
-def _stride(values, max_values):
-    """`normal_uncertainty`'s stride for `values` mask pixels x lights."""
-    return int(np.ceil(np.sqrt(values / max_values))) if values > max_values else 1
 
 
 def uncertainty_over_bands(read, normals, mask, m, rows, saturation=None, max_values=MAX_VALUES, on_disk=False):
@@ -40,7 +35,7 @@ def uncertainty_over_bands(read, normals, mask, m, rows, saturation=None, max_va
     has_n = np.empty(mask.shape, bool)
     for r0 in range(0, h, rows):            # its mask as normal_uncertainty makes it, a band at a time
         has_n[r0:r0 + rows] = np.linalg.norm(np.asarray(normals[r0:r0 + rows], np.float64), axis=2) > 0.5
-    s = _stride(int(np.count_nonzero(mask & has_n)) * m, max_values)
+    s = fit_stride(int(np.count_nonzero(mask & has_n)) * m, max_values)
     halo = max(HALO_ROWS, s)
     for r0 in range(0, h, rows):
         r1 = min(h, r0 + rows)

@@ -166,11 +166,16 @@ def normal_uncertainty(images, light_dirs, normals, mask=None, saturation=None, 
     return band
 
 
+def fit_stride(values, max_values):
+    """The local fit's stride for `values` mask pixels x lights: the smallest that brings them under
+    `max_values` (1 when they are already)."""
+    return int(np.ceil(np.sqrt(values / max_values))) if values > max_values else 1
+
+
 def _fit_band(images, light_dirs, normals, mask, saturation, channel, max_values):
     """BAND_SCALE x u (deg) of the local fit, MAX_DEG where it has too few lights; 0 off the mask."""
     m, h, w, _ = images.shape
-    values = mask.sum() * m
-    stride = int(np.ceil(np.sqrt(values / max_values))) if values > max_values else 1
+    stride = fit_stride(mask.sum() * m, max_values)
     if stride > 1:        # a cell's pixels take its corner's value (or its neighbours' at the edge)
         ld = light_dirs if light_dirs.ndim == 2 else light_dirs[::stride, ::stride]
         coarse = _fit_band(images[:, ::stride, ::stride], ld, normals[::stride, ::stride],
