@@ -22,6 +22,7 @@ The alternation (steps 1-2) runs on the images binned as the horizon test bins i
 lights are found per bin in any case; only the method's solve (step 3) sees every pixel.
 """
 import time
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -30,7 +31,9 @@ from facette.pipeline._options import SHADOWS_AUTO
 from facette.recon import hidden_lights
 from facette.recon._shadows import HORIZON_PIXELS
 
-__all__ = ["alternation_bin", "binned", "upsampled", "shadows_wanted", "solve_with_shadows", "with_shadows",
+__all__ = ["alternation_bin", "binned", "binned_pass", "Binned", "decision_bin", "flag_hidden", "hidden_of_bins",
+           "hidden_over_bands", "joined", "without_hidden",
+           "upsampled", "shadows_wanted", "solve_with_shadows", "with_shadows",
            "SHADOW_MARGIN_DEG", "SHADOW_MIN_SHARE", "SHADOW_PIXELS", "SHADOW_ROUNDS"]
 
 # a light is hidden when the horizon is above it less this (degrees). Negative: integrated heights round
@@ -52,21 +55,16 @@ SHADOW_MIN_SHARE = 0.002   # "auto": fewer hidden lit samples than this share le
 ZERO_IS_SHADOW = ("rank_trimmed", "li_alternating")    # methods that read a 0 as a shadow, never kept
 
 
-def shadows_wanted(o, light_dirs, notes):
-    """Whether `process` runs the step: "off" never; "on" and "auto" on images read whole (with
-    --memory a note says why not). Near lights take each light's mean direction."""
-    if o.shadows == "off":
-        return False
-    if o.memory is not None:
-        notes.append("shadows: left out with --memory (the horizon test needs the whole normal map)")
-        return False
-    return True
+def shadows_wanted(o):
+    """Whether `process` runs the step: "off" never; "on" and "auto" on images read whole or over
+    bands (`hidden_over_bands`)."""
+    return o.shadows != "off"
 
 
 def with_shadows(res, o, direct, light_dirs, mask, method_name, bag, ps=None):
     """`process`'s call: `ps` (None: not solved yet) replaced by `solve_with_shadows`' result when the
     step runs and applies."""
-    if not shadows_wanted(o, light_dirs, res.notes):
+    if not shadows_wanted(o):
         return ps
     return solve_with_shadows(res, o, direct, light_dirs, mask, method_name, bag, first=ps) or ps
 
@@ -120,15 +118,52 @@ def alternation_bin(mask):
     return max(1, int(np.ceil(np.sqrt(np.count_nonzero(mask) / HORIZON_PIXELS))))
 
 
-def upsampled(hidden, f, mask):
+def upsampled(hidden, f, mask, r0=0):
     """(m, H, W) bool: hidden lights (m, H // f, W // f) of f x f bins, at the size of `mask`
-    (the rows and columns past the last whole bin take the nearest bin's), on the mask only."""
-    if f == 1:
-        return hidden & mask[None]
+    (the rows and columns past the last whole bin take the nearest bin's), on the mask only.
+    r0: the image row of mask's first (a band's rows: `mask` is the band's)."""
     h, w = mask.shape
-    rows = np.minimum(np.arange(h) // f, hidden.shape[1] - 1)
+    if f == 1:
+        return hidden[:, r0:r0 + h] & mask[None]
+    rows = np.minimum(np.arange(r0, r0 + h) // f, hidden.shape[1] - 1)
     cols = np.minimum(np.arange(w) // f, hidden.shape[2] - 1)
     return hidden[:, rows[:, None], cols[None, :]] & mask[None]
+
+
+
+
+def decision_bin(mask):
+    """The bin factor of "auto"'s decision: at most SHADOW_PIXELS cells of the mask."""
+    return max(1, int(np.ceil(np.sqrt(np.count_nonzero(mask) / SHADOW_PIXELS))))
+
+
+@dataclass
+class Binned:
+    """The images of one of the step's passes binned f x f (`binned`): images (m, H // f, W // f, ...),
+    their light directions, the mask (a bin is on it when all its pixels are) and the mask the robust
+    pass solves (at f 1 the solve's own, what the capture cannot use left out)."""
+    f: int
+    images: np.ndarray
+    dirs: np.ndarray
+    mask: np.ndarray
+    solve_mask: np.ndarray
+
+
+def binned_pass(direct, light_dirs, mask, solve_mask, f):
+    """`Binned` of the images held whole, or of one band of them (its rows a multiple of f from a
+    multiple of f: the bins are then the whole image's)."""
+    images, dirs, m = binned(direct, light_dirs, mask, f)
+    return Binned(f, images, dirs, m, solve_mask if f == 1 else m)
+
+
+def joined(parts):
+    """The bands' `Binned` (top to bottom) as the whole image's."""
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    dirs = first.dirs if np.ndim(first.dirs) == 2 else np.concatenate([p.dirs for p in parts])
+    return Binned(first.f, np.concatenate([p.images for p in parts], axis=1), dirs,
+                  np.concatenate([p.mask for p in parts]), np.concatenate([p.solve_mask for p in parts]))
 
 
 def _first_normals(first, f):
@@ -142,31 +177,27 @@ def _first_normals(first, f):
     return n.reshape(hc, f, wc, f, 3).mean(axis=(1, 3)), valid
 
 
-def solve_with_shadows(res, o, direct, light_dirs, mask, method_name, bag, first=None):
-    """The method's PSResult with cast shadows left out (module doc), or None when "auto" finds
-    too few (then the caller solves as before). first : a PSResult whose normals start the
-    alternation (e.g. the inter-reflection step's), else a rank_trimmed pass. Notes, timings
-    ("shadows") and res.quality["shadows"] (the figures, which process.json records) are filled in.
-    "auto" decides on the images binned to at most SHADOW_PIXELS pixels of the object (a convex
-    object pays one small robust pass and horizon test); the alternation on the images binned as the
-    horizon test bins its heights (`alternation_bin`), the method's solve at full size."""
-    t0, c0 = time.perf_counter(), time.process_time()
-    L = _distant(light_dirs)
+def hidden_of_bins(res, o, decision, alternation, method_name, bag, first=None, started=None):
+    """(the hidden lights of the alternation's bins (m, H // fa, W // fa), fa), or None when "auto" finds
+    too few (module doc, steps 1-2). decision: `Binned` at `decision_bin`; alternation(fa): `Binned` at
+    `alternation_bin`, made when needed. first : a PSResult whose normals start the alternation (e.g. the inter-reflection
+    step's), else a rank_trimmed pass. The lights' mean directions are the decision's bins'. Notes, and
+    res.quality["shadows"] (the figures, which process.json records); started: (perf, process) clocks."""
+    t0, c0 = started or (time.perf_counter(), time.process_time())
+    L = _distant(decision.dirs)
 
-    def hidden_of(images, dirs, m, f, given=None):       # a robust pass (or `given`'s normals), its hidden lights
+    def hidden_of(level, given=None):       # a robust pass (or `given`'s normals), its hidden lights
         if given is not None:
-            normal, valid = _first_normals(given, f)
+            normal, valid = _first_normals(given, level.f)
         else:
-            ps = photometric_stereo(images, dirs, method="rank_trimmed", options=bag if f == 1 else {**bag, "mask": m})
+            ps = photometric_stereo(level.images, level.dirs, method="rank_trimmed",
+                                    options={**bag, "mask": level.solve_mask})
             normal, valid = ps.normal, ps.valid
-        hidden, _ = hidden_lights(normal, m & valid, L, SHADOW_MARGIN_DEG)
+        hidden, _ = hidden_lights(normal, level.mask & valid, L, SHADOW_MARGIN_DEG)
         return hidden, _lit_share(hidden, normal, valid, L)
 
-    # the decision, on the images binned to at most SHADOW_PIXELS object pixels
-    f = max(1, int(np.ceil(np.sqrt(np.count_nonzero(mask) / SHADOW_PIXELS))))
-    coarse, coarse_dirs, coarse_mask = binned(direct, light_dirs, mask, f)
-    hidden, share = hidden_of(coarse, coarse_dirs, coarse_mask, f, first)
-    info = {"margin_deg": SHADOW_MARGIN_DEG, "decided_on": round(share, 5), "bin": f, "hidden_share": []}
+    hidden, share = hidden_of(decision, first)
+    info = {"margin_deg": SHADOW_MARGIN_DEG, "decided_on": round(share, 5), "bin": decision.f, "hidden_share": []}
     res.quality["shadows"] = info
     if o.shadows == SHADOWS_AUTO and share < SHADOW_MIN_SHARE:
         info.update(applied=False, cpu_seconds=round(time.process_time() - c0, 3))
@@ -175,24 +206,79 @@ def solve_with_shadows(res, o, direct, light_dirs, mask, method_name, bag, first
                          "too few to matter, the images are used as they are")
         return None
     rounds = info["hidden_share"]
-    fa = alternation_bin(mask)
-    info["alternation_bin"] = fa
-    images, dirs, m = binned(direct, light_dirs, mask, fa) if fa != f else (coarse, coarse_dirs, coarse_mask)
-    if fa != f:
-        hidden, share = hidden_of(images, dirs, m, fa, first)
+    level = alternation()
+    info["alternation_bin"] = level.f
+    if level.f != decision.f:
+        hidden, share = hidden_of(level, first)
     rounds.append(round(share, 5))
     for _ in range(SHADOW_ROUNDS - 1):
-        hidden, share = hidden_of(_without(images, hidden, "rank_trimmed"), dirs, m, fa)
+        hidden, share = hidden_of(replace(level, images=_without(level.images, hidden, "rank_trimmed")))
         rounds.append(round(share, 5))
-    del images
-    hidden = upsampled(hidden, fa, mask)
-    t1, c1 = time.perf_counter(), time.process_time()
-    ps = photometric_stereo(_without(direct, hidden, method_name), light_dirs, method=o.method, options=bag)
-    ps.shadow |= np.moveaxis(hidden, 0, -1) & ps.valid[..., None]
     # the step's own cost is what comes before the method's solve (which runs in any case)
-    info.update(applied=True, seconds_before_solve=round(t1 - t0, 3), cpu_seconds_before_solve=round(c1 - c0, 3))
-    res.timings["shadows"] = time.perf_counter() - t0
+    info.update(applied=True, seconds_before_solve=round(time.perf_counter() - t0, 3),
+                cpu_seconds_before_solve=round(time.process_time() - c0, 3))
     res.notes.append(f"shadows: the surface's own heights hide {rounds[-1]:.2%} of the lit samples (lights "
                      f"under the horizon + {-SHADOW_MARGIN_DEG:g}°); those values were left out of the normals "
                      f"({len(rounds)} robust passes, then {method_name})")
+    return hidden, level.f
+
+
+def solve_with_shadows(res, o, direct, light_dirs, mask, method_name, bag, first=None):
+    """The method's PSResult with cast shadows left out (module doc), or None when "auto" finds
+    too few (then the caller solves as before): `hidden_of_bins` on the images held whole, then the
+    method's solve at full size without the hidden values. Timings ("shadows") filled in."""
+    started = t0, _ = time.perf_counter(), time.process_time()
+    solve_mask = bag.get("mask", mask)
+    f = decision_bin(mask)
+    decision = binned_pass(direct, light_dirs, mask, solve_mask, f)
+    found = hidden_of_bins(res, o, decision, lambda: decision if alternation_bin(mask) == f else
+                           binned_pass(direct, light_dirs, mask, solve_mask, alternation_bin(mask)),
+                           method_name, bag, first, started)
+    if found is None:
+        return None
+    del decision
+    images, hidden = without_hidden(direct, found, mask, 0, method_name)
+    ps = flag_hidden(photometric_stereo(images, light_dirs, method=o.method, options=bag), hidden)
+    res.timings["shadows"] = time.perf_counter() - t0
+    return ps
+
+
+def hidden_over_bands(res, o, read, mask, rows, method_name, bag):
+    """`hidden_of_bins` over bands, or None (the step not wanted, or too few hidden): each band binned as
+    it is read, on the whole image's bins (bands of a multiple of both bins' rows, near `rows`), so that
+    the binned images, and then the hidden lights, are those of the images held whole. read(r0, r1) ->
+    (the band's images as the solve sees them, its light directions, the mask its solve takes).
+    Each band's solve then leaves out `upsampled(hidden, fa, its mask, r0)` (`without_hidden`)."""
+    if not shadows_wanted(o):
+        return None
+    started = time.perf_counter(), time.process_time()
+    f, fa = decision_bin(mask), alternation_bin(mask)
+    step = int(np.lcm(f, fa))
+    rows = max(step, rows // step * step)
+    parts = {f: [], fa: []}
+    for r0 in range(0, mask.shape[0], rows):
+        r1 = min(mask.shape[0], r0 + rows)
+        images, dirs, solve_mask = read(r0, r1)
+        for k, done in parts.items():          # the decision's bins and the alternation's (once when the same)
+            done.append(binned_pass(images, dirs, mask[r0:r1], solve_mask, k))
+        del images
+    levels = {k: joined(done) for k, done in parts.items()}
+    found = hidden_of_bins(res, o, levels[f], lambda: levels[fa], method_name, bag, None, started)
+    res.timings["shadows"] = time.perf_counter() - started[0]
+    return found
+
+
+def without_hidden(images, found, mask, r0, method_name):
+    """(a band's images without its hidden values, its hidden lights (m, rows, W)) for a band of rows
+    r0.. whose mask is `mask`; found: `hidden_over_bands`' (None: as given, None)."""
+    if found is None:
+        return images, None
+    hidden = upsampled(*found, mask, r0)
+    return _without(images, hidden, method_name), hidden
+
+
+def flag_hidden(ps, hidden):
+    """ps.shadow gains the `hidden` lights (m, H, W) of its valid pixels (the samples leave them out)."""
+    if hidden is not None:
+        ps.shadow |= np.moveaxis(hidden, 0, -1) & ps.valid[..., None]
     return ps

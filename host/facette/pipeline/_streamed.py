@@ -7,7 +7,6 @@ from facette.pipeline._band_uncertainty import banded_uncertainty
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted
 from facette.pipeline._rti_bands import BANDED_OUTPUTS, relight_bands
-from facette.pipeline._shadows import shadows_wanted
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, streamed_ps
 
 __all__ = ["banded_process"]
@@ -27,7 +26,7 @@ def banded_process(source, o, res, outputs, stages, claim):
             banded.append(relight_bands(read, res.object_mask, outputs, o, rows, len(inp.light_dirs), inp))
     inp, ps, light_dirs, top = streamed_ps(source, o, res, lambda i: claimed.update(previous=claim(i)),
                                            samples="samples" in stages, relight=after_bands)
-    interreflections_wanted(o, inp, res.notes), shadows_wanted(o, light_dirs, res.notes)   # their notes: why not
+    interreflections_wanted(o, inp, res.notes)        # its note: why not
     if res.ps is None:
         _streamed_result(res, inp, ps, top)
     if "report" in outputs:

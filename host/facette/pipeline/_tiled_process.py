@@ -60,6 +60,7 @@ from facette.pipeline._quality import add_counts, carried, check_counts, light_g
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._samples import samples_sensor
 from facette.pipeline._scheduler import connect_scheduler
+from facette.pipeline._shadows import flag_hidden, hidden_over_bands, without_hidden
 from facette.pipeline._tiles import (BANDED_METHODS, FIELD_BYTES, PROCESS_BYTES, SOLVE_CHANNEL_BYTES, WHOLE_IMAGE_METHODS,
                                     rows_per_tile)
 from facette.recon import PSResult, near_light_directions
@@ -146,7 +147,7 @@ def rows_for_model(method, model, h, rows):
 
 
 def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None, weights=None, model=None,
-             gains=None):
+             gains=None, hidden_bins=None, hidden_bin=1):
     """A band's photometric stereo: (r0, r1, PSResult without per-light flags or None when the
     mask leaves the band out, its quality counts or None, read seconds, PS seconds, its
     reflectance samples or None). samples: {sample_mask: the band's, theta0_deg, total} to take
@@ -154,7 +155,9 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
     shadows it found. weights: (3,) the solve's channel as a sum of R, G, B appended to the band
     (`_channels.with_solve_channel`, as the whole reading's `images_for_solve`), None: green.
     model: li_alternating's, fitted over the bands (`band_model`). gains: (m,) the lights' gains the
-    images are divided by (`_light_gains.light_gains_of_bands`) or None."""
+    images are divided by (`_light_gains.light_gains_of_bands`) or None. hidden_bins, hidden_bin: the
+    cast-shadow step's hidden lights of its bins and their bin (`_shadows.hidden_over_bands`) or None:
+    left out of the band's solve, added to its shadow flags (the band's samples leave them out)."""
     t0 = time.perf_counter()
     reader = open_bands(spec)
     try:
@@ -170,8 +173,10 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
     images, solve = divided(images, solve, gains)
     if model is not None:
         bag.update(model=model, row0=r0)
-    part = photometric_stereo(solve, dirs, method=method, options=dict(bag, mask=solved))
-    del solve
+    found = None if hidden_bins is None else (hidden_bins, hidden_bin)
+    solve, hidden = without_hidden(solve, found, mask, r0, PS_METHODS.canonical(method))
+    part = flag_hidden(photometric_stereo(solve, dirs, method=method, options=dict(bag, mask=solved)), hidden)
+    del solve, hidden
     if weights is not None:                    # the albedo's R, G, B only (`_channels.results_in_rgb`)
         part = replace(part, albedo=np.ascontiguousarray(part.albedo[..., :3]))
     taken = None
@@ -352,13 +357,16 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
                 return None if not samples else {"sample_mask": smask[r0:r1], "theta0_deg": o.theta0_deg,
                                                  "total": total}
 
-            gains, model = _gains_and_model(res, o, inp, bands, near, bag, weights, n)
+            gains, hidden, model = _gains_shadows_and_model(res, o, inp, bands, near, bag, weights, n)
             n = rows_for_model(o.method, model, h, n)
             hand_back(o.memory_bytes)
-            if model is not None and client is not None:
-                model = client.scatter(model, broadcast=True)     # once to every worker, not with each band
+            hidden_bins, hidden_bin = hidden or (None, 1)
+            if client is not None:     # once to every worker, not with each band
+                model = model if model is None else client.scatter(model, broadcast=True)
+                hidden_bins = hidden_bins if hidden is None else client.scatter(hidden_bins, broadcast=True)
             calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
-                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1), weights, model, gains) for r0, r1 in _bands(h, n))
+                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1), weights, model, gains, hidden_bins, hidden_bin)
+                     for r0, r1 in _bands(h, n))
             ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client), on_disk=True)
             hand_back(o.memory_bytes)   # the bands' heap: not under the stages after them
             ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n, channels=used)   # pipeline._channels
@@ -379,7 +387,8 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
             client.close()
         shutil.rmtree(work, ignore_errors=True)
     # the check's verdict (InsufficientData) as untiled, after the bands that counted
-    notes, res.quality = check_counts(counts if counts is not None else {"m": m, "object": 0}, inp.mask_source)
+    notes, quality = check_counts(counts if counts is not None else {"m": m, "object": 0}, inp.mask_source)
+    res.quality = {**quality, **res.quality}           # the cast-shadow step's figures kept
     res.notes.extend(notes + light_geometry(inp.light_dirs, res.quality))
     if near:
         res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
@@ -390,22 +399,27 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
     return inp, ps, (None if near else inp.light_dirs), top
 
 
-def _gains_and_model(res, o, inp, bands, near, bag, weights, rows):
-    """(the lights' gains or None, li_alternating's model or None), each from a pass over the bands
-    here (`_light_gains.light_gains_of_bands`, `band_model`), the model's on the bands divided by the gains."""
-    flat, gains = getattr(bands, "flat", None), None
+def _gains_shadows_and_model(res, o, inp, bands, near, bag, weights, rows):
+    """(the lights' gains or None, the hidden lights of the cast-shadow step's bins and their bin or
+    None, li_alternating's model or None), each from a pass over the bands here
+    (`_light_gains.light_gains_of_bands`, `_shadows.hidden_over_bands`, `band_model`), each on the
+    bands as the ones before it left them (divided by the gains, without the hidden values)."""
+    flat, gains, hidden = getattr(bands, "flat", None), None, None
+    method_name = PS_METHODS.canonical(o.method)
 
     def read_solve(r0, r1):        # a band as the solve sees it: (its images, the solve's, directions, mask)
         images, usable = bands.read(r0, r1, None if flat is None else flat[r0:r1])
         images, solve, dirs, solved, _ = _solve_inputs(images, usable, r0, r1, inp.mask[r0:r1], near, bag, weights)
-        return divided(images, solve, gains) + (dirs, solved)
+        images, solve = divided(images, solve, gains)
+        return images, without_hidden(solve, hidden, inp.mask[r0:r1], r0, method_name)[0], dirs, solved
     model_bag = {k: v for k, v in bag.items() if k != "light_dirs"}
     model_bag.update({} if weights is None else {"channel": SOLVE_CHANNEL})
-    gains = light_gains_of_bands(res, o, inp, PS_METHODS.canonical(o.method),
-                                 lambda r0, r1: read_solve(r0, r1)[1:3], rows, model_bag)
+    gains = light_gains_of_bands(res, o, inp, method_name, lambda r0, r1: read_solve(r0, r1)[1:3], rows, model_bag)
+    hidden = hidden_over_bands(res, o, lambda r0, r1: read_solve(r0, r1)[1:4], inp.mask, rows, method_name,
+                               model_bag)
     model = band_model(o.method, lambda r0, r1: read_solve(r0, r1)[1:4], inp.mask.shape,
                        int(np.count_nonzero(inp.mask)), rows, model_bag)
-    return gains, model
+    return gains, hidden, model
 
 
 def in_memory_ps(images, light_dirs, o, bag, outputs, res, rows=None):

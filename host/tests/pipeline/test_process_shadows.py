@@ -60,12 +60,48 @@ def test_the_default_method_gains_on_the_groove_and_a_convex_object_is_left_as_i
     np.testing.assert_array_equal(auto.normals, plain.normals)
 
 
-def test_the_option_is_checked_and_memory_leaves_the_step_out(groove):
+def test_the_option_is_checked():
     with pytest.raises(BadInputError, match="shadows must be one of"):
         ProcessOptions(shadows="maybe")
-    _, folder = groove
-    res = process(folder, outputs=["normals"], method="rank_trimmed", memory="1GB", interreflections=False)
-    assert res.quality.get("shadows") is None and any("shadows: left out with --memory" in n for n in res.notes)
+
+
+TIMES = ("cpu_seconds", "seconds_before_solve", "cpu_seconds_before_solve")
+
+
+@pytest.mark.parametrize("method, bins", [("rank_trimmed", None), ("li_alternating", (1000, 2304)),
+                                          ("woodham1980", (1000, 2304))])
+def test_over_bands_the_step_gives_the_whole_run_s_normals(groove, monkeypatch, method, bins):
+    # bands of 5 rows (--memory): the images binned band by band on the whole image's bins, the alternation
+    # on them, each band's solve without its rows of the hidden lights. bins: the decision's 4 x 4 and the
+    # alternation's 2 x 2 (the shadow pass then reads bands of 4 rows, the solve's of 5 start inside bins)
+    import facette.pipeline._shadows as shadows
+    from facette.pipeline import _tiled_process
+    d, folder = groove
+    if bins:
+        monkeypatch.setattr(shadows, "SHADOW_PIXELS", bins[0])
+        monkeypatch.setattr(shadows, "HORIZON_PIXELS", bins[1])
+    options = dict(outputs=["normals", "albedo"], method=method, interreflections=False, shadows="on",
+                   ps_options={"coarse_pixels": 400} if method == "li_alternating" else {})
+    whole = process(folder, **options)
+    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: 5)
+    bands = process(folder, **options, memory="1GB")
+    assert bands.ps.info["tiles"] > 1 and bands.ps.info["rows_per_tile"] == 5
+    q, qb = whole.quality["shadows"], bands.quality["shadows"]
+    assert q["applied"] and q["hidden_share"][-1] > 0.01 and q["bin"] == (4 if bins else 1)
+    assert {k: v for k, v in q.items() if k not in TIMES} == {k: v for k, v in qb.items() if k not in TIMES}
+    hid = d["hidden"].any(0)
+    off = process(folder, **dict(options, shadows="off"), memory="1GB")       # and the step did change them
+    if method == "woodham1980":      # a band with no value missing is solved by the pseudo-inverse, the
+        assert _angle(bands.normals, whole.normals).max() < 0.1    # whole image by the normal equations
+        assert _angle(off.normals, whole.normals)[hid].mean() > 1.0
+    else:                             # the robust methods trim most shadows themselves: less to change
+        np.testing.assert_array_equal(bands.normals, whole.normals)
+        np.testing.assert_array_equal(bands.albedo, whole.albedo)
+        assert (_angle(off.normals, whole.normals)[hid] > 0.01).sum() > 20
+
+
+def _angle(a, b):
+    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1, 1)))
 
 
 def test_auto_decides_on_binned_images_and_solves_at_full_size(groove, monkeypatch):
