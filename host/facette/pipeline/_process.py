@@ -56,7 +56,7 @@ from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_bands import relight_stage, whole_bands, write_relight_web
 from facette.pipeline._rti_exposure import record_exposure
 from facette.pipeline._streamed import banded_process
-from facette.pipeline._tiled_process import in_memory_ps, streamed
+from facette.pipeline._tiled_process import read_whole_notes, streamed
 from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry, truth_errors
 from facette.pipeline._report import report_fit_section, write_report
 from facette.pipeline._relight_model_stage import model_input, relight_model_stage, save_relight_model
@@ -233,6 +233,7 @@ def _process(source, outputs, out_dir, o):
             if relight is not None:
                 relight.close()
     t0 = time.perf_counter()
+    res.notes.extend(read_whole_notes(o, source))     # --memory, a source that is not a capture's folder
     inp = load_input(source, mask=o.mask, pixel_pitch_mm=o.pixel_pitch_mm, allow_incomplete=o.allow_incomplete,
                      capture=o.capture)
     previous = claim(inp)
@@ -262,9 +263,7 @@ def _process(source, outputs, out_dir, o):
     direct, ps = solve_without_interreflections(res, o, solve_in, light_dirs, inp, method_name, bag) \
         if interreflections_wanted(o, inp, res.notes) else (solve_in, None)
     ps = with_shadows(res, o, direct, light_dirs, inp.mask, method_name, bag, ps)    # cast shadows, alternated
-    if ps is None and o.memory is not None:     # over bands of the images held whole
-        ps = in_memory_ps(direct, light_dirs, o, bag, outputs, res)
-    elif ps is None:
+    if ps is None:
         ps = photometric_stereo(direct, light_dirs, method=o.method, options=bag)
     ps, direct = results_in_rgb(ps, direct, solve_in, images, used)
     res.ps = ps

@@ -5,7 +5,10 @@ alone, so the bands solved one after the other give the untiled normals. li_alte
 default) too: its material model is fitted first, on a sample drawn across the bands (`band_model`,
 `fit.li_model`: one pass over them, the coarse pass on the image binned, the dark level, the model
 choice), and each band solved with it fixed (shipped to the workers once with a scheduler); the
-image read whole runs the same steps as one band. Two ways, chosen by the outputs asked for:
+image read whole runs the same steps as one band. Before the model, the cast-shadow step's pass
+(`_shadows.hidden_over_bands`: each band binned on the whole image's bins, the alternation on
+them) finds the lights the surface hides; each band's solve leaves its rows of them out, as the
+run on the images held whole does.
 
 - streamed (every output in STREAMED_OUTPUTS, which is all of them; any capture,
   `capture.open_capture`): the photographs are never held whole. A scan's
@@ -29,10 +32,9 @@ image read whole runs the same steps as one band. Two ways, chosen by the output
   written as the bands come and read a band at a time by the EXR writers, the heights (whose
   divergence is built band by band, `recon._integrate`), the glTF's textures (block means at
   most 8192 texels wide) and the report.
-- in memory (outputs outside STREAMED_OUTPUTS): the input is loaded whole as
-  untiled; photometric stereo runs
-  over bands of it, which bounds its own working set only; a note says which outputs came from
-  the whole images.
+- a source that is not a capture's folder (a Scan object, arrays) is read whole by `process`, as
+  without --memory (a note says the budget bounds nothing there; the former third way, photometric
+  stereo over bands of images held whole, bounded nothing but the solve and is retired).
 
 The band height is `_tiles.rows_per_tile` of the budget (tests force a few rows). The streamed
 bands run here one after the other, or, with `scheduler` (`--scheduler tcp://host:8786`), as
@@ -65,8 +67,7 @@ from facette.pipeline._tiles import (BANDED_METHODS, FIELD_BYTES, PROCESS_BYTES,
                                     rows_per_tile)
 from facette.recon import PSResult, near_light_directions
 
-__all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "ps_bands", "streamed_ps",
-           "in_memory_ps"]
+__all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "streamed_ps", "read_whole_notes"]
 
 STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
 MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (the photographs are not held) "
@@ -213,7 +214,7 @@ def _map(fn, calls, client=None, in_flight=None):
             break
 
 
-def _assemble(shape, method, results, flags_m=0, on_disk=False):
+def _assemble(shape, method, results, on_disk=False):
     """The bands' results (`_ps_task`'s tuples) into one PSResult at the image's size, and the
     quality counts summed. info: the first band's, its fractions (keys ending in _fraction)
     weighted by the bands' pixels, and pixels, tiles, read_s, ps_s. on_disk: the ON_DISK maps
@@ -224,7 +225,7 @@ def _assemble(shape, method, results, flags_m=0, on_disk=False):
         return disk_array((h, w) + tail, dtype) if on_disk and name in ON_DISK else np.zeros((h, w) + tail, dtype)
     res = PSResult(normal=field("normal", (3,), np.float32), albedo=field("albedo", (3,), np.float32),
                    valid=np.zeros((h, w), bool), n_triplets=field("n_triplets", (), np.int16),
-                   shadow=np.zeros((h, w, flags_m), bool), specular=np.zeros((h, w, flags_m), bool),
+                   shadow=np.zeros((h, w, 0), bool), specular=np.zeros((h, w, 0), bool),
                    residual=field("residual", (), np.float32), skipped=np.zeros((h, w), bool),
                    method=PS_METHODS.canonical(method))
     info, pixels, counts, read_s, ps_s, weighted = {}, 0, None, 0.0, 0.0, {}
@@ -244,8 +245,6 @@ def _assemble(shape, method, results, flags_m=0, on_disk=False):
         for name in ("normal", "albedo", "valid", "n_triplets", "residual", "skipped"):
             getattr(res, name)[r0:r1] = getattr(part, name)
             release(getattr(res, name))
-        if flags_m:
-            res.shadow[r0:r1], res.specular[r0:r1] = part.shadow, part.specular
         n = int(part.info.get("pixels", part.valid.sum()))
         pixels += n
         info = info or dict(part.info)
@@ -261,46 +260,6 @@ def _assemble(shape, method, results, flags_m=0, on_disk=False):
 
 def _bands(h, rows):
     return [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
-
-
-def ps_bands(read, shape, m, light_dirs, method, bag, mask, rows, flags=False, count_in=None):
-    """Photometric stereo of `method` over bands of `rows` rows, here.
-
-    read(r0, r1) -> (images (m, r1 - r0, W, C) as the method takes them, usable or None);
-    shape (H, W); light_dirs (m, 3) or (H, W, m, 3); bag: the options (its mask replaced by the
-    band's); mask (H, W) bool; flags: keep the (H, W, m) shadow and specular flags (else (H, W, 0));
-    count_in: (H, W) bool, the object over which the quality counts (`sample_counts`) are summed.
-    Returns (PSResult at the image's size, counts or None); info as `_assemble`'s, with tiles
-    and rows_per_tile.
-    """
-    h, w = shape
-
-    def dirs_of(r0, r1):
-        return light_dirs if np.ndim(light_dirs) == 2 else light_dirs[r0:r1]
-
-    def for_model(r0, r1):
-        band, usable = read(r0, r1)
-        return band, dirs_of(r0, r1), carried(mask[r0:r1], usable)
-    model = band_model(method, for_model, shape, int(np.count_nonzero(mask)), rows, bag)
-    rows = rows_for_model(method, model, h, rows)
-    more = {} if model is None else {"model": model}
-
-    def one(r0, r1):
-        t0 = time.perf_counter()
-        band, usable = read(r0, r1)
-        read_s = time.perf_counter() - t0
-        counts = None if count_in is None else sample_counts(band, usable, count_in[r0:r1])
-        if not mask[r0:r1].any():
-            return r0, r1, None, counts, read_s, 0.0, None
-        t0 = time.perf_counter()
-        options = dict(bag, mask=carried(mask[r0:r1], usable), **more, **({"row0": r0} if more else {}))
-        part = photometric_stereo(band, dirs_of(r0, r1), method=method, options=options)
-        return r0, r1, part, counts, read_s, time.perf_counter() - t0, None
-
-    spans = [b for b in _bands(h, rows) if count_in is not None or mask[b[0]:b[1]].any()]
-    res, counts = _assemble(shape, method, (one(r0, r1) for r0, r1 in spans), m if flags else 0)
-    res.info.update(tiles=len(_bands(h, rows)), rows_per_tile=rows)
-    return res, counts
 
 
 def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight=None):
@@ -422,22 +381,16 @@ def _gains_shadows_and_model(res, o, inp, bands, near, bag, weights, rows):
     return gains, hidden, model
 
 
-def in_memory_ps(images, light_dirs, o, bag, outputs, res, rows=None):
-    """Photometric stereo over bands of images held whole (outputs that need them after it, or
-    a source that is not a folder): the PSResult, with the per-light flags (the samples leave shadows out)."""
-    m, h, w = images.shape[:3]
-    n = int(rows) if rows is not None else rows_per_tile(w, h, m, o.memory, o.method, tuple(FIELD_BYTES),
-                                                         per_light_flags=True)
-    ps, _ = ps_bands(lambda r0, r1: (images[:, r0:r1], None), (h, w), m, light_dirs, o.method, bag,
-                     bag["mask"], n, flags=True)
-    whole = [x for x in outputs if x not in STREAMED_OUTPUTS] or ["the input"]
+def read_whole_notes(o, source):
+    """The notes of a run with --memory whose source `process` reads whole (not a capture's folder:
+    `streamed`): the budget bounds nothing there."""
+    if o.memory is None:
+        return []
+    notes = [f"--memory {o.memory}: {source!r} is not a capture's folder: its images were read whole, the "
+             "budget bounds nothing (give the capture's folder to read it band by band)"]
     if o.scheduler is not None:
-        res.notes.append(f"--scheduler {o.scheduler}: not used, the images being held whole here (it runs the "
-                         "bands of --memory of a scan directory or a DiLiGenT folder)")
-    res.notes.append(f"--memory {o.memory}: photometric stereo over {ps.info['tiles']} bands of {n} rows; the "
-                     f"images were loaded whole (untiled) for {', '.join(whole)}, and every output computed from "
-                     "them: the memory budget bounds photometric stereo only")
-    return ps
+        notes.append(f"--scheduler {o.scheduler}: not used, the images being held whole here")
+    return notes
 
 
 def _samples_result(taken, theta0_deg):

@@ -34,7 +34,7 @@ def test_memory_bands_give_the_whole_images_uncertainty(tmp_path):
     sc = sphere_on_plane(24, 32)
     imgs = render(sc, L, "matte")
     write_diligent(tmp_path / "in", np.round(imgs / imgs.max() * 50000).astype(np.uint16), L, None, sc.mask)
-    whole = process(tmp_path / "in", outputs=["normals"], method="rank_trimmed", shadows="off")
+    whole = process(tmp_path / "in", outputs=["normals"], method="rank_trimmed")
     res = process(tmp_path / "in", outputs=["normals"], out_dir=tmp_path / "out", method="rank_trimmed",
                   memory="2GB")
     _, channels = read_exr(tmp_path / "out" / "normal.exr")     # over bands too (pipeline._band_uncertainty)

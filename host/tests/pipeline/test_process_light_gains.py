@@ -71,9 +71,9 @@ def test_the_gains_read_over_bands_are_the_whole_images_gains(tmp_path, monkeypa
     sc = sphere_on_plane(48, 56)
     im = render(sc, lights, "satin") * (1 + 0.03 * np.sin(np.arange(len(lights)) * 1.7))[:, None, None, None]
     write_diligent(tmp_path / "g", np.round(im / im.max() * 60000).astype(np.uint16), lights, np.ones((len(lights), 3)))
-    # the cast-shadow step needs the whole normal map: left out over bands (pipeline._shadows), off here
-    whole = process(tmp_path / "g", outputs=["normals"], shadows="off")
-    bands = process(tmp_path / "g", outputs=["normals"], memory="1GB", shadows="off")
+    # and the cast-shadow step over the same bands, on the images divided by the gains (pipeline._shadows)
+    whole = process(tmp_path / "g", outputs=["normals"], shadows="on")
+    bands = process(tmp_path / "g", outputs=["normals"], memory="1GB", shadows="on")
     assert whole.light_gains["applied"] and whole.light_gains["factor"] == 2
     assert bands.light_gains["gains"] == whole.light_gains["gains"]
     assert any("read band by band (never held whole)" in n for n in bands.notes)
