@@ -38,26 +38,20 @@ from facette.io.png import write_mask
 from facette.calib.lp import write_lp
 from facette.io.ptm import write_ptm_lrgb
 from facette.io.rti import write_hsh_rti
-from facette.methods import PS_METHODS, photometric_stereo
-from facette.recon import (INTEGRATION_METHODS, flat_margin, integrate, mesh_from_height, MESH_MAX_SLOPE,
-                           near_light_directions, dark_level_notes)
+from facette.recon import INTEGRATION_METHODS, flat_margin, integrate, mesh_from_height, MESH_MAX_SLOPE
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._budget import with_default_budget
-from facette.pipeline._channels import images_for_solve, results_in_rgb
-from facette.capture import LP_NAME, load_input, object_of
+from facette.capture import LP_NAME
 from facette.pipeline._band_uncertainty import normal_image, uncertainty_of
 from facette.pipeline._stages import ALL_OUTPUTS, FILES, OUTPUTS, STAGES_FOR, stages_needed
-from facette.pipeline._filled import normals_of
-from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
-from facette.pipeline._light_gains import with_light_gains
-from facette.pipeline._shadows import with_shadows
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_bands import relight_stage, whole_bands, write_relight_web
 from facette.pipeline._rti_exposure import record_exposure
 from facette.pipeline._streamed import banded_process
-from facette.pipeline._tiled_process import read_whole_notes, streamed
-from facette.pipeline._quality import carried, check_fit_cells, check_samples, light_geometry, truth_errors
+from facette.pipeline._whole import whole_process
+from facette.pipeline._tiled_process import streamed
+from facette.pipeline._quality import check_fit_cells, truth_errors
 from facette.pipeline._report import report_fit_section, write_report
 from facette.pipeline._relight_model_stage import model_input, relight_model_stage, save_relight_model
 from facette.pipeline._samples import _samples_stage  # bench/recon.py imports it from here too
@@ -232,47 +226,7 @@ def _process(source, outputs, out_dir, o):
         finally:
             if relight is not None:
                 relight.close()
-    t0 = time.perf_counter()
-    res.notes.extend(read_whole_notes(o, source))     # --memory, a source that is not a capture's folder
-    inp = load_input(source, mask=o.mask, pixel_pitch_mm=o.pixel_pitch_mm, allow_incomplete=o.allow_incomplete,
-                     capture=o.capture)
-    previous = claim(inp)
-    res.inputs = inp
-    res.notes.extend(inp.notes)
-    if inp.usable is not None:       # the data must be able to carry normals (else exit 3)
-        notes, res.quality = check_samples(inp.images, inp.usable, inp.object_mask, inp.mask_source)
-        res.notes.extend(notes + light_geometry(inp.light_dirs, res.quality))
-    res.timings["load"] = time.perf_counter() - t0
-    m, h, w, c = inp.images.shape
-    t0 = time.perf_counter()
-    light_dirs, images = inp.light_dirs, inp.images
-    if o.near_light and inp.positions_mm is not None:
-        light_dirs, falloff = near_light_directions(inp.positions_mm, (h, w), inp.pixel_pitch_mm)
-        images = images / np.transpose(falloff, (2, 0, 1))[..., None]
-        res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
-    if "ps" not in stages:       # the relighting files alone: the images and the object's mask
-        res.mask, res.object_mask = inp.mask, inp.mask if inp.background_mask() is None else \
-            inp.mask & object_of(inp.images, inp.mask, inp.material_mask)
-        return _from_ps(res, inp, stages, outputs, images, images, light_dirs, o, out_dir, record_options, previous,
-                        t_all, cpu_all)
-    # one bag of options for whichever method: each takes its own (facette.methods)
-    bag = o.ps_bag(mask=carried(inp.mask, inp.usable), saturation=o.saturation)
-    method_name = PS_METHODS.canonical(o.method)
-    solve_in, used = images_for_solve(images, inp.mask, o, bag, res.notes)     # the channels the normals see
-    solve_in, images = with_light_gains(res, o, inp, method_name, solve_in, images, bag)
-    direct, ps = solve_without_interreflections(res, o, solve_in, light_dirs, inp, method_name, bag) \
-        if interreflections_wanted(o, inp, res.notes) else (solve_in, None)
-    ps = with_shadows(res, o, direct, light_dirs, inp.mask, method_name, bag, ps)    # cast shadows, alternated
-    if ps is None:
-        ps = photometric_stereo(direct, light_dirs, method=o.method, options=bag)
-    ps, direct = results_in_rgb(ps, direct, solve_in, images, used)
-    res.ps = ps
-    res.notes.extend(dark_level_notes(ps.info.get("dark_offset")))
-    normals_of(res, inp, ps)
-    # mask.png: the object, without the dark table or cloth around it (when one surrounds it)
-    res.object_mask = res.mask if inp.background_mask() is None else \
-        res.mask & object_of(inp.images, inp.mask, inp.material_mask)
-    res.timings["ps"] = time.perf_counter() - t0
+    inp, images, direct, light_dirs, previous = whole_process(source, o, res, stages, claim)
     return _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options, previous,
                     t_all, cpu_all)
 

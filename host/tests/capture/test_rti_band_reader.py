@@ -8,7 +8,7 @@ import tifffile
 from facette.calib.lp import write_lp
 from facette.capture import load_input, open_bands
 from facette.capture.rti import RTIBands, rti_files
-from facette.pipeline import _process as process_module
+from facette.pipeline import _whole as process_module   # where the whole reading loads the capture
 from facette.pipeline import _tiled_process, process
 from facette.recon.synthetic import render, sphere_on_plane
 

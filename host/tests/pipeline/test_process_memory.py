@@ -12,7 +12,7 @@ from facette.cli.main import main
 from facette.io.diligent import write_diligent
 from facette.io.exr import write_exr
 from facette.pipeline import BANDED_METHODS, ProcessOptions, process
-from facette.pipeline import _process as process_module
+from facette.pipeline import _whole as process_module   # where the whole reading loads the capture
 from facette.pipeline import _tiled_process
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
