@@ -20,6 +20,14 @@ the images are used as they are (a convex object hides nothing, and pays that sm
 The alternation (steps 1-2) runs on the images binned as the horizon test bins its heights
 (recon.HORIZON_PIXELS cells: 3 x 3 on a 3 MP scan, none on a DiLiGenT crop), since the hidden
 lights are found per bin in any case; only the method's solve (step 3) sees every pixel.
+
+Both passes read binned images only, so the step runs the same over bands (`hidden_over_bands`:
+each band binned as it is read, its first row on a multiple of both bins, so that the bins are
+the whole image's; `hidden_of_bins` on the joined stacks; each band's solve then leaves out its
+rows of the hidden lights, `without_hidden`): the hidden lights of the images held whole, and the
+same normals (tests/pipeline/test_process_shadows.py). The binned stacks hold at most
+HORIZON_PIXELS + SHADOW_PIXELS cells x m lights x C channels (12 lights, RGB + the solve's
+channel: 80 MB), the images themselves when the mask has fewer pixels than that.
 """
 import time
 from dataclasses import dataclass, replace
