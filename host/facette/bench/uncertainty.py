@@ -19,7 +19,10 @@ that would put 90 % of their normals inside the band); DiLiGenT only confirms th
 Each case also prints how rankable its errors are: their 10th-90th percentile (an error that is about the
 same everywhere, as the 16-bit ball's ~2 deg, has no order for any measure to find). --candidates adds a line
 per case with the Spearman of the measures tried and not taken (bench._uncertainty_candidates: a
-leave-one-light-out jackknife, the kept lights' count, conditioning and spread, residuals).
+leave-one-light-out jackknife, the kept lights' count, conditioning and spread, residuals; and, from the
+solve's own model, bench._uncertainty_li: the LI model's Laplace covariance, its bound, two half-light solves).
+Each group ends with its mean over the cases (the bar is read on it) and the Spearman and coverage of all its
+pixels pooled.
 """
 import argparse
 import time
