@@ -189,8 +189,9 @@ def hidden_of_bins(res, o, decision, alternation, method_name, bag, first=None, 
     """(the hidden lights of the alternation's bins (m, H // fa, W // fa), fa), or None when "auto" finds
     too few (module doc, steps 1-2). decision: `Binned` at `decision_bin`; alternation(): `Binned` at
     `alternation_bin`, made when needed. first : a PSResult whose normals start the alternation (e.g.
-    the inter-reflection step's), else a rank_trimmed pass. The lights' mean directions are the decision's bins'. Notes, and
-    res.quality["shadows"] (the figures, which process.json records); started: (perf, process) clocks."""
+    the inter-reflection step's), else a rank_trimmed pass. The lights' mean directions are the
+    decision's bins'. Notes, and res.quality["shadows"] (the figures, which process.json records);
+    started: (perf, process) clocks."""
     t0, c0 = started or (time.perf_counter(), time.process_time())
     L = _distant(decision.dirs)
 
