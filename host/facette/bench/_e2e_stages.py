@@ -28,6 +28,7 @@ WRAPPED = [
     ("photometric stereo (solve)", "facette.pipeline._process", "photometric_stereo"),
     ("object mask", "facette.pipeline._process", "object_of"),
     ("uncertainty", "facette.pipeline._process", "uncertainty_of"),
+    ("relighting files' set-up (their exposure)", "facette.pipeline._process", "whole_bands"),
     ("integrate", "facette.pipeline._process", "integrate"),
     ("mesh", "facette.pipeline._process", "mesh_from_height"),
     ("report's relighting model", "facette.pipeline._process", "relight_model_stage"),
