@@ -164,6 +164,9 @@ def register(sub):
                         "run the bands (they must see the same paths; the same flag as facette batch)")
     p.add_argument("--hsh-order", type=int, default=d.hsh_order, choices=(2, 3),
                    help="hemispherical-harmonics order of relight.rti (2: 4 terms, 3: 9 terms)")
+    p.add_argument("--ptm-format", default=d.ptm_format, choices=("auto", "lrgb", "rgb"),
+                   help="relight.ptm: lrgb (luminance x colour), rgb (per channel, twice the bytes) or auto "
+                        "(default: the smaller leave-one-light-out error on the object)")
     p.add_argument("--rti-encoding", default=d.rti_encoding, choices=("auto", "srgb", "linear"),
                    help="values of relight.ptm, relight.rti and relight_web: auto (default: as photographed, "
                         "the photographs' scale and encoding; an HDR scan sRGB at an exposure that clips "
@@ -219,7 +222,8 @@ def options(args):
         t_source=args.t_source, t_residual=args.t_residual, theta0_deg=args.theta0, mask=args.mask,
         pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light, mesh_step=args.mesh_step,
         ascii_ply=args.ascii_ply, fit_options={"model": args.brdf_model, "method": args.fit_method},
-        hsh_order=args.hsh_order, rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
+        hsh_order=args.hsh_order, ptm_format=args.ptm_format,
+        rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
         interreflections=IR_AUTO if args.interreflections is None else args.interreflections,
         light_gains=GAINS_AUTO if args.light_gains is None else args.light_gains, shadows=args.shadows,
         capture=_capture(args), memory=args.memory,
