@@ -132,7 +132,7 @@ def capture_rows(folder, label, work):
     web_mb = sum(p.stat().st_size for p in (out / "relight_web").rglob("*") if p.is_file()) / 1e6
     methods = [("facette relight.rti (RTIViewer)", rti.relight, res.timings.get("hsh"),
                 (out / "relight.rti").stat().st_size / 1e6),
-               (f"facette relight.ptm auto: {ptm_format[11:]}", lambda d: ptm(d[0], d[1]) / 255,
+               ("facette relight.ptm (auto)", lambda d: ptm(d[0], d[1]) / 255,
                 res.timings.get("ptm"), (out / "relight.ptm").stat().st_size / 1e6),
                ("facette relight_web (openlime)", web.relight, None, web_mb)]
     for fmt in ("lrgb", "rgb"):          # each format asked for, read by RTIViewer's rules
@@ -152,7 +152,7 @@ def capture_rows(folder, label, work):
         cp, cs = _score(render, photos[fit_idx], dirs[fit_idx]) if name != "nearest photograph" else (np.inf, 1.0)
         rows.append((label, name, hp, hs, cp, cs, None if secs is None else secs / mp, None if mb is None else mb / mp))
     rows.append((label, f"(process --outputs ptm,rti,relight-web: {wall:.2f} s wall, {m - held.sum()} lights, "
-                 f"{w}x{h})", None, None, None, None, None, None))
+                 f"{w}x{h}; relight.ptm auto: {ptm_format})", None, None, None, None, None, None))
     return rows
 
 
