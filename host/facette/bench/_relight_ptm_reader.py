@@ -27,7 +27,8 @@ def _line(data, pos):
 def read_ptm_as_rtiviewer(path):
     """relight(lx, ly) -> (H, W, 3) in [0, 255] (row 0 = top of the picture) of a PTM_FORMAT_RGB or
     PTM_FORMAT_LRGB file, and its format line."""
-    data = open(path, "rb").read()
+    with open(path, "rb") as fh:
+        data = fh.read()
     pos = 0
     version, pos = _line(data, pos)
     fmt, pos = _line(data, pos)
