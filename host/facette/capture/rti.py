@@ -197,33 +197,31 @@ def rti_files(folder, encoding=None):
 
 
 class RTIBands(Bands):
-    """An RTI capture's photographs read a band of rows at a time: linear (sRGB decoded, or
-    divided by the top of the file's range), divided by the light's intensity (and reference
-    patch, `set_reference`), NaN where clipped; usable from the file's grey levels. Each
-    photograph is decoded once (the JPEG, PNG and TIFF decoders give whole images) and its stored
-    values kept as they are (1 or 2 bytes a sample): in memory, or, given a `work` folder, in a raw
-    file there (a band is then one contiguous read per photograph, and `spec()` reopens it in a
-    task). encoding : "srgb", "linear" or None (from the bit depth: 8-bit sRGB, else linear)."""
+    """An RTI capture's photographs read a band of rows at a time: linear (sRGB decoded, or divided by the
+    top of the file's range), divided by the light's intensity (and reference patch, `set_reference`), NaN
+    where clipped; usable from the file's grey levels. Each photograph is decoded once (the decoders give
+    whole images), its stored values kept as they are: in memory, or in a raw file in a `work` folder (a band
+    is one read per photograph; `spec()` reopens it in a task); or read whole, converted as decoded (`whole`).
+    encoding : "srgb", "linear" or None (from the bit depth: 8-bit sRGB, else linear)."""
 
     def __init__(self, paths, inten, encoding=None, work=None):
         self.paths, self.inten, self.store, self.scale = list(paths), inten, [], None
         for k, p in enumerate(self.paths):
-            raw = self._decoded(k, p)
+            raw = self._decoded(k, p, encoding)
             if work is None:
                 self.store.append(raw)
             else:
                 self.store.append(Path(work) / f"rti_{k:04d}.raw")
                 np.ascontiguousarray(raw).tofile(self.store[-1])
             del raw
-        self.enc = encoding or ("srgb" if self.bits == 8 else "linear")
 
-    def _decoded(self, k, p):
-        """Photograph k's stored values (`_read_image`); the first sets the size and depth, the
-        others are checked against them."""
+    def _decoded(self, k, p, encoding):
+        """Photograph k's stored values (`_read_image`); the first sets the size, depth and encoding."""
         raw, top, bits = _read_image(p)
         if k == 0:
             self.h, self.w = raw.shape[:2]
             self.dtype, self.top, self.bits = raw.dtype, top, bits
+            self.enc = encoding or ("srgb" if bits == 8 else "linear")
         elif bits != self.bits:            # a header `_one_depth` could not read: the decoder's word
             raise BadInputError(f"{p.name} holds {bits}-bit samples, {self.paths[0].name} {self.bits}-bit: the "
                                 "photographs mix bit depths", hint="export every photograph of the capture alike")
@@ -234,18 +232,14 @@ class RTIBands(Bands):
 
     @classmethod
     def whole(cls, paths, inten, encoding=None):
-        """(reader, images (m, H, W, 3) float32, usable (m, H, W) bool): every photograph read
-        whole as `read(0, H)` gives it, the same values, each decoded, converted into its place
-        and freed before the next (peak: the float32 photographs, their flags and one decoded
-        photograph; holding the decoded ones too took 0.58 GB more for 16 JPEGs of 12 MP). The
-        reader keeps no photograph (`read` is not for it)."""
+        """(reader keeping no photograph, images (m, H, W, 3) float32, usable (m, H, W) bool): `read(0, H)`'s
+        values, each photograph decoded, converted into its place and freed before the next (holding
+        the decoded ones took 0.58 GB more for 16 JPEGs of 12 MP)."""
         self = cls.__new__(cls)
         self.paths, self.inten, self.store, self.scale = list(paths), inten, [], None
-        images = usable = None
         for k, p in enumerate(self.paths):
-            raw = self._decoded(k, p)
+            raw = self._decoded(k, p, encoding)
             if k == 0:
-                self.enc = encoding or ("srgb" if self.bits == 8 else "linear")
                 images = np.empty((len(self.paths), self.h, self.w, 3), np.float32)
                 usable = np.empty((len(self.paths), self.h, self.w), bool)
             self._convert(k, raw, images[k], usable[k])
@@ -297,10 +291,8 @@ class RTIBands(Bands):
         return images, usable
 
     def _convert(self, k, stored, image, usable):
-        """Photograph k's stored values (rows, W, 3) into `image` (linear float32, NaN where
-        clipped) and `usable`, CONVERT_ROWS rows at a time: every step is per sample, so the
-        values do not depend on the rows taken together, and the float temporaries stay a few
-        MB (a whole 12 MP photograph's float32 and float64 copies were 0.15 + 0.3 GB)."""
+        """Photograph k's stored values (rows, W, 3) into `image` (linear, NaN where clipped) and `usable`,
+        CONVERT_ROWS rows at a time (per sample: the same values; 12 MP whole took 0.45 GB of floats)."""
         top, inten = self.top, self.inten
         scale = top if np.isfinite(top) else 1.0
         lut = _SRGB_LUT if self.enc == "srgb" and self.bits == 8 else None
@@ -348,10 +340,8 @@ def read_rti_capture(folder, auto_masks, pixel_pitch_mm=None, encoding=None, sph
     folder = Path(folder)
     paths, vecs, lps, inten, notes = rti_files(folder, encoding)
     bands, images, usable = RTIBands.whole(paths, inten, encoding)     # each decoded, converted, freed
-    enc = bands.enc
+    enc, h, w = bands.enc, bands.h, bands.w
     notes.append(bands.note(encoding))
-    h, w = bands.h, bands.w
-    del bands
     if pixel_pitch_mm is None:
         notes.append("an RTI capture carries no pixel pitch: heights are in pixels (--pixel-pitch to give it)")
     sphere_circle = None
