@@ -21,12 +21,13 @@ from pathlib import Path
 __all__ = ["stage_table", "print_stage_table"]
 
 # (name in the table, module, function): the functions `process` calls through module globals
+# (pipeline._whole: the load and photometric stereo of the images held whole)
 WRAPPED = [
-    ("load", "facette.pipeline._process", "load_input"),
-    ("light gains", "facette.pipeline._process", "with_light_gains"),
-    ("photometric stereo (shadow step + solve)", "facette.pipeline._process", "with_shadows"),
-    ("photometric stereo (solve)", "facette.pipeline._process", "photometric_stereo"),
-    ("object mask", "facette.pipeline._process", "object_of"),
+    ("load", "facette.pipeline._whole", "load_input"),
+    ("light gains", "facette.pipeline._whole", "with_light_gains"),
+    ("photometric stereo (shadow step + solve)", "facette.pipeline._whole", "with_shadows"),
+    ("photometric stereo (solve)", "facette.pipeline._whole", "photometric_stereo"),
+    ("object mask", "facette.pipeline._whole", "object_of"),
     ("uncertainty", "facette.pipeline._process", "uncertainty_of"),
     ("relighting files' set-up (their exposure)", "facette.pipeline._process", "whole_bands"),
     ("integrate", "facette.pipeline._process", "integrate"),

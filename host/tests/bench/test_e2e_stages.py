@@ -3,6 +3,7 @@ viewer's picture scored against the photographs."""
 import numpy as np
 
 import facette.pipeline._process as proc
+import facette.pipeline._whole as whole
 from facette.bench._e2e_stages import stage_table
 from facette.bench._e2e_viewer import viewer_rows
 from facette.bench._sim_scan import write_scan
@@ -15,7 +16,7 @@ def _scan(tmp_path):
 
 
 def test_stage_table_counts_each_stage_once_and_puts_things_back(tmp_path):
-    pool, solve = proc.ThreadPoolExecutor, proc.photometric_stereo
+    pool, solve = proc.ThreadPoolExecutor, whole.photometric_stereo
     table = stage_table(_scan(tmp_path), outputs=["normals", "height", "mesh", "rti", "report"],
                         method="woodham1980")
     assert {"load", "uncertainty", "integrate", "mesh", "report's relighting model", "hsh / ptm fits + writes",
@@ -25,7 +26,7 @@ def test_stage_table_counts_each_stage_once_and_puts_things_back(tmp_path):
     # run one after the other: each starts after the one before ended, and their CPU is part of the total
     assert all(0 <= s[2] <= s[3] <= wall for s in stages)
     assert sum(s[1] for s in stages) <= cpu + 1e-6 and table["rest"][1] >= -1e-6
-    assert proc.ThreadPoolExecutor is pool and proc.photometric_stereo is solve
+    assert proc.ThreadPoolExecutor is pool and whole.photometric_stereo is solve
 
 
 def test_viewer_psnr_is_higher_with_the_model_at_every_pixel(tmp_path):
