@@ -5,13 +5,17 @@ The removal needs the albedo as a reflectance (it decides how much light each wa
 whose images are radiance factors (the calibration's Spectralon step, `PSInput.reflectance`) has
 it; elsewhere (a DiLiGenT folder, an RTI capture, a scan without the Spectralon step) its scale is
 estimated from the images (facette.recon._interreflect_scale: the scale at which the albedo no
-longer grows with the light gathered). "auto" runs it on a calibrated scan read whole (not the rig
-simulator's, which renders none), with its scale; elsewhere it only says whether the images tell the
-scale (the albedo grows with the light the heights say each wall gathers, and removing that light
-takes the growth away) and leaves the light in (AUTO_SCALE: removing it where the images tell the
-scale helped the concave renders and harmed a textured relief without any). With the scale estimated
-whatever the data said, DiLiGenT's crops got worse (reading, dark and glossy: 9.7 -> 12.9 deg; a dark
-glossy Mitsuba bowl 0.48 -> 4.62 deg). A convex object gathers no light: it is not identified.
+longer grows with the light gathered). "auto" runs it on every input read whole (not the rig
+simulator's, which renders none): on a calibrated scan with its scale; elsewhere where the images
+identify the scale, decided on binned images before the method runs (`decide_lobe_free`): the
+albedo's growth with the light the heights say each wall gathers is read on li_alternating's diffuse
+albedo, its lobe modelled, and removing that light must take the growth away. Elsewhere the images
+stay as they are (the normals those of --no-interreflections), with a note saying why. Read on the
+Lambertian albedo, a rendered satin sphere on a plane (no inter-reflections) was identified and the
+removal took its normals 0.54 -> 1.57 deg: a lobe whose share grows toward the rim shows as a
+Lambertian albedo that grows with the gathered share. With the scale estimated whatever the data said,
+DiLiGenT's crops got worse (reading, dark and glossy: 9.7 -> 12.9 deg; a dark glossy Mitsuba bowl
+0.48 -> 4.62 deg). A convex object gathers no light: it is not identified.
 """
 import time
 
@@ -32,11 +36,7 @@ SIM_INTERREFLECTIONS_NOTE = ("--interreflections on a simulated scan: the simula
                              "so their removal takes away light that no wall gathered (errors against truth grow); "
                              "leave it out for simulated scans")
 AUTO_OFF = "inter-reflections left in (interreflections 'auto'): "
-# "auto" without a Spectralon: the scale estimated and what the images tell said in a note, nothing
-# removed. Removing where the scale was identified took the concave renders from 0.80x to 0.51x least
-# squares, but a local-shading relief with a smooth albedo pattern and no inter-reflections at all
-# (bench size's slab, 1200x800, 12 lights) passed the same test and went from 0.19 to 0.94 deg:
-# a default that can do that to a textured object is not kept; --interreflections removes them.
+# "auto" without a Spectralon: removed where the images identify the scale (decide_lobe_free)
 AUTO_SCALE = "identified"
 # the decision reads the images binned to at most this many pixels a side: the estimate works on the
 # gather's cells (IR_GRID a side), each then still 2 x 2 binned pixels (a 12 MP capture: bins of
@@ -65,7 +65,10 @@ def decide_lobe_free(images, light_dirs, mask, bag, saturation):
                             **({} if channel is None else {"channel": channel}))
     albedo = first.albedo[first.valid]
     k = np.float32(REFLECTANCE_P99 / max(float(np.percentile(albedo, 99)) if albedo.size else 1.0, 1e-12))
-    lobe = ps_li_alternating(small[0] * k, small[1], **(options_for("li_alternating", bag) | {"mask": small[2]}))
+    options = options_for("li_alternating", bag) | {"mask": small[2]}
+    if options.get("saturation") is not None:       # in the scaled images' units
+        options["saturation"] = options["saturation"] * k
+    lobe = ps_li_alternating(small[0] * k, small[1], **options)
     _, estimate = estimate_reflectance_scale(*small[:2], first.normal, first.albedo, first.valid & small[2],
                                              saturation, channel, diffuse=np.where(lobe.valid[..., None],
                                                                                     lobe.albedo, np.nan))
@@ -73,8 +76,9 @@ def decide_lobe_free(images, light_dirs, mask, bag, saturation):
 
 
 def interreflections_wanted(o, inp, notes):
-    """Whether `process` removes the inter-reflections: the option when True or False; for "auto",
-    on a reflectance-calibrated scan read whole that is not the rig simulator's. A note in `notes`
+    """Whether `process` runs the inter-reflection step: the option when True or False; for "auto",
+    on every input read whole that is not the rig simulator's (on relative images the step removes them
+    only where the images identify the albedo's scale, `decide_lobe_free`). A note in `notes`
     says why it is left out ("auto") or that a simulated scan has none to remove (True)."""
     simulated = inp.truth is not None and "sensor" in inp.truth      # the rig simulator's truth
     if o.interreflections is True and simulated:
@@ -107,7 +111,7 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
             info = unidentified_info(estimate["scale"], estimate) | {"cpu_seconds": round(time.process_time() - c0, 3)}
             note_interreflections(res, info, time.perf_counter() - t0)
             return solve_in, None
-        reflectance_scale, found = "auto", estimate     # identified: estimated again on the images it reads
+        reflectance_scale, found = estimate["scale"], estimate     # identified: that scale (its lobe modelled)
     try:
         if method_name == "li_alternating":
             ps, direct, info = ps_li_without_interreflections(solve_in, light_dirs, reflectance_scale=reflectance_scale,
@@ -147,6 +151,7 @@ def _why_not_identified(est):
 def _identified_on(info, found):
     """What "auto" found in the images (None: the option or a calibrated scan decided) into info."""
     if found is not None:
+        info["scale_estimate"] = found
         info["identified_on"] = {k: found[k] for k in ("scale", "gather_correlation", "diffuse_correlation",
                                                        "growth_kept")}
 

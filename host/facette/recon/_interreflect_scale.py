@@ -10,7 +10,11 @@ with too large an s too much is taken away and it shrinks. So, on the gather's c
 in s), and for each candidate s in [0, 1 / p99(albedo)] (a reflectance is at most 1) the cells'
 images less s G are solved again (rank_trimmed) and log albedo regressed on the gathered share and
 the tilt (1 − n_z: a glossy paint dims with tilt); the s where the share's slope crosses 0 wins
-(linear between candidates; without a crossing, the smallest |slope|). The scale is identified
+(linear between candidates; without a crossing, the smallest |slope|). Given `diffuse` (a BRDF-aware
+fit's albedo, its lobe modelled: li_alternating's K_d) the growth is read on it: the slopes are moved
+by the difference between its slope and the Lambertian albedo's at s = 0 (what a lobe adds to the
+Lambertian albedo does not change with s; LOBE_FREE_SLOPES) and its correlation replaces the
+Lambertian one (DIFFUSE_CORRELATION). The scale is identified
 (SCALE_EXPLAINED, EARLY_SHARE, GATHER_CORRELATION) only when that slope starts above 0, the albedo
 follows the share cell by cell (not a pattern that merely leans with it), and the removal takes most
 of it away, steadily from the smallest scales on: a textured object without inter-reflections, a
@@ -63,6 +67,11 @@ GATHER_CORRELATION = 0.2
 # lights; CHOSEN_ON in the note): the concave scenes the removal helps 0.41-0.95, the convex controls
 # at most DIFFUSE_CONTROLS_MAX
 DIFFUSE_CORRELATION = 0.3
+# the slopes moved to the lobe-free albedo's (module doc): a glossy concave object whose lobe darkens
+# its Lambertian albedo where it gathers most reads as one that gathers nothing (Mitsuba bowl in paint
+# 0.10, 12 rig lights: Lambertian slope -0.14, K_d's +0.65, its correlation 0.92), and the crossing
+# lands where the lobe-free growth is gone (craters in paint 0.10: the scale 2.03 -> 0.68, truth 1)
+LOBE_FREE_SLOPES = True
 
 
 def _partial_correlation(y, x, z):
@@ -86,15 +95,19 @@ def _cells(images, light_dirs, normals, albedo, mask, saturation, grid):
 
 
 def _diffuse_follows(diffuse, ch, normals, mask, grid, share, strong, tilt):
-    """The partial correlation (tilt removed) of log `diffuse` (a fit's albedo after its lobe is
-    modelled, (H, W) or (H, W, C)) with the gathered share, over the strong cells it has."""
+    """(the partial correlation (tilt removed), the slope) of log `diffuse` (a fit's albedo after its
+    lobe is modelled, (H, W) or (H, W, C)) with the gathered share, over the strong cells it has."""
     d = np.asarray(diffuse, np.float32)
     d = d[..., min(ch, d.shape[-1] - 1)] if d.ndim == 3 else d
     keep = mask & np.isfinite(d) & (d > 0)
     *_, d_c = cell_grid(normals, np.where(keep, d, 0)[..., None], keep, grid)
     d_c = d_c[..., 0][strong]
     good = d_c > 0
-    return _partial_correlation(np.log(d_c[good]), share[strong][good], tilt[good]) if good.sum() >= 8 else 0.0
+    if good.sum() < 8:
+        return 0.0, 0.0
+    y, x, z = np.log(d_c[good]), share[strong][good], tilt[good]
+    slope = float(np.linalg.lstsq(np.stack([np.ones_like(x), x, z], 1), y, rcond=None)[0][1])
+    return _partial_correlation(y, x, z), slope
 
 
 def estimate_reflectance_scale(images, light_dirs, normals, albedo, mask, saturation=None, channel=None,
@@ -145,9 +158,12 @@ def estimate_reflectance_scale(images, light_dirs, normals, albedo, mask, satura
         if s == 0:          # nothing removed yet: how closely the albedo follows the gathered share
             follows = _partial_correlation(la, x[good], tilt[good])
         slopes.append(float(np.linalg.lstsq(design, la, rcond=None)[0][1]))
+    lobe_free = None
+    if diffuse is not None:     # the slopes read as the lobe-free albedo's (LOBE_FREE_SLOPES)
+        lobe_free, lobe_free_slope = _diffuse_follows(diffuse, ch, normals, mask, grid, share, strong, tilt)
+        if LOBE_FREE_SLOPES:
+            slopes = [x + lobe_free_slope - slopes[0] for x in slopes]
     costs = slopes
-    lobe_free = None if diffuse is None else \
-        _diffuse_follows(diffuse, ch, normals, mask, grid, share, strong, tilt)
     down = [k for k in range(len(slopes) - 1) if slopes[k] > 0 >= slopes[k + 1]]
     if down:       # the albedo no longer grows with the gathered share: linear between the two
         k = down[0]
