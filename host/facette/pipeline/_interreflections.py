@@ -115,13 +115,14 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
     try:
         if method_name == "li_alternating":
             ps, direct, info = ps_li_without_interreflections(solve_in, light_dirs, reflectance_scale=reflectance_scale,
-                                                              **options_for(method_name, bag))
+                                                              estimate=found, **options_for(method_name, bag))
             info["cpu_seconds"] = round(time.process_time() - c0, 3)
             _identified_on(info, found)
             note_interreflections(res, info, info["removal_seconds"])
             return direct, ps
         direct, first, info = without_interreflections(solve_in, light_dirs, mask, saturation=o.saturation,
-                                                       channel=bag.get("channel"), reflectance_scale=reflectance_scale)
+                                                       channel=bag.get("channel"), reflectance_scale=reflectance_scale,
+                                                       estimate=found)
     except NotAReflectance as exc:      # raised before any solve: nothing done is lost
         if o.interreflections is True:
             raise
@@ -151,7 +152,6 @@ def _why_not_identified(est):
 def _identified_on(info, found):
     """What "auto" found in the images (None: the option or a calibrated scan decided) into info."""
     if found is not None:
-        info["scale_estimate"] = found
         info["identified_on"] = {k: found[k] for k in ("scale", "gather_correlation", "diffuse_correlation",
                                                        "growth_kept")}
 
