@@ -139,11 +139,11 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
 def _why_not_identified(est):
     """The condition of recon's estimate that failed, in words."""
     kept, follows = est.get("growth_kept"), est.get("diffuse_correlation")
-    if kept is None or kept == float("inf"):
-        return "the albedo does not grow with the light the surface gathers"
     if follows is not None and follows < DIFFUSE_CORRELATION:
         return (f"li_alternating's diffuse albedo, its lobe modelled, does not follow the light the surface gathers: "
                 f"correlation {follows:.2f} cell by cell, below {DIFFUSE_CORRELATION}")
+    if kept is None or kept == float("inf"):
+        return "the albedo does not grow with the light the surface gathers"
     if kept > 1.0 - SCALE_EXPLAINED:
         return f"the albedo grows with the light gathered, but removing it keeps {kept:.0%} of that growth"
     return "the albedo's growth goes only at the largest scales, as over-removal makes it go"
