@@ -63,15 +63,17 @@ def decide_lobe_free(images, light_dirs, mask, bag, saturation):
     channel = bag.get("channel")
     first = ps_rank_trimmed(*small[:2], mask=small[2], saturation=saturation,
                             **({} if channel is None else {"channel": channel}))
+    args = (*small[:2], first.normal, first.albedo, first.valid & small[2], saturation, channel)
+    _, estimate = estimate_reflectance_scale(*args)
+    if estimate["growth_kept"] is None:         # nothing gathered (a convex object): no lobe to model
+        return estimate
     albedo = first.albedo[first.valid]
     k = np.float32(REFLECTANCE_P99 / max(float(np.percentile(albedo, 99)) if albedo.size else 1.0, 1e-12))
     options = options_for("li_alternating", bag) | {"mask": small[2]}
     if options.get("saturation") is not None:       # in the scaled images' units
         options["saturation"] = options["saturation"] * k
     lobe = ps_li_alternating(small[0] * k, small[1], **options)
-    _, estimate = estimate_reflectance_scale(*small[:2], first.normal, first.albedo, first.valid & small[2],
-                                             saturation, channel, diffuse=np.where(lobe.valid[..., None],
-                                                                                    lobe.albedo, np.nan))
+    _, estimate = estimate_reflectance_scale(*args, diffuse=np.where(lobe.valid[..., None], lobe.albedo, np.nan))
     return estimate
 
 
