@@ -15,6 +15,7 @@ from scipy.optimize import least_squares
 
 from facette._threads import run_blocks
 from facette.brdf import kd_from_kappa, li_shading_terms
+from ._li_fit_lm import li_jacobian, robust_lm
 
 __all__ = ["choose_material_model", "fit_bounds", "METAL_FIT_BOUNDS", "fit_li_per_pixel_kd", "li_fit_cost", "LI_FIT_BOUNDS", "LI_VOLUME_MODEL", "DIFFUSE", "LOBE_MIN_GAIN"]
 
@@ -25,6 +26,9 @@ LI_FIT_BOUNDS = ((1e-3, 1.0), (1.0, 2.5))   # σ, n_i (σ ≤ 1: beyond it no lo
 # α 0.15) and 0.300 (aluminium, α 0.3) and the per-pixel solve from the truth stays within 0.5 and
 # 0.04°; the LI substrate (n_i ≤ 2.5) fits 0.194 / 0.396 and moves them by 3.5 and 23°.
 METAL_FIT_BOUNDS = ((1e-3, 1.0), (1.0, 100.0))
+# The (σ, n_i) fits' Jacobian: analytic for these diffuse parts (facette.brdf._shading_grad), a
+# finite difference (two more model evaluations a step) for the approximate formula
+ANALYTIC_JACOBIAN = ("tables", "coupled", "lambert")
 LAMBERTIAN_N_I = 1.02      # a fitted n_i below this: no interface, the BRDF step is skipped
 LAMBERTIAN_SIGMA = LI_FIT_BOUNDS[0][0]    # the model without interface (n_i = 1): Lambert
 # a lobe must lower the trimmed profile cost this much against Lambert's (Mitsuba renders: plaster
@@ -107,7 +111,11 @@ def _relative_fit_values(e, usable):
 
 def _kd_and_residuals(e0, w, den, normals, lights, sigma, n_i, volume_model):
     """κ (N, C) in closed form (E = A + B κ, weights w) and the relative residuals (N, m, C)."""
-    a, b = li_shading_terms(normals, lights, sigma, n_i, volume_model=volume_model)
+    return _residuals_from(e0, w, den, *li_shading_terms(normals, lights, sigma, n_i, volume_model=volume_model))
+
+
+def _residuals_from(e0, w, den, a, b):
+    """`_kd_and_residuals` from the shading terms A, B (N, m)."""
     wb = w * b
     k = np.maximum(np.einsum("nm,nmc->nc", wb, e0 - a[..., None]) / np.maximum(np.sum(wb * b, 1), 1e-20)[:, None], 0)
     return k, (e0 - a[..., None] - b[..., None] * k[:, None, :]) / den
@@ -158,8 +166,18 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
     if not np.all(lo < hi):
         raise ValueError(f"bounds = {bounds!r}: each (low, high) pair needs low < high")
 
+    last = {}
+
     def fun(p):
-        return _kd_and_residuals(e0, w, den, normals, lights, p[0], p[1], volume_model)[1][sel].astype(np.float64)
+        a, b = li_shading_terms(normals, lights, p[0], p[1], volume_model=volume_model)
+        last.update(p=tuple(p), a=a, b=b)
+        return _residuals_from(e0, w, den, a, b)[1][sel].astype(np.float64)
+
+    flat_sel = sel.ravel()
+
+    def jac(p):        # at the point `fun` was last called at: its shading terms reused
+        a, b = (last["a"], last["b"]) if last.get("p") == tuple(p) else (None, None)
+        return li_jacobian(e0, w, den, normals, lights, p[0], p[1], volume_model, a, b)[flat_sel].astype(np.float64)
 
     if not sel.any():
         return dict(success=False, sigma=float("nan"), n_i=float("nan"), message="no usable values to fit")
@@ -172,8 +190,12 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
             ([] if x0 is None else [np.clip(np.asarray(x0, float), lo, hi)])
     best = None
     for x in starts:
-        r = least_squares(fun, x, bounds=(lo, hi), loss="soft_l1", f_scale=f_scale, diff_step=1e-3,
-                          max_nfev=max_nfev, x_scale=np.array([0.05, 0.1 * max(1.0, x[1] - 1)]))
+        x_scale = np.array([0.05, 0.1 * max(1.0, x[1] - 1)])
+        if volume_model in ANALYTIC_JACOBIAN:
+            r = robust_lm(fun, jac, x, lo, hi, f_scale, max_nfev, x_scale)
+        else:          # the approximate formula: scipy's trust region, a finite-difference Jacobian
+            r = least_squares(fun, x, bounds=(lo, hi), loss="soft_l1", f_scale=f_scale, diff_step=1e-3,
+                              max_nfev=max_nfev, x_scale=x_scale)
         if best is None or r.cost < best.cost:
             best = r
     k, _ = _kd_and_residuals(e0, w, den, normals, lights, best.x[0], best.x[1], volume_model)
