@@ -8,8 +8,7 @@ Why not scipy.optimize.least_squares: with two parameters its trust-region machi
 quadratic models on the whole (n_values, 2) Jacobian, a few per step) cost as much as the model
 (DiLiGenT cat, 96 lights, the nine fits of round 1: 1.0 of 2.7 CPU s), and a finite-difference
 Jacobian two model evaluations a step. Here a step is one 2 × 2 solve of the robust normal equations
-(iteratively reweighted: weights ρ'(r²) = 1 / √(1 + (r / f)²), the Gauss–Newton part of the soft-L1
-Hessian), and the answer is the same minimum (the nine fits: σ, n_i within 1e-4 of scipy's).
+(the gradient Σ ρ' r J and the Gauss–Newton part of the soft-L1 cost's Hessian, the loss's curvature included), and the answer is the same minimum (the nine fits: σ, n_i within 1e-4 of scipy's).
 """
 from dataclasses import dataclass
 
@@ -68,14 +67,16 @@ def robust_lm(residuals, jacobian, x0, lo, hi, f_scale, max_nfev, x_scale):
     At most max_nfev evaluations of `residuals`. Returns an LMResult."""
     x = np.clip(np.asarray(x0, float), lo, hi)
     r = residuals(x)
-    cost, nfev, lam = _cost(r, f_scale), 1, 1e-3
+    cost, nfev, lam = _cost(r, f_scale), 1, 1e-4
     message, success = "the evaluation budget ran out", False
     scale2 = np.asarray(x_scale, float) ** 2
     while nfev < max_nfev:
         jac = jacobian(x)
-        wt = 1 / np.sqrt(1 + (r / f_scale) ** 2)
-        grad = jac.T @ (wt * r)
-        hess = (jac * wt[:, None]).T @ jac
+        z1 = 1 + (r / f_scale) ** 2
+        grad = jac.T @ (r / np.sqrt(z1))                      # ρ'(z) r J
+        # ρ' + 2 z ρ'' = (1 + z)^-1.5: the loss's own curvature along each residual (as scipy's
+        # Triggs correction); ρ' alone (plain reweighting) converged in 10 steps where this takes 4
+        hess = (jac * np.maximum(z1 ** -1.5, 1e-10)[:, None]).T @ jac
         # a parameter on its bound that the gradient pushes out stays there (its row dropped)
         free = ~(((x <= lo) & (grad > 0)) | ((x >= hi) & (grad < 0)))
         if not free.any() or np.all(np.abs(grad[free]) * np.sqrt(scale2[free]) <= 1e-12 * max(cost, 1e-30)):
@@ -87,6 +88,9 @@ def robust_lm(residuals, jacobian, x0, lo, hi, f_scale, max_nfev, x_scale):
             h = hess[np.ix_(free, free)] + lam * np.diag(np.maximum(np.diag(hess)[free], 1e-12 * scale2[free] ** -1))
             step[free] = np.linalg.solve(h, -grad[free])
             x_new = np.clip(x + step, lo, hi)
+            d = x_new - x
+            if -(grad @ d + 0.5 * d @ hess @ d) <= FTOL * cost:   # the model says no more to gain
+                break
             r_new = residuals(x_new)
             nfev += 1
             c_new = _cost(r_new, f_scale)
@@ -97,11 +101,11 @@ def robust_lm(residuals, jacobian, x0, lo, hi, f_scale, max_nfev, x_scale):
             if np.all(np.abs(x_new - x) <= XTOL * (np.sqrt(scale2) + np.abs(x))):
                 break
         if not accepted:
-            message, success = ("no step lowers the cost", True) if nfev < max_nfev else (message, False)
+            message, success = ("the cost settled", True) if nfev < max_nfev else (message, False)
             break
         small = np.all(np.abs(x_new - x) <= XTOL * (np.sqrt(scale2) + np.abs(x)))
         drop = cost - c_new
-        x, r, cost, lam = x_new, r_new, c_new, max(lam / 3, 1e-9)
+        x, r, cost, lam = x_new, r_new, c_new, max(lam / 10, 1e-9)
         if drop <= FTOL * cost or small:
             message, success = "the cost settled", True
             break
