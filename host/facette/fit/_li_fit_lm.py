@@ -87,10 +87,9 @@ def robust_lm(residuals, jacobian, x0, lo, hi, f_scale, max_nfev, x_scale):
             step = np.zeros(2)
             h = hess[np.ix_(free, free)] + lam * np.diag(np.maximum(np.diag(hess)[free], 1e-12 * scale2[free] ** -1))
             step[free] = np.linalg.solve(h, -grad[free])
-            x_new = np.clip(x + step, lo, hi)
-            d = x_new - x
-            if -(grad @ d + 0.5 * d @ hess @ d) <= FTOL * cost:   # the model says no more to gain
+            if -(grad @ step + 0.5 * step @ hess @ step) <= FTOL * cost:   # the model says no more to gain
                 break
+            x_new = np.clip(x + step, lo, hi)
             r_new = residuals(x_new)
             nfev += 1
             c_new = _cost(r_new, f_scale)
