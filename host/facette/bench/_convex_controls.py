@@ -5,6 +5,10 @@ in their images, on which "auto" must identify none (their normals unchanged).
   as bench size's slab): bench._large's relief slab (240 x 160 px) with albedo patterns that are
   smooth (the slab's own), sharp (a checkerboard), blotched (discs), fine (a short sinusoid) or
   flat; the slab with twice the slopes; a glossier slab; a sphere with the same patterns.
+- A satin sphere lying on a plane (facette.recon.synthetic's Cook-Torrance satin, local shading, cast
+  shadows, no inter-reflections): its lobe's share grows toward the rim, where the light the plane
+  would send grows too (the full suite's relighting scene, the last withdrawn rule's false positive),
+  at 128 x 128 and at that test's 40 x 48.
 - Mitsuba 3 renders (bench._mitsuba_scenes, its textured K_d: stripes and a spot): the sphere
   (convex: path tracing adds nothing) and the relief with the direct light only (max_depth 2).
 Each returns the scene as bench.concave's renders do: images, light_dirs, mask, normals (truth).
@@ -75,12 +79,21 @@ def _sphere(kind, lights, side=160):
     return {"images": im, "light_dirs": lights, "mask": mask, "normals": n.astype(np.float32)}
 
 
+def _sphere_on_plane(lights, h, w, radius):
+    from facette.recon.synthetic import render, sphere_on_plane
+    sc = sphere_on_plane(h, w, radius=radius)
+    return {"images": render(sc, lights, "satin", albedo=(0.7, 0.6, 0.5)), "light_dirs": lights, "mask": sc.mask,
+            "normals": sc.normals.astype(np.float32)}
+
+
 def local_controls(lights):
     """{name: scene} of the local-shading controls under `lights` (m, 3)."""
     out = {f"slab/{k}": _relief(k, lights) for k in ("smooth", "sharp", "blotch", "fine", "flat")}
     out["slab x2 slopes/smooth"] = _relief("smooth", lights, slopes=2.0)
     out["slab glossier/smooth"] = _relief("smooth", lights, ks=0.3)
     out.update({f"sphere/{k}": _sphere(k, lights) for k in ("smooth", "sharp", "blotch")})
+    out["satin sphere on plane"] = _sphere_on_plane(lights, 128, 128, 40)
+    out["satin sphere on plane 40x48"] = _sphere_on_plane(lights, 40, 48, 14)
     return out
 
 

@@ -86,6 +86,9 @@ VARIANTS = {   # label: process options
 }
 
 
+ESTIMATE_FIGURES = ("gather_correlation", "diffuse_correlation", "growth_kept")     # printed per row
+
+
 def errors(n, d):
     sel = binary_erosion(d["mask"], iterations=1)
     return np.degrees(np.arccos(np.clip(np.sum(n * d["normals"], -1), -1, 1)))[sel]
@@ -109,8 +112,7 @@ def _row(label, d, folder, variants, ratios, key):
             est = ir.get("identified_on") or ir.get("scale_estimate") or {}
             extra += (f"  ir scale {ir.get('reflectance_scale', np.nan):.2f} "
                       + ("removed" if ir["applied"] else "left in")
-                      + "".join(f" {k} {est[k]:.2f}" for k in ("gather_correlation", "growth_kept")
-                                if est.get(k) is not None)
+                      + "".join(f" {k} {est[k]:.2f}" for k in ESTIMATE_FIGURES if est.get(k) is not None)
                       + f" ({ir.get('cpu_seconds', np.nan):.2f} cpu s)")
         print(f"{label:34s} {v:22s} {e.mean():6.2f} {np.median(e):7.2f} {np.percentile(e, 95):6.2f} "
               f"{ratio:6.2f} {dt[0]:6.2f} {dt[1]:6.2f}{extra}", flush=True)

@@ -32,11 +32,12 @@ from ._ps_li_coarse import coarse_factor, upsample_normals
 __all__ = ["ps_li_without_interreflections", "glossy_lobes_text"]
 
 
-def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, reflectance_scale=1.0, **options):
+def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, reflectance_scale=1.0, estimate=None,
+                                   **options):
     """(PSResult of li_alternating, the images it saw, info).
 
     images, light_dirs, mask, saturation : as `ps_li_alternating`; reflectance_scale : as
-    `remove_interreflections`; **options : of `ps_li_alternating`.
+    `remove_interreflections`; estimate : as `without_interreflections`; **options : of `ps_li_alternating`.
     info : the Lambertian removal's (`without_interreflections`: "applied", fractions, passes),
     with "glossy": None when that stage did not run (nothing removed, no lobe found), else the
     second removal's fractions, its lobes (one per material of li_alternating's info, (σ, n_i) or
@@ -45,7 +46,8 @@ def ps_li_without_interreflections(images, light_dirs, mask, saturation=None, re
     """
     t0 = time.perf_counter()
     direct, first, info = without_interreflections(images, light_dirs, mask, saturation=saturation,
-                                                   reflectance_scale=reflectance_scale, channel=options.get("channel"))
+                                                   reflectance_scale=reflectance_scale, channel=options.get("channel"),
+                                                   estimate=estimate)
     reflectance_scale = info["reflectance_scale"]         # "auto": the one estimated from the images
     info["removal_seconds"] = time.perf_counter() - t0
     info["glossy"] = None

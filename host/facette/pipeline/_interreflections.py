@@ -5,48 +5,82 @@ The removal needs the albedo as a reflectance (it decides how much light each wa
 whose images are radiance factors (the calibration's Spectralon step, `PSInput.reflectance`) has
 it; elsewhere (a DiLiGenT folder, an RTI capture, a scan without the Spectralon step) its scale is
 estimated from the images (facette.recon._interreflect_scale: the scale at which the albedo no
-longer grows with the light gathered). "auto" runs it on a calibrated scan read whole (not the rig
-simulator's, which renders none), with its scale; elsewhere it only says whether the images tell the
-scale (the albedo grows with the light the heights say each wall gathers, and removing that light
-takes the growth away) and leaves the light in (AUTO_SCALE: removing it where the images tell the
-scale helped the concave renders and harmed a textured relief without any). With the scale estimated
-whatever the data said, DiLiGenT's crops got worse (reading, dark and glossy: 9.7 -> 12.9 deg; a dark
-glossy Mitsuba bowl 0.48 -> 4.62 deg). A convex object gathers no light: it is not identified.
+longer grows with the light gathered). "auto" runs it on every input read whole (not the rig
+simulator's, which renders none): on a calibrated scan with its scale; elsewhere where the images
+identify the scale, decided on binned images before the method runs (`decide_lobe_free`): the
+albedo's growth with the light the heights say each wall gathers is read on li_alternating's diffuse
+albedo, its lobe modelled, and removing that light must take the growth away. Elsewhere the images
+stay as they are (the normals those of --no-interreflections), with a note saying why. Read on the
+Lambertian albedo, a rendered satin sphere on a plane (no inter-reflections) was identified and the
+removal took its normals 0.54 -> 1.57 deg: a lobe whose share grows toward the rim shows as a
+Lambertian albedo that grows with the gathered share. With the scale estimated whatever the data said,
+DiLiGenT's crops got worse (reading, dark and glossy: 9.7 -> 12.9 deg; a dark glossy Mitsuba bowl
+0.48 -> 4.62 deg). A convex object gathers no light: it is not identified.
 """
 import time
 
+import numpy as np
+
 from facette.errors import NotAReflectance
-from facette.fit import glossy_lobes_text, ps_li_without_interreflections
+from facette.fit import glossy_lobes_text, ps_li_alternating, ps_li_without_interreflections
 from facette.methods import options_for
 from facette.pipeline._options import IR_AUTO
 from facette.pipeline._shadows import binned as _binned
-from facette.recon import IR_GRID, IR_MAX_FRACTION, scale_from_images, unidentified_info, without_interreflections
+from facette.recon import (IR_GRID, IR_MAX_FRACTION, estimate_reflectance_scale, ps_rank_trimmed, unidentified_info,
+                           without_interreflections)
+from facette.recon._interreflect_scale import DIFFUSE_CORRELATION, SCALE_EXPLAINED
 
-__all__ = ["interreflections_wanted", "solve_without_interreflections", "SIM_INTERREFLECTIONS_NOTE"]
+__all__ = ["interreflections_wanted", "solve_without_interreflections", "decide_lobe_free", "SIM_INTERREFLECTIONS_NOTE"]
 
 SIM_INTERREFLECTIONS_NOTE = ("--interreflections on a simulated scan: the simulator renders no inter-reflections, "
                              "so their removal takes away light that no wall gathered (errors against truth grow); "
                              "leave it out for simulated scans")
 AUTO_OFF = "inter-reflections left in (interreflections 'auto'): "
-# "auto" without a Spectralon: the scale estimated and what the images tell said in a note, nothing
-# removed. Removing where the scale was identified took the concave renders from 0.80x to 0.51x least
-# squares, but a local-shading relief with a smooth albedo pattern and no inter-reflections at all
-# (bench size's slab, 1200x800, 12 lights) passed the same test and went from 0.19 to 0.94 deg:
-# a default that can do that to a textured object is not kept; --interreflections removes them.
+# "auto" without a Spectralon: removed where the images identify the scale (decide_lobe_free)
 AUTO_SCALE = "identified"
-# li_alternating's decision reads the images binned to at most this many pixels a side: the estimate
-# works on the gather's cells (IR_GRID a side), each then still 4 x 4 binned pixels (a 12 MP capture:
-# bins of 11 x 11, one robust pass of 0.1 MP instead of 12)
-DECIDE_SIDE = 4 * IR_GRID
+# the decision reads the images binned to at most this many pixels a side: the estimate works on the
+# gather's cells (IR_GRID a side), each then still 2 x 2 binned pixels (a 12 MP capture: bins of
+# 22 x 22, one robust pass and one li_alternating of 0.03 MP instead of 12); a cost parameter
+DECIDE_SIDE = 2 * IR_GRID
+# decide_lobe_free's li run on relative images: brought to this 99th percentile of the albedo (a
+# reflectance's range, where li's K_d is not held at its bound of 1)
+REFLECTANCE_P99 = 0.8
 
 
 def _decide_bin(mask):
     return max(1, -(-max(mask.shape) // DECIDE_SIDE))
 
 
+def decide_lobe_free(images, light_dirs, mask, bag, saturation):
+    """The albedo scale's estimate (recon.estimate_reflectance_scale) that "auto" decides by on relative
+    images, read on the images binned to DECIDE_SIDE: a rank_trimmed pass for the cells' shape and the
+    scale's slopes, and li_alternating's diffuse albedo K_d, its lobe modelled, for the albedo's growth
+    with the gathered share (a lobe whose share grows toward a sphere's rim makes a Lambertian albedo
+    grow there too: recon's DIFFUSE_CORRELATION). li runs on the binned images brought to a
+    reflectance's range (REFLECTANCE_P99: relative images brighter than a reflectance hold K_d at its
+    bound of 1, which tells nothing); the method then runs on the images as before."""
+    small = _binned(images, light_dirs, mask, _decide_bin(mask))
+    channel = bag.get("channel")
+    first = ps_rank_trimmed(*small[:2], mask=small[2], saturation=saturation,
+                            **({} if channel is None else {"channel": channel}))
+    args = (*small[:2], first.normal, first.albedo, first.valid & small[2], saturation, channel)
+    _, estimate = estimate_reflectance_scale(*args)
+    if estimate["growth_kept"] is None:         # nothing gathered (a convex object): no lobe to model
+        return estimate
+    albedo = first.albedo[first.valid]
+    k = np.float32(REFLECTANCE_P99 / max(float(np.percentile(albedo, 99)) if albedo.size else 1.0, 1e-12))
+    options = options_for("li_alternating", bag) | {"mask": small[2]}
+    if options.get("saturation") is not None:       # in the scaled images' units
+        options["saturation"] = options["saturation"] * k
+    lobe = ps_li_alternating(small[0] * k, small[1], **options)
+    _, estimate = estimate_reflectance_scale(*args, diffuse=np.where(lobe.valid[..., None], lobe.albedo, np.nan))
+    return estimate
+
+
 def interreflections_wanted(o, inp, notes):
-    """Whether `process` removes the inter-reflections: the option when True or False; for "auto",
-    on a reflectance-calibrated scan read whole that is not the rig simulator's. A note in `notes`
+    """Whether `process` runs the inter-reflection step: the option when True or False; for "auto",
+    on every input read whole that is not the rig simulator's (on relative images the step removes them
+    only where the images identify the albedo's scale, `decide_lobe_free`). A note in `notes`
     says why it is left out ("auto") or that a simulated scan has none to remove (True)."""
     simulated = inp.truth is not None and "sensor" in inp.truth      # the rig simulator's truth
     if o.interreflections is True and simulated:
@@ -72,51 +106,66 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
         reflectance_scale = 1.0 if mask.reflectance else "auto" if o.interreflections is True else AUTO_SCALE
         mask = mask.mask
     t0, c0 = time.perf_counter(), time.process_time()
-    if reflectance_scale == AUTO_SCALE:     # told from binned images, never removed (AUTO_SCALE's comment)
-        _, scale, estimate = scale_from_images(*_binned(solve_in, light_dirs, mask, _decide_bin(mask)),
-                                               o.saturation, bag.get("channel"))
-        info = unidentified_info(scale, estimate) | {"scale_identified": bool(estimate["identified"]),
-                                                     "cpu_seconds": round(time.process_time() - c0, 3)}
-        note_interreflections(res, info, time.perf_counter() - t0)
-        return solve_in, None
+    found = None
+    if reflectance_scale == AUTO_SCALE:     # decided before any removal (decide_lobe_free)
+        estimate = decide_lobe_free(solve_in, light_dirs, mask, bag, o.saturation)
+        if not estimate["identified"]:      # the images as they are
+            info = unidentified_info(estimate["scale"], estimate) | {"cpu_seconds": round(time.process_time() - c0, 3)}
+            note_interreflections(res, info, time.perf_counter() - t0)
+            return solve_in, None
+        reflectance_scale, found = estimate["scale"], estimate     # identified: that scale (its lobe modelled)
     try:
         if method_name == "li_alternating":
             ps, direct, info = ps_li_without_interreflections(solve_in, light_dirs, reflectance_scale=reflectance_scale,
-                                                              **options_for(method_name, bag))
+                                                              estimate=found, **options_for(method_name, bag))
+            info["cpu_seconds"] = round(time.process_time() - c0, 3)
+            _identified_on(info, found)
             note_interreflections(res, info, info["removal_seconds"])
             return direct, ps
         direct, first, info = without_interreflections(solve_in, light_dirs, mask, saturation=o.saturation,
-                                                       channel=bag.get("channel"), reflectance_scale=reflectance_scale)
+                                                       channel=bag.get("channel"), reflectance_scale=reflectance_scale,
+                                                       estimate=found)
     except NotAReflectance as exc:      # raised before any solve: nothing done is lost
         if o.interreflections is True:
             raise
         res.notes.append(AUTO_OFF + str(exc))
         return solve_in, None
     info["cpu_seconds"] = round(time.process_time() - c0, 3)
+    _identified_on(info, found)
     note_interreflections(res, info, time.perf_counter() - t0)
     if not info["applied"]:
         return solve_in, (first if method_name == "rank_trimmed" else None)
     return direct, None
 
 
+def _why_not_identified(est):
+    """The condition of recon's estimate that failed, in words."""
+    kept, follows = est.get("growth_kept"), est.get("diffuse_correlation")
+    if follows is not None and follows < DIFFUSE_CORRELATION:
+        return (f"li_alternating's diffuse albedo, its lobe modelled, does not follow the light the surface gathers: "
+                f"correlation {follows:.2f} cell by cell, below {DIFFUSE_CORRELATION}")
+    if kept is None or kept == float("inf"):
+        return "the albedo does not grow with the light the surface gathers"
+    if kept > 1.0 - SCALE_EXPLAINED:
+        return f"the albedo grows with the light gathered, but removing it keeps {kept:.0%} of that growth"
+    return "the albedo's growth goes only at the largest scales, as over-removal makes it go"
+
+
+def _identified_on(info, found):
+    """What "auto" found in the images (None: the option or a calibrated scan decided) into info."""
+    if found is not None:
+        info["identified_on"] = {k: found[k] for k in ("scale", "gather_correlation", "diffuse_correlation",
+                                                       "growth_kept")}
+
+
 def note_interreflections(res, info, seconds):
     """The removal's info, seconds and note into `res`."""
     res.interreflections = info
     res.timings["interreflections"] = seconds
-    if info.get("scale_identified") is True and not info["applied"]:     # "auto" without a Spectralon
-        est = info["scale_estimate"]
-        res.notes.append(AUTO_OFF + "the images suggest light the surface gathers from itself (the albedo grows "
-                         f"with it; the albedo's scale to a reflectance {info['reflectance_scale']:.3g}), but without "
-                         "a Spectralon calibration a textured object can show the same; --interreflections "
-                         "removes it with that scale")
-        return
     if info.get("scale_identified") is False:
-        est = info["scale_estimate"]
-        res.notes.append(AUTO_OFF + "the images do not tell the albedo's scale to a reflectance (the albedo "
-                         + ("does not grow with the light the surface gathers" if est.get("growth_kept") is None
-                            or est["growth_kept"] == float("inf") else
-                            f"grows with the light gathered, but removing it keeps {est['growth_kept']:.0%} of "
-                            "that growth") + "); --interreflections removes it with the scale estimated anyway")
+        res.notes.append(AUTO_OFF + "the images do not tell the albedo's scale to a reflectance ("
+                         + _why_not_identified(info["scale_estimate"]) + "); --interreflections removes it with "
+                         "the scale estimated anyway")
         return
     how = (f"{info['median_fraction']:.1%} of the median value, {info['p95_fraction']:.1%} at the 95th "
            f"percentile, on {info['grid'][1]}x{info['grid'][0]} cells, {len(info['passes'])} pass(es)")
@@ -126,6 +175,11 @@ def note_interreflections(res, info, seconds):
     capped = f"; {info['capped']} values limited to {IR_MAX_FRACTION:.0%} removed" if info["capped"] else ""
     scale = ("" if "scale_estimate" not in info else
              f"; the albedo's scale to a reflectance estimated from the images: {info['reflectance_scale']:.3g}")
+    found = info.get("identified_on")
+    if found:               # "auto" without a Spectralon: what the images showed
+        scale += (f" (found by 'auto': li_alternating's diffuse albedo, its lobe modelled, follows the light the "
+                  f"surface gathers, correlation {found['diffuse_correlation']:.2f} cell by cell, and removing it "
+                  f"leaves {max(found['growth_kept'], 0):.0%} of that growth)")
     res.notes.append(f"inter-reflections removed before photometric stereo: {how}{capped}{scale}")
     glossy = info.get("glossy")
     if glossy:

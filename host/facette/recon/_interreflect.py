@@ -359,7 +359,7 @@ def remove_interreflections(images, light_dirs, normals, albedo, mask, reflectan
 
 
 def without_interreflections(images, light_dirs, mask, saturation=None, reflectance_scale=1.0, channel=None,
-                             **options):
+                             estimate=None, **options):
     """`remove_interreflections` with its first shape from rank_trimmed on the images.
 
     images, light_dirs, mask, saturation, channel : as `ps_rank_trimmed` (channel: the one its
@@ -369,12 +369,13 @@ def without_interreflections(images, light_dirs, mask, saturation=None, reflecta
     the same, and nothing removed (info "scale_identified" False) when the data do not tell it.
     Returns (images, first, info): the corrected images, or the given ones when under
     IR_SKIP_P95 of the values at the 95th percentile is gathered light (info "applied" False);
-    the first pass's PSResult; the removal's info.
+    the first pass's PSResult; the removal's info. estimate : the info of the estimate a numeric
+    reflectance_scale came from (its own bound is the channel it read; "scale_estimate" in info).
     Raises NotAReflectance (an InsufficientData) when reflectance_scale x albedo is no reflectance
     (its 99th percentile above 1, as with a DiLiGenT folder's relative intensities): the wrong
     amount of light would be removed without a word.
     """
-    estimated = None
+    estimated = estimate
     if isinstance(reflectance_scale, str):
         if reflectance_scale not in ("auto", "identified"):
             raise ValueError("reflectance_scale must be a positive number, 'auto' or 'identified', "

@@ -10,7 +10,11 @@ with too large an s too much is taken away and it shrinks. So, on the gather's c
 in s), and for each candidate s in [0, 1 / p99(albedo)] (a reflectance is at most 1) the cells'
 images less s G are solved again (rank_trimmed) and log albedo regressed on the gathered share and
 the tilt (1 − n_z: a glossy paint dims with tilt); the s where the share's slope crosses 0 wins
-(linear between candidates; without a crossing, the smallest |slope|). The scale is identified
+(linear between candidates; without a crossing, the smallest |slope|). Given `diffuse` (a BRDF-aware
+fit's albedo, its lobe modelled: li_alternating's K_d) the growth is read on it: the slopes are moved
+by the difference between its slope and the Lambertian albedo's at s = 0 (what a lobe adds to the
+Lambertian albedo does not change with s; LOBE_FREE_SLOPES) and its correlation replaces the
+Lambertian one (DIFFUSE_CORRELATION). The scale is identified
 (SCALE_EXPLAINED, EARLY_SHARE, GATHER_CORRELATION) only when that slope starts above 0, the albedo
 follows the share cell by cell (not a pattern that merely leans with it), and the removal takes most
 of it away, steadily from the smallest scales on: a textured object without inter-reflections, a
@@ -25,7 +29,8 @@ from ._interreflect import IR_GRID, IR_MAX_FRACTION, _cell_lights, _cell_mean, _
 from ._ps_robust import ps_rank_trimmed
 
 __all__ = ["estimate_reflectance_scale", "scale_from_images", "unidentified_info", "SCALE_CANDIDATES",
-           "GATHER_QUANTILE", "SCALE_EXPLAINED", "EARLY_SHARE", "GATHER_CORRELATION"]
+           "GATHER_QUANTILE", "SCALE_EXPLAINED", "EARLY_SHARE", "GATHER_CORRELATION",
+           "DIFFUSE_CORRELATION"]
 
 SCALE_CANDIDATES = 9      # candidate scales from 0 to the largest a reflectance allows
 GATHER_QUANTILE = 0.75     # the residual is read on the cells above this quantile of gathered share
@@ -55,6 +60,18 @@ EARLY_SHARE = 0.25
 # 12 and 96 lights) 0.03-0.25, and those the slope tests alone passed 0.03-0.11 (bench size's slab
 # 0.085 at 1200 x 800 and 0.107 at 64 x 48: the withdrawn rule's false positive)
 GATHER_CORRELATION = 0.2
+# the same correlation read on a BRDF-aware fit's diffuse albedo (`diffuse`: li_alternating's K_d, its
+# lobe modelled) replaces it where one is given: the Lambertian albedo still carries what a lobe adds,
+# and a lobe's share can grow where the gathered share does (a satin sphere on a plane, local shading
+# only, no inter-reflections: 0.25 on the Lambertian albedo, -0.57 on K_d). Chosen on renders (12 rig
+# lights; CHOSEN_ON in the note): the concave scenes the removal helps 0.41-0.95, the convex controls
+# at most DIFFUSE_CONTROLS_MAX
+DIFFUSE_CORRELATION = 0.3
+# the slopes moved to the lobe-free albedo's (module doc): a glossy concave object whose lobe darkens
+# its Lambertian albedo where it gathers most reads as one that gathers nothing (Mitsuba bowl in paint
+# 0.10, 12 rig lights: Lambertian slope -0.14, K_d's +0.65, its correlation 0.92), and the crossing
+# lands where the lobe-free growth is gone (craters in paint 0.10: the scale 2.03 -> 0.68, truth 1)
+LOBE_FREE_SLOPES = True
 
 
 def _partial_correlation(y, x, z):
@@ -77,8 +94,24 @@ def _cells(images, light_dirs, normals, albedo, mask, saturation, grid):
     return i_c, _cell_lights(np.asarray(light_dirs, np.float32), ok, f, hc, wc), n_c, a_c, cells
 
 
+def _diffuse_follows(diffuse, ch, normals, mask, grid, share, strong, tilt):
+    """(the partial correlation (tilt removed), the slope) of log `diffuse` (a fit's albedo after its
+    lobe is modelled, (H, W) or (H, W, C)) with the gathered share, over the strong cells it has."""
+    d = np.asarray(diffuse, np.float32)
+    d = d[..., min(ch, d.shape[-1] - 1)] if d.ndim == 3 else d
+    keep = mask & np.isfinite(d) & (d > 0)
+    *_, d_c = cell_grid(normals, np.where(keep, d, 0)[..., None], keep, grid)
+    d_c = d_c[..., 0][strong]
+    good = d_c > 0
+    if good.sum() < 8:
+        return 0.0, 0.0
+    y, x, z = np.log(d_c[good]), share[strong][good], tilt[good]
+    slope = float(np.linalg.lstsq(np.stack([np.ones_like(x), x, z], 1), y, rcond=None)[0][1])
+    return _partial_correlation(y, x, z), slope
+
+
 def estimate_reflectance_scale(images, light_dirs, normals, albedo, mask, saturation=None, channel=None,
-                               grid=IR_GRID, candidates=SCALE_CANDIDATES):
+                               grid=IR_GRID, candidates=SCALE_CANDIDATES, diffuse=None):
     """(scale, info): ρ = scale x albedo (module doc).
 
     images : (m, H, W) or (m, H, W, C) as photometric stereo takes them; channel : the one read
@@ -90,6 +123,7 @@ def estimate_reflectance_scale(images, light_dirs, normals, albedo, mask, satura
     the largest scale over the slope at 0) and "gather_correlation" (GATHER_CORRELATION's figure).
     """
     im = np.asarray(images)
+    ch = 0
     if im.ndim == 4:
         ch = channel if channel is not None else (1 if im.shape[-1] == 3 else im.shape[-1] - 1)
         im, alb = im[..., ch], (albedo[..., min(ch, albedo.shape[-1] - 1)] if np.ndim(albedo) == 3 else albedo)
@@ -108,7 +142,8 @@ def estimate_reflectance_scale(images, light_dirs, normals, albedo, mask, satura
     info = {"max_scale": max_scale, "costs": []}
     strong = cells & np.isfinite(share)
     if strong.sum() < 8 or not np.any(share[strong] * max_scale > 0.005):
-        info.update(scale=max_scale / 2, gathered_p95=0.0, identified=False, growth_kept=None, gather_correlation=None)
+        info.update(scale=max_scale / 2, gathered_p95=0.0, identified=False, growth_kept=None, gather_correlation=None,
+                    diffuse_correlation=None)
         return max_scale / 2, info
     scales = np.linspace(0.0, max_scale, int(candidates))
     x = share[strong]
@@ -123,6 +158,11 @@ def estimate_reflectance_scale(images, light_dirs, normals, albedo, mask, satura
         if s == 0:          # nothing removed yet: how closely the albedo follows the gathered share
             follows = _partial_correlation(la, x[good], tilt[good])
         slopes.append(float(np.linalg.lstsq(design, la, rcond=None)[0][1]))
+    lobe_free = None
+    if diffuse is not None:     # the slopes read as the lobe-free albedo's (LOBE_FREE_SLOPES)
+        lobe_free, lobe_free_slope = _diffuse_follows(diffuse, ch, normals, mask, grid, share, strong, tilt)
+        if LOBE_FREE_SLOPES:
+            slopes = [x + lobe_free_slope - slopes[0] for x in slopes]
     costs = slopes
     down = [k for k in range(len(slopes) - 1) if slopes[k] > 0 >= slopes[k + 1]]
     if down:       # the albedo no longer grows with the gathered share: linear between the two
@@ -135,19 +175,22 @@ def estimate_reflectance_scale(images, light_dirs, normals, albedo, mask, satura
     kept = slopes[-1] / slopes[0] if slopes[0] > 0 else np.inf       # the growth the removal leaves
     info.update(scale=scale, costs=[round(c, 6) for c in costs], growth_kept=round(float(kept), 4),
                 gather_correlation=round(follows, 4),
-                identified=bool(slopes[0] > 0 and kept <= 1.0 - SCALE_EXPLAINED and follows >= GATHER_CORRELATION
+                diffuse_correlation=None if lobe_free is None else round(lobe_free, 4),
+                identified=bool(slopes[0] > 0 and kept <= 1.0 - SCALE_EXPLAINED
+                                and (follows >= GATHER_CORRELATION if lobe_free is None else
+                                     lobe_free >= DIFFUSE_CORRELATION)
                                 and slopes[0] - slopes[len(slopes) // 2] >= EARLY_SHARE * (slopes[0] - slopes[-1])),
                 gathered_p95=float(np.percentile(share[cells & np.isfinite(share)] * scale, 95)))
     return scale, info
 
 
-def scale_from_images(images, light_dirs, mask, saturation=None, channel=None):
+def scale_from_images(images, light_dirs, mask, saturation=None, channel=None, diffuse=None):
     """(first, scale, info): a rank_trimmed pass (`ps_rank_trimmed` with these arguments) and
-    `estimate_reflectance_scale` on its normals and albedo."""
+    `estimate_reflectance_scale` on its normals and albedo (and `diffuse`, as it takes it)."""
     first = ps_rank_trimmed(images, light_dirs, mask=mask, saturation=saturation,
                             **({} if channel is None else {"channel": channel}))
     scale, info = estimate_reflectance_scale(images, light_dirs, first.normal, first.albedo, first.valid & mask,
-                                             saturation, channel)
+                                             saturation, channel, diffuse=diffuse)
     return first, scale, info
 
 

@@ -8,7 +8,7 @@ from facette.recon.synthetic import thesis_light_directions
 
 def test_the_local_controls_are_textured_and_none_is_identified():
     scenes = local_controls(thesis_light_directions())
-    assert {"slab/smooth", "slab/sharp", "slab/flat", "sphere/blotch"} <= set(scenes)
+    assert {"slab/smooth", "slab/sharp", "slab/flat", "sphere/blotch", "satin sphere on plane"} <= set(scenes)
     for name, d in scenes.items():
         m, h, w, _ = d["images"].shape
         assert m == 12 and d["mask"].shape == (h, w) and np.isfinite(d["images"]).all(), name

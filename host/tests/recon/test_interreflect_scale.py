@@ -76,3 +76,21 @@ def test_an_albedo_pattern_that_leans_with_the_gathered_share_is_not_the_light_g
     slopes = info["costs"]
     assert slopes[0] > 0 and info["growth_kept"] <= 0.25          # the slope tests alone pass it
     assert info["gather_correlation"] < GATHER_CORRELATION and not info["identified"]
+
+
+def test_the_growth_is_read_on_the_albedo_its_lobe_modelled_when_given(tmp_path):
+    # `diffuse`: a BRDF-aware fit's albedo (li_alternating's K_d). The Lambertian albedo itself gives
+    # the Lambertian reading; an albedo that does not grow with the gathered share (all a lobe's doing)
+    # is not identified, whatever the Lambertian albedo showed
+    d = render_scene("relief", "plaster", size=64, spp=32, cache_dir=tmp_path)
+    im = d["images"]
+    first = ps_rank_trimmed(im, d["light_dirs"], mask=d["mask"])
+    args = (im, d["light_dirs"], first.normal, first.albedo, first.valid)
+    _, plain = estimate_reflectance_scale(*args)
+    _, same = estimate_reflectance_scale(*args, diffuse=first.albedo * 2.0)      # the scale does not matter
+    flat = np.where(first.valid[..., None], 0.5, np.nan).astype(np.float32)
+    _, lobe = estimate_reflectance_scale(*args, diffuse=flat)
+    assert plain["identified"] and same["identified"] and plain["diffuse_correlation"] is None
+    assert abs(same["diffuse_correlation"] - plain["gather_correlation"]) < 0.05
+    assert abs(same["costs"][0] - plain["costs"][0]) < 0.2 * plain["costs"][0]
+    assert not lobe["identified"] and lobe["diffuse_correlation"] == 0.0 and abs(lobe["costs"][0]) < 1e-9
