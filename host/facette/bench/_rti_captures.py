@@ -5,8 +5,8 @@ Each capture is a folder of 8-bit photographs with an .lp (RTIBuilder's layout):
 rti_captures/loewenkopf_240, and JPEG + .lp captures made here from the DiLiGenT crops (each 8-bit PNG
 written as a JPEG, quality 95, as a camera would give it: the photograph is the JPEG, no intensities
 divided out). Every 6th light is held out; `facette process` fits the others (--outputs ptm,rti,
-relight-web: no photometric stereo); the files are read as RTIViewer reads them (PTM: integer
-coefficients; HSH) and as openlime reads the web folder, relit at the held-out lights and at the
+relight-web: no photometric stereo; and --outputs ptm with --ptm-format lrgb and rgb); the files are read as
+RTIViewer reads them (PTM: `_relight_ptm_reader`, written from RTIViewer's loaders; HSH) and as openlime reads the web folder, relit at the held-out lights and at the
 fitted ones, and compared with the photographs as 8-bit display values: PSNR over every pixel and
 channel of each photograph (mean over the photographs, as the NeuralRTI benchmark computes it) and
 SSIM (Wang et al. 2004, Gaussian window σ 1.5, on the mean of the channels). The plain fits: per
@@ -23,11 +23,12 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 
 from facette.calib.lp import read_lp
+from facette.bench._relight_ptm_reader import read_ptm_as_rtiviewer
 from facette.io.ptm import ptm_weights, read_ptm
 from facette.io.relight_web import read_relight_web
 from facette.io.rti import hsh_weights, read_hsh_rti
 
-__all__ = ["captures_section", "psnr", "ssim", "make_jpeg_capture"]
+__all__ = ["captures_section", "psnr", "ssim", "make_jpeg_capture", "ptm_reader_control"]
 
 HOLD_EVERY = 6
 
@@ -125,14 +126,20 @@ def capture_rows(folder, label, work):
     res = process(fit_dir, outputs=["ptm", "rti", "relight-web"], out_dir=work / "out")
     wall = time.perf_counter() - t0
     out = work / "out"
-    ptm, rti = read_ptm(out / "relight.ptm"), read_hsh_rti(out / "relight.rti")
+    rti = read_hsh_rti(out / "relight.rti")
+    ptm, ptm_format = read_ptm_as_rtiviewer(out / "relight.ptm")       # RTIViewer's rules, not io.ptm
     web = read_relight_web(out / "relight_web")
     web_mb = sum(p.stat().st_size for p in (out / "relight_web").rglob("*") if p.is_file()) / 1e6
     methods = [("facette relight.rti (RTIViewer)", rti.relight, res.timings.get("hsh"),
                 (out / "relight.rti").stat().st_size / 1e6),
-               ("facette relight.ptm (RTIViewer)", lambda d: ptm.relight(d, rtiviewer=True), res.timings.get("ptm"),
-                (out / "relight.ptm").stat().st_size / 1e6),
+               ("facette relight.ptm (auto)", lambda d: ptm(d[0], d[1]) / 255,
+                res.timings.get("ptm"), (out / "relight.ptm").stat().st_size / 1e6),
                ("facette relight_web (openlime)", web.relight, None, web_mb)]
+    for fmt in ("lrgb", "rgb"):          # each format asked for, read by RTIViewer's rules
+        r = process(fit_dir, outputs=["ptm"], out_dir=work / f"out_{fmt}", ptm_format=fmt)
+        f, _ = read_ptm_as_rtiviewer(work / f"out_{fmt}" / "relight.ptm")
+        methods.append((f"facette relight.ptm {fmt.upper()}", (lambda g: lambda d: g(d[0], d[1]) / 255)(f),
+                        r.timings.get("ptm"), (work / f"out_{fmt}" / "relight.ptm").stat().st_size / 1e6))
     t0 = time.perf_counter()
     plain = _plain_fits(photos[fit_idx], dirs[fit_idx])
     t_plain = (time.perf_counter() - t0) / 2
@@ -145,8 +152,36 @@ def capture_rows(folder, label, work):
         cp, cs = _score(render, photos[fit_idx], dirs[fit_idx]) if name != "nearest photograph" else (np.inf, 1.0)
         rows.append((label, name, hp, hs, cp, cs, None if secs is None else secs / mp, None if mb is None else mb / mp))
     rows.append((label, f"(process --outputs ptm,rti,relight-web: {wall:.2f} s wall, {m - held.sum()} lights, "
-                 f"{w}x{h})", None, None, None, None, None, None))
+                 f"{w}x{h}; relight.ptm auto: {ptm_format})", None, None, None, None, None, None))
     return rows
+
+
+def ptm_reader_control(root):
+    """The RTIViewer-rules reader (`_relight_ptm_reader`) on a PTM written by others: HP's tablet1.ptm
+    (PTM_FORMAT_JPEG_LRGB) with its nine planes as `io.ptm` decodes them stored again as
+    PTM_FORMAT_LRGB (the same bytes, uncompressed: the reader has no JPEG planes), against `io.ptm`'s
+    own RTIViewer reading; printed: the largest difference in grey levels at five lights."""
+    src = Path(root) / "rti_reference" / "ptm" / "tablet1.ptm"
+    if not src.is_file():
+        print(f"  PTM reader control: {src} not here; skipped")
+        return None
+    f = read_ptm(src)
+    raw = np.clip(np.round(f.coeffs / f.scale + f.bias), 0, 255).astype(np.uint8)
+    header = (f"PTM_1.2\nPTM_FORMAT_LRGB\n{f.width}\n{f.height}\n" + " ".join(f"{x:.9g}" for x in f.scale) + "\n"
+              + " ".join(str(int(b)) for b in f.bias) + "\n").encode()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "tablet1_lrgb.ptm"
+        path.write_bytes(header + raw[::-1].tobytes() + f.rgb[::-1].tobytes())
+        theirs, fmt = read_ptm_as_rtiviewer(path)
+        lights = [(0.0, 0.0), (0.6, 0.0), (-0.6, 0.0), (0.0, 0.6), (0.4, -0.5)]
+        diff = max(float(np.abs(theirs(lx, ly) - 255 * f.relight([lx, ly, np.sqrt(1 - lx * lx - ly * ly)],
+                                                                  rtiviewer=True)).max()) for lx, ly in lights)
+        lit = theirs(0.6, 0.0)
+        right = float(lit[:, 256:].mean() - lit[:, :256].mean())
+    print(f"  PTM reader control: HP's tablet1.ptm ({f.format}, {f.width}x{f.height}) re-stored as {fmt}, read by "
+          f"RTIViewer's rules: largest difference with io.ptm's reading {diff:.3f} grey levels at 5 lights; lit "
+          f"from +x the right half is {right:+.1f} grey levels brighter")
+    return diff
 
 
 def captures_section(root):
@@ -162,6 +197,7 @@ def captures_section(root):
     print(f"  {'capture':16s} {'method':34s} {'held PSNR':>9s} {'SSIM':>6s} {'captured':>9s} {'SSIM':>6s} "
           f"{'fit s/MP':>9s} {'MB/MP':>7s}")
     all_rows = []
+    ptm_reader_control(root)
     with tempfile.TemporaryDirectory(prefix="facette-bench-rti-") as tmp:
         tmp = Path(tmp)
         sets = ([(lion, "loewenkopf_240")] if lion.is_dir() else []) + [

@@ -18,14 +18,19 @@ DROP_BRIGHT share left out), with e the values over the pixel's brightest carryi
   by all the pixels (16 x 16 bins of the cosine and of the half-angle, an albedo per pixel; 3
   alternations): what one reflectance for the whole object does not explain (cast shadows,
   inter-reflections, a second material);
-- `local fit`, `curl`: the band's two terms alone (recon._uncertainty).
+- `local fit`, `curl`: the band's two terms alone (recon._uncertainty);
+- with the solve's model (`model`: li_alternating's materials, each pixel's material and its cast-shadow
+  flags) the default's own curvature and two half-light solves (bench._uncertainty_li: `li laplace`,
+  `li crb`, `li split`).
 """
 import numpy as np
 from scipy.stats import spearmanr
 
+from facette.bench._uncertainty_li import LI_CANDIDATES, li_measures
 from facette.recon import _uncertainty as unc
 
-__all__ = ["jackknife_lambertian", "table_residual", "candidate_measures", "candidate_spearman", "CANDIDATES"]
+__all__ = ["jackknife_lambertian", "table_residual", "candidate_measures", "candidate_spearman", "CANDIDATES",
+           "LI_CANDIDATES"]
 
 CANDIDATES = ("jackknife", "lambertian residual", "kept lights", "kept conditioning", "kept spread",
               "angle to lambertian", "table residual", "local fit", "curl")
@@ -77,11 +82,13 @@ def table_residual(e, ok, normals, lights, bins=TABLE_BINS, rounds=3):
     return np.sqrt((r ** 2).sum(1) / np.maximum(((albedo[:, None] * pred) ** 2).sum(1), 1e-30))
 
 
-def candidate_measures(images, light_dirs, normals, sel, saturation=None):
+def candidate_measures(images, light_dirs, normals, sel, saturation=None, model=None):
     """{name: (N,) measure, high = unreliable} over the pixels of `sel` (row-major order).
 
     images (m, H, W) or (m, H, W, C) as the solve saw them, light_dirs (m, 3) or (H, W, m, 3),
-    normals (H, W, 3), sel (H, W) bool (pixels with a normal)."""
+    normals (H, W, 3), sel (H, W) bool (pixels with a normal). model: (materials, material (H, W),
+    shadow (H, W, m) or None) of the solve (PSResult.info["materials"], .material, .shadow) for the
+    LI_CANDIDATES; None leaves them out."""
     images = np.asarray(images)
     images = images[..., None] if images.ndim == 3 else images
     m, h, w, _ = images.shape
@@ -102,17 +109,24 @@ def candidate_measures(images, light_dirs, normals, sel, saturation=None):
     mask = np.asarray(sel, bool)
     has = np.linalg.norm(normals, axis=-1) > 0.5
     fit = unc._fit_band(images, light_dirs, np.asarray(normals, np.float64), mask, saturation, None, unc.MAX_VALUES)
-    return {"jackknife": jack, "lambertian residual": rel, "kept lights": -k,
+    out = {"jackknife": jack, "lambertian residual": rel, "kept lights": -k,
             "kept conditioning": 1 / np.maximum(smallest, 1e-12),
             "kept spread": 1 - (nl * carry).sum(1) / np.maximum(k, 1),
             "angle to lambertian": np.arccos(np.clip(np.sum(lam * n, axis=1), -1, 1)),
             "table residual": table_residual(e, ok, n, lights),
             "local fit": fit.ravel()[idx], "curl": unc.curl_angle(normals, has).ravel()[idx]}
+    if model is not None and model[1] is not None:
+        materials, labels, shadow = model
+        shadow = None if shadow is None else np.asarray(shadow, bool).reshape(h * w, m)[idx]
+        out.update(li_measures(e, ok, n, lights, np.asarray(labels).reshape(-1)[idx], materials, shadow))
+    return out
 
 
-def candidate_spearman(images, light_dirs, normals, sel, err, saturation=None):
-    """{name: Spearman of the measure against err (N,) on the pixels of sel} (nan when constant)."""
+def candidate_spearman(images, light_dirs, normals, sel, err, saturation=None, model=None):
+    """{name: Spearman of the measure against err (N,) on the pixels of sel} (nan when constant or not all
+    finite)."""
     out = {}
-    for name, v in candidate_measures(images, light_dirs, normals, sel, saturation).items():
-        out[name] = float(spearmanr(v, err).statistic) if np.ptp(v) > 0 and np.ptp(err) > 0 else float("nan")
+    for name, v in candidate_measures(images, light_dirs, normals, sel, saturation, model).items():
+        good = np.all(np.isfinite(v)) and np.ptp(v) > 0 and np.ptp(err) > 0
+        out[name] = float(spearmanr(v, err).statistic) if good else float("nan")
     return out

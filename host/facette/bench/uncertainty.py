@@ -19,7 +19,10 @@ that would put 90 % of their normals inside the band); DiLiGenT only confirms th
 Each case also prints how rankable its errors are: their 10th-90th percentile (an error that is about the
 same everywhere, as the 16-bit ball's ~2 deg, has no order for any measure to find). --candidates adds a line
 per case with the Spearman of the measures tried and not taken (bench._uncertainty_candidates: a
-leave-one-light-out jackknife, the kept lights' count, conditioning and spread, residuals).
+leave-one-light-out jackknife, the kept lights' count, conditioning and spread, residuals; and, from the
+solve's own model, bench._uncertainty_li: the LI model's Laplace covariance, its bound, two half-light solves).
+Each group ends with its mean over the cases (the bar is read on it) and the Spearman and coverage of all its
+pixels pooled.
 """
 import argparse
 import time
@@ -90,10 +93,11 @@ HEAD = (f"{'case':40s} | before: rho   cov | after: rho   cov | u med° | err me
         "(rho: Spearman of the band against the error; cov: share of errors within the band, aim 0.9)")
 
 
-def candidates_line(images, light_dirs, normals, sel, err, saturation=None):
-    """The Spearman of each measure tried and not taken (bench._uncertainty_candidates), one line."""
+def candidates_line(images, light_dirs, normals, sel, err, saturation=None, model=None):
+    """The Spearman of each measure tried and not taken (bench._uncertainty_candidates), one line;
+    model: (materials, material map, shadow flags) of the solve, for the default's own measures."""
     from facette.bench._uncertainty_candidates import candidate_spearman
-    rho = candidate_spearman(images, light_dirs, normals, sel, err, saturation)
+    rho = candidate_spearman(images, light_dirs, normals, sel, err, saturation, model)
     return "    candidates (rho): " + ", ".join(f"{k} {v:+.2f}" for k, v in rho.items())
 
 
@@ -104,7 +108,8 @@ class Tally:
         self.candidates = candidates          # print the candidates' line (--candidates)
 
     def add(self, name, u, normals, err, sel, dt, data=None):
-        """data: a callable giving (images, light_dirs) as the solve saw them, for the candidates' line."""
+        """data: a callable giving (images, light_dirs) as the solve saw them, and optionally the solve's
+        model (solve_model(ps)), for the candidates' line."""
         b, a = before_after(u, normals)
         sb, sa = score(b[sel], err), score(a[sel], err)
         self.before.append(sb[:2])
@@ -113,12 +118,17 @@ class Tally:
         self.e.append(err)
         print(_line(name, sb, sa, dt, sel.size / 1e6, err), flush=True)
         if self.candidates and data is not None:
-            print(candidates_line(*data(), normals, sel, err), flush=True)
+            images, lights, *model = data()
+            print(candidates_line(images, lights, normals, sel, err, model=model[0] if model else None), flush=True)
 
     def summary(self):
+        """The mean over the cases (what the bar is read on), then every pixel of the group pooled (after)."""
         if self.before:
             b, a = np.mean(self.before, axis=0), np.mean(self.after, axis=0)
             print(f"{'mean over ' + self.name:40s} | {b[0]:5.2f} {b[1]:5.2f} | {a[0]:5.2f} {a[1]:5.2f} |", flush=True)
+            u, e = np.concatenate(self.u) * unc.BAND_SCALE, np.concatenate(self.e)
+            print(f"{'pooled pixels of ' + self.name:40s} |             | {spearmanr(u, e).statistic:5.2f} "
+                  f"{np.mean(e <= u):5.2f} | ({e.size} pixels)", flush=True)
 
 
 def render_table(cases, method, tally):
@@ -129,7 +139,7 @@ def render_table(cases, method, tally):
         sel = mask & r.valid & (np.linalg.norm(truth, axis=-1) > 0.5)
         u = normal_uncertainty(im, lights, r.normal, mask & r.valid)
         tally.add(name, u, r.normal, angular_errors(r.normal, truth, sel), sel, time.perf_counter() - t,
-                  data=lambda: (im, lights))
+                  data=lambda: (im, lights, solve_model(r)))
     tally.summary()
 
 
@@ -148,14 +158,23 @@ def concave_table(cache, light_sets, materials, tally):
                     sel = binary_erosion(d["mask"], iterations=1) & res.mask
                     err = angular_errors(res.normals, d["normals"], sel)
                     tally.add(f"concave {shape}/{material}/{lights}", res.uncertainty, res.normals, err, sel,
-                              res.timings.get("uncertainty", float("nan")), data=lambda: (d["images"], d["light_dirs"]))
+                              res.timings.get("uncertainty", float("nan")),
+                              data=lambda: (d["images"], d["light_dirs"], solve_model(res.ps)))
     tally.summary()
 
 
-def _diligent_images(folder):
+def _diligent_images(folder, ps=None):
     from facette.io.diligent import read_diligent
     data = read_diligent(folder)
-    return data.images, data.light_dirs
+    return data.images, data.light_dirs, solve_model(ps)
+
+
+def solve_model(ps):
+    """(materials, material map, cast-shadow flags) of a PSResult, for the candidates' LI measures (None
+    without a BRDF-aware solve)."""
+    if ps is None or getattr(ps, "material", None) is None:
+        return None
+    return ps.info.get("materials"), ps.material, ps.shadow
 
 
 def diligent_table(root, tally):
@@ -169,7 +188,7 @@ def diligent_table(root, tally):
         err = angular_errors(res.normals, truth, good)
         name = f"{folder.parent.name}/{object_name(folder)} ({err.mean():.2f}° mean)"
         tally.add(name, res.uncertainty, res.normals, err, good, res.timings.get("uncertainty", float("nan")),
-                  data=lambda: _diligent_images(folder))
+                  data=lambda: _diligent_images(folder, res.ps))
     tally.summary()
 
 

@@ -85,8 +85,7 @@ def register(sub):
     p.add_argument("--outputs", type=_outputs, default=list(OUTPUTS),
                    help=f"comma-separated subset of {','.join(OUTPUTS)} (default: all), or relight-web "
                         "(Relight's web format for openlime, asked for by name); only the stages they need run")
-    p.add_argument("--method", default=None,
-                   choices=list(PS_METHODS),
+    p.add_argument("--method", default=None, choices=list(PS_METHODS),
                    help=f"photometric stereo (default {d.method}: BRDF-aware, the LI model fitted per "
                         "material and the normals re-estimated against it where the data show a lobe; "
                         f"{PS_DEFAULT}: robust Lambertian, a few times faster); "
@@ -164,6 +163,8 @@ def register(sub):
                         "run the bands (they must see the same paths; the same flag as facette batch)")
     p.add_argument("--hsh-order", type=int, default=d.hsh_order, choices=(2, 3),
                    help="hemispherical-harmonics order of relight.rti (2: 4 terms, 3: 9 terms)")
+    p.add_argument("--ptm-format", default=d.ptm_format, choices=("auto", "lrgb", "rgb"), help="relight.ptm: lrgb "
+                   "(luminance x colour), rgb (per channel, 2x the bytes), auto (the smaller leave-one-light-out error)")
     p.add_argument("--rti-encoding", default=d.rti_encoding, choices=("auto", "srgb", "linear"),
                    help="values of relight.ptm, relight.rti and relight_web: auto (default: as photographed, "
                         "the photographs' scale and encoding; an HDR scan sRGB at an exposure that clips "
@@ -219,7 +220,8 @@ def options(args):
         t_source=args.t_source, t_residual=args.t_residual, theta0_deg=args.theta0, mask=args.mask,
         pixel_pitch_mm=args.pixel_pitch, near_light=not args.far_light, mesh_step=args.mesh_step,
         ascii_ply=args.ascii_ply, fit_options={"model": args.brdf_model, "method": args.fit_method},
-        hsh_order=args.hsh_order, rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
+        hsh_order=args.hsh_order, ptm_format=args.ptm_format,
+        rti_encoding=args.rti_encoding, allow_incomplete=args.allow_incomplete, overwrite=args.overwrite,
         interreflections=IR_AUTO if args.interreflections is None else args.interreflections,
         light_gains=GAINS_AUTO if args.light_gains is None else args.light_gains, shadows=args.shadows,
         capture=_capture(args), memory=args.memory,

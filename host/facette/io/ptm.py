@@ -1,4 +1,4 @@
-"""Polynomial texture maps, PTM_FORMAT_LRGB (Malzbender & Gelb, "Polynomial Texture Map (.ptm)
+"""Polynomial texture maps, PTM_FORMAT_LRGB and PTM_FORMAT_RGB (Malzbender & Gelb, "Polynomial Texture Map (.ptm)
 File Format", HP Labs, version 1.2, 2001), written and read as RTIViewer and Relight do.
 
 Layout (§2 of that document): the ASCII lines ``PTM_1.2``, ``PTM_FORMAT_LRGB``, the width,
@@ -25,7 +25,7 @@ import numpy as np
 from facette.errors import BadInputError
 from facette.io.atomic import atomic_path
 
-__all__ = ["write_ptm_lrgb", "write_ptm_lrgb_rows", "ptm_rgb_bytes", "quantize_scale_bias", "scale_bias_of_range",
+__all__ = ["write_ptm_lrgb", "write_ptm_lrgb_rows", "write_ptm_rgb_rows", "ptm_rgb_bytes", "quantize_scale_bias", "scale_bias_of_range",
            "column_range", "read_ptm", "PTMFile", "ptm_weights", "FULL"]
 
 ROWS = 64                  # image rows quantized at a time
@@ -135,6 +135,39 @@ def write_ptm_lrgb_rows(path, width, height, coeff_range, coeff_rows, rgb_rows):
     return {"scale": [float(s) for s in scale], "bias": [int(b) for b in bias]}
 
 
+def write_ptm_rgb_rows(path, width, height, coeff_range, coeff_rows):
+    """A PTM_FORMAT_RGB file (§2.4: a polynomial per colour channel), band by band.
+
+    coeff_range : (lo (6,), hi (6,)), each term's minimum and maximum over every pixel and channel
+    (the header has one scale and bias per term, shared by the channels: `column_range` of the
+    coefficients as (·, 6)); coeff_rows(r0, r1) -> (r1 - r0, W, 3, 6) float, rows r0..r1 (row 0 =
+    top), with 1 = the channel at full brightness (stored ×255: byte units, as in the LRGB).
+    Layout, as RTIViewer's RGBPtm and HP's reader take it: the header of the LRGB with
+    PTM_FORMAT_RGB, then the six bytes of every pixel for red, bottom row first, then green, then
+    blue (so the rows are asked for three times, bottom band first). A channel is shown as the
+    polynomial's value / 255. Returns {"scale": [6], "bias": [6]} as written (byte units)."""
+    h, w = int(height), int(width)
+    lo, hi = (np.asarray(x) for x in coeff_range)
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+        raise ValueError("PTM coefficients must be finite (set unfitted pixels to 0)")
+    scale, bias = scale_bias_of_range(lo, hi)
+    scale = scale * FULL
+    header = ("PTM_1.2\nPTM_FORMAT_RGB\n" f"{w}\n{h}\n" + " ".join(f"{s:.9g}" for s in scale) + "\n"
+              + " ".join(str(int(b)) for b in bias) + "\n")
+    bottom_up = [(max(0, r1 - ROWS), r1) for r1 in range(h, 0, -ROWS)]
+    with atomic_path(path, needed=len(header) + 18 * w * h) as tmp, open(tmp, "wb") as out:
+        out.write(header.encode("ascii"))
+        for c in range(3):
+            for r0, r1 in bottom_up:
+                x = np.asarray(coeff_rows(r0, r1))[:, :, c].astype(np.float64)      # (rows, W, 6)
+                x *= FULL
+                x /= scale
+                x += bias
+                np.round(x, out=x)
+                out.write(np.clip(x, 0, 255, out=x).astype(np.uint8)[::-1].tobytes())
+    return {"scale": [float(s) for s in scale], "bias": [int(b) for b in bias]}
+
+
 def ptm_weights(light):
     """[lu², lv², lu·lv, lu, lv, 1] of a light (..., 3) or (..., 2): lu, lv its x (right) and
     y (up) components, the document's §1.0 order. Returns (..., 6)."""
@@ -149,6 +182,7 @@ class PTMFile:
 
     coeffs (H, W, 6) float64, (byte - bias) · scale (byte units: 255 = full brightness);
     rgb (H, W, 3) uint8; scale (6,), bias (6,) as in the header; format the header's format line.
+    A PTM_FORMAT_RGB: coeffs (H, W, 3, 6), a polynomial per channel, and rgb None.
     """
     width: int
     height: int
@@ -157,6 +191,13 @@ class PTMFile:
     bias: np.ndarray
     coeffs: np.ndarray
     rgb: np.ndarray
+
+    def values(self, light, rtiviewer=False):
+        """A PTM_FORMAT_RGB's polynomial per channel (H, W, 3) in byte units at a light (3,) or
+        (H, W, 3); rtiviewer=True: each coefficient truncated to an integer first."""
+        a = np.trunc(self.coeffs) if rtiviewer else self.coeffs
+        b = ptm_weights(light)
+        return a @ b if b.ndim == 1 else np.einsum("hwct,hwt->hwc", a, b)
 
     def luminance(self, light, rtiviewer=False):
         """L (H, W) in byte units at a light direction (3,) (x right, y up, z to the camera)
@@ -168,7 +209,9 @@ class PTMFile:
 
     def relight(self, light, rtiviewer=False):
         """The picture (H, W, 3) as displayed, in [0, 1]: L · RGB / 255 / 255, L clipped to
-        >= 0 and the result to 1 (the viewers' byte conversion)."""
+        >= 0 and the result to 1 (the viewers' byte conversion); an RGB file's polynomials / 255."""
+        if self.rgb is None:
+            return np.clip(self.values(light, rtiviewer) / FULL, 0.0, 1.0)
         lum = np.maximum(self.luminance(light, rtiviewer), 0.0)
         return np.minimum(lum[..., None] * self.rgb / (FULL * 255.0), 1.0)
 
@@ -196,7 +239,7 @@ def _ints(line, n, what, path):
 
 
 def read_ptm(path):
-    """Read a PTM_FORMAT_LRGB or PTM_FORMAT_JPEG_LRGB file (PTM 1.2) -> `PTMFile`.
+    """Read a PTM_FORMAT_LRGB, PTM_FORMAT_RGB or PTM_FORMAT_JPEG_LRGB file (PTM 1.2) -> `PTMFile`.
 
     Raises BadInputError for other formats (RGB, LUM, JPEG-LS) and for side information or
     motion compensation in a JPEG file (HP's encoder options that no sample we have uses)."""
@@ -205,8 +248,8 @@ def read_ptm(path):
     (version, fmt), pos = _lines(data, 0, 2)
     if not version.startswith("PTM_1."):
         raise BadInputError(f"{path} is not a PTM file (first line {version!r})")
-    if fmt not in ("PTM_FORMAT_LRGB", "PTM_FORMAT_JPEG_LRGB"):
-        raise BadInputError(f"{path}: {fmt} is not read (PTM_FORMAT_LRGB and PTM_FORMAT_JPEG_LRGB are)")
+    if fmt not in ("PTM_FORMAT_LRGB", "PTM_FORMAT_JPEG_LRGB", "PTM_FORMAT_RGB"):
+        raise BadInputError(f"{path}: {fmt} is not read (PTM_FORMAT_RGB, _LRGB and _JPEG_LRGB are)")
     # width and height: one line each (what RTIViewer reads) or both on one line (§2.3)
     (first,), pos = _lines(data, pos, 1)
     if len(first.split()) == 2:
@@ -220,6 +263,12 @@ def read_ptm(path):
     if scale.size != 6:
         raise BadInputError(f"{path}: the PTM header's scale line is not 6 numbers: {scale_line!r}")
     n = w * h
+    if fmt == "PTM_FORMAT_RGB":        # red's a0..a5 of every pixel, then green's, then blue's
+        body = np.frombuffer(data, np.uint8, offset=pos)
+        if body.size < 18 * n:
+            raise BadInputError(f"{path}: {body.size} data bytes for {w}x{h} pixels ({18 * n} expected)")
+        raw = body[:18 * n].reshape(3, h, w, 6)[:, ::-1].transpose(1, 2, 0, 3)     # bottom row first
+        return PTMFile(w, h, fmt, scale, bias.astype(int), (raw.astype(np.float64) - bias) * scale, None)
     if fmt == "PTM_FORMAT_LRGB":
         body = np.frombuffer(data, np.uint8, offset=pos)
         if body.size < 9 * n:

@@ -11,7 +11,6 @@ from scipy.ndimage import uniform_filter
 
 from facette._memory import decimated, release
 from facette.fit import is_metal
-from facette.recon import hsh_basis
 from facette.recon import srgb_encode as srgb_transfer
 
 __all__ = ["hsh_order_for", "fill_unfitted", "fill_left", "unfitted_verdict", "gltf_roughness", "srgb_encode",
@@ -65,7 +64,7 @@ def unfitted_verdict(fit, n_left, n_mask, name):
     terms = PTM_TERMS if ptm else fit.coeffs.shape[-1]
     if n_mask == 0 or n_left == n_mask:
         return False, (f"{name} not written: no pixel of the mask has the {terms} usable lights its "
-                       f"{'PTM' if ptm else 'HSH'} fit needs")
+                       f"{'HSH' if getattr(fit, 'order', None) else 'PTM'} fit needs")
     if n_left == 0:
         return True, None
     return True, (f"{name}: {n_left} of {n_mask} masked pixels ({n_left / n_mask:.1%}) have fewer than "
@@ -94,10 +93,11 @@ def fill_left(fit, images, mask):
             coeffs = np.zeros((n_left, PTM_TERMS), fit.coeffs.dtype)
             coeffs[:, 5] = const                                      # a5: the constant term
         else:
-            y00 = float(hsh_basis(np.array([0.0, 0.0, 1.0]), fit.order)[0])
+            k = fit.CONSTANT             # HSH's Y00, a per-channel PTM's a5
+            y00 = float(fit.basis(np.array([0.0, 0.0, 1.0]))[k])
             mean = np.nan_to_num(np.nanmean(vals, axis=0))                     # (n, 3)
             coeffs = np.zeros((n_left, 3, terms), fit.coeffs.dtype)
-            coeffs[:, :, 0] = mean / y00
+            coeffs[:, :, k] = mean / y00
     fit.coeffs[left] = coeffs
     return n_left, n_mask
 

@@ -84,6 +84,9 @@ class ProcessOptions:
                                "(li_alternating: init, rounds, materials, ...): one bag, each method takes "
                                "its own (facette.methods.options_for)", factory=dict)
     hsh_order: int = _option(3, "order of the hemispherical harmonics of relight.rti (2: 4 terms, 3: 9 terms)")
+    ptm_format: str = _option("auto", "relight.ptm's format: lrgb (a luminance polynomial times a colour, 9 bytes "
+                              "a pixel), rgb (a polynomial per channel, 18 bytes) or auto: the one with the smaller "
+                              "leave-one-light-out error on the object (pipeline._rti_bands)", report=True)
     allow_incomplete: bool = _option(False, "process a scan that is not complete (every output then says so)",
                                      record=False)
     overwrite: bool = _option(False, "replace an earlier run's results in out_dir made with other options or "
@@ -131,6 +134,8 @@ class ProcessOptions:
             raise BadInputError(f"pixel_pitch_mm must be > 0 mm, got {self.pixel_pitch_mm}")
         if self.mesh_step is not None and not int(self.mesh_step) >= 1:
             raise BadInputError(f"mesh_step must be >= 1 pixel, got {self.mesh_step}")
+        if self.ptm_format not in ("auto", "lrgb", "rgb"):
+            raise BadInputError(f"ptm_format must be auto, lrgb or rgb, got {self.ptm_format!r}")
         if self.hsh_order not in HSH_ORDERS:
             raise ValueError(f"hsh_order = {self.hsh_order}: choose one of {HSH_ORDERS}")
         if self.channels not in CHANNELS:

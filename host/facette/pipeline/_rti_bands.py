@@ -28,7 +28,7 @@ from math import gcd
 import numpy as np
 
 from facette._memory import disk_array, release
-from facette.io.ptm import column_range, ptm_rgb_bytes, write_ptm_lrgb_rows
+from facette.io.ptm import column_range, ptm_rgb_bytes, write_ptm_lrgb_rows, write_ptm_rgb_rows
 from facette.io.relight_web import write_relight_web as write_web_rows
 from facette.io.rti import write_hsh_rti_rows
 from facette.methods import PS_METHODS
@@ -39,6 +39,7 @@ from facette.pipeline._tiles import BYTES_PER_PIXEL_LIGHT as PS_BYTES_PER_PIXEL_
 from facette.recon import _rti as fit_blocks        # its _BLOCK: the pixels solved together
 from facette.recon import (HSHFit, PTMFit, fit_hsh, fit_ptm_lrgb, fit_relight_error,
                            near_light_directions, relight_error_parts, relight_error_step)
+from facette.recon._rti_ptm_rgb import PTMRGBFit, fit_ptm_rgb, ptm_loo_parts
 
 __all__ = ["BANDED_OUTPUTS", "RelightBands", "WholeBands", "whole_bands", "relight_bands", "relight_stage", "relight_exposure", "band_reader", "relight_rows",
            "write_relight_web", "PREVIEW_PIXELS"]
@@ -147,10 +148,13 @@ class RelightBands:
         self.ptm = self.hsh = self.model_images = None
         self.ok, self.notes, self.fit_errors, self.timings = {}, {"ptm": [], "rti": []}, {}, {}
         self.spills, self.rgb, self.exposure = {}, None, None
+        self.ptm_format, self.loo = None, []        # "lrgb" or "rgb"; `ptm_loo_parts` of every band
 
     def write_ptm(self, path):
         h, w = self.shape
         s = self.spills["ptm"]
+        if self.ptm_format == "rgb":
+            return write_ptm_rgb_rows(path, w, h, (s.lo, s.hi), s.rows)
 
         def rgb(r0, r1):
             band = np.array(self.rgb[r0:r1])
@@ -212,7 +216,7 @@ def relight_bands(read, mask, outputs, o, ps_rows, lights, inp, exposure=None, r
             exposure = exposure_of(inp, o.rti_encoding, white=top.value())
         out.exposure = exposure
         out.timings["relight_white"] = time.perf_counter() - t0
-        _fit_pass(out, read, mask, spans, (want_ptm, order), exposure, lights)
+        _fit_pass(out, read, mask, spans, (want_ptm and o.ptm_format, order), exposure, lights)
         _verdicts(out, order, exposure)
     except BaseException:
         out.close()
@@ -223,11 +227,13 @@ def relight_bands(read, mask, outputs, o, ps_rows, lights, inp, exposure=None, r
 def _fit_pass(out, read, mask, spans, wanted, exposure, lights):
     """Each band fitted, filled, its error's parts summed and spilled (`_Spill`)."""
     h, w = out.shape
-    want_ptm, order = wanted
+    want_ptm, order = wanted                       # want_ptm: False or the format asked (`ptm_format`)
     step = relight_error_step(h, w, lights)        # fit_relight_error's sample of rows
-    if want_ptm:
+    if want_ptm in ("auto", "lrgb"):
         out.spills["ptm"] = _Spill((h, w), (6,), out.stride)
         out.rgb = disk_array((h, w, 3), np.uint8)
+    if want_ptm in ("auto", "rgb"):
+        out.spills["ptm_rgb"] = _Spill((h, w), (3, 6), out.stride)
     if order is not None:
         out.spills["rti"] = _Spill((h, w), (3, order * order), out.stride)
     seconds = {"read": 0.0, "ptm": 0.0, "hsh": 0.0}
@@ -243,12 +249,7 @@ def _fit_pass(out, read, mask, spans, wanted, exposure, lights):
         t1 = time.perf_counter()
         seconds["read"] += t1 - t0
         if want_ptm:
-            fit = fit_ptm_lrgb(images, dirs, mask=band, **kw)
-            counts = fill_left(fit, images, band)
-            out.spills["ptm"].add(r0, fit, counts, relight_error_parts(fit, images, dirs, band, starts))
-            out.rgb[r0:r1] = ptm_rgb_bytes(fit.rgb)
-            release(out.rgb)
-            del fit
+            _fit_ptms(out, images, dirs, band, starts, r0, kw)
             t2 = time.perf_counter()
             seconds["ptm"] += t2 - t1
             t1 = t2
@@ -262,11 +263,57 @@ def _fit_pass(out, read, mask, spans, wanted, exposure, lights):
                                                         if on})
 
 
+def _fit_ptms(out, images, dirs, band, starts, r0, kw):
+    """A band's PTM fits (the spills `_fit_pass` made: LRGB, per channel or both) and, with both, their
+    leave-one-light-out errors on the relighting error's rows (`ptm_loo_parts`; None under per-pixel
+    directions: the per-channel fit is then dropped, LRGB kept as before, said)."""
+    fits = {}
+    if "ptm" in out.spills:
+        fit = fits["ptm"] = fit_ptm_lrgb(images, dirs, mask=band, **kw)
+        out.spills["ptm"].add(r0, fit, fill_left(fit, images, band), relight_error_parts(fit, images, dirs, band, starts))
+        out.rgb[r0:r0 + len(band)] = ptm_rgb_bytes(fit.rgb)
+        release(out.rgb)
+    if "ptm_rgb" in out.spills:
+        fit = fits["ptm_rgb"] = fit_ptm_rgb(images, dirs, kw["white"], kw["encoding"])
+        out.spills["ptm_rgb"].add(r0, fit, fill_left(fit, images, band),
+                                  relight_error_parts(fit, images, dirs, band, starts))
+    if len(fits) == 2:
+        parts = ptm_loo_parts(fits["ptm"], fits["ptm_rgb"], images, dirs, band, starts)
+        if parts is None:
+            del out.spills["ptm_rgb"]
+            out.notes["ptm"].append("relight.ptm: PTM_FORMAT_LRGB (per-pixel light directions: the choice of the "
+                                    "format by leave-one-light-out error needs far lights)")
+        else:
+            out.loo.extend(parts)
+
+
+def _ptm_choice(out):
+    """relight.ptm's format ("lrgb" or "rgb"): the one spill left, or of both the one with the smaller
+    leave-one-light-out error (ties: LRGB, half the bytes), said; the other spill dropped."""
+    if "ptm_rgb" not in out.spills:
+        return "lrgb"
+    if "ptm" in out.spills:
+        num_l, num_r, n = (sum(x) for x in zip(*out.loo)) if out.loo else (0.0, 0.0, 0)
+        rms_l, rms_r = (255 * np.sqrt(v / max(n, 1)) for v in (num_l, num_r))
+        choice = "rgb" if n and num_r < num_l else "lrgb"
+        out.notes["ptm"].append(f"relight.ptm: PTM_FORMAT_{choice.upper()} (leave-one-light-out RMS on the object "
+                                f"{rms_r:.2f} grey levels per channel, {rms_l:.2f} luminance x colour)")
+        del out.spills["ptm" if choice == "rgb" else "ptm_rgb"]
+        if choice == "lrgb":
+            return choice
+        out.rgb = None
+    out.spills["ptm"] = out.spills.pop("ptm_rgb")
+    return "rgb"
+
+
 def _verdicts(out, order, exposure):
     """The previews, `fill_unfitted`'s verdicts and notes, and the relighting errors."""
-    if "ptm" in out.spills:
+    if "ptm" in out.spills or "ptm_rgb" in out.spills:
+        out.ptm_format = _ptm_choice(out)
         s = out.spills["ptm"]
-        out.ptm = PTMFit(s.joined("coeffs"), s.joined("rgb"), exposure.white, s.joined("valid"), exposure.encoding)
+        out.ptm = (PTMRGBFit(s.joined("coeffs"), None, exposure.white, s.joined("valid"), exposure.encoding)
+                   if out.ptm_format == "rgb" else
+                   PTMFit(s.joined("coeffs"), s.joined("rgb"), exposure.white, s.joined("valid"), exposure.encoding))
         out.ok["ptm"], note = unfitted_verdict(out.ptm, s.left, s.masked, FILE_NAMES["ptm"])
         out.notes["ptm"] += [note] if note else []
         if out.ok["ptm"]:

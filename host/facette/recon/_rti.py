@@ -144,6 +144,9 @@ class PTMFit:
     valid: np.ndarray
     encoding: str = "linear"
 
+    def basis(self, d):            # (..., 3) -> (..., 6), the L polynomial's terms
+        return ptm_basis(d)
+
 
 @dataclass
 class HSHFit:
@@ -156,6 +159,10 @@ class HSHFit:
     white: float
     valid: np.ndarray
     encoding: str = "linear"
+    CONSTANT = 0                  # the term of the basis that is constant over the lights
+
+    def basis(self, d):
+        return hsh_basis(d, self.order)
 
 
 def _check(images, light_dirs):
@@ -386,38 +393,34 @@ def _shown_ptm(fit, light_dir):
 
 
 def _shown_hsh(fit, light_dir):
-    """Σ_k coeffs H_k(l) (H, W, 3) of an `HSHFit` under one light (3,) or (H, W, 3), clipped to >= 0."""
-    b = hsh_basis(np.asarray(light_dir, float), fit.order)
+    """Σ_k coeffs H_k(l) (H, W, 3) of an `HSHFit` (or per-channel PTM) under one light (3,) or (H, W, 3), >= 0."""
+    b = fit.basis(np.asarray(light_dir, float))
     val = fit.coeffs @ b if b.ndim == 1 else np.einsum("hwct,hwt->hwc", fit.coeffs, b)
     return np.clip(val, 0, None)
 
 
 def display_ptm(fit, light_dir):
-    """The colour (H, W, 3) a viewer shows for a `PTMFit` under one light (a far light (3,)
-    or per-pixel directions (H, W, 3)): L · rgb, clipped to [0, 1], in the fit's encoding."""
+    """The colour (H, W, 3) a viewer shows for a `PTMFit` under a far light (3,) or per-pixel
+    directions (H, W, 3): L · rgb, clipped to [0, 1], in the fit's encoding."""
     return np.clip(_shown_ptm(fit, light_dir), 0, 1)
 
 
 def display_hsh(fit, light_dir):
-    """The colour (H, W, 3) a viewer shows for an `HSHFit` under one light, as `display_ptm`."""
-    return np.clip(_shown_hsh(fit, light_dir), 0, 1)
+    return np.clip(_shown_hsh(fit, light_dir), 0, 1)      # an `HSHFit`'s, as `display_ptm`
 
 
-def _to_images(fit, shown):
-    """Displayed values (≥ 0) -> the fitted images' unit (sRGB decoded when so encoded)."""
+def _to_images(fit, shown):     # displayed values (≥ 0) -> the fitted images' unit (sRGB decoded when so)
     return fit.white * (srgb_decode(shown) if fit.encoding == "srgb" else shown)
 
 
 def relight_ptm(fit, light_dir):
-    """Colour (H, W, 3) of a `PTMFit` under one light: a far light (3,) or per-pixel
-    directions (H, W, 3); in the fitted images' unit (linear; not clipped at white when the
-    encoding is linear)."""
+    """Colour (H, W, 3) of a `PTMFit` under a far light (3,) or per-pixel directions (H, W, 3), in the
+    fitted images' unit (linear; not clipped at white when the encoding is linear)."""
     return _to_images(fit, _shown_ptm(fit, light_dir))
 
 
 def relight_hsh(fit, light_dir):
-    """Colour (H, W, 3) of an `HSHFit` under one light (3,) or (H, W, 3), as `relight_ptm`."""
-    return _to_images(fit, _shown_hsh(fit, light_dir))
+    return _to_images(fit, _shown_hsh(fit, light_dir))     # an `HSHFit`'s, as `relight_ptm`
 
 
 def _error_sums(render, images, d_all, mask):
@@ -432,12 +435,9 @@ def _error_sums(render, images, d_all, mask):
 
 
 def relight_error(render, images, light_dirs, mask):
-    """Relative RMS error of a relighting function against the images it was fitted to.
-
-    render(light_dir (3,) or (H, W, 3)) -> (H, W, 3); images (m, H, W, 3); light_dirs (m, 3)
-    or (H, W, m, 3); mask (H, W) bool. Returns sqrt(Σ |render - image|² / Σ |image|²) over
-    the masked pixels and finite values of every light, a fraction (0 = exact).
-    """
+    """Relative RMS error sqrt(Σ |render - image|² / Σ |image|²) (0 = exact) of a relighting function
+    render(light_dir (3,) or (H, W, 3)) -> (H, W, 3) against the images (m, H, W, 3) it was fitted to
+    under light_dirs (m, 3) or (H, W, m, 3), over the masked pixels (H, W) and finite values."""
     d_all = np.asarray(light_dirs, float)
     d_all = d_all if d_all.ndim == 2 else np.moveaxis(d_all, 2, 0)
     num, den = _error_sums(render, images, d_all, mask)
@@ -475,7 +475,7 @@ def relight_error_parts(fit, images, light_dirs, mask, starts, rows=2, workers=2
     ptm = isinstance(fit, PTMFit)
     d_all = np.asarray(light_dirs, float)
     images, mask = np.asarray(images), np.asarray(mask, bool)
-    basis = (ptm_basis(d_all) if ptm else hsh_basis(d_all, fit.order)) if d_all.ndim == 2 else None  # far: (m, T)
+    basis = fit.basis(d_all) if d_all.ndim == 2 else None                   # far: (m, T)
 
     def part(r):
         sl = slice(r, r + rows)

@@ -76,3 +76,49 @@ def test_process_with_memory_reads_an_rti_capture_band_by_band(tmp_path, monkeyp
     np.testing.assert_array_equal(tiled.normals, whole.normals)
     np.testing.assert_array_equal(tiled.albedo, whole.albedo)
     assert any("read band by band" in n for n in tiled.notes)
+
+
+def _old_reading(paths, inten, enc):
+    """The reading before each photograph was converted as decoded (the whole photograph at
+    once, as `RTIBands.read(0, H)` did it): the values the new one must give, bit for bit."""
+    from facette.capture.rti import _read_image, srgb_to_linear
+    images, usable = [], []
+    for k, p in enumerate(paths):
+        stored, top, bits = _read_image(p)
+        raw = stored.astype(np.float32)
+        usable.append(np.isfinite(raw[..., 1]) & (raw[..., 1] >= 2))
+        scale = top
+        if enc == "linear":
+            img = (raw / (scale * (1.0 if inten is None else inten[k]))).astype(np.float32)
+        else:
+            lut = srgb_to_linear(np.arange(256) / 255.0)
+            img = lut[raw.astype(np.uint8)] if bits == 8 else srgb_to_linear(raw / scale)
+            if inten is not None:
+                img /= inten[k].astype(np.float32)
+        img[raw >= top] = np.nan
+        images.append(img)
+    return np.stack(images), np.stack(usable)
+
+
+@pytest.mark.parametrize("kind,enc", [("jpg", None), ("tif16", None), ("tif16", "srgb"), ("jpg", "linear")])
+def test_whole_reading_converts_each_photograph_as_decoded(tmp_path, monkeypatch, kind, enc):
+    import weakref
+
+    from facette.capture import rti
+    folder = _capture(tmp_path / "c", kind)
+    paths, _, _, inten, _ = rti_files(folder)
+    expected = _old_reading(paths, inten, enc or ("srgb" if kind == "jpg" else "linear"))
+    decoded, read = [], rti._read_image
+
+    def spy(path):              # each photograph decoded must be gone before the next is
+        assert all(r() is None for r in decoded), "a decoded photograph is still held"
+        out = read(path)
+        decoded.append(weakref.ref(out[0]))
+        return out
+    monkeypatch.setattr(rti, "_read_image", spy)
+    monkeypatch.setattr(rti, "CONVERT_ROWS", 3)              # bands of rows within a photograph
+    inp = load_input(folder, capture={"encoding": enc} if enc else None)
+    assert len(decoded) == 12
+    np.testing.assert_array_equal(inp.images, expected[0])  # NaN where clipped, in both
+    np.testing.assert_array_equal(inp.usable, expected[1])
+    assert np.isnan(inp.images).any() and inp.images.dtype == np.float32

@@ -58,6 +58,34 @@ def read_ptm(path):
     return dict(width=w, height=h, scale=scale, bias=bias, coeffs=coeffs, rgb=rgb)
 
 
+def read_ptm_rgb(path):
+    """PTM_1.2 / PTM_FORMAT_RGB as RTIViewer's RGBPtm::loadData reads it (and HP's ptmlib, Perathoner's:
+    the same layout): the header of the LRGB, then for red, green, blue in turn the six bytes a0..a5 of
+    every texel, bottom row first; one scale and bias per term for the three channels.
+    -> dict(width, height, scale, bias, coeffs (H, W, 3, 6) float) with image row 0 at the top."""
+    data = Path(path).read_bytes()
+    first = data.index(b"\n")
+    second = data.index(b"\n", first + 1)
+    assert data[:first].strip() == b"PTM_1.2"
+    assert data[first + 1:second].strip() == b"PTM_FORMAT_RGB"
+    tok, pos = _header_tokens(data, second + 1, 14)
+    w, h = int(tok[0]), int(tok[1])
+    scale = np.array([float(t) for t in tok[2:8]])
+    bias = np.array([int(t) for t in tok[8:14]])
+    body = np.frombuffer(data, np.uint8, offset=pos)
+    assert body.size == w * h * 18, f"{body.size} data bytes for {w}x{h} pixels (expected {w * h * 18})"
+    planes = [body[j * w * h * 6:(j + 1) * w * h * 6].reshape(h, w, 6)[::-1] for j in range(3)]
+    coeffs = (np.stack(planes, axis=2).astype(np.float64) - bias) * scale
+    return dict(width=w, height=h, scale=scale, bias=bias, coeffs=coeffs)
+
+
+def ptm_rgb_colour(ptm, light, rtiviewer=True):
+    """RTIViewer's RGB rendering, in [0, 1]: each channel tobyte(its polynomial) / 255, from the integer
+    coefficients RTIViewer keeps (rtiviewer=False: floats)."""
+    coeffs = np.trunc(ptm["coeffs"]) if rtiviewer else ptm["coeffs"]
+    return np.clip(ptm_luminance(coeffs, light[0], light[1]), 0.0, 255.0) / 255.0
+
+
 def ptm_luminance(coeffs, lu, lv):
     """C = a0 Lu² + a1 Lv² + a2 Lu Lv + a3 Lu + a4 Lv + a5 (the document's §1.0)."""
     a = coeffs

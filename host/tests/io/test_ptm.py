@@ -6,11 +6,11 @@ import pytest
 
 from facette.errors import BadInputError
 from facette.io.ptm import (column_range, ptm_rgb_bytes, quantize_scale_bias, read_ptm as read_ptm_pkg, write_ptm_lrgb,
-                            write_ptm_lrgb_rows)
+                            write_ptm_lrgb_rows, write_ptm_rgb_rows)
 from facette.recon import display_ptm, fit_ptm_lrgb, ptm_basis
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 from rti_spec_readers import (RTI_REFERENCE, asymmetric_scene, check_upright, needs_reference, ptm_colour,
-                              read_ptm)
+                              ptm_rgb_colour, read_ptm, read_ptm_rgb)
 
 REFERENCE = RTI_REFERENCE / "ptm" / "tablet1.ptm"
 
@@ -117,9 +117,9 @@ def test_package_reader_gives_what_was_fitted_within_the_quantisation(tmp_path):
 
 
 def test_reader_refuses_other_formats_with_a_clear_error(tmp_path):
-    (tmp_path / "rgb.ptm").write_bytes(b"PTM_1.2\nPTM_FORMAT_RGB\n2\n2\n1 1 1 1 1 1\n0 0 0 0 0 0\n")
-    with pytest.raises(BadInputError, match="PTM_FORMAT_RGB is not read"):
-        read_ptm_pkg(tmp_path / "rgb.ptm")
+    (tmp_path / "lum.ptm").write_bytes(b"PTM_1.2\nPTM_FORMAT_LUM\n2\n2\n1 1 1 1 1 1\n0 0 0 0 0 0\n")
+    with pytest.raises(BadInputError, match="PTM_FORMAT_LUM is not read"):
+        read_ptm_pkg(tmp_path / "lum.ptm")
     (tmp_path / "x.ptm").write_bytes(b"P6\n2 2\n255\n")
     with pytest.raises(BadInputError, match="not a PTM file"):
         read_ptm_pkg(tmp_path / "x.ptm")
@@ -161,3 +161,42 @@ def test_rows_form_refuses_a_range_that_is_not_finite(tmp_path):
         write_ptm_lrgb_rows(tmp_path / "a.ptm", 2, 2, (np.full(6, np.nan), np.zeros(6)),
                             lambda r0, r1: np.zeros((r1 - r0, 2, 6)), lambda r0, r1: np.zeros((r1 - r0, 2, 3)))
     assert not any(tmp_path.iterdir())
+
+
+def test_rgb_format_is_shown_by_rtiviewers_rules_as_written(tmp_path):
+    """PTM_FORMAT_RGB: each channel its own polynomial; read by a reader written from RTIViewer's
+    RGBPtm loader (red, green, blue planes, bottom row first, one scale and bias per term), each
+    channel at every light within the quantisation (half a step per term) and RTIViewer's
+    truncation (one byte unit per term) of what was written; upright and per channel (a red
+    left half, a blue right half)."""
+    rng = np.random.default_rng(5)
+    h, w = 150, 9                                     # 3 writer bands of 64 rows, the last short
+    coeffs = rng.normal(0, 0.2, (h, w, 3, 6)).astype(np.float32)
+    coeffs[..., 5] += 0.5
+    coeffs[:, : w // 2, 0, 5] += 0.4                  # red on the left, blue on the right
+    coeffs[:, w // 2:, 2, 5] += 0.4
+    coeffs[: h // 3, :, 1, 3] += 0.3                  # green grows with lu in the top third
+    asked = []
+
+    def rows(r0, r1):
+        asked.append((r0, r1))
+        return coeffs[r0:r1]
+    head = write_ptm_rgb_rows(tmp_path / "a.ptm", w, h, column_range(coeffs.reshape(-1, 6)), rows)
+    assert asked == [(86, 150), (22, 86), (0, 22)] * 3            # red, green, blue: bottom band first
+    spec = read_ptm_rgb(tmp_path / "a.ptm")
+    assert np.allclose(spec["scale"], head["scale"]) and list(spec["bias"]) == head["bias"]
+    step = np.asarray(head["scale"])
+    for d in thesis_light_directions()[::4]:
+        want = np.einsum("hwct,t->hwc", coeffs.astype(np.float64), ptm_basis(d)) * 255
+        tol = (np.abs(ptm_basis(d)) * (step / 2 + 1)).sum() + 1e-6
+        got = ptm_rgb_colour(spec, d) * 255
+        inside = (want > tol) & (want < 255 - tol)
+        assert inside.mean() > 0.5 and np.abs(got - want)[inside].max() <= tol
+        pkg = read_ptm_pkg(tmp_path / "a.ptm")                   # the package's reader: the same picture
+        assert pkg.format == "PTM_FORMAT_RGB" and pkg.rgb is None
+        np.testing.assert_allclose(pkg.relight(d, rtiviewer=True), ptm_rgb_colour(spec, d), atol=1e-12)
+    top = ptm_rgb_colour(spec, [0, 0, 1])
+    assert top[:, : w // 2, 0].mean() > top[:, : w // 2, 2].mean() + 0.3
+    assert top[:, w // 2:, 2].mean() > top[:, w // 2:, 0].mean() + 0.3
+    right, left = ptm_rgb_colour(spec, [0.7, 0, 0.714]), ptm_rgb_colour(spec, [-0.7, 0, 0.714])
+    assert (right - left)[: h // 3, :, 1].mean() > 0.3 > abs((right - left)[h // 2:, :, 1].mean())

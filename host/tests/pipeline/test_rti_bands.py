@@ -16,7 +16,7 @@ from test_exports import _diligent
 from test_process_memory import M, WHOLE_CHANNELS, _never_whole, diligent, scan, small_bands  # noqa: F401
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "io"))
-from rti_spec_readers import hsh_colour, ptm_colour, read_hsh, read_ptm  # noqa: E402
+from rti_spec_readers import hsh_colour, ptm_colour, ptm_rgb_colour, read_hsh, read_ptm, read_ptm_rgb  # noqa: E402
 
 OUTPUTS = ["normals", "mask", "ptm", "rti", "relight-web"]
 
@@ -122,3 +122,45 @@ def test_the_web_folder_alone_over_bands_is_the_untiled_folder(tmp_path, small_b
     assert len(web) == 10
     for p in web:
         assert (tmp_path / "whole" / p).read_bytes() == (tmp_path / "tiled" / p).read_bytes(), p
+
+
+def _satin_capture(folder, m=24):
+    """A JPEG + .lp capture of a red satin sphere on a grey plane: white highlights on a red body,
+    a colour that changes with the light (what a luminance x colour PTM cannot follow)."""
+    import cv2
+
+    from facette.calib.lp import write_lp
+    from facette.recon.synthetic import render, sphere_on_plane
+    az = np.radians(np.arange(m) * 360.0 / m)
+    el = np.radians(np.tile([25.0, 40.0, 55.0, 70.0], m // 4))
+    dirs = np.c_[np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]
+    imgs = render(sphere_on_plane(36, 44, radius=14), dirs, "satin", albedo=(0.7, 0.08, 0.05), cast_shadows=False,
+                  ks=3.0)
+    imgs = np.clip(imgs / np.percentile(imgs, 99.5), 0, 1)
+    folder.mkdir()
+    names = [f"p{k:02d}.jpg" for k in range(m)]
+    for name, im in zip(names, imgs):
+        v = np.where(im <= 0.0031308, 12.92 * im, 1.055 * im ** (1 / 2.4) - 0.055)
+        cv2.imwrite(str(folder / name), np.round(v[..., ::-1] * 255).astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, 95])
+    write_lp(folder / "c.lp", names, dirs)
+    return dirs
+
+
+def test_ptm_format_auto_takes_a_polynomial_per_channel_where_the_colour_moves(tmp_path):
+    """Highlights whiter than the body: `auto` writes PTM_FORMAT_RGB (said, with both errors), which
+    RTIViewer's rules (a reader written from its RGBPtm loader) show closer to the photographs than
+    the LRGB file, at the captured lights."""
+    import cv2
+    dirs = _satin_capture(tmp_path / "c")
+    shown = {}
+    for fmt in ("auto", "lrgb"):
+        res = process(tmp_path / "c", outputs=["ptm"], out_dir=tmp_path / fmt, ptm_format=fmt)
+        shown[fmt] = res
+    said = [n for n in shown["auto"].notes if n.startswith("relight.ptm: PTM_FORMAT_")]
+    assert len(said) == 1 and "PTM_FORMAT_RGB" in said[0] and "grey levels" in said[0]
+    rgb, lrgb = read_ptm_rgb(tmp_path / "auto" / "relight.ptm"), read_ptm(tmp_path / "lrgb" / "relight.ptm")
+    photos = np.stack([cv2.imread(str(tmp_path / "c" / f"p{k:02d}.jpg"))[..., ::-1] for k in range(len(dirs))]) / 255
+    err = {name: np.mean([np.abs(colour(f, d) - p).mean() for d, p in zip(dirs, photos)])
+           for name, colour, f in (("rgb", ptm_rgb_colour, rgb), ("lrgb", ptm_colour, lrgb))}
+    assert err["rgb"] < 0.8 * err["lrgb"] and err["rgb"] < 0.045, err
+    assert shown["auto"].fit_errors["ptm_relative_rms"] < shown["lrgb"].fit_errors["ptm_relative_rms"]

@@ -123,6 +123,7 @@ def test_summary():
     u = np.array([[1.0, 2.0], [3.0, 50.0]], np.float32)
     s = uncertainty_summary(u, np.array([[1, 1], [1, 0]], bool))
     assert s["median_deg"] == 2.0 and 2.5 < s["p90_deg"] < 3.0
+    assert "whole object" in s["not_in_band"]        # a global error is named, not put in the ranking
     assert uncertainty_summary(u, np.zeros((2, 2), bool)) is None
 
 
