@@ -42,8 +42,14 @@ one-button scan of a 100 MP camera and the thesis camera with and without a budg
     facette bench e2e --sizes 11648x8736 --memory 2GB --outputs normals,height --scan-only --no-fixed
     facette bench e2e --sizes 4288x2848 [--memory 2GB] --outputs normals,height --scan-only --no-fixed
 
+Where the time after the last frame goes, on a kept scan (`--keep`): `--stages SCAN_DIR` runs
+`facette process` on it and prints each stage's wall and CPU seconds (bench/_e2e_stages.py);
+`--viewer SCAN_DIR [--sides 1100,550]` the report viewer's PSNR against the photographs with its
+relighting model fitted at each side, and that stage's time (bench/_e2e_viewer.py).
+
 Usage: facette bench e2e [--sizes default,1072x712,128x96] [--full] [--runs N] [--keep DIR]
                          [--memory SIZE] [--outputs LIST] [--scan-only]
+       facette bench e2e --stages SCAN_DIR | --viewer SCAN_DIR [--sides 1100,550]
 """
 from __future__ import annotations
 
@@ -288,6 +294,26 @@ def _print(rows):
               + " |", flush=True)
 
 
+def _on_kept_scan(args):
+    """--stages / --viewer on a scan directory a run kept."""
+    if args.stages:
+        import facette.pipeline._relight_model_stage as stage
+        from facette.bench._e2e_stages import print_stage_table, stage_table
+        stage.MODEL_SIDE = args.model_side or stage.MODEL_SIDE
+        print(f"`facette process` on {args.stages}, every default output, the report's model at "
+              f"{stage.MODEL_SIDE} px, stage by stage, one after the other (CPU: the process's over the stage; "
+              "rest: no stage's)")
+        print_stage_table(stage_table(args.stages))
+    if args.viewer:
+        from facette.bench._e2e_viewer import viewer_rows
+        print(f"the report viewer on {args.viewer}: its relighting model fitted at each side")
+        print("| model side | model stage s | (CPU s) | viewer PSNR dB (median over lights) | (min-max) |")
+        print("|---|---|---|---|---|")
+        for side, wall, cpu, med, (lo, hi) in viewer_rows(args.viewer, [int(s) for s in args.sides.split(",")]):
+            print(f"| {side} | {wall:.2f} | {cpu:.2f} | {med:.2f} | {lo:.2f}-{hi:.2f} |", flush=True)
+    return 0
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(prog="facette bench e2e", description=__doc__.splitlines()[0])
     p.add_argument("--sizes", default=DEFAULT_SIZES, help=f"RAW sizes WxH (default {DEFAULT_SIZES})")
@@ -301,7 +327,14 @@ def main(argv=None):
     p.add_argument("--outputs", help="the scan command's --outputs (e.g. normals,height)")
     p.add_argument("--scan-only", action="store_true",
                    help="only the scan command: no merge alone, process alone or rig apart")
+    p.add_argument("--stages", metavar="SCAN_DIR", help="each stage's time of `facette process` on a kept scan")
+    p.add_argument("--viewer", metavar="SCAN_DIR", help="the report viewer's PSNR per model side on a kept scan")
+    p.add_argument("--sides", default="1100,550", help="--viewer: the report model's sides (default 1100,550)")
+    p.add_argument("--model-side", type=int, help="--stages: the report model's side (default: "
+                   "pipeline._relight_model_stage.MODEL_SIDE; 1100 fits it as before, at the viewer's)")
     args = p.parse_args(argv)
+    if args.stages or args.viewer:
+        return _on_kept_scan(args)
     sizes = [s.strip() for s in args.sizes.split(",") if s.strip()] + ([FULL] if args.full else [])
     for s in sizes:
         if not re.fullmatch(r"\d+x\d+", s) and s != "default":

@@ -193,6 +193,12 @@ def mark_running(out, options, inp, names=()):
     return rec
 
 
+def _written(out, names):
+    """{file: when it was last written (UTC, ms)}: the maps come seconds before the report and model.glb."""
+    return {name: _dt.datetime.fromtimestamp((out / name).stat().st_mtime, _dt.timezone.utc)
+            .isoformat(timespec="milliseconds") for name in names if (out / name).exists()}
+
+
 def write_record(out, options, inp, res, previous=None):
     """Write `out`/process.json for the run whose result is `res` (atomically)."""
     out = Path(out)
@@ -208,5 +214,6 @@ def write_record(out, options, inp, res, previous=None):
         # the same run with other outputs: its files stay valid beside these
         rec["files"] = sorted(set(rec["files"]) | {f for f in previous.get("files", []) if (out / f).is_file()})
         rec["outputs"] = sorted(set(rec["outputs"]) | set(previous.get("outputs", [])))
+    rec["written"] = _written(out, rec["files"])
     write_text_atomic(out / RECORD, json.dumps(rec, indent=1) + "\n")
     return rec

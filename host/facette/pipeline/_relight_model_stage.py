@@ -10,8 +10,10 @@ the 99.9th percentile of the object's brightest channel over the lights (`recon.
 the photographs' own scale, highlights above it clip as in a photograph.
 
 Its cost grows with pixels x lights, so the full model is fitted only when relight_model.npz is
-asked for; for the report alone it is fitted at the viewer's size (every st-th pixel,
-pipeline._viewer.MAX_SIDE), which is all the page shows.
+asked for; for the report (and model.glb's maps) alone it is fitted at MODEL_SIDE pixels along the
+longest side (`report_step`): the viewer draws at most 900 px wide from its MAX_SIDE grid, and
+the model's maps are repeated onto that grid (pipeline._viewer_model), its normals the viewer's
+own. At the thesis camera's size (2144 x 1424 HDR) that is the last chain after the last frame.
 """
 import time
 
@@ -24,9 +26,20 @@ from facette.recon import fit_relight_bands, save_relight_model
 from facette.recon._relight_fit import WHITE_PERCENTILE
 
 __all__ = ["relight_model_stage", "save_relight_model", "WHITE_PERCENTILE", "ImagesSpill", "MODEL_BAND_BYTES",
-           "model_input"]
+           "MODEL_SIDE", "report_step", "model_input"]
 
 MODEL_BAND_BYTES = 256 * 2 ** 20     # the photographs of one band of the model's fit read from a spill, at most
+# the report's model, pixels along its longest side at most (a whole multiple of the viewer's step):
+# at 2144 x 1424, 536 x 356 against the viewer's 1072 x 712
+MODEL_SIDE = 550
+
+
+def report_step(shape, side=None):
+    """The report's model's pixel step on an image of `shape` (H, W): a whole multiple of the
+    viewer's (pipeline._viewer.MAX_SIDE), its longest side at most `side` (MODEL_SIDE) pixels."""
+    viewer = max(1, int(np.ceil(max(shape) / MAX_SIDE)))
+    side = MODEL_SIDE if side is None else side
+    return viewer * max(1, int(np.ceil(-(-max(shape) // viewer) / side)))
 
 
 class ImagesSpill:
@@ -84,7 +97,7 @@ def relight_model_stage(res, images, light_dirs, pixel_pitch_mm=1.0, write=None,
     writer of relight_model.npz; run after the heights: the cast shadows need them); returns the notes. images
     (m, H, W, C) linear, an `ImagesSpill` (read by bands), or None (read by bands with no spill: no
     model, a note says so); light_dirs (m, 3) or None (near lights: per-pixel directions, which the
-    model does not take); every_pixel False: the model at the report viewer's size (every st-th
+    model does not take); every_pixel False: the model for the report (every `report_step`-th
     pixel, heights in its pixels)."""
     if images is None or (isinstance(images, ImagesSpill) and images.data is None):
         return ["relighting model: not fitted with --memory unless the relight output is asked for (it reads "
@@ -96,7 +109,7 @@ def relight_model_stage(res, images, light_dirs, pixel_pitch_mm=1.0, write=None,
     normals = np.asarray(res.normals)
     mask = mask & np.all(np.isfinite(normals), axis=-1) & (np.linalg.norm(normals, axis=-1) > 0.5)
     heights = None if res.height is None else np.where(mask, res.height / float(pixel_pitch_mm), np.nan)
-    st = 1 if every_pixel else max(1, int(np.ceil(max(mask.shape) / MAX_SIDE)))
+    st = 1 if every_pixel else report_step(mask.shape)
     cut = (slice(None, None, st), slice(None, None, st))
     read, rows = _reader(images, st)
     res.relight_model = fit_relight_bands(read, light_dirs, mask[cut], normals[cut],

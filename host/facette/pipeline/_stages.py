@@ -5,7 +5,7 @@ __all__ = ["OUTPUTS", "ALL_OUTPUTS", "STAGES_FOR", "FILES", "stages_needed"]
 
 OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
 # asked for by name only (not in the default): relight_web/ costs ~0.4 CPU s per megapixel of JPEG
-# tiles, relight_model.npz fits every pixel (the report fits the model at its viewer's size only)
+# tiles, relight_model.npz fits every pixel (the report fits the model at _relight_model_stage.MODEL_SIDE only)
 ALL_OUTPUTS = OUTPUTS + ("relight-web", "relight")
 STAGES_FOR = {
     "normals": ("load", "ps"), "albedo": ("load", "ps"), "mask": ("load", "ps"),

@@ -94,7 +94,8 @@ def viewer_data(normals, mask, fit, albedo=None, kd_map=None, height=None, pitch
     }
     arrays = {"normals": n, "mask": mk, "kd_map": kd, "model": m, "exposure": exposure}
     if relight_model is not None:
-        data["sv"], arrays["sv_model"] = model_data(relight_model, st, mk)
+        small_albedo = None if albedo is None else decimated(np.asarray(albedo), st)   # a coarser model's texture
+        data["sv"], arrays["sv_model"] = model_data(relight_model, st, mk, n, small_albedo)
         data["exposure"] = 1.0           # the model's display values: 1 = the photographs' white
     if height is not None:
         hgt = np.asarray(height[::st, ::st], dtype=np.float64)

@@ -205,3 +205,13 @@ def test_a_diligent_report_captions_heights_in_pixels(diligent, tmp_path):
     assert "Height (px)" in page and "Height (mm)" not in page
     process(diligent, outputs=["height", "report"], out_dir=tmp_path / "mm", pixel_pitch_mm=0.1)
     assert "Height (mm)" in (tmp_path / "mm" / "report.html").read_text()
+
+
+def test_the_record_says_when_each_file_was_written(diligent, tmp_path):
+    import datetime as dt
+    out = tmp_path / "out"
+    process(diligent, outputs=OUTS + ["height"], out_dir=out, method="woodham1980")
+    rec = json.loads((out / "process.json").read_text())
+    assert sorted(rec["written"]) == rec["files"] == ["albedo.exr", "height.exr", "mask.png", "normal.exr"]
+    for name, when in rec["written"].items():
+        assert dt.datetime.fromisoformat(when).timestamp() == pytest.approx((out / name).stat().st_mtime, abs=1e-3)

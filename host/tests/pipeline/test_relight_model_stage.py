@@ -67,3 +67,52 @@ def test_memory_fits_the_model_from_the_bands(tmp_path, monkeypatch):
     for az, el in ((0.0, 15.0), (135.0, 45.0), (250.0, 70.0)):
         light = light_from_angles(az, el)
         assert np.abs(a.display(light) - b.display(light)).max() < 0.01
+
+
+def test_report_step_is_a_multiple_of_the_viewers():
+    from facette.pipeline._relight_model_stage import report_step
+    assert report_step((1424, 2144)) == 4          # the thesis camera's HDR: 536 x 356, the viewer 1072 x 712
+    assert report_step((1424, 2144), side=1100) == 2
+    assert report_step((40, 48)) == 1 and report_step((40, 48), side=24) == 2
+    assert report_step((3000, 4000)) % 4 == 0 and -(-4000 // report_step((3000, 4000))) <= 550
+
+
+def test_a_coarser_model_is_repeated_onto_the_viewers_grid(tmp_path, monkeypatch):
+    # the report's model fitted at every 2nd pixel, the viewer at every pixel: its maps repeated 2 x 2,
+    # the heights in the viewer's pixels, the viewer's own normals; the picture close to the full model's
+    from facette.pipeline import _relight_model_stage as stage
+    from facette.pipeline._viewer import viewer_data
+    from facette.pipeline._viewer_model import onto_grid
+    folder = _folder(tmp_path)
+    full = process(folder, outputs=["relight"], method="woodham1980").relight_model
+    monkeypatch.setattr(stage, "MODEL_SIDE", 24)
+    res = process(folder, outputs=["normals", "height", "report"], method="woodham1980")
+    coarse = res.relight_model
+    assert coarse.mask.shape == (20, 24) and full.mask.shape == (40, 48)
+    on = onto_grid(coarse, 1, (40, 48), res.normals)
+    np.testing.assert_array_equal(on.rho[::2, ::2], coarse.rho)
+    np.testing.assert_array_equal(on.rho[1::2, 1::2], coarse.rho)
+    np.testing.assert_array_equal(on.heights[::2, ::2], coarse.heights * 2)
+    np.testing.assert_array_equal(on.normals, res.normals.astype(np.float32))
+    data, arrays = viewer_data(res.normals, res.mask, None, height=res.height, relight_model=coarse)
+    assert data["width"] == 48 and data["height"] == 40 and arrays["sv_model"].mask.shape == (40, 48)
+    both = full.mask & arrays["sv_model"].mask
+    for az, el in ((0.0, 15.0), (135.0, 45.0), (250.0, 70.0)):
+        light = light_from_angles(az, el)
+        diff = np.abs(arrays["sv_model"].display(light) - full.display(light))[both] * 255
+        assert np.median(diff) < 3, (az, el, np.median(diff))
+
+
+def test_the_albedo_carries_the_texture_into_a_repeated_model():
+    # a model fitted at every 2nd pixel of a textured surface: the viewer's albedo puts the texture back
+    from facette.pipeline._viewer_model import onto_grid
+    from facette.recon import RelightModel
+    albedo = np.random.default_rng(3).uniform(0.2, 1.0, (5, 6, 3)).astype(np.float32)
+    normals = np.broadcast_to(np.float32([0, 0, 1]), (5, 6, 3))
+    coarse = RelightModel(normals[::2, ::2], np.ones((3, 3), bool), 0.5 * albedo[::2, ::2],
+                          0.1 * albedo[::2, ::2], np.zeros((3, 3, 3), np.float32), 20.0)
+    on = onto_grid(coarse, 1, (5, 6), normals, albedo)
+    np.testing.assert_allclose(on.rho, 0.5 * albedo, rtol=1e-6)
+    np.testing.assert_allclose(on.spec, 0.1 * albedo, rtol=1e-6)
+    plain = onto_grid(coarse, 1, (5, 6), normals)          # without it: each pixel repeated
+    np.testing.assert_array_equal(plain.rho[1::2, 1::2], coarse.rho[:2, :3])

@@ -1,0 +1,135 @@
+"""Where the seconds after the last frame go: `process` on a finished scan, stage by stage.
+
+`stage_table(scan_dir)` runs `facette.pipeline.process` with every default output on a scan
+directory (its HDR read from disk: the one-button scan hands over the lights it held, so its
+"load" is shorter) and wraps each stage's function to record its wall time and the process's
+CPU seconds over it (every thread: numba's parallel kernels and the worker pools included).
+For that the stages `process` runs two at a time run one after the other here (its thread
+pools replaced by `_Inline`), so the wall times add up to more than a real run's; the CPU
+seconds are each stage's own. The modules a scan preloads during its acquisition
+(`pipeline.preload`) are loaded before the clock starts. "rest" is what no wrapper saw (the
+record, the checks against truth, between stages). `facette bench e2e --stages SCAN_DIR`
+prints the table.
+"""
+import tempfile
+import threading
+import time
+from concurrent.futures import Future
+from contextlib import contextmanager
+from pathlib import Path
+
+__all__ = ["stage_table", "print_stage_table"]
+
+# (name in the table, module, function): the functions `process` calls through module globals
+WRAPPED = [
+    ("load", "facette.pipeline._process", "load_input"),
+    ("light gains", "facette.pipeline._process", "with_light_gains"),
+    ("photometric stereo (shadow step + solve)", "facette.pipeline._process", "with_shadows"),
+    ("photometric stereo (solve)", "facette.pipeline._process", "photometric_stereo"),
+    ("object mask", "facette.pipeline._process", "object_of"),
+    ("uncertainty", "facette.pipeline._process", "uncertainty_of"),
+    ("relighting files' set-up (their exposure)", "facette.pipeline._process", "whole_bands"),
+    ("integrate", "facette.pipeline._process", "integrate"),
+    ("mesh", "facette.pipeline._process", "mesh_from_height"),
+    ("report's relighting model", "facette.pipeline._process", "relight_model_stage"),
+    ("samples", "facette.pipeline._process", "_samples_stage"),
+    ("brdf fit", "facette.pipeline._process", "_fit_stage"),
+    ("report: fit section", "facette.pipeline._process", "report_fit_section"),
+    ("hsh / ptm fits + writes", "facette.pipeline._process", "relight_stage"),
+    ("glTF maps + write", "facette.pipeline._process", "write_glb"),
+    ("glTF material (the model's maps)", "facette.pipeline._process", "gltf_material"),
+    ("glTF inputs", "facette.pipeline._process", "gltf_inputs"),
+    ("checks against truth", "facette.pipeline._process", "truth_errors"),
+    ("relighting files' exposure", "facette.pipeline._process", "record_exposure"),
+    ("report.html", "facette.pipeline._process", "write_report"),
+    ("map writes (exr/png/ply/npz/json)", "facette.pipeline._process", "write_exr"),
+    ("map writes (exr/png/ply/npz/json)", "facette.pipeline._process", "write_mask"),
+    ("map writes (exr/png/ply/npz/json)", "facette.pipeline._process", "write_ply"),
+    ("map writes (exr/png/ply/npz/json)", "facette.pipeline._process", "write_text_atomic"),
+]
+
+
+class _Inline:
+    """A ThreadPoolExecutor that runs each task as it is submitted, on the caller's thread."""
+
+    def __init__(self, *args, **kwargs):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def submit(self, fn, *args, **kwargs):
+        future = Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except BaseException as e:      # re-raised by result(), as a pool's
+            future.set_exception(e)
+        return future
+
+
+@contextmanager
+def _wrapped(table, t_start):
+    """Each WRAPPED function replaced by one that adds (wall, process CPU, first start, last end)
+    to table[name], process's pools by `_Inline`; the originals back on exit. A wrapped call
+    inside another counts in the outer one only."""
+    import importlib
+
+    local = threading.local()
+    proc = importlib.import_module("facette.pipeline._process")
+    saved = [(proc, "ThreadPoolExecutor", proc.ThreadPoolExecutor)]
+    proc.ThreadPoolExecutor = _Inline
+    for name, mod_name, fn_name in WRAPPED:
+        mod = importlib.import_module(mod_name)
+        fn = getattr(mod, fn_name)
+        saved.append((mod, fn_name, fn))
+
+        def wrapper(*a, _fn=fn, _name=name, **k):
+            if getattr(local, "inside", False):
+                return _fn(*a, **k)
+            local.inside = True
+            t0, c0 = time.perf_counter(), time.process_time()
+            try:
+                return _fn(*a, **k)
+            finally:
+                local.inside = False
+                row = table.setdefault(_name, [0.0, 0.0, float("inf"), 0.0])
+                row[0] += time.perf_counter() - t0
+                row[1] += time.process_time() - c0
+                row[2] = min(row[2], t0 - t_start)
+                row[3] = max(row[3], time.perf_counter() - t_start)
+        setattr(mod, fn_name, wrapper)
+    try:
+        yield
+    finally:
+        for mod, fn_name, fn in saved:
+            setattr(mod, fn_name, fn)
+
+
+def stage_table(scan_dir, outputs=None, **options):
+    """{stage: (wall s, CPU s, start s, end s)} of one `process` of `scan_dir` (every default output
+    unless `outputs`; **options: ProcessOptions fields), with "total" (wall, process CPU) and
+    "rest" (the total CPU no stage recorded). Results go to a temporary folder."""
+    from facette.pipeline import preload, process
+
+    preload()                 # as a scan does during its acquisition
+    table = {}
+    with tempfile.TemporaryDirectory(prefix="facette-stages-") as tmp:
+        t0, c0 = time.perf_counter(), time.process_time()
+        with _wrapped(table, t0):
+            process(Path(scan_dir), outputs=outputs, out_dir=Path(tmp) / "results", **options)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    table = {k: tuple(v) for k, v in table.items()}
+    table["rest"] = (float("nan"), cpu - sum(v[1] for v in table.values()), float("nan"), float("nan"))
+    table["total"] = (wall, cpu, 0.0, wall)
+    return table
+
+
+def print_stage_table(table):
+    print("| stage | wall s | CPU s | started s | ended s |")
+    print("|---|---|---|---|---|")
+    rows = sorted(((k, v) for k, v in table.items() if k not in ("rest", "total")), key=lambda kv: kv[1][2])
+    for k, (wall, cpu, start, end) in rows + [("rest", table["rest"]), ("total", table["total"])]:
+        print(f"| {k} | {wall:.2f} | {cpu:.2f} | {start:.2f} | {end:.2f} |", flush=True)
