@@ -23,10 +23,13 @@ must hold normals and height) runs untiled and with `--memory` on it: a second t
 s/MP, peak, agreement; with brdf, the largest relative difference of the fitted parameters; with
 ptm and rti, whether relight.ptm / relight.rti are the same bytes: "=" or the bytes that differ).
 
-With `--dask` (and --scan), the scan's `process --memory` runs again with its bands on a
-dask.distributed LocalCluster of 2 worker processes x 1 thread (`--scheduler`): wall s, s/MP,
-the driver's and the workers' peaks, the agreement with the untiled run; `--kill-worker S`
-kills one worker S seconds into that run (the scheduler runs its bands again elsewhere).
+With `--dask`, the scan's `process --memory` (with --scan; else the folder's) runs again with its
+bands on a dask.distributed LocalCluster of 2 worker processes x 1 thread (`--scheduler`): wall s,
+s/MP, the driver's and the workers' peaks, the agreement with the untiled run (above
+--untiled-max-mp: with the `--memory` run here, the same run without a cluster); `--kill-worker S`
+kills one worker S seconds into that run (`S%`: S % of the `--memory` run's wall seconds), the
+first one that then holds tasks (waited for while none does: the driver's own passes): the
+tasks it held are lost and the scheduler runs them again elsewhere (columns "kill s", "lost").
 
 Printed per size: generation time and peak; for both runs wall seconds, seconds per megapixel
 and peak memory (the untiled run also its load and ps stage times, the tiled one its staging
@@ -60,6 +63,7 @@ from pathlib import Path
 import numpy as np
 
 from facette.bench._large import npy_band_writer, write_relief_capture
+from facette.bench._size_dask import dask_child, print_dask
 from facette.bench.e2e import _times   # the stage times `facette process` prints
 from facette.io.exr import read_exr
 from facette.methods import PS_DEFAULT, PS_METHODS
@@ -272,40 +276,29 @@ def _same_relight(out_u, out_m):
     return "/".join(said) or "-"
 
 
-def _dask_child(scan, out, memory, method, kill_after):
-    """`process --memory` of `scan` with its bands on a LocalCluster of 2 workers x 1 thread;
-    prints a JSON line: seconds, bands, the workers' max RSS (GB), killed (a worker was)."""
-    import resource
-    import signal
-    import threading
-
-    from dask.distributed import Client, LocalCluster
-
-    from facette.pipeline import process
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
-            Client(cluster) as client:
-        pids = sorted(client.run(os.getpid).values())
-        if kill_after > 0:
-            threading.Timer(kill_after, lambda: os.kill(pids[0], signal.SIGKILL)).start()
-        t0 = time.perf_counter()
-        res = process(scan, outputs=["normals", "height"], out_dir=out, method=method, memory=memory,
-                      channels="green", scheduler=cluster.scheduler_address, overwrite=True)
-        seconds = time.perf_counter() - t0
-        rss = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6)
-        after = sorted(client.run(os.getpid).values())
-    print(json.dumps({"seconds": seconds, "bands": res.ps.info["tiles"], "workers_gb": sorted(rss.values()),
-                      "killed": pids != after}))
+def _kill_seconds(text, row):
+    """--kill-worker's seconds: S, or S% of the `--memory` run's wall seconds (row["mem_s"])."""
+    text = str(text).strip()
+    return float(text[:-1]) / 100 * row["mem_s"] if text.endswith("%") else float(text)
 
 
-def scan_dask(row, size, work, memory, method, kill_after):
+def run_dask(row, size, work, memory, method, kill_worker, kind="scan"):
+    """The `--memory` run of the scan (kind "scan") or the folder ("slab") again on a LocalCluster;
+    compared with the untiled run when there is one, else with that `--memory` run."""
     w, h = size
-    out = work / f"scan_dask_{w}x{h}"
-    stdout, wall, gb = _run_rss(_measured(SELF + ["--_dask", work / f"scan_{w}x{h}", out, memory, method,
+    out = work / f"{'scan_' if kind == 'scan' else ''}dask_{w}x{h}"
+    kill_after = _kill_seconds(kill_worker, row)
+    stdout, wall, gb = _run_rss(_measured(SELF + ["--_dask", work / f"{kind}_{w}x{h}", out, memory, method,
                                                   str(kill_after)]))
     info = json.loads(stdout.strip().splitlines()[-1])
-    row.update(dask_s=info["seconds"], dask_gb=gb, dask_workers_gb=max(info["workers_gb"]), dask_killed=info["killed"])
-    row["dask_deg"], row["dask_over"], row["dask_height"] = (
-        _compare_process(work / f"scan_untiled_{w}x{h}", out) if "untiled_s" in row else (float("nan"), -1, float("nan")))
+    row.update(dask_s=info["seconds"], dask_gb=gb, dask_workers_gb=max(info["workers_gb"]), dask_killed=info["killed"],
+               dask_kill_s=float("nan") if info["kill_s"] is None else info["kill_s"], dask_lost=info["lost"],
+               dask_lost_tasks=",".join(info["lost_tasks"]) or "-")
+    prefix = "scan_" if kind == "scan" else ""
+    untiled, memory_dir = work / f"{prefix}untiled_{w}x{h}", work / f"{prefix}memory_{w}x{h}"
+    row["dask_ref"] = "untiled" if "untiled_s" in row else "--memory"
+    row["dask_deg"], row["dask_over"], row["dask_height"] = _compare_process(
+        untiled if "untiled_s" in row else memory_dir, out)
     return row
 
 
@@ -320,16 +313,7 @@ def _print_scan(rows, memory, outputs):
               f"{r.get('untiled_gb', float('nan')):5.2f} | {r['mem_s']:10.1f} {r['mem_s'] / r['mp']:5.2f} "
               f"{r['mem_gb']:5.2f} {r['mem_tiles']:5d} | {r['mem_deg']:8.5f} {r['mem_over']:10d} "
               f"{r['mem_height']:12.2e} {r['brdf_rel']:8.1e} {r.get('relight', '-'):>7}", flush=True)
-    dask = [r for r in rows if "dask_s" in r]
-    if dask:
-        print("the same on a dask.distributed LocalCluster (2 worker processes x 1 thread); GB: the largest "
-              "process of the run's tree (wait4), worker GB: the workers' own largest")
-        print(f"{'size':>12} | {'dask s':>7} {'s/MP':>5} {'GB':>5} {'worker GB':>9} {'killed':>6} | {'max°':>8} "
-              f"{'px > 0.01°':>10} {'height/range':>12}")
-        for r in dask:
-            print(f"{r['size']:>12} | {r['dask_s']:7.1f} {r['dask_s'] / r['mp']:5.2f} {r['dask_gb']:5.2f} "
-                  f"{r['dask_workers_gb']:9.2f} {str(r['dask_killed']):>6} | {r['dask_deg']:8.5f} {r['dask_over']:10d} "
-                  f"{r['dask_height']:12.2e}", flush=True)
+    print_dask(rows, "same")
 
 
 def one_size(size, work, memory, method, untiled):
@@ -424,7 +408,7 @@ def main(argv=None):
         _slab_to_scan(argv[1], argv[2])
         return 0
     if argv[:1] == ["--_dask"]:
-        _dask_child(argv[1], argv[2], argv[3], argv[4], float(argv[5]))
+        dask_child(argv[1], argv[2], argv[3], argv[4], float(argv[5]))
         return 0
     if argv[:1] == ["--_tiled"]:
         _tiled_child(*argv[1:5])
@@ -442,10 +426,11 @@ def main(argv=None):
     p.add_argument("--only-scan", action="store_true", help="the scan directory's table alone")
     p.add_argument("--scan-outputs", default="normals,height",
                    help="the scan runs' --outputs (with normals and height; default normals,height)")
-    p.add_argument("--dask", action="store_true", help="with --scan: the scan's --memory run again on a "
-                                                        "LocalCluster of 2 workers x 1 thread")
-    p.add_argument("--kill-worker", type=float, default=0.0, metavar="S",
-                   help="with --dask: kill one worker S seconds into the run (default: none)")
+    p.add_argument("--dask", action="store_true", help="the scan's (with --scan; else the folder's) --memory run "
+                                                        "again on a LocalCluster of 2 workers x 1 thread")
+    p.add_argument("--kill-worker", default="0", metavar="S",
+                   help="with --dask: kill one worker S seconds into the run (S%%: S %% of the --memory run's "
+                        "wall seconds), the first then holding tasks (default: none)")
     p.add_argument("--no-flag", action="store_true", help="also `facette process SLAB` (and SCAN with "
                                                            "--scan) with no flag (the default method and budget)")
     p.add_argument("--keep", help="keep the captures and results in this folder (default: temporary); "
@@ -468,12 +453,15 @@ def main(argv=None):
                 _print(rows[-1:])
                 if args.no_flag:
                     no_flag(size, work)
+                if args.dask and not (args.scan or args.only_scan):
+                    run_dask(rows[-1], size, work, args.memory, args.method, args.kill_worker, "slab")
+                    print_dask(rows[-1:], "folder's --memory run")
             if args.scan or args.only_scan:
                 scan_rows.append(scan_size(size, work, args.memory, args.method, untiled, args.scan_outputs))
                 if args.no_flag:
                     no_flag(size, work, "scan")
                 if args.dask:
-                    scan_dask(scan_rows[-1], size, work, args.memory, args.method, args.kill_worker)
+                    run_dask(scan_rows[-1], size, work, args.memory, args.method, args.kill_worker)
         if scan_rows:
             _print_scan(scan_rows, args.memory, args.scan_outputs)
     return 0

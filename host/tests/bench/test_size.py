@@ -32,3 +32,9 @@ def test_sizes_by_name_or_width_and_height():
     assert size._size("12") == (4288, 2848)
     assert size._size("100") == (11648, 8736)
     assert size._size("640x480") == (640, 480)
+
+
+def test_kill_worker_in_seconds_or_a_share_of_the_memory_run():
+    assert size._kill_seconds("12", {"mem_s": 300.0}) == 12.0
+    assert size._kill_seconds("33%", {"mem_s": 300.0}) == 99.0
+    assert size._kill_seconds("0", {}) == 0.0
