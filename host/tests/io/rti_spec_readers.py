@@ -35,21 +35,25 @@ def _header_tokens(data, pos, count):
     return tokens, pos
 
 
-def read_ptm(path):
-    """PTM_1.2 / PTM_FORMAT_LRGB -> dict(width, height, scale, bias, coeffs (H, W, 6) float,
-    rgb (H, W, 3) uint8) with image row 0 at the top."""
+def _ptm_header(path, fmt):
+    """(width, height, 6 scales, 6 biases, the bytes after the header) of a PTM_1.2 file of format fmt."""
     data = Path(path).read_bytes()
     first = data.index(b"\n")
     second = data.index(b"\n", first + 1)
     assert data[:first].strip() == b"PTM_1.2"
-    assert data[first + 1:second].strip() == b"PTM_FORMAT_LRGB"
+    assert data[first + 1:second].strip() == fmt
     # §2.3-2.5: width and height (one line or two), 6 scale floats, 6 bias integers
     tok, pos = _header_tokens(data, second + 1, 14)
-    w, h = int(tok[0]), int(tok[1])
     scale = np.array([float(t) for t in tok[2:8]])
     bias = np.array([int(t) for t in tok[8:14]])
+    return int(tok[0]), int(tok[1]), scale, bias, np.frombuffer(data, np.uint8, offset=pos)
+
+
+def read_ptm(path):
+    """PTM_1.2 / PTM_FORMAT_LRGB -> dict(width, height, scale, bias, coeffs (H, W, 6) float,
+    rgb (H, W, 3) uint8) with image row 0 at the top."""
+    w, h, scale, bias, body = _ptm_header(path, b"PTM_FORMAT_LRGB")
     n = w * h
-    body = np.frombuffer(data, np.uint8, offset=pos)
     assert body.size == n * 9, f"{body.size} data bytes for {w}x{h} pixels (expected {n * 9})"
     # §2.6 LRGB: a0..a5 of every texel, then R, G, B of every texel, bottom row first
     raw = body[:n * 6].reshape(h, w, 6)[::-1]
@@ -63,16 +67,7 @@ def read_ptm_rgb(path):
     the same layout): the header of the LRGB, then for red, green, blue in turn the six bytes a0..a5 of
     every texel, bottom row first; one scale and bias per term for the three channels.
     -> dict(width, height, scale, bias, coeffs (H, W, 3, 6) float) with image row 0 at the top."""
-    data = Path(path).read_bytes()
-    first = data.index(b"\n")
-    second = data.index(b"\n", first + 1)
-    assert data[:first].strip() == b"PTM_1.2"
-    assert data[first + 1:second].strip() == b"PTM_FORMAT_RGB"
-    tok, pos = _header_tokens(data, second + 1, 14)
-    w, h = int(tok[0]), int(tok[1])
-    scale = np.array([float(t) for t in tok[2:8]])
-    bias = np.array([int(t) for t in tok[8:14]])
-    body = np.frombuffer(data, np.uint8, offset=pos)
+    w, h, scale, bias, body = _ptm_header(path, b"PTM_FORMAT_RGB")
     assert body.size == w * h * 18, f"{body.size} data bytes for {w}x{h} pixels (expected {w * h * 18})"
     planes = [body[j * w * h * 6:(j + 1) * w * h * 6].reshape(h, w, 6)[::-1] for j in range(3)]
     coeffs = (np.stack(planes, axis=2).astype(np.float64) - bias) * scale

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from facette.errors import InsufficientData, NotAReflectance
-from facette.io.diligent import write_diligent
 from facette.pipeline import process
 from facette.recon._interreflect_scale import DIFFUSE_CORRELATION, GATHER_CORRELATION
-from facette.recon.synthetic import angular_error_deg, render as render_local, sphere_on_plane
+from facette.recon.synthetic import angular_error_deg
 
 from mitsuba_scan import SCALE, calibrated_scan as _scan, render
+from satin_scene import satin_sphere_on_a_plane
 
 
 @pytest.fixture(scope="module")
@@ -65,23 +65,11 @@ def test_relative_images_lose_the_light_where_the_images_tell_its_scale(tmp_path
     np.testing.assert_array_equal(auto.normals, plain.normals)
 
 
-def _satin_sphere_on_a_plane(folder, m=24):
-    """test_relight_model_stage's scene: local shading, cast shadows, no inter-reflections, relative."""
-    rng = np.random.default_rng(5)
-    d = rng.normal(size=(m, 3))
-    d[:, 2] = np.abs(d[:, 2]) + 1.2
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    sc = sphere_on_plane(40, 48, radius=14)
-    imgs = render_local(sc, d, "satin", albedo=(0.7, 0.6, 0.5))
-    write_diligent(folder, np.round(imgs / imgs.max() * 60000).astype(np.uint16), d, mask=sc.mask)
-    return folder
-
-
 def test_a_satin_sphere_on_a_plane_keeps_its_normals(tmp_path):
     # its lobe's share grows toward the rim as the share the plane would send does: the Lambertian
     # albedo follows the gathered share (the rule before the lobe was modelled identified it, and the
     # removal took its normals 0.54 -> 1.57 deg); li_alternating's diffuse albedo does not
-    folder = _satin_sphere_on_a_plane(tmp_path / "objPNG")
+    folder = satin_sphere_on_a_plane(tmp_path / "objPNG")
     auto = process(folder, outputs=["normals"], method="woodham1980")
     plain = process(folder, outputs=["normals"], method="woodham1980", interreflections=False)
     est = auto.interreflections["scale_estimate"]

@@ -2,25 +2,16 @@
 (pipeline._viewer_model), on a rendered DiLiGenT-style folder."""
 import numpy as np
 
-from facette.io.diligent import write_diligent
 from facette.pipeline import process
 from facette.pipeline._relight import light_from_angles
 from facette.pipeline._relight_model_stage import relight_model_stage
 from facette.pipeline._viewer_model import VIEWER_PLANES, packed_model
 from facette.recon import load_relight_model
-from facette.recon.synthetic import render, sphere_on_plane
+from satin_scene import satin_sphere_on_a_plane
 
 
-def _folder(tmp_path, m=24):
-    rng = np.random.default_rng(5)
-    d = rng.normal(size=(m, 3))
-    d[:, 2] = np.abs(d[:, 2]) + 1.2
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    sc = sphere_on_plane(40, 48, radius=14)
-    imgs = render(sc, d, "satin", albedo=(0.7, 0.6, 0.5))
-    write_diligent(tmp_path / "objPNG", np.round(imgs / imgs.max() * 60000).astype(np.uint16), d,
-                   mask=sc.mask)
-    return tmp_path / "objPNG"
+def _folder(tmp_path):
+    return satin_sphere_on_a_plane(tmp_path / "objPNG")
 
 
 def test_process_writes_the_model_and_it_reads_back(tmp_path):
