@@ -13,7 +13,7 @@ from facette.pipeline import ProcessOptions
 # "light_gains" since a folder's intensities are corrected from its photographs (other normals again)
 RECORDED = ["method", "integration", "channels", "t_ombre", "t_spec", "t_source", "t_residual", "theta0_deg", "rti_encoding",
             "mask",
-            "pixel_pitch_mm", "near_light", "mesh_step", "saturation", "fit_options", "ps_options", "hsh_order",
+            "pixel_pitch_mm", "near_light", "mesh_step", "saturation", "fit_options", "ps_options", "hsh_order", "ptm_format",
             "interreflections", "shadows", "light_gains"]
 
 
