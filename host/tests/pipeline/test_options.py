@@ -10,7 +10,8 @@ from facette.pipeline import ProcessOptions
 # process.json's options, the same keys as before ProcessOptions existed (a folder made then is
 # still recognised as made with the same options), and "channels" since the normals' channels became a
 # choice (the default changed from green to the mean: a folder of green normals is not this run's), and
-# "light_gains" since a folder's intensities are corrected from its photographs (other normals again)
+# "light_gains" since a folder's intensities are corrected from its photographs (other normals again), and
+# "ptm_format" since relight.ptm may be written per channel (another file)
 RECORDED = ["method", "integration", "channels", "t_ombre", "t_spec", "t_source", "t_residual", "theta0_deg", "rti_encoding",
             "mask",
             "pixel_pitch_mm", "near_light", "mesh_step", "saturation", "fit_options", "ps_options", "hsh_order", "ptm_format",
@@ -21,7 +22,7 @@ def test_recorded_and_reported_fields_and_defaults():
     o = ProcessOptions()
     assert list(o.recorded()) == RECORDED and o.recorded()["mask"] is None
     assert list(o.reported()) == ["method", "integration", "channels", "t_ombre", "t_spec", "t_source", "t_residual",
-                                  "theta0_deg", "rti_encoding", "interreflections", "shadows", "light_gains"]
+                                  "theta0_deg", "rti_encoding", "ptm_format", "interreflections", "shadows", "light_gains"]
     assert o.channels == "mean" and o.interreflections == "auto" and o.light_gains == "auto" and o.shadows == "auto"
     assert o.method == PROCESS_DEFAULT == "li_alternating" and o.fit_options == {} and o.ps_options == {} and o.near_light
     assert replace(o, mask="m.png").recorded()["mask"] == "m.png"       # a path is recorded, an array not
