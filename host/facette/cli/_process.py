@@ -282,9 +282,8 @@ def print_result(res):
           + (f"({res.options['method']})" if res.ps is not None else "(no photometric stereo: not needed)"))
     ir = res.interreflections
     if ir is not None and "scale_identified" in ir and not ir["applied"]:     # "auto" without a Spectralon
-        print("  inter-reflections left in: " + ("without a Spectralon calibration (--interreflections removes them)"
-                                                 if ir["scale_identified"] else
-                                                 "the images do not tell the albedo's scale") + " (see the notes)")
+        # "auto" removes wherever the scale is identified: left in means it was not
+        print("  inter-reflections left in: the images do not tell the albedo's scale (see the notes)")
     elif ir is not None:
         print(f"  inter-reflections: {100 * ir['median_fraction']:.1f} % of the median value, "
               f"{100 * ir['p95_fraction']:.1f} % at the 95th percentile"
