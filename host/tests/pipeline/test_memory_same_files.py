@@ -36,6 +36,7 @@ def test_process_with_and_without_memory_writes_the_same_bytes(folder, tmp_path,
     assert banded.ps.info["tiles"] > 1 and banded.ps.method == whole.ps.method == "li_alternating"
     for res in (whole, banded):           # the gap was filled in both (over bands: from the map on disk)
         assert res.filled is not None and res.filled[3:6, 40:44].all()
+    assert isinstance(banded.normals, np.memmap)       # filled into a map on disk, a piece of rows at a time
     differ = {name: np.count_nonzero(np.frombuffer((tmp_path / "whole" / name).read_bytes(), np.uint8) !=
                                      np.frombuffer((tmp_path / "banded" / name).read_bytes(), np.uint8))
               if (tmp_path / "whole" / name).stat().st_size == (tmp_path / "banded" / name).stat().st_size else "size"
