@@ -401,11 +401,11 @@ def no_flag(size, work, kind="slab"):
     stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", work / f"{kind}_{w}x{h}", "-o", out, "--outputs",
                                                      "normals,height", "--overwrite"]))
     method = re.search(r"\((\w+)\)\s*$", stdout.splitlines()[0])
-    err = f"{_truth_error(work / f'slab_{w}x{h}', out / 'normal.exr'):.3f}° to the truth" if kind == "slab" else ""
+    err = f"{_truth_error(work / f'slab_{w}x{h}', out / 'normal.exr'):.3f}° to the truth, " if kind == "slab" else ""
     budget = next((line.strip()[len("note: "):] for line in stdout.splitlines() if "note: memory:" in line), "")
     print(f"no flag {'' if kind == 'slab' else 'scan '}{w}x{h}: {wall:.1f} s, {LAST_CPU[0]:.1f} CPU s, "
           f"{wall / (w * h / 1e6):.2f} s/MP, peak {gb:.2f} GB, "
-          f"{method.group(1) if method else '?'}, {err}; {budget}", flush=True)
+          f"{err}{method.group(1) if method else '?'}; {budget}", flush=True)
 
 
 def main(argv=None):
