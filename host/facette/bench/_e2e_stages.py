@@ -29,7 +29,8 @@ WRAPPED = [
     ("photometric stereo (solve)", "facette.pipeline._whole", "photometric_stereo"),
     ("object mask", "facette.pipeline._whole", "object_of"),
     ("uncertainty", "facette.pipeline._process", "uncertainty_of"),
-    ("relighting files' set-up (their exposure)", "facette.pipeline._process", "whole_bands"),
+    # after the maps, inside the ptm / rti stage (pipeline._relight_later): counted in its row
+    ("relighting files' set-up (their exposure)", "facette.pipeline._process", "relight_after_maps"),
     ("integrate", "facette.pipeline._process", "integrate"),
     ("mesh", "facette.pipeline._process", "mesh_from_height"),
     ("report's relighting model", "facette.pipeline._process", "relight_model_stage"),
