@@ -24,6 +24,8 @@ __all__ = ["stage_table", "print_stage_table"]
 # (pipeline._whole: the load and photometric stereo of the images held whole)
 WRAPPED = [
     ("load", "facette.pipeline._whole", "load_input"),
+    # the solve's 4-channel stack: per light with the default channels, so a candidate for the acquisition
+    ("solve's channel (images_for_solve)", "facette.pipeline._whole", "images_for_solve"),
     ("light gains", "facette.pipeline._whole", "with_light_gains"),
     ("photometric stereo (shadow step + solve)", "facette.pipeline._whole", "with_shadows"),
     ("photometric stereo (solve)", "facette.pipeline._whole", "photometric_stereo"),
