@@ -15,18 +15,23 @@ high where the normal is expected to be poor:
 - `edge distance`: 1 / the distance (px) to the nearest pixel without a normal (silhouettes, depth edges);
 - `shadow distance`: 1 / (1 + the distance (px) to the nearest pixel whose cast-shadow share exceeds SHADOW_SHARE);
 - `normal variation 1px`, `normal variation 3px`: the angle between the normal and the field's Gaussian mean
-  over 1 and 3 px (creases, folds, noise), at two scales.
+  over 1 and 3 px (creases, folds, noise), at two scales;
+- `calibration intensity`, `calibration direction`: how far the Lambertian least-squares normal b = A⁻¹ Σ l e on
+  the carrying lights (recon._uncertainty._carrying) moves for independent errors of each light's intensity
+  (relative, δb = A⁻¹ Σ l e s) or direction (δl ⊥ l, δb ≈ −A⁻¹ Σ l (b·δl)): the root trace of the tangential
+  covariance per unit error (rad). An error common to the object (the lights' calibration) moves each normal
+  by its own sensitivity.
 """
 import numpy as np
 from scipy.ndimage import distance_transform_edt, gaussian_filter
 
 from facette.recon import _uncertainty as unc
 
-__all__ = ["physics_measures", "PHYSICS_CANDIDATES", "normal_variation"]
+__all__ = ["physics_measures", "PHYSICS_CANDIDATES", "normal_variation", "front_crb", "calibration_sensitivity"]
 
 PHYSICS_CANDIDATES = ("view tilt", "front crb", "front incidence", "highlight count", "cast-shadow share",
                       "backlit share", "edge distance", "shadow distance", "normal variation 1px",
-                      "normal variation 3px")
+                      "normal variation 3px", "calibration intensity", "calibration direction")
 FRONT_COS = 0.05      # a light this far above the facet's horizon is in front of it
 LIT_COS = 0.2         # ... and this far, well in front (a dark value there is a cast shadow, not grazing light)
 HIGHLIGHT_DEG = 10.0  # a half vector this close to the normal puts a highlight on the facet
@@ -51,6 +56,26 @@ def front_crb(n, lights):
         inv = np.linalg.inv(np.where((det > 1e-9)[:, None, None], info, np.eye(3)))
     bound = np.sqrt(np.maximum(np.trace(inv, axis1=1, axis2=2) - 1.0, 0.0))
     return np.where(det > 1e-9, np.minimum(bound, UNCONSTRAINED), UNCONSTRAINED)
+
+
+def calibration_sensitivity(e, ok, n, lights):
+    """(intensity, direction) (N,) each: the tangential root trace of the Lambertian normal's covariance per unit
+    relative error of each carrying light's intensity, and per unit (rad) error of its direction."""
+    w = unc._carrying(e, ok)
+    e = e / np.maximum((e * w).max(1, keepdims=True), 1e-30)
+    lights = np.broadcast_to(lights, e.shape + (3,)) if lights.ndim == 2 else lights
+    lw = lights * w[..., None]
+    a_inv = np.linalg.inv(np.einsum("nmi,nmj->nij", lw, lw) + 1e-9 * np.eye(3))
+    b = np.einsum("nij,nj->ni", a_inv, np.einsum("nmi,nm->ni", lw, e * w))
+    rho = np.maximum(np.linalg.norm(b, axis=1), 1e-12)
+    proj = np.eye(3)[None] - n[:, :, None] * n[:, None, :]
+    nl = np.einsum("ni,nmi->nm", n, lights)
+    out = []
+    for weight in ((e * w) ** 2, w * (1 - nl ** 2) * rho[:, None] ** 2):   # δb's spread: intensity, direction
+        middle = np.einsum("nm,nmi,nmj->nij", weight, lw, lw)
+        cov = proj @ a_inv @ middle @ a_inv @ proj
+        out.append(np.sqrt(np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0)) / rho)
+    return tuple(out)
 
 
 def normal_variation(normals, has, sigma):
@@ -92,4 +117,5 @@ def physics_measures(e, ok, n, lights, sel, normals):
            "shadow distance": 1.0 / (1.0 + to_shadow.ravel()[idx])}
     for sigma in (1, 3):
         out[f"normal variation {sigma}px"] = normal_variation(normals, has, sigma).ravel()[idx]
+    out["calibration intensity"], out["calibration direction"] = calibration_sensitivity(e, ok, n, lights)
     return out

@@ -1,10 +1,13 @@
 """The physically grounded measures tried for the uncertainty band (bench._uncertainty_physics): the bound from
-the lights in front of a facet is Lambert's (lights along the normal do not pin it; a facet turned from most
-of them is pinned less), the cast-shadow share and the distance to
-it find a hidden light, light from behind shows, and the normal field's variation finds a crease."""
+the lights in front of a facet is Lambert's (lights along the normal do not pin it; a facet turned from most of
+them is pinned less), the cast-shadow share and the distance to it find a hidden light, light from behind shows,
+the normal field's variation finds a crease, and the calibration sensitivity predicts how far errors of the
+lights' intensities and directions move the normal."""
 import numpy as np
 
-from facette.bench._uncertainty_physics import PHYSICS_CANDIDATES, front_crb, normal_variation, physics_measures
+from facette.bench._uncertainty_physics import (PHYSICS_CANDIDATES, calibration_sensitivity, front_crb, normal_variation,
+                                               physics_measures)
+from facette.recon import _uncertainty as unc
 from facette.recon.synthetic import thesis_light_directions
 
 
@@ -67,3 +70,23 @@ def test_normal_variation_finds_a_crease_at_two_scales():
     fine, coarse = normal_variation(normals, has, 1), normal_variation(normals, has, 3)
     assert fine[8, 7] > 0.1 and fine[8, 2] < 1e-3 and coarse[8, 4] > 10 * max(fine[8, 4], 1e-6)
     assert np.all(normal_variation(normals, np.zeros((16, 16), bool), 1) == 0)
+
+
+def test_calibration_sensitivity_predicts_how_far_a_light_error_moves_the_normal():
+    rng = np.random.default_rng(0)
+    lights = thesis_light_directions()
+    n = _unit([[0.3, -0.2, 0.93]])
+    e = np.maximum(n @ lights.T, 0) * 0.8
+    ok = np.ones(e.shape, bool)
+    intensity, direction = calibration_sensitivity(e, ok, n, lights)
+    moved = {"intensity": [], "direction": []}
+    carry = unc._carrying(e, ok)[0] > 0
+    for _ in range(400):                                      # solve again with each light's calibration off by 1 %
+        scale = 1 + 0.01 * rng.normal(size=len(lights))
+        tilt = _unit(lights + 0.01 * rng.normal(size=lights.shape))
+        for name, l, v in (("intensity", lights, e[0] * scale), ("direction", tilt, e[0])):
+            b = _unit(np.linalg.lstsq(l[carry], v[carry], rcond=None)[0])
+            moved[name].append(np.arccos(np.clip(b @ n[0], -1, 1)))
+    assert 0.8 < np.sqrt(np.mean(np.square(moved["intensity"]))) / (0.01 * intensity[0]) < 1.25
+    # a direction error of 0.01 rad per axis is sqrt(2) x 0.01 across the light
+    assert 0.7 < np.sqrt(np.mean(np.square(moved["direction"]))) / (0.01 * np.sqrt(2) * direction[0]) < 1.4
