@@ -27,7 +27,8 @@ def _ranks(v):
 
 
 def _design(measures, names):
-    return np.column_stack([_ranks(np.asarray(measures[k], np.float64)) for k in names] + [np.ones(len(measures[names[0]]))])
+    cols = [_ranks(np.asarray(measures[k], np.float64)) for k in names]
+    return np.column_stack(cols + [np.ones(len(cols[0]))])
 
 
 def fit_rank_model(cases, names=COMBINED):

@@ -5,8 +5,8 @@ the normal field's variation finds a crease, and the calibration sensitivity pre
 lights' intensities and directions move the normal."""
 import numpy as np
 
-from facette.bench._uncertainty_physics import (PHYSICS_CANDIDATES, calibration_sensitivity, front_crb, normal_variation,
-                                               physics_measures)
+from facette.bench._uncertainty_physics import (PHYSICS_CANDIDATES, calibration_sensitivity, front_crb,
+                                               normal_variation, physics_measures)
 from facette.recon import _uncertainty as unc
 from facette.recon.synthetic import thesis_light_directions
 
