@@ -1,9 +1,10 @@
 """li_alternating's round 1 started from an earlier solve's model (`ps_li_alternating(start_model=)`):
 the inter-reflection decision (facette.pipeline._interreflections) runs li_alternating on the images
-binned and brought to a reflectance's range before the method runs; the solves after it (the
-removal's, the shadow step's, the method's) take its model choice instead of making their own.
+brought to a reflectance's range (and binned, above its DECIDE_SIDE) before the method runs; where it
+solved the same pixels, the solves after it (the removal's, the shadow step's, the method's) take its
+model choice instead of making their own.
 
-What carries over is the choice (lobe or none, the diffuse part), not the numbers: li's (σ, n_i)
+What carries over is the choice of a lobe or none, not the numbers: li's (σ, n_i)
 depend on the images' scale (the lobe's height is absolute, the diffuse part scales with the
 images: a Mitsuba sphere in paint 0.10 fits n_i 1.30 as rendered, 1.21 at half the values, 1.46 at
 twice), and the decision's images are scaled. So a lobe's (σ, n_i) is the warm-up's start
@@ -20,20 +21,15 @@ from ._li_model import (LAMBERTIAN_SIGMA, PROFILE_TABLE_GRID, PROFILE_VALUES, _d
 __all__ = ["start_model_of", "choice_from_start"]
 
 
-def start_model_of(ps, binned=False):
+def start_model_of(ps):
     """(fit, choice) that `ps_li_alternating(start_model=)` takes, from an earlier li_alternating
-    result `ps` on the same object (the inter-reflection decision's, on binned images when `binned`),
-    or None: several materials, no model choice made, or "no lobe" found on binned images (binning
-    smears a sharp highlight over its block: asked again of full-size pixels, as li's own coarse
-    pass does, facette.fit._ps_li_bands). The fit is its last (σ, n_i) and diffuse part."""
+    result `ps` on the same pixels (the inter-reflection decision's, on images only scaled), or None:
+    several materials or no model choice made. The fit is its last (σ, n_i) and diffuse part."""
     mats = ps.info.get("materials") or []
     if len(mats) != 1 or "model_choice" not in mats[0] or mats[0].get("sigma") is None:
         return None
     mat = mats[0]
-    choice = {k: v for k, v in mat["model_choice"].items() if k != "made_on"}
-    if choice.get("model") == "lambertian" and binned:
-        return None
-    choice["made_on"] = "an earlier solve of the same object" + (" (binned images)" if binned else "")
+    choice = dict(mat["model_choice"], made_on="an earlier solve of the same object")
     return {"sigma": float(mat["sigma"]), "n_i": float(mat["n_i"]), "volume_model": mat["volume_model"]}, choice
 
 

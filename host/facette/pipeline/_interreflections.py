@@ -46,7 +46,11 @@ DECIDE_SIDE = 2 * IR_GRID
 # reflectance's range, where li's K_d is not held at its bound of 1)
 REFLECTANCE_P99 = 0.8
 # the later li_alternating solves start from the decision's model choice (`reuse_model`) instead of
-# making their own: the choice is about half of li's time on a 128 px render and a DiLiGenT crop
+# making their own, where the decision's li solved the same pixels (images within DECIDE_SIDE: only
+# brought to a reflectance's range). Mitsuba concave renders (128 px, 12 rig lights): process CPU s
+# 13.5-16.5 -> 9.2-13.9 with paint, 5.3-7.1 -> 3.5-5.5 in plaster, the 8 at the same ratio to least
+# squares. On binned images it is not reused: binning smears the lobe, and the DiLiGenT crops (96
+# lights, decided at bins 2-4) went 6.25 -> 6.33 deg (cat +0.25, pot2 +0.36) for 1-3 CPU s of 20-30
 REUSE_DECISION_MODEL = True
 
 
@@ -78,7 +82,7 @@ def decide_lobe_free(images, light_dirs, mask, bag, saturation):
         options["saturation"] = options["saturation"] * k
     lobe = ps_li_alternating(small[0] * k, small[1], **options)
     _, estimate = estimate_reflectance_scale(*args, diffuse=np.where(lobe.valid[..., None], lobe.albedo, np.nan))
-    return estimate, start_model_of(lobe, binned=_decide_bin(mask) > 1)
+    return estimate, start_model_of(lobe) if _decide_bin(mask) == 1 else None      # REUSE_DECISION_MODEL
 
 
 def interreflections_wanted(o, inp, notes):
