@@ -88,7 +88,6 @@ def test_matte_material_skips_the_brdf_step(cache):
     ls = photometric_stereo(d["images"], d["light_dirs"], method="woodham1980", mask=d["mask"])
     clean = ~(h.shadow | h.specular).any(-1)
     lam = ls.valid & ((ls.residual < 0.03) | clean) & np.all(np.isfinite(d["images"]), axis=(0, 3))
-    assert (lam & ~clean).any() and (lam & (ls.residual >= 0.03)).any()      # both reasons occur
     assert 0 < lam.sum() < r.valid.sum()
     np.testing.assert_allclose(r.normal[lam], ls.normal[lam])
     np.testing.assert_allclose(r.normal[~lam], h.normal[~lam])
