@@ -113,7 +113,8 @@ def _row(label, d, folder, variants, ratios, key):
             extra += (f"  ir scale {ir.get('reflectance_scale', np.nan):.2f} "
                       + ("removed" if ir["applied"] else "left in")
                       + "".join(f" {k} {est[k]:.2f}" for k in ESTIMATE_FIGURES if est.get(k) is not None)
-                      + f" ({ir.get('cpu_seconds', np.nan):.2f} cpu s)" + (" model reused" if ir.get("model_reused") else ""))
+                      + f" ({ir.get('cpu_seconds', np.nan):.2f} cpu s)"
+                      + (" model reused" if ir.get("model_reused") else ""))
         print(f"{label:34s} {v:22s} {e.mean():6.2f} {np.median(e):7.2f} {np.percentile(e, 95):6.2f} "
               f"{ratio:6.2f} {dt[0]:6.2f} {dt[1]:6.2f}{extra}", flush=True)
 

@@ -138,9 +138,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                       init=ps_rank_trimmed, rounds=4, tol_deg=0.1, fit_pixels=1000,
                       t_residual=T_RESIDUAL, iterations=24, materials=1, min_region_fraction=0.05,
                       seed=0, init_options=None, coarse_pixels=COARSE_PIXELS, fine_iterations=2,
-                      engine="auto", volume_model=LI_VOLUME_MODEL, highlight_start="all",
-                      diffuse="auto", dark_offset="auto", neighbour_deg=NEIGHBOUR_START_DEG, model=None, row0=0,
-                      start_model=None):
+                      engine="auto", volume_model=LI_VOLUME_MODEL, highlight_start="all", diffuse="auto",
+                      dark_offset="auto", neighbour_deg=NEIGHBOUR_START_DEG, model=None, row0=0, start_model=None):
     """BRDF-aware photometric stereo with the LI model (module doc).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m ≥ 4.
@@ -196,9 +195,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     neighbour_deg : step 5 (module doc): a second start from the neighbours' mean this far off; 0: none.
     model, row0 : a band of a larger image from its row row0, solved with the `li_model` fitted over
         its bands (`_ps_li_bands`); None: fitted here (above coarse_pixels: the image as one band).
-    start_model : (fit, choice) of an earlier solve of the same object (facette.fit.start_model_of:
-        the inter-reflection decision's): round 1 takes its choice and warms its (σ, n_i) up instead
-        of its own grid search (`_ps_li_start`; one material, solved whole); None: chosen here.
+    start_model : an earlier solve's model choice (`_ps_li_start`), round 1's own (one material); None: chosen here.
     Returns a `PSResult` (method "li_alternating"): albedo is K_d (a reflectance, per channel); info
     holds "rounds" (per round: σ, n_i, pixels fitted and re-estimated, median change, seconds),
     "materials" (per region: σ, n_i, pixels, whether the BRDF step ran, neighbour starts, shadows
@@ -232,11 +229,9 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     labels, info["regions_found_by"] = (np.zeros(px.idx.size, np.int64), "one material") if model else \
         _regions(px.alb, px.idx.size, materials, min_region_fraction, seed)
     t_reg = time.perf_counter()
-    start_model = start_model if labels.max() == 0 else None     # one material's
     mats = [_fit_material(px, np.flatnonzero(labels == region), region, model, rounds, tol_deg, info["rounds"], row0,
-                          start_model) for region in range(int(labels.max()) + 1)]
-    t_brdf = time.perf_counter() - t_reg
-    _finish(res, px, mats, labels, t_init, t_brdf)
+                          start_model if labels.max() == 0 else None) for region in range(int(labels.max()) + 1)]
+    _finish(res, px, mats, labels, t_init, time.perf_counter() - t_reg)
     info["seconds"] = time.perf_counter() - t_start
     return res
 
