@@ -50,7 +50,9 @@ REFLECTANCE_P99 = 0.8
 # brought to a reflectance's range). Mitsuba concave renders (128 px, 12 rig lights): process CPU s
 # 13.5-16.5 -> 9.2-13.9 with paint, 5.3-7.1 -> 3.5-5.5 in plaster, the issue's 8 at the same ratio to least
 # squares. On binned images it is not reused: binning smears the lobe, and the DiLiGenT crops (96
-# lights, decided at bins 2-4) went 6.25 -> 6.33 deg (cat +0.25, pot2 +0.36) for 1-3 CPU s of 20-30
+# lights, decided at bins 2-4) went 6.25 -> 6.33 deg (cat +0.25, pot2 +0.36) for 1-3 CPU s of 20-30.
+# Nor where nothing is removed: the normals stay those of --no-interreflections and of a run over
+# bands (reused there, a satin sphere's error without its lights' gains corrected moved 0.57 -> 0.47 deg)
 REUSE_DECISION_MODEL = True
 
 
@@ -125,11 +127,11 @@ def _solve(res, o, solve_in, light_dirs, mask, method_name, bag, reflectance_sca
     found = None
     if reflectance_scale == AUTO_SCALE:     # decided before any removal (decide_lobe_free)
         estimate, start = decide_lobe_free(solve_in, light_dirs, mask, bag, o.saturation)
-        reuse_model(bag, start)
-        if not estimate["identified"]:      # the images as they are
+        if not estimate["identified"]:      # the images as they are (the normals --no-interreflections' too)
             info = unidentified_info(estimate["scale"], estimate) | {"cpu_seconds": round(time.process_time() - c0, 3)}
             note_interreflections(res, info, time.perf_counter() - t0)
             return solve_in, None
+        reuse_model(bag, start)
         reflectance_scale, found = estimate["scale"], estimate     # identified: that scale (its lobe modelled)
     try:
         if method_name == "li_alternating":
@@ -156,8 +158,9 @@ def _solve(res, o, solve_in, light_dirs, mask, method_name, bag, reflectance_sca
 
 
 def reuse_model(bag, start):
-    """The decision's li_alternating model choice (`decide_lobe_free`) into `bag`, the options of
-    every later solve of this run (the removal's, the shadow step's, the method's): li_alternating
+    """The decision's li_alternating model choice (`decide_lobe_free`), where it identified light to
+    remove, into `bag`, the options of every later solve of this run (the removal's, the shadow step's,
+    the method's): li_alternating
     then starts from it instead of choosing again (its rounds still refit (σ, n_i) at full size)."""
     if start is not None and REUSE_DECISION_MODEL:
         bag["start_model"] = start
