@@ -119,6 +119,7 @@ def relight_only_bands(source, o, res, outputs, claim):
         shutil.rmtree(work, ignore_errors=True)
     hand_back(o.memory_bytes)
     res.notes.append(f"--memory {o.memory}: no photometric stereo (no output asked for needs the normals); the "
-                     f"relighting files fitted over bands of {n} rows, the images read band by band (never held whole)")
+                     f"relighting files fitted over bands of {min(n, inp.mask.shape[0])} rows, the images read band by "
+                     "band (never held whole)")
     res.timings["relight_bands"] = time.perf_counter() - t0
     return inp, (None if near else inp.light_dirs), previous, relight
