@@ -118,6 +118,8 @@ def relight_only_bands(source, o, res, outputs, claim):
     finally:
         shutil.rmtree(work, ignore_errors=True)
     hand_back(o.memory_bytes)
+    if o.scheduler is not None:
+        res.notes.append(f"--scheduler {o.scheduler}: not used (no photometric stereo: the files are fitted here)")
     res.notes.append(f"--memory {o.memory}: no photometric stereo (no output asked for needs the normals); the "
                      f"relighting files fitted over bands of {min(n, inp.mask.shape[0])} rows, the images read band by "
                      "band (never held whole)")

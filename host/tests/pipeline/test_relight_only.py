@@ -99,3 +99,9 @@ def test_band_rows_hold_the_budget():
     assert rows % 2 == 0 and 2 <= rows < h
     assert _relight_only.relight_band_rows(10 ** 8, w, h, m, 7) == 2        # never under two rows
     assert _relight_only.relight_band_rows(4 * 10 ** 9, w, h, m, 7) > rows
+
+
+def test_a_scheduler_given_is_said_unused(diligent):
+    res = process(diligent, outputs=["rti"], memory="1GB", scheduler="tcp://127.0.0.1:9")
+    assert any(n.startswith("--scheduler tcp://127.0.0.1:9: not used") for n in res.notes)
+    assert res.hsh is not None and res.ps is None
