@@ -47,7 +47,8 @@ from facette.pipeline._band_uncertainty import normal_image, uncertainty_of
 from facette.pipeline._stages import ALL_OUTPUTS, FILES, OUTPUTS, STAGES_FOR, stages_needed
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
-from facette.pipeline._rti_bands import relight_stage, whole_bands, write_relight_web
+from facette.pipeline._rti_bands import relight_stage, write_relight_web
+from facette.pipeline._relight_later import relight_after_maps
 from facette.pipeline._rti_exposure import record_exposure
 from facette.pipeline._streamed import banded_process
 from facette.pipeline._whole import whole_process
@@ -275,7 +276,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
     integration, mesh_step = o.integration, o.mesh_step
     out = None if out_dir is None else Path(out_dir)
     if out is not None: out.mkdir(parents=True, exist_ok=True)     # noqa: E701
-    relight = whole_bands(relight, res, inp, images, light_dirs, o, outputs)     # ptm, rti: over bands
+    relight = relight_after_maps(relight, res, inp, images, light_dirs, o, outputs)   # ptm, rti: bands, after the maps
     write = _writers(res, out, outputs, o.ascii_ply, relight)
 
     def shape():
