@@ -24,12 +24,15 @@ __all__ = ["stage_table", "print_stage_table"]
 # (pipeline._whole: the load and photometric stereo of the images held whole)
 WRAPPED = [
     ("load", "facette.pipeline._whole", "load_input"),
+    # the solve's 4-channel stack: per light with the default channels, so a candidate for the acquisition
+    ("solve's channel (images_for_solve)", "facette.pipeline._whole", "images_for_solve"),
     ("light gains", "facette.pipeline._whole", "with_light_gains"),
     ("photometric stereo (shadow step + solve)", "facette.pipeline._whole", "with_shadows"),
     ("photometric stereo (solve)", "facette.pipeline._whole", "photometric_stereo"),
     ("object mask", "facette.pipeline._whole", "object_of"),
     ("uncertainty", "facette.pipeline._process", "uncertainty_of"),
-    ("relighting files' set-up (their exposure)", "facette.pipeline._process", "whole_bands"),
+    # after the maps, inside the ptm / rti stage (pipeline._relight_later): counted in its row
+    ("relighting files' set-up (their exposure)", "facette.pipeline._process", "relight_after_maps"),
     ("integrate", "facette.pipeline._process", "integrate"),
     ("mesh", "facette.pipeline._process", "mesh_from_height"),
     ("report's relighting model", "facette.pipeline._process", "relight_model_stage"),

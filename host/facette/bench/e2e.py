@@ -15,7 +15,9 @@ in a process of its own, and the bench reports:
   mask.png, height.exr: what photometric stereo and the integration give, written before the
   report and model.glb are made); and to the command's end (the interpreter's exit after that:
   freeing gigabytes takes a few tenths of a second); the scan command's CPU seconds (simulator
-  included: on a shared machine, wall time waits for a core);
+  included: on a shared machine, wall time waits for a core), and those after the last frame
+  (the journal records the process's CPU at each frame: the figure a loaded machine does not
+  stretch);
 - peak memory (max RSS) of the scan command (simulator included) and of `facette process`
   alone on the finished scan;
 - "rig apart": the same scan with the simulated rig in a process of its own (`facette sim`)
@@ -155,13 +157,24 @@ def _results_written(results):
     return max(p.stat().st_mtime for p in results.iterdir() if p.is_file())
 
 
-def _journal_last_frame(scan_dir):
+def _last_captured(scan_dir):
+    """The journal's last "captured" entry (the scan's last frame)."""
     last = None
     for line in (scan_dir / "journal.jsonl").read_text().splitlines():
         e = json.loads(line)
         if e.get("step") == "captured":
-            last = e["t"]
-    return _dt.datetime.fromisoformat(last)
+            last = e
+    return last
+
+
+def _journal_last_frame(scan_dir):
+    return _dt.datetime.fromisoformat(_last_captured(scan_dir)["t"])
+
+
+def cpu_after_last_frame(scan_dir, command_cpu_s):
+    """CPU seconds the scan command used after its last frame (all threads): its whole CPU less the
+    process's CPU the journal recorded at the last frame ("cpu_s"); NaN for a journal without it."""
+    return command_cpu_s - _last_captured(scan_dir).get("cpu_s", float("nan"))
 
 
 MAPS = ("normal.exr", "albedo.exr", "mask.png", "height.exr")    # the maps, before the report and model.glb
@@ -238,7 +251,7 @@ def one_run(size, work, exposures=None, rig_apart=True, memory=None, outputs=Non
            "frames": len(data.frames), "rig_s": data.rig_time_s, "wall_s": wall, "merge_s": merge_s,
            "recon_s": times.get("ps", np.nan) + times.get("integrate", np.nan),
            "fit_s": times.get("fit", np.nan), "maps_ready_s": _maps_ready_s(d), "ready_s": _ready_s(d),
-           "scan_cpu_s": cpu,
+           "scan_cpu_s": cpu, "cpu_after_s": cpu_after_last_frame(d, cpu),
            "exit_s": (end - _journal_last_frame(d)).total_seconds(), "peak_gb": rss,
            "shadow_db": shadow, "mid_db": mid, "clipped": clipped,
            "height_rms_mm": global_, "height_rms_px": global_ / pitch,
@@ -267,6 +280,7 @@ COLUMNS = [("size", "size", "s"), ("bracket", "bracket", "s"), ("frames", "frame
            ("recon_s", "recon s", ".2f"),
            ("fit_s", "fit s", ".2f"), ("maps_ready_s", "maps ready after last frame s", ".2f"),
            ("ready_s", "ready after last frame s", ".2f"), ("scan_cpu_s", "scan command CPU s", ".1f"),
+           ("cpu_after_s", "CPU s after last frame", ".2f"),
            ("exit_s", "command end s", ".2f"),
            ("process_s", "process alone s", ".2f"), ("process_cpu_s", "(CPU s)", ".2f"),
            ("peak_gb", "peak GB (scan+sim)", ".2f"), ("process_gb", "peak GB process", ".2f"),
@@ -361,7 +375,7 @@ def main(argv=None):
           "over lights on the worker during the scan; merge alone: the same scan merged again in "
           "a fresh process; recon: photometric stereo + integration; maps ready: last frame captured -> "
           "the last of normal.exr, albedo.exr, mask.png, height.exr written; ready: -> the last result file written "
-          "(report and model.glb included); scan command CPU s: simulator included; command end: -> the scan command's exit; rig apart: the scan command (no simulator in its process) against `facette sim`; process alone: `facette process` on the finished scan (HDR up to date); "
+          "(report and model.glb included); scan command CPU s: simulator included; CPU s after last frame: the scan command's, every thread (the processing, and the last light's merge); command end: -> the scan command's exit; rig apart: the scan command (no simulator in its process) against `facette sim`; process alone: `facette process` on the finished scan (HDR up to date); "
           "CPU s: of that process (wall > CPU/cores means it waited for a core); SNR from the merge's variance on the object, green, median over lights; "
           "height RMS: result against the truth on the object up to one constant, also in pixel pitches, "
           "and up to one constant per object")

@@ -41,12 +41,14 @@ from facette.io.rti import write_hsh_rti
 from facette.recon import INTEGRATION_METHODS, flat_margin, integrate, mesh_from_height, MESH_MAX_SLOPE
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._budget import with_default_budget
+from facette.pipeline._relight_only import relight_only_budget
 from facette.capture import LP_NAME
 from facette.pipeline._band_uncertainty import normal_image, uncertainty_of
 from facette.pipeline._stages import ALL_OUTPUTS, FILES, OUTPUTS, STAGES_FOR, stages_needed
 from facette.pipeline._options import ProcessOptions
 from facette.pipeline._record import claim_results, mark_running, write_record
-from facette.pipeline._rti_bands import relight_stage, whole_bands, write_relight_web
+from facette.pipeline._rti_bands import relight_stage, write_relight_web
+from facette.pipeline._relight_later import relight_after_maps
 from facette.pipeline._rti_exposure import record_exposure
 from facette.pipeline._streamed import banded_process
 from facette.pipeline._whole import whole_process
@@ -204,7 +206,8 @@ def process(source, outputs=None, out_dir=None, options=None, **overrides):
 def _process(source, outputs, out_dir, o):
     outputs = list(OUTPUTS if outputs is None else outputs)
     stages = stages_needed(outputs)
-    o, budget_notes = with_default_budget(source, o, outputs)     # no --memory: from the free memory
+    # no --memory: from the free memory; the relighting files alone: over bands (pipeline._relight_only)
+    o, budget_notes = relight_only_budget(source, o, stages) or with_default_budget(source, o, outputs)
     res = ProcessResult(options=dict(o.reported(), outputs=outputs), notes=budget_notes)
     record_options = o.recorded()
     t_all, cpu_all = time.perf_counter(), time.process_time()
@@ -273,7 +276,7 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
     integration, mesh_step = o.integration, o.mesh_step
     out = None if out_dir is None else Path(out_dir)
     if out is not None: out.mkdir(parents=True, exist_ok=True)     # noqa: E701
-    relight = whole_bands(relight, res, inp, images, light_dirs, o, outputs)     # ptm, rti: over bands
+    relight = relight_after_maps(relight, res, inp, images, light_dirs, o, outputs)   # ptm, rti: bands, after the maps
     write = _writers(res, out, outputs, o.ascii_ply, relight)
 
     def shape():

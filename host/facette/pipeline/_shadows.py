@@ -86,11 +86,12 @@ def _distant(light_dirs):
 
 
 def _without(images, hidden, method_name):
-    """The images with the hidden values taken out (module doc, step 2); hidden (m, H, W)."""
-    out = np.array(images, dtype=np.float32, copy=True)
-    gone = hidden if out.ndim == 3 else hidden[..., None]
-    np.copyto(out, np.float32(0 if method_name in ZERO_IS_SHADOW else np.nan),
-              where=np.broadcast_to(gone, out.shape))
+    """A copy of the images with the hidden values taken out (module doc, step 2); hidden (m, H, W)."""
+    from facette.recon._shadows_jit import without_kernel
+    im = np.asarray(images, np.float32)
+    out = np.empty(im.shape, np.float32)
+    without_kernel(im if im.ndim == 4 else im[..., None], np.asarray(hidden, bool),
+                   np.float32(0 if method_name in ZERO_IS_SHADOW else np.nan), out if out.ndim == 4 else out[..., None])
     return out
 
 

@@ -4,7 +4,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["bin_mean_kernel", "hidden_kernel", "horizon_excess_kernel"]
+__all__ = ["bin_mean_kernel", "hidden_kernel", "horizon_excess_kernel", "without_kernel"]
 
 
 @numba.njit(cache=True, inline="always")
@@ -89,3 +89,20 @@ def bin_mean_kernel(images, f, out):
                             s += v
                             n += 1
                 out[k, i, j, c] = s / n if n else np.nan
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def without_kernel(images, hidden, fill, out):
+    """out = images, `fill` in every channel where hidden: images, out (m, H, W, C) float32, hidden
+    (m, H, W) bool. One pass over the stack on every core (a copy then numpy's masked `copyto`
+    took 2 CPU s on 12 lights of 3 MP x 4 channels)."""
+    m, h, w, nc = images.shape
+    for kr in numba.prange(m * h):
+        k, r = kr // h, kr % h
+        for c in range(w):
+            if hidden[k, r, c]:
+                for q in range(nc):
+                    out[k, r, c, q] = fill
+            else:
+                for q in range(nc):
+                    out[k, r, c, q] = images[k, r, c, q]

@@ -165,3 +165,21 @@ def test_binned_images_keep_what_is_missing_out():
     assert out[0, 0, 0] == pytest.approx(np.mean([1, 6, 7])) and np.isnan(out[1, 0, 0])
     assert out[1, 1, 2] == pytest.approx(np.mean(im[1, 2:4, 4:6]))
     assert binned(im, np.eye(3)[:2], mask, 1)[0] is im
+
+
+@pytest.mark.parametrize("layout", ["rgb", "grey", "channel view", "float64"])
+def test_hidden_values_are_taken_out_of_a_copy_as_numpy_would(layout):
+    from facette.pipeline._shadows import _without
+    rng = np.random.default_rng(3)
+    rgb = rng.random((3, 5, 7, 4)).astype(np.float32)
+    images = {"rgb": rgb, "grey": np.ascontiguousarray(rgb[..., 1]), "channel view": rgb[..., 1],
+              "float64": rgb.astype(np.float64)}[layout]
+    given = images.copy()
+    hidden = rng.random((3, 5, 7)) < 0.3
+    for method, fill in (("rank_trimmed", 0.0), ("woodham1980", np.nan)):
+        want = np.array(images, np.float32)
+        want[hidden] = fill                      # every channel of a hidden value
+        got = _without(images, hidden, method)
+        assert got.dtype == np.float32 and got.shape == images.shape
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(images, given)       # the images themselves untouched
