@@ -93,8 +93,13 @@ ALLOCATOR_ENV = {"MALLOC_MMAP_MAX_": "0", "MALLOC_TRIM_THRESHOLD_": "2147483647"
                  "NUMPY_MADVISE_HUGEPAGE": "0", "MALLOC_TOP_PAD_": str(64 << 20)}
 
 
+# the CPU seconds (user + system) of the last command `_run_rss` ran (its wait4), for the tables
+LAST_CPU = [float("nan")]
+
+
 def _run_rss(cmd, env=None):
-    """(stdout, wall s, max RSS GB) of a command in a process of its own (wait4)."""
+    """(stdout, wall s, max RSS GB) of a command in a process of its own (wait4); its CPU seconds
+    in LAST_CPU[0]."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=None if env is None else dict(os.environ, **env))
@@ -104,6 +109,8 @@ def _run_rss(cmd, env=None):
     if proc.returncode:
         raise RuntimeError(f"{' '.join(map(str, cmd))} failed ({proc.returncode}):\n{err[-2000:]}")
     rss = re.search(r"^max_rss_kb (\d+)$", err, re.M)
+    cpu = re.search(r"^cpu_s ([0-9.]+)$", err, re.M)
+    LAST_CPU[0] = float(cpu.group(1)) if cpu else float("nan")
     return out, wall, int(rss.group(1)) / 1e6 if rss else float("nan")
 
 
@@ -116,6 +123,7 @@ def _rss_wrapper(cmd):
     proc = subprocess.Popen(cmd)
     _, status, usage = os.wait4(proc.pid, 0)
     print(f"max_rss_kb {usage.ru_maxrss}", file=sys.stderr)
+    print(f"cpu_s {usage.ru_utime + usage.ru_stime:.2f}", file=sys.stderr)
     return os.waitstatus_to_exitcode(status)
 
 
@@ -340,7 +348,7 @@ def one_size(size, work, memory, method, untiled):
                                                      "--method", method, "--channels", "green", "--memory", memory,
                                                      "--overwrite"]))
     bands = re.search(r"over (\d+) bands of (\d+) rows", stdout)
-    row.update(mem_s=wall, mem_gb=gb, mem_tiles=int(bands.group(1)) if bands else -1,
+    row.update(mem_s=wall, mem_cpu=LAST_CPU[0], mem_gb=gb, mem_tiles=int(bands.group(1)) if bands else -1,
                mem_ps=_times(stdout).get("ps", float("nan")))
     row["mem_deg"], row["mem_over"], row["mem_height"] = (
         _compare_process(exr.parent, out_mem) if exr is not None else (float("nan"), -1, float("nan")))
@@ -365,7 +373,7 @@ def _header(memory, method):
     print(f"{'size':>12} {'MP':>6} | {'gen s':>6} {'GB':>5} | {'untiled s':>9} {'s/MP':>5} {'GB':>5} "
           f"{'(load':>6} {'ps)':>5} | {'tiled s':>7} {'s/MP':>5} {'GB':>5} {'tiles':>5} {'(stage':>6} {'ps)':>5} | "
           f"{'err° untiled':>12} {'tiled':>6} {'max° tiled-untiled':>18} {'px > 0.01°':>10} | "
-          f"{'process --memory s':>18} {'s/MP':>5} {'GB':>5} {'bands':>5} {'(ps)':>5} {'max°':>8} "
+          f"{'process --memory s':>18} {'CPU s':>6} {'s/MP':>5} {'GB':>5} {'bands':>5} {'(ps)':>5} {'max°':>8} "
           f"{'px > 0.01°':>10} {'height/range':>12}")
 
 
@@ -378,7 +386,8 @@ def _print(rows):
               f"{r['tiled_s']:7.1f} {r['tiled_s'] / r['mp']:5.2f} {r['tiled_gb']:5.2f} {r['tiles']:5d} "
               f"{r['tiled_stage']:6.1f} {r['tiled_ps']:5.1f} | "
               f"{r['err_untiled']:12.3f} {r['err_tiled']:6.3f} {r['tiled_vs_untiled']:18.5f} {r['over']:10d} | "
-              f"{r['mem_s']:18.1f} {r['mem_s'] / r['mp']:5.2f} {r['mem_gb']:5.2f} {r['mem_tiles']:5d} "
+              f"{r['mem_s']:18.1f} {r.get('mem_cpu', float('nan')):6.1f} {r['mem_s'] / r['mp']:5.2f} {r['mem_gb']:5.2f} "
+              f"{r['mem_tiles']:5d} "
               f"{r['mem_ps']:5.1f} {r['mem_deg']:8.5f} {r['mem_over']:10d} {r['mem_height']:12.2e}",
               flush=True)
 
@@ -392,9 +401,11 @@ def no_flag(size, work, kind="slab"):
     stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", work / f"{kind}_{w}x{h}", "-o", out, "--outputs",
                                                      "normals,height", "--overwrite"]))
     method = re.search(r"\((\w+)\)\s*$", stdout.splitlines()[0])
+    err = f"{_truth_error(work / f'slab_{w}x{h}', out / 'normal.exr'):.3f}° to the truth, " if kind == "slab" else ""
     budget = next((line.strip()[len("note: "):] for line in stdout.splitlines() if "note: memory:" in line), "")
-    print(f"no flag {'' if kind == 'slab' else 'scan '}{w}x{h}: {wall:.1f} s, {wall / (w * h / 1e6):.2f} s/MP, peak {gb:.2f} GB, "
-          f"{method.group(1) if method else '?'}; {budget}", flush=True)
+    print(f"no flag {'' if kind == 'slab' else 'scan '}{w}x{h}: {wall:.1f} s, {LAST_CPU[0]:.1f} CPU s, "
+          f"{wall / (w * h / 1e6):.2f} s/MP, peak {gb:.2f} GB, "
+          f"{err}{method.group(1) if method else '?'}; {budget}", flush=True)
 
 
 def main(argv=None):

@@ -10,10 +10,11 @@ import time
 
 import numpy as np
 
+from facette._memory import disk_array, release
 from facette.fit import is_metal
 from facette.recon import fill_normals
 
-__all__ = ["normals_of", "metal_cones", "SHAPE_OUTPUTS", "DARK_STEP"]
+__all__ = ["normals_of", "fill_in_rows", "metal_cones", "SHAPE_OUTPUTS", "DARK_STEP", "FILL_ROWS"]
 
 SHAPE_OUTPUTS = frozenset({"normals", "mask", "height", "mesh", "gltf", "report"})   # what shows the shape
 DARK_STEP = 8      # metal_cones reads the noise floor on every 8th dark pixel
@@ -25,10 +26,10 @@ def normals_of(res, inp, ps):
     the (H, W) bool map of the filled ones (None when none were)."""
     measured = ps.valid & inp.mask
     res.normals, res.albedo, res.filled = ps.normal, ps.albedo, None
-    if SHAPE_OUTPUTS & set(res.options.get("outputs", SHAPE_OUTPUTS)):
+    if SHAPE_OUTPUTS & set(res.options.get("outputs", SHAPE_OUTPUTS)) and _has_gap(ps.normal, measured, inp.mask):
         t0 = time.perf_counter()
         cones = metal_cones(inp, ps, measured)
-        normals, filled = fill_normals(ps.normal, measured, inp.mask, avoid=cones)
+        normals, filled = fill_in_rows(ps.normal, measured, inp.mask, avoid=cones)
         if filled.any():
             res.normals, res.filled = normals, filled
             res.timings["fill"] = time.perf_counter() - t0
@@ -41,6 +42,61 @@ def normals_of(res, inp, ps):
                    "light's half vector where the metal's lobe would have lit them")
                 + ", grey in mask.png, left out of the reflectance samples and the BRDF fit")
     res.mask = measured if res.filled is None else measured | res.filled
+
+
+# rows a piece of the fill takes at least (it grows to the next row no gap crosses): its working set,
+# ~40 bytes per pixel of the piece (the fill's indices and copies), not of the image
+FILL_ROWS = 256
+
+
+def fill_in_rows(normals, measured, region, avoid=None, rows=FILL_ROWS):
+    """`fill_normals` a piece of rows at a time, the pieces cut between rows that no piece of the gap
+    crosses (4-neighbours, as its harmonic fill joins them), each with one row of its neighbours'
+    measured normals around it (their gap pixels left out: not joined to this piece's): the same
+    equations as the whole image's, solved per piece. normals may be a map on disk: the copy is then
+    one too, written a piece at a time. Returns (normals, filled) as `fill_normals`."""
+    h = region.shape[0]
+    gap = np.zeros(region.shape, bool)
+    for r0 in range(0, h, rows):
+        ok = measured[r0:r0 + rows] & np.isfinite(np.asarray(normals[r0:r0 + rows])).all(-1)
+        release(normals)
+        gap[r0:r0 + rows] = region[r0:r0 + rows] & ~ok
+    joined = (gap[:-1] & gap[1:]).any(1)           # joined[r]: the gap crosses from row r to row r + 1
+    on_disk = isinstance(normals, np.memmap)
+    out = disk_array(normals.shape, np.float32) if on_disk else np.array(normals, np.float32, copy=True)
+    filled = np.zeros(region.shape, bool)
+    r0 = 0
+    while r0 < h:
+        r1 = min(h, r0 + rows)
+        while r1 < h and joined[r1 - 1]:
+            r1 += 1
+        if on_disk:
+            out[r0:r1] = normals[r0:r1]
+        if gap[r0:r1].any():
+            a, b = max(0, r0 - 1), min(h, r1 + 1)
+            own = np.zeros(b - a, bool)
+            own[r0 - a:r1 - a] = True
+            piece_region = region[a:b] & (own[:, None] | ~gap[a:b])      # the context rows' gap: not this piece's
+            cones = None if avoid is None else (avoid[0], avoid[1], avoid[2][a:b])
+            part, more = fill_normals(np.asarray(normals[a:b]), measured[a:b], piece_region, avoid=cones)
+            out[r0:r1] = part[r0 - a:r1 - a]
+            filled[r0:r1] = more[r0 - a:r1 - a]
+        release(normals)
+        release(out)
+        r0 = r1
+    return out, filled
+
+
+def _has_gap(normals, measured, region, rows=256):
+    """True when `fill_normals` would have a pixel to fill: one of `region` without a finite measured
+    normal. Read a band of rows at a time: over bands the normals are a map on disk, which a whole
+    read would make resident (12 bytes per pixel, 1.2 GB at 100 MP; most captures have no gap)."""
+    for r0 in range(0, region.shape[0], rows):
+        ok = measured[r0:r0 + rows] & np.isfinite(np.asarray(normals[r0:r0 + rows])).all(-1)
+        release(normals)
+        if (region[r0:r0 + rows] & ~ok).any():
+            return True
+    return False
 
 
 def metal_cones(inp, ps, measured):

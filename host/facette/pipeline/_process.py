@@ -286,7 +286,8 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
         margin = None if bg is None or INTEGRATION_METHODS.canonical(integration) != "poisson_flat_margin" \
             else flat_margin(bg & res.mask, res.mask.shape)
         hgt = _timed(res, "integrate", integrate, res.normals, inp.pixel_pitch_mm, mk, integration, margin)
-        hgt[~res.mask] = 0.0                  # in place: 0.4 GB at 100 MP
+        for r0 in range(0, hgt.shape[0], 1024):      # in place, a band at a time: no (H, W) temporary
+            hgt[r0:r0 + 1024][~res.mask[r0:r0 + 1024]] = 0.0
         res.height = hgt
         notes = [] if margin is None else [
             f"heights: the table's lean (its mean slope over the {int(margin.sum())} background pixels) "

@@ -38,6 +38,7 @@ not follow), as in ST14. Fewer than MIN_LIGHTS left: the uncertainty is 90° (no
 import numpy as np
 from scipy.ndimage import gaussian_filter, grey_dilation
 
+from facette._memory import masked_values
 from facette._threads import run_blocks
 
 __all__ = ["normal_uncertainty", "uncertainty_summary", "curl_angle", "BAND_SCALE", "K_CURL", "CURL_SIGMA", "T_DARK",
@@ -255,10 +256,11 @@ GLOBAL_NOTE = ("errors common to the whole object (the lights' calibration, a bi
 def uncertainty_summary(uncertainty, mask):
     """{"median_deg", "p90_deg", "band": "90 %", "not_in_band": GLOBAL_NOTE} of the map over the mask (None
     when empty)."""
-    vals = np.asarray(uncertainty)[np.asarray(mask, bool)]
+    vals = masked_values(uncertainty, np.asarray(mask, bool))     # a band at a time; a copy, partitioned in place
     if vals.size == 0:
         return None
-    return {"median_deg": round(float(np.median(vals)), 3), "p90_deg": round(float(np.percentile(vals, 90)), 3),
+    return {"median_deg": round(float(np.median(vals, overwrite_input=True)), 3),
+            "p90_deg": round(float(np.percentile(vals, 90, overwrite_input=True)), 3),
             "band": "uncertainty_deg is each normal's 90 % band: it held 88-100 % of the errors on path-traced "
                     "renders, 59-96 % on DiLiGenT's photographs (per object; 88 % of their pixels pooled)",
             "not_in_band": GLOBAL_NOTE}

@@ -12,16 +12,17 @@ def test_tiny_slab_tiled_equals_untiled(tmp_path, capsys):
     out = capsys.readouterr().out
     no_flag = next(line for line in out.splitlines() if line.startswith("no flag 64x48: "))
     assert "li_alternating; memory: a budget of" in no_flag and "is read whole" in no_flag
+    assert re.search(r"CPU s, .* \d+\.\d+° to the truth, li_alternating", no_flag)
     slab, scan = [line for line in out.splitlines() if line.strip().startswith("64x48")]
     figures = [float(x) for x in re.findall(NUMBER, slab.split("|", 1)[1])]
     gen_s, gen_gb, u_s, u_spm, u_gb, u_load, u_ps, t_s, t_spm, t_gb, tiles, t_stage, t_ps, err_u, err_t, worst, over, \
-        m_s, m_spm, m_gb, m_bands, m_ps, m_deg, m_over, m_height = figures
+        m_s, m_cpu, m_spm, m_gb, m_bands, m_ps, m_deg, m_over, m_height = figures
     assert 0 < u_gb < 2 and 0 < t_gb < 2 and tiles == 1
     assert err_u == err_t and err_t < 5                     # the same normals, near the truth
     assert worst < 0.01 and over == 0                       # degrees, tiled against untiled
     assert (tmp_path / "untiled_64x48" / "normal.exr").is_file()
     # process --memory against untiled process: normals and heights
-    assert 0 < m_gb < 2 and m_bands == 1 and m_deg < 0.01 and m_over == 0 and m_height <= 1e-3
+    assert 0 < m_cpu and 0 < m_gb < 2 and m_bands == 1 and m_deg < 0.01 and m_over == 0 and m_height <= 1e-3
     # the slab as a scan directory: untiled and --memory process agree
     s_gen, s_u, s_uspm, s_ugb, s_m, s_mspm, s_mgb, s_bands, s_deg, s_over, s_height, s_brdf = \
         [float(x) if x != "nan" else float("nan") for x in re.findall(NUMBER + "|nan", scan.split("|", 1)[1])]

@@ -117,3 +117,36 @@ def test_read_by_bands_a_bare_metal_goes_on_and_is_filled_too(tmp_path, gold):
                   method="rank_trimmed")
     assert any("sends light back only near its highlights" in n for n in res.notes)
     assert res.filled is not None and res.filled.any() and not (res.filled & res.ps.valid).any()
+
+
+@pytest.mark.parametrize("on_disk", [False, True])
+def test_the_fill_a_piece_of_rows_at_a_time_is_the_whole_image_s(on_disk, monkeypatch):
+    """`fill_in_rows` (pieces of 4 rows, grown past rows a gap crosses) solves the whole image's
+    equations: solved tightly, the fill of `fill_normals` on the whole image; from a map on disk into one."""
+    import facette.recon._fill as fill
+    from facette._memory import disk_array
+    monkeypatch.setattr(fill, "FILL_TOLERANCE", 1e-12)     # the multigrid's stopping point aside
+    from facette.pipeline._filled import fill_in_rows
+    from facette.recon import fill_normals
+    h, w = 30, 26
+    yy, xx = np.mgrid[0:h, 0:w] / 10.0
+    n = np.dstack([np.sin(xx) * 0.4, np.cos(yy) * 0.3, np.ones((h, w))]).astype(np.float32)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    region = np.ones((h, w), bool)
+    region[:, :2] = False
+    measured = region.copy()
+    measured[5:13, 8:12] = False            # crosses two pieces' boundaries
+    measured[3, 20] = measured[4, 21] = False     # two pixels diagonal to each other: two pieces of gap
+    measured[22:24, 3:25] = False
+    measured[0, 10:13] = False                      # on the top edge
+    n[~measured] = np.nan
+    src = n
+    if on_disk:
+        src = disk_array(n.shape, np.float32)
+        src[:] = n
+    got, got_filled = fill_in_rows(src, measured, region, rows=4)
+    want, want_filled = fill_normals(n, measured, region)
+    assert isinstance(got, np.memmap) == on_disk
+    assert np.array_equal(got_filled, want_filled) and want_filled.sum() == (region & ~measured).sum()
+    assert np.array_equal(got[measured], want[measured])
+    np.testing.assert_allclose(np.asarray(got)[want_filled], want[want_filled], atol=1e-6)

@@ -265,3 +265,33 @@ def test_flat_margin_lean_taken_in_bands_as_over_the_whole_image(monkeypatch, ro
     fixed = np.dstack([-gx, gy, np.ones_like(gx)])
     want = integrate_least_squares(fixed / np.linalg.norm(fixed, axis=-1, keepdims=True), 1.0)
     assert np.abs(got - want).max() < 1e-4 * np.ptp(want)
+
+
+@pytest.mark.parametrize("columns", [1, 7, 1000])
+def test_the_dct_in_bands_and_blocks_is_scipy_s_whole_transform(monkeypatch, columns):
+    """The Poisson solve's DCT runs one axis at a time in place (rows in bands, columns in blocks, for
+    100 MP maps): the 2-D transform and its inverse of scipy.fft.dctn / idctn, to float32's rounding."""
+    import scipy.fft
+    import facette.recon._integrate as integ
+    monkeypatch.setattr(integ, "DCT_BLOCK_COLUMNS", columns)
+    monkeypatch.setattr(integ, "SLOPE_BAND_ROWS", 3)
+    x = np.random.default_rng(5).standard_normal((23, 31)).astype(np.float32)
+    for inverse, fn in ((False, scipy.fft.dctn), (True, scipy.fft.idctn)):
+        got = integ._dct_in_place(x.copy(), inverse)
+        assert got.dtype == np.float32
+        np.testing.assert_allclose(got, fn(x, type=2, norm="ortho"), atol=2e-6 * np.abs(x).max() * 31)
+
+
+def test_heights_of_normals_on_disk_are_those_of_normals_in_memory():
+    """`process --memory` integrates the normal map kept in a temporary file: the same heights."""
+    from facette._memory import disk_array
+    n, _ = surface_normals(lambda x, y: bump(x, y, a=4.0, s=7.0), h=41, w=57)
+    on_disk = disk_array(n.shape, np.float32)
+    on_disk[:] = n
+    mask = np.zeros(n.shape[:2], bool)
+    mask[3:-3, 5:-5] = True
+    for method in ("poisson_flat_margin", "simchony1990"):
+        want = integrate(n.astype(np.float32), 0.1, None, method)
+        assert np.array_equal(integrate(on_disk, 0.1, None, method), want)
+    want = integrate_simchony1990(n.astype(np.float32), 0.1, mask)
+    assert np.array_equal(integrate_simchony1990(on_disk, 0.1, mask), want) and not want[~mask].any()
