@@ -113,9 +113,11 @@ REFIT_MIN_GAIN = 1.0
 NEIGHBOUR_START_DEG = 10.0
 
 
-def _settled(prev, new):
-    """Whether a refit (σ, n_i) is within SETTLED_SIGMA (relative) and SETTLED_N_I of the previous."""
-    return abs(new[0] - prev[0]) <= SETTLED_SIGMA * max(prev[0], 1e-3) and abs(new[1] - prev[1]) <= SETTLED_N_I
+def _settled(prev, new, gain=np.inf):
+    """Whether a refit (σ, n_i) is within SETTLED_SIGMA (relative) and SETTLED_N_I of the previous,
+    or lowers its pixels' cost by less than REFIT_MIN_GAIN standard errors (`gain`, `_refit_gain`)."""
+    return gain < REFIT_MIN_GAIN or (abs(new[0] - prev[0]) <= SETTLED_SIGMA * max(prev[0], 1e-3)
+                                     and abs(new[1] - prev[1]) <= SETTLED_N_I)
 
 
 def _refit_gain(px, fsel, x0, fit):
@@ -385,7 +387,7 @@ def _rounds(px, pix, trust, region, mat, rounds, tol_deg, rounds_log):
             mat.update(brdf_step=False, note=f"fit failed: {fit['message']}")
             break
         gain = _refit_gain(px, fsel, x0, fit) if rnd > 1 else None
-        settled = x0 is not None and rnd > 1 and (_settled(x0, (fit["sigma"], fit["n_i"])) or gain < REFIT_MIN_GAIN)
+        settled = x0 is not None and rnd > 1 and _settled(x0, (fit["sigma"], fit["n_i"]), gain)
         if settled and gain < REFIT_MIN_GAIN:        # a slide along a flat valley: the previous model stays
             fit = dict(fit, sigma=x0[0], n_i=x0[1])
         x0 = (fit["sigma"], fit["n_i"])
@@ -395,7 +397,7 @@ def _rounds(px, pix, trust, region, mat, rounds, tol_deg, rounds_log):
         if settled:
             # the refit on the re-estimated normals barely moved the model: re-estimating every
             # pixel against it again would move them by less than the noise (module doc)
-            round_info.update(pixels_refined=0, median_change_deg=0.0, stopped="(σ, n_i) settled",
+            round_info.update(pixels_refined=0, median_change_deg=0.0, stopped="(σ, n_i) settled" if gain >= REFIT_MIN_GAIN else "refit within its noise: (σ, n_i) kept",
                               seconds=time.perf_counter() - t_r, cpu_seconds=time.process_time() - c_r)
             rounds_log.append(round_info)
             break
