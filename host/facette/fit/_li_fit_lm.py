@@ -21,6 +21,7 @@ __all__ = ["LMResult", "li_jacobian", "robust_lm"]
 
 FTOL = 1e-8        # stop when an accepted step lowers the cost by less than this, relatively
 XTOL = 1e-8        # or moves every (scaled) parameter by less than this
+RADIUS = 1.0       # the first step's largest length, in x_scale units (doubled after each capped step taken)
 
 
 @dataclass
@@ -67,7 +68,7 @@ def robust_lm(residuals, jacobian, x0, lo, hi, f_scale, max_nfev, x_scale):
     At most max_nfev evaluations of `residuals`. Returns an LMResult."""
     x = np.clip(np.asarray(x0, float), lo, hi)
     r = residuals(x)
-    cost, nfev, lam = _cost(r, f_scale), 1, 1e-4
+    cost, nfev, lam, radius = _cost(r, f_scale), 1, 1e-4, RADIUS
     message, success = "the evaluation budget ran out", False
     scale2 = np.asarray(x_scale, float) ** 2
     while nfev < max_nfev:
@@ -87,16 +88,25 @@ def robust_lm(residuals, jacobian, x0, lo, hi, f_scale, max_nfev, x_scale):
             step = np.zeros(2)
             h = hess[np.ix_(free, free)] + lam * np.diag(np.maximum(np.diag(hess)[free], 1e-12 * scale2[free] ** -1))
             step[free] = np.linalg.solve(h, -grad[free])
+            # at most `radius` typical steps at once: a full Gauss–Newton step from above the optimum
+            # crossed to n_i = 1, where the lobe and its derivatives vanish (a saddle the fit stopped
+            # on: the satin sphere from n_i 1.7 ended at 1.0, cost 7.3 against 0.99 at 1.30)
+            move = np.clip(x + step, lo, hi) - x
+            size = float(np.sqrt(np.sum(move ** 2 / scale2)))
+            capped = size > radius
+            if capped:
+                move *= radius / size
             if -(grad @ step + 0.5 * step @ hess @ step) <= FTOL * cost:   # the model says no more to gain
                 break
-            x_new = np.clip(x + step, lo, hi)
+            x_new = np.clip(x + move, lo, hi)
             r_new = residuals(x_new)
             nfev += 1
             c_new = _cost(r_new, f_scale)
             if np.isfinite(c_new) and c_new < cost:
                 accepted = True
+                radius = 2 * radius if capped else radius
                 break
-            lam *= 10
+            lam, radius = lam * 10, radius / 2 if capped else radius
             if np.all(np.abs(x_new - x) <= XTOL * (np.sqrt(scale2) + np.abs(x))):
                 break
         if not accepted:

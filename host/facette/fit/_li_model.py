@@ -200,7 +200,9 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
     for x in starts:
         x_scale = np.array([0.05, 0.1 * max(1.0, x[1] - 1)])
         # from a metal's index, scipy's trust region (its first steps cross to a dielectric's basin
-        # where this LM stayed near the start: the rendered satin sphere of tests/fit/test_light_gains)
+        # where this LM stayed near the start: the rendered satin sphere of tests/fit/test_light_gains).
+        # scipy with the analytic Jacobian instead of the LM: DiLiGenT cat's fits 3.25 CPU s against
+        # 2.65 with finite differences and 0.87 in the LM (one thread)
         if volume_model in ANALYTIC_JACOBIAN and not is_metal(x[1]):
             r = robust_lm(fun, jac, x, lo, hi, f_scale, max_nfev, x_scale)
         else:          # the approximate formula: scipy's trust region, a finite-difference Jacobian

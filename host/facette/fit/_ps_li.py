@@ -100,12 +100,12 @@ COARSE_PIXELS = 250_000    # above this many valid pixels the alternation runs c
 SETTLED_SIGMA = 0.05       # a later round's refit within 5 % of σ and 0.01 of n_i: no new re-estimate
 SETTLED_N_I = 0.01
 # a later round's refit that lowers its fit pixels' robust cost by less than one standard error of
-# the pixels' paired differences (`_refit_gain`) is a tie: the valley is flat there, and taking the
-# refit only slid (σ, n_i) along it with the draw (the satin sphere of tests/pipeline/
-# test_process_light_gains, Cook–Torrance rendered with another G: round 2 moved σ 0.168 -> 0.193,
-# n_i 1.73 -> 1.89 at 0.74 standard errors, mean error 0.31 -> 0.46°). Renders: that sphere
-# 0.74 / 0.57 (ties) and 4.4 (taken) with its gains off; DiLiGenT (confirmation) ball, buddha, cat
-# 3.7-7.7, pot2 0.59, reading 0.87 (ties now: 6.882 -> 6.852°, 9.725 -> 9.722° on process's inputs)
+# the pixels' paired differences (`_refit_gain`: the refit trades some pixels' misfit for others') is
+# a tie, and the model stays: taking it only slid (σ, n_i) along a flat valley with the draw (the
+# satin sphere of tests/pipeline/test_process_light_gains, its gains corrected: round 2 moved σ
+# 0.168 -> 0.193, n_i 1.73 -> 1.89 at 0.74 standard errors, mean error 0.31 -> 0.46°). Chosen on that
+# sphere (0.74 and 0.57 over two gain readings: ties; 4.6 with the gains off: taken); DiLiGenT
+# (confirmation, process's inputs) ball, buddha, cat 3.7-7.7, pot2 0.59, reading 0.87: ties now
 REFIT_MIN_GAIN = 1.0
 # step 5's threshold, chosen on the Mitsuba renders (12 lights; 5° gave the same errors to 0.02°
 # with twice the pixels tried, 15° and 25° less gain: satin sphere 0.67 / 0.79°, satin relief 0.63 /

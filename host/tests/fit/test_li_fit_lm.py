@@ -60,3 +60,14 @@ def test_a_bound_holds_the_parameter_the_gradient_pushes_out():
         return np.eye(2)
     r = robust_lm(res, jac, (0.2, 0.9), np.zeros(2), np.ones(2), f_scale=10.0, max_nfev=40, x_scale=np.ones(2))
     assert r.success and r.x[0] == 1.0 and abs(r.x[1] - 0.5) < 1e-6, r
+
+
+@pytest.mark.parametrize("volume_model", ["lambert", "tables"])
+def test_a_start_above_the_optimum_does_not_cross_to_the_saddle_at_n_i_one(volume_model):
+    # from n_i 1.7 a full Gauss–Newton step crossed to n_i = 1 (no lobe: the lobe's derivatives
+    # vanish there too) and the fit stopped on it at 7x the cost; capped steps reach the minimum
+    e, lights, normals, ok = _values(volume_model, 0.15, 1.3)
+    got = fit_li_per_pixel_kd(e, lights, normals, ok, x0=(0.15, 1.7), volume_model=volume_model)
+    near = fit_li_per_pixel_kd(e, lights, normals, ok, x0=(0.14, 1.32), volume_model=volume_model)
+    assert got["n_i"] > 1.2 and got["cost"] <= near["cost"] * (1 + 1e-4), (got["sigma"], got["n_i"], got["cost"], near["cost"])
+    assert abs(got["sigma"] - 0.15) < 0.01 and abs(got["n_i"] - 1.3) < 0.02
