@@ -52,7 +52,8 @@ LI_VOLUME_MODEL = "tables"
 # rig's scan (Cook–Torrance σ 0.05, n_i 1.2, dark glossy table) it found σ 0.017, n_i 1.06 on the
 # initial normals and σ 0.035 on normals solved against each point with every pixel counted; the
 # best 80 % give σ 0.050, n_i 1.200, and the lobe lowers their cost to 46 % of Lambert's.
-# The search: σ along PROFILE_SIGMAS at n_i PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ
+# The search: σ along PROFILE_SIGMAS at n_i PROFILE_N_I0, then n_i along PROFILE_N_IS at that line's best σ
+# (and a metal's start the same way, on its own lines: `_profile_lobe`)
 # (each line walked as PROFILE_SIGMA_SEARCH and PROFILE_N_I_SEARCH say),
 # for each diffuse part (at most 14 solves of the profile pixels each), on at most PROFILE_VALUES values (pixels ×
 # lights): a full 8 × 3 grid stopped at n_i 1.15 on the scan above (truth 1.2; the search: 1.2).
@@ -236,7 +237,8 @@ def _trimmed(costs, keep=PROFILE_KEEP):
 def _profile_lobe(e, lights, usable, solve, volume_models):
     """Round 1's model choice on the profile pixels: for each diffuse part (`volume_models`), the
     normals solved against each (σ, n_i) of a coordinate search (σ along PROFILE_SIGMAS at
-    PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ; `solve(sigma, n_i, volume_model, grid=...)` ->
+    PROFILE_N_I0, then n_i along PROFILE_N_IS at that line's best σ; beside a Lambertian part also σ
+    at PROFILE_N_I0_METAL, then PROFILE_N_IS_METAL at its best σ; `solve(sigma, n_i, volume_model, grid=...)` ->
     (N, 3)), each scored by the trimmed robust cost of the result (`_trimmed`: a pixel whose solve
     stopped in a wrong minimum does not decide the model).
     Returns ({(is a metal's lobe, volume_model): the best such candidate, a dict(cost,

@@ -42,7 +42,9 @@ as `photometric_stereo(method="li_alternating")`.
    round, the refit moved with the draw (DiLiGenT pot2: n_i by 0.01-0.03 a round) and the rounds
    ran to their limit; on the same pixels it settles. Mitsuba scenes: the same errors (the gold
    sphere's and relief's 0.03-0.06° better); DiLiGenT 96 lights 6.53 -> 6.56° (pot2 7.57 -> 7.71°),
-   its photometric stereo 45 -> 34 s over the six objects.
+   its photometric stereo 45 -> 34 s over the six objects. A later round's refit that lowers its
+   pixels' cost by less than one standard error of their paired differences keeps the model and
+   stops the rounds (REFIT_MIN_GAIN: a slide along a flat valley, not a better fit).
 
 5. Neighbour starts (`neighbour_deg`): a solved pixel whose normal is more than 10° from the
    mean of its 5 × 5 neighbours is solved again from that mean and from its own normal, and keeps
