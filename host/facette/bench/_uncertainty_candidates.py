@@ -21,16 +21,21 @@ DROP_BRIGHT share left out), with e the values over the pixel's brightest carryi
 - `local fit`, `curl`: the band's two terms alone (recon._uncertainty);
 - with the solve's model (`model`: li_alternating's materials, each pixel's material and its cast-shadow
   flags) the default's own curvature and two half-light solves (bench._uncertainty_li: `li laplace`,
-  `li crb`, `li split`).
+  `li crb`, `li split`, and the fitted model's residual at the highlight and the Lambertian solve on the lights
+  both keep);
+- the physically grounded measures of bench._uncertainty_physics (the normal's tilt, the lights in front of the
+  facet, highlights, cast shadows, light from behind, the distances to an edge and to a cast shadow, the
+  normal field's variation at two scales).
 """
 import numpy as np
 from scipy.stats import spearmanr
 
 from facette.bench._uncertainty_li import LI_CANDIDATES, li_measures
+from facette.bench._uncertainty_physics import PHYSICS_CANDIDATES, physics_measures
 from facette.recon import _uncertainty as unc
 
-__all__ = ["jackknife_lambertian", "table_residual", "candidate_measures", "candidate_spearman", "CANDIDATES",
-           "LI_CANDIDATES"]
+__all__ = ["jackknife_lambertian", "table_residual", "candidate_measures", "candidate_spearman", "measure_spearman",
+           "CANDIDATES", "LI_CANDIDATES", "PHYSICS_CANDIDATES"]
 
 CANDIDATES = ("jackknife", "lambertian residual", "kept lights", "kept conditioning", "kept spread",
               "angle to lambertian", "table residual", "local fit", "curl")
@@ -97,6 +102,7 @@ def candidate_measures(images, light_dirs, normals, sel, saturation=None, model=
     e = vals.mean(axis=2).T
     ok = np.isfinite(e) & (True if saturation is None else np.all(vals < saturation, axis=2).T)
     e = np.where(ok, e, 0.0)
+    raw = e
     carry = unc._carrying(e, ok)
     e = e / np.maximum((e * carry).max(1, keepdims=True), 1e-30)
     lights = np.asarray(light_dirs, np.float64)
@@ -115,6 +121,7 @@ def candidate_measures(images, light_dirs, normals, sel, saturation=None, model=
             "angle to lambertian": np.arccos(np.clip(np.sum(lam * n, axis=1), -1, 1)),
             "table residual": table_residual(e, ok, n, lights),
             "local fit": fit.ravel()[idx], "curl": unc.curl_angle(normals, has).ravel()[idx]}
+    out.update(physics_measures(raw, ok, n, lights, mask, normals))
     if model is not None and model[1] is not None:
         materials, labels, shadow = model
         shadow = None if shadow is None else np.asarray(shadow, bool).reshape(h * w, m)[idx]
@@ -125,8 +132,13 @@ def candidate_measures(images, light_dirs, normals, sel, saturation=None, model=
 def candidate_spearman(images, light_dirs, normals, sel, err, saturation=None, model=None):
     """{name: Spearman of the measure against err (N,) on the pixels of sel} (nan when constant or not all
     finite)."""
+    return measure_spearman(candidate_measures(images, light_dirs, normals, sel, saturation, model), err)
+
+
+def measure_spearman(measures, err):
+    """{name: Spearman of each measure (N,) of `measures` against err (N,)} (nan when constant or not all finite)."""
     out = {}
-    for name, v in candidate_measures(images, light_dirs, normals, sel, saturation, model).items():
+    for name, v in measures.items():
         good = np.all(np.isfinite(v)) and np.ptp(v) > 0 and np.ptp(err) > 0
         out[name] = float(spearmanr(v, err).statistic) if good else float("nan")
     return out

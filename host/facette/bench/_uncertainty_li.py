@@ -12,7 +12,11 @@ tangent angles (finite differences):
   sensitivity allow, whatever the residual;
 - `li split`: the default's per-pixel solve (facette.fit.refine_normals_li, the same model) on two halves of
   the lights drawn at random, each from the solution: the angle between the two halves' normals (rad). The
-  disagreement between two honest solves.
+  disagreement between two honest solves;
+- `li highlight residual`: the RMS residual of the fitted model under the kept lights whose mirror direction (half
+  vector) lies within HIGHLIGHT_DEG of the normal (the highlight, where a misfit lobe shows);
+- `lambertian both-kept`: the angle between the solution and the Lambertian least-squares normal on the lights both
+  keep (the solve's kept lights that also carry the pixel for recon._uncertainty: lit, not the brightest share).
 A material whose BRDF step did not run (Lambertian-like) is Lambert's model (A = 0, B = n·l).
 Distant lights (m, 3) only; per-pixel lights give NaN.
 """
@@ -24,9 +28,10 @@ from facette.recon import _uncertainty as unc
 
 __all__ = ["li_measures", "LI_CANDIDATES"]
 
-LI_CANDIDATES = ("li laplace", "li crb", "li split")
+LI_CANDIDATES = ("li laplace", "li crb", "li split", "li highlight residual", "lambertian both-kept")
 _FD = 1e-3            # rad, the tangent angles' finite-difference step
 _SPLIT_SEED = 0
+HIGHLIGHT_DEG = 15.0   # a kept light whose half vector is this close to the normal lights its highlight
 
 
 def _lambertian(mat):
@@ -77,6 +82,15 @@ def split_angle(e, w, n, lights, mat, seed=_SPLIT_SEED):
     return np.arccos(np.clip(np.sum(sol[0] * sol[1], axis=1), -1.0, 1.0))
 
 
+def both_kept_angle(e, w, n, lights):
+    """(N,) rad: the angle between n (N, 3) and the Lambertian least-squares normal on the lights of weight w (N, m)."""
+    lw = lights[None] * w[..., None]
+    a = np.einsum("nmi,nmj->nij", lw, lw) + 1e-9 * np.eye(3)
+    b = np.linalg.solve(a, np.einsum("nmi,nm->ni", lw, e * w)[..., None])[..., 0]
+    b /= np.maximum(np.linalg.norm(b, axis=1, keepdims=True), 1e-30)
+    return np.arccos(np.clip(np.sum(b * n, axis=1), -1.0, 1.0))
+
+
 def li_measures(e, ok, n, lights, labels, materials, shadow=None):
     """{name: (N,) rad} of LI_CANDIDATES over N pixels.
 
@@ -90,10 +104,15 @@ def li_measures(e, ok, n, lights, labels, materials, shadow=None):
     keep = ok & (n @ lights.T > 0) & (True if shadow is None else ~shadow)
     w = keep.astype(np.float64)
     e = np.where(keep, e, 0.0)
+    near = keep & (n @ unc._halves(lights).T > np.cos(np.radians(HIGHLIGHT_DEG)))
     materials = materials or []
     for label in np.unique(labels):
         p = np.flatnonzero(labels == label)
         mat = materials[label] if 0 <= label < len(materials) else None
         out["li laplace"][p], out["li crb"][p] = laplace(e[p], w[p], n[p], lights, mat)
         out["li split"][p] = split_angle(e[p], w[p], n[p], lights, mat)
+        r = _residual(n[p], e[p], w[p], lights, mat)
+        out["li highlight residual"][p] = np.sqrt((r * r * near[p]).sum(1) / np.maximum(near[p].sum(1), 1))
+    both = (keep & (unc._carrying(e, ok) > 0)).astype(np.float64)
+    out["lambertian both-kept"] = both_kept_angle(e, both, n, lights)
     return out

@@ -22,7 +22,9 @@ per case with the Spearman of the measures tried and not taken (bench._uncertain
 leave-one-light-out jackknife, the kept lights' count, conditioning and spread, residuals; and, from the
 solve's own model, bench._uncertainty_li: the LI model's Laplace covariance, its bound, two half-light solves).
 Each group ends with its mean over the cases (the bar is read on it) and the Spearman and coverage of all its
-pixels pooled.
+pixels pooled. --combination fits a combination of the measures on the renders' ranks
+(bench._uncertainty_combination) and prints its Spearman per case, DiLiGenT only scored; then, as a bound never
+used for the map, the same combination fitted on the other DiLiGenT objects (leave one out) and on each itself.
 """
 import argparse
 import time
@@ -93,19 +95,20 @@ HEAD = (f"{'case':40s} | before: rho   cov | after: rho   cov | u med° | err me
         "(rho: Spearman of the band against the error; cov: share of errors within the band, aim 0.9)")
 
 
-def candidates_line(images, light_dirs, normals, sel, err, saturation=None, model=None):
-    """The Spearman of each measure tried and not taken (bench._uncertainty_candidates), one line;
-    model: (materials, material map, shadow flags) of the solve, for the default's own measures."""
-    from facette.bench._uncertainty_candidates import candidate_spearman
-    rho = candidate_spearman(images, light_dirs, normals, sel, err, saturation, model)
-    return "    candidates (rho): " + ", ".join(f"{k} {v:+.2f}" for k, v in rho.items())
+def candidates_line(measures, err):
+    """The Spearman of each measure tried and not taken (bench._uncertainty_candidates' `candidate_measures`), one
+    line."""
+    from facette.bench._uncertainty_candidates import measure_spearman
+    return "    candidates (rho): " + ", ".join(f"{k} {v:+.2f}" for k, v in measure_spearman(measures, err).items())
 
 
 class Tally:
     """The rows of one group of cases: per-case (rho, cov) before and after, and the pooled band/errors."""
-    def __init__(self, name, candidates=False):
+    def __init__(self, name, candidates=False, combination=False):
         self.name, self.before, self.after, self.u, self.e = name, [], [], [], []
         self.candidates = candidates          # print the candidates' line (--candidates)
+        self.combination = combination       # keep each case's measures for the combination (--combination)
+        self.cases = []                       # [(name, measures, err)]
 
     def add(self, name, u, normals, err, sel, dt, data=None):
         """data: a callable giving (images, light_dirs) as the solve saw them, and optionally the solve's
@@ -117,9 +120,16 @@ class Tally:
         self.u.append(a[sel] / unc.BAND_SCALE)
         self.e.append(err)
         print(_line(name, sb, sa, dt, sel.size / 1e6, err), flush=True)
-        if self.candidates and data is not None:
+        if (self.candidates or self.combination) and data is not None:
+            from facette.bench._uncertainty_candidates import candidate_measures
+            from facette.bench._uncertainty_combination import COMBINED
             images, lights, *model = data()
-            print(candidates_line(images, lights, normals, sel, err, model=model[0] if model else None), flush=True)
+            measures = candidate_measures(images, lights, normals, sel,
+                                          model=model[0] if model and self.candidates else None)
+            if self.candidates:
+                print(candidates_line(measures, err), flush=True)
+            if self.combination:
+                self.cases.append((name, {k: measures[k] for k in COMBINED}, err))
 
     def summary(self):
         """The mean over the cases (what the bar is read on), then every pixel of the group pooled (after)."""
@@ -207,23 +217,30 @@ def main(argv=None):
     ap.add_argument("--concave-cache", default="/tmp/facette-concave", help="their cached renders")
     ap.add_argument("--candidates", action="store_true",
                     help="also print each case's Spearman of the measures tried and not taken (a jackknife, ...)")
+    ap.add_argument("--combination", action="store_true",
+                    help="fit a combination of the measures on the renders, score it on every case (DiLiGenT too)")
     args = ap.parse_args(argv)
+    flags = (args.candidates, args.combination)
     print(f"uncertainty of the normals: the 90 % band = sqrt(({unc.BAND_SCALE} u)^2 + ({unc.K_CURL} curl)^2) "
           "(recon._uncertainty); before: the local fit's band alone")
     print(HEAD)
-    rendered = [Tally("the synthetic spheres", args.candidates)]
+    rendered = [Tally("the synthetic spheres", *flags)]
     render_table(synthetic_cases(), args.method, rendered[0])
     if not args.no_mitsuba:
-        rendered.append(Tally("the Mitsuba scenes", args.candidates))
+        rendered.append(Tally("the Mitsuba scenes", *flags))
         render_table(mitsuba_cases(args.cache, args.size, args.spp), args.method, rendered[-1])
     if not args.no_concave:
-        rendered.append(Tally("the concave scenes", args.candidates))
+        rendered.append(Tally("the concave scenes", *flags))
         concave_table(args.concave_cache, args.concave_lights.split(","), args.concave_materials.split(","),
                       rendered[-1])
     u, e = np.concatenate([x for t in rendered for x in t.u]), np.concatenate([x for t in rendered for x in t.e])
     print(f"pooled over the renders: spearman {spearmanr(u, e).statistic:.2f}, coverage "
           f"{np.mean(e <= unc.BAND_SCALE * u):.2f}; the band times "
           f"{np.percentile(e / np.maximum(unc.BAND_SCALE * u, 1e-9), 90):.2f} would hold 90 % of them")
+    real = Tally("the DiLiGenT objects", *flags)
     if not args.no_real:
-        diligent_table(args.root or default_root(), Tally("the DiLiGenT objects", args.candidates))
+        diligent_table(args.root or default_root(), real)
+    if args.combination:
+        from facette.bench._uncertainty_combination_table import combination_table
+        combination_table(rendered, real)
     return 0
