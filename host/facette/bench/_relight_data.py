@@ -17,11 +17,11 @@ from PIL import Image
 from facette.calib.lp import read_lp, write_lp
 from facette.io.diligent import read_diligent
 from facette.recon import srgb_decode, srgb_encode
+from facette.recon._relight_fit import WHITE_PERCENTILE       # the linear captures' white: the model's percentile
 
 __all__ = ["Capture", "diligent_capture", "lp_capture", "harvard_capture", "make_jpeg_capture",
            "hold_every"]
 
-WHITE_PERCENTILE = 99.9
 JPEG_QUALITY = 90
 
 

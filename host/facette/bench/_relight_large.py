@@ -52,7 +52,19 @@ def _child(folder, out, method, memory="None"):
     size = os.path.getsize(Path(out) / "relight_model.npz") / 1e6
     print(f"model stage {res.timings['relight_model']:.0f} s ({res.timings['relight_model'] / mpx:.1f} s/MP, "
           f"{mpx:.1f} MP fitted), {k} planes, relight_model.npz {size:.0f} MB "
-          f"({size / mpx:.0f} B/px), mean ρ {np.mean(res.relight_model.rho):.3f}")
+          f"({size / mpx:.0f} B/px), mean ρ {_mean(res.relight_model.rho):.3f}")
+
+
+def _mean(a, rows=256):
+    """The mean of `a`, read `rows` rows at a time (a spilled model's pages handed back: not read whole
+    into this process's peak)."""
+    import numpy as np
+    from facette._memory import release
+    total = 0.0
+    for r0 in range(0, len(a), rows):
+        total += float(np.sum(a[r0:r0 + rows], dtype=np.float64))
+        release(a)
+    return total / max(a.size, 1)
 
 
 if __name__ == "__main__":

@@ -113,7 +113,8 @@ def _row(label, d, folder, variants, ratios, key):
             extra += (f"  ir scale {ir.get('reflectance_scale', np.nan):.2f} "
                       + ("removed" if ir["applied"] else "left in")
                       + "".join(f" {k} {est[k]:.2f}" for k in ESTIMATE_FIGURES if est.get(k) is not None)
-                      + f" ({ir.get('cpu_seconds', np.nan):.2f} cpu s)")
+                      + f" ({ir.get('cpu_seconds', np.nan):.2f} cpu s)"
+                      + (" model reused" if ir.get("model_reused") else ""))
         print(f"{label:34s} {v:22s} {e.mean():6.2f} {np.median(e):7.2f} {np.percentile(e, 95):6.2f} "
               f"{ratio:6.2f} {dt[0]:6.2f} {dt[1]:6.2f}{extra}", flush=True)
 
@@ -143,7 +144,12 @@ def main(argv=None):
     ap.add_argument("--controls", action="store_true",
                     help="the convex controls instead (bench._convex_controls: textured, no inter-reflections; "
                          "'auto' must leave them as they are)")
+    ap.add_argument("--model-reuse", choices=("on", "off"), default="on",
+                    help="off: li_alternating's solves after the inter-reflection decision make their own model "
+                         "choice again (pipeline._interreflections.REUSE_DECISION_MODEL), to compare")
     args = ap.parse_args(argv)
+    from facette.pipeline import _interreflections
+    _interreflections.REUSE_DECISION_MODEL = args.model_reuse == "on"
     variants = [v.strip() for v in args.variants.split(",")]
     print(f"Mitsuba 3 path-traced concave scenes, {SIZE}x{SIZE} px, {SPP} spp, max_depth 4, through "
           f"`facette process` on 16-bit DiLiGenT-style folders (cached in {args.cache}); error on the frame "

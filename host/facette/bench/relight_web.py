@@ -6,7 +6,13 @@ The capture is made here: a matte sphere on a textured plane, 4000 x 3000 pixels
 deep-zoom pyramids), and `facette relight OUT/relight_web` at one light (the reader holds one byte
 per coefficient and relights by bands).
 
-Usage: facette bench relight_web [--size H W] [--lights M] [--out DIR]
+`--outputs rti,ptm` (any relighting outputs) times those instead; `--read whole` reads the capture whole (the
+run is told the machine has WHOLE_FREE bytes free, as a machine with that much memory would decide),
+`--read bands` over bands of BANDS_MEMORY (`--memory`), `--read auto` (default) as this machine decides;
+`--capture DIR` reuses a capture this bench made (kept with `--out`).
+
+Usage: facette bench relight_web [--size H W] [--lights M] [--out DIR] [--outputs LIST] [--read auto|whole|bands]
+                                 [--capture DIR]
 """
 import argparse
 import json
@@ -19,6 +25,13 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+WHOLE_FREE = 64 * 10 ** 9      # `--read whole`: the free memory the run is told of (its budget then holds 12 MP whole)
+BANDS_MEMORY = "4GB"           # `--read bands`: the budget (the default budget's largest bands, BANDS_MAX_BYTES)
+# `--read whole`: facette's command with the default budget's reading of the free memory replaced
+WHOLE_CHILD = ("import sys; from facette.pipeline import _budget; free = int(sys.argv.pop(1)); "
+               "_budget.free_memory = lambda: free; "
+               "from facette.cli.main import main; sys.exit(main())")
 
 
 def _capture(folder, h, w, m):
@@ -47,13 +60,14 @@ def _capture(folder, h, w, m):
     write_lp(folder / "capture.lp", names, dirs)
 
 
-def _timed(argv):
-    """(wall s, CPU s, peak RSS GB) of `python -m facette.cli.main argv` in a process of its own."""
+def _timed(argv, free=None):
+    """(wall s, CPU s, peak RSS GB) of `python -m facette.cli.main argv` in a process of its own
+    (free: the free memory its default budget is told of, bytes; None: the machine's)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
+    cmd = [sys.executable, "-m", "facette.cli.main"] if free is None else [sys.executable, "-c", WHOLE_CHILD, str(free)]
     # wait4 gives this child's own peak RSS (RUSAGE_CHILDREN's is the largest child's so far)
-    proc = subprocess.Popen([sys.executable, "-m", "facette.cli.main", *map(str, argv)],
-                            stdout=subprocess.DEVNULL)
+    proc = subprocess.Popen(cmd + [*map(str, argv)], stdout=subprocess.DEVNULL)
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     proc.returncode = os.waitstatus_to_exitcode(status)       # reaped here, not by Popen
@@ -69,29 +83,52 @@ def main(argv=None):
     p.add_argument("--size", nargs=2, type=int, default=(3000, 4000), metavar=("H", "W"))
     p.add_argument("--lights", type=int, default=16)
     p.add_argument("--out", help="keep the files here (default: a temporary folder)")
+    p.add_argument("--outputs", default="relight-web", help="process's --outputs (default relight-web)")
+    p.add_argument("--read", choices=("auto", "whole", "bands"), default="auto",
+                   help="whole: as a machine with 64 GB free; bands: --memory 4GB; auto: as this machine decides")
+    p.add_argument("--capture", help="a capture this bench made before (its size and lights are the capture's)")
     a = p.parse_args(argv)
     h, w = a.size
     mp = h * w / 1e6
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(a.out) if a.out else Path(tmp)
-        t0 = time.perf_counter()
-        # made in a process of its own: a child's peak memory starts from its parent's at the fork (Linux
-        # keeps the high-water mark across exec), so this process stays small
-        subprocess.run([sys.executable, "-c", "import sys; from pathlib import Path; from facette.bench.relight_web "
-                        "import _capture; _capture(Path(sys.argv[1]), *map(int, sys.argv[2:]))",
-                        str(base / "capture"), str(h), str(w), str(a.lights)], check=True)
-        print(f"capture: {w}x{h} ({mp:.1f} MP), {a.lights} JPEG photographs, made in {time.perf_counter() - t0:.0f} s")
+        capture = Path(a.capture) if a.capture else _made(base / "capture", h, w, a.lights)
+        if a.capture:
+            h, w = _size_of(capture)
+            mp = h * w / 1e6
         out = base / "out"
-        wall, cpu, peak = _timed(["process", base / "capture", "-o", out, "--outputs", "relight-web", "--overwrite"])
-        files = [f for f in (out / "relight_web").rglob("*") if f.is_file()]
+        how = {"auto": [], "whole": [], "bands": ["--memory", BANDS_MEMORY]}[a.read]
+        wall, cpu, peak = _timed(["process", capture, "-o", out, "--outputs", a.outputs, "--overwrite", *how],
+                                 WHOLE_FREE if a.read == "whole" else None)
+        files = [f for f in out.rglob("*") if f.is_file() and f.name != "process.json"]
         size = sum(f.stat().st_size for f in files) / 1e6
-        print(f"process --outputs relight-web: {wall:.1f} s wall ({wall / mp:.2f} s/MP), {cpu:.1f} CPU s "
+        print(f"process --outputs {a.outputs} (read {a.read}): {wall:.1f} s wall ({wall / mp:.2f} s/MP), {cpu:.1f} CPU s "
               f"({cpu / mp:.2f} CPU s/MP), peak {peak:.2f} GB; {len(files)} files, {size:.1f} MB ({size / mp:.2f} MB/MP)")
+        if not (out / "relight_web").is_dir():
+            return 0
         wall, cpu, peak = _timed(["relight", out / "relight_web", "--light", "45,30", "-o", base / "lit.png",
                                   "--overwrite"])
         layout = json.loads((out / "relight_web" / "info.json").read_text())["layout"]
         print(f"relight OUT/relight_web ({layout}, one light): {wall:.1f} s wall, {cpu:.1f} CPU s, peak {peak:.2f} GB")
     return 0
+
+
+def _made(folder, h, w, m):
+    """The capture made in a process of its own: a child's peak memory starts from its parent's at the
+    fork (Linux keeps the high-water mark across exec), so this process stays small."""
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", "import sys; from pathlib import Path; from facette.bench.relight_web "
+                    "import _capture; _capture(Path(sys.argv[1]), *map(int, sys.argv[2:]))",
+                    str(folder), str(h), str(w), str(m)], check=True)
+    print(f"capture: {w}x{h} ({h * w / 1e6:.1f} MP), {m} JPEG photographs, made in {time.perf_counter() - t0:.0f} s")
+    return folder
+
+
+def _size_of(capture):
+    """(H, W) of a capture's first photograph (its header only)."""
+    from PIL import Image
+    with Image.open(sorted(Path(capture).glob("*.jpg"))[0]) as im:
+        return im.height, im.width
 
 
 if __name__ == "__main__":

@@ -94,6 +94,7 @@ from ._li_model import DIFFUSE, LI_VOLUME_MODEL, diffuse_name, fit_li_per_pixel_
 from ._ps_li_bands import MODEL_OPTIONS, li_model, lowered, whole_reader
 from ._ps_li_coarse import bin_inputs, coarse_factor, material_from_coarse
 from ._ps_li_pixels import Pixels, Settings, angle_deg
+from ._ps_li_start import choice_from_start
 
 __all__ = ["ps_li_alternating"]
 
@@ -158,8 +159,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                       init=ps_rank_trimmed, rounds=4, tol_deg=0.1, fit_pixels=1000,
                       t_residual=T_RESIDUAL, iterations=24, materials=1, min_region_fraction=0.05,
                       seed=0, init_options=None, coarse_pixels=COARSE_PIXELS, fine_iterations=2,
-                      engine="auto", volume_model=LI_VOLUME_MODEL, highlight_start="all",
-                      diffuse="auto", dark_offset="auto", neighbour_deg=NEIGHBOUR_START_DEG, model=None, row0=0):
+                      engine="auto", volume_model=LI_VOLUME_MODEL, highlight_start="all", diffuse="auto",
+                      dark_offset="auto", neighbour_deg=NEIGHBOUR_START_DEG, model=None, row0=0, start_model=None):
     """BRDF-aware photometric stereo with the LI model (module doc).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m ≥ 4.
@@ -215,6 +216,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     neighbour_deg : step 5 (module doc): a second start from the neighbours' mean this far off; 0: none.
     model, row0 : a band of a larger image from its row row0, solved with the `li_model` fitted over
         its bands (`_ps_li_bands`); None: fitted here (above coarse_pixels: the image as one band).
+    start_model : an earlier solve's model choice (`_ps_li_start`), round 1's own (one material); None: chosen here.
     Returns a `PSResult` (method "li_alternating"): albedo is K_d (a reflectance, per channel); info
     holds "rounds" (per round: σ, n_i, pixels fitted and re-estimated, median change, seconds),
     "materials" (per region: σ, n_i, pixels, whether the BRDF step ran, neighbour starts, shadows
@@ -248,10 +250,9 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     labels, info["regions_found_by"] = (np.zeros(px.idx.size, np.int64), "one material") if model else \
         _regions(px.alb, px.idx.size, materials, min_region_fraction, seed)
     t_reg = time.perf_counter()
-    mats = [_fit_material(px, np.flatnonzero(labels == region), region, model, rounds, tol_deg, info["rounds"], row0)
-            for region in range(int(labels.max()) + 1)]
-    t_brdf = time.perf_counter() - t_reg
-    _finish(res, px, mats, labels, t_init, t_brdf)
+    mats = [_fit_material(px, np.flatnonzero(labels == region), region, model, rounds, tol_deg, info["rounds"], row0,
+                          start_model if labels.max() == 0 else None) for region in range(int(labels.max()) + 1)]
+    _finish(res, px, mats, labels, t_init, time.perf_counter() - t_reg)
     info["seconds"] = time.perf_counter() - t_start
     return res
 
@@ -326,7 +327,7 @@ def _trusted(px, pix):
     return trust
 
 
-def _fit_material(px, pix, region, model, rounds, tol_deg, rounds_log, row0=0):
+def _fit_material(px, pix, region, model, rounds, tol_deg, rounds_log, row0=0, start_model=None):
     """One material (the pixels `pix` of one region): its rounds, or with the `model` of a coarse
     pass (`li_model`) its full-size step on the band from row `row0`; then K_d of the pixels that kept their Lambertian solution. Returns its entry
     of info["materials"]."""
@@ -337,7 +338,7 @@ def _fit_material(px, pix, region, model, rounds, tol_deg, rounds_log, row0=0):
         x0 = material_from_coarse(px, model, pix, mat, rounds_log, row0)
     else:
         trust = _trusted(px, pix)
-        x0 = _rounds(px, pix, trust, region, mat, int(rounds), tol_deg, rounds_log)
+        x0 = _rounds(px, pix, trust, region, mat, int(rounds), tol_deg, rounds_log, start_model)
     # not after a coarse pass: its alternation had its own neighbour starts, and the full-size
     # round's few steps from its upsampled normals are the solve there (converged from the
     # neighbours' mean on the simulated 12 MP scan's dark table: heights 0.180 -> 0.204 pitches)
@@ -366,7 +367,7 @@ def _fit_material(px, pix, region, model, rounds, tol_deg, rounds_log, row0=0):
     return mat
 
 
-def _rounds(px, pix, trust, region, mat, rounds, tol_deg, rounds_log):
+def _rounds(px, pix, trust, region, mat, rounds, tol_deg, rounds_log, start_model=None):
     """Steps 2–4 of the module doc for one material: round 1 chooses the model and fits it, each
     round re-estimates the pixels that need it, later rounds refit on a draw of round 2's
     better-explained half.
@@ -380,7 +381,8 @@ def _rounds(px, pix, trust, region, mat, rounds, tol_deg, rounds_log):
         later = fsel if rnd == 2 else later
         warm, choice = 0, None
         if rnd == 1:           # the model choice gathers its own (profile) pixels' values
-            fit, warm, choice = px.choose_model(fsel, pix)
+            fit, warm, choice = px.choose_model(fsel, pix) if start_model is None else \
+                choice_from_start(px, fsel, pix, start_model)
             px.vm = fit["volume_model"]
         else:
             fit = fit_li_per_pixel_kd(px.gather(fsel), px.lights_of(fsel), px.nrm[fsel], px.all_ok[fsel], x0=x0,

@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from facette.errors import NotAReflectance
-from facette.fit import glossy_lobes_text, ps_li_alternating, ps_li_without_interreflections
+from facette.fit import glossy_lobes_text, ps_li_alternating, ps_li_without_interreflections, start_model_of
 from facette.methods import options_for
 from facette.pipeline._options import IR_AUTO
 from facette.pipeline._shadows import binned as _binned
@@ -45,6 +45,15 @@ DECIDE_SIDE = 2 * IR_GRID
 # decide_lobe_free's li run on relative images: brought to this 99th percentile of the albedo (a
 # reflectance's range, where li's K_d is not held at its bound of 1)
 REFLECTANCE_P99 = 0.8
+# the later li_alternating solves start from the decision's model choice (`reuse_model`) instead of
+# making their own, where the decision's li solved the same pixels (images within DECIDE_SIDE: only
+# brought to a reflectance's range). Mitsuba concave renders (128 px, 12 rig lights): process CPU s
+# 13.5-16.5 -> 9.2-13.9 with paint, 5.3-7.1 -> 3.5-5.5 in plaster, the issue's 8 at the same ratio to least
+# squares. On binned images it is not reused: binning smears the lobe, and the DiLiGenT crops (96
+# lights, decided at bins 2-4) went 6.25 -> 6.33 deg (cat +0.25, pot2 +0.36) for 1-3 CPU s of 20-30.
+# Nor where nothing is removed: the normals stay those of --no-interreflections and of a run over
+# bands (reused there, a satin sphere's error without its lights' gains corrected moved 0.57 -> 0.47 deg)
+REUSE_DECISION_MODEL = True
 
 
 def _decide_bin(mask):
@@ -58,7 +67,8 @@ def decide_lobe_free(images, light_dirs, mask, bag, saturation):
     with the gathered share (a lobe whose share grows toward a sphere's rim makes a Lambertian albedo
     grow there too: recon's DIFFUSE_CORRELATION). li runs on the binned images brought to a
     reflectance's range (REFLECTANCE_P99: relative images brighter than a reflectance hold K_d at its
-    bound of 1, which tells nothing); the method then runs on the images as before."""
+    bound of 1, which tells nothing); the method then runs on the images as before.
+    Returns (the estimate, li's model choice for the later solves or None: `fit.start_model_of`)."""
     small = _binned(images, light_dirs, mask, _decide_bin(mask))
     channel = bag.get("channel")
     first = ps_rank_trimmed(*small[:2], mask=small[2], saturation=saturation,
@@ -66,7 +76,7 @@ def decide_lobe_free(images, light_dirs, mask, bag, saturation):
     args = (*small[:2], first.normal, first.albedo, first.valid & small[2], saturation, channel)
     _, estimate = estimate_reflectance_scale(*args)
     if estimate["growth_kept"] is None:         # nothing gathered (a convex object): no lobe to model
-        return estimate
+        return estimate, None
     albedo = first.albedo[first.valid]
     k = np.float32(REFLECTANCE_P99 / max(float(np.percentile(albedo, 99)) if albedo.size else 1.0, 1e-12))
     options = options_for("li_alternating", bag) | {"mask": small[2]}
@@ -74,7 +84,7 @@ def decide_lobe_free(images, light_dirs, mask, bag, saturation):
         options["saturation"] = options["saturation"] * k
     lobe = ps_li_alternating(small[0] * k, small[1], **options)
     _, estimate = estimate_reflectance_scale(*args, diffuse=np.where(lobe.valid[..., None], lobe.albedo, np.nan))
-    return estimate
+    return estimate, start_model_of(lobe) if _decide_bin(mask) == 1 else None      # REUSE_DECISION_MODEL
 
 
 def interreflections_wanted(o, inp, notes):
@@ -105,14 +115,23 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
     if hasattr(mask, "reflectance"):       # "auto": only a scale the data identify (AUTO_SCALE)
         reflectance_scale = 1.0 if mask.reflectance else "auto" if o.interreflections is True else AUTO_SCALE
         mask = mask.mask
+    out = _solve(res, o, solve_in, light_dirs, mask, method_name, bag, reflectance_scale)
+    if res.interreflections is not None:      # the later solves start from the decision's model (reuse_model)
+        res.interreflections["model_reused"] = "start_model" in bag
+    return out
+
+
+def _solve(res, o, solve_in, light_dirs, mask, method_name, bag, reflectance_scale):
+    """solve_without_interreflections' work, on the mask (H, W) and a scale (a number, "auto" or AUTO_SCALE)."""
     t0, c0 = time.perf_counter(), time.process_time()
     found = None
     if reflectance_scale == AUTO_SCALE:     # decided before any removal (decide_lobe_free)
-        estimate = decide_lobe_free(solve_in, light_dirs, mask, bag, o.saturation)
-        if not estimate["identified"]:      # the images as they are
+        estimate, start = decide_lobe_free(solve_in, light_dirs, mask, bag, o.saturation)
+        if not estimate["identified"]:      # the images as they are (the normals --no-interreflections' too)
             info = unidentified_info(estimate["scale"], estimate) | {"cpu_seconds": round(time.process_time() - c0, 3)}
             note_interreflections(res, info, time.perf_counter() - t0)
             return solve_in, None
+        reuse_model(bag, start)
         reflectance_scale, found = estimate["scale"], estimate     # identified: that scale (its lobe modelled)
     try:
         if method_name == "li_alternating":
@@ -136,6 +155,15 @@ def solve_without_interreflections(res, o, solve_in, light_dirs, mask, method_na
     if not info["applied"]:
         return solve_in, (first if method_name == "rank_trimmed" else None)
     return direct, None
+
+
+def reuse_model(bag, start):
+    """The decision's li_alternating model choice (`decide_lobe_free`), where it identified light to
+    remove, into `bag`, the options of every later solve of this run (the removal's, the shadow step's,
+    the method's): li_alternating
+    then starts from it instead of choosing again (its rounds still refit (σ, n_i) at full size)."""
+    if start is not None and REUSE_DECISION_MODEL:
+        bag["start_model"] = start
 
 
 def _why_not_identified(est):

@@ -6,7 +6,7 @@ shadows), by `recon.fit_relight_bands`: read a band of rows at a time, from the 
 or, with --memory (or a default budget the whole capture does not fit), from `ImagesSpill`: the
 photographs as the band reader gave them, written to a temporary file during the PTM/HSH pass
 (the heights the cast shadows need come after the reader is closed). Its white (display 1) is
-the 99.9th percentile of the object's brightest channel over the lights (`recon.WHITE_PERCENTILE`):
+the 99.9th percentile of the object's brightest channel over the lights (`recon._relight_fit.WHITE_PERCENTILE`):
 the photographs' own scale, highlights above it clip as in a photograph.
 
 Its cost grows with pixels x lights, so the full model is fitted only when relight_model.npz is
@@ -23,12 +23,12 @@ from facette._memory import disk_array, release
 from facette.pipeline._viewer import MAX_SIDE
 from facette.pipeline._viewer_model import VIEWER_PLANES
 from facette.recon import fit_relight_bands, save_relight_model
-from facette.recon._relight_fit import WHITE_PERCENTILE
 
-__all__ = ["relight_model_stage", "save_relight_model", "WHITE_PERCENTILE", "ImagesSpill", "MODEL_BAND_BYTES",
+__all__ = ["relight_model_stage", "save_relight_model", "ImagesSpill", "MODEL_BAND_BYTES",
            "MODEL_SIDE", "report_step", "model_input"]
 
 MODEL_BAND_BYTES = 256 * 2 ** 20     # the photographs of one band of the model's fit read from a spill, at most
+FIT_ROWS_PIXELS = 1 << 22            # pixels of the normals looked at a time (`_fitted_pixels`)
 # the report's model, pixels along its longest side at most (a whole multiple of the viewer's step):
 # at 2144 x 1424, 536 x 356 against the viewer's 1072 x 712
 MODEL_SIDE = 550
@@ -92,6 +92,34 @@ def _reader(images, st):
     return read, rows
 
 
+def _every(a, st):
+    """a[::st, ::st], or `a` itself (a disk array stays one) at st 1."""
+    return a if st == 1 else a[::st, ::st]
+
+
+def _fitted_pixels(res, pixel_pitch_mm, st, spill):
+    """(the pixels the model is fitted on: the object's with a unit normal, (H', W') bool; their heights in
+    the model's pixels, NaN elsewhere, or None) at every st-th pixel, made FIT_ROWS_PIXELS at a time (the
+    normals may be a disk array, its pages handed back after each band); the heights in a disk array with
+    `spill`."""
+    mask = _every(np.asarray(res.object_mask if res.object_mask is not None else res.mask, bool), st)
+    normals, height = _every(res.normals, st), None if res.height is None else _every(res.height, st)
+    h, w = mask.shape
+    fitted = np.empty((h, w), bool)
+    heights = None if height is None else disk_array((h, w), np.float32) if spill else np.empty((h, w), np.float32)
+    rows = max(1, FIT_ROWS_PIXELS // max(w, 1))
+    for r0 in range(0, h, rows):
+        n = np.asarray(normals[r0:r0 + rows])
+        ok = mask[r0:r0 + rows] & np.all(np.isfinite(n), axis=-1) & (np.linalg.norm(n, axis=-1) > 0.5)
+        fitted[r0:r0 + rows] = ok
+        if heights is not None:
+            hb = np.where(ok, height[r0:r0 + rows] / float(pixel_pitch_mm), np.nan)
+            heights[r0:r0 + rows] = hb if st == 1 else hb / np.float32(st)
+            release(heights)
+        release(normals)
+    return fitted, heights
+
+
 def relight_model_stage(res, images, light_dirs, pixel_pitch_mm=1.0, write=None, every_pixel=True):
     """res.relight_model fitted (and res.timings["relight_model"]), then write("relight") (process's
     writer of relight_model.npz; run after the heights: the cast shadows need them); returns the notes. images
@@ -105,16 +133,13 @@ def relight_model_stage(res, images, light_dirs, pixel_pitch_mm=1.0, write=None,
     if light_dirs is None or np.ndim(light_dirs) != 2:
         return ["relighting model: not fitted for near lights (it takes one direction per light)"]
     t0 = time.perf_counter()
-    mask = np.asarray(res.object_mask if res.object_mask is not None else res.mask, bool)
-    normals = np.asarray(res.normals)
-    mask = mask & np.all(np.isfinite(normals), axis=-1) & (np.linalg.norm(normals, axis=-1) > 0.5)
-    heights = None if res.height is None else np.where(mask, res.height / float(pixel_pitch_mm), np.nan)
-    st = 1 if every_pixel else report_step(mask.shape)
-    cut = (slice(None, None, st), slice(None, None, st))
+    st = 1 if every_pixel else report_step(res.mask.shape)
+    spill = every_pixel and isinstance(images, ImagesSpill)      # over bands: the model's maps on disk too
+    mask, heights = _fitted_pixels(res, pixel_pitch_mm, st, spill)
     read, rows = _reader(images, st)
-    res.relight_model = fit_relight_bands(read, light_dirs, mask[cut], normals[cut],
-                                          heights=None if heights is None else heights[cut] / np.float32(st),
-                                          white=None, n_planes=None if every_pixel else VIEWER_PLANES, rows=rows)
+    res.relight_model = fit_relight_bands(read, light_dirs, mask, _every(res.normals, st), heights=heights,
+                                          white=None, n_planes=None if every_pixel else VIEWER_PLANES, rows=rows,
+                                          spill=spill)
     res.timings["relight_model"] = time.perf_counter() - t0
     if write is not None:
         write("relight")

@@ -6,6 +6,7 @@ from facette.capture import object_of
 from facette.pipeline._band_uncertainty import banded_uncertainty
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted
+from facette.pipeline._relight_only import relight_only, relight_only_bands
 from facette.pipeline._rti_bands import BANDED_OUTPUTS, relight_bands
 from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, streamed_ps
 
@@ -16,6 +17,8 @@ def banded_process(source, o, res, outputs, stages, claim):
     """(inp, light directions as the stages after photometric stereo take them, the claim's previous
     record, the relighting fits made over bands or None): fills res (ps, normals, albedo, masks,
     uncertainty, notes, timings). claim(inp): the results folder's, before any work."""
+    if relight_only(stages):      # no output needs the normals: no photometric stereo (pipeline._relight_only)
+        return relight_only_bands(source, o, res, outputs, claim)
     claimed, banded = {}, []
 
     def after_bands(inp, ps, top, read, rows):     # the reader still open: what needs the images again

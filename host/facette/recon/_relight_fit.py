@@ -16,11 +16,16 @@ display values of the same shape or None)), in three passes:
 
 Each pixel's maps depend on that pixel's values alone and the gram is a sum over pixels: any
 band height gives the whole fit's model (within float32 rounding of the sums). Held at the
-image's size: the normals, the three maps, the planes (float16) and the cast shadows' visibility
-(per light, uint8, on `cast_shadow`'s grid of at most 1 MP).
+image's size: the mask, the normals, the three maps, the planes (float16) and the cast shadows'
+visibility (per light, uint8, on `cast_shadow`'s grid of at most 1 MP); with `spill`, the normals,
+maps and planes are in temporary files (`_memory.disk_array`, 12 + 36 + 6 x planes bytes a pixel),
+written a band at a time and their pages handed back after each band: the mask (1 byte a pixel)
+stays in memory.
 """
 import numpy as np
 from threadpoolctl import threadpool_limits
+
+from facette._memory import disk_array, release
 
 from ._relight_model import (BLOCK_VALUES, SATURATED, SHADOW_SOFTNESS, SHININESS, RelightModel, _fit_block,
                              _kernel, _kernel_choice, _predict, cast_shadow, default_planes, physical_basis)
@@ -32,6 +37,9 @@ SAMPLE = 20_000             # the object's pixels the exponent and the shadows a
 WHITE_SAMPLE = 200_000      # the object's pixels the white is taken from
 EXPONENT_ONCE = True        # shadows "auto": judged with the exponent of the fit without them (chosen again if kept)
 WHITE_PERCENTILE = 99.9     # the white: this percentile of the sample's brightest channel over the lights
+
+
+CLEAN_PIXELS = 1 << 22      # pixels of the normals cleaned at a time (`_cleaned`)
 
 
 def fit_relight_model(images, light_dirs, mask, normals, heights=None, n_planes=None, shown=None, white=1.0,
@@ -74,16 +82,33 @@ class _Shadows:
         return self.vis[:, np.asarray(rows) // self.st, np.asarray(cols) // self.st]
 
 
-class _Fit:
-    """What the passes share: the lights, the normals, the mask, the bands, the terms."""
+def _cleaned(normals, mask, spill=False):
+    """(mask (H, W) bool where the normal is finite too, normals (H, W, 3) float32, 0 outside it), made
+    CLEAN_PIXELS at a time (normals may be a disk array: its pages handed back after each band); the
+    normals in a disk array with `spill`."""
+    mask = np.asarray(mask, bool)
+    h, w = mask.shape
+    ok = np.empty((h, w), bool)
+    n = disk_array((h, w, 3), np.float32) if spill else np.empty((h, w, 3), np.float32)
+    rows = max(1, CLEAN_PIXELS // max(w, 1))
+    for r0 in range(0, h, rows):
+        band = np.asarray(normals[r0:r0 + rows], np.float32)
+        good = mask[r0:r0 + rows] & np.all(np.isfinite(band), axis=-1)
+        ok[r0:r0 + rows] = good
+        n[r0:r0 + rows] = np.where(good[..., None], np.nan_to_num(band), np.float32(0))
+        release(normals), release(n)
+    return ok, n
 
-    def __init__(self, read, light_dirs, mask, normals, rows):
+
+class _Fit:
+    """What the passes share: the lights, the normals, the mask, the bands, the terms; spill: the
+    image-sized arrays in temporary files (see the module's docstring)."""
+
+    def __init__(self, read, light_dirs, mask, normals, rows, spill=False):
         dirs = np.asarray(light_dirs, float)
         self.dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
-        self.read, self.m = read, len(self.dirs)
-        self.mask = np.asarray(mask, bool) & np.all(np.isfinite(normals), axis=-1)
-        n = np.asarray(normals, np.float32)
-        self.n = np.where(self.mask[..., None], np.nan_to_num(n), np.float32(0))
+        self.read, self.m, self.spill = read, len(self.dirs), spill
+        self.mask, self.n = _cleaned(normals, mask, spill)
         h = self.mask.shape[0]
         rows = h if rows is None else max(1, int(rows))
         self.spans = [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
@@ -105,6 +130,10 @@ class _Fit:
     def blocks(self, n):
         step = max(4096, BLOCK_VALUES // max(self.m, 1))
         return [slice(a, min(a + step, n)) for a in range(0, n, step)]
+
+    def zeros(self, shape, dtype):
+        """An image-sized array of zeros: in a temporary file with `spill`."""
+        return disk_array(shape, dtype) if self.spill else np.zeros(shape, dtype)
 
 
 def _sample(fit, picks, white_picks):
@@ -172,15 +201,16 @@ def _spacing(dirs):
 
 
 def fit_relight_bands(read, light_dirs, mask, normals, heights=None, n_planes=None, white=1.0, shadows="auto",
-                      rows=None):
+                      rows=None, spill=False):
     """The relighting model (`RelightModel`) fitted from a band reader (see the module's docstring).
 
     read(r0, r1) -> (linear (m, r1 - r0, W, 3), display values or None), linear scaled so that
     `white` is the display's white (None: chosen, WHITE_PERCENTILE); light_dirs (m, 3); mask,
     normals, heights (H, W[, 3]) whole (heights in pixels, or None: no cast shadows); rows: the
     band height (None: one band); shadows "auto" (with heights: kept where the sample says they
-    predict the fitted lights left out better), True: kept, False: none."""
-    fit = _Fit(read, light_dirs, mask, normals, rows)
+    predict the fitted lights left out better), True: kept, False: none. spill: the model's normals,
+    maps and planes in temporary files (numpy memmaps: the model holds them; gone with it)."""
+    fit = _Fit(read, light_dirs, mask, normals, rows, spill)
     m = fit.m
     planes = 0 if m < 3 else min(default_planes(m, fit.total), m if n_planes is None else int(n_planes))
     if fit.total == 0:
@@ -213,7 +243,7 @@ def fit_relight_bands(read, light_dirs, mask, normals, heights=None, n_planes=No
 def _fit_passes(fit, k, shadow, white, heights, n_planes, notes):
     """Passes 1 and 2: the maps and the residual's gram, then the planes."""
     m, mask = fit.m, fit.mask
-    maps = np.zeros((3,) + mask.shape + (3,), np.float32)
+    maps = fit.zeros((3,) + mask.shape + (3,), np.float32)
 
     def band_blocks(r0, r1):     # (rows, cols, linear, display, basis) of each block of a band
         lin, shown = fit.read(r0, r1)
@@ -236,6 +266,7 @@ def _fit_passes(fit, k, shadow, white, heights, n_planes, notes):
             if n_planes > 0:
                 rows = residual(rr, cc, s, basis)
                 gram += rows.T @ rows
+        release(maps), release(fit.n)          # spilled: the band's pages handed back
     model = RelightModel(fit.n, mask, maps[0], maps[1], maps[2], float(k),
                          None if heights is None else np.asarray(heights, np.float32), white=float(white),
                          notes=notes)
@@ -254,10 +285,11 @@ def _fit_passes(fit, k, shadow, white, heights, n_planes, notes):
         return model
     eps, mix, ridge = choice
     # float16: 5e-4 of white where 8-bit display steps are 4e-3 (half the memory at 12 MP)
-    model.planes = np.zeros(mask.shape + (3, funcs.shape[1]), np.float16)
+    model.planes = fit.zeros(mask.shape + (3, funcs.shape[1]), np.float16)
     for r0, r1 in fit.spans:
         for rr, cc, _, s, basis in band_blocks(r0, r1):
             model.planes[rr, cc] = (residual(rr, cc, s, basis) @ funcs).reshape(-1, 3, funcs.shape[1])
+        release(model.planes), release(maps), release(fit.n)
     weights = np.linalg.solve(_kernel(fit.dirs, fit.dirs, eps, mix) + ridge * np.eye(m), funcs)      # (m, K)
     model.centres, model.weights, model.epsilon = fit.dirs[:, :2], weights, eps
     model.trend = mix * (hsh_basis(fit.dirs, 2).T @ weights) if mix else None                   # (4, K)

@@ -26,10 +26,12 @@ phys alone is shown).
 
     display(p, l) = clip(srgb(phys(p, l)) + Σ_j C_j(p) e_j(l), 0, 1)
 """
+import zipfile
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from facette._memory import release
 from facette.errors import BadInputError
 from facette.io.atomic import atomic_path
 
@@ -343,14 +345,36 @@ def default_planes(m, n_pixels=0):
 _ARRAYS = ("normals", "mask", "rho", "spec", "amb", "heights", "planes", "centres", "weights", "trend")
 
 
+WRITE_BYTES = 1 << 26        # an array's bytes written at a time (`_write_npz`)
+
+
 def save_relight_model(path, model):
-    """Write a `RelightModel` to an .npz (uncompressed, written whole or not at all)."""
+    """Write a `RelightModel` to an .npz (uncompressed, written whole or not at all; its arrays a band
+    of rows at a time: a spilled model's pages handed back after each, `_write_npz`)."""
     arrays = {k: getattr(model, k) for k in _ARRAYS if getattr(model, k) is not None}
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, format=np.array("facette relight model 1"), shininess=model.shininess,
-                 epsilon=model.epsilon, white=model.white, softness=model.softness, spacing=model.spacing,
-                 reach=model.reach,
-                 **arrays)
+        _write_npz(fh, dict(format=np.array("facette relight model 1"), shininess=model.shininess,
+                            epsilon=model.epsilon, white=model.white, softness=model.softness,
+                            spacing=model.spacing, reach=model.reach, **arrays))
+
+
+def _write_npz(fh, arrays):
+    """np.savez's file (a stored zip of .npy members, zip64), each array written WRITE_BYTES at a time
+    along its first axis, a disk array's pages handed back after each (`_memory.release`): np.savez
+    reads a memmap whole into the process's memory (100 MP: the model's 8 GB)."""
+    with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
+        for name, value in arrays.items():
+            a = np.asanyarray(value)
+            with zf.open(name + ".npy", "w", force_zip64=True) as out:
+                if a.ndim == 0 or a.dtype.hasobject:
+                    np.lib.format.write_array(out, a, allow_pickle=False)
+                    continue
+                header = dict(np.lib.format.header_data_from_array_1_0(a), fortran_order=False)   # rows in C order
+                np.lib.format.write_array_header_1_0(out, header)
+                rows = max(1, WRITE_BYTES // max(1, a[:1].nbytes))
+                for r0 in range(0, len(a), rows):
+                    out.write(np.ascontiguousarray(a[r0:r0 + rows]).tobytes())
+                    release(a)
 
 
 def load_relight_model(path):

@@ -10,6 +10,21 @@ __all__ = ["ptm_colour_block", "srgb_lum_block", "srgb_scale_inplace", "srgb_tab
            "display_inplace", "display_colour_lum_block"]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _chroma(t0, t1, t2, rgb, peak, p):
+    """The LRGB colour of a pixel's summed samples (t0, t1, t2): scaled to max channel 1, a negative
+    sum taken as 0, all 0 when that maximum is not > 0; stored in rgb[p], the maximum in peak[p].
+    Returns (c0, c1, c2, |c|² at least 1e-300: the projection's denominator)."""
+    pk = max(max(t0, t1), t2)
+    if pk > 0:
+        c0, c1, c2 = max(t0, 0.0) / pk, max(t1, 0.0) / pk, max(t2, 0.0) / pk
+    else:
+        c0 = c1 = c2 = 0.0
+    rgb[p, 0], rgb[p, 1], rgb[p, 2] = c0, c1, c2
+    peak[p] = pk
+    return c0, c1, c2, max(c0 * c0 + c1 * c1 + c2 * c2, 1e-300)
+
+
 @njit(cache=True, nogil=True)
 def ptm_colour_block(e, rgb, peak, lum, start):
     """For the pixels start .. start + e.shape[1] (e : (m, n, 3) values, NaN = unknown): rgb
@@ -26,15 +41,8 @@ def ptm_colour_block(e, rgb, peak, lum, start):
                 t0 += a
                 t1 += b
                 t2 += c
-        pk = max(max(t0, t1), t2)
-        if pk > 0:
-            c0, c1, c2 = max(t0, 0.0) / pk, max(t1, 0.0) / pk, max(t2, 0.0) / pk
-        else:
-            c0 = c1 = c2 = 0.0
-        c_sq = max(c0 * c0 + c1 * c1 + c2 * c2, 1e-300)
         p = start + j
-        rgb[p, 0], rgb[p, 1], rgb[p, 2] = c0, c1, c2
-        peak[p] = pk
+        c0, c1, c2, c_sq = _chroma(t0, t1, t2, rgb, peak, p)
         for li in range(m):
             a, b, c = e[li, j, 0], e[li, j, 1], e[li, j, 2]
             if math.isfinite(a) and math.isfinite(b) and math.isfinite(c):
@@ -129,14 +137,7 @@ def display_colour_lum_block(e, rgb, peak, lum, start, scale, lut):
             t0 += d[li, 0]
             t1 += d[li, 1]
             t2 += d[li, 2]
-        pk = max(max(t0, t1), t2)
-        if pk > 0:
-            c0, c1, c2 = t0 / pk, t1 / pk, t2 / pk
-        else:
-            c0 = c1 = c2 = 0.0
-        c_sq = max(c0 * c0 + c1 * c1 + c2 * c2, 1e-300)
         p = start + j
-        rgb[p, 0], rgb[p, 1], rgb[p, 2] = c0, c1, c2
-        peak[p] = pk
+        c0, c1, c2, c_sq = _chroma(t0, t1, t2, rgb, peak, p)      # displayed sums are >= 0: as they are
         for li in range(m):
             lum[li, p] = (d[li, 0] * c0 + d[li, 1] * c1 + d[li, 2] * c2) / c_sq

@@ -43,3 +43,10 @@ def test_other_formats_are_refused(tmp_path):
     path.write_bytes(HEAD.format(fmt="PTM_FORMAT_LUM").encode())
     with pytest.raises(ValueError, match="not read"):
         read_ptm_as_rtiviewer(path)
+
+
+def test_a_body_that_is_not_the_headers_size_is_refused(tmp_path):
+    path = tmp_path / "short.ptm"
+    path.write_bytes(HEAD.format(fmt="PTM_FORMAT_RGB").encode() + bytes(_pixel(0, 20) * 11))    # 12 texels wanted
+    with pytest.raises(ValueError, match="66 data bytes for 2x2 texels"):
+        read_ptm_as_rtiviewer(path)

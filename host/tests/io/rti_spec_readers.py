@@ -1,7 +1,8 @@
 """Readers of PTM and HSH .rti files written from the formats' published definitions and the
 reference viewers' loaders, not from facette's writers: the HP Labs "Polynomial Texture Map
-(.ptm) File Format" v1.2 (2001) and RTIViewer's LRGBPtm loader (rows bottom first, coefficients
-int((byte - bias) · scale), shown as L · RGB / 255 with L in byte units); RTIViewer's and
+(.ptm) File Format" v1.2 (2001) and RTIViewer's LRGBPtm / RGBPtm loaders (rows bottom first, coefficients
+int((byte - bias) · scale), shown as L · RGB / 255 with L in byte units; the layout parsed by the bench's
+reader written from those loaders, `facette.bench._relight_ptm_reader`: one reader of it); RTIViewer's and
 Relight's HSH loaders (rows top first, byte / 255 · scale + bias, shown as value · 255), the
 layout of RTIBuilder's own files."""
 import struct
@@ -9,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from facette.bench._relight_ptm_reader import parse_ptm
 
 # the folder holding shared/: beside the repository (a clone), or one further up (a git worktree)
 _SHARED = next((p for p in Path(__file__).resolve().parents[3:5] if (p.parent / "shared").is_dir()),
@@ -35,43 +38,24 @@ def _header_tokens(data, pos, count):
     return tokens, pos
 
 
-def _ptm_header(path, fmt):
-    """(width, height, 6 scales, 6 biases, the bytes after the header) of a PTM_1.2 file of format fmt."""
-    data = Path(path).read_bytes()
-    first = data.index(b"\n")
-    second = data.index(b"\n", first + 1)
-    assert data[:first].strip() == b"PTM_1.2"
-    assert data[first + 1:second].strip() == fmt
-    # §2.3-2.5: width and height (one line or two), 6 scale floats, 6 bias integers
-    tok, pos = _header_tokens(data, second + 1, 14)
-    scale = np.array([float(t) for t in tok[2:8]])
-    bias = np.array([int(t) for t in tok[8:14]])
-    return int(tok[0]), int(tok[1]), scale, bias, np.frombuffer(data, np.uint8, offset=pos)
-
-
 def read_ptm(path):
     """PTM_1.2 / PTM_FORMAT_LRGB -> dict(width, height, scale, bias, coeffs (H, W, 6) float,
-    rgb (H, W, 3) uint8) with image row 0 at the top."""
-    w, h, scale, bias, body = _ptm_header(path, b"PTM_FORMAT_LRGB")
-    n = w * h
-    assert body.size == n * 9, f"{body.size} data bytes for {w}x{h} pixels (expected {n * 9})"
-    # §2.6 LRGB: a0..a5 of every texel, then R, G, B of every texel, bottom row first
-    raw = body[:n * 6].reshape(h, w, 6)[::-1]
-    rgb = body[n * 6:].reshape(h, w, 3)[::-1]
-    coeffs = (raw.astype(np.float64) - bias) * scale
-    return dict(width=w, height=h, scale=scale, bias=bias, coeffs=coeffs, rgb=rgb)
+    rgb (H, W, 3) uint8) with image row 0 at the top: RTIViewer's LRGBPtm layout (a0..a5 of every
+    texel, then R, G, B of every texel, bottom row first), read by the one reader of that layout
+    written from RTIViewer's loaders (`bench._relight_ptm_reader.parse_ptm`), not facette's."""
+    ptm = parse_ptm(path)
+    assert ptm["format"] == "PTM_FORMAT_LRGB", ptm["format"]
+    return ptm
 
 
 def read_ptm_rgb(path):
     """PTM_1.2 / PTM_FORMAT_RGB as RTIViewer's RGBPtm::loadData reads it (and HP's ptmlib, Perathoner's:
-    the same layout): the header of the LRGB, then for red, green, blue in turn the six bytes a0..a5 of
-    every texel, bottom row first; one scale and bias per term for the three channels.
+    the same layout): for red, green, blue in turn the six bytes a0..a5 of every texel, bottom row
+    first; one scale and bias per term for the three channels (`parse_ptm`, as `read_ptm`).
     -> dict(width, height, scale, bias, coeffs (H, W, 3, 6) float) with image row 0 at the top."""
-    w, h, scale, bias, body = _ptm_header(path, b"PTM_FORMAT_RGB")
-    assert body.size == w * h * 18, f"{body.size} data bytes for {w}x{h} pixels (expected {w * h * 18})"
-    planes = [body[j * w * h * 6:(j + 1) * w * h * 6].reshape(h, w, 6)[::-1] for j in range(3)]
-    coeffs = (np.stack(planes, axis=2).astype(np.float64) - bias) * scale
-    return dict(width=w, height=h, scale=scale, bias=bias, coeffs=coeffs)
+    ptm = parse_ptm(path)
+    assert ptm["format"] == "PTM_FORMAT_RGB", ptm["format"]
+    return ptm
 
 
 def ptm_rgb_colour(ptm, light, rtiviewer=True):

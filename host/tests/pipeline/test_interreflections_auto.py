@@ -83,6 +83,9 @@ def test_the_default_method_removes_where_identified(tmp_path, relief, direct_re
     res = process(_scan(tmp_path / "relative", relief, scale=None), outputs=["normals"])
     left = process(_scan(tmp_path / "left", relief, scale=None), outputs=["normals"], interreflections=False)
     assert res.ps.method == "li_alternating" and res.interreflections["applied"]
+    # the decision's li_alternating model choice is the later solves' (not made twice)
+    assert res.interreflections["model_reused"]
+    assert res.ps.info["materials"][0]["model_choice"]["made_on"].startswith("an earlier solve")
     sel = relief["mask"] & res.mask & left.mask
     err = lambda r: angular_error_deg(r.normals, relief["normals"])[sel].mean()
     assert err(res) < 0.9 * err(left), (err(res), err(left))

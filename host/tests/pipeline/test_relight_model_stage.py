@@ -39,6 +39,13 @@ def test_stage_says_why_without_whole_images():
     assert Res.relight_model is None and "--memory" in notes[0]
 
 
+def _on_disk(a):
+    """True when `a` is a view of a memmap (a temporary file's pages, `_memory.disk_array`)."""
+    while a is not None and not isinstance(a, np.memmap):
+        a = a.base
+    return a is not None
+
+
 def test_memory_fits_the_model_from_the_bands(tmp_path, monkeypatch):
     # --memory: the photographs never held whole, the model fitted from their spill after the
     # heights (pipeline._rti_bands keeps them), close to the untiled run's (the same normals and
@@ -58,6 +65,11 @@ def test_memory_fits_the_model_from_the_bands(tmp_path, monkeypatch):
     for az, el in ((0.0, 15.0), (135.0, 45.0), (250.0, 70.0)):
         light = light_from_angles(az, el)
         assert np.abs(a.display(light) - b.display(light)).max() < 0.01
+    # over bands the model's image-sized maps are spilled to temporary files, the file read back the same
+    assert all(_on_disk(getattr(b, k)) for k in ("normals", "rho", "spec", "amb", "planes", "heights"))
+    assert not _on_disk(a.rho) and not _on_disk(b.mask)
+    back = load_relight_model(tmp_path / "out" / "relight_model.npz")
+    np.testing.assert_array_equal(back.display(light), b.display(light))
 
 
 def test_report_step_is_a_multiple_of_the_viewers():

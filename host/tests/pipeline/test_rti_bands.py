@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from facette.pipeline import process
-from facette.pipeline import _rti_bands
+from facette.pipeline import _process, _rti_bands
 from facette.recon import _rti as rti_fit
 from test_exports import _diligent
 from test_process_memory import M, WHOLE_CHANNELS, _never_whole, diligent, scan, small_bands  # noqa: F401
@@ -112,7 +112,10 @@ def test_the_reference_readers_read_the_banded_files(scan, tmp_path, small_bands
 def test_the_web_folder_alone_over_bands_is_the_untiled_folder(tmp_path, small_bands, monkeypatch, diligent):
     """--memory with `--outputs relight-web` alone (no .rti asked for): the HSH is fitted over the bands all
     the same (before: no fit, and a TypeError in the hsh stage), the folder the untiled one byte for byte."""
-    process(diligent, channels=WHOLE_CHANNELS, outputs=["relight-web"], out_dir=tmp_path / "whole", method=M)
+    with monkeypatch.context() as whole_only:       # read whole (the relighting files alone go over bands)
+        whole_only.setattr(_process, "relight_only_budget", lambda *a, **k: None)
+        whole_only.setattr(_process, "with_default_budget", lambda s, o, out: (o, []))
+        process(diligent, channels=WHOLE_CHANNELS, outputs=["relight-web"], out_dir=tmp_path / "whole", method=M)
     _never_whole(monkeypatch)
     monkeypatch.setattr(_rti_bands, "relight_rows", lambda *a: 8)
     monkeypatch.setattr(rti_fit, "_BLOCK", 16)

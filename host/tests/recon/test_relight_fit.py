@@ -46,6 +46,41 @@ def test_bands_give_the_whole_images_model(capture, rows):
         assert diff.max() < 2e-3, diff.max()
 
 
+def test_a_spilled_fit_is_the_fit_in_memory_and_its_file_the_same(capture, tmp_path, monkeypatch):
+    """spill=True: the normals, maps and planes in temporary files (memmaps), the same values; the file
+    written a few rows at a time from them reads back as np.savez's of the fit in memory."""
+    from facette.recon import _relight_model, load_relight_model, save_relight_model
+    from facette.recon import _relight_fit
+    sc, d, lin, h = capture
+    monkeypatch.setattr(_relight_fit, "CLEAN_PIXELS", 100)          # the normals cleaned 2 rows at a time
+    normals = sc.normals.astype(np.float32)
+    normals[4, 20] = np.nan                                          # a pixel without a normal
+    mem = fit_relight_bands(_reader(lin, []), d, sc.mask, normals, heights=h, shadows=True, rows=6)
+    disk = fit_relight_bands(_reader(lin, []), d, sc.mask, normals, heights=h, shadows=True, rows=6, spill=True)
+    assert not mem.mask[4, 20] and mem.mask.sum() == sc.mask.sum() - 1
+    for name in ("normals", "mask", "rho", "spec", "amb", "planes"):
+        a, b = getattr(mem, name), getattr(disk, name)
+        assert isinstance(b, np.memmap) == (name != "mask") and not isinstance(a, np.memmap), name
+        np.testing.assert_array_equal(a, b, err_msg=name)
+    assert disk.planes.shape[-1] > 0 and disk.loo_error == mem.loo_error
+    monkeypatch.setattr(_relight_model, "WRITE_BYTES", 1000)         # a few rows at a time
+    save_relight_model(tmp_path / "disk.npz", disk)
+    with open(tmp_path / "mem.npz", "wb") as fh:                     # numpy's own writer of the same arrays
+        np.savez(fh, format=np.array("facette relight model 1"), shininess=mem.shininess, epsilon=mem.epsilon,
+                 white=mem.white, softness=mem.softness, spacing=mem.spacing, reach=mem.reach,
+                 **{k: getattr(mem, k) for k in _relight_model._ARRAYS if getattr(mem, k) is not None})
+    with np.load(tmp_path / "disk.npz") as a, np.load(tmp_path / "mem.npz") as b:
+        assert sorted(a.files) == sorted(b.files) and "planes" in a.files
+        for k in a.files:
+            assert a[k].dtype == b[k].dtype and a[k].shape == b[k].shape, k
+            np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+    back = load_relight_model(tmp_path / "disk.npz")
+    np.testing.assert_array_equal(back.display(d[2]), mem.display(d[2]))
+    part = disk.first_planes(2)                                      # a view that is not C-contiguous
+    save_relight_model(tmp_path / "part.npz", part)
+    np.testing.assert_array_equal(load_relight_model(tmp_path / "part.npz").planes, part.planes)
+
+
 def test_white_none_is_the_percentile_of_the_brightest_channel(capture):
     sc, d, lin, _ = capture
     model = fit_relight_bands(_reader(lin * 3.0, []), d, sc.mask, sc.normals, white=None, rows=7)
