@@ -15,6 +15,7 @@ from scipy.optimize import least_squares
 
 from facette._threads import run_blocks
 from facette.brdf import kd_from_kappa, li_shading_terms
+from ._li_fit_lm import li_jacobian, robust_lm
 
 __all__ = ["choose_material_model", "fit_bounds", "METAL_FIT_BOUNDS", "fit_li_per_pixel_kd", "li_fit_cost", "LI_FIT_BOUNDS", "LI_VOLUME_MODEL", "DIFFUSE", "LOBE_MIN_GAIN"]
 
@@ -25,6 +26,9 @@ LI_FIT_BOUNDS = ((1e-3, 1.0), (1.0, 2.5))   # σ, n_i (σ ≤ 1: beyond it no lo
 # α 0.15) and 0.300 (aluminium, α 0.3) and the per-pixel solve from the truth stays within 0.5 and
 # 0.04°; the LI substrate (n_i ≤ 2.5) fits 0.194 / 0.396 and moves them by 3.5 and 23°.
 METAL_FIT_BOUNDS = ((1e-3, 1.0), (1.0, 100.0))
+# The (σ, n_i) fits' Jacobian: analytic for these diffuse parts (facette.brdf._shading_grad), a
+# finite difference (two more model evaluations a step) for the approximate formula
+ANALYTIC_JACOBIAN = ("tables", "coupled", "lambert")
 LAMBERTIAN_N_I = 1.02      # a fitted n_i below this: no interface, the BRDF step is skipped
 LAMBERTIAN_SIGMA = LI_FIT_BOUNDS[0][0]    # the model without interface (n_i = 1): Lambert
 # a lobe must lower the trimmed profile cost this much against Lambert's (Mitsuba renders: plaster
@@ -48,8 +52,10 @@ LI_VOLUME_MODEL = "tables"
 # rig's scan (Cook–Torrance σ 0.05, n_i 1.2, dark glossy table) it found σ 0.017, n_i 1.06 on the
 # initial normals and σ 0.035 on normals solved against each point with every pixel counted; the
 # best 80 % give σ 0.050, n_i 1.200, and the lobe lowers their cost to 46 % of Lambert's.
-# The search: σ along PROFILE_SIGMAS at n_i PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ,
-# for each diffuse part (14 solves of the profile pixels each), on at most PROFILE_VALUES values (pixels ×
+# The search: σ along PROFILE_SIGMAS at n_i PROFILE_N_I0, then n_i along PROFILE_N_IS at that line's best σ
+# (and a metal's start the same way, on its own lines: `_profile_lobe`)
+# (each line walked as PROFILE_SIGMA_SEARCH and PROFILE_N_I_SEARCH say),
+# for each diffuse part (at most 14 solves of the profile pixels each), on at most PROFILE_VALUES values (pixels ×
 # lights): a full 8 × 3 grid stopped at n_i 1.15 on the scan above (truth 1.2; the search: 1.2).
 # σ 0.4 between 0.3 and 0.5: a broad lobe's cost is a narrow valley along σ and n_i together, and
 # the step 0.3 -> 0.5 missed it (Mitsuba rough plastic sphere, σ 0.4, n_i 1.5: the coupled part's
@@ -76,6 +82,13 @@ PROFILE_TABLE_GRID = 65
 # 0.3194/0.0715/0.0511°, glossy 12/48 0.4404/0.0703 -> 0.4405/0.0692°; DiLiGenT crops, 96 lights:
 # 6.263 -> 6.237° (no crop worse by more than 0.001°).
 PROFILE_SEARCH_GRID = 33
+# How each line of the search is walked (`_line_search`): σ coarse-to-fine (every other σ, then the
+# best one's neighbours: 6-7 solves for 9), n_i downhill from the σ line's best point (2-3 solves for
+# 5 where the profile is lowest near n_i 1.3, as on every DiLiGenT crop). "all" is the full line.
+# DiLiGenT crops, 96 lights (process's inputs): 61 -> 43-49 solves, the same grid point chosen on
+# all five.
+PROFILE_SIGMA_SEARCH = "coarse-to-fine"
+PROFILE_N_I_SEARCH = "downhill"
 # The diffuse part beside the lobe: the LI substrate under the interface (eq 3.15: Fresnel
 # transmissions in and out through the facets), a Lambertian term with no transmission
 # (Cook–Torrance), or a Lambertian substrate weighted by the interface's transmittance in and out
@@ -107,7 +120,11 @@ def _relative_fit_values(e, usable):
 
 def _kd_and_residuals(e0, w, den, normals, lights, sigma, n_i, volume_model):
     """κ (N, C) in closed form (E = A + B κ, weights w) and the relative residuals (N, m, C)."""
-    a, b = li_shading_terms(normals, lights, sigma, n_i, volume_model=volume_model)
+    return _residuals_from(e0, w, den, *li_shading_terms(normals, lights, sigma, n_i, volume_model=volume_model))
+
+
+def _residuals_from(e0, w, den, a, b):
+    """`_kd_and_residuals` from the shading terms A, B (N, m)."""
     wb = w * b
     k = np.maximum(np.einsum("nm,nmc->nc", wb, e0 - a[..., None]) / np.maximum(np.sum(wb * b, 1), 1e-20)[:, None], 0)
     return k, (e0 - a[..., None] - b[..., None] * k[:, None, :]) / den
@@ -158,8 +175,18 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
     if not np.all(lo < hi):
         raise ValueError(f"bounds = {bounds!r}: each (low, high) pair needs low < high")
 
+    last = {}
+
     def fun(p):
-        return _kd_and_residuals(e0, w, den, normals, lights, p[0], p[1], volume_model)[1][sel].astype(np.float64)
+        a, b = li_shading_terms(normals, lights, p[0], p[1], volume_model=volume_model)
+        last.update(p=tuple(p), a=a, b=b)
+        return _residuals_from(e0, w, den, a, b)[1][sel].astype(np.float64)
+
+    flat_sel = sel.ravel()
+
+    def jac(p):        # at the point `fun` was last called at: its shading terms reused
+        a, b = (last["a"], last["b"]) if last.get("p") == tuple(p) else (None, None)
+        return li_jacobian(e0, w, den, normals, lights, p[0], p[1], volume_model, a, b)[flat_sel].astype(np.float64)
 
     if not sel.any():
         return dict(success=False, sigma=float("nan"), n_i=float("nan"), message="no usable values to fit")
@@ -172,8 +199,16 @@ def fit_li_per_pixel_kd(e, lights, normals, usable, x0=None, f_scale=0.05, max_n
             ([] if x0 is None else [np.clip(np.asarray(x0, float), lo, hi)])
     best = None
     for x in starts:
-        r = least_squares(fun, x, bounds=(lo, hi), loss="soft_l1", f_scale=f_scale, diff_step=1e-3,
-                          max_nfev=max_nfev, x_scale=np.array([0.05, 0.1 * max(1.0, x[1] - 1)]))
+        x_scale = np.array([0.05, 0.1 * max(1.0, x[1] - 1)])
+        # from a metal's index, scipy's trust region (its first steps cross to a dielectric's basin
+        # where this LM stayed near the start: the rendered satin sphere of tests/fit/test_light_gains).
+        # scipy with the analytic Jacobian instead of the LM: DiLiGenT cat's fits 3.25 CPU s against
+        # 2.65 with finite differences and 0.87 in the LM (one thread)
+        if volume_model in ANALYTIC_JACOBIAN and not is_metal(x[1]):
+            r = robust_lm(fun, jac, x, lo, hi, f_scale, max_nfev, x_scale)
+        else:          # the approximate formula: scipy's trust region, a finite-difference Jacobian
+            r = least_squares(fun, x, bounds=(lo, hi), loss="soft_l1", f_scale=f_scale, diff_step=1e-3,
+                              max_nfev=max_nfev, x_scale=x_scale)
         if best is None or r.cost < best.cost:
             best = r
     k, _ = _kd_and_residuals(e0, w, den, normals, lights, best.x[0], best.x[1], volume_model)
@@ -202,7 +237,8 @@ def _trimmed(costs, keep=PROFILE_KEEP):
 def _profile_lobe(e, lights, usable, solve, volume_models):
     """Round 1's model choice on the profile pixels: for each diffuse part (`volume_models`), the
     normals solved against each (σ, n_i) of a coordinate search (σ along PROFILE_SIGMAS at
-    PROFILE_N_I0, then n_i along PROFILE_N_IS at the best σ; `solve(sigma, n_i, volume_model, grid=...)` ->
+    PROFILE_N_I0, then n_i along PROFILE_N_IS at that line's best σ; beside a Lambertian part also σ
+    at PROFILE_N_I0_METAL, then PROFILE_N_IS_METAL at its best σ; `solve(sigma, n_i, volume_model, grid=...)` ->
     (N, 3)), each scored by the trimmed robust cost of the result (`_trimmed`: a pixel whose solve
     stopped in a wrong minimum does not decide the model).
     Returns ({(is a metal's lobe, volume_model): the best such candidate, a dict(cost,
@@ -223,13 +259,17 @@ def _profile_lobe(e, lights, usable, solve, volume_models):
                 best[key] = dict(cost=cost, volume_model=vm, sigma=sigma, n_i=n_i, normals=n, kept=kept)
             return cost
 
-        starts = (PROFILE_N_I0,) + ((PROFILE_N_I0_METAL,) if vm == "lambert" else ())
-        costs = {(sigma, n0): score(sigma, n0) for n0 in starts for sigma in PROFILE_SIGMAS}
-        sigma, n0 = min(costs, key=costs.get)
-        n_is = PROFILE_N_IS + (PROFILE_N_IS_METAL if vm == "lambert" else ())
-        for n_i in n_is:
-            if n_i != n0:
-                score(sigma, n_i)
+        # each start's own valley: its σ line, then its n_i line (the dielectrics' or the metals')
+        # at that line's best σ. From the overall best σ only, a metal start's σ decided where the
+        # dielectric n_i line ran, and a dielectric valley beside a Lambertian part went unseen
+        # (the satin sphere of tests/pipeline/test_process_light_gains: lambert's best 19.9 there,
+        # 4.5 at σ 0.13, n_i 1.7), or was found depending on which σ the walk skipped
+        for n0, line in ((PROFILE_N_I0, PROFILE_N_IS),) + (((PROFILE_N_I0_METAL, PROFILE_N_IS_METAL),)
+                                                          if vm == "lambert" else ()):
+            costs = _line_search(PROFILE_SIGMAS, {}, lambda x: score(x, n0), PROFILE_SIGMA_SEARCH)
+            sigma = min(costs, key=costs.get)
+            _line_search(tuple(sorted(set(line) | {n0})), {n0: costs[sigma]}, lambda x: score(sigma, x),
+                         PROFILE_N_I_SEARCH)
         return best, low, solves
 
     # the diffuse parts' searches are independent: on two threads (the solves' compiled kernel and
@@ -247,6 +287,38 @@ def _profile_lobe(e, lights, usable, solve, volume_models):
         b["cost_lambertian"] = float(costs[b["kept"]].sum())
         b["gain"] = 1 - b["cost"] / max(b["cost_lambertian"], 1e-30)
     return best, per_model, solves + 1
+
+
+def _line_search(points, known, cost, how):
+    """{point: cost} of the points of a line (sorted) that a search evaluated (`known` given):
+    "all" every point; "coarse-to-fine" every other point, then the neighbours of the best;
+    "downhill" from the known point (else the middle) to its neighbours, on towards the lower
+    one until a point is lower than both of its neighbours."""
+    got = dict(known)
+
+    def at(i):
+        if points[i] not in got:
+            got[points[i]] = cost(points[i])
+        return got[points[i]]
+
+    if how == "all":
+        for i in range(len(points)):
+            at(i)
+        return got
+    if how == "coarse-to-fine":
+        for i in range(0, len(points), 2):
+            at(i)
+        if len(points) % 2 == 0:
+            at(len(points) - 1)
+    else:
+        at(points.index(next(iter(known))) if known else len(points) // 2)
+    while True:          # the best so far: its neighbours evaluated, moved to while one is lower
+        i = points.index(min(got, key=got.get))
+        todo = [j for j in (i - 1, i + 1) if 0 <= j < len(points) and points[j] not in got]
+        if not todo:
+            return got
+        for j in todo:
+            at(j)
 
 
 def _pick(candidates):

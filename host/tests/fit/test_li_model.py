@@ -42,3 +42,25 @@ def test_the_bar_decides_on_the_check_pixels_when_the_profile_is_a_sample():
     assert checked["model"] == "lobe" and checked["gain"] > 3 * LOBE_MIN_GAIN, checked
     # (σ, n_i) are then warmed up on the profile pixels (later rounds refit on the fit pixels)
     assert np.isfinite(fit["sigma"]) and fit["n_i"] > 1.0, fit
+
+
+def test_the_line_searches_find_a_unimodal_profiles_lowest_point_with_fewer_solves():
+    from facette.fit._li_model import PROFILE_N_IS, PROFILE_SIGMAS, _line_search
+    for line, known, hows in ((PROFILE_SIGMAS, {}, ("coarse-to-fine", "downhill")),
+                              (tuple(sorted(PROFILE_N_IS + (1.3,))), {1.3: None}, ("downhill",))):
+        for low in line:
+            calls = []
+
+            def cost(x):
+                calls.append(x)
+                return abs(np.log(x) - np.log(low))
+            k = {p: cost(p) for p in known}
+            calls.clear()
+            for how in hows:
+                calls.clear()
+                got = _line_search(line, dict(k), cost, how)
+                assert min(got, key=got.get) == low, (how, low, got)
+                assert len(calls) < len(line) - len(known) or len(line) - len(known) <= 3, (how, low, calls)
+                assert len(set(calls)) == len(calls)
+            calls.clear()
+            assert set(_line_search(line, dict(k), cost, "all")) == set(line) and len(calls) == len(line) - len(k)

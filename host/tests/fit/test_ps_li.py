@@ -364,7 +364,7 @@ def test_the_later_rounds_refit_on_round_twos_draw(monkeypatch):
         return drawn[-1]
 
     monkeypatch.setattr(Pixels, "draw", counted)
-    monkeypatch.setattr(ps_li, "_settled", lambda prev, new: False)     # every round runs
+    monkeypatch.setattr(ps_li, "_settled", lambda *args: False)     # every round runs
     sc = sphere_on_plane(64, 64)
     lights = thesis_light_directions()
     im = render(sc, lights, "satin", noise=0.02, rng=np.random.default_rng(3))

@@ -34,7 +34,10 @@ def test_a_folders_intensities_off_by_3_percent_are_corrected_from_its_photograp
     assert np.max(np.abs(read / truth - 1)) < 0.01
     obj = sc.sphere & res.mask
     err, err_kept = (float(np.mean(angular_error_deg(r.normals, sc.normals, obj))) for r in (res, kept))
-    assert err < 0.6 * err_kept, (err, err_kept)
+    # corrected: as good as with exact intensities' model (0.31°); the correction pays a third (0.47 -> 0.31°
+    # since the model choice walks each start's own valley: with the metal start's σ deciding the dielectric
+    # line, the uncorrected solve missed the Lambertian part's valley and gave 0.57°)
+    assert err < 0.35 and err < 0.75 * err_kept, (err, err_kept)
     assert any(n.startswith("light gains: the photographs put the given intensities") for n in res.notes)
     rec = json.loads((tmp_path / "out" / "process.json").read_text())
     assert rec["light_gains"]["gains"] == lg["gains"] and rec["options"]["light_gains"] == "auto"
