@@ -1,6 +1,6 @@
 """The relighting files' set-up after the maps: their exposure found when the ptm or rti stage
 first asks, not before the task that writes the maps starts."""
-from facette.pipeline._rti_bands import WholeBands, whole_bands
+from facette.pipeline._rti_bands import WholeBands, fits_from_whole, whole_bands
 
 __all__ = ["relight_after_maps"]
 
@@ -10,6 +10,6 @@ def relight_after_maps(relight, res, inp, images, light_dirs, o, outputs):
     its `exposure_of` over the whole images (1.6 CPU s at 4288x2848) then runs on that stage's
     thread, after the maps' task has started, not before it. `relight` (--memory's fits) or None
     as `whole_bands` would give them."""
-    if relight is not None or images is None or not ({"ptm", "rti", "relight-web"} & set(outputs)):
+    if not fits_from_whole(relight, images, outputs):
         return relight
     return WholeBands(lambda: whole_bands(None, res, inp, images, light_dirs, o, outputs).fitted())

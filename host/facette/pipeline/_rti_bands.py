@@ -354,12 +354,18 @@ class WholeBands:
             self._done.close()
 
 
+def fits_from_whole(relight, images, outputs):
+    """Whether `whole_bands` fits the relighting files from the whole images: no fits given
+    (--memory's), the images held, and ptm, rti or relight-web asked."""
+    return relight is None and images is not None and bool({"ptm", "rti", "relight-web"} & set(outputs))
+
+
 def whole_bands(relight, res, inp, images, light_dirs, o, outputs):
     """`relight` when given (--memory's fits), else with the whole images (m, H, W, C) and ptm,
     rti or relight-web asked: their fits over bands of rows of them (a `WholeBands`), the
     photographs' exposure applied a band at a time: `Exposure.photographs` copies the images
     when it multiplies gains back (16 photographs of 12 MP: 2.3 GB more). res.rti_exposure set."""
-    if relight is not None or images is None or not ({"ptm", "rti", "relight-web"} & set(outputs)):
+    if not fits_from_whole(relight, images, outputs):
         return relight
     res.rti_exposure = exposure_of(inp, o.rti_encoding, res.light_gains, images, res.object_mask)
     m, h, w = images.shape[:3]
