@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["G1_ONE_ABOVE", "SMITH_G1_TABLE", "smith_g1_beckmann", "smith_g1_dlog_tabulated", "beckmann_d",
+__all__ = ["G1_ONE_ABOVE", "SMITH_G1_TABLE", "smith_g1_beckmann", "smith_g1_dlog_tabulated", "smith_g1_dlog_scaled", "beckmann_d",
            "fresnel_dielectric_scalar", "li_specular_beckmann_smith",
            "lobe_transmittance_beckmann_smith", "lobe_internal_reflectance_beckmann_smith"]
 
@@ -77,6 +77,31 @@ def smith_g1_dlog_tabulated(c, sigma, g1tab):
     j = int(a / step)
     w = a / step - j
     slope = (g1tab[j + 1] - g1tab[j]) / step
+    t = g1tab[j] + w * (g1tab[j + 1] - g1tab[j])
+    return a * t, (t + a * slope) / (t * c * sn * sn)
+
+
+SMITH_G1_INV_STEP = (SMITH_G1_TABLE_SIZE - 1) / G1_ONE_ABOVE     # 1 / the spacing of `SMITH_G1_TABLE`'s points
+
+
+@njit(cache=True)
+def smith_g1_dlog_scaled(c, inv_sigma, g1tab):
+    """`smith_g1_dlog_tabulated` with 1 / σ given and `SMITH_G1_TABLE`'s spacing (g1tab must be that
+    table's size): two divisions fewer per call, for the per-pixel solve's loop over lights."""
+    if c <= 0.0:
+        return 0.0, 0.0
+    if c > 1.0:
+        c = 1.0
+    sn = math.sqrt(max(1.0 - c * c, 0.0))
+    if sn <= 0.0:
+        return 1.0, 0.0
+    a = c * inv_sigma / sn
+    if a >= G1_ONE_ABOVE:
+        return 1.0, 0.0
+    x = a * SMITH_G1_INV_STEP
+    j = int(x)
+    w = x - j
+    slope = (g1tab[j + 1] - g1tab[j]) * SMITH_G1_INV_STEP
     t = g1tab[j] + w * (g1tab[j + 1] - g1tab[j])
     return a * t, (t + a * slope) / (t * c * sn * sn)
 

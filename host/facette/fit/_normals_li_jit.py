@@ -46,7 +46,7 @@ from numba import njit, prange
 from facette._select_jit import median_in_place
 from facette._threads import run_blocks
 from facette.brdf import fresnel_dielectric, li_shading_terms
-from facette.brdf._lobe_jit import SMITH_G1_TABLE, beckmann_d, smith_g1_dlog_tabulated
+from facette.brdf._lobe_jit import SMITH_G1_TABLE, smith_g1_dlog_scaled, smith_g1_dlog_tabulated
 
 from ._stereo import stereo_grid
 
@@ -151,6 +151,11 @@ def _model(nx, ny, nz, s, sh, fres, btab, g1tab, sigma, spec, lights, n_lights, 
     g1o, dg1o = smith_g1_dlog_tabulated(co, sigma, g1tab) if spec else (0.0, 0.0)
     qo = dg1o - 1.0 / co if co > 0.0 else 0.0
     s2 = sigma * sigma
+    # reciprocals taken once: a division per light and factor was a third of the lobe's time
+    inv_s2 = 1.0 / s2
+    inv_sigma = 1.0 / sigma
+    d_norm = 1.0 / (math.pi * s2)
+    inv_4co = 1.0 / (4.0 * co) if co > 0.0 else 0.0
     for t in range(n_lights):
         i = lights[t]
         a_out[t] = 0.0
@@ -165,14 +170,18 @@ def _model(nx, ny, nz, s, sh, fres, btab, g1tab, sigma, spec, lights, n_lights, 
                     + (1 - wx) * wy * btab[iy + 1, ix, i] + wx * wy * btab[iy + 1, ix + 1, i])
         if spec:
             csc = min(cs, 1.0)
-            ch = min(max((cs + co) / (2.0 * sh[i]), 0.0), 1.0)
+            half_sh = 0.5 / sh[i]
+            ch = min(max((cs + co) * half_sh, 0.0), 1.0)
             ch2 = ch * ch
             if 1.0 - ch2 < 16.0 * s2 * ch2 and ch2 > 0.0:
-                g1s, dg1s = smith_g1_dlog_tabulated(csc, sigma, g1tab)
-                av = fres[i] * beckmann_d(ch2, s2) * g1s * g1o / (4.0 * co)
+                g1s, dg1s = smith_g1_dlog_scaled(csc, inv_sigma, g1tab)
+                ich = 1.0 / ch
+                ich2 = ich * ich
+                # Beckmann D = exp(−tan² θ_h / σ²) / (π σ² cos⁴ θ_h) (`beckmann_d`, its reciprocals shared)
+                av = fres[i] * (math.exp(-(1.0 - ch2) * ich2 * inv_s2) * d_norm * ich2 * ich2) * g1s * g1o * inv_4co
                 a_out[t] = av
                 # d ln D / d cos θ_h = 2 / (σ² cos³ θ_h) − 4 / cos θ_h; d cos θ_h = (s·t + t_z) / (2 sh)
-                dd = (2.0 / (s2 * ch2 * ch) - 4.0 / ch) / (2.0 * sh[i])
+                dd = (2.0 * inv_s2 * ich2 * ich - 4.0 * ich) * half_sh
                 pa_out[t] = av * (dd + dg1s)
                 qa_out[t] = av * (dd + qo)
 
@@ -217,8 +226,9 @@ def _cost(e, a, b, k, n, sc):
     one log per ~100 lights, not one each."""
     tot = 0.0
     prod = 1.0
+    inv_sc = 1.0 / sc
     for t in range(n):
-        q = (e[t] - a[t] - b[t] * k) / sc
+        q = (e[t] - a[t] - b[t] * k) * inv_sc
         prod, tot = _log_product(prod * (1.0 + q * q), tot)
     return tot + math.log(prod)
 

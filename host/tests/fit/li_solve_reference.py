@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from facette.brdf._lobe_jit import SMITH_G1_TABLE, beckmann_d, smith_g1_dlog_tabulated
+from facette.brdf._lobe_jit import SMITH_G1_TABLE, smith_g1_dlog_scaled, smith_g1_dlog_tabulated
 from facette.fit._normals_li_jit import _damped_step, _log_product, _tangent_frame
 
 
@@ -29,6 +29,8 @@ def _model(n, s, sh, fres, btab, sigma, spec):
     g1o, dg1o = smith_g1_dlog_tabulated(co, sigma, SMITH_G1_TABLE) if spec else (0.0, 0.0)
     qo = dg1o - 1.0 / co if co > 0.0 else 0.0
     s2 = sigma * sigma
+    inv_s2, inv_sigma, d_norm = 1.0 / s2, 1.0 / sigma, 1.0 / (math.pi * s2)
+    inv_4co = 1.0 / (4.0 * co) if co > 0.0 else 0.0
     a, b, pa, qa = [0.0] * m, [0.0] * m, [0.0] * m, [0.0] * m
     for i in range(m):
         cs = nx * s[i][0] + ny * s[i][1] + nz * s[i][2]
@@ -37,13 +39,16 @@ def _model(n, s, sh, fres, btab, sigma, spec):
         b[i] = ((1 - wx) * (1 - wy) * btab[iy][ix][i] + wx * (1 - wy) * btab[iy][ix + 1][i]
                 + (1 - wx) * wy * btab[iy + 1][ix][i] + wx * wy * btab[iy + 1][ix + 1][i])
         if spec:
-            ch = min(max((cs + co) / (2.0 * sh[i]), 0.0), 1.0)
+            half_sh = 0.5 / sh[i]
+            ch = min(max((cs + co) * half_sh, 0.0), 1.0)
             ch2 = ch * ch
             if 1.0 - ch2 < 16.0 * s2 * ch2 and ch2 > 0.0:
-                g1s, dg1s = smith_g1_dlog_tabulated(min(cs, 1.0), sigma, SMITH_G1_TABLE)
-                av = fres[i] * beckmann_d(ch2, s2) * g1s * g1o / (4.0 * co)
+                g1s, dg1s = smith_g1_dlog_scaled(min(cs, 1.0), inv_sigma, SMITH_G1_TABLE)
+                ich = 1.0 / ch
+                ich2 = ich * ich
+                av = fres[i] * (math.exp(-(1.0 - ch2) * ich2 * inv_s2) * d_norm * ich2 * ich2) * g1s * g1o * inv_4co
                 a[i] = av
-                dd = (2.0 / (s2 * ch2 * ch) - 4.0 / ch) / (2.0 * sh[i])
+                dd = (2.0 * inv_s2 * ich2 * ich - 4.0 * ich) * half_sh
                 pa[i] = av * (dd + dg1s)
                 qa[i] = av * (dd + qo)
     return a, b, pa, qa
@@ -69,10 +74,10 @@ def _scale(r, keep, mean_e, floor):
 
 
 def _cost(r, keep, sc):
-    tot, prod = 0.0, 1.0
+    tot, prod, inv_sc = 0.0, 1.0, 1.0 / sc
     for i in range(len(r)):
         if keep[i]:
-            q = r[i] / sc
+            q = r[i] * inv_sc
             prod, tot = _log_product(prod * (1.0 + q * q), tot)
     return tot + math.log(prod)
 
