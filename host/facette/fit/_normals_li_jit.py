@@ -37,26 +37,21 @@ First call in a fresh environment compiles the kernel (~10–20 s on one core); 
 machine code next to this file (__pycache__), later processes load it in well under a second.
 """
 import math
-import threading
 
 import numba
 import numpy as np
 from numba import njit, prange
 
 from facette._select_jit import median_in_place
-from facette._threads import run_blocks
-from facette.brdf import fresnel_dielectric, li_shading_terms
+from facette.brdf import fresnel_dielectric
 from facette.brdf._lobe_jit import SMITH_G1_TABLE, smith_g1_dlog_scaled, smith_g1_dlog_tabulated
 
-from ._stereo import stereo_grid
+# the B table's builder, imported here too (tests, `_normals_li` take it from this module)
+from ._normals_li_table import TABLE_BLOCK, TABLE_GRID, _volume_table, volume_table  # noqa: F401
 
 __all__ = ["volume_table", "refine_distant_compiled", "TABLE_GRID"]
 
 CHUNK = 256               # pixels per work item of the threaded per-pixel loop (at most)
-TABLE_GRID = 257           # grid points per axis of the B table (stereographic u, v ∈ [−1, 1])
-TABLE_BLOCK = 1024         # normals per block of the table's evaluation (~100 k values with 96 lights)
-RIM_CELLS = 2.5            # grid points this many cells outside the disk hold B's continuation (`_volume_table`)
-RIM_NZ = 1e-4              # n_z of the rim normals of that continuation (B at n_z = 0 exactly: no view)
 # The extra start is tried where the first leaves a relative RMS residual ≥ this. 0: everywhere.
 # Skipping it where the first start already explains the pixel is faster and was no worse on the
 # DiLiGenT cat and reading, 96 lights (their round-1 pixels: 0.05 skips 61 % / 11 % of the second
@@ -76,58 +71,6 @@ SECOND_START_ABOVE_MANY = 0.05
 
 
 COST_PRODUCT_MAX = 1e200   # the Cauchy cost's running product is logged and restarted above this
-
-_TABLES = {}               # (σ, n_i, grid, lights' bytes) -> table; the last few kept
-_TABLES_LOCK = threading.Lock()     # the model choice's diffuse parts search on two threads
-
-
-def volume_table(lights, sigma, n_i, grid=TABLE_GRID, volume_model="approx"):
-    """`_volume_table`, remembered for the last 8 (σ, n_i, lights, grid): the alternation asks for
-    the same model in its full-size step as in its last round."""
-    s = np.ascontiguousarray(lights, np.float64)
-    key = (float(sigma), float(n_i), int(grid), volume_model, s.tobytes())
-    tab = _TABLES.get(key)
-    if tab is None:
-        tab = _volume_table(s, sigma, n_i, grid, volume_model)
-        with _TABLES_LOCK:
-            if len(_TABLES) >= 8:
-                _TABLES.pop(next(iter(_TABLES)))
-            _TABLES[key] = tab
-    return tab
-
-
-def _volume_table(lights, sigma, n_i, grid, volume_model):
-    """(grid, grid, m) float32 B(n, s_i) on the normals of `stereo_grid(grid)` (facette.fit._stereo:
-    smooth up to the rim, where a grid of (n_x, n_y) put 2 % errors (median) on B at 80-87° of tilt
-    and 21 % at 87-89.5°; solved to convergence, the simulated 12 MP scan's silhouette ran to the
-    horizon). Lights last: the four corners of a pixel's cell hold every light's value side by side
-    (cache lines). The points just outside the disk (within RIM_CELLS cells of it, which a lookup
-    near the rim reads) hold B's linear continuation across the rim, 2 B(rim) − B(mirror image
-    inside), at least 0; the others 0."""
-    nrm, r2 = stereo_grid(grid)
-    inside = r2 < 1
-    near = ~inside & (np.sqrt(r2) < 1 + RIM_CELLS * 2 / (grid - 1))
-    rim = nrm[near] * [1, 1, 0]
-    rim = rim / np.linalg.norm(rim, axis=1, keepdims=True)
-    rim[:, 2] = RIM_NZ
-    gn = np.concatenate([nrm[inside], np.abs(nrm[near]), rim]).astype(np.float32)   # disk, mirrors, rim
-    # in blocks of TABLE_BLOCK normals on two threads: the float32 temporaries of a large disk
-    # (~20 MB each at 257² × 96 lights) missed the caches (DiLiGenT reading, in `process`: 0.73 of
-    # the time). A small one (the model choice's 65² grid) at once: threads and blocks cost it more
-    b_all = np.empty((len(gn), len(lights)), np.float32)
-    block_size = TABLE_BLOCK if len(gn) > 4 * TABLE_BLOCK else len(gn)
-
-    def block(a):
-        b_all[a:a + block_size] = li_shading_terms(gn[a:a + block_size], lights, sigma, n_i, specular=False,
-                                                   volume_model=volume_model)[1]
-
-    run_blocks(block, range(0, len(gn), max(block_size, 1)))
-    n_in, n_near = int(inside.sum()), int(near.sum())
-    b = np.zeros((grid, grid, len(lights)), np.float32)
-    b[inside] = b_all[:n_in]
-    b[near] = np.maximum(2 * b_all[n_in + n_near:] - b_all[n_in:n_in + n_near], 0)
-    return b
-
 
 @njit(cache=True)
 def _model(nx, ny, nz, s, sh, fres, btab, g1tab, sigma, spec, lights, n_lights, a_out, b_out, pa_out, qa_out,
@@ -324,14 +267,14 @@ def _solve_one(e_all, ok, n0, s, sh, fres, btab, g1tab, sigma, spec, iterations,
         _residuals(e, a, b, k, n, r)
     scale = _scale(r, n, mean_e, buf, floor) if rescale else scale_in
     cost = _cost(e, a, b, k, n, scale)
-    lam = 1e-2
+    lam, inv_scale = 1e-2, 1.0 / scale
     it = 0
     for it in range(1, iterations + 1):
         if rescale and (it == 3 or it == 6):
             _residuals(e, a, b, k, n, r)
             scale = _scale(r, n, mean_e, buf, floor)
             cost = _cost(e, a, b, k, n, scale)
-            lam = max(lam, 1e-2)
+            lam, inv_scale = max(lam, 1e-2), 1.0 / scale
         t1x, t1y, t1z, t2x, t2y, t2z = _tangent_frame(nx, ny, nz)
         # residual, Cauchy weight, Jacobian (the lobe's analytic derivative from `_model`, the
         # volume part as (B / n·s)(s·t) κ) and the normal equations in one pass
@@ -340,7 +283,7 @@ def _solve_one(e_all, ok, n0, s, sh, fres, btab, g1tab, sigma, spec, iterations,
         for t in range(n):
             i = kept[t]
             rt = e[t] - a[t] - b[t] * k
-            q = rt / scale
+            q = rt * inv_scale
             w = 1.0 / (1.0 + q * q)
             wr[t] = w
             cs = cs_[t]

@@ -126,7 +126,8 @@ def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, 
             lam = max(lam, 1e-2)
         t1x, t1y, t1z, t2x, t2y, t2z = _tangent_frame(nx, ny, nz)
         r = _resid(e, a, b, k, keep)
-        wr = [(1.0 if keep[i] else 0.0) / (1.0 + (r[i] / scale) * (r[i] / scale)) for i in range(m)]
+        inv = 1.0 / scale
+        wr = [(1.0 if keep[i] else 0.0) / (1.0 + (r[i] * inv) * (r[i] * inv)) for i in range(m)]
         jac = []
         for tx, ty, tz in ((t1x, t1y, t1z), (t2x, t2y, t2z)):
             col = []
