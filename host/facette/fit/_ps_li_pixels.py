@@ -191,35 +191,45 @@ class Pixels:
         profile pixels: the fit pixels `fsel`, fewer under many lights (PROFILE_VALUES values);
         the candidates scored again, and the choice made, on a draw of all the material's pixels
         `pix` (the check below)."""
+        profile = self.profile_of(fsel)
+        return choose_material_model(self.gather(profile), self.lights_of(profile), self.all_ok[profile],
+                                     self.solver(profile), self.settings.diffuse_models, check=self.check_of(pix))
+
+    def profile_of(self, fsel):
+        """The model choice's profile pixels: of the fit pixels `fsel`, fewer under many lights
+        (PROFILE_VALUES values in all, at least 100 pixels), drawn with the pixels' generator."""
         m = self.flat.shape[0]
-        profile = fsel[np.sort(self.rng.choice(fsel.size, min(fsel.size, max(100, PROFILE_VALUES // m)),
-                                               replace=False))]
+        return fsel[np.sort(self.rng.choice(fsel.size, min(fsel.size, max(100, PROFILE_VALUES // m)), replace=False))]
+
+    def check_of(self, pix):
+        """(values, lights, usable, solve) of the model choice's check pixels: a draw of all the
+        material's pixels `pix`, where each diffuse part's best candidate is scored again and the
+        choice made (`choose_material_model`'s check): the fit pixels are the brighter, less oblique
+        half (the σ fit's signal to noise), and there the diffuse parts tie, since they differ most at
+        oblique angles (Mitsuba sphere paint 0.10: profile costs LI 0.0946, coupled 0.0948; on the
+        material's pixels 27 % apart). The draw has a generator of its own: the fit pixels' draws stay
+        as they were."""
+        sel = np.sort(self.rng.spawn(1)[0].choice(pix, min(self.settings.fit_pixels, pix.size), replace=False))
+        return self.gather(sel), self.lights_of(sel), self.all_ok[sel], self.solver(sel)
+
+    def solver(self, sel):
+        """solve(σ, n_i, volume_model, search=True, grid=PROFILE_TABLE_GRID) -> (len(sel), 3): the
+        normals of the pixels `sel` solved against a candidate model, as the model choice and its
+        warm-up ask (`_li_model`, `_ps_li_start`). On the compiled engine where it applies (distant
+        lights), on a coarse table of the volume part (PROFILE_TABLE_GRID), converged, with the
+        highlight start (one start and half the steps moved the simulated scan's choice from σ 0.050,
+        n_i 1.20 to 0.035, 1.30: 0.38° -> 0.62°). The warm-up's too (search=False; DiLiGenT 12
+        lights: 11.9 -> 7.7 s over the six objects), but a metal's lobe's on the arrays: it may be
+        coloured, and the compiled engine solves on the channels' mean (Mitsuba metallic paint
+        sphere: 1.26° -> 1.08°)."""
         engine = self.settings.engine
         arrays = "arrays" if engine == "auto" else engine
-        # the solves on the compiled engine where it applies (distant lights), on a coarse table of
-        # the volume part (PROFILE_TABLE_GRID), converged, with the highlight start (one start and
-        # half the steps moved the simulated scan's choice from σ 0.050, n_i 1.20 to 0.035, 1.30:
-        # 0.38° -> 0.62°). The warm-up's too (search=False; DiLiGenT 12 lights: 11.9 -> 7.7 s over
-        # the six objects), but a metal's lobe's on the arrays: it may be coloured, and the
-        # compiled engine solves on the channels' mean (Mitsuba metallic paint sphere: 1.26° -> 1.08°)
         compiled = "compiled" if engine == "auto" and self.s_all.ndim == 2 else arrays
 
-        def solve_on(sel):
-            def solve(sigma, n_i, vm, search=True, grid=PROFILE_TABLE_GRID):
-                eng = arrays if not search and is_metal(n_i) else compiled
-                return self.refine(sel, sigma, n_i, engine=eng, diffuse_vm=vm, table_grid=grid).normals
-            return solve
-
-        # each diffuse part's best candidate is scored again on a draw of all the material's pixels
-        # (`choose_material_model`'s check), which decides: the fit pixels are the brighter, less
-        # oblique half (the σ fit's signal to noise), and there the diffuse parts tie, since they
-        # differ most at oblique angles (Mitsuba sphere paint 0.10: profile costs LI 0.0946, coupled
-        # 0.0948; on the material's pixels 27 % apart). The draw has a generator of its own: the
-        # fit pixels' draws stay as they were
-        check_sel = np.sort(self.rng.spawn(1)[0].choice(pix, min(self.settings.fit_pixels, pix.size), replace=False))
-        check = (self.gather(check_sel), self.lights_of(check_sel), self.all_ok[check_sel], solve_on(check_sel))
-        return choose_material_model(self.gather(profile), self.lights_of(profile), self.all_ok[profile],
-                                     solve_on(profile), self.settings.diffuse_models, check=check)
+        def solve(sigma, n_i, vm, search=True, grid=PROFILE_TABLE_GRID):
+            eng = arrays if not search and is_metal(n_i) else compiled
+            return self.refine(sel, sigma, n_i, engine=eng, diffuse_vm=vm, table_grid=grid).normals
+        return solve
 
     def lambertian_material(self, pix):
         """Pixels of `pix` given least squares (a material without an interface); their count."""

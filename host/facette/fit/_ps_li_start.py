@@ -13,10 +13,8 @@ solve's own profile pixels, which skips the grid search of `choose_material_mode
 of the profile pixels and the check on a draw of the material's pixels). Taken as it was, the
 decision's (σ, n_i) on the sphere at half the values: 0.45 -> 0.83 deg.
 """
-import numpy as np
 
-from ._li_model import (LAMBERTIAN_SIGMA, PROFILE_TABLE_GRID, PROFILE_VALUES, _diffuse_at_fits, _has_interface,
-                        _warm_up, diffuse_name, is_metal)
+from ._li_model import LAMBERTIAN_SIGMA, _diffuse_at_fits, _has_interface, _warm_up, diffuse_name, is_metal
 
 __all__ = ["start_model_of", "choice_from_start"]
 
@@ -44,19 +42,8 @@ def choice_from_start(px, fsel, pix, start_model):
     fit0, choice = start_model[0], dict(start_model[1])
     if choice.get("model") != "lobe":
         return dict(fit0), 0, choice
-    m = px.flat.shape[0]
-    profile = fsel[np.sort(px.rng.choice(fsel.size, min(fsel.size, max(100, PROFILE_VALUES // m)), replace=False))]
-    engine = px.settings.engine
-    arrays = "arrays" if engine == "auto" else engine
-    compiled = "compiled" if engine == "auto" and px.s_all.ndim == 2 else arrays
-
-    def solve_on(sel):             # as choose_model's warm-up solves
-        def solve(sigma, n_i, vm, search=True, grid=PROFILE_TABLE_GRID):
-            eng = arrays if not search and is_metal(n_i) else compiled
-            return px.refine(sel, sigma, n_i, engine=eng, diffuse_vm=vm, table_grid=grid).normals
-        return solve
-
-    solve = solve_on(profile)
+    profile = px.profile_of(fsel)        # drawn as `Pixels.choose_model` draws them
+    solve = px.solver(profile)
     e, lights, ok = px.gather(profile), px.lights_of(profile), px.all_ok[profile]
     vm = fit0["volume_model"]
     start = {v: dict(sigma=fit0["sigma"], n_i=fit0["n_i"], volume_model=v, gain=1.0,
@@ -65,9 +52,7 @@ def choice_from_start(px, fsel, pix, start_model):
     best = start[vm]
     fit, warm = _warm_up(e, lights, ok, solve, best)
     if _has_interface(fit) and not is_metal(fit["n_i"]) and len(start) > 1:
-        check_sel = np.sort(px.rng.spawn(1)[0].choice(pix, min(px.settings.fit_pixels, pix.size), replace=False))
-        check = (px.gather(check_sel), px.lights_of(check_sel), px.all_ok[check_sel], solve_on(check_sel))
-        best, fit, more = _diffuse_at_fits(e, lights, ok, solve, check, start, best, fit, choice)
+        best, fit, more = _diffuse_at_fits(e, lights, ok, solve, px.check_of(pix), start, best, fit, choice)
         warm, vm = warm + more, best["volume_model"]
     if not _has_interface(fit):
         choice.update(model="lambertian", why=f"the earlier solve's lobe (σ {fit0['sigma']:.3f}, n_i "
