@@ -31,10 +31,6 @@ ROUND_STEP_TOL = 1e-3      # rad (0.06°): a pixel's solve stops below this step
 BLOCK = 32768              # pixels per block of the per-pixel solve (array code, two threads)
 BLOCK_COMPILED = 262144    # pixels per call of the compiled solve (it threads inside)
 NEIGHBOUR_ROUNDS = 5       # `neighbour_round` repeats while normals move, at most this often
-# `neighbour_round`'s solves stop below this step, as the rounds' (ROUND_STEP_TOL): at the solver's
-# 2e-4 rad a tried pixel took 15 steps (DiLiGenT pot2, 96 lights: 6 876 pixels, 0.66 CPU s), at 1e-3
-# 12 (0.55 s), its normal within 0.04° (mean) of the longer solve's
-NEIGHBOUR_STEP_TOL = ROUND_STEP_TOL
 _FIELDS = ("normals", "kd", "used", "rel_residual")
 
 
@@ -272,7 +268,7 @@ class Pixels:
             if not far.size:
                 break
             rr = join_blocks(self.solve_from(far, mean[far], sigma, n_i, self.settings.iterations,
-                                             extra=self.nrm[far], step_tol=NEIGHBOUR_STEP_TOL))
+                                             extra=self.nrm[far]))
             went = far[angle_deg(rr.normals, self.nrm[far]) > 1.0]
             self.store(far, rr)
             tried.append(int(far.size))
