@@ -94,6 +94,7 @@ from ._li_model import DIFFUSE, LI_VOLUME_MODEL, diffuse_name, fit_li_per_pixel_
 from ._ps_li_bands import MODEL_OPTIONS, li_model, lowered, whole_reader
 from ._ps_li_coarse import bin_inputs, coarse_factor, material_from_coarse
 from ._ps_li_pixels import Pixels, Settings, angle_deg
+from ._ps_li_pool import pool_neighbours
 from ._ps_li_refit import refit_verdict
 from ._ps_li_start import choice_from_start
 
@@ -207,6 +208,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     """
     t_start = time.perf_counter()
     images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
+    images, pooled = pool_neighbours(images, mask, saturation)      # under few lights (`_ps_li_pool`)
     diffuse_models = _check_options(rounds, init, highlight_start, diffuse, volume_model, dark_offset, neighbour_deg)
     init_options = dict(init_options or {})
     settings = Settings(iterations=iterations, fine_iterations=fine_iterations, fit_pixels=fit_pixels,
@@ -223,7 +225,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     t_init = time.perf_counter() - t_base
     res = _result_from(base, images.shape[1:3])
     info = res.info = {"init": base.method, "rounds": [], "materials": [],
-                       "pixels": int(np.count_nonzero(base.valid)), **({"dark_offset": dark} if dark else {})}
+                       "pixels": int(np.count_nonzero(base.valid)), **({"dark_offset": dark} if dark else {}),
+                       **({"pooled": pooled} if pooled else {})}
     if info["pixels"] == 0:
         info["levels"] = {"init": {"pixels": 0, "seconds": t_init}}
         return res
