@@ -21,6 +21,11 @@ Gaussian mean of the images instead (σ 0.6 px) took every render 0.1-1.1° wors
 and the cast shadow's edge mixed). Only under at most POOL_MAX_LIGHTS lights: under many the solve
 averages the noise itself, and the pooled values' small bias (a curved surface's mean profile) is
 then not worth it.
+
+**Off by default** (`ps_li_alternating(..., pool=True)` asks for it): confirmed against on DiLiGenT,
+12 lights (`facette bench diligent --lights 12`): the renders' 0.61 -> 0.34° became 7.05 -> 7.27° there
+(ball 1.68 -> 1.65, buddha 8.59 -> 9.27, cat 5.17 -> 5.06, pot2 8.73 -> 9.39, reading 11.08 -> 10.98):
+their errors are not the values' independent noise the renders have, and pooling blurs real detail.
 """
 import numpy as np
 

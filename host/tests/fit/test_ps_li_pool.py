@@ -1,7 +1,6 @@
 """Neighbouring pixels' values pooled before li_alternating under few lights (facette.fit._ps_li_pool)."""
 import numpy as np
 
-from facette.fit import _ps_li_pool
 from facette.fit._ps_li import ps_li_alternating
 from facette.fit._ps_li_pool import POOL_MAX_LIGHTS, pool_neighbours
 from facette.recon.synthetic import angular_error_deg, render, sphere_on_plane, thesis_light_directions
@@ -46,12 +45,11 @@ def test_noise_free_values_many_lights_and_saturated_pixels_are_left_as_they_are
     np.testing.assert_array_equal(out[:, 20, 20], im[:, 20, 20])
 
 
-def test_li_on_a_dark_8bit_sphere_under_the_rigs_12_lights_gains_from_the_pooling(monkeypatch):
+def test_li_on_a_dark_8bit_sphere_under_the_rigs_12_lights_gains_from_the_pooling_asked_for():
     sc, _, im = _dark_8bit("glossy", thesis_light_directions())
     obj = sc.sphere & sc.mask
-    res = ps_li_alternating(im, thesis_light_directions(), mask=sc.mask)
-    monkeypatch.setattr(_ps_li_pool, "POOL_MAX_LIGHTS", 0)
-    alone = ps_li_alternating(im, thesis_light_directions(), mask=sc.mask)
+    res = ps_li_alternating(im, thesis_light_directions(), mask=sc.mask, pool=True)
+    alone = ps_li_alternating(im, thesis_light_directions(), mask=sc.mask)      # the default: off
     err, err_alone = (float(np.mean(angular_error_deg(r.normal, sc.normals, obj))) for r in (res, alone))
     assert res.info["pooled"]["applied"] and "pooled" not in alone.info
     assert err < 0.7 * err_alone, (err, err_alone)
