@@ -144,13 +144,11 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                       t_residual=T_RESIDUAL, iterations=24, materials=1, min_region_fraction=0.05,
                       seed=0, init_options=None, coarse_pixels=COARSE_PIXELS, fine_iterations=2,
                       engine="auto", volume_model=LI_VOLUME_MODEL, highlight_start="all", diffuse="auto",
-                      dark_offset="auto", neighbour_deg=NEIGHBOUR_START_DEG, model=None, row0=0, start_model=None,
-                      pool=False):
+                      dark_offset="auto", neighbour_deg=NEIGHBOUR_START_DEG, model=None, row0=0, start_model=None, pool=False):
     """BRDF-aware photometric stereo with the LI model (module doc).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m ≥ 4.
-    light_dirs : (m, 3) unit vectors towards the lights, or (H, W, m, 3) per pixel (near lights,
-        fall-off already divided out of the images).
+    light_dirs : (m, 3) unit vectors towards the lights, or (H, W, m, 3) per pixel (near lights, fall-off divided out).
     mask, channel, saturation : as `ps_woodham1980`.
     init : photometric-stereo function for the starting normals (default `ps_rank_trimmed`; or
         `ps_hierarchical_tautzia2016`, `ps_woodham1980`, ...; by name through
@@ -159,8 +157,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         on 11 (sphere paint 0.10: 1.14 against 1.29 deg; the relief paint 0.05: 0.59 against 0.96;
         the thesis test 0.97 / 0.87 / 0.74 against 1.01 / 1.01 / 1.14 deg), equal on 4 and worse
         on the two satins (sphere 3.10 against 2.51, relief 1.51 against 1.14).
-    rounds : at most this many fit → re-estimate rounds; tol_deg : stop when the median
-        normal change of the re-estimated pixels is below this (degrees).
+    rounds : at most this many fit → re-estimate rounds; tol_deg : stop below this median normal change (°).
     fit_pixels : pixels (per material) whose values feed the (σ, n_i) fit, drawn among the
         most trustworthy (round 1: the initial solution's valid pixels not too oblique; later:
         the half best explained by the model).
@@ -199,11 +196,9 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         initial normals) taken out of the images the BRDF-aware steps read, since the model
         predicts 0 there (`_without_dark_level`, info["dark_offset"]); "none": the images as given.
     neighbour_deg : step 5 (module doc): a second start from the neighbours' mean this far off; 0: none.
-    model, row0 : a band of a larger image from its row row0, solved with the `li_model` fitted over
-        its bands (`_ps_li_bands`); None: fitted here (above coarse_pixels: the image as one band).
+    model, row0 : a band from row row0 solved with the `li_model` fitted over its bands (`_ps_li_bands`); None: here.
     start_model : an earlier solve's model choice (`_ps_li_start`), round 1's own (one material); None: chosen here.
-    pool : pool each pixel's values with its neighbours' of like profile under ≤ 16 lights (`_ps_li_pool`).
-        Off: 12-light renders 0.61 -> 0.34°, but DiLiGenT 12 lights 7.05 -> 7.27° (pot2 8.73 -> 9.39).
+    pool : True: each pixel's values pooled with its like neighbours' under ≤ 16 lights (`_ps_li_pool`; off: why there).
     Returns a `PSResult` (method "li_alternating"): albedo is K_d (a reflectance, per channel); info
     holds "rounds" (per round: σ, n_i, pixels fitted and re-estimated, median change, seconds),
     "materials" (per region: σ, n_i, pixels, whether the BRDF step ran, neighbour starts, shadows
@@ -211,7 +206,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     """
     t_start = time.perf_counter()
     images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
-    images, pooled = pool_neighbours(images, mask, saturation) if pool else (images, None)   # `_ps_li_pool`
+    images, pooled = pool_neighbours(images, mask, saturation) if pool else (images, None)
     diffuse_models = _check_options(rounds, init, highlight_start, diffuse, volume_model, dark_offset, neighbour_deg)
     init_options = dict(init_options or {})
     settings = Settings(iterations=iterations, fine_iterations=fine_iterations, fit_pixels=fit_pixels,
