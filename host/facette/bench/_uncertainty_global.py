@@ -9,22 +9,22 @@ own normals (and, for the visibility, the lights), over the whole object:
   plaquette), the least-squares residual gathers the curl of the whole field (its divergence-free part, whose
   reach falls off as 1/distance);
 - `sky view`: from those heights (pixels as the unit: an orthographic camera), the share of the hemisphere above
-  each pixel's horizon, as horizon-based ambient occlusion over HORIZON_AZIMUTHS directions up to HORIZON_REACH
-  pixels; reported as 1 − share (high: a pit that sees much surface, the light it gathers from itself);
+  each pixel's horizon (horizon-based ambient occlusion over HORIZON_AZIMUTHS directions, recon._shadows' march),
+  reported as 1 − share (high: a pit that sees much surface, the light it gathers from itself);
 - `hidden lights`: the share of the lights in front of the facet (n·l > FRONT_COS) that the heights' horizon hides
-  (a cast shadow the heights imply), as the solve's geometry sees them;
+  (a cast shadow the heights imply: recon._shadows.hidden_lights, margin 0);
 - `concavity`: minus the heights' Laplacian at 2 px (Gaussian), high in pits and grooves (inter-reflections).
 """
 import numpy as np
-from scipy.ndimage import gaussian_laplace, map_coordinates
+from scipy.ndimage import gaussian_laplace
 
 from facette.recon import integrate_least_squares
+from facette.recon._shadows import hidden_lights, horizon_excess
 
-__all__ = ["global_measures", "integrability_angle", "horizon", "GLOBAL_CANDIDATES"]
+__all__ = ["global_measures", "integrability_angle", "GLOBAL_CANDIDATES"]
 
 GLOBAL_CANDIDATES = ("integrability 1px", "integrability 2px", "sky view", "hidden lights", "concavity")
 HORIZON_AZIMUTHS = 16
-HORIZON_REACH = 64        # pixels the horizon is searched to (steps growing geometrically)
 FRONT_COS = 0.05
 
 
@@ -74,41 +74,19 @@ def integrability_angle(normals, mask, block=1):
     return np.where(mask, _angle(n, _height_normals(z, mask)), 0.0), z
 
 
-def horizon(z, mask, azimuths=HORIZON_AZIMUTHS, reach=HORIZON_REACH):
-    """(K, H, W) tangent of the horizon's elevation above each pixel in K azimuths (0 where nothing in the mask
-    rises above it) and the azimuths' unit vectors (K, 2) in (x, y), y up."""
-    h, w = mask.shape
-    zz = np.where(mask, z, -np.inf)
-    steps = np.unique(np.round(np.geomspace(1, reach, 20)).astype(int))
-    rows, cols = np.mgrid[0:h, 0:w].astype(np.float64)
-    phi = 2 * np.pi * np.arange(azimuths) / azimuths
-    dirs = np.stack([np.cos(phi), np.sin(phi)], axis=1)
-    tan_h = np.zeros((azimuths, h, w))
-    for k, (dx, dy) in enumerate(dirs):
-        for s in steps:
-            other = map_coordinates(zz, [rows - dy * s, cols + dx * s], order=0, mode="constant", cval=-np.inf)
-            rise = (other - z) / s
-            tan_h[k] = np.maximum(tan_h[k], np.where(np.isfinite(rise), rise, 0.0))
-    return tan_h, dirs
-
-
 def _visibility(z, mask, normals, lights):
-    """(sky view: 1 − the share of the hemisphere above the horizon, hidden lights' share of the lights in
-    front), each (H, W)."""
-    tan_h, dirs = horizon(z, mask)
-    sin_h = tan_h / np.sqrt(1 + tan_h ** 2)
-    occluded = np.mean(sin_h, axis=0)          # uniform solid angle: the band below elevation h holds sin h of it
+    """(sky view: the share of the hemisphere below each pixel's horizon, hidden lights' share of the lights in
+    front), each (H, W); the horizons by recon._shadows' march (the one the pipeline's cast shadows use)."""
+    phi = 2 * np.pi * np.arange(HORIZON_AZIMUTHS) / HORIZON_AZIMUTHS
+    level = np.stack([np.cos(phi), np.sin(phi), np.zeros_like(phi)], axis=1)     # elevation 0: the horizon itself
+    elevation = np.radians(np.maximum(horizon_excess(z, mask, level), 0.0))
+    occluded = np.mean(np.sin(elevation), axis=0)    # uniform solid angle: the band below elevation h holds sin h
     lights = np.asarray(lights, np.float64)
     if lights.ndim != 2:
         return occluded, np.full(mask.shape, np.nan)
-    lz = np.clip(lights[:, 2], 1e-6, None)
-    l_tan = lz / np.maximum(np.linalg.norm(lights[:, :2], axis=1), 1e-9)
-    l_az = np.arctan2(lights[:, 1], lights[:, 0])
-    k = np.round(l_az / (2 * np.pi) * len(dirs)).astype(int) % len(dirs)
+    hidden, _ = hidden_lights(normals, mask, lights, 0.0)
     front = np.einsum("hwi,mi->mhw", normals, lights) > FRONT_COS
-    hidden = (tan_h[k] > l_tan[:, None, None]) & front
-    share = hidden.sum(0) / np.maximum(front.sum(0), 1)
-    return occluded, share
+    return occluded, (hidden & front).sum(0) / np.maximum(front.sum(0), 1)
 
 
 def global_measures(normals, sel, lights):
