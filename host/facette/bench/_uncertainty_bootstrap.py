@@ -9,7 +9,10 @@ re-solved normals' angles to the solution (rad) is the measure. Two resamplings:
 - `bootstrap wild`: each light keeps its own residual with a random sign (Rademacher; the wild bootstrap, which
   keeps each light's misfit where it is: a shadow or a lobe misfit stays on its light);
 - `bootstrap neighbours`: each pixel takes the residual vector of a random pixel within NEIGHBOUR_RADIUS (over
-  its prediction's scale κ): the misfit around the pixel carried through this pixel's geometry.
+  its prediction's scale κ): the misfit around the pixel carried through this pixel's geometry;
+- `sector jackknife`: the lights of one of SECTORS azimuth sectors left out in turn (not a random half: a cast
+  shadow or the light a wall sends comes from one side, so it sits in the lights of one sector), the normal
+  re-solved from the solution on the rest; the RMS of the angles.
 ROUNDS resamples each, on at most MAX_PIXELS pixels drawn at random (the others NaN: the bench scores the
 measure on the pixels it has).
 
@@ -29,7 +32,9 @@ from facette.recon import _uncertainty as unc
 
 __all__ = ["bootstrap_measures", "valley_spread", "BOOTSTRAP_CANDIDATES"]
 
-BOOTSTRAP_CANDIDATES = ("bootstrap wild", "bootstrap neighbours", "valley spread")
+BOOTSTRAP_CANDIDATES = ("bootstrap wild", "bootstrap neighbours", "valley spread", "sector jackknife",
+                        "self-calibration shift")
+SECTORS = 4
 VALLEY_TILT_DEG = 15.0
 VALLEY_STARTS = 6
 ROUNDS = 8
@@ -96,9 +101,24 @@ def bootstrap_measures(e, ok, n, lights, labels, materials, shadow, rc, rng=None
                 d = drawn[p]
                 ws[p] = _resolve(np.maximum(pred[d] + r[p], 0.0) * w[d], w[d], n[d], lights, mat)
             store.append(ws)
+    from facette.bench._uncertainty_selfcal import selfcal_shift     # it builds on this module's solve
+    out["self-calibration shift"] = selfcal_shift(e, w, n, lights, labels, materials, drawn)
+    out["sector jackknife"][drawn] = sector_jackknife(e[drawn], w[drawn], n[drawn], lights, labels[drawn], materials)
     out["valley spread"][drawn] = valley_spread(e[drawn], w[drawn], n[drawn], lights, labels[drawn], materials)
     out["bootstrap wild"][drawn] = _spread(n[drawn], wild)
     out["bootstrap neighbours"][drawn] = _spread(n[drawn], near)
+    return out
+
+
+def sector_jackknife(e, w, n, lights, labels, materials):
+    """(N,) rad: the RMS angle to n of the solves with each azimuth sector's lights left out (module doc)."""
+    sector = np.floor((np.arctan2(lights[:, 1], lights[:, 0]) + np.pi) / (2 * np.pi) * SECTORS).astype(int) % SECTORS
+    out = np.zeros(len(e))
+    for label in np.unique(labels):
+        p = np.flatnonzero(labels == label)
+        mat = materials[label] if 0 <= label < len(materials) else None
+        ends = [_resolve(e[p], w[p] * (sector != k), n[p], lights, mat) for k in range(SECTORS) if np.any(sector == k)]
+        out[p] = _spread(n[p], ends)
     return out
 
 
