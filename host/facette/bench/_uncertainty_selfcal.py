@@ -6,13 +6,15 @@ An error of one light's intensity or direction is common to every pixel it light
 model fixed, each light i's residuals over the object, r_pi = e_pi − p_pi (p the fitted model's prediction),
 are fitted by a correction of that light alone,
 
-    r_pi ≈ a_i p_pi + δ_i1 ∂p_pi/∂t_i1 + δ_i2 ∂p_pi/∂t_i2      (least squares over the pixels p, Cauchy-reweighted),
+    r_pi ≈ a_i p_pi + δ_i1 ∂p_pi/∂t_i1 + δ_i2 ∂p_pi/∂t_i2     (least squares over p, Cauchy-reweighted),
 
 a_i its relative intensity error and δ_i (rad) its direction's along two tangents t_i1, t_i2 (finite differences
 of the model). The normals re-solved by the default's per-pixel solve (facette.fit.refine_normals_li, the material
 fixed) under the corrected lights and under the lights as given: `self-calibration shift` is each pixel's angle
-between the two (each re-solved from the solution, so that the solve's own step does not count). It is the error field that the lights' calibration, if it is off as the data say, leaves on the normals; a
-global rotation of the lights and normals together is not seen (it changes no value), as it should not be.
+between the two (each re-solved from the solution, so that the solve's own step does not count). It is the error
+field that the lights' calibration, if it is off as the data say, leaves on the normals. Not seen, as they should
+not be: a rotation of the lights and normals together, a gain common to all the lights (each pixel's albedo); and
+with each pixel's albedo free the lights are pinned to about 0.5° (12 lights near the axis; the test).
 The model's misfit common to a light's pixels (a lobe that is too narrow) is absorbed too, and moves the normals
 where that light matters.
 """
