@@ -30,7 +30,7 @@ from facette.bench._uncertainty_li import _residual as _li_residual
 from facette.fit import refine_normals_li
 from facette.recon import _uncertainty as unc
 
-__all__ = ["bootstrap_measures", "valley_spread", "BOOTSTRAP_CANDIDATES"]
+__all__ = ["bootstrap_measures", "valley_spread", "channel_spread", "BOOTSTRAP_CANDIDATES"]
 
 BOOTSTRAP_CANDIDATES = ("bootstrap wild", "bootstrap neighbours", "valley spread", "sector jackknife",
                         "self-calibration shift")
@@ -149,6 +149,34 @@ def valley_spread(e, w, n, lights, labels, materials):
         like = np.exp(-np.clip((cost - cost.min(0)) / (2 * s2), 0, 50))
         ang = np.stack([np.arccos(np.clip(np.sum(x * n[p], 1), -1.0, 1.0)) for x in ends])
         out[p] = np.sqrt(np.sum(like * ang ** 2, 0) / np.sum(like, 0))
+    return out
+
+
+def channel_spread(vals, ok, n, lights, labels, materials, shadow, rng=None):
+    """(N,) rad, NaN off the MAX_PIXELS pixels drawn (and everywhere for fewer than 3 channels): the RMS pairwise
+    angle of the normals re-solved on each colour channel alone (module doc). vals (N, m, C) the values as the solve
+    saw them, ok (N, m) usable; the rest as `bootstrap_measures`."""
+    out = np.full(len(vals), np.nan)
+    if vals.ndim != 3 or vals.shape[2] < 3 or np.ndim(lights) != 2 or len(vals) == 0:
+        return out
+    rng = np.random.default_rng(_SEED) if rng is None else rng
+    drawn = np.sort(rng.choice(len(vals), min(MAX_PIXELS, len(vals)), replace=False))
+    lights = np.asarray(lights, np.float64)
+    nd = n[drawn]
+    keep = ok[drawn] & (nd @ lights.T > 0) & (True if shadow is None else ~shadow[drawn])
+    materials = materials or []
+    solves = []
+    for c in range(3):
+        e = np.where(keep, np.nan_to_num(vals[drawn, :, c]), 0.0)
+        e = e / np.maximum(e.max(1, keepdims=True), 1e-30)
+        sol = np.zeros_like(nd)
+        for label in np.unique(labels[drawn]):
+            p = np.flatnonzero(labels[drawn] == label)
+            mat = materials[label] if 0 <= label < len(materials) else None
+            sol[p] = _resolve(e[p], keep[p].astype(np.float64), nd[p], lights, mat)
+        solves.append(sol)
+    pairs = [np.arccos(np.clip(np.sum(solves[a] * solves[b], 1), -1.0, 1.0)) for a, b in ((0, 1), (1, 2), (0, 2))]
+    out[drawn] = np.sqrt(np.mean(np.square(pairs), axis=0))
     return out
 
 

@@ -29,12 +29,12 @@ DROP_BRIGHT share left out), with e the values over the pixel's brightest carryi
 - the non-local measures of bench._uncertainty_global (the angle to the whole field's least-squares surface at
   two scales, the sky and the lights that surface hides, its concavity) and, with the solve's model, the
   re-solves of bench._uncertainty_bootstrap (a residual bootstrap through the default's per-pixel solve, the
-  cost's other valleys).
+  cost's other valleys, a sector jackknife, the lights' calibration, each colour channel alone).
 """
 import numpy as np
 from scipy.stats import spearmanr
 
-from facette.bench._uncertainty_bootstrap import BOOTSTRAP_CANDIDATES, bootstrap_measures
+from facette.bench._uncertainty_bootstrap import BOOTSTRAP_CANDIDATES, bootstrap_measures, channel_spread
 from facette.bench._uncertainty_global import GLOBAL_CANDIDATES, global_measures
 from facette.bench._uncertainty_li import LI_CANDIDATES, li_measures
 from facette.bench._uncertainty_physics import PHYSICS_CANDIDATES, physics_measures
@@ -136,6 +136,7 @@ def candidate_measures(images, light_dirs, normals, sel, saturation=None, model=
         out.update(li_measures(e, ok, n, lights, labels, materials, shadow))
         rc = np.stack(np.unravel_index(idx, (h, w)), axis=1)
         out.update(bootstrap_measures(e, ok, n, lights, labels, materials, shadow, rc))
+        out["channel spread"] = channel_spread(vals.transpose(1, 0, 2), ok, n, lights, labels, materials, shadow)
     return out
 
 

@@ -1,10 +1,10 @@
 """The re-solve measures tried for the uncertainty band (bench._uncertainty_bootstrap): the wild bootstrap through
 the per-pixel solve spreads the normal as the noise does (Lambert's Cramér–Rao bound), and the cost's other valleys
 weigh nothing on clean data and more as the noise grows; the lights' calibration error is found from all the pixels
-(bench._uncertainty_selfcal)."""
+(bench._uncertainty_selfcal); a tinted bounce parts the colour channels' normals."""
 import numpy as np
 
-from facette.bench._uncertainty_bootstrap import BOOTSTRAP_CANDIDATES, bootstrap_measures
+from facette.bench._uncertainty_bootstrap import BOOTSTRAP_CANDIDATES, bootstrap_measures, channel_spread
 from facette.bench._uncertainty_selfcal import light_corrections, selfcal_shift
 from facette.recon.synthetic import thesis_light_directions
 
@@ -73,3 +73,16 @@ def test_the_lights_calibration_error_is_found_from_all_the_pixels():
     assert off[0] < 0.6 and np.all(off < 0.6), off
     shift = selfcal_shift(e * w, w, n, lights, labels, None, np.arange(500))
     assert np.all(np.isnan(shift[500:])) and np.degrees(np.median(shift[:500])) > 0.1
+
+
+def test_a_tinted_bounce_parts_the_channels_normals():
+    rng = np.random.default_rng(4)
+    lights = thesis_light_directions()
+    n = rng.normal(size=(400, 3)) * [0.3, 0.3, 0.0] + [0.0, 0.0, 1.0]
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    shade = np.maximum(n @ lights.T, 0.0)
+    vals = shade[..., None] * np.array([0.8, 0.5, 0.3])                # a coloured Lambertian surface
+    bounce = np.maximum(lights @ [0.6, 0.0, 0.8], 0.0)                  # light a wall on the left sends back
+    vals[200:] += 0.3 * bounce[None, :, None] * np.array([0.8, 0.5, 0.3]) ** 2    # tinted: albedo squared
+    m = channel_spread(vals, np.ones(shade.shape, bool), n, lights, np.full(len(n), -1), None, None)
+    assert np.degrees(np.median(m[:200])) < 0.01 and np.degrees(np.median(m[200:])) > 1.0   # 0.0004 and 3.0 deg
