@@ -4,6 +4,7 @@ normals' uncertainty (`_band_uncertainty`), relight.ptm / relight.rti (`_rti_ban
 them (`_process._from_ps`) run as for the images held whole."""
 from facette.capture import capture_size, object_of
 from facette.pipeline._band_uncertainty import banded_uncertainty
+from facette.pipeline._budget import whole_bytes
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted
 from facette.pipeline._relight_only import relight_only, relight_only_bands
@@ -27,7 +28,8 @@ def solved(source, o, res, outputs, stages, claim):
 def read_in_bands(source, o, outputs, stages=()):
     """Whether `process` reads the capture band by band (`banded_process`), else whole, as the band
     loop's one band (`_whole`): a budget (--memory, or the default's when the capture does not fit
-    whole, `_budget`) whose band is shorter than the image, or a scheduler, on a capture's folder
+    whole, `_budget`) that cannot hold the whole reading (`_budget.whole_bytes`) or whose band is shorter
+    than the image, or a scheduler, on a capture's folder
     whose outputs need no image after photometric stereo (`streamed`). A capture whose one band
     fits the budget is read whole whether or not --memory was given: the same files either way. The
     relighting files alone always over bands (`_relight_only`: nothing needs the photographs whole)."""
@@ -37,7 +39,8 @@ def read_in_bands(source, o, outputs, stages=()):
     if o.scheduler is not None or size is None or relight_only(stages):
         return True
     m, h, w = size
-    return band_rows(w, h, m, o.memory, o.method, None, 0, 0 if o.channels == "green" else SOLVE_CHANNEL_BYTES) < h
+    return whole_bytes(m, h, w) > o.memory_bytes or \
+        band_rows(w, h, m, o.memory, o.method, None, 0, 0 if o.channels == "green" else SOLVE_CHANNEL_BYTES) < h
 
 
 def banded_process(source, o, res, outputs, stages, claim):
