@@ -68,7 +68,7 @@ from facette.pipeline._tiles import (BANDED_METHODS, FIELD_BYTES, PROCESS_BYTES,
 from facette.recon import PSResult, near_light_directions
 
 __all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "streamed_ps", "read_whole_notes", "band_loop",
-           "band_rows", "solve_channel", "solve_reader", "solve_setup"]
+           "band_rows", "solve_channel", "solve_reader", "solve_setup", "one_band_note"]
 
 STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
 MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (the photographs are not held) "
@@ -437,6 +437,12 @@ def _gains_shadows_and_model(res, o, inp, bands, near, bag, weights, rows, gains
     return gains, hidden, model
 
 
+def one_band_note(o, h):
+    """The note of a run with --memory whose capture's one band fits the budget (`_streamed.read_in_bands`)."""
+    return [f"--memory {o.memory}: photometric stereo over 1 band of {h} rows: the capture fits one band, read whole "
+            "(the files of a run without --memory)"] if o.memory is not None else []
+
+
 def read_whole_notes(o, source):
     """The notes of a run with --memory whose source `process` reads whole (not a capture's folder:
     `streamed`): the budget bounds nothing there."""
@@ -446,9 +452,8 @@ def read_whole_notes(o, source):
         folder = source_path(source).is_dir()
     except TypeError:
         folder = False
-    if folder:      # its one band fits the budget (`_streamed.read_in_bands`)
-        return [f"--memory {o.memory}: the capture fits one band: read whole, photometric stereo over that one band "
-                "(the files of a run without --memory)"]
+    if folder:      # its one band fits the budget (`_streamed.read_in_bands`): said once its size is known
+        return []
     notes = [f"--memory {o.memory}: {source!r} is not a capture's folder: its images were read whole, the "
              "budget bounds nothing (give the capture's folder to read it band by band)"]
     if o.scheduler is not None:

@@ -19,7 +19,8 @@ from facette.pipeline._light_gains import gained, light_gains_of_bands
 from facette.pipeline._quality import check_samples, light_geometry
 from facette.pipeline._rti_bands import band_reader
 from facette.pipeline._shadows import with_shadows
-from facette.pipeline._tiled_process import band_loop, read_whole_notes, solve_channel, solve_reader, solve_setup
+from facette.pipeline._tiled_process import (band_loop, one_band_note, read_whole_notes, solve_channel,
+                                             solve_reader, solve_setup)
 from facette.pipeline._tiles import BANDED_METHODS
 from facette.recon import dark_level_notes, near_light_directions
 
@@ -62,6 +63,7 @@ def whole_process(source, o, res, stages, claim):
         res.notes.extend(notes + light_geometry(inp.light_dirs, res.quality))
     res.timings["load"] = time.perf_counter() - t0
     m, h, w, _ = inp.images.shape
+    res.notes.extend(one_band_note(o, h))          # --memory whose one band holds the capture
     t0 = time.perf_counter()
     light_dirs, falloff = inp.light_dirs, None
     if o.near_light and inp.positions_mm is not None:
