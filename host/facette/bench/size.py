@@ -260,7 +260,7 @@ def scan_size(size, work, memory, method, untiled, outputs="normals,height"):
     if untiled:
         stdout, row["untiled_s"], row["untiled_gb"] = _run_rss(_measured(base + [out_u]))
     stdout, row["mem_s"], row["mem_gb"] = _run_rss(_measured(base + [out_m, "--memory", memory]))
-    bands = re.search(r"over (\d+) bands of (\d+) rows", stdout)
+    bands = re.search(r"over (\d+) bands? of (\d+) rows", stdout)
     row["mem_tiles"] = int(bands.group(1)) if bands else -1
     row["mem_deg"], row["mem_over"], row["mem_height"] = (
         _compare_process(out_u, out_m) if untiled else (float("nan"), -1, float("nan")))
@@ -348,7 +348,7 @@ def one_size(size, work, memory, method, untiled):
     stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", folder, "-o", out_mem, "--outputs", "normals,height",
                                                      "--method", method, "--channels", "green", "--memory", memory,
                                                      "--overwrite"]))
-    bands = re.search(r"over (\d+) bands of (\d+) rows", stdout)
+    bands = re.search(r"over (\d+) bands? of (\d+) rows", stdout)
     row.update(mem_s=wall, mem_cpu=LAST_CPU[0], mem_gb=gb, mem_tiles=int(bands.group(1)) if bands else -1,
                mem_ps=_times(stdout).get("ps", float("nan")))
     row["mem_deg"], row["mem_over"], row["mem_height"] = (
