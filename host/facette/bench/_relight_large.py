@@ -59,12 +59,12 @@ def run_large(size, work, method="woodham1980", memory=None, free=None, outputs=
 
 def _child(folder, out, method, memory, free, outputs, samples):
     from facette.bench._relight_sampler import StageSampler
-    from facette.pipeline import _budget, process
+    from facette.pipeline import ALL_OUTPUTS, _budget, process
     if free != "None":
         _budget.free_memory = lambda: int(float(free))
     with StageSampler([os.environ.get("TMPDIR", "/tmp"), out], samples) as sampler:
-        res = process(folder, outputs=outputs.split(","), out_dir=out, method=method,
-                      **({} if memory == "None" else {"memory": memory}))
+        res = process(folder, outputs=list(ALL_OUTPUTS) if outputs == "all" else outputs.split(","), out_dir=out,
+                      method=method, **({} if memory == "None" else {"memory": memory}))
     read = next((n.split(": ", 1)[1] for n in res.notes if n.startswith("memory: ")), "the whole reading")
     print(f"read: {read}")
     print(f"per stage: {sampler.summary()}")
