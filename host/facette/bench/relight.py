@@ -162,7 +162,8 @@ def main(argv=None):
     ap.add_argument("--large-free", default=None, metavar="SIZE",
                     help="--large: the free memory process's default budget is told of (e.g. 64GB: as a large "
                          "machine decides; default: this machine's)")
-    ap.add_argument("--large-outputs", default="relight", help="--large: process's outputs, comma-separated, or all (default relight)")
+    ap.add_argument("--large-outputs", default="relight",
+                    help="--large: process's outputs, comma-separated, or all (default relight)")
     ap.add_argument("--large-capture", default=None, metavar="DIR",
                     help="--large: a slab folder already written (bench._large), instead of generating one")
     args = ap.parse_args(argv)
