@@ -21,14 +21,15 @@ from pathlib import Path
 __all__ = ["stage_table", "print_stage_table"]
 
 # (name in the table, module, function): the functions `process` calls through module globals
-# (pipeline._whole: the load and photometric stereo of the images held whole)
+# (pipeline._whole: the load of the images held whole; pipeline._tiled_process: the band loop, its one band)
 WRAPPED = [
     ("load", "facette.pipeline._whole", "load_input"),
     # the solve's 4-channel stack: per light with the default channels, so a candidate for the acquisition
-    ("solve's channel (images_for_solve)", "facette.pipeline._whole", "images_for_solve"),
-    ("light gains", "facette.pipeline._whole", "with_light_gains"),
-    ("photometric stereo (shadow step + solve)", "facette.pipeline._whole", "with_shadows"),
-    ("photometric stereo (solve)", "facette.pipeline._whole", "photometric_stereo"),
+    ("solve's channel (with_solve_channel)", "facette.pipeline._tiled_process", "with_solve_channel"),
+    ("light gains", "facette.pipeline._whole", "light_gains_of_bands"),
+    ("photometric stereo (shadow step)", "facette.pipeline._tiled_process", "hidden_over_bands"),
+    ("photometric stereo (li_alternating's model)", "facette.pipeline._tiled_process", "band_model"),
+    ("photometric stereo (solve)", "facette.pipeline._tiled_process", "photometric_stereo"),
     ("object mask", "facette.pipeline._whole", "object_of"),
     ("uncertainty", "facette.pipeline._process", "uncertainty_of"),
     # after the maps, inside the ptm / rti stage (pipeline._relight_later): counted in its row

@@ -25,17 +25,23 @@ DROP_BRIGHT share left out), with e the values over the pixel's brightest carryi
   both keep);
 - the physically grounded measures of bench._uncertainty_physics (the normal's tilt, the lights in front of the
   facet, highlights, cast shadows, light from behind, the distances to an edge and to a cast shadow, the
-  normal field's variation at two scales).
+  normal field's variation at two scales);
+- the non-local measures of bench._uncertainty_global (the angle to the whole field's least-squares surface at
+  two scales, the sky and the lights that surface hides, its concavity) and, with the solve's model, the
+  re-solves of bench._uncertainty_bootstrap (a residual bootstrap through the default's per-pixel solve, the
+  cost's other valleys, a sector jackknife, the lights' calibration, each colour channel alone).
 """
 import numpy as np
 from scipy.stats import spearmanr
 
+from facette.bench._uncertainty_bootstrap import BOOTSTRAP_CANDIDATES, bootstrap_measures, channel_spread
+from facette.bench._uncertainty_global import GLOBAL_CANDIDATES, global_measures
 from facette.bench._uncertainty_li import LI_CANDIDATES, li_measures
 from facette.bench._uncertainty_physics import PHYSICS_CANDIDATES, physics_measures
 from facette.recon import _uncertainty as unc
 
 __all__ = ["jackknife_lambertian", "table_residual", "candidate_measures", "candidate_spearman", "measure_spearman",
-           "CANDIDATES", "LI_CANDIDATES", "PHYSICS_CANDIDATES"]
+           "CANDIDATES", "LI_CANDIDATES", "PHYSICS_CANDIDATES", "GLOBAL_CANDIDATES", "BOOTSTRAP_CANDIDATES"]
 
 CANDIDATES = ("jackknife", "lambertian residual", "kept lights", "kept conditioning", "kept spread",
               "angle to lambertian", "table residual", "local fit", "curl")
@@ -122,23 +128,29 @@ def candidate_measures(images, light_dirs, normals, sel, saturation=None, model=
             "table residual": table_residual(e, ok, n, lights),
             "local fit": fit.ravel()[idx], "curl": unc.curl_angle(normals, has).ravel()[idx]}
     out.update(physics_measures(raw, ok, n, lights, mask, normals))
+    out.update(global_measures(normals, mask, light_dirs))
     if model is not None and model[1] is not None:
         materials, labels, shadow = model
         shadow = None if shadow is None else np.asarray(shadow, bool).reshape(h * w, m)[idx]
-        out.update(li_measures(e, ok, n, lights, np.asarray(labels).reshape(-1)[idx], materials, shadow))
+        labels = np.asarray(labels).reshape(-1)[idx]
+        out.update(li_measures(e, ok, n, lights, labels, materials, shadow))
+        rc = np.stack(np.unravel_index(idx, (h, w)), axis=1)
+        out.update(bootstrap_measures(e, ok, n, lights, labels, materials, shadow, rc))
+        out["channel spread"] = channel_spread(vals.transpose(1, 0, 2), ok, n, lights, labels, materials, shadow)
     return out
 
 
 def candidate_spearman(images, light_dirs, normals, sel, err, saturation=None, model=None):
-    """{name: Spearman of the measure against err (N,) on the pixels of sel} (nan when constant or not all
-    finite)."""
+    """{name: Spearman of the measure against err (N,) on the pixels of sel} (nan when constant; NaN
+    values, pixels a measure did not draw, are left out; inf ranks last)."""
     return measure_spearman(candidate_measures(images, light_dirs, normals, sel, saturation, model), err)
 
 
 def measure_spearman(measures, err):
-    """{name: Spearman of each measure (N,) of `measures` against err (N,)} (nan when constant or not all finite)."""
+    """{name: Spearman of each measure (N,) of `measures` against err (N,)} (nan when constant; NaN values left out)."""
     out = {}
     for name, v in measures.items():
-        good = np.all(np.isfinite(v)) and np.ptp(v) > 0 and np.ptp(err) > 0
-        out[name] = float(spearmanr(v, err).statistic) if good else float("nan")
+        f = ~np.isnan(v)          # the re-solves are drawn on a subsample: scored on the pixels they have
+        good = f.sum() > 2 and len(np.unique(v[f])) > 1 and np.ptp(err[f]) > 0
+        out[name] = float(spearmanr(v[f], err[f]).statistic) if good else float("nan")
     return out

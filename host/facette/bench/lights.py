@@ -10,9 +10,11 @@ normals' mean angular error against the truth, and li_alternating's parts (initi
 pass, BRDF-aware step). The default sizes: 481x466 (a real dome capture's, below the coarse-to-fine
 threshold: the whole alternation at full size) and 1024x768 (coarse-to-fine, as every large capture).
 
-With --banded WxH[,WxH] the default runs instead over bands of 256 rows of a relief rendered band by
-band (never held whole), its model fitted across the bands (`fit.li_model`): the model's and the
-bands' CPU seconds, both per megapixel-light, the error, and 24 MP x 60 lights estimated at these
+With --banded WxH[,WxH] the default runs instead over bands of a relief rendered band by band
+(never held whole; a band's photographs within BAND_BYTES: 31 rows at 6000 px x 60 lights), its
+model fitted across the same bands (`fit.li_model`): the model's and the bands' CPU seconds, both
+per megapixel-light, the wall seconds (the rendering's included, twice: the model's pass and the
+solve's), the process's peak memory so far, the error, and 24 MP x 60 lights estimated at these
 rates (the model's cost is bounded by its sample and coarse pass; the bands' grows with pixels x
 lights).
 
@@ -30,9 +32,12 @@ from facette.recon.synthetic import Scene, render, thesis_light_directions
 
 from ._large import relief_surface
 
-__all__ = ["main", "dome_lights", "relief_scene"]
+__all__ = ["main", "dome_lights", "relief_scene", "band_rows", "render_band", "banded"]
 
 METHODS = ("rank_trimmed", "li_alternating")
+# the photographs of one band of --banded (float32): 128 MB, so a band and its solve's copies
+# stay well under 1 GB whatever the width and light count (6000 px x 60 lights: 31 rows)
+BAND_BYTES = 1 << 27
 
 
 def dome_lights(m):
@@ -74,61 +79,89 @@ def run(h, w, m, material, methods=METHODS):
     return rows
 
 
-def banded(w, h, m, material, rows=256):
-    """li_alternating over bands of `rows` rows of a w x h relief rendered band by band (never whole:
-    sizes a machine cannot hold as one image), its model fitted across the bands (fit.li_model):
-    (model CPU s, bands' CPU s, wall s, mean error deg, the bands' wall s in the initial solve and the
-    BRDF-aware step)."""
+def band_rows(w, m, budget=BAND_BYTES):
+    """Rows per band: the band's photographs (m x rows x w x 3 float32) within `budget` bytes."""
+    return max(1, int(budget) // (m * w * 3 * 4))
+
+
+def render_band(r0, r1, w, scale, lights, material, noise=0.01):
+    """(images (m, r1 - r0, w, 3) float32, true normals) of rows r0:r1 of a w-wide relief whose
+    smaller side is `scale`: rendered one light at a time into the band (render's float64
+    temporaries are one light's), the noise seeded by the row (the same values whichever band
+    holds the row: the model's reads and the solve's bands need not share their edges)."""
+    _, normals = relief_surface(np.arange(r0, r1), np.arange(w), scale)
+    r = r1 - r0
+    scene = Scene(normals, np.zeros((r, w)), np.ones((r, w), bool), np.zeros((r, w), bool),
+                  ((r - 1) / 2, (w - 1) / 2), 1.0)
+    images = np.empty((len(lights), r, w, 3), np.float32)
+    for i, s in enumerate(lights):
+        images[i] = render(scene, s[None], material, cast_shadows=False)[0]
+    for row in range(r0, r1):
+        z = np.random.default_rng(row).standard_normal((len(lights), w, 3), dtype=np.float32)
+        images[:, row - r0] *= 1 + noise * z
+    np.maximum(images, 0, out=images)
+    return images, normals
+
+
+def banded(w, h, m, material, rows=None, **options):
+    """li_alternating over bands of `rows` rows (default: `band_rows`, the band's photographs
+    within BAND_BYTES) of a w x h relief rendered band by band (never whole: sizes a machine
+    cannot hold as one image), its model fitted across the bands (fit.li_model), which reads the
+    same bands; options: li_alternating's. Returns (model CPU s, bands' CPU s, wall s, mean error
+    deg, the bands' wall s in the initial solve and the BRDF-aware step); the rendering's CPU is
+    in neither."""
     from facette.fit import li_model
 
     lights = dome_lights(m)
-    scale = min(h, w)
-
-    def band(r0, r1):       # the same values whichever band asks (noise seeded by the rows)
-        _, normals = relief_surface(np.arange(r0, r1), np.arange(w), scale)
-        scene = Scene(normals, np.zeros((r1 - r0, w)), np.ones((r1 - r0, w), bool), np.zeros((r1 - r0, w), bool),
-                      ((r1 - r0 - 1) / 2, (w - 1) / 2), 1.0)
-        images = render(scene, lights, material, noise=0.01, rng=np.random.default_rng(r0), cast_shadows=False)
-        return images, normals
+    rows = band_rows(w, m) if rows is None else int(rows)
     render_c = 0.0
 
     def read(r0, r1):
         nonlocal render_c
         c = time.process_time()
-        images = np.concatenate([band(a, min(a + rows, r1))[0] for a in range(r0, r1, rows)], axis=1)
+        images, _ = render_band(r0, r1, w, min(h, w), lights, material)
         render_c += time.process_time() - c
         return images, lights, np.ones((r1 - r0, w), bool)
     t, c = time.perf_counter(), time.process_time()
-    model = li_model(read, (h, w), h * w, rows)
+    model = li_model(read, (h, w), h * w, rows, **options)
     model_c = time.process_time() - c - render_c
     total, count, parts, bands_c = 0.0, 0, np.zeros(2), 0.0
     rows = rows if model is not None else h      # no model (below coarse_pixels): the image is one band
     for r0 in range(0, h, rows):
         r1 = min(h, r0 + rows)
-        images, normals = band(r0, r1)
+        images, normals = render_band(r0, r1, w, min(h, w), lights, material)
         c = time.process_time()
-        part = photometric_stereo(images, lights, method="li_alternating", model=model, row0=r0)
+        part = photometric_stereo(images, lights, method="li_alternating", model=model, row0=r0, **options)
         bands_c += time.process_time() - c
+        del images
         parts += _parts(part.info)[::2]          # the initial solve's and the BRDF-aware step's wall s
         dot = np.clip(np.sum(part.normal * normals, -1), -1, 1)
         total, count = total + float(np.degrees(np.arccos(dot)).sum()), count + dot.size
     return model_c, bands_c, time.perf_counter() - t, total / count, parts
 
 
+def _peak_gb():
+    """This process's peak resident memory so far (GB; Linux's ru_maxrss is in kB)."""
+    import resource
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
+
+
 def _banded_main(sizes, lights, material):
-    print(f"-- li_alternating over bands of 256 rows, its model fitted across them (rendered band by band, "
-          f"Cook-Torrance {material}, 1 % noise); CPU s without the rendering")
-    print(f"{'size':>10s} {'lights':>6s} {'model CPU s':>11s} {'bands CPU s':>11s} {'CPU s/MPl':>9s} "
-          f"{'bands s/MPl':>11s} {'error':>7s}   24 MP x 60 lights at these rates; the bands' wall s: init / BRDF")
+    print(f"-- li_alternating over bands, its model fitted across them (rendered band by band, Cook-Torrance "
+          f"{material}, 1 % noise); CPU s without the rendering, wall s with it; peak: the process's so far")
+    print(f"{'size':>10s} {'lights':>6s} {'rows':>4s} {'model CPU s':>11s} {'bands CPU s':>11s} {'CPU s/MPl':>9s} "
+          f"{'bands s/MPl':>11s} {'wall s':>7s} {'peak GB':>7s} {'error':>7s}   24 MP x 60 lights at these rates; "
+          "the bands' wall s: init / BRDF")
     for size in sizes.split(","):
         w, h = (int(v) for v in size.lower().split("x"))
         for m in (int(v) for v in lights.split(",")):
-            model_c, bands_c, _, err, parts = banded(w, h, m, material)
+            model_c, bands_c, wall, err, parts = banded(w, h, m, material)
             mpl = h * w * m / 1e6
             at = model_c + bands_c / mpl * 24 * 60        # the model's cost is bounded (SAMPLE_PIXELS, coarse_pixels)
-            print(f"{size:>10s} {m:6d} {model_c:11.1f} {bands_c:11.1f} {(model_c + bands_c) / mpl:9.3f} "
-                  f"{bands_c / mpl:11.3f} {err:6.3f}°   {at:.0f} CPU s ({at / 2:.0f} s on 2 cores); "
-                  f"{parts[0]:.1f} / {parts[1]:.1f}", flush=True)
+            print(f"{size:>10s} {m:6d} {band_rows(w, m):4d} {model_c:11.1f} {bands_c:11.1f} "
+                  f"{(model_c + bands_c) / mpl:9.3f} {bands_c / mpl:11.3f} {wall:7.1f} {_peak_gb():7.2f} "
+                  f"{err:6.3f}°   {at:.0f} CPU s ({at / 2:.0f} s on 2 cores); {parts[0]:.1f} / {parts[1]:.1f}",
+                  flush=True)
 
 
 def main(argv=None):

@@ -43,7 +43,8 @@ The untiled run is skipped (`--no-untiled`, or above `--untiled-max-mp`, default
 
 With `--no-flag`, `facette process SLAB --outputs normals,height` runs once more with no flag at
 all (the default method, li_alternating, and the default memory budget of pipeline._budget, which
-reads a capture band by band when it does not fit whole): wall s, s/MP, peak, the method that ran.
+reads a capture band by band when it does not fit whole): wall and CPU s, s/MP, peak, the error to
+the truth, the method that ran, the budget's note; `--only-no-flag`: that run alone (the scan's with --scan).
 
 Usage: facette bench size [--sizes 12] [--memory 2GB] [--method rank_trimmed] [--no-flag] [--keep DIR]
 Sizes in megapixels (3, 12, 50, 100: the thesis camera's half and whole, 50 MP, the GFX100)
@@ -184,7 +185,7 @@ def _compare(folder, tiled_npy, untiled_exr):
 def _truth_error(folder, normal_exr):
     """Mean angle (deg) of the normals of `normal_exr` to the slab's truth, where they have one."""
     truth = np.load(Path(folder) / "normal_gt.npy", mmap_mode="r")
-    n = read_exr(normal_exr)[0][..., :3]
+    n = read_exr(normal_exr, ("X", "Y", "Z"))[0]      # not the uncertainty: 4 B/px less held
     total, count = 0.0, 0
     for r0 in range(0, truth.shape[0], BAND_ROWS):
         sl = slice(r0, r0 + BAND_ROWS)
@@ -259,7 +260,7 @@ def scan_size(size, work, memory, method, untiled, outputs="normals,height"):
     if untiled:
         stdout, row["untiled_s"], row["untiled_gb"] = _run_rss(_measured(base + [out_u]))
     stdout, row["mem_s"], row["mem_gb"] = _run_rss(_measured(base + [out_m, "--memory", memory]))
-    bands = re.search(r"over (\d+) bands of (\d+) rows", stdout)
+    bands = re.search(r"over (\d+) bands? of (\d+) rows", stdout)
     row["mem_tiles"] = int(bands.group(1)) if bands else -1
     row["mem_deg"], row["mem_over"], row["mem_height"] = (
         _compare_process(out_u, out_m) if untiled else (float("nan"), -1, float("nan")))
@@ -347,7 +348,7 @@ def one_size(size, work, memory, method, untiled):
     stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", folder, "-o", out_mem, "--outputs", "normals,height",
                                                      "--method", method, "--channels", "green", "--memory", memory,
                                                      "--overwrite"]))
-    bands = re.search(r"over (\d+) bands of (\d+) rows", stdout)
+    bands = re.search(r"over (\d+) bands? of (\d+) rows", stdout)
     row.update(mem_s=wall, mem_cpu=LAST_CPU[0], mem_gb=gb, mem_tiles=int(bands.group(1)) if bands else -1,
                mem_ps=_times(stdout).get("ps", float("nan")))
     row["mem_deg"], row["mem_over"], row["mem_height"] = (
@@ -401,11 +402,22 @@ def no_flag(size, work, kind="slab"):
     stdout, wall, gb = _run_rss(_measured(FACETTE + ["process", work / f"{kind}_{w}x{h}", "-o", out, "--outputs",
                                                      "normals,height", "--overwrite"]))
     method = re.search(r"\((\w+)\)\s*$", stdout.splitlines()[0])
-    err = f"{_truth_error(work / f'slab_{w}x{h}', out / 'normal.exr'):.3f}° to the truth, " if kind == "slab" else ""
+    err = _truth_error(work / f"slab_{w}x{h}", out / "normal.exr")      # the scan is the slab's too
     budget = next((line.strip()[len("note: "):] for line in stdout.splitlines() if "note: memory:" in line), "")
     print(f"no flag {'' if kind == 'slab' else 'scan '}{w}x{h}: {wall:.1f} s, {LAST_CPU[0]:.1f} CPU s, "
-          f"{wall / (w * h / 1e6):.2f} s/MP, peak {gb:.2f} GB, "
-          f"{err}{method.group(1) if method else '?'}; {budget}", flush=True)
+          f"{wall / (w * h / 1e6):.2f} s/MP ({LAST_CPU[0] / (w * h / 1e6):.2f} CPU s/MP), peak {gb:.2f} GB, "
+          f"{err:.3f}° to the truth, {method.group(1) if method else '?'}; {budget}", flush=True)
+
+
+def only_no_flag(size, work, scan):
+    """The no-flag run alone, of the folder or (scan) its scan directory, each written when missing."""
+    folder, scan_dir = (work / f"{kind}_{size[0]}x{size[1]}" for kind in ("slab", "scan"))
+    if not (folder / "mask.png").is_file():
+        _run_rss(_measured(SELF + ["--_generate", folder, *map(str, size)]))
+    if scan and not (scan_dir / "scan.json").is_file():
+        shutil.rmtree(scan_dir, ignore_errors=True)
+        _run_rss(_measured(SELF + ["--_scan", folder, scan_dir]))
+    no_flag(size, work, "scan" if scan else "slab")
 
 
 def main(argv=None):
@@ -444,18 +456,23 @@ def main(argv=None):
                         "wall seconds), the first then holding tasks (default: none)")
     p.add_argument("--no-flag", action="store_true", help="also `facette process SLAB` (and SCAN with "
                                                            "--scan) with no flag (the default method and budget)")
+    p.add_argument("--only-no-flag", action="store_true", help="the no-flag run alone (with --scan: the scan "
+                                                                "directory's), its capture written when missing")
     p.add_argument("--keep", help="keep the captures and results in this folder (default: temporary); "
                                   "a slab already there is reused")
     args = p.parse_args(argv)
     sizes = [_size(s.strip()) for s in args.sizes.split(",") if s.strip()]
     rows, scan_rows = [], []
-    if not args.only_scan:
+    if not (args.only_scan or args.only_no_flag):
         _header(args.memory, args.method)
     with tempfile.TemporaryDirectory(prefix="facette-bench-size-") as tmp:
         work = Path(args.keep) if args.keep else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         for size in sizes:
             untiled = not args.no_untiled and size[0] * size[1] / 1e6 <= args.untiled_max_mp
+            if args.only_no_flag:
+                only_no_flag(size, work, args.scan)
+                continue
             if args.only_scan:
                 if not (work / f"slab_{size[0]}x{size[1]}" / "mask.png").is_file():
                     _run_rss(_measured(SELF + ["--_generate", work / f"slab_{size[0]}x{size[1]}", *map(str, size)]))

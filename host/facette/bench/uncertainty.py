@@ -20,7 +20,11 @@ Each case also prints how rankable its errors are: their 10th-90th percentile (a
 same everywhere, as the 16-bit ball's ~2 deg, has no order for any measure to find). --candidates adds a line
 per case with the Spearman of the measures tried and not taken (bench._uncertainty_candidates: a
 leave-one-light-out jackknife, the kept lights' count, conditioning and spread, residuals; and, from the
-solve's own model, bench._uncertainty_li: the LI model's Laplace covariance, its bound, two half-light solves).
+solve's own model, bench._uncertainty_li: the LI model's Laplace covariance, its bound, two half-light solves; the
+non-local ones of bench._uncertainty_global: the angle to the whole field's least-squares surface, the sky and the
+lights that surface hides; the re-solves of bench._uncertainty_bootstrap and _uncertainty_selfcal: a residual
+bootstrap through the default's per-pixel solve, the cost's other valleys, a sector jackknife, the lights'
+calibration error as all the pixels show it).
 Each group ends with its mean over the cases (the bar is read on it) and the Spearman and coverage of all its
 pixels pooled. --combination fits a combination of the measures on the renders' ranks
 (bench._uncertainty_combination) and prints its Spearman per case, DiLiGenT only scored; then, as a bound never

@@ -120,7 +120,7 @@ class ArrayBands(Bands):
         return ("arrays", self.images, self.usable)
 
     def read(self, r0, r1, flat=None):
-        band = self.images[:, r0:r1]
+        band = self.images[:, r0:r1].copy()      # a band of its own, as a file reader's: the loop divides it in place
         if self.usable is not None:
             return band, self.usable[:, r0:r1]
         with np.errstate(invalid="ignore"):

@@ -42,9 +42,9 @@ as `photometric_stereo(method="li_alternating")`.
    round, the refit moved with the draw (DiLiGenT pot2: n_i by 0.01-0.03 a round) and the rounds
    ran to their limit; on the same pixels it settles. Mitsuba scenes: the same errors (the gold
    sphere's and relief's 0.03-0.06° better); DiLiGenT 96 lights 6.53 -> 6.56° (pot2 7.57 -> 7.71°),
-   its photometric stereo 45 -> 34 s over the six objects. A later round's refit that lowers its
-   pixels' cost by less than one standard error of their paired differences keeps the model and
-   stops the rounds (REFIT_MIN_GAIN: a slide along a flat valley, not a better fit).
+   its photometric stereo 45 -> 34 s over the six objects. A later round's refit that does not
+   lower the cost of held-out pixels (solved against each model) keeps the model and stops the
+   rounds (`_ps_li_refit`: a slide along a flat valley, not a better fit).
 
 5. Neighbour starts (`neighbour_deg`): a solved pixel whose normal is more than 10° from the
    mean of its 5 × 5 neighbours is solved again from that mean and from its own normal, and keeps
@@ -90,10 +90,12 @@ import numpy as np
 from facette.brdf import kd_from_kappa, li_shading_terms
 from facette.recon import PSResult, dark_offsets, ps_rank_trimmed
 from facette.recon._ps import T_RESIDUAL, _check_inputs
-from ._li_model import DIFFUSE, LI_VOLUME_MODEL, diffuse_name, fit_li_per_pixel_kd, _pixel_costs
+from ._li_model import DIFFUSE, LI_VOLUME_MODEL, diffuse_name, fit_li_per_pixel_kd
 from ._ps_li_bands import MODEL_OPTIONS, li_model, lowered, whole_reader
 from ._ps_li_coarse import bin_inputs, coarse_factor, material_from_coarse
 from ._ps_li_pixels import Pixels, Settings, angle_deg
+from ._ps_li_pool import pool_neighbours
+from ._ps_li_refit import refit_verdict
 from ._ps_li_start import choice_from_start
 
 __all__ = ["ps_li_alternating"]
@@ -102,34 +104,16 @@ DARK_NEGLIGIBLE = 1e-3    # a dark level below 0.1 % of the lit median is left i
 COARSE_PIXELS = 250_000    # above this many valid pixels the alternation runs coarse-to-fine
 SETTLED_SIGMA = 0.05       # a later round's refit within 5 % of σ and 0.01 of n_i: no new re-estimate
 SETTLED_N_I = 0.01
-# a later round's refit that lowers its fit pixels' robust cost by less than one standard error of
-# the pixels' paired differences (`_refit_gain`: the refit trades some pixels' misfit for others') is
-# a tie, and the model stays: taking it only slid (σ, n_i) along a flat valley with the draw (the
-# satin sphere of tests/pipeline/test_process_light_gains, its gains corrected: round 2 moved σ
-# 0.168 -> 0.193, n_i 1.73 -> 1.89 at 0.74 standard errors, mean error 0.31 -> 0.46°). Chosen on that
-# sphere (0.74 and 0.57 over two gain readings: ties; 4.6 with the gains off: taken); DiLiGenT
-# (confirmation, process's inputs) ball, buddha, cat 3.7-7.7, pot2 0.59, reading 0.87: ties now
-REFIT_MIN_GAIN = 1.0
 # step 5's threshold, chosen on the Mitsuba renders (12 lights; 5° gave the same errors to 0.02°
 # with twice the pixels tried, 15° and 25° less gain: satin sphere 0.67 / 0.79°, satin relief 0.63 /
 # 1.06°), then confirmed on DiLiGenT (module doc)
 NEIGHBOUR_START_DEG = 10.0
 
 
-def _settled(prev, new, gain=np.inf):
-    """Whether a refit (σ, n_i) is within SETTLED_SIGMA (relative) and SETTLED_N_I of the previous,
-    or lowers its pixels' cost by less than REFIT_MIN_GAIN standard errors (`gain`, `_refit_gain`)."""
-    return gain < REFIT_MIN_GAIN or (abs(new[0] - prev[0]) <= SETTLED_SIGMA * max(prev[0], 1e-3)
-                                     and abs(new[1] - prev[1]) <= SETTLED_N_I)
-
-
-def _refit_gain(px, fsel, x0, fit):
-    """How much a later round's refit lowers the robust cost of its fit pixels against the previous
-    (σ, n_i), at the same normals, in units of its own noise: the pixels' paired cost differences'
-    sum over its standard error (√N × their standard deviation)."""
-    args = (px.gather(fsel), px.lights_of(fsel), px.nrm[fsel], px.all_ok[fsel])
-    d = _pixel_costs(*args, x0[0], x0[1], px.vm) - _pixel_costs(*args, fit["sigma"], fit["n_i"], px.vm)
-    return float(d.sum() / max(np.sqrt(d.size) * d.std(), 1e-30))
+def _settled(prev, new, tie=False):
+    """Whether a refit (σ, n_i) is a tie (`_ps_li_refit.refit_verdict`) or within SETTLED_SIGMA
+    (relative) and SETTLED_N_I of the previous."""
+    return tie or (abs(new[0] - prev[0]) <= SETTLED_SIGMA * max(prev[0], 1e-3) and abs(new[1] - prev[1]) <= SETTLED_N_I)
 
 
 def _regions(albedo, n_pix, materials, min_fraction, seed):
@@ -160,12 +144,11 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
                       t_residual=T_RESIDUAL, iterations=24, materials=1, min_region_fraction=0.05,
                       seed=0, init_options=None, coarse_pixels=COARSE_PIXELS, fine_iterations=2,
                       engine="auto", volume_model=LI_VOLUME_MODEL, highlight_start="all", diffuse="auto",
-                      dark_offset="auto", neighbour_deg=NEIGHBOUR_START_DEG, model=None, row0=0, start_model=None):
+                      dark_offset="auto", neighbour_deg=NEIGHBOUR_START_DEG, model=None, row0=0, start_model=None, pool=False):
     """BRDF-aware photometric stereo with the LI model (module doc).
 
     images : (m, H, W) or (m, H, W, C) float, linear, divided by each light's intensity, m ≥ 4.
-    light_dirs : (m, 3) unit vectors towards the lights, or (H, W, m, 3) per pixel (near lights,
-        fall-off already divided out of the images).
+    light_dirs : (m, 3) unit vectors towards the lights, or (H, W, m, 3) per pixel (near lights, fall-off divided out).
     mask, channel, saturation : as `ps_woodham1980`.
     init : photometric-stereo function for the starting normals (default `ps_rank_trimmed`; or
         `ps_hierarchical_tautzia2016`, `ps_woodham1980`, ...; by name through
@@ -174,8 +157,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         on 11 (sphere paint 0.10: 1.14 against 1.29 deg; the relief paint 0.05: 0.59 against 0.96;
         the thesis test 0.97 / 0.87 / 0.74 against 1.01 / 1.01 / 1.14 deg), equal on 4 and worse
         on the two satins (sphere 3.10 against 2.51, relief 1.51 against 1.14).
-    rounds : at most this many fit → re-estimate rounds; tol_deg : stop when the median
-        normal change of the re-estimated pixels is below this (degrees).
+    rounds : at most this many fit → re-estimate rounds; tol_deg : stop below this median normal change (°).
     fit_pixels : pixels (per material) whose values feed the (σ, n_i) fit, drawn among the
         most trustworthy (round 1: the initial solution's valid pixels not too oblique; later:
         the half best explained by the model).
@@ -214,9 +196,9 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
         initial normals) taken out of the images the BRDF-aware steps read, since the model
         predicts 0 there (`_without_dark_level`, info["dark_offset"]); "none": the images as given.
     neighbour_deg : step 5 (module doc): a second start from the neighbours' mean this far off; 0: none.
-    model, row0 : a band of a larger image from its row row0, solved with the `li_model` fitted over
-        its bands (`_ps_li_bands`); None: fitted here (above coarse_pixels: the image as one band).
+    model, row0 : a band from row row0 solved with the `li_model` fitted over its bands (`_ps_li_bands`); None: here.
     start_model : an earlier solve's model choice (`_ps_li_start`), round 1's own (one material); None: chosen here.
+    pool : True: each pixel's values pooled with its like neighbours' under ≤ 16 lights (`_ps_li_pool`; off: why there).
     Returns a `PSResult` (method "li_alternating"): albedo is K_d (a reflectance, per channel); info
     holds "rounds" (per round: σ, n_i, pixels fitted and re-estimated, median change, seconds),
     "materials" (per region: σ, n_i, pixels, whether the BRDF step ran, neighbour starts, shadows
@@ -224,6 +206,7 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     """
     t_start = time.perf_counter()
     images, light_dirs, mask, channel = _check_inputs(images, light_dirs, mask, channel)
+    images, pooled = pool_neighbours(images, mask, saturation) if pool else (images, None)
     diffuse_models = _check_options(rounds, init, highlight_start, diffuse, volume_model, dark_offset, neighbour_deg)
     init_options = dict(init_options or {})
     settings = Settings(iterations=iterations, fine_iterations=fine_iterations, fit_pixels=fit_pixels,
@@ -240,7 +223,8 @@ def ps_li_alternating(images, light_dirs, mask=None, channel=None, saturation=No
     t_init = time.perf_counter() - t_base
     res = _result_from(base, images.shape[1:3])
     info = res.info = {"init": base.method, "rounds": [], "materials": [],
-                       "pixels": int(np.count_nonzero(base.valid)), **({"dark_offset": dark} if dark else {})}
+                       "pixels": int(np.count_nonzero(base.valid)), **({"dark_offset": dark} if dark else {}),
+                       **({"pooled": pooled} if pooled else {})}
     if info["pixels"] == 0:
         info["levels"] = {"init": {"pixels": 0, "seconds": t_init}}
         return res
@@ -390,18 +374,18 @@ def _rounds(px, pix, trust, region, mat, rounds, tol_deg, rounds_log, start_mode
         if not np.isfinite(fit["sigma"]):
             mat.update(brdf_step=False, note=f"fit failed: {fit['message']}")
             break
-        gain = _refit_gain(px, fsel, x0, fit) if rnd > 1 else None
-        settled = x0 is not None and rnd > 1 and _settled(x0, (fit["sigma"], fit["n_i"]), gain)
-        if settled and gain < REFIT_MIN_GAIN:        # a slide along a flat valley: the previous model stays
+        verdict = refit_verdict(px, pix, fsel, x0, fit) if rnd > 1 else None
+        settled = x0 is not None and rnd > 1 and _settled(x0, (fit["sigma"], fit["n_i"]), verdict["tie"])
+        if settled and verdict["tie"]:        # a slide along a flat valley: the previous model stays
             fit = dict(fit, sigma=x0[0], n_i=x0[1])
         x0 = (fit["sigma"], fit["n_i"])
         round_info = {"material": region, "round": rnd, "sigma": fit["sigma"], "n_i": fit["n_i"],
                       "fit_pixels": int(fsel.size), "warm_up_refits": warm,
-                      **({"refit_gain": gain} if gain is not None else {})}
+                      **({"refit_gain": verdict["gain"], "refit_gain_on": verdict["on"]} if verdict else {})}
         if settled:
             # the refit on the re-estimated normals barely moved the model: re-estimating every
             # pixel against it again would move them by less than the noise (module doc)
-            round_info.update(pixels_refined=0, median_change_deg=0.0, stopped="(σ, n_i) settled" if gain >= REFIT_MIN_GAIN else "refit within its noise: (σ, n_i) kept",
+            round_info.update(pixels_refined=0, median_change_deg=0.0, stopped="refit within its noise: (σ, n_i) kept" if verdict["tie"] else "(σ, n_i) settled",
                               seconds=time.perf_counter() - t_r, cpu_seconds=time.process_time() - c_r)
             rounds_log.append(round_info)
             break

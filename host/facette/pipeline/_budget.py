@@ -12,7 +12,7 @@ from facette.pipeline._tiled_process import streamed
 from facette.pipeline._tiles import BANDED_METHODS, PROCESS_BYTES, WHOLE_IMAGE_METHODS
 
 __all__ = ["FREE_SHARE", "RESERVE_BYTES", "BANDS_MAX_BYTES", "WHOLE_BYTES_PER_PIXEL_LIGHT", "free_memory",
-           "default_budget", "with_default_budget"]
+           "default_budget", "with_default_budget", "whole_bytes"]
 
 # of the free memory, the share a run takes, and what it leaves besides (the system, a viewer): half,
 # because the free memory is a reading of one moment on a machine others use too (6 engineers on 24 GB:
@@ -29,6 +29,11 @@ BANDS_MAX_BYTES = 4 * 10 ** 9
 # max RSS 9.68 GB with the default li_alternating (63 bytes), 4.52 GB with rank_trimmed (28); issue
 # 49's every output, 7 GB (46); rounded up from the largest
 WHOLE_BYTES_PER_PIXEL_LIGHT = 66
+
+
+def whole_bytes(m, h, w):
+    """The whole reading's peak (bytes) for m photographs of w x h pixels."""
+    return PROCESS_BYTES + WHOLE_BYTES_PER_PIXEL_LIGHT * m * h * w
 
 
 def free_memory():
@@ -64,7 +69,7 @@ def with_default_budget(source, o, outputs, free=None):
     if budget is None or size is None:
         return o, []
     m, h, w = size
-    need = PROCESS_BYTES + WHOLE_BYTES_PER_PIXEL_LIGHT * m * h * w
+    need = whole_bytes(m, h, w)
     said = (f"memory: a budget of {budget / 1e9:.1f} GB ({FREE_SHARE:.0%} of the {free / 1e9:.1f} "
             f"GB free, less {RESERVE_BYTES / 1e9:.0f} GB; --memory to set it)")
     if need <= budget:

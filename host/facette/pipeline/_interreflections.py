@@ -87,18 +87,19 @@ def decide_lobe_free(images, light_dirs, mask, bag, saturation):
     return estimate, start_model_of(lobe) if _decide_bin(mask) == 1 else None      # REUSE_DECISION_MODEL
 
 
-def interreflections_wanted(o, inp, notes):
+def interreflections_wanted(o, inp, notes, whole=False):
     """Whether `process` runs the inter-reflection step: the option when True or False; for "auto",
     on every input read whole that is not the rig simulator's (on relative images the step removes them
     only where the images identify the albedo's scale, `decide_lobe_free`). A note in `notes`
-    says why it is left out ("auto") or that a simulated scan has none to remove (True)."""
+    says why it is left out ("auto") or that a simulated scan has none to remove (True). whole: the
+    images are held whole (the band loop's one band, whether or not --memory was given)."""
     simulated = inp.truth is not None and "sensor" in inp.truth      # the rig simulator's truth
     if o.interreflections is True and simulated:
         notes.append(SIM_INTERREFLECTIONS_NOTE)
     if o.interreflections != IR_AUTO:
         return o.interreflections
     why = ("the simulator renders none" if simulated else
-           "--memory reads the images by bands and the removal needs them whole" if o.memory else None)
+           "--memory reads the images by bands and the removal needs them whole" if o.memory and not whole else None)
     if why:
         notes.append(AUTO_OFF + why)
     return why is None

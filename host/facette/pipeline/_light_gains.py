@@ -14,11 +14,11 @@ a capture that does not fit whole) the same gains from one more pass over the ba
 """
 import numpy as np
 
-from facette.fit import estimate_light_gains, light_gains_over_bands
+from facette.fit import light_gains_over_bands
 from facette.pipeline._options import GAINS_AUTO
 from facette.pipeline._quality import RIG_TILT, TILT_NOTE_ABOVE, intensity_tilt
 
-__all__ = ["light_gains_wanted", "with_light_gains", "light_gains_of_bands", "divided", "gained", "MIN_TILT"]
+__all__ = ["light_gains_wanted", "light_gains_of_bands", "divided", "gained", "MIN_TILT"]
 
 # under lights where a 1 % intensity error tilts the normals by less than half the rig's (DiLiGenT's
 # 96: 0.22°), the step is left out: there it gave 6.26 -> 6.16° over the five crops for a second
@@ -47,20 +47,9 @@ def light_gains_wanted(o, inp, method_name, notes):
     return True
 
 
-def with_light_gains(res, o, inp, method_name, solve_in, images, bag):
-    """(solve_in, images) divided by the gains read from `solve_in` where the step runs
-    (`light_gains_wanted`) and they apply, else as given; res.light_gains holds the step's info
-    and a note says what was done or why not."""
-    if not light_gains_wanted(o, inp, method_name, res.notes):
-        return solve_in, images
-    gains, info = estimate_light_gains(solve_in, inp.light_dirs, inp.mask, channel=bag.get("channel"),
-                                       saturation=bag.get("saturation"), seed=bag.get("seed", 0))
-    return divided(images, solve_in, _said(res, gains, info))[::-1]
-
-
 def light_gains_of_bands(res, o, inp, method_name, read, rows, bag):
-    """The gains (m,) float32 to divide each band by, or None: `with_light_gains` over bands of
-    `rows` rows (read(r0, r1) -> (the images the solve sees, light directions)), the same gains
+    """The gains (m,) float32 to divide each band by, or None (the step not wanted, or the gains not
+    applied: a note says why), read over bands of `rows` rows (read(r0, r1) -> (the images the solve sees, light directions)), the same gains
     as from the images held whole (`fit.light_gains_over_bands`)."""
     if not light_gains_wanted(o, inp, method_name, res.notes):
         return None

@@ -50,9 +50,7 @@ from facette.pipeline._record import claim_results, mark_running, write_record
 from facette.pipeline._rti_bands import relight_stage, write_relight_web
 from facette.pipeline._relight_later import relight_after_maps
 from facette.pipeline._rti_exposure import record_exposure
-from facette.pipeline._streamed import banded_process
-from facette.pipeline._whole import whole_process
-from facette.pipeline._tiled_process import streamed
+from facette.pipeline._streamed import solved
 from facette.pipeline._quality import check_fit_cells, truth_errors
 from facette.pipeline._report import report_fit_section, write_report
 from facette.pipeline._relight_model_stage import model_input, relight_model_stage, save_relight_model
@@ -219,19 +217,15 @@ def _process(source, outputs, out_dir, o):
         return None if out_dir is None else claim_results(Path(out_dir), record_options, inp, o.overwrite,
                                                           set(FILES.values()) | {LP_NAME}, o.mask)
 
-    if o.memory is not None and streamed(source, outputs):
-        # --memory, outputs that need no image after photometric stereo: the images are read band by
-        # band, never whole (pipeline._streamed); the stages after photometric stereo as untiled
-        inp, light_dirs, previous, relight = banded_process(source, o, res, outputs, stages, claim)
-        try:
-            return _from_ps(res, inp, stages, outputs, None, None, light_dirs, o, out_dir, record_options,
-                            previous, t_all, cpu_all, relight=relight)
-        finally:
-            if relight is not None:
-                relight.close()
-    inp, images, direct, light_dirs, previous = whole_process(source, o, res, stages, claim)
-    return _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options, previous,
-                    t_all, cpu_all)
+    # the band loop: over bands read from the capture's files when the budget's band is shorter than the
+    # image, else over one band, the capture read whole (pipeline._streamed.solved)
+    inp, images, direct, light_dirs, previous, relight = solved(source, o, res, outputs, stages, claim)
+    try:
+        return _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options, previous,
+                        t_all, cpu_all, relight=relight)
+    finally:
+        if relight is not None:
+            relight.close()
 
 
 def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, record_options, previous,

@@ -2,15 +2,45 @@
 band by band, never whole), and what is made over the same bands once the normals are known: the
 normals' uncertainty (`_band_uncertainty`), relight.ptm / relight.rti (`_rti_bands`). The stages after
 them (`_process._from_ps`) run as for the images held whole."""
-from facette.capture import object_of
+from facette.capture import capture_size, object_of
 from facette.pipeline._band_uncertainty import banded_uncertainty
+from facette.pipeline._budget import whole_bytes
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted
 from facette.pipeline._relight_only import relight_only, relight_only_bands
 from facette.pipeline._rti_bands import BANDED_OUTPUTS, relight_bands
-from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, streamed_ps
+from facette.pipeline._whole import whole_process
+from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, SOLVE_CHANNEL_BYTES, band_rows, streamed, streamed_ps
 
-__all__ = ["banded_process"]
+__all__ = ["banded_process", "read_in_bands", "solved"]
+
+
+def solved(source, o, res, outputs, stages, claim):
+    """`process`'s load and photometric stereo, the band loop either way: (inp, images as the stages after
+    photometric stereo read them and those the method saw (None over bands), light directions, the
+    claim's previous record, the relighting fits made over bands or None)."""
+    if read_in_bands(source, o, outputs, stages):
+        inp, light_dirs, previous, relight = banded_process(source, o, res, outputs, stages, claim)
+        return inp, None, None, light_dirs, previous, relight
+    return (*whole_process(source, o, res, stages, claim), None)
+
+
+def read_in_bands(source, o, outputs, stages=()):
+    """Whether `process` reads the capture band by band (`banded_process`), else whole, as the band
+    loop's one band (`_whole`): a budget (--memory, or the default's when the capture does not fit
+    whole, `_budget`) that cannot hold the whole reading (`_budget.whole_bytes`) or whose band is shorter
+    than the image, or a scheduler, on a capture's folder
+    whose outputs need no image after photometric stereo (`streamed`). A capture whose one band
+    fits the budget is read whole whether or not --memory was given: the same files either way. The
+    relighting files alone always over bands (`_relight_only`: nothing needs the photographs whole)."""
+    if o.memory is None or not streamed(source, outputs):
+        return False
+    size = capture_size(source)
+    if o.scheduler is not None or size is None or relight_only(stages):
+        return True
+    m, h, w = size
+    return whole_bytes(m, h, w) > o.memory_bytes or \
+        band_rows(w, h, m, o.memory, o.method, None, 0, 0 if o.channels == "green" else SOLVE_CHANNEL_BYTES) < h
 
 
 def banded_process(source, o, res, outputs, stages, claim):

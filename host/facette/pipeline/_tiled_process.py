@@ -67,7 +67,8 @@ from facette.pipeline._tiles import (BANDED_METHODS, FIELD_BYTES, PROCESS_BYTES,
                                     rows_per_tile)
 from facette.recon import PSResult, near_light_directions
 
-__all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "streamed_ps", "read_whole_notes"]
+__all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "streamed_ps", "read_whole_notes", "band_loop",
+           "band_rows", "solve_channel", "solve_reader", "solve_setup", "one_band_note"]
 
 STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
 MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (the photographs are not held) "
@@ -105,7 +106,8 @@ def streamed(source, outputs):
     return path.is_dir()
 
 
-def _rows(w, h, m, memory, method, rows, maps_bytes, extra=0):
+def band_rows(w, h, m, memory, method, rows, maps_bytes, extra=0):
+    """A band's rows: `rows` when given, else what the budget `memory` leaves them (`rows_per_tile`)."""
     if rows is not None:
         if int(rows) < 1:
             raise ValueError(f"rows must be >= 1, got {rows}")
@@ -148,7 +150,7 @@ def rows_for_model(method, model, h, rows):
 
 
 def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None, weights=None, model=None,
-             gains=None, hidden_bins=None, hidden_bin=1):
+             gains=None, hidden_bins=None, hidden_bin=1, one=None):
     """A band's photometric stereo: (r0, r1, PSResult without per-light flags or None when the
     mask leaves the band out, its quality counts or None, read seconds, PS seconds, its
     reflectance samples or None). samples: {sample_mask: the band's, theta0_deg, total} to take
@@ -158,9 +160,10 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
     model: li_alternating's, fitted over the bands (`band_model`). gains: (m,) the lights' gains the
     images are divided by (`_light_gains.light_gains_of_bands`) or None. hidden_bins, hidden_bin: the
     cast-shadow step's hidden lights of its bins and their bin (`_shadows.hidden_over_bands`) or None:
-    left out of the band's solve, added to its shadow flags (the band's samples leave them out)."""
+    left out of the band's solve, added to its shadow flags (the band's samples leave them out). one:
+    `band_loop`'s (a capture held whole, one band: its flags kept, its images in one["images"])."""
     t0 = time.perf_counter()
-    reader = open_bands(spec)
+    reader = open_bands(spec) if isinstance(spec, tuple) else spec     # a reader of this process's
     try:
         images, usable = reader.read(r0, r1, flat)
     finally:
@@ -184,6 +187,9 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
     if samples is not None:
         taken = samples_sensor(images, samples["sample_mask"], part, dirs, samples["theta0_deg"], seed=r0,
                                total=samples["total"], first_pixel=r0 * images.shape[2])
+    if one is not None:                        # held whole: what the stages after the solve read
+        one["images"] = images
+        return r0, r1, part, counts, read_s, time.perf_counter() - t0, taken
     part.shadow = part.specular = None         # m bytes per pixel each: not sent back
     return r0, r1, part, counts, read_s, time.perf_counter() - t0, taken
 
@@ -245,6 +251,8 @@ def _assemble(shape, method, results, on_disk=False):
         for name in ("normal", "albedo", "valid", "n_triplets", "residual", "skipped"):
             getattr(res, name)[r0:r1] = getattr(part, name)
             release(getattr(res, name))
+        if part.shadow is not None and (r0, r1) == (0, h):      # one band: its per-light flags kept
+            res.shadow, res.specular = part.shadow, part.specular
         n = int(part.info.get("pixels", part.valid.sum()))
         pixels += n
         info = info or dict(part.info)
@@ -279,16 +287,12 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
     t0 = time.perf_counter()
     work = Path(tempfile.mkdtemp(prefix="facette-tiles-"))
     client = None
-    # the mean of R, G, B needs no figure of the whole images: the same channel in every band as whole;
-    # "weighted" needs the whole images' noise: green
-    weights = channel_weights(np.zeros((1, 1, 1, 3), np.float32), None, "mean")[0] if o.channels == "mean" else None
-    used = ({"channels": "green", "weights": [0.0, 1.0, 0.0]} if weights is None else
-            {"channels": "mean", "weights": [round(float(x), 4) for x in weights]})
+    weights, used = solve_channel(o, res.notes)
     try:
         if o.scheduler is not None:
             client = connect_scheduler(o.scheduler)      # bad input within seconds, not a 30 s traceback
         inp, bands, top, n = open_capture(
-            source, work, lambda w, h, m, maps_bytes: _rows(w, h, m, o.memory, o.method, rows, maps_bytes,
+            source, work, lambda w, h, m, maps_bytes: band_rows(w, h, m, o.memory, o.method, rows, maps_bytes,
                                                             0 if weights is None else SOLVE_CHANNEL_BYTES),
             lambda fn, calls: _map(fn, calls, client), o.allow_incomplete, o.pixel_pitch_mm, o.mask, o.capture,
             lambda: hand_back(o.memory_bytes))
@@ -299,41 +303,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
                 on_input(inp)
             res.timings["load"] = time.perf_counter() - t0
             t0 = time.perf_counter()
-            h, w = inp.mask.shape
-            m = len(inp.light_dirs)
-            near = (o.near_light and inp.positions_mm is not None) or None
-            if near:
-                near = (np.asarray(inp.positions_mm), (h, w), inp.pixel_pitch_mm)
-            bag = o.ps_bag(saturation=o.saturation)
-            if near is None:
-                bag["light_dirs"] = inp.light_dirs
-            flat = getattr(bands, "flat", None)
-            spec, obj = bands.spec(), inp.object_mask
-            smask = inp.sample_mask()
-            total = m * int(np.count_nonzero(smask))
-
-            def take(r0, r1):
-                return None if not samples else {"sample_mask": smask[r0:r1], "theta0_deg": o.theta0_deg,
-                                                 "total": total}
-
-            gains, hidden, model = _gains_shadows_and_model(res, o, inp, bands, near, bag, weights, n)
-            n = rows_for_model(o.method, model, h, n)
-            hand_back(o.memory_bytes)
-            hidden_bins, hidden_bin = hidden or (None, 1)
-            if client is not None:     # once to every worker, not with each band
-                model = model if model is None else client.scatter(model, broadcast=True)
-                hidden_bins = hidden_bins if hidden is None else client.scatter(hidden_bins, broadcast=True)
-            calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
-                      inp.mask[r0:r1], obj[r0:r1], take(r0, r1), weights, model, gains, hidden_bins, hidden_bin)
-                     for r0, r1 in _bands(h, n))
-            ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client), on_disk=True)
-            hand_back(o.memory_bytes)   # the bands' heap: not under the stages after them
-            ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n, channels=used)   # pipeline._channels
-            if o.channels not in ("green", "mean"):
-                res.notes.append(f"channels: {o.channels} asked; with --memory the normals are solved on green")
-            taken = ps.info.pop("samples", None)
-            if samples:
-                res.filtered, res.samples = _samples_result(taken, o.theta0_deg)
+            ps, counts, near, n, gains = band_loop(res, o, inp, bands, n, weights, used, client, samples)
             if relight is not None:          # ptm, rti: fitted over the same bands (pipeline._rti_bands)
                 t1 = time.perf_counter()
                 relight(inp, ps, top, gained(band_reader(bands, near, None if near else inp.light_dirs), gains), n)
@@ -346,7 +316,8 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
             client.close()
         shutil.rmtree(work, ignore_errors=True)
     # the check's verdict (InsufficientData) as untiled, after the bands that counted
-    notes, quality = check_counts(counts if counts is not None else {"m": m, "object": 0}, inp.mask_source)
+    notes, quality = check_counts(counts if counts is not None else {"m": len(inp.light_dirs), "object": 0},
+                                   inp.mask_source)
     res.quality = {**quality, **res.quality}           # the cast-shadow step's figures kept
     res.notes.extend(notes + light_geometry(inp.light_dirs, res.quality))
     if near:
@@ -358,33 +329,130 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
     return inp, ps, (None if near else inp.light_dirs), top
 
 
-def _gains_shadows_and_model(res, o, inp, bands, near, bag, weights, rows):
-    """(the lights' gains or None, the hidden lights of the cast-shadow step's bins and their bin or
-    None, li_alternating's model or None), each from a pass over the bands here
-    (`_light_gains.light_gains_of_bands`, `_shadows.hidden_over_bands`, `band_model`), each on the
-    bands as the ones before it left them (divided by the gains, without the hidden values)."""
-    flat, gains, hidden = getattr(bands, "flat", None), None, None
-    method_name = PS_METHODS.canonical(o.method)
+def solve_channel(o, notes, images=None, mask=None):
+    """(weights (3,) of the solve's channel appended to each band or None: green, process.json's
+    "channels"). The mean of R, G, B needs no figure of the images: the same channel in every band as
+    whole; "weighted" needs the whole images' noise (`images`, held whole), else green."""
+    if o.channels == "green" or (o.channels == "weighted" and images is None):
+        return None, {"channels": "green", "weights": [0.0, 1.0, 0.0]}
+    weights, note = channel_weights(np.zeros((1, 1, 1, 3), np.float32) if images is None else images, mask,
+                                    o.channels)
+    if note:
+        notes.append(note)
+    return weights, {"channels": o.channels, "weights": [round(float(x), 4) for x in weights]}
 
-    def read_solve(r0, r1):        # a band as the solve sees it: (its images, the solve's, directions, mask)
+
+def band_loop(res, o, inp, bands, n, weights, used, client=None, samples=False, one=None):
+    """Photometric stereo over bands of `n` rows of the reader `bands` (its steps: the lights' gains,
+    the cast shadows, li_alternating's model, each a pass over the bands, then the solve band by
+    band): (PSResult, the quality counts summed or None, near (positions, shape, pitch) or None, the
+    band height solved, the gains or None). one: a dict for a capture held whole solved as one band
+    (`pipeline._whole`): the quality was counted already, the per-light flags are kept, the maps
+    stay in memory, and one["images"] receives the band's images as the solve saw them (its last
+    read takes the photographs themselves: `HeldBands`)."""
+    h, w = inp.mask.shape
+    m = len(inp.light_dirs)
+    near, bag, _ = solve_setup(o, inp, weights)
+    flat = getattr(bands, "flat", None)
+    spec, obj = bands.spec(), None if one is not None else inp.object_mask
+    smask = inp.sample_mask()
+    total = m * int(np.count_nonzero(smask))
+
+    def take(r0, r1):
+        return None if not samples else {"sample_mask": smask[r0:r1], "theta0_deg": o.theta0_deg,
+                                         "total": total}
+
+    gains, hidden, model = _gains_shadows_and_model(res, o, inp, bands, near, bag, weights, n,
+                                                    NOT_READ if one is None else one.get("gains", NOT_READ))
+    n = rows_for_model(o.method, model, h, n)
+    hand_back(o.memory_bytes)
+    hidden_bins, hidden_bin = hidden or (None, 1)
+    if client is not None:     # once to every worker, not with each band
+        model = model if model is None else client.scatter(model, broadcast=True)
+        hidden_bins = hidden_bins if hidden is None else client.scatter(hidden_bins, broadcast=True)
+    if one is not None:
+        bands.last = True          # the solve's read: the photographs themselves, no copy
+    calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
+              inp.mask[r0:r1], None if obj is None else obj[r0:r1], take(r0, r1), weights, model, gains,
+              hidden_bins, hidden_bin, one)
+             for r0, r1 in _bands(h, n))
+    ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client), on_disk=one is None)
+    hand_back(o.memory_bytes)   # the bands' heap: not under the stages after them
+    ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n, channels=used)   # pipeline._channels
+    if o.channels not in ("green", "mean") and one is None:
+        res.notes.append(f"channels: {o.channels} asked; with --memory the normals are solved on green")
+    taken = ps.info.pop("samples", None)
+    if samples:
+        res.filtered, res.samples = _samples_result(taken, o.theta0_deg)
+    return ps, counts, near, n, gains
+
+
+def solve_setup(o, inp, weights):
+    """(near (positions, shape, pitch) or None, the bands' options, the passes' options): what every
+    band's solve and the passes over the bands take."""
+    h, w = inp.mask.shape
+    near = (o.near_light and inp.positions_mm is not None) or None
+    if near:
+        near = (np.asarray(inp.positions_mm), (h, w), inp.pixel_pitch_mm)
+    bag = o.ps_bag(saturation=o.saturation)
+    if near is None:
+        bag["light_dirs"] = inp.light_dirs
+    model_bag = {k: v for k, v in bag.items() if k != "light_dirs"}
+    model_bag.update({} if weights is None else {"channel": SOLVE_CHANNEL})
+    return near, bag, model_bag
+
+
+def solve_reader(bands, inp, near, bag, weights, method_name):
+    """read(r0, r1, gains=None, hidden=None) -> (the band's images, the solve's (the solve's channel
+    appended, divided by the gains, the hidden values out), light directions, the mask it solves)."""
+    flat = getattr(bands, "flat", None)
+
+    def read(r0, r1, gains=None, hidden=None):
         images, usable = bands.read(r0, r1, None if flat is None else flat[r0:r1])
         images, solve, dirs, solved, _ = _solve_inputs(images, usable, r0, r1, inp.mask[r0:r1], near, bag, weights)
         images, solve = divided(images, solve, gains)
         return images, without_hidden(solve, hidden, inp.mask[r0:r1], r0, method_name)[0], dirs, solved
-    model_bag = {k: v for k, v in bag.items() if k != "light_dirs"}
-    model_bag.update({} if weights is None else {"channel": SOLVE_CHANNEL})
-    gains = light_gains_of_bands(res, o, inp, method_name, lambda r0, r1: read_solve(r0, r1)[1:3], rows, model_bag)
-    hidden = hidden_over_bands(res, o, lambda r0, r1: read_solve(r0, r1)[1:4], inp.mask, rows, method_name,
+    return read
+
+
+# `band_loop`'s gains not read yet (None: read, none to apply)
+NOT_READ = object()
+
+
+def _gains_shadows_and_model(res, o, inp, bands, near, bag, weights, rows, gains=NOT_READ):
+    """(the lights' gains or None, the hidden lights of the cast-shadow step's bins and their bin or
+    None, li_alternating's model or None), each from a pass over the bands here
+    (`_light_gains.light_gains_of_bands` unless `gains` are given, `_shadows.hidden_over_bands`,
+    `band_model`), each on the bands as the ones before it left them (divided by the gains, without the
+    hidden values)."""
+    method_name = PS_METHODS.canonical(o.method)
+    read = solve_reader(bands, inp, near, bag, weights, method_name)
+    model_bag = solve_setup(o, inp, weights)[2]
+    if gains is NOT_READ:
+        gains = light_gains_of_bands(res, o, inp, method_name, lambda r0, r1: read(r0, r1)[1:3], rows, model_bag)
+    hidden = hidden_over_bands(res, o, lambda r0, r1: read(r0, r1, gains)[1:4], inp.mask, rows, method_name,
                                model_bag)
-    model = band_model(o.method, lambda r0, r1: read_solve(r0, r1)[1:4], inp.mask.shape,
+    model = band_model(o.method, lambda r0, r1: read(r0, r1, gains, hidden)[1:4], inp.mask.shape,
                        int(np.count_nonzero(inp.mask)), rows, model_bag)
     return gains, hidden, model
+
+
+def one_band_note(o, h):
+    """The note of a run with --memory whose capture's one band fits the budget (`_streamed.read_in_bands`)."""
+    return [f"--memory {o.memory}: photometric stereo over 1 band of {h} rows: the capture fits one band, read whole "
+            "(the files of a run without --memory)"] if o.memory is not None else []
 
 
 def read_whole_notes(o, source):
     """The notes of a run with --memory whose source `process` reads whole (not a capture's folder:
     `streamed`): the budget bounds nothing there."""
     if o.memory is None:
+        return []
+    try:
+        folder = source_path(source).is_dir()
+    except TypeError:
+        folder = False
+    if folder:      # its one band fits the budget (`_streamed.read_in_bands`): said once its size is known
         return []
     notes = [f"--memory {o.memory}: {source!r} is not a capture's folder: its images were read whole, the "
              "budget bounds nothing (give the capture's folder to read it band by band)"]

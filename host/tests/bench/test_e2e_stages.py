@@ -3,7 +3,7 @@ viewer's picture scored against the photographs."""
 import numpy as np
 
 import facette.pipeline._process as proc
-import facette.pipeline._whole as whole
+import facette.pipeline._tiled_process as whole     # the band loop: its one band's solve
 from facette.bench._e2e_stages import stage_table
 from facette.bench._e2e_viewer import viewer_rows
 from facette.bench._sim_scan import write_scan

@@ -39,3 +39,13 @@ def test_kill_worker_in_seconds_or_a_share_of_the_memory_run():
     assert size._kill_seconds("12", {"mem_s": 300.0}) == 12.0
     assert size._kill_seconds("33%", {"mem_s": 300.0}) == 99.0
     assert size._kill_seconds("0", {}) == 0.0
+
+
+def test_the_no_flag_run_alone_of_a_scan_directory_written_when_missing(tmp_path, capsys):
+    assert size.main(["--sizes", "40x32", "--keep", str(tmp_path), "--scan", "--only-no-flag"]) == 0
+    out = capsys.readouterr().out
+    assert (tmp_path / "scan_40x32" / "scan.json").is_file() and not (tmp_path / "memory_40x32").exists()
+    line, = [line for line in out.splitlines() if line.startswith("no flag")]
+    assert line.startswith("no flag scan 40x32: ") and "is read whole" in line, line
+    err = float(re.search(r"(\d+\.\d+)° to the truth, li_alternating", line).group(1))
+    assert err < 5, line

@@ -1,12 +1,13 @@
 """The model choice's search walks each start's own valley, and a later round's refit that only
 slides along a flat valley keeps the model (facette.fit._li_model._profile_lobe,
-facette.fit._ps_li._refit_gain / _settled)."""
+facette.fit._ps_li_refit.fit_pixels_gain, facette.fit._ps_li._settled)."""
 from types import SimpleNamespace
 
 import numpy as np
 
 import facette.fit._li_model as li_model
-from facette.fit._ps_li import REFIT_MIN_GAIN, _refit_gain, _settled
+from facette.fit._ps_li import _settled
+from facette.fit._ps_li_refit import FIT_PIXELS_MIN_GAIN, fit_pixels_gain
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
 
@@ -39,7 +40,7 @@ def test_the_dielectric_n_i_line_runs_at_the_dielectric_sigma_lines_best(monkeyp
 
 
 def _fit_pixels(sigma, n_i):
-    """A satin sphere's lit pixels at their true normals, as `_refit_gain` reads them (a Pixels stand-in)."""
+    """A satin sphere's lit pixels at their true normals, as `fit_pixels_gain` reads them (a Pixels stand-in)."""
     sc = sphere_on_plane(40, 40)
     lights = thesis_light_directions()
     im = render(sc, lights, "satin", noise=0.01, rng=np.random.default_rng(5))
@@ -55,10 +56,10 @@ def test_a_refit_that_explains_the_pixels_is_taken_and_one_that_does_not_move_is
                                           x0=(0.15, 1.7), volume_model="lambert")
     x = (fitted["sigma"], fitted["n_i"])
     # from off the valley (σ 0.05) the refit lowers every pixel's cost alike: several standard errors
-    far = _refit_gain(px, fsel, (0.05, 1.3), fitted)
-    assert far > 3 * REFIT_MIN_GAIN and not _settled((0.05, 1.3), x, far), far
+    far = fit_pixels_gain(px, fsel, (0.05, 1.3), fitted)
+    assert far > 3 * FIT_PIXELS_MIN_GAIN and not _settled((0.05, 1.3), x), far
     # a refit that stays where it was gains nothing: a tie, the model kept
-    same = _refit_gain(px, fsel, x, fitted)
-    assert same == 0 and _settled(x, x, same)
-    # a move beyond the σ / n_i tolerances whose gain is within the noise is settled all the same
-    assert _settled((0.15, 1.3), (0.2, 1.5), 0.5 * REFIT_MIN_GAIN) and not _settled((0.15, 1.3), (0.2, 1.5))
+    same = fit_pixels_gain(px, fsel, x, fitted)
+    assert same == 0 and same < FIT_PIXELS_MIN_GAIN and _settled(x, x)
+    # a move beyond the σ / n_i tolerances that is a tie is settled all the same
+    assert _settled((0.15, 1.3), (0.2, 1.5), tie=True) and not _settled((0.15, 1.3), (0.2, 1.5))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from facette.errors import InsufficientData, NotAReflectance
-from facette.pipeline import process
+from facette.pipeline import _tiled_process, process
 from facette.recon._interreflect_scale import DIFFUSE_CORRELATION, GATHER_CORRELATION
 from facette.recon.synthetic import angular_error_deg
 
@@ -93,12 +93,16 @@ def test_the_default_method_removes_where_identified(tmp_path, relief, direct_re
     assert direct.interreflections["scale_identified"] is False and direct.interreflections["cpu_seconds"] >= 0
 
 
-def test_left_in_with_the_reason_elsewhere(tmp_path, relief):
+def test_left_in_with_the_reason_elsewhere(tmp_path, relief, monkeypatch):
     # the rig simulator renders none (its truth carries the sensor model)
     sim = process(_scan(tmp_path / "sim", relief, truth={"sensor": np.zeros(1)}), outputs=["normals"],
                   method="woodham1980")
     assert sim.interreflections is None and any("the simulator renders none" in n for n in sim.notes)
-    # --memory reads the images by bands: left in by default, refused when asked for
+    # a budget whose one band holds the capture: read whole, removed as without --memory
+    one = process(_scan(tmp_path / "one", relief), outputs=["normals"], method="woodham1980", memory="1GB")
+    assert one.interreflections is not None and any("fits one band" in n for n in one.notes)
+    # --memory reads the images by bands (a band shorter than the image): left in by default
+    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: 16)
     banded = process(_scan(tmp_path / "banded", relief), outputs=["normals"], method="woodham1980", memory="1GB")
     assert banded.interreflections is None and any("--memory reads the images by bands" in n for n in banded.notes)
 

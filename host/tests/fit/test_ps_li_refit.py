@@ -1,0 +1,59 @@
+"""A later round's refit of (σ, n_i) is judged on held-out pixels (facette.fit._ps_li_refit)."""
+from types import SimpleNamespace
+
+import numpy as np
+
+from facette.fit._li_model import fit_li_per_pixel_kd
+from facette.fit._normals_li import refine_normals_li
+from facette.fit._ps_li_refit import HELD_OUT_MIN, fit_pixels_gain, refit_verdict
+from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
+
+
+def _pixels(noise):
+    """A satin sphere's lit pixels at their true normals under the rig's 12 lights, as
+    `refit_verdict` reads them (a Pixels stand-in whose solve is the real per-pixel solve)."""
+    sc = sphere_on_plane(48, 48)
+    lights = thesis_light_directions()
+    im = render(sc, lights, "satin", noise=noise, rng=np.random.default_rng(5))
+    sel = sc.sphere & (sc.normals[..., 2] > 0.3)
+    e = np.ascontiguousarray(np.transpose(im[:, sel], (1, 0, 2)), dtype=np.float32)
+    nrm, ok = sc.normals[sel].astype(np.float32), np.isfinite(e).all(2)
+
+    def refine(s, sigma, n_i, first_round=False):
+        return refine_normals_li(e[s], lights, nrm[s], sigma, n_i, usable=ok[s], iterations=12, volume_model="lambert")
+
+    return SimpleNamespace(values=e, gather=lambda s: e[s], lights_of=lambda s: lights, nrm=nrm, all_ok=ok, vm="lambert",
+                           refine=refine, refined=np.ones(len(e), bool), rng=np.random.default_rng(0),
+                           settings=SimpleNamespace(fit_pixels=1000))
+
+
+def test_a_refit_that_explains_the_images_is_taken_and_one_fitted_to_its_draws_noise_is_a_tie():
+    px = _pixels(noise=0.03)
+    pix = np.arange(px.nrm.shape[0])
+    fsel = pix[::4]
+    good = fit_li_per_pixel_kd(px.gather(fsel), px.lights_of(fsel), px.nrm[fsel], px.all_ok[fsel], x0=(0.15, 1.5),
+                               volume_model="lambert")
+    x = (good["sigma"], good["n_i"])
+    # from off the valley (σ 0.05): the pixels it was not fitted on are explained better too
+    taken = refit_verdict(px, pix, fsel, (0.05, 1.3), good)
+    assert taken["on"] == "held-out pixels" and taken["gain"] > 3 and not taken["tie"], taken
+    # a refit whose fit pixels carry a bias the others do not (here: their lights 10 % off, as the
+    # better-explained half a later round draws from may be): it gains there, not elsewhere
+    few = fsel[::8]
+    px.values[few] *= (1 + 0.1 * np.sin(1.7 * np.arange(12)))[None, :, None]
+    noisy = fit_li_per_pixel_kd(px.gather(few), px.lights_of(few), px.nrm[few], px.all_ok[few], x0=x,
+                                volume_model="lambert")
+    assert abs(noisy["sigma"] - x[0]) > 0.05 * x[0] or abs(noisy["n_i"] - x[1]) > 0.01, noisy   # it moved
+    assert fit_pixels_gain(px, few, x, noisy) > 0
+    slid = refit_verdict(px, pix, few, x, noisy)
+    assert slid["on"] == "held-out pixels" and slid["tie"], slid
+
+
+def test_a_material_with_too_few_other_pixels_is_judged_on_its_fit_pixels():
+    px = _pixels(noise=0.01)
+    pix = np.argsort(px.gather(np.arange(px.nrm.shape[0])).max(axis=(1, 2)))[-(HELD_OUT_MIN + 5):]
+    fsel = pix[-10:]
+    fit = fit_li_per_pixel_kd(px.gather(fsel), px.lights_of(fsel), px.nrm[fsel], px.all_ok[fsel], x0=(0.15, 1.5),
+                              volume_model="lambert")
+    verdict = refit_verdict(px, pix, fsel, (0.05, 1.3), fit)
+    assert verdict["on"] == "fit pixels" and not verdict["tie"], verdict
