@@ -14,8 +14,10 @@ import time
 __all__ = ["StageSampler", "STAGES"]
 
 # pipeline._process's functions a stage is named after while it runs
-STAGES = (("whole_process", "load+ps whole"), ("banded_process", "load+ps bands"), ("uncertainty_of", "uncertainty"),
-          ("integrate", "heights"), ("relight_model_stage", "relight model"), ("_write_last", "last files"))
+# (names `process` no longer has are skipped: "solved" is the band loop, whole or over bands, since one-band)
+STAGES = (("whole_process", "load+ps whole"), ("banded_process", "load+ps bands"), ("solved", "load+ps"),
+          ("uncertainty_of", "uncertainty"), ("integrate", "heights"), ("relight_model_stage", "relight model"),
+          ("_write_last", "last files"))
 
 
 def resident_bytes():
@@ -69,7 +71,9 @@ class StageSampler:
     def __enter__(self):
         import facette.pipeline._process as process_module
         for name, label in STAGES:
-            fn = getattr(process_module, name)
+            fn = getattr(process_module, name, None)
+            if fn is None:
+                continue
             self._saved.append((process_module, name, fn))
             setattr(process_module, name, self._wrapped(fn, label))
         self.t0 = time.perf_counter()

@@ -17,10 +17,10 @@ from dataclasses import replace
 
 from facette.capture import capture_size
 from facette.methods import PS_METHODS
-from facette.pipeline._budget import WHOLE_BYTES_PER_PIXEL_LIGHT, default_budget
+from facette.pipeline._budget import default_budget, whole_bytes
 from facette.pipeline._relight_only import relight_only_budget
 from facette.pipeline._tiled_process import streamed
-from facette.pipeline._tiles import BANDED_METHODS, PROCESS_BYTES
+from facette.pipeline._tiles import BANDED_METHODS
 
 __all__ = ["relighting_budget", "model_budget", "MODEL_WHOLE_BYTES", "MODEL_BANDS_BYTES"]
 
@@ -38,7 +38,7 @@ def relighting_budget(source, o, stages, outputs, free=None):
 
 def model_budget(source, o, outputs, free=None):
     """(options with the bands' --memory, [the note]) when "relight" is asked for on a capture's folder
-    whose whole reading (PROCESS_BYTES + WHOLE_BYTES_PER_PIXEL_LIGHT x photographs x pixels) exceeds
+    whose whole reading (`_budget.whole_bytes`: 66 B a pixel and light, and the process's own) exceeds
     MODEL_WHOLE_BYTES: the bands take min(MODEL_BANDS_BYTES, the default budget). None otherwise:
     --memory given, outputs the bands do not serve, a method that needs every pixel at once, the
     inter-reflections' removal asked for, a capture that fits, a size the headers do not say.
@@ -50,7 +50,7 @@ def model_budget(source, o, outputs, free=None):
     if size is None:
         return None
     m, h, w = size
-    need = PROCESS_BYTES + WHOLE_BYTES_PER_PIXEL_LIGHT * m * h * w
+    need = whole_bytes(m, h, w)
     if need <= MODEL_WHOLE_BYTES:
         return None
     budget = default_budget(free)

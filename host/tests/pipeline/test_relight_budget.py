@@ -15,7 +15,7 @@ def _budget_of(source, outputs, free, **options):
 
 
 def test_a_large_model_goes_over_bands_in_at_most_3_gb_whatever_the_free_memory(diligent, monkeypatch):
-    monkeypatch.setattr(_relight_budget, "WHOLE_BYTES_PER_PIXEL_LIGHT", LARGE)
+    monkeypatch.setattr(_budget, "WHOLE_BYTES_PER_PIXEL_LIGHT", LARGE)
     o, notes = _budget_of(diligent, ["relight"], 64e9)
     assert o.memory_bytes == 3 * 10 ** 9 and o.method == ProcessOptions().method
     assert len(notes) == 1 and "read band by band in 3.0 GB (its maps on disk)" in notes[0]
@@ -29,7 +29,7 @@ def test_a_large_model_goes_over_bands_in_at_most_3_gb_whatever_the_free_memory(
 
 def test_what_the_model_budget_leaves_to_the_default_budget(diligent, tmp_path, monkeypatch):
     assert _budget_of(diligent, ["relight"], 64e9) is None                     # fits: ~0.5 GB whole
-    monkeypatch.setattr(_relight_budget, "WHOLE_BYTES_PER_PIXEL_LIGHT", LARGE)
+    monkeypatch.setattr(_budget, "WHOLE_BYTES_PER_PIXEL_LIGHT", LARGE)
     assert _budget_of(diligent, ["normals", "height"], 64e9) is None          # no model asked for
     assert _budget_of(diligent, ["relight"], 64e9, memory="8GB") is None      # --memory as given
     assert _budget_of(diligent, ["relight"], 64e9, method="rpca_wu2010") is None   # needs every pixel at once
@@ -39,7 +39,7 @@ def test_what_the_model_budget_leaves_to_the_default_budget(diligent, tmp_path, 
 
 def test_the_model_over_bands_on_a_large_machine(diligent, tmp_path, monkeypatch):
     whole = process(diligent, outputs=["relight"], method="rank_trimmed", **WHOLE)
-    monkeypatch.setattr(_relight_budget, "WHOLE_BYTES_PER_PIXEL_LIGHT", LARGE)
+    monkeypatch.setattr(_budget, "WHOLE_BYTES_PER_PIXEL_LIGHT", LARGE)
     monkeypatch.setattr(_budget, "free_memory", lambda: 64 * 10 ** 9)
     _never_whole(monkeypatch)
     banded = process(diligent, outputs=["relight"], out_dir=tmp_path / "out", method="rank_trimmed")
