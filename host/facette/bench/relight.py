@@ -29,6 +29,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 
 import facette
+from facette._memory import parse_size
 from facette.bench._relight_data import (diligent_capture, harvard_capture, hold_every, lp_capture,
                                          make_jpeg_capture)
 from facette.bench._relight_large import run_large
@@ -158,6 +159,13 @@ def main(argv=None):
                          "12 MP); prints its time and peak memory")
     ap.add_argument("--large-memory", default=None, metavar="SIZE",
                     help="--large: process's --memory (e.g. 3GB: read band by band; default: none given)")
+    ap.add_argument("--large-free", default=None, metavar="SIZE",
+                    help="--large: the free memory process's default budget is told of (e.g. 64GB: as a large "
+                         "machine decides; default: this machine's)")
+    ap.add_argument("--large-outputs", default="relight",
+                    help="--large: process's outputs, comma-separated, or all (default relight)")
+    ap.add_argument("--large-capture", default=None, metavar="DIR",
+                    help="--large: a slab folder already written (bench._large), instead of generating one")
     args = ap.parse_args(argv)
     names = [n for n in args.methods.split(",") if n in METHODS and not (args.no_before and "before" in n)]
     work = Path(tempfile.mkdtemp(prefix="facette_bench_relight_"))
@@ -173,7 +181,9 @@ def main(argv=None):
                 print(_row(label, name, rows[name]), flush=True)
                 label = ""
         if args.large:
-            run_large(tuple(int(v) for v in args.large.lower().split("x")), work, memory=args.large_memory)
+            run_large(tuple(int(v) for v in args.large.lower().split("x")), work, memory=args.large_memory,
+                      free=None if args.large_free is None else parse_size(args.large_free, "--large-free", limit=0),
+                      outputs=args.large_outputs, capture=args.large_capture)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     if not table:

@@ -41,7 +41,7 @@ from facette.io.rti import write_hsh_rti
 from facette.recon import INTEGRATION_METHODS, flat_margin, integrate, mesh_from_height, MESH_MAX_SLOPE
 from facette.pipeline._exports import gltf_inputs, gltf_material
 from facette.pipeline._budget import with_default_budget
-from facette.pipeline._relight_only import relight_only_budget
+from facette.pipeline._relight_budget import relighting_budget
 from facette.capture import LP_NAME
 from facette.pipeline._band_uncertainty import normal_image, uncertainty_of
 from facette.pipeline._stages import ALL_OUTPUTS, FILES, OUTPUTS, STAGES_FOR, stages_needed
@@ -204,8 +204,8 @@ def process(source, outputs=None, out_dir=None, options=None, **overrides):
 def _process(source, outputs, out_dir, o):
     outputs = list(OUTPUTS if outputs is None else outputs)
     stages = stages_needed(outputs)
-    # no --memory: from the free memory; the relighting files alone: over bands (pipeline._relight_only)
-    o, budget_notes = relight_only_budget(source, o, stages) or with_default_budget(source, o, outputs)
+    # no --memory: from the free memory; relighting: over bands (pipeline._relight_budget)
+    o, budget_notes = relighting_budget(source, o, stages, outputs) or with_default_budget(source, o, outputs)
     res = ProcessResult(options=dict(o.reported(), outputs=outputs), notes=budget_notes)
     record_options = o.recorded()
     t_all, cpu_all = time.perf_counter(), time.process_time()

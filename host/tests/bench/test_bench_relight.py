@@ -86,3 +86,13 @@ def test_large_section_reports_time_and_peak_memory(tmp_path, capsys):
     run_large((48, 40), tmp_path)
     out = capsys.readouterr().out
     assert "peak" in out and "planes" in out and "process failed" not in out, out
+
+
+def test_large_section_samples_each_stage_and_the_relighting_budget(tmp_path, capsys):
+    # told of 64 GB free, the 48 x 40 slab fits whole: the whole reading's stages, each sampled
+    from facette.bench._relight_large import run_large
+    run_large((48, 40), tmp_path, free=64e9)
+    out = capsys.readouterr().out
+    assert "told of 64 GB free" in out and "CPU s" in out and "read: a budget of" in out, out
+    assert "load+ps" in out and "relight model" in out and "(disk " in out, out
+    assert (tmp_path / "large_samples.txt").read_text().count(" GB") > 0

@@ -119,3 +119,24 @@ def test_the_albedo_carries_the_texture_into_a_repeated_model():
     np.testing.assert_allclose(on.spec, 0.1 * albedo, rtol=1e-6)
     plain = onto_grid(coarse, 1, (5, 6), normals)          # without it: each pixel repeated
     np.testing.assert_array_equal(plain.rho[1::2, 1::2], coarse.rho[:2, :3])
+
+
+def test_the_photographs_spill_goes_once_the_model_is_fitted():
+    # over bands the photographs' spill (12 B a pixel and light) is given back before relight_model.npz is
+    # written, not at the end of the run: the disk the model's file needs is not held twice
+    from types import SimpleNamespace
+
+    from facette.pipeline._relight_model_stage import ImagesSpill
+    from facette.recon.synthetic import thesis_light_directions
+    dirs = thesis_light_directions()
+    h, w = 6, 8
+    normals = np.zeros((h, w, 3), np.float32)
+    normals[..., 2] = 1.0
+    images = (np.clip(normals @ dirs.T, 0, None).transpose(2, 0, 1)[..., None] * [0.5, 0.4, 0.3]).astype(np.float32)
+    spill = ImagesSpill(len(dirs), h, w)
+    spill.add(0, images, dirs)
+    res = SimpleNamespace(mask=np.ones((h, w), bool), object_mask=None, normals=normals, height=None, timings={},
+                          relight_model=None)
+    written = []
+    relight_model_stage(res, spill, dirs, write=lambda name: written.append(spill.data))
+    assert res.relight_model is not None and spill.data is None and written == [None]

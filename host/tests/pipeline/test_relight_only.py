@@ -47,7 +47,7 @@ def test_the_relighting_files_over_bands_without_photometric_stereo_are_the_whol
     src = request.getfixturevalue(source)
     monkeypatch.setattr(rti_fit, "_BLOCK", 16)        # both: bands of 8 rows start on the fits' blocks
     with monkeypatch.context() as whole_only:        # the whole reading, as a source that fits the budget had it
-        whole_only.setattr(_process, "relight_only_budget", lambda *a, **k: None)
+        whole_only.setattr(_process, "relighting_budget", lambda *a, **k: None)
         whole_only.setattr(_process, "with_default_budget", lambda s, o, out: (o, []))
         whole = process(src, outputs=OUTPUTS, out_dir=tmp_path / "whole", rti_encoding=encoding)
     assert not any("no photometric stereo" in n for n in whole.notes)

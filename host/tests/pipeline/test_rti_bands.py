@@ -113,7 +113,7 @@ def test_the_web_folder_alone_over_bands_is_the_untiled_folder(tmp_path, small_b
     """--memory with `--outputs relight-web` alone (no .rti asked for): the HSH is fitted over the bands all
     the same (before: no fit, and a TypeError in the hsh stage), the folder the untiled one byte for byte."""
     with monkeypatch.context() as whole_only:       # read whole (the relighting files alone go over bands)
-        whole_only.setattr(_process, "relight_only_budget", lambda *a, **k: None)
+        whole_only.setattr(_process, "relighting_budget", lambda *a, **k: None)
         whole_only.setattr(_process, "with_default_budget", lambda s, o, out: (o, []))
         process(diligent, channels=WHOLE_CHANNELS, outputs=["relight-web"], out_dir=tmp_path / "whole", method=M)
     _never_whole(monkeypatch)
