@@ -30,7 +30,7 @@ from facette.bench._uncertainty_li import _residual as _li_residual
 from facette.fit import refine_normals_li
 from facette.recon import _uncertainty as unc
 
-__all__ = ["bootstrap_measures", "valley_spread", "channel_spread", "BOOTSTRAP_CANDIDATES"]
+__all__ = ["bootstrap_measures", "case_profiles", "valley_spread", "channel_spread", "BOOTSTRAP_CANDIDATES"]
 
 BOOTSTRAP_CANDIDATES = ("bootstrap wild", "bootstrap neighbours", "valley spread", "sector jackknife",
                         "self-calibration shift")
@@ -180,9 +180,9 @@ def channel_spread(vals, ok, n, lights, labels, materials, shadow, rng=None):
     return out
 
 
-def bootstrap_from_case(images, lights, normals, sel, model, saturation=None):
-    """bootstrap_measures over the pixels of sel (row-major), from images (m, H, W[, C]) as the solve saw them and
-    the solve's model (materials, material map (H, W), shadow (H, W, m) or None)."""
+def case_profiles(images, sel, saturation=None):
+    """(images as (m, H, W, C), (m, H, W), the flat indices of sel's pixels, their values (m, N, C), their
+    (N, m) profiles (the channels' mean; 0 where not usable), usable (N, m): finite and under saturation)."""
     images = np.asarray(images)
     images = images[..., None] if images.ndim == 3 else images
     m, h, w, _ = images.shape
@@ -190,7 +190,13 @@ def bootstrap_from_case(images, lights, normals, sel, model, saturation=None):
     vals = images.reshape(m, h * w, -1)[:, idx].astype(np.float64)
     e = vals.mean(axis=2).T
     ok = np.isfinite(e) & (True if saturation is None else np.all(vals < saturation, axis=2).T)
-    e = np.where(ok, e, 0.0)
+    return images, (m, h, w), idx, vals, np.where(ok, e, 0.0), ok
+
+
+def bootstrap_from_case(images, lights, normals, sel, model, saturation=None):
+    """bootstrap_measures over the pixels of sel (row-major), from images (m, H, W[, C]) as the solve saw them and
+    the solve's model (materials, material map (H, W), shadow (H, W, m) or None)."""
+    images, (m, h, w), idx, _, e, ok = case_profiles(images, sel, saturation)
     e = e / np.maximum((e * unc._carrying(e, ok)).max(1, keepdims=True), 1e-30)
     n = np.asarray(normals, np.float64).reshape(-1, 3)[idx]
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)

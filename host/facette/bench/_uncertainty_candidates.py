@@ -34,7 +34,7 @@ DROP_BRIGHT share left out), with e the values over the pixel's brightest carryi
 import numpy as np
 from scipy.stats import spearmanr
 
-from facette.bench._uncertainty_bootstrap import BOOTSTRAP_CANDIDATES, bootstrap_measures, channel_spread
+from facette.bench._uncertainty_bootstrap import BOOTSTRAP_CANDIDATES, bootstrap_measures, case_profiles, channel_spread
 from facette.bench._uncertainty_global import GLOBAL_CANDIDATES, global_measures
 from facette.bench._uncertainty_li import LI_CANDIDATES, li_measures
 from facette.bench._uncertainty_physics import PHYSICS_CANDIDATES, physics_measures
@@ -100,14 +100,7 @@ def candidate_measures(images, light_dirs, normals, sel, saturation=None, model=
     normals (H, W, 3), sel (H, W) bool (pixels with a normal). model: (materials, material (H, W),
     shadow (H, W, m) or None) of the solve (PSResult.info["materials"], .material, .shadow) for the
     LI_CANDIDATES; None leaves them out."""
-    images = np.asarray(images)
-    images = images[..., None] if images.ndim == 3 else images
-    m, h, w, _ = images.shape
-    idx = np.flatnonzero(np.asarray(sel, bool).ravel())
-    vals = images.reshape(m, h * w, -1)[:, idx].astype(np.float64)
-    e = vals.mean(axis=2).T
-    ok = np.isfinite(e) & (True if saturation is None else np.all(vals < saturation, axis=2).T)
-    e = np.where(ok, e, 0.0)
+    images, (m, h, w), idx, vals, e, ok = case_profiles(images, sel, saturation)
     raw = e
     carry = unc._carrying(e, ok)
     e = e / np.maximum((e * carry).max(1, keepdims=True), 1e-30)
