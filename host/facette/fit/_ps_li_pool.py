@@ -16,7 +16,7 @@ curved surface's profiles change linearly from pixel to pixel, so what is left i
 over √1.5. Noise-free values (below NOISE_FLOOR) are left as they are.
 
 Chosen on 12-light renders of a sphere on a plane (96 px, matte / satin / glossy, dark (brightest
-68 of 255) and bright, 8- and 16-bit, 0.5 % noise and 0.5 DN read noise: /work/notes/twelve.md); a
+68 of 255) and bright, 8- and 16-bit, 0.5 % noise and 0.5 DN read noise: issue 50's note of 2026-12-07); a
 Gaussian mean of the images instead (σ 0.6 px) took every render 0.1-1.1° worse (the sphere's rim
 and the cast shadow's edge mixed). Only under at most POOL_MAX_LIGHTS lights: under many the solve
 averages the noise itself, and the pooled values' small bias (a curved surface's mean profile) is

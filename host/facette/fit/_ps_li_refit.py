@@ -17,7 +17,7 @@ round 2 slid (σ, n_i) 0.168/1.73 -> 0.193/1.88 at **+0.75** standard errors on 
 (the same sphere's other solves, 2 lights' gains off or not) +1.8 to +8.1 held out. A refit that
 gained < 1 standard error on its fit pixels can still be better held out (DiLiGenT pot2, 12 lights).
 On 24 rendered 12-light spheres (satin and glossy, dark and bright, 8- and 16-bit, gains 3 % off or
-not: /work/notes/twelve.md) every refit moved σ by < 5 % and n_i by < 0.01 (settled either way).
+not: issue 50's note of 2026-12-07) every refit moved σ by < 5 % and n_i by < 0.01 (settled either way).
 
 Too few held-out pixels (< HELD_OUT_MIN: a small material): the fit pixels' own gain decides, with
 the rule before (FIT_PIXELS_MIN_GAIN standard errors).

@@ -9,7 +9,7 @@
   temporaries over every photograph (WHOLE_BYTES_PER_PIXEL_LIGHT a pixel and light) and then the
   photographs and the model's maps beside each other: 12 MP x 12 lights, woodham1980, 6.5 GB peak
   (10-12 GB with li_alternating), where over bands the same run holds ~2 GB and spends less CPU
-  (docs: /work/notes/model-bands.md's figures, `facette bench relight --large`). Over bands the model
+  (`facette bench relight --large` measures it; docs/howto/large-captures.md). Over bands the model
   is fitted from the photographs' spill with its maps on disk (`_relight_model_stage`): its normals,
   heights and planes are the band path's.
 """
