@@ -71,6 +71,14 @@ SECOND_START_ABOVE_MANY = 0.05
 
 
 COST_PRODUCT_MAX = 1e200   # the Cauchy cost's running product is logged and restarted above this
+# The lobe is evaluated for a light where tan θ_h < LOBE_REACH σ (beyond, Beckmann's D is below
+# exp(−LOBE_REACH²) of its peak and the light gets its volume part only)
+LOBE_REACH = 4.0
+LOBE_REACH2 = LOBE_REACH * LOBE_REACH
+# The normal equations' curvature weight: the Cauchy loss's own second derivative (Newton,
+# w (1 − q²) / (1 + q²), at least CURVATURE_FLOOR w) where NEWTON_CURVATURE, else IRLS's w
+NEWTON_CURVATURE = False
+CURVATURE_FLOOR = 0.05
 
 @njit(cache=True)
 def _model(nx, ny, nz, s, sh, fres, btab, g1tab, sigma, spec, lights, n_lights, a_out, b_out, pa_out, qa_out,
@@ -116,7 +124,7 @@ def _model(nx, ny, nz, s, sh, fres, btab, g1tab, sigma, spec, lights, n_lights, 
             half_sh = 0.5 / sh[i]
             ch = min(max((cs + co) * half_sh, 0.0), 1.0)
             ch2 = ch * ch
-            if 1.0 - ch2 < 16.0 * s2 * ch2 and ch2 > 0.0:
+            if 1.0 - ch2 < LOBE_REACH2 * s2 * ch2 and ch2 > 0.0:
                 g1s, dg1s = smith_g1_dlog_scaled(csc, inv_sigma, g1tab)
                 ich = 1.0 / ch
                 ich2 = ich * ich
@@ -286,22 +294,23 @@ def _solve_one(e_all, ok, n0, s, sh, fres, btab, g1tab, sigma, spec, iterations,
             q = rt * inv_scale
             w = 1.0 / (1.0 + q * q)
             wr[t] = w
+            wh = w * max((1.0 - q * q) * w, CURVATURE_FLOOR) if NEWTON_CURVATURE else w
             cs = cs_[t]
             bo = b[t] / max(cs, 1e-4) if cs > 1e-4 else 0.0
             st = t1x * s[i, 0] + t1y * s[i, 1] + t1z * s[i, 2]
             ju = (pa[t] * st + qa[t] * t1z) + bo * st * k
             st = t2x * s[i, 0] + t2y * s[i, 1] + t2z * s[i, 2]
             jv = (pa[t] * st + qa[t] * t2z) + bo * st * k
-            huu += w * ju * ju
-            hvv += w * jv * jv
-            huv += w * ju * jv
+            huu += wh * ju * ju
+            hvv += wh * jv * jv
+            huv += wh * ju * jv
             gu += w * ju * rt
             gv += w * jv * rt
-            wb = w * b[t]
+            wb = wh * b[t]
             sbb += wb * b[t]
             sbu += wb * ju
             sbv += wb * jv
-            sbr += wb * rt
+            sbr += w * b[t] * rt
         du, dv = _damped_step(huu, hvv, huv, gu, gv, sbb, sbu, sbv, sbr, k, lam)
         step = math.sqrt(du * du + dv * dv)
         shrink = min(1.0, max_step / max(step, 1e-12))

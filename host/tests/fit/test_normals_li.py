@@ -107,6 +107,21 @@ def test_volume_table_in_blocks_equals_one_evaluation_of_the_whole_disk():
         assert (tab[near] >= 0).all() and tab[near].any() and not tab[~inside & ~near].any()
 
 
+def test_coarse_volume_tables_are_remembered_within_their_byte_budget(monkeypatch):
+    # the model choice asks for the same coarse tables in every li run: kept (more than the solve's
+    # KEEP_LARGE of them), the same numbers as a fresh one, the oldest let go past SMALL_BYTES
+    import facette.fit._normals_li_table as T
+    monkeypatch.setattr(T, "_SMALL", {})
+    first = T.volume_table(RIG, 0.2, 1.4, grid=17)
+    for k in range(T.KEEP_LARGE + 2):
+        T.volume_table(RIG, 0.1 + 0.01 * k, 1.3, grid=17)
+    assert T.volume_table(RIG, 0.2, 1.4, grid=17) is first
+    np.testing.assert_array_equal(first, T._volume_table(np.asarray(RIG, np.float64), 0.2, 1.4, 17, "approx"))
+    monkeypatch.setattr(T, "SMALL_BYTES", 3 * first.nbytes)
+    T.volume_table(RIG, 0.5, 1.3, grid=17)
+    assert len(T._SMALL) == 3 and T.volume_table(RIG, 0.2, 1.4, grid=17) is not first
+
+
 def test_the_compiled_lobe_derivative_matches_central_differences():
     # the per-pixel solve's Jacobian of the lobe A (eq 3.10) is analytic (`_model`'s pa, qa):
     # dA/dt = pa (s·t) + qa t_z along a tangent t of the normal; central differences of A agree
