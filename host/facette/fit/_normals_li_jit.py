@@ -71,14 +71,6 @@ SECOND_START_ABOVE_MANY = 0.05
 
 
 COST_PRODUCT_MAX = 1e200   # the Cauchy cost's running product is logged and restarted above this
-# The lobe is evaluated for a light where tan θ_h < LOBE_REACH σ (beyond, Beckmann's D is below
-# exp(−LOBE_REACH²) of its peak and the light gets its volume part only)
-LOBE_REACH = 4.0
-LOBE_REACH2 = LOBE_REACH * LOBE_REACH
-# The normal equations' curvature weight: the Cauchy loss's own second derivative (Newton,
-# w (1 − q²) / (1 + q²), at least CURVATURE_FLOOR w) where NEWTON_CURVATURE, else IRLS's w
-NEWTON_CURVATURE = False
-CURVATURE_FLOOR = 0.05
 
 @njit(cache=True)
 def _model(nx, ny, nz, s, sh, fres, btab, g1tab, sigma, spec, lights, n_lights, a_out, b_out, pa_out, qa_out,
@@ -124,7 +116,7 @@ def _model(nx, ny, nz, s, sh, fres, btab, g1tab, sigma, spec, lights, n_lights, 
             half_sh = 0.5 / sh[i]
             ch = min(max((cs + co) * half_sh, 0.0), 1.0)
             ch2 = ch * ch
-            if 1.0 - ch2 < LOBE_REACH2 * s2 * ch2 and ch2 > 0.0:
+            if 1.0 - ch2 < 16.0 * s2 * ch2 and ch2 > 0.0:
                 g1s, dg1s = smith_g1_dlog_scaled(csc, inv_sigma, g1tab)
                 ich = 1.0 / ch
                 ich2 = ich * ich
@@ -217,39 +209,6 @@ def _damped_step(huu, hvv, huv, gu, gv, sbb, sbu, sbv, sbr, k, lam):
 
 
 @njit(cache=True)
-def _normal_equations(e, a, b, pa, qa, cs_, kept, s, k, inv_scale, n, t1x, t1y, t1z, t2x, t2y, t2z, wr):
-    """One pass over the first n kept lights: residual, Cauchy weight (into wr), Jacobian (the
-    lobe's analytic derivative from `_model`, the volume part as (B / n·s)(s·t) κ) and the normal
-    equations (huu, hvv, huv, gu, gv) with the κ column's sums (Σ w b², Σ w b ju, Σ w b jv, Σ w b r)."""
-    huu = hvv = huv = gu = gv = 0.0
-    sbb = sbu = sbv = sbr = 0.0
-    for t in range(n):
-        i = kept[t]
-        rt = e[t] - a[t] - b[t] * k
-        q = rt * inv_scale
-        w = 1.0 / (1.0 + q * q)
-        wr[t] = w
-        wh = w * max((1.0 - q * q) * w, CURVATURE_FLOOR) if NEWTON_CURVATURE else w
-        cs = cs_[t]
-        bo = b[t] / max(cs, 1e-4) if cs > 1e-4 else 0.0
-        st = t1x * s[i, 0] + t1y * s[i, 1] + t1z * s[i, 2]
-        ju = (pa[t] * st + qa[t] * t1z) + bo * st * k
-        st = t2x * s[i, 0] + t2y * s[i, 1] + t2z * s[i, 2]
-        jv = (pa[t] * st + qa[t] * t2z) + bo * st * k
-        huu += wh * ju * ju
-        hvv += wh * jv * jv
-        huv += wh * ju * jv
-        gu += w * ju * rt
-        gv += w * jv * rt
-        wb = wh * b[t]
-        sbb += wb * b[t]
-        sbu += wb * ju
-        sbv += wb * jv
-        sbr += w * b[t] * rt
-    return huu, hvv, huv, gu, gv, sbb, sbu, sbv, sbr
-
-
-@njit(cache=True)
 def _solve_one(e_all, ok, n0, s, sh, fres, btab, g1tab, sigma, spec, iterations, scale_in, cast_ratio,
                floor, max_step, step_tol, ws):
     """One start for one pixel, one channel e_all (m,). Returns (nx, ny, nz, cost, scale, rel,
@@ -310,23 +269,39 @@ def _solve_one(e_all, ok, n0, s, sh, fres, btab, g1tab, sigma, spec, iterations,
     cost = _cost(e, a, b, k, n, scale)
     lam, inv_scale = 1e-2, 1.0 / scale
     it = 0
-    # after a rejected step the normal, κ and scale are those of the last pass: its normal
-    # equations stand and only the damping changes (the same numbers, the pass not done again;
-    # DiLiGenT pot2, 96 lights: 4 % of round 1's steps are rejected, 16 % of the neighbour pass's)
-    same_point = False
-    huu = hvv = huv = gu = gv = sbb = sbu = sbv = sbr = 0.0
-    t1x = t1y = t1z = t2x = t2y = t2z = 0.0
     for it in range(1, iterations + 1):
         if rescale and (it == 3 or it == 6):
             _residuals(e, a, b, k, n, r)
             scale = _scale(r, n, mean_e, buf, floor)
             cost = _cost(e, a, b, k, n, scale)
             lam, inv_scale = max(lam, 1e-2), 1.0 / scale
-            same_point = False
-        if not same_point:
-            t1x, t1y, t1z, t2x, t2y, t2z = _tangent_frame(nx, ny, nz)
-            huu, hvv, huv, gu, gv, sbb, sbu, sbv, sbr = _normal_equations(
-                e, a, b, pa, qa, cs_, kept, s, k, inv_scale, n, t1x, t1y, t1z, t2x, t2y, t2z, wr)
+        t1x, t1y, t1z, t2x, t2y, t2z = _tangent_frame(nx, ny, nz)
+        # residual, Cauchy weight, Jacobian (the lobe's analytic derivative from `_model`, the
+        # volume part as (B / n·s)(s·t) κ) and the normal equations in one pass
+        huu = hvv = huv = gu = gv = 0.0
+        sbb = sbu = sbv = sbr = 0.0
+        for t in range(n):
+            i = kept[t]
+            rt = e[t] - a[t] - b[t] * k
+            q = rt * inv_scale
+            w = 1.0 / (1.0 + q * q)
+            wr[t] = w
+            cs = cs_[t]
+            bo = b[t] / max(cs, 1e-4) if cs > 1e-4 else 0.0
+            st = t1x * s[i, 0] + t1y * s[i, 1] + t1z * s[i, 2]
+            ju = (pa[t] * st + qa[t] * t1z) + bo * st * k
+            st = t2x * s[i, 0] + t2y * s[i, 1] + t2z * s[i, 2]
+            jv = (pa[t] * st + qa[t] * t2z) + bo * st * k
+            huu += w * ju * ju
+            hvv += w * jv * jv
+            huv += w * ju * jv
+            gu += w * ju * rt
+            gv += w * jv * rt
+            wb = w * b[t]
+            sbb += wb * b[t]
+            sbu += wb * ju
+            sbv += wb * jv
+            sbr += wb * rt
         du, dv = _damped_step(huu, hvv, huv, gu, gv, sbb, sbu, sbv, sbr, k, lam)
         step = math.sqrt(du * du + dv * dv)
         shrink = min(1.0, max_step / max(step, 1e-12))
@@ -351,12 +326,10 @@ def _solve_one(e_all, ok, n0, s, sh, fres, btab, g1tab, sigma, spec, iterations,
             cs_, csc_ = csc_, cs_
             k = kc
             lam = max(lam / 3, 1e-4)
-            same_point = False
             if step * shrink < step_tol:
                 break
         else:
             lam *= 10
-            same_point = True
             if lam > 1e3:
                 break
     num = 0.0

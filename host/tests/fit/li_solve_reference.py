@@ -13,8 +13,7 @@ import math
 import numpy as np
 
 from facette.brdf._lobe_jit import SMITH_G1_TABLE, smith_g1_dlog_scaled, smith_g1_dlog_tabulated
-from facette.fit._normals_li_jit import (CURVATURE_FLOOR, LOBE_REACH2, NEWTON_CURVATURE, _damped_step, _log_product,
-                                        _tangent_frame)
+from facette.fit._normals_li_jit import _damped_step, _log_product, _tangent_frame
 
 
 def _model(n, s, sh, fres, btab, sigma, spec):
@@ -43,7 +42,7 @@ def _model(n, s, sh, fres, btab, sigma, spec):
             half_sh = 0.5 / sh[i]
             ch = min(max((cs + co) * half_sh, 0.0), 1.0)
             ch2 = ch * ch
-            if 1.0 - ch2 < LOBE_REACH2 * s2 * ch2 and ch2 > 0.0:
+            if 1.0 - ch2 < 16.0 * s2 * ch2 and ch2 > 0.0:
                 g1s, dg1s = smith_g1_dlog_scaled(min(cs, 1.0), inv_sigma, SMITH_G1_TABLE)
                 ich = 1.0 / ch
                 ich2 = ich * ich
@@ -143,18 +142,16 @@ def _solve_one(e, ok, n0, s, sh, fres, btab, sigma, spec, iterations, scale_in, 
         sbb = sbu = sbv = sbr = 0.0
         for i in range(m):
             w = wr[i]
-            q = r[i] * inv
-            wh = w * max((1.0 - q * q) * (1.0 / (1.0 + q * q)), CURVATURE_FLOOR) if NEWTON_CURVATURE else w
-            huu += wh * ju[i] * ju[i]
-            hvv += wh * jv[i] * jv[i]
-            huv += wh * ju[i] * jv[i]
+            huu += w * ju[i] * ju[i]
+            hvv += w * jv[i] * jv[i]
+            huv += w * ju[i] * jv[i]
             gu += w * ju[i] * r[i]
             gv += w * jv[i] * r[i]
-            wb = wh * b[i]
+            wb = w * b[i]
             sbb += wb * b[i]
             sbu += wb * ju[i]
             sbv += wb * jv[i]
-            sbr += w * b[i] * r[i]
+            sbr += wb * r[i]
         du, dv = _damped_step(huu, hvv, huv, gu, gv, sbb, sbu, sbv, sbr, k, lam)
         step = math.sqrt(du * du + dv * dv)
         shrink = min(1.0, max_step / max(step, 1e-12))
