@@ -121,17 +121,19 @@ def band_rows(w, h, m, memory, method, rows, maps_bytes, extra=0):
 def solve_inputs(images, usable, r0, r1, mask, near, bag, weights):
     """A band as photometric stereo sees it: (images with the near lights' fall-off divided out,
     those with the solve's channel appended, light directions, the mask it solves, the options)."""
-    bag = dict(bag)
-    dirs = bag.pop("light_dirs", None)          # far lights: (m, 3)
+    dirs = bag.get("light_dirs")          # far lights: (m, 3)
     if near is not None:
         positions, shape, pitch = near
         dirs, falloff = near_light_directions(positions, shape, pitch, rows=(r0, r1))
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
-    solve = images
-    if weights is not None:
-        solve = with_solve_channel(images, weights, bag.get("saturation"))
-        bag["channel"] = SOLVE_CHANNEL
-    return images, solve, dirs, carried(mask, usable), bag
+    solve = images if weights is None else with_solve_channel(images, weights, bag.get("saturation"))
+    return images, solve, dirs, carried(mask, usable), solve_options(bag, weights)
+
+
+def solve_options(bag, weights):
+    """The solve's options of a band: `bag` without the far lights' directions, its channel the one appended."""
+    bag = {k: v for k, v in bag.items() if k != "light_dirs"}
+    return bag if weights is None else dict(bag, channel=SOLVE_CHANNEL)
 
 
 def band_model(method, read, shape, n_valid, rows, bag):
@@ -167,7 +169,8 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
         counts = None
         if not mask.any():
             return r0, r1, None, counts, 0.0, 0.0, None
-        images, solve, dirs, solved, bag = spec.solve_inputs(r0, r1, gains)
+        images, solve, dirs, solved = spec.solve_inputs(r0, r1, gains)
+        bag = solve_options(bag, weights)
     else:
         reader = open_bands(spec) if isinstance(spec, tuple) else spec     # a reader of this process's
         try:

@@ -61,11 +61,10 @@ class HeldBands(ArrayBands):
 
     def solve_inputs(self, r0, r1, gains):
         """The solve's band (`_tiled_process._ps_task`): (images, the solve's stack, light directions, the
-        mask it solves, the options) of the prepared band, divided by `gains`."""
+        mask it solves) of the prepared band, divided by `gains`."""
         if (r0, r1) != (0, self.images.shape[1]):
             raise ValueError(f"the one band is rows 0..{self.images.shape[1]}, not {r0}..{r1}")
-        images, solve, dirs, solved, bag = self._divided(gains)
-        return images, solve, dirs, solved, dict(bag)
+        return self._divided(gains)[:4]
 
     def spec(self):
         return self         # read here only (no scheduler: the photographs are in this process's memory)

@@ -9,7 +9,6 @@ import pytest
 from facette.io.diligent import write_diligent
 from facette.pipeline import ProcessOptions, process
 from facette.pipeline import _tiled_process
-from facette.pipeline._channels import SOLVE_CHANNEL
 from facette.pipeline._streamed import read_in_bands
 from facette.pipeline._whole import HeldBands
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
@@ -46,7 +45,7 @@ def test_held_bands_prepare_the_one_band_once_and_serve_it_without_a_copy():
     assert np.shares_memory(again, images) and np.shares_memory(solve_g, solve)
     np.testing.assert_allclose(images, raw / gains[:, None, None, None], rtol=1e-6)
     band = bands.solve_inputs(0, 3, gains)                        # the solve's: the same arrays
-    assert band[0] is images and np.shares_memory(band[1], solve) and band[4]["channel"] == SOLVE_CHANNEL
+    assert band[0] is images and np.shares_memory(band[1], solve) and band[1].shape[-1] == 4
     np.testing.assert_allclose(images, raw / gains[:, None, None, None], rtol=1e-6)    # not divided twice
     with pytest.raises(RuntimeError):
         bands.solve_read(0, 3)
