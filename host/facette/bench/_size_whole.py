@@ -2,15 +2,16 @@
 the same capture read whole (issue 49 asks <= 0.01 deg at 12 MP).
 
 The no-flag run reads the capture band by band when its whole reading (`pipeline._budget.whole_bytes`)
-exceeds the default budget (half the free memory less 1 GB: at 12 MP x 12 lights ~9.7 GB against
-~9.3 GB on a machine with 20.6 GB free). Without a flag, whether a run is read whole depends on the
-free memory of the moment; so the reference is `facette process SRC --memory X` with X the whole
-reading plus WHOLE_MARGIN, which `process` reads whole, as its one band (`_streamed.read_in_bands`;
-checked on its note), the same files as a run without --memory that fits. Printed: wall and CPU s,
-peak, and the normals' largest and mean angle between the runs, the pixels over 0.01 deg, and the
-largest height difference over the whole run's height range.
+exceeds the default budget (half the free memory less 1 GB: at 12 MP x 12 lights ~10.1 GB against
+~9.7 GB on a machine with 21.3 GB free). Without a flag, whether a run is read whole depends on the
+free memory of the moment; so the reference is `facette process SRC --memory X` with X the least
+budget (whole GB) with which `process` reads it whole, as its one band (`_streamed.read_in_bands`;
+checked on its note): the same files as a run without --memory that fits. At 12 MP that budget is
+19 GB though the reading holds ~10 GB (the band's rows are sized for more: with 12 GB, two bands).
+Printed: wall and CPU s, peak, and the normals' largest and mean angle between the runs, the pixels
+over 0.01 deg, and the largest height difference over the whole run's height range.
 """
-import math
+import os
 import re
 from pathlib import Path
 
@@ -20,17 +21,21 @@ from facette.io.exr import read_exr
 
 __all__ = ["whole_memory", "against_whole", "normals_apart"]
 
-WHOLE_MARGIN = 1.1          # the budget given to the reference: its whole reading x this
 AGREE_DEG = 0.01
 BAND_ROWS = 256
 
 
-def whole_memory(source):
-    """A --memory (e.g. "11GB") in which `process` reads `source` whole."""
-    from facette.capture import capture_size
-    from facette.pipeline._budget import whole_bytes
-    m, h, w = capture_size(source)
-    return f"{math.ceil(whole_bytes(m, h, w) * WHOLE_MARGIN / 1e9)}GB"
+def whole_memory(source, outputs=("normals", "height")):
+    """The least --memory in whole GB (e.g. "20GB") in which `process` reads `source` whole, as its one
+    band (`_streamed.read_in_bands`: the whole reading and the band's rows must both fit: at 12 MP x 12
+    lights the first asks 10.1 GB, the second 20 GB)."""
+    from facette.pipeline._options import ProcessOptions
+    from facette.pipeline._streamed import read_in_bands
+    total = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    for gb in range(1, int(total // 10 ** 9) + 1):
+        if not read_in_bands(source, ProcessOptions(memory=f"{gb}GB"), list(outputs)):
+            return f"{gb}GB"
+    raise SystemExit(f"{source}: no budget within this machine's {total / 1e9:.1f} GB reads it whole")
 
 
 def _angles_deg(a, b):
@@ -73,5 +78,5 @@ def against_whole(source, noflag_dir, out_dir, run):
           f"max {worst:.5f}°, mean {mean:.6f}°, {over} of {count} px over {AGREE_DEG}°; heights max "
           f"{height:.2e} of the range", flush=True)
     if not one:
-        print("\n".join(line for line in stdout.splitlines() if "note:" in line))
+        print("\n".join(line for line in stdout.splitlines() if "note:" in line or "--memory" in line))
     return worst, mean, over, height

@@ -18,8 +18,15 @@ solve's), the process's peak memory so far, the error, and 24 MP x 60 lights est
 rates (the model's cost is bounded by its sample and coarse pass; the bands' grows with pixels x
 lights).
 
+With --capture WxH the same relief is written once as a DiLiGenT folder of 16-bit PNGs (`_dome_capture`;
+kept with --keep and reused), then `facette process FOLDER --outputs normals,height` runs on it with no
+flag in a process of its own: the product's CPU and wall seconds (reading, the budget's bands, the model,
+the solve, the heights), its peak and its error, apart from the rendering (the bench's input).
+The photographs are rendered by a kernel (`_render_jit`: recon.synthetic.render's images, ~4x cheaper).
+
 Usage: facette bench lights [--sizes 481x466,1024x768] [--lights 12,48,96] [--material satin|glossy]
        facette bench lights --banded 4096x1024 --lights 60
+       facette bench lights --capture 6000x4000 --lights 60 --keep DIR
 """
 import argparse
 import os
