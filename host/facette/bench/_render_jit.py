@@ -1,5 +1,5 @@
 """recon.synthetic.render's Cook-Torrance images of distant lights under an orthographic view, as a
-numba kernel for the large benches (`bench lights --banded`, `--capture`): ~10x cheaper than the
+numba kernel for the large benches (`bench lights --banded`, `--capture`): ~6x cheaper than the
 numpy expression, which makes every per-pixel quantity an array and repeats per pixel the half
 vector, o.h and the Fresnel term, one per light here. The test holds it equal to render (float32
 rounding). numba's cache keys a kernel on its own file: after editing this one, clear its
