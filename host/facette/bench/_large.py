@@ -17,7 +17,7 @@ import numpy as np
 from facette.io.png import PngBandWriter
 from facette.recon.synthetic import thesis_light_directions
 
-__all__ = ["write_relief_capture", "relief_surface", "npy_band_writer", "BAND_PIXELS"]
+__all__ = ["write_relief_capture", "relief_surface", "npy_band_writer", "slab_to_scan", "BAND_PIXELS"]
 
 BAND_PIXELS = 1 << 20          # pixels rendered at once (~0.4 GB of float64 temporaries)
 GAIN = 2.5                     # PNG value = GAIN x radiance x 65535; light_intensities say GAIN
@@ -110,3 +110,30 @@ def write_relief_capture(folder, width, height, band_pixels=BAND_PIXELS, compres
         f_n.close()
         f_h.close()
     return folder
+
+
+def slab_to_scan(folder, scan_dir):
+    """The slab's DiLiGenT folder as a scan directory, one light at a time: radiance = PNG / 65535
+    (NaN where clipped), variance 1e-6 x radiance + 1e-9 (every sample above the noise)."""
+    from facette.io.diligent import read_diligent_lights
+    from facette.io.exr import write_exr
+    from facette.io.png import read_png
+    from facette.scan import ScanDirectory
+    folder, scan_dir = Path(folder), Path(scan_dir)
+    names, dirs, inten, _ = read_diligent_lights(folder)
+    (scan_dir / "hdr").mkdir(parents=True)
+    for i, name in enumerate(names):
+        raw = read_png(folder / name)
+        e = raw.astype(np.float32) / np.float32(65535)
+        e[raw >= 65535] = np.nan
+        del raw
+        write_exr(scan_dir / "hdr" / f"light_{i:02d}.exr", e, compression="none")
+        write_exr(scan_dir / "hdr" / f"light_{i:02d}_var.exr", np.nan_to_num(e, nan=np.inf) * 1e-6 + 1e-9,
+                  compression="none")
+        del e
+    lights = [{"index": i, "direction": dirs[i].tolist(), "position_mm": None, "intensity": inten[i].tolist()}
+              for i in range(len(names))]
+    sd = ScanDirectory(scan_dir)
+    sd.create(rig={"id": "synthetic"}, profile=None, pixel_pitch_mm=0.05, lights=lights, exposures=[], plan=None)
+    sd.save()
+    return scan_dir

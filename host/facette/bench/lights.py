@@ -18,11 +18,20 @@ solve's), the process's peak memory so far, the error, and 24 MP x 60 lights est
 rates (the model's cost is bounded by its sample and coarse pass; the bands' grows with pixels x
 lights).
 
+With --capture WxH the same relief is written once as a DiLiGenT folder of 16-bit PNGs (`_dome_capture`;
+kept with --keep and reused), then `facette process FOLDER --outputs normals,height` runs on it with no
+flag in a process of its own: the product's CPU and wall seconds (reading, the budget's bands, the model,
+the solve, the heights), its peak and its error, apart from the rendering (the bench's input).
+The photographs are rendered by a kernel (`_render_jit`: recon.synthetic.render's images, ~4x cheaper).
+
 Usage: facette bench lights [--sizes 481x466,1024x768] [--lights 12,48,96] [--material satin|glossy]
        facette bench lights --banded 4096x1024 --lights 60
+       facette bench lights --capture 6000x4000 --lights 60 --keep DIR
 """
 import argparse
 import os
+import sys
+import tempfile
 import time
 
 import numpy as np
@@ -31,6 +40,7 @@ from facette.methods import photometric_stereo
 from facette.recon.synthetic import Scene, render, thesis_light_directions
 
 from ._large import relief_surface
+from ._render_jit import render_lights
 
 __all__ = ["main", "dome_lights", "relief_scene", "band_rows", "render_band", "banded"]
 
@@ -86,16 +96,11 @@ def band_rows(w, m, budget=BAND_BYTES):
 
 def render_band(r0, r1, w, scale, lights, material, noise=0.01):
     """(images (m, r1 - r0, w, 3) float32, true normals) of rows r0:r1 of a w-wide relief whose
-    smaller side is `scale`: rendered one light at a time into the band (render's float64
-    temporaries are one light's), the noise seeded by the row (the same values whichever band
-    holds the row: the model's reads and the solve's bands need not share their edges)."""
+    smaller side is `scale`: rendered into the band by a kernel (`_render_jit`: render's images), the
+    noise seeded by the row (the same values whichever band holds the row: the model's reads and
+    the solve's bands need not share their edges)."""
     _, normals = relief_surface(np.arange(r0, r1), np.arange(w), scale)
-    r = r1 - r0
-    scene = Scene(normals, np.zeros((r, w)), np.ones((r, w), bool), np.zeros((r, w), bool),
-                  ((r - 1) / 2, (w - 1) / 2), 1.0)
-    images = np.empty((len(lights), r, w, 3), np.float32)
-    for i, s in enumerate(lights):
-        images[i] = render(scene, s[None], material, cast_shadows=False)[0]
+    images = render_lights(normals, lights, material, np.empty((len(lights), r1 - r0, w, 3), np.float32))
     for row in range(r0, r1):
         z = np.random.default_rng(row).standard_normal((len(lights), w, 3), dtype=np.float32)
         images[:, row - r0] *= 1 + noise * z
@@ -165,6 +170,11 @@ def _banded_main(sizes, lights, material):
 
 
 def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["--_write"]:                # the capture of --capture, in a process of its own
+        from ._dome_capture import write_dome_capture
+        write_dome_capture(argv[1], int(argv[2]), int(argv[3]), int(argv[4]), argv[5])
+        return 0
     p = argparse.ArgumentParser(prog="facette bench lights", description=__doc__.split("\n")[0])
     p.add_argument("--sizes", default="481x466,1024x768", help="WxH, comma-separated")
     p.add_argument("--lights", default="12,48,96", help="light counts, comma-separated (12: the rig's)")
@@ -172,7 +182,19 @@ def main(argv=None):
     p.add_argument("--methods", default=",".join(METHODS))
     p.add_argument("--banded", metavar="WxH", help="instead: li_alternating over bands of these sizes (comma-"
                                                    "separated), rendered band by band, and the 24 MP x 60 estimate")
+    p.add_argument("--capture", metavar="WxH", help="instead: the capture (the --banded relief) written once as a "
+                                                    "folder of PNGs, then `facette process` on it with no flag")
+    p.add_argument("--keep", help="with --capture: the folder for the capture and results (reused; default: "
+                                  "a temporary one)")
+    p.add_argument("--outputs", default="normals,height", help="with --capture: process's --outputs")
     args = p.parse_args(argv)
+    if args.capture:
+        from ._dome_capture import measure_capture
+        w, h = (int(v) for v in args.capture.lower().split("x"))
+        with tempfile.TemporaryDirectory(prefix="facette-bench-lights-") as tmp:
+            for m in (int(v) for v in args.lights.split(",")):
+                measure_capture(w, h, m, args.material, args.keep or tmp, args.outputs)
+        return 0
     if args.banded:
         run(32, 32, 12, args.material, ["li_alternating"])       # the kernels compiled first
         _banded_main(args.banded, args.lights, args.material)
@@ -195,3 +217,7 @@ def main(argv=None):
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"(1-minute load average {load:.1f} on {os.cpu_count()} cores)")
     return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

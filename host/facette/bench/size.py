@@ -63,8 +63,9 @@ from pathlib import Path
 
 import numpy as np
 
-from facette.bench._large import npy_band_writer, write_relief_capture
+from facette.bench._large import npy_band_writer, slab_to_scan, write_relief_capture
 from facette.bench._size_dask import dask_child, print_dask
+from facette.bench._size_whole import against_whole
 from facette.bench.e2e import _times   # the stage times `facette process` prints
 from facette.io.exr import read_exr
 from facette.methods import PS_DEFAULT, PS_METHODS
@@ -213,33 +214,6 @@ def _compare_process(untiled_dir, memory_dir):
     ha, hb = read_exr(Path(untiled_dir) / "height.exr")[0][..., 0], read_exr(Path(memory_dir) / "height.exr")[0][..., 0]
     span = float(np.ptp(ha[mask])) if mask.any() else 0.0
     return worst, over, float(np.abs(ha - hb)[mask].max(initial=0.0)) / span if span > 0 else float("nan")
-
-
-def _slab_to_scan(folder, scan_dir):
-    """The slab's DiLiGenT folder as a scan directory, one light at a time: radiance = PNG / 65535
-    (NaN where clipped), variance 1e-6 x radiance + 1e-9 (every sample above the noise)."""
-    from facette.io.diligent import read_diligent_lights
-    from facette.io.exr import write_exr
-    from facette.io.png import read_png
-    from facette.scan import ScanDirectory
-    folder, scan_dir = Path(folder), Path(scan_dir)
-    names, dirs, inten, _ = read_diligent_lights(folder)
-    (scan_dir / "hdr").mkdir(parents=True)
-    for i, name in enumerate(names):
-        raw = read_png(folder / name)
-        e = raw.astype(np.float32) / np.float32(65535)
-        e[raw >= 65535] = np.nan
-        del raw
-        write_exr(scan_dir / "hdr" / f"light_{i:02d}.exr", e, compression="none")
-        write_exr(scan_dir / "hdr" / f"light_{i:02d}_var.exr", np.nan_to_num(e, nan=np.inf) * 1e-6 + 1e-9,
-                  compression="none")
-        del e
-    lights = [{"index": i, "direction": dirs[i].tolist(), "position_mm": None, "intensity": inten[i].tolist()}
-              for i in range(len(names))]
-    sd = ScanDirectory(scan_dir)
-    sd.create(rig={"id": "synthetic"}, profile=None, pixel_pitch_mm=0.05, lights=lights, exposures=[], plan=None)
-    sd.save()
-    return scan_dir
 
 
 def scan_size(size, work, memory, method, untiled, outputs="normals,height"):
@@ -409,8 +383,9 @@ def no_flag(size, work, kind="slab"):
           f"{err:.3f}° to the truth, {method.group(1) if method else '?'}; {budget}", flush=True)
 
 
-def only_no_flag(size, work, scan):
-    """The no-flag run alone, of the folder or (scan) its scan directory, each written when missing."""
+def only_no_flag(size, work, scan, whole=False):
+    """The no-flag run alone, of the folder or (scan) its scan directory, each written when missing;
+    whole: then the same capture read whole, and the two compared (`_size_whole`)."""
     folder, scan_dir = (work / f"{kind}_{size[0]}x{size[1]}" for kind in ("slab", "scan"))
     if not (folder / "mask.png").is_file():
         _run_rss(_measured(SELF + ["--_generate", folder, *map(str, size)]))
@@ -418,6 +393,10 @@ def only_no_flag(size, work, scan):
         shutil.rmtree(scan_dir, ignore_errors=True)
         _run_rss(_measured(SELF + ["--_scan", folder, scan_dir]))
     no_flag(size, work, "scan" if scan else "slab")
+    if whole:
+        src, tag = (scan_dir, "scan_") if scan else (folder, "")
+        against_whole(src, work / f"noflag_{tag}{size[0]}x{size[1]}", work / f"whole_{tag}{size[0]}x{size[1]}",
+                      lambda cmd: (*_run_rss(_measured(cmd)), LAST_CPU[0]))
 
 
 def main(argv=None):
@@ -428,7 +407,7 @@ def main(argv=None):
         write_relief_capture(argv[1], int(argv[2]), int(argv[3]))
         return 0
     if argv[:1] == ["--_scan"]:
-        _slab_to_scan(argv[1], argv[2])
+        slab_to_scan(argv[1], argv[2])
         return 0
     if argv[:1] == ["--_dask"]:
         dask_child(argv[1], argv[2], argv[3], argv[4], float(argv[5]))
@@ -458,6 +437,8 @@ def main(argv=None):
                                                            "--scan) with no flag (the default method and budget)")
     p.add_argument("--only-no-flag", action="store_true", help="the no-flag run alone (with --scan: the scan "
                                                                 "directory's), its capture written when missing")
+    p.add_argument("--against-whole", action="store_true", help="with --only-no-flag: then the capture read whole "
+                                                                 "(--memory its whole reading), the normals compared")
     p.add_argument("--keep", help="keep the captures and results in this folder (default: temporary); "
                                   "a slab already there is reused")
     args = p.parse_args(argv)
@@ -471,7 +452,7 @@ def main(argv=None):
         for size in sizes:
             untiled = not args.no_untiled and size[0] * size[1] / 1e6 <= args.untiled_max_mp
             if args.only_no_flag:
-                only_no_flag(size, work, args.scan)
+                only_no_flag(size, work, args.scan, args.against_whole)
                 continue
             if args.only_scan:
                 if not (work / f"slab_{size[0]}x{size[1]}" / "mask.png").is_file():
