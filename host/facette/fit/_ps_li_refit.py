@@ -27,7 +27,9 @@ cross-validation: held out from the same population). DiLiGenT 12 lights (confir
 the generated case of tests/fit/test_ps_li_refit: half the pixels lit by a wall on one side):
 pot2 8.73 -> 8.16°, mean 7.05 -> 6.92°.
 
-Too few held-out pixels (< HELD_OUT_MIN: a small material): the fit pixels' own gain decides, with
+A half with fewer than HELD_OUT_MIN pixels besides the fit pixels (a small material: under
+`fit_pixels` + HELD_OUT_MIN in its half, the draw takes it all) holds out among all the material's.
+Too few held-out pixels even there: the fit pixels' own gain decides, with
 the rule before (FIT_PIXELS_MIN_GAIN standard errors).
 """
 import numpy as np
@@ -67,9 +69,11 @@ def refit_verdict(px, pix, fsel, x0, fit, population=None):
     """{"gain": standard errors, "on": "held-out pixels" | "fit pixels", "tie": bool} of a later
     round's refit `fit` (from `x0`, fitted on `fsel`) of the material whose pixels are `pix`; the
     held-out pixels drawn from `population` (the pixels the fit pixels were drawn from) when given
-    and HELD_OUT_FROM says so, else from all of `pix`."""
+    and HELD_OUT_FROM says so and it holds HELD_OUT_MIN besides the fit pixels, else from all of `pix`."""
     src = population if population is not None and HELD_OUT_FROM == "fit population" else pix
     pool = np.setdiff1d(src[px.refined[src]], fsel, assume_unique=True)
+    if pool.size < HELD_OUT_MIN and src is not pix:      # a small half: all but its fit pixels are drawn
+        pool = np.setdiff1d(pix[px.refined[pix]], fsel, assume_unique=True)
     if pool.size < HELD_OUT_MIN:
         gain = fit_pixels_gain(px, fsel, x0, fit)
         return {"gain": gain, "on": "fit pixels", "tie": gain < FIT_PIXELS_MIN_GAIN}

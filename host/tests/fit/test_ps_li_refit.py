@@ -78,3 +78,13 @@ def test_held_out_pixels_come_from_the_population_the_fit_pixels_were_drawn_from
     assert refit_verdict(px, pix, fsel, wide, fit)["tie"]            # judged among every pixel: kept
     verdict = refit_verdict(px, pix, fsel, wide, fit, population=well)
     assert verdict["on"] == "held-out pixels" and verdict["gain"] > 3 and not verdict["tie"], verdict
+
+
+def test_a_half_the_fit_pixels_take_whole_holds_out_among_all_the_materials_pixels():
+    px = _pixels(noise=0.03)
+    pix = np.arange(px.nrm.shape[0])
+    half = pix[::2]
+    fit = fit_li_per_pixel_kd(px.gather(half), px.lights_of(half), px.nrm[half], px.all_ok[half], x0=(0.15, 1.5),
+                              volume_model="lambert")
+    verdict = refit_verdict(px, pix, half, (0.05, 1.3), fit, population=half)
+    assert verdict["on"] == "held-out pixels" and not verdict["tie"], verdict
