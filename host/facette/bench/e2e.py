@@ -44,7 +44,9 @@ one-button scan of a 100 MP camera and the thesis camera with and without a budg
     facette bench e2e --sizes 11648x8736 --memory 2GB --outputs normals,height --scan-only --no-fixed
     facette bench e2e --sizes 4288x2848 [--memory 2GB] --outputs normals,height --scan-only --no-fixed
 
-Where the time after the last frame goes, on a kept scan (`--keep`): `--stages SCAN_DIR` runs
+Where the time after the last frame goes: each run prints a line (bench/_e2e_after.py) of when the last
+light's merge was stored, each stage's wall seconds and when each result file was written, after the last
+frame. On a kept scan (`--keep`): `--stages SCAN_DIR` runs
 `facette process` on it and prints each stage's wall and CPU seconds (bench/_e2e_stages.py);
 `--viewer SCAN_DIR [--sides 1100,550]` the report viewer's PSNR against the photographs with its
 relighting model fitted at each side, and that stage's time (bench/_e2e_viewer.py).
@@ -69,6 +71,7 @@ from pathlib import Path
 
 import numpy as np
 
+from facette.bench._e2e_after import stage_times as _times, timeline, timeline_line   # _times: bench/size.py's too
 from facette.io.exr import read_exr
 from facette.io.png import read_mask
 from facette.scan import read_scan_manifest
@@ -91,12 +94,6 @@ def _run_rss(cmd):
     if proc.returncode:
         raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{err[-2000:]}")
     return out, time.perf_counter() - t0, usage.ru_maxrss / 1e6, end, usage.ru_utime + usage.ru_stime
-
-
-def _times(stdout):
-    """The stage times `facette process` prints ("times: load 0.53 s, ps 2.35 s, ...")."""
-    m = re.search(r"times: (.*)", stdout)
-    return {k: float(v) for k, v in re.findall(r"(\w+) ([\d.]+) s", m.group(1))} if m else {}
 
 
 def _snr(scan_dir):
@@ -255,7 +252,7 @@ def one_run(size, work, exposures=None, rig_apart=True, memory=None, outputs=Non
            "exit_s": (end - _journal_last_frame(d)).total_seconds(), "peak_gb": rss,
            "shadow_db": shadow, "mid_db": mid, "clipped": clipped,
            "height_rms_mm": global_, "height_rms_px": global_ / pitch,
-           "height_rms_object_mm": per_object, "pitch_mm": pitch}
+           "height_rms_object_mm": per_object, "pitch_mm": pitch, "after": timeline(d, out)}
     if scan_only:
         return {**row, **{k: np.nan for k in ("merge_alone_s", "merge_alone_cpu_s", "merge_alone_gb",
                                               "process_cpu_s", "process_s", "process_gb",
@@ -364,6 +361,7 @@ def main(argv=None):
         for k in range(max(1, args.runs)):
             runs.append(one_run(size, work, exposures, rig_apart=not args.no_rig_apart, memory=args.memory,
                                 outputs=args.outputs, scan_only=args.scan_only))
+            print(f"  {size} run {k + 1}: " + timeline_line(runs[-1]["after"]), flush=True)
             if args.runs > 1:
                 print(f"  run {k + 1}:", flush=True)
                 _print(runs[-1:])

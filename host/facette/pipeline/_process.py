@@ -232,8 +232,6 @@ def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, 
              t_all, cpu_all, relight=None):
     """The stages after photometric stereo, the checks against truth and the files (relight:
     the fits of pipeline._rti_bands, when --memory made them over bands)."""
-    if res.normals is not None and {"normals", "report"} & set(outputs):     # what shows it
-        uncertainty_of(res, direct, light_dirs, o.saturation)      # over bands: made with them already
     drawn = {}         # report sections drawn by the concurrent stages
     if out_dir is not None:            # before the first file: whose files these will be
         mark_running(Path(out_dir), record_options, inp, [FILES[name] for name in outputs if name in FILES])
@@ -328,13 +326,18 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
                 write("relight-web")
         return notes
 
+    confidence = res.normals is not None and {"normals", "report"} & set(outputs)     # what shows it
+
     def maps():
+        # the uncertainty (normal.exr's channel) on this thread, the other stages beside it (it ran alone before)
+        if confidence:
+            uncertainty_of(res, direct, light_dirs, o.saturation)      # over bands: made with them already
         for name in ("normals", "albedo", "mask"):
             write(name)
         return []
 
     # started in this order: the maps (on disk in a second), the shape (heights, then the longest chain)
-    tasks = [(maps, out is not None), (shape, "integrate" in stages), (reflectance, "samples" in stages),
+    tasks = [(maps, out is not None or confidence), (shape, "integrate" in stages), (reflectance, "samples" in stages),
              (lambda: relit("rti"), "hsh" in stages), (lambda: relit("ptm"), "ptm" in stages)]
     t0, budget = time.perf_counter(), o.memory_bytes     # with a budget, the heap back after each stage
     with ThreadPoolExecutor(workers) as pool:

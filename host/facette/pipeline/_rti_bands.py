@@ -337,7 +337,8 @@ class WholeBands:
     def __init__(self, fit):
         self._fit, self._done, self._lock = fit, None, threading.Lock()
 
-    def fitted(self):
+    def fitted(self, name=None):
+        """The fits (`name`: the stage that asks, "ptm" or "rti"; one fit serves both here)."""
         with self._lock:
             if self._done is None:
                 self._done = self._fit()
@@ -360,14 +361,16 @@ def fits_from_whole(relight, images, outputs):
     return relight is None and images is not None and bool({"ptm", "rti", "relight-web"} & set(outputs))
 
 
-def whole_bands(relight, res, inp, images, light_dirs, o, outputs):
+def whole_bands(relight, res, inp, images, light_dirs, o, outputs, exposure=None):
     """`relight` when given (--memory's fits), else with the whole images (m, H, W, C) and ptm,
     rti or relight-web asked: their fits over bands of rows of them (a `WholeBands`), the
     photographs' exposure applied a band at a time: `Exposure.photographs` copies the images
-    when it multiplies gains back (16 photographs of 12 MP: 2.3 GB more). res.rti_exposure set."""
+    when it multiplies gains back (16 photographs of 12 MP: 2.3 GB more). res.rti_exposure set
+    (to `exposure` when given: found already)."""
     if not fits_from_whole(relight, images, outputs):
         return relight
-    res.rti_exposure = exposure_of(inp, o.rti_encoding, res.light_gains, images, res.object_mask)
+    res.rti_exposure = exposure if exposure is not None else \
+        exposure_of(inp, o.rti_encoding, res.light_gains, images, res.object_mask)
     m, h, w = images.shape[:3]
     rows = max(2, WHOLE_BAND_BYTES // (w * (BYTES_PER_PIXEL_LIGHT * m + BYTES_PER_PIXEL)) // 2 * 2)
 
@@ -390,7 +393,7 @@ def relight_stage(name, res, images, light_dirs, o, banded=None):
     with their light directions, or taken from `banded` (a `RelightBands`, --memory).
     Returns (the file can be written, notes)."""
     if banded is not None:
-        banded = banded.fitted() if isinstance(banded, WholeBands) else banded
+        banded = banded.fitted(name) if isinstance(banded, WholeBands) else banded
         setattr(res, "ptm" if name == "ptm" else "hsh", banded.ptm if name == "ptm" else banded.hsh)
         res.rti_exposure = banded.exposure
         res.timings.update(banded.timings)
@@ -423,7 +426,7 @@ def write_relight_web(path, res, banded=None):
     spill of `banded` (--memory) read band by band."""
     h, w = res.mask.shape
     if banded is not None:
-        s = (banded.fitted() if isinstance(banded, WholeBands) else banded).spills["rti"]
+        s = (banded.fitted("rti") if isinstance(banded, WholeBands) else banded).spills["rti"]
         rows, lo_hi = s.rows, (s.lo, s.hi)
     else:
         coeffs = res.hsh.coeffs

@@ -134,9 +134,10 @@ def upsampled(hidden, f, mask, r0=0):
     h, w = mask.shape
     if f == 1:
         return hidden[:, r0:r0 + h] & mask[None]
-    rows = np.minimum(np.arange(r0, r0 + h) // f, hidden.shape[1] - 1)
-    cols = np.minimum(np.arange(w) // f, hidden.shape[2] - 1)
-    return hidden[:, rows[:, None], cols[None, :]] & mask[None]
+    from facette.recon._shadows_jit import upsample_kernel
+    out = np.empty((hidden.shape[0], h, w), bool)
+    upsample_kernel(np.ascontiguousarray(hidden, bool), int(f), int(r0), np.ascontiguousarray(mask, bool), out)
+    return out
 
 
 

@@ -79,9 +79,11 @@ def warm_up(verbose=True, size=SIZE):
         photometric_stereo(images, lights, method="li_alternating", options={"mask": mask, "coarse_pixels": COARSE})
         from facette.pipeline._shadows import binned       # the shadow step's binning (above SHADOW_PIXELS only)
         from facette.pipeline._shadows import _without     # the hidden values taken out of a copy
+        from facette.pipeline._shadows import upsampled    # the bins' hidden lights at every pixel
         for im in (images, np.ascontiguousarray(images[..., 1]), images[..., 1]):    # RGB, grey, a channel's view
             binned(im, lights, mask, 2)
             _without(im, np.zeros(im.shape[:3], bool), "rank_trimmed")
+        upsampled(np.zeros((len(lights), mask.shape[0] // 2, mask.shape[1] // 2), bool), 2, mask)
     return time.perf_counter() - t0
 
 

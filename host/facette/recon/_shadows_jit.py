@@ -4,7 +4,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["bin_mean_kernel", "hidden_kernel", "horizon_excess_kernel", "without_kernel"]
+__all__ = ["bin_mean_kernel", "hidden_kernel", "horizon_excess_kernel", "upsample_kernel", "without_kernel"]
 
 
 @numba.njit(cache=True, inline="always")
@@ -106,3 +106,17 @@ def without_kernel(images, hidden, fill, out):
             else:
                 for q in range(nc):
                     out[k, r, c, q] = images[k, r, c, q]
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def upsample_kernel(hidden, f, r0, mask, out):
+    """out[k, r, c] = hidden[k, (r0 + r) // f, c // f] and mask[r, c], the rows and columns past the
+    last whole bin taking the last bin's: hidden (m, hc, wc) bool of f x f bins, mask and out[k]
+    (h, W) bool. One pass on every core (numpy's fancy indexing of the 12 lights of 3 MP took 0.35 CPU s)."""
+    m, hc, wc = hidden.shape
+    h, w = mask.shape
+    for kr in numba.prange(m * h):
+        k, r = kr // h, kr % h
+        i = min((r0 + r) // f, hc - 1)
+        for c in range(w):
+            out[k, r, c] = hidden[k, i, min(c // f, wc - 1)] and mask[r, c]

@@ -153,6 +153,19 @@ def test_hidden_lights_of_bins_cover_every_pixel_of_the_mask():
     np.testing.assert_array_equal(upsampled(hidden, 1, np.ones((2, 3), bool)), hidden)
 
 
+def test_hidden_lights_of_bins_at_every_pixel_as_numpy_indexes_them():
+    """The compiled spread (`upsampled`) against numpy's indexing of the bins, whole and for a band of rows."""
+    from facette.pipeline._shadows import upsampled
+    rng = np.random.default_rng(3)
+    hidden = rng.random((3, 6, 8)) < 0.3
+    mask = rng.random((20, 25)) < 0.8
+    for f, r0, rows in ((3, 0, 20), (3, 6, 9), (2, 4, 16)):
+        part = mask[r0:r0 + rows]
+        r = np.minimum(np.arange(r0, r0 + len(part)) // f, hidden.shape[1] - 1)
+        c = np.minimum(np.arange(part.shape[1]) // f, hidden.shape[2] - 1)
+        np.testing.assert_array_equal(upsampled(hidden, f, part, r0), hidden[:, r[:, None], c[None, :]] & part[None])
+
+
 def test_binned_images_keep_what_is_missing_out():
     from facette.pipeline._shadows import binned
     im = np.arange(2 * 4 * 6, dtype=np.float32).reshape(2, 4, 6)

@@ -11,7 +11,7 @@ def test_warm_up_runs_and_compiles_the_kernels():
     from facette.recon._ps_consensus_jit import consensus_block
     from facette.recon._ps_robust_jit import rank_trimmed_pixels
     from facette.recon._rti_jit import ptm_colour_block
-    from facette.recon._shadows_jit import bin_mean_kernel, without_kernel
+    from facette.recon._shadows_jit import bin_mean_kernel, upsample_kernel, without_kernel
     for kernel in (_refine_all, _median_rows, _usable, rank_trimmed_pixels, ptm_colour_block, consensus_block,
-                   bin_mean_kernel, without_kernel):
+                   bin_mean_kernel, upsample_kernel, without_kernel):
         assert kernel.signatures, kernel
