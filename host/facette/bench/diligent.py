@@ -8,7 +8,8 @@ the method by --methods): the user's path, with the channels, the usable-value t
 process uses (the RGB images divided by the light intensities, saturated values missing; the
 normals solved on the channels process chooses, by default the mean of R, G, B, `--channels`
 to choose another: pipeline._channels; the albedo, li_alternating's K_d, per channel).
-The time is process's wall time for the normals (reading included); `facette process` with every
+The time is process's wall time for the normals (reading included; its CPU seconds, threads summed,
+are printed to stderr as each run ends: the figure to compare on a loaded machine); `facette process` with every
 output adds the integration, BRDF fit, PTM/HSH and report. The default's rows are process's
 "auto" (inter-reflections removed where the images tell the albedo's scale, cast shadows where the
 heights hide enough lit samples). Rows of a name ending in "+ir" are NOT process's: `run_ps` on the
@@ -196,9 +197,13 @@ def run_object(folder, truth_path, methods, lights, init=None, channels=None):
     with tempfile.TemporaryDirectory() as tmp:
         src = folder if select is None else subset_folder(folder, select, Path(tmp) / Path(folder).name)
         for name in methods:
+            c = time.process_time()
             normal, mask, dt = process_normals(src, name, init, channels)
+            cpu = time.process_time() - c       # its threads summed: the cost on a loaded machine
             e = angular_errors(normal, truth, mask)
             rows.append((name, float(e.mean()), float(np.median(e)), dt))
+            print(f"    {Path(folder).name} {lights} lights, {name}: {dt:.2f} s wall, {cpu:.2f} s CPU, "
+                  f"{float(e.mean()):.2f} deg", file=sys.stderr, flush=True)
     return rows, t_read, data
 
 

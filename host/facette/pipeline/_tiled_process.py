@@ -68,7 +68,7 @@ from facette.pipeline._tiles import (BANDED_METHODS, FIELD_BYTES, PROCESS_BYTES,
 from facette.recon import PSResult, near_light_directions
 
 __all__ = ["STREAMED_OUTPUTS", "check_memory_options", "streamed", "streamed_ps", "read_whole_notes", "band_loop",
-           "band_rows", "solve_channel", "solve_reader", "solve_setup", "one_band_note"]
+           "band_rows", "solve_channel", "solve_inputs", "solve_reader", "solve_setup", "one_band_note"]
 
 STREAMED_OUTPUTS = ("normals", "albedo", "mask", "height", "mesh", "samples", "brdf", "ptm", "rti", "gltf", "report")
 MEMORY_FLAGS_NOTE = ("--memory: the report shows no mask over the photograph (the photographs are not held) "
@@ -118,20 +118,22 @@ def band_rows(w, h, m, memory, method, rows, maps_bytes, extra=0):
                          held=PROCESS_BYTES + maps_bytes * w * h, extra_per_pixel_light=extra)
 
 
-def _solve_inputs(images, usable, r0, r1, mask, near, bag, weights):
+def solve_inputs(images, usable, r0, r1, mask, near, bag, weights):
     """A band as photometric stereo sees it: (images with the near lights' fall-off divided out,
     those with the solve's channel appended, light directions, the mask it solves, the options)."""
-    bag = dict(bag)
-    dirs = bag.pop("light_dirs", None)          # far lights: (m, 3)
+    dirs = bag.get("light_dirs")          # far lights: (m, 3)
     if near is not None:
         positions, shape, pitch = near
         dirs, falloff = near_light_directions(positions, shape, pitch, rows=(r0, r1))
         images = images / np.transpose(falloff, (2, 0, 1))[..., None]
-    solve = images
-    if weights is not None:
-        solve = with_solve_channel(images, weights, bag.get("saturation"))
-        bag["channel"] = SOLVE_CHANNEL
-    return images, solve, dirs, carried(mask, usable), bag
+    solve = images if weights is None else with_solve_channel(images, weights, bag.get("saturation"))
+    return images, solve, dirs, carried(mask, usable), solve_options(bag, weights)
+
+
+def solve_options(bag, weights):
+    """The solve's options of a band: `bag` without the far lights' directions, its channel the one appended."""
+    bag = {k: v for k, v in bag.items() if k != "light_dirs"}
+    return bag if weights is None else dict(bag, channel=SOLVE_CHANNEL)
 
 
 def band_model(method, read, shape, n_valid, rows, bag):
@@ -163,18 +165,25 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
     left out of the band's solve, added to its shadow flags (the band's samples leave them out). one:
     `band_loop`'s (a capture held whole, one band: its flags kept, its images in one["images"])."""
     t0 = time.perf_counter()
-    reader = open_bands(spec) if isinstance(spec, tuple) else spec     # a reader of this process's
-    try:
-        images, usable = reader.read(r0, r1, flat)
-    finally:
-        reader.close()
+    if getattr(spec, "prepared", None) is not None:      # the one band held whole (`_whole.HeldBands`): counted
+        counts = None
+        if not mask.any():
+            return r0, r1, None, counts, 0.0, 0.0, None
+        images, solve, dirs, solved = spec.solve_inputs(r0, r1, gains)
+        bag = solve_options(bag, weights)
+    else:
+        reader = open_bands(spec) if isinstance(spec, tuple) else spec     # a reader of this process's
+        try:
+            images, usable = reader.read(r0, r1, flat)
+        finally:
+            reader.close()
+        counts = None if count_in is None else sample_counts(images, usable, count_in)
+        if not mask.any():
+            return r0, r1, None, counts, time.perf_counter() - t0, 0.0, None
+        images, solve, dirs, solved, bag = solve_inputs(images, usable, r0, r1, mask, near, bag, weights)
+        images, solve = divided(images, solve, gains)
     read_s = time.perf_counter() - t0
-    counts = None if count_in is None else sample_counts(images, usable, count_in)
-    if not mask.any():
-        return r0, r1, None, counts, read_s, 0.0, None
     t0 = time.perf_counter()
-    images, solve, dirs, solved, bag = _solve_inputs(images, usable, r0, r1, mask, near, bag, weights)
-    images, solve = divided(images, solve, gains)
     if model is not None:
         bag.update(model=model, row0=r0)
     found = None if hidden_bins is None else (hidden_bins, hidden_bin)
@@ -348,8 +357,8 @@ def band_loop(res, o, inp, bands, n, weights, used, client=None, samples=False, 
     band): (PSResult, the quality counts summed or None, near (positions, shape, pitch) or None, the
     band height solved, the gains or None). one: a dict for a capture held whole solved as one band
     (`pipeline._whole`): the quality was counted already, the per-light flags are kept, the maps
-    stay in memory, and one["images"] receives the band's images as the solve saw them (its last
-    read takes the photographs themselves: `HeldBands`)."""
+    stay in memory, and one["images"] receives the band's images as the solve saw them (its band prepared
+    once and served to every pass and the solve without a copy: `HeldBands`)."""
     h, w = inp.mask.shape
     m = len(inp.light_dirs)
     near, bag, _ = solve_setup(o, inp, weights)
@@ -370,8 +379,6 @@ def band_loop(res, o, inp, bands, n, weights, used, client=None, samples=False, 
     if client is not None:     # once to every worker, not with each band
         model = model if model is None else client.scatter(model, broadcast=True)
         hidden_bins = hidden_bins if hidden is None else client.scatter(hidden_bins, broadcast=True)
-    if one is not None:
-        bands.last = True          # the solve's read: the photographs themselves, no copy
     calls = ((spec, r0, r1, None if flat is None else flat[r0:r1], near, o.method, dict(bag),
               inp.mask[r0:r1], None if obj is None else obj[r0:r1], take(r0, r1), weights, model, gains,
               hidden_bins, hidden_bin, one)
@@ -404,12 +411,15 @@ def solve_setup(o, inp, weights):
 
 def solve_reader(bands, inp, near, bag, weights, method_name):
     """read(r0, r1, gains=None, hidden=None) -> (the band's images, the solve's (the solve's channel
-    appended, divided by the gains, the hidden values out), light directions, the mask it solves)."""
+    appended, divided by the gains, the hidden values out), light directions, the mask it solves); the
+    one band held whole serves its prepared band (`_whole.HeldBands.solve_read`: no copy)."""
+    if getattr(bands, "prepared", None) is not None:
+        return bands.solve_read
     flat = getattr(bands, "flat", None)
 
     def read(r0, r1, gains=None, hidden=None):
         images, usable = bands.read(r0, r1, None if flat is None else flat[r0:r1])
-        images, solve, dirs, solved, _ = _solve_inputs(images, usable, r0, r1, inp.mask[r0:r1], near, bag, weights)
+        images, solve, dirs, solved, _ = solve_inputs(images, usable, r0, r1, inp.mask[r0:r1], near, bag, weights)
         images, solve = divided(images, solve, gains)
         return images, without_hidden(solve, hidden, inp.mask[r0:r1], r0, method_name)[0], dirs, solved
     return read

@@ -15,11 +15,10 @@ from facette.methods import PS_METHODS, photometric_stereo
 from facette.pipeline._channels import results_in_rgb
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
-from facette.pipeline._light_gains import gained, light_gains_of_bands
+from facette.pipeline._light_gains import divided, light_gains_of_bands
 from facette.pipeline._quality import check_samples, light_geometry
-from facette.pipeline._rti_bands import band_reader
-from facette.pipeline._shadows import with_shadows
-from facette.pipeline._tiled_process import (band_loop, one_band_note, read_whole_notes, solve_channel,
+from facette.pipeline._shadows import with_shadows, without_hidden
+from facette.pipeline._tiled_process import (band_loop, one_band_note, read_whole_notes, solve_channel, solve_inputs,
                                              solve_reader, solve_setup)
 from facette.pipeline._tiles import BANDED_METHODS
 from facette.recon import dark_level_notes, near_light_directions
@@ -28,19 +27,44 @@ __all__ = ["whole_process", "HeldBands"]
 
 
 class HeldBands(ArrayBands):
-    """The photographs of a capture read whole, as the band loop's reader of its one band: read()
-    gives a copy (the loop's passes divide their band by the gains in place), except once `last` is
-    set: then the photographs themselves (the solve's read, which divides them in place as the whole
-    reading always did: no second copy of the stack)."""
-    last = False
+    """The photographs of a capture read whole, as the band loop's reader of its one band, prepared
+    once as the solve sees it (`prepare`: the near lights' fall-off divided out, the solve's channel
+    appended) and served to every pass without a copy (`solve_read`): the gains' pass before the
+    division, the passes after it (the inter-reflection decision, the cast shadows, li_alternating's
+    model) and the solve (`_tiled_process._ps_task`) once the band is divided by the gains, in place,
+    once. The photographs themselves are that band's images when no fall-off is divided out (divided
+    in place, as the whole reading always did): no copy of the stack, one solve's stack."""
+    prepared = None
 
-    def read(self, r0, r1, flat=None):
-        images = self.images[:, r0:r1]
-        usable = None if self.usable is None else self.usable[:, r0:r1]
-        if self.last:
-            self.last = False
-            return images, usable
-        return images.copy(), usable
+    def prepare(self, inp, near, bag, weights, method_name):
+        """Make the one band as the solve sees it (`_tiled_process.solve_inputs`) from the photographs."""
+        h = self.images.shape[1]
+        self.prepared = solve_inputs(self.images, self.usable, 0, h, inp.mask, near, bag, weights)
+        self.mask, self.method_name, self.gains = inp.mask, method_name, None
+
+    def _divided(self, gains):
+        """The prepared band, divided by `gains` in place on the first read that gives them (None: as prepared)."""
+        if gains is not None and self.gains is None:
+            images, solve = divided(*self.prepared[:2], gains)
+            self.prepared, self.gains = (images, solve, *self.prepared[2:]), gains
+        if (gains is None) != (self.gains is None):
+            raise RuntimeError("the one band was read without the gains after it was divided by them")
+        return self.prepared
+
+    def solve_read(self, r0, r1, gains=None, hidden=None):
+        """`_tiled_process.solve_reader`'s read of rows r0..r1 of the prepared band: views, no copy (the
+        passes only read them; the hidden values are taken out of a copy)."""
+        images, solve, dirs, solved, _ = self._divided(gains)
+        dirs = dirs if np.ndim(dirs) == 2 else dirs[r0:r1]
+        return (images[:, r0:r1], without_hidden(solve[:, r0:r1], hidden, self.mask[r0:r1], r0, self.method_name)[0],
+                dirs, solved[r0:r1])
+
+    def solve_inputs(self, r0, r1, gains):
+        """The solve's band (`_tiled_process._ps_task`): (images, the solve's stack, light directions, the
+        mask it solves) of the prepared band, divided by `gains`."""
+        if (r0, r1) != (0, self.images.shape[1]):
+            raise ValueError(f"the one band is rows 0..{self.images.shape[1]}, not {r0}..{r1}")
+        return self._divided(gains)[:4]
 
     def spec(self):
         return self         # read here only (no scheduler: the photographs are in this process's memory)
@@ -100,26 +124,24 @@ def _one_band(res, o, inp, method_name, noisy=None):
     weights, used = solve_channel(o, res.notes, noisy, inp.mask)
     del noisy
     near, bag, model_bag = solve_setup(o, inp, weights)
-    read = solve_reader(bands, inp, near, bag, weights, method_name)
+    bands.prepare(inp, near, bag, weights, method_name)
+    read = solve_reader(bands, inp, near, bag, weights, method_name)      # bands.solve_read: no copy
     gains = light_gains_of_bands(res, o, inp, method_name, lambda r0, r1: read(r0, r1)[1:3], h, model_bag)
     banded, removal = method_name in BANDED_METHODS, interreflections_wanted(o, inp, res.notes, whole=True)
     if not banded or removal:
-        _, solve, dirs, solved = read(0, h, gains)
+        images, solve, dirs, solved = read(0, h, gains)
         bag = dict(model_bag, mask=solved)
         direct, ps = solve_without_interreflections(res, o, solve, dirs, inp, method_name, bag) \
             if removal else (solve, None)
         if not banded or ps is not None or direct is not solve or "start_model" in bag:
-            bands.last = True      # the images the solve saw, the photographs themselves divided in place
-            images = gained(band_reader(bands, near, dirs), gains)(0, h)[0]
             ps = with_shadows(res, o, direct, dirs, inp.mask, method_name, bag, ps)    # cast shadows, alternated
             if ps is None:
                 ps = photometric_stereo(direct, dirs, method=o.method, options=bag)
             ps, direct = results_in_rgb(ps, direct, solve, images, used)
             return ps, images, direct
-        del _, solve, direct
+        del images, solve, direct
     one = {"gains": gains}
     ps = band_loop(res, o, inp, bands, h, weights, used, one=one)[0]
     if "images" not in one:        # nothing solved (an empty mask): the images as the solve would have seen them
-        bands.last = True
-        one["images"] = gained(band_reader(bands, near, inp.light_dirs), gains)(0, h)[0]
+        one["images"] = read(0, h, gains)[0]
     return ps, one["images"], one["images"]

@@ -1,6 +1,8 @@
 """One processing path (issue 49 item 2): a capture read whole is the band loop's one band
 (`pipeline._whole`), and a capture whose one band fits the --memory budget is read so too: `process`
 with or without --memory writes the same files."""
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -27,18 +29,26 @@ def folder(tmp_path_factory):
     return path
 
 
-def test_held_bands_give_copies_until_the_last_read():
-    images = np.arange(2 * 3 * 4 * 3, dtype=np.float32).reshape(2, 3, 4, 3)
-    usable = images[..., 1] > 5
-    bands = HeldBands(images, usable)
-    band, use = bands.read(1, 3)
-    band /= 2                                    # the loop's passes divide their band in place
-    np.testing.assert_array_equal(images[:, 1:3], np.arange(2 * 3 * 4 * 3).reshape(2, 3, 4, 3)[:, 1:3])
-    np.testing.assert_array_equal(use, usable[:, 1:3])
-    bands.last = True
-    whole, _ = bands.read(0, 3)
-    assert np.shares_memory(whole, images) and not bands.last      # the solve's read: no second stack
-    assert not np.shares_memory(bands.read(0, 3)[0], images)        # once only
+def test_held_bands_prepare_the_one_band_once_and_serve_it_without_a_copy():
+    rng = np.random.default_rng(3)
+    images = rng.uniform(0.1, 1.0, (4, 3, 5, 3)).astype(np.float32)
+    raw = images.copy()
+    mask = np.ones((3, 5), bool)
+    bands = HeldBands(images, images[..., 1] > 0)
+    weights = np.array([0.25, 0.5, 0.25], np.float32)
+    bands.prepare(SimpleNamespace(mask=mask), None, {"light_dirs": L[:4], "saturation": None}, weights,
+                  "li_alternating")
+    first, solve, dirs, solved = bands.solve_read(0, 3)          # the gains' pass: before the division
+    assert np.shares_memory(first, images) and solve.shape == (4, 3, 5, 4) and solved.all()
+    gains = np.array([1.0, 2.0, 4.0, 0.5], np.float32)
+    again, solve_g, _, _ = bands.solve_read(0, 3, gains)          # divided in place, once
+    assert np.shares_memory(again, images) and np.shares_memory(solve_g, solve)
+    np.testing.assert_allclose(images, raw / gains[:, None, None, None], rtol=1e-6)
+    band = bands.solve_inputs(0, 3, gains)                        # the solve's: the same arrays
+    assert band[0] is images and np.shares_memory(band[1], solve) and band[1].shape[-1] == 4
+    np.testing.assert_allclose(images, raw / gains[:, None, None, None], rtol=1e-6)    # not divided twice
+    with pytest.raises(RuntimeError):
+        bands.solve_read(0, 3)
 
 
 def test_read_in_bands_only_when_the_band_is_shorter_than_the_image(folder, monkeypatch):
@@ -63,3 +73,20 @@ def test_memory_that_holds_one_band_writes_the_files_of_a_run_without_it(folder,
     assert (whole.interreflections is None) == (flag.interreflections is None)
     differ = [name for name in FILES if (tmp_path / "whole" / name).read_bytes() != (tmp_path / "flag" / name).read_bytes()]
     assert not differ, differ
+
+
+def test_the_prepared_band_gives_the_normals_of_a_band_read_again_by_each_pass(folder, tmp_path, monkeypatch):
+    """The one band prepared once (the solve's channel appended once, no copy of the photographs)
+    writes the bytes of the loop that reads and prepares the band again in each pass."""
+    made = []
+    stack = _tiled_process.with_solve_channel
+    monkeypatch.setattr(_tiled_process, "with_solve_channel", lambda *a, **k: made.append(1) or stack(*a, **k))
+    outputs = ["normals", "albedo", "mask"]
+    shared = process(folder, outputs=outputs, out_dir=tmp_path / "shared")
+    once, made[:] = len(made), []
+    monkeypatch.setattr(HeldBands, "prepare", lambda self, *a: None)      # each pass reads a copy of its own
+    again = process(folder, outputs=outputs, out_dir=tmp_path / "again")
+    assert once == 1 and len(made) >= 3              # the gains', the shadows' (and the decision's) and the solve's
+    assert shared.light_gains is not None and shared.quality["shadows"] is not None
+    for name in ("normal.exr", "albedo.exr", "mask.png"):
+        assert (tmp_path / "shared" / name).read_bytes() == (tmp_path / "again" / name).read_bytes(), name
