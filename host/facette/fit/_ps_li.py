@@ -43,7 +43,7 @@ as `photometric_stereo(method="li_alternating")`.
    ran to their limit; on the same pixels it settles. Mitsuba scenes: the same errors (the gold
    sphere's and relief's 0.03-0.06° better); DiLiGenT 96 lights 6.53 -> 6.56° (pot2 7.57 -> 7.71°),
    its photometric stereo 45 -> 34 s over the six objects. A later round's refit that does not
-   lower the cost of held-out pixels (solved against each model) keeps the model and stops the
+   lower the cost of held-out pixels of its fit pixels' half (solved against each model) keeps the model and stops the
    rounds (`_ps_li_refit`: a slide along a flat valley, not a better fit).
 
 5. Neighbour starts (`neighbour_deg`): a solved pixel whose normal is more than 10° from the
@@ -374,7 +374,7 @@ def _rounds(px, pix, trust, region, mat, rounds, tol_deg, rounds_log, start_mode
         if not np.isfinite(fit["sigma"]):
             mat.update(brdf_step=False, note=f"fit failed: {fit['message']}")
             break
-        verdict = refit_verdict(px, pix, fsel, x0, fit) if rnd > 1 else None
+        verdict = refit_verdict(px, pix, fsel, x0, fit, trust) if rnd > 1 else None
         settled = x0 is not None and rnd > 1 and _settled(x0, (fit["sigma"], fit["n_i"]), verdict["tie"])
         if settled and verdict["tie"]:        # a slide along a flat valley: the previous model stays
             fit = dict(fit, sigma=x0[0], n_i=x0[1])
