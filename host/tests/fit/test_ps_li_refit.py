@@ -27,12 +27,17 @@ def _pixels(noise):
                            settings=SimpleNamespace(fit_pixels=1000))
 
 
+def _fit(px, sel, x0=(0.15, 1.5)):
+    """The material model fitted on the pixels `sel` at their true normals."""
+    return fit_li_per_pixel_kd(px.gather(sel), px.lights_of(sel), px.nrm[sel], px.all_ok[sel], x0=x0,
+                               volume_model="lambert")
+
+
 def test_a_refit_that_explains_the_images_is_taken_and_one_fitted_to_its_draws_noise_is_a_tie():
     px = _pixels(noise=0.03)
     pix = np.arange(px.nrm.shape[0])
     fsel = pix[::4]
-    good = fit_li_per_pixel_kd(px.gather(fsel), px.lights_of(fsel), px.nrm[fsel], px.all_ok[fsel], x0=(0.15, 1.5),
-                               volume_model="lambert")
+    good = _fit(px, fsel)
     x = (good["sigma"], good["n_i"])
     # from off the valley (σ 0.05): the pixels it was not fitted on are explained better too
     taken = refit_verdict(px, pix, fsel, (0.05, 1.3), good)
@@ -41,8 +46,7 @@ def test_a_refit_that_explains_the_images_is_taken_and_one_fitted_to_its_draws_n
     # better-explained half a later round draws from may be): it gains there, not elsewhere
     few = fsel[::8]
     px.values[few] *= (1 + 0.1 * np.sin(1.7 * np.arange(12)))[None, :, None]
-    noisy = fit_li_per_pixel_kd(px.gather(few), px.lights_of(few), px.nrm[few], px.all_ok[few], x0=x,
-                                volume_model="lambert")
+    noisy = _fit(px, few, x)
     assert abs(noisy["sigma"] - x[0]) > 0.05 * x[0] or abs(noisy["n_i"] - x[1]) > 0.01, noisy   # it moved
     assert fit_pixels_gain(px, few, x, noisy) > 0
     slid = refit_verdict(px, pix, few, x, noisy)
@@ -53,8 +57,7 @@ def test_a_material_with_too_few_other_pixels_is_judged_on_its_fit_pixels():
     px = _pixels(noise=0.01)
     pix = np.argsort(px.gather(np.arange(px.nrm.shape[0])).max(axis=(1, 2)))[-(HELD_OUT_MIN + 5):]
     fsel = pix[-10:]
-    fit = fit_li_per_pixel_kd(px.gather(fsel), px.lights_of(fsel), px.nrm[fsel], px.all_ok[fsel], x0=(0.15, 1.5),
-                              volume_model="lambert")
+    fit = _fit(px, fsel)
     verdict = refit_verdict(px, pix, fsel, (0.05, 1.3), fit)
     assert verdict["on"] == "fit pixels" and not verdict["tie"], verdict
 
@@ -72,8 +75,7 @@ def test_held_out_pixels_come_from_the_population_the_fit_pixels_were_drawn_from
     px.values[glow] += 0.5 * px.values[glow].mean(1, keepdims=True) * side / side.mean()
     well = pix[~glow]
     fsel = well[::3]
-    fit = fit_li_per_pixel_kd(px.gather(fsel), px.lights_of(fsel), px.nrm[fsel], px.all_ok[fsel], x0=(0.15, 1.5),
-                              volume_model="lambert")
+    fit = _fit(px, fsel)
     wide = (1.1 * fit["sigma"], fit["n_i"])
     assert refit_verdict(px, pix, fsel, wide, fit)["tie"]            # judged among every pixel: kept
     verdict = refit_verdict(px, pix, fsel, wide, fit, population=well)
@@ -84,7 +86,6 @@ def test_a_half_the_fit_pixels_take_whole_holds_out_among_all_the_materials_pixe
     px = _pixels(noise=0.03)
     pix = np.arange(px.nrm.shape[0])
     half = pix[::2]
-    fit = fit_li_per_pixel_kd(px.gather(half), px.lights_of(half), px.nrm[half], px.all_ok[half], x0=(0.15, 1.5),
-                              volume_model="lambert")
+    fit = _fit(px, half)
     verdict = refit_verdict(px, pix, half, (0.05, 1.3), fit, population=half)
     assert verdict["on"] == "held-out pixels" and not verdict["tie"], verdict
