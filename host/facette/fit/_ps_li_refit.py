@@ -20,7 +20,7 @@ On 24 rendered 12-light spheres (satin and glossy, dark and bright, 8- and 16-bi
 not: issue 50's note of 2026-12-07) every refit moved σ by < 5 % and n_i by < 0.01 (settled either way).
 
 The held-out pixels are drawn from the population the fit pixels were drawn from (round 2's
-better-explained half, HELD_OUT_FROM), not from all the material's pixels: the badly explained half
+better-explained half, the `population` `_rounds` passes), not from all the material's pixels: the badly explained half
 (cast shadows, light gathered from the surface) prefers another model than the one the fit pixels
 show, and a refit that explains the well-explained pixels better read as a loss there (textbook
 cross-validation: held out from the same population). DiLiGenT 12 lights (confirmed there, chosen on
@@ -39,7 +39,6 @@ from ._li_model import _pixel_costs
 HELD_OUT_MIN_GAIN = 0.0     # held out, the fit's optimism is gone: any gain beyond none is a gain
 HELD_OUT_MIN = 30           # fewer held-out pixels than this: the fit pixels decide
 FIT_PIXELS_MIN_GAIN = 1.0   # their rule (in-sample: the refit was fitted there)
-HELD_OUT_FROM = "fit population"   # or "material": all the material's solved pixels (the rule before)
 
 
 def paired_gain(costs_before, costs_after):
@@ -69,8 +68,8 @@ def refit_verdict(px, pix, fsel, x0, fit, population=None):
     """{"gain": standard errors, "on": "held-out pixels" | "fit pixels", "tie": bool} of a later
     round's refit `fit` (from `x0`, fitted on `fsel`) of the material whose pixels are `pix`; the
     held-out pixels drawn from `population` (the pixels the fit pixels were drawn from) when given
-    and HELD_OUT_FROM says so and it holds HELD_OUT_MIN besides the fit pixels, else from all of `pix`."""
-    src = population if population is not None and HELD_OUT_FROM == "fit population" else pix
+    and it holds HELD_OUT_MIN besides the fit pixels, else from all of `pix`."""
+    src = pix if population is None else population
     pool = np.setdiff1d(src[px.refined[src]], fsel, assume_unique=True)
     if pool.size < HELD_OUT_MIN and src is not pix:      # a small half: all but its fit pixels are drawn
         pool = np.setdiff1d(pix[px.refined[pix]], fsel, assume_unique=True)
