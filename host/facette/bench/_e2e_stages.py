@@ -8,8 +8,9 @@ For that the stages `process` runs two at a time run one after the other here (i
 pools replaced by `_Inline`), so the wall times add up to more than a real run's; the CPU
 seconds are each stage's own. The modules a scan preloads during its acquisition
 (`pipeline.preload`) are loaded before the clock starts. "rest" is what no wrapper saw (the
-record, the checks against truth, between stages). `facette bench e2e --stages SCAN_DIR`
-prints the table.
+record, the checks against truth, between stages). Rows "of which: ..." (`PARTS`) are parts of the
+stage named after them (the shadow step's heights, li_alternating's coarse rounds, its full-size round),
+counted in that stage's row too. `facette bench e2e --stages SCAN_DIR` prints the table.
 """
 import tempfile
 import threading
@@ -52,6 +53,14 @@ WRAPPED = [
     ("map writes (exr/png/ply/npz/json)", "facette.pipeline._process", "write_ply"),
     ("map writes (exr/png/ply/npz/json)", "facette.pipeline._process", "write_text_atomic"),
 ]
+# parts of the stages above, recorded inside the stage they run in too (rows `WITHIN` + name + " (stage)", not
+# in "rest"): where the photometric stereo's seconds go
+WITHIN = "  of which: "
+PARTS = [
+    (WITHIN + "shadow step's heights (heights_in_pixels)", "facette.recon._shadows", "heights_in_pixels"),
+    (WITHIN + "model's coarse rounds (model choice, alternation)", "facette.fit._ps_li", "_rounds"),
+    (WITHIN + "solve's full-size round (fine_round)", "facette.fit._ps_li_coarse", "fine_round"),
+]
 
 
 class _Inline:
@@ -86,21 +95,26 @@ def _wrapped(table, t_start):
     proc = importlib.import_module("facette.pipeline._process")
     saved = [(proc, "ThreadPoolExecutor", proc.ThreadPoolExecutor)]
     proc.ThreadPoolExecutor = _Inline
-    for name, mod_name, fn_name in WRAPPED:
+    for name, mod_name, fn_name in WRAPPED + PARTS:
         mod = importlib.import_module(mod_name)
         fn = getattr(mod, fn_name)
         saved.append((mod, fn_name, fn))
 
         def wrapper(*a, _fn=fn, _name=name, **k):
-            if getattr(local, "inside", False):
+            outer = getattr(local, "inside", None)
+            if _name.startswith(WITHIN):          # a part: its row named with the stage it runs in
+                key = f"{_name} ({outer or 'no stage'})"
+            elif outer:
                 return _fn(*a, **k)
-            local.inside = True
+            else:
+                key = _name
+            local.inside = outer or _name
             t0, c0 = time.perf_counter(), time.process_time()
             try:
                 return _fn(*a, **k)
             finally:
-                local.inside = False
-                row = table.setdefault(_name, [0.0, 0.0, float("inf"), 0.0])
+                local.inside = outer
+                row = table.setdefault(key, [0.0, 0.0, float("inf"), 0.0])
                 row[0] += time.perf_counter() - t0
                 row[1] += time.process_time() - c0
                 row[2] = min(row[2], t0 - t_start)
@@ -127,7 +141,8 @@ def stage_table(scan_dir, outputs=None, **options):
             process(Path(scan_dir), outputs=outputs, out_dir=Path(tmp) / "results", **options)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     table = {k: tuple(v) for k, v in table.items()}
-    table["rest"] = (float("nan"), cpu - sum(v[1] for v in table.values()), float("nan"), float("nan"))
+    table["rest"] = (float("nan"), cpu - sum(v[1] for k, v in table.items() if not k.startswith(WITHIN)),
+                     float("nan"), float("nan"))
     table["total"] = (wall, cpu, 0.0, wall)
     return table
 

@@ -139,7 +139,9 @@ def fit_li_model(read, shape, factor, rows, channel, saturation, init, init_opti
     coarse pass's PSResult (ps_li_alternating on binned images, channel); choose(images, dirs,
     channel, base: the robust start's PSResult) -> (fit, choice) of full-size pixels."""
     h, w = shape
-    step = max(factor, int(rows) // factor * factor)
+    # the whole image in one read when the rows hold it (the last blocks padded as a last band's are: the
+    # same bins), so that an image held whole hands its one band over once (`pipeline._whole.HeldBands`)
+    step = h if int(rows) >= h else max(factor, int(rows) // factor * factor)
     picked = sample_rows(h, w)
     binned, b_dirs, b_mask, s_img, s_dirs, s_mask = [], [], [], [], [], []
     t0, c0 = time.perf_counter(), time.process_time()

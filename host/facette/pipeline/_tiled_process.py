@@ -187,7 +187,8 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
     if model is not None:
         bag.update(model=model, row0=r0)
     found = None if hidden_bins is None else (hidden_bins, hidden_bin)
-    solve, hidden = without_hidden(solve, found, mask, r0, PS_METHODS.canonical(method))
+    solve, hidden = (getattr(spec, "without_hidden", None) or without_hidden)(solve, found, mask, r0,
+                                                                              PS_METHODS.canonical(method))
     part = flag_hidden(photometric_stereo(solve, dirs, method=method, options=dict(bag, mask=solved)), hidden)
     del solve, hidden
     if weights is not None:                    # the albedo's R, G, B only (`_channels.results_in_rgb`)

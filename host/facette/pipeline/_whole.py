@@ -53,11 +53,30 @@ class HeldBands(ArrayBands):
 
     def solve_read(self, r0, r1, gains=None, hidden=None):
         """`_tiled_process.solve_reader`'s read of rows r0..r1 of the prepared band: views, no copy (the
-        passes only read them; the hidden values are taken out of a copy)."""
+        passes only read them; the hidden values are taken out of a copy, kept for the solve when the read
+        is the whole band: `without_hidden`)."""
         images, solve, dirs, solved, _ = self._divided(gains)
         dirs = dirs if np.ndim(dirs) == 2 else dirs[r0:r1]
-        return (images[:, r0:r1], without_hidden(solve[:, r0:r1], hidden, self.mask[r0:r1], r0, self.method_name)[0],
-                dirs, solved[r0:r1])
+        if hidden is not None and (r0, r1) == (0, self.images.shape[1]):
+            solve = self.without_hidden(solve, hidden, self.mask, 0, self.method_name, keep=True)[0]
+        else:
+            solve = without_hidden(solve[:, r0:r1], hidden, self.mask[r0:r1], r0, self.method_name)[0]
+        return images[:, r0:r1], solve, dirs, solved[r0:r1]
+
+    def without_hidden(self, solve, found, mask, r0, method_name, keep=False):
+        """`_shadows.without_hidden` of the whole prepared band: li_alternating's model reads it (keep: kept)
+        and the solve then takes that copy (the same values: 12 lights of 3 MP x 4 channels are one
+        590 MB copy and a pass on every core less after the last frame)."""
+        kept = self.__dict__.pop("_without", None)
+        if found is None:
+            return solve, None
+        if kept is not None and kept[0] is solve and kept[1][0] is found[0] and kept[1][1] == found[1]:
+            out = kept[2]
+        else:
+            out = without_hidden(solve, found, mask, r0, method_name)
+        if keep:
+            self._without = (solve, found, out)
+        return out
 
     def solve_inputs(self, r0, r1, gains):
         """The solve's band (`_tiled_process._ps_task`): (images, the solve's stack, light directions, the

@@ -65,3 +65,20 @@ def test_the_dark_level_is_taken_out_and_floored_keeping_saturated_values():
     out = lowered(im, np.float32([[0.1]]), saturation=1.0)
     np.testing.assert_allclose(out.ravel(), [0.0, 0.4, 1.0])
     assert lowered(im, None, 1.0) is im
+
+
+def test_rows_that_hold_the_image_read_it_once_and_bin_it_as_bands_do():
+    # 61 rows binned 2 x 2: read whole (its last block padded) or in bands of 60 + 1 rows, the same model
+    images, lights, scene = _relief(61, 48)
+    reads = []
+
+    def read(r0, r1):
+        reads.append((r0, r1))
+        return images[:, r0:r1], lights, scene.mask[r0:r1]
+    whole = li_model(read, (61, 48), int(scene.mask.sum()), 61, coarse_pixels=800)
+    assert whole.factor == 2 and reads == [(0, 61)]
+    reads.clear()
+    bands = li_model(read, (61, 48), int(scene.mask.sum()), 60, coarse_pixels=800)
+    assert reads == [(0, 60), (60, 61)]
+    np.testing.assert_array_equal(whole.coarse_normal, bands.coarse_normal)
+    assert whole.coarse_info["materials"][0]["sigma"] == bands.coarse_info["materials"][0]["sigma"]

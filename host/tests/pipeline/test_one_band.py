@@ -92,3 +92,36 @@ def test_the_prepared_band_gives_the_normals_of_a_band_read_again_by_each_pass(f
     assert shared.light_gains is not None and shared.quality["shadows"] is not None
     for name in ("normal.exr", "albedo.exr", "mask.png"):
         assert (tmp_path / "shared" / name).read_bytes() == (tmp_path / "again" / name).read_bytes(), name
+
+
+def test_the_hidden_values_are_taken_out_once_for_the_model_and_the_solve(tmp_path):
+    """li_alternating's model and the solve read the one band without its hidden lights: one copy made
+    for the model and taken by the solve, the normals of a copy made for each."""
+    from shadow_scenes import groove_scene
+    from facette.pipeline import _whole
+    d = groove_scene("groove", fill=0.4)
+    top = 60000.0 / float(d["images"].max())
+    folder = tmp_path / "groove"
+    write_diligent(folder, np.round(d["images"] * top).astype(np.uint16), d["light_dirs"],
+                   np.full((len(d["images"]), 3), top / 65535.0), d["mask"])
+    copies = []
+    plain = _whole.without_hidden
+
+    def counted(images, found, *a):
+        copies.append(found is not None)
+        return plain(images, found, *a)
+
+    options = dict(outputs=["normals", "albedo"], interreflections=False, shadows="on",
+                   ps_options={"coarse_pixels": 400})
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(_whole, "without_hidden", counted)
+        once = process(folder, **options)
+        made, copies[:] = sum(copies), []
+        mp.setattr(HeldBands, "without_hidden", lambda self, solve, found, mask, r0, name, keep=False:
+                   counted(solve, found, mask, r0, name))          # a copy for each reader
+        each = process(folder, **options)
+    assert once.quality["shadows"]["applied"] and once.ps.info.get("coarse") is not None
+    assert made == 1 and sum(copies) == 2
+    np.testing.assert_array_equal(once.normals, each.normals)
+    np.testing.assert_array_equal(once.albedo, each.albedo)
+    np.testing.assert_array_equal(once.ps.shadow, each.ps.shadow)
