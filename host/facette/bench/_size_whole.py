@@ -7,7 +7,7 @@ exceeds the default budget (half the free memory less 1 GB: at 12 MP x 12 lights
 free memory of the moment; so the reference is `facette process SRC --memory X` with X the least
 budget (whole GB) with which `process` reads it whole, as its one band (`_streamed.read_in_bands`;
 checked on its note): the same files as a run without --memory that fits. At 12 MP that budget is
-11 GB (the reading holds ~10 GB; until December 2026 the bands' own model also had to fit: 19 GB).
+19 GB though the reading holds ~10 GB (the band's rows are sized for more: with 12 GB, two bands).
 Printed: wall and CPU s, peak, and the normals' largest and mean angle between the runs, the pixels
 over 0.01 deg, and the largest height difference over the whole run's height range.
 """
@@ -27,8 +27,8 @@ BAND_ROWS = 256
 
 def whole_memory(source, outputs=("normals", "height")):
     """The least --memory in whole GB (e.g. "20GB") in which `process` reads `source` whole, as its one
-    band (`_streamed.read_in_bands`: the whole reading's measured peak, `_budget.whole_bytes`, must fit:
-    at 12 MP x 12 lights 10.1 GB)."""
+    band (`_streamed.read_in_bands`: the whole reading and the band's rows must both fit: at 12 MP x 12
+    lights the first asks 10.1 GB, the second 20 GB)."""
     from facette.pipeline._options import ProcessOptions
     from facette.pipeline._streamed import read_in_bands
     total = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")

@@ -10,7 +10,7 @@ from facette.pipeline._interreflections import interreflections_wanted
 from facette.pipeline._relight_only import relight_only, relight_only_bands
 from facette.pipeline._rti_bands import BANDED_OUTPUTS, relight_bands
 from facette.pipeline._whole import whole_process
-from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, streamed, streamed_ps
+from facette.pipeline._tiled_process import MEMORY_FLAGS_NOTE, SOLVE_CHANNEL_BYTES, band_rows, streamed, streamed_ps
 
 __all__ = ["banded_process", "read_in_bands", "solved"]
 
@@ -28,19 +28,19 @@ def solved(source, o, res, outputs, stages, claim):
 def read_in_bands(source, o, outputs, stages=()):
     """Whether `process` reads the capture band by band (`banded_process`), else whole, as the band
     loop's one band (`_whole`): a budget (--memory, or the default's when the capture does not fit
-    whole, `_budget`) that cannot hold the whole reading (`_budget.whole_bytes`, the one test the
-    default budget's note uses too), or a scheduler, on a capture's folder whose outputs need no image
-    after photometric stereo (`streamed`). A capture whose whole reading fits the budget is read whole
-    whether or not --memory was given: the same files either way. (The bands' own model,
-    `_tiles.rows_per_tile`, is measured on 512k-pixel bands and asks ~2x the whole reading's measured
-    peak at 12 MP: it sizes bands, it does not decide whether there are any.) The relighting files
-    alone always over bands (`_relight_only`: nothing needs the photographs whole)."""
+    whole, `_budget`) that cannot hold the whole reading (`_budget.whole_bytes`) or whose band is shorter
+    than the image, or a scheduler, on a capture's folder
+    whose outputs need no image after photometric stereo (`streamed`). A capture whose one band
+    fits the budget is read whole whether or not --memory was given: the same files either way. The
+    relighting files alone always over bands (`_relight_only`: nothing needs the photographs whole)."""
     if o.memory is None or not streamed(source, outputs):
         return False
     size = capture_size(source)
     if o.scheduler is not None or size is None or relight_only(stages):
         return True
-    return whole_bytes(*size) > o.memory_bytes
+    m, h, w = size
+    return whole_bytes(m, h, w) > o.memory_bytes or \
+        band_rows(w, h, m, o.memory, o.method, None, 0, 0 if o.channels == "green" else SOLVE_CHANNEL_BYTES) < h
 
 
 def banded_process(source, o, res, outputs, stages, claim):

@@ -9,7 +9,6 @@ import pytest
 from facette.io.diligent import write_diligent
 from facette.pipeline import ProcessOptions, process
 from facette.pipeline import _tiled_process
-from facette.pipeline._budget import whole_bytes
 from facette.pipeline._streamed import read_in_bands
 from facette.pipeline._whole import HeldBands
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
@@ -52,14 +51,13 @@ def test_held_bands_prepare_the_one_band_once_and_serve_it_without_a_copy():
         bands.solve_read(0, 3)
 
 
-def test_read_in_bands_only_when_the_whole_reading_exceeds_the_budget(folder):
+def test_read_in_bands_only_when_the_band_is_shorter_than_the_image(folder, monkeypatch):
     outputs = ["normals"]
     assert not read_in_bands(folder, ProcessOptions(), outputs)                      # no budget: whole
     assert not read_in_bands(folder, ProcessOptions(memory="2GB"), outputs)          # one band fits
     assert read_in_bands(folder, ProcessOptions(memory="2GB", scheduler="tcp://127.0.0.1:9"), outputs)
-    need = whole_bytes(len(L), 36, 44)          # the test the default budget's note says, to the byte
-    assert not read_in_bands(folder, ProcessOptions(memory=str(need)), outputs)
-    assert read_in_bands(folder, ProcessOptions(memory=str(need - 1)), outputs)
+    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: 5)
+    assert read_in_bands(folder, ProcessOptions(memory="2GB"), outputs)
 
 
 def test_memory_that_holds_one_band_writes_the_files_of_a_run_without_it(folder, tmp_path):
