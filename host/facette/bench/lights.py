@@ -26,9 +26,13 @@ flag in a process of its own: the product's CPU and wall seconds (reading, the b
 the solve, the heights), its peak and its error, apart from the rendering (the bench's input).
 The photographs are rendered by a kernel (`_render_jit`: recon.synthetic.render's images, ~4x cheaper).
 
+With --shadow-rates WxH, the cast-shadow step's hit and false-hidden rates per margin on that relief, with
+and without its cast shadows, and on bench concave's scenes (`_shadow_rates`).
+
 Usage: facette bench lights [--sizes 481x466,1024x768] [--lights 12,48,96] [--material satin|glossy]
        facette bench lights --banded 4096x1024 --lights 60
        facette bench lights --capture 6000x4000 --lights 60 --keep DIR
+       facette bench lights --shadow-rates 1500x1000 [--margins=-3,-1.5,0] [--concave-cache DIR]
 """
 import argparse
 import os
@@ -202,9 +206,21 @@ def main(argv=None):
     p.add_argument("--keep", help="with --capture: the folder for the capture and results (reused; default: "
                                   "a temporary one)")
     p.add_argument("--outputs", default="normals,height", help="with --capture: process's --outputs")
+    p.add_argument("--shadow-rates", metavar="WxH", help="instead: the cast-shadow step's hidden lights against the "
+                                                         "geometry's on the relief at WxH (`_shadow_rates`)")
+    p.add_argument("--margins", default="-3,-1.5,-0.75,0,1.5", help="with --shadow-rates: the horizon test's margins")
+    p.add_argument("--concave-cache", help="with --shadow-rates: also bench concave's scenes under 96 lights, "
+                                           "rendered into (or read from) this folder")
+    p.add_argument("--concave-shapes", default="bowl,grooves,craters,cup", help="with --concave-cache: which")
     p.add_argument("--no-cast-shadows", action="store_true", help="with --capture: the relief rendered without the "
                                                                    "shadows it casts (a folder of its own)")
     args = p.parse_args(argv)
+    if args.shadow_rates:
+        from ._shadow_rates import shadow_rates_main
+        w, h = (int(v) for v in args.shadow_rates.lower().split("x"))
+        shadow_rates_main(w, h, [float(v) for v in args.margins.split(",")], args.concave_cache,
+                          args.concave_shapes.split(","))
+        return 0
     if args.capture:
         from ._dome_capture import measure_capture
         w, h = (int(v) for v in args.capture.lower().split("x"))

@@ -187,13 +187,14 @@ def _first_normals(first, f):
     return n.reshape(hc, f, wc, f, 3).mean(axis=(1, 3)), valid
 
 
-def hidden_of_bins(res, o, decision, alternation, method_name, bag, first=None, started=None):
+def hidden_of_bins(res, o, decision, alternation, method_name, bag, first=None, started=None,
+                   margin_deg=SHADOW_MARGIN_DEG):
     """(the hidden lights of the alternation's bins (m, H // fa, W // fa), fa), or None when "auto" finds
     too few (module doc, steps 1-2). decision: `Binned` at `decision_bin`; alternation(): `Binned` at
     `alternation_bin`, made when needed. first : a PSResult whose normals start the alternation (e.g.
     the inter-reflection step's), else a rank_trimmed pass. The lights' mean directions are the
     decision's bins'. Notes, and res.quality["shadows"] (the figures, which process.json records);
-    started: (perf, process) clocks."""
+    started: (perf, process) clocks; margin_deg: the horizon test's (`bench lights --shadow-rates` varies it)."""
     t0, c0 = started or (time.perf_counter(), time.process_time())
     L = _distant(decision.dirs)
 
@@ -204,11 +205,11 @@ def hidden_of_bins(res, o, decision, alternation, method_name, bag, first=None, 
             ps = photometric_stereo(level.images, level.dirs, method="rank_trimmed",
                                     options={**bag, "mask": level.solve_mask})
             normal, valid = ps.normal, ps.valid
-        hidden, _ = hidden_lights(normal, level.mask & valid, L, SHADOW_MARGIN_DEG)
+        hidden, _ = hidden_lights(normal, level.mask & valid, L, margin_deg)
         return hidden, _lit_share(hidden, normal, valid, L)
 
     hidden, share = hidden_of(decision, first)
-    info = {"margin_deg": SHADOW_MARGIN_DEG, "decided_on": round(share, 5), "bin": decision.f, "hidden_share": []}
+    info = {"margin_deg": margin_deg, "decided_on": round(share, 5), "bin": decision.f, "hidden_share": []}
     res.quality["shadows"] = info
     if o.shadows == SHADOWS_AUTO and share < SHADOW_MIN_SHARE:
         info.update(applied=False, cpu_seconds=round(time.process_time() - c0, 3))
@@ -229,7 +230,7 @@ def hidden_of_bins(res, o, decision, alternation, method_name, bag, first=None, 
     info.update(applied=True, seconds_before_solve=round(time.perf_counter() - t0, 3),
                 cpu_seconds_before_solve=round(time.process_time() - c0, 3))
     res.notes.append(f"shadows: the surface's own heights hide {rounds[-1]:.2%} of the lit samples (lights "
-                     f"under the horizon + {-SHADOW_MARGIN_DEG:g}°); those values were left out of the normals "
+                     f"under the horizon + {-margin_deg:g}°); those values were left out of the normals "
                      f"({len(rounds)} robust passes, then {method_name})")
     return hidden, level.f
 
