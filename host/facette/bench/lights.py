@@ -18,15 +18,21 @@ solve's), the process's peak memory so far, the error, and 24 MP x 60 lights est
 rates (the model's cost is bounded by its sample and coarse pass; the bands' grows with pixels x
 lights).
 
-With --capture WxH the same relief is written once as a DiLiGenT folder of 16-bit PNGs (`_dome_capture`;
-kept with --keep and reused), then `facette process FOLDER --outputs normals,height` runs on it with no
+With --capture WxH the same relief, with the shadows it casts (its slopes up to 49 deg hide 4 % of the lit
+samples from the dome's lights at 10-80 deg; --no-cast-shadows: without, as before December 2026, when the
+cast-shadow step's 5 % hidden on it was read as false alarms), is written once as a DiLiGenT folder of 16-bit
+PNGs (`_dome_capture`; kept with --keep and reused), then `facette process FOLDER --outputs normals,height` runs on it with no
 flag in a process of its own: the product's CPU and wall seconds (reading, the budget's bands, the model,
 the solve, the heights), its peak and its error, apart from the rendering (the bench's input).
 The photographs are rendered by a kernel (`_render_jit`: recon.synthetic.render's images, ~4x cheaper).
 
+With --shadow-rates WxH, the cast-shadow step's hit and false-hidden rates per margin on that relief, with
+and without its cast shadows, and on bench concave's scenes (`_shadow_rates`).
+
 Usage: facette bench lights [--sizes 481x466,1024x768] [--lights 12,48,96] [--material satin|glossy]
        facette bench lights --banded 4096x1024 --lights 60
        facette bench lights --capture 6000x4000 --lights 60 --keep DIR
+       facette bench lights --shadow-rates 1500x1000 [--margins=-3,-1.5,0] [--concave-cache DIR]
 """
 import argparse
 import os
@@ -42,7 +48,7 @@ from facette.recon.synthetic import Scene, render, thesis_light_directions
 from ._large import relief_surface
 from ._render_jit import render_lights
 
-__all__ = ["main", "dome_lights", "relief_scene", "band_rows", "render_band", "banded"]
+__all__ = ["main", "dome_lights", "relief_scene", "band_rows", "relief_heights", "render_band", "banded"]
 
 METHODS = ("rank_trimmed", "li_alternating")
 # the photographs of one band of --banded (float32): 128 MB, so a band and its solve's copies
@@ -94,13 +100,26 @@ def band_rows(w, m, budget=BAND_BYTES):
     return max(1, int(budget) // (m * w * 3 * 4))
 
 
-def render_band(r0, r1, w, scale, lights, material, noise=0.01):
+def relief_heights(h, w, rows=256):
+    """(h, w) float32: the relief's heights in pixel pitches (`relief_surface`), computed `rows` rows at a time."""
+    out = np.empty((h, w), np.float32)
+    for r0 in range(0, h, rows):
+        out[r0:r0 + rows] = relief_surface(np.arange(r0, min(h, r0 + rows)), np.arange(w), min(h, w))[0]
+    return out
+
+
+def render_band(r0, r1, w, scale, lights, material, noise=0.01, hidden=None):
     """(images (m, r1 - r0, w, 3) float32, true normals) of rows r0:r1 of a w-wide relief whose
     smaller side is `scale`: rendered into the band by a kernel (`_render_jit`: render's images), the
     noise seeded by the row (the same values whichever band holds the row: the model's reads and
-    the solve's bands need not share their edges)."""
+    the solve's bands need not share their edges). hidden: (m, r1 - r0, w) bool, the lights the relief
+    hides from each pixel (`_render_jit.cast_hidden` of `relief_heights`: its cast shadows), which give
+    it 0 (no inter-reflections are rendered either); None: no shadows cast (the relief hides 4 % of the
+    lit samples from 60 dome lights)."""
     _, normals = relief_surface(np.arange(r0, r1), np.arange(w), scale)
     images = render_lights(normals, lights, material, np.empty((len(lights), r1 - r0, w, 3), np.float32))
+    if hidden is not None:
+        images[np.broadcast_to(hidden[..., None], images.shape)] = 0
     for row in range(r0, r1):
         z = np.random.default_rng(row).standard_normal((len(lights), w, 3), dtype=np.float32)
         images[:, row - r0] *= 1 + noise * z
@@ -173,7 +192,7 @@ def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["--_write"]:                # the capture of --capture, in a process of its own
         from ._dome_capture import write_dome_capture
-        write_dome_capture(argv[1], int(argv[2]), int(argv[3]), int(argv[4]), argv[5])
+        write_dome_capture(argv[1], int(argv[2]), int(argv[3]), int(argv[4]), argv[5], cast_shadows=argv[6:] != ["0"])
         return 0
     p = argparse.ArgumentParser(prog="facette bench lights", description=__doc__.split("\n")[0])
     p.add_argument("--sizes", default="481x466,1024x768", help="WxH, comma-separated")
@@ -187,13 +206,27 @@ def main(argv=None):
     p.add_argument("--keep", help="with --capture: the folder for the capture and results (reused; default: "
                                   "a temporary one)")
     p.add_argument("--outputs", default="normals,height", help="with --capture: process's --outputs")
+    p.add_argument("--shadow-rates", metavar="WxH", help="instead: the cast-shadow step's hidden lights against the "
+                                                         "geometry's on the relief at WxH (`_shadow_rates`)")
+    p.add_argument("--margins", default="-3,-1.5,-0.75,0,1.5", help="with --shadow-rates: the horizon test's margins")
+    p.add_argument("--concave-cache", help="with --shadow-rates: also bench concave's scenes under 96 lights, "
+                                           "rendered into (or read from) this folder")
+    p.add_argument("--concave-shapes", default="bowl,grooves,craters,cup", help="with --concave-cache: which")
+    p.add_argument("--no-cast-shadows", action="store_true", help="with --capture: the relief rendered without the "
+                                                                   "shadows it casts (a folder of its own)")
     args = p.parse_args(argv)
+    if args.shadow_rates:
+        from ._shadow_rates import shadow_rates_main
+        w, h = (int(v) for v in args.shadow_rates.lower().split("x"))
+        shadow_rates_main(w, h, [float(v) for v in args.margins.split(",")], args.concave_cache,
+                          args.concave_shapes.split(","))
+        return 0
     if args.capture:
         from ._dome_capture import measure_capture
         w, h = (int(v) for v in args.capture.lower().split("x"))
         with tempfile.TemporaryDirectory(prefix="facette-bench-lights-") as tmp:
             for m in (int(v) for v in args.lights.split(",")):
-                measure_capture(w, h, m, args.material, args.keep or tmp, args.outputs)
+                measure_capture(w, h, m, args.material, args.keep or tmp, args.outputs, not args.no_cast_shadows)
         return 0
     if args.banded:
         run(32, 32, 12, args.material, ["li_alternating"])       # the kernels compiled first
