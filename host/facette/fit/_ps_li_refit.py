@@ -56,19 +56,26 @@ def fit_pixels_gain(px, fsel, x0, fit):
 
 
 def held_out_gain(px, hold, x0, fit):
-    """How much the refit lowers the robust cost of the pixels `hold`, each solved against the
-    previous (`x0`) and the refit (σ, n_i) from its current normal, in standard errors."""
+    """(gain, median, mean): how much the refit lowers the robust cost of the pixels `hold`, each
+    solved against the previous (`x0`) and the refit (σ, n_i) from its current normal, in standard
+    errors; and the median and mean angle (°) between each pixel's two solved normals: how far a
+    round that re-estimates the pixels against the refit would move them (`_ps_li._settled`)."""
     values, lights, ok = px.gather(hold), px.lights_of(hold), px.all_ok[hold]
-    costs = [_pixel_costs(values, lights, px.refine(hold, s, n, first_round=False).normals, ok, s, n, px.vm)
-             for s, n in (x0, (fit["sigma"], fit["n_i"]))]
-    return paired_gain(*costs)
+    normals = [px.refine(hold, s, n, first_round=False).normals for s, n in (x0, (fit["sigma"], fit["n_i"]))]
+    costs = [_pixel_costs(values, lights, nrm, ok, s, n, px.vm)
+             for nrm, (s, n) in zip(normals, (x0, (fit["sigma"], fit["n_i"])))]
+    # the angle from the chord, 2 asin(|a − b| / 2): exact at 0, where arccos of a float32 dot is 0.02° off
+    chord = np.linalg.norm(normals[0].astype(np.float64) - normals[1], axis=1)
+    moved = np.degrees(2 * np.arcsin(np.minimum(chord / 2, 1.0)))
+    return paired_gain(*costs), float(np.median(moved)), float(moved.mean())
 
 
 def refit_verdict(px, pix, fsel, x0, fit, population=None):
     """{"gain": standard errors, "on": "held-out pixels" | "fit pixels", "tie": bool} of a later
     round's refit `fit` (from `x0`, fitted on `fsel`) of the material whose pixels are `pix`; the
     held-out pixels drawn from `population` (the pixels the fit pixels were drawn from) when given
-    and it holds HELD_OUT_MIN besides the fit pixels, else from all of `pix`."""
+    and it holds HELD_OUT_MIN besides the fit pixels, else from all of `pix`. Judged held out, also
+    "change_deg" and "mean_change_deg": the median and mean move of their normals (`held_out_gain`)."""
     src = pix if population is None else population
     pool = np.setdiff1d(src[px.refined[src]], fsel, assume_unique=True)
     if pool.size < HELD_OUT_MIN and src is not pix:      # a small half: all but its fit pixels are drawn
@@ -78,5 +85,6 @@ def refit_verdict(px, pix, fsel, x0, fit, population=None):
         return {"gain": gain, "on": "fit pixels", "tie": gain < FIT_PIXELS_MIN_GAIN}
     # a generator of its own: the rounds' draws stay as they were
     hold = np.sort(px.rng.spawn(1)[0].choice(pool, min(px.settings.fit_pixels, pool.size), replace=False))
-    gain = held_out_gain(px, hold, x0, fit)
-    return {"gain": gain, "on": "held-out pixels", "tie": gain <= HELD_OUT_MIN_GAIN}
+    gain, median, mean = held_out_gain(px, hold, x0, fit)
+    return {"gain": gain, "on": "held-out pixels", "tie": gain <= HELD_OUT_MIN_GAIN, "change_deg": median,
+            "mean_change_deg": mean}

@@ -62,4 +62,14 @@ def test_a_refit_that_explains_the_pixels_is_taken_and_one_that_does_not_move_is
     same = fit_pixels_gain(px, fsel, x, fitted)
     assert same == 0 and same < FIT_PIXELS_MIN_GAIN and _settled(x, x)
     # a move beyond the σ / n_i tolerances that is a tie is settled all the same
-    assert _settled((0.15, 1.3), (0.2, 1.5), tie=True) and not _settled((0.15, 1.3), (0.2, 1.5))
+    assert _settled((0.15, 1.3), (0.2, 1.5), {"tie": True}) and not _settled((0.15, 1.3), (0.2, 1.5))
+
+
+def test_a_refit_judged_held_out_is_settled_by_how_far_it_moves_the_normals_not_by_its_parameters():
+    far, near = ((0.15, 1.3), (0.2, 1.5)), ((0.15, 1.3), (0.151, 1.301))
+    # held out, the held-out normals' median move against the rounds' tol_deg decides
+    assert _settled(*far, {"tie": False, "change_deg": 0.05}, tol_deg=0.1)
+    assert not _settled(*near, {"tie": False, "change_deg": 0.15}, tol_deg=0.1)
+    assert _settled(*near, {"tie": False, "change_deg": 0.15}, tol_deg=0.2)
+    # judged on its fit pixels only (no held-out solves, no move measured): the σ / n_i tolerances
+    assert not _settled(*far, {"tie": False}) and _settled(*near, {"tie": False})

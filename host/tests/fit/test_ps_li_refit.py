@@ -89,3 +89,21 @@ def test_a_half_the_fit_pixels_take_whole_holds_out_among_all_the_materials_pixe
     fit = _fit(px, half)
     verdict = refit_verdict(px, pix, half, (0.05, 1.3), fit, population=half)
     assert verdict["on"] == "held-out pixels" and not verdict["tie"], verdict
+
+
+def test_the_verdict_says_how_far_the_refit_would_move_the_held_out_normals():
+    # what `_ps_li._settled` reads: a refit from off the valley (σ 0.05) moves the held-out pixels'
+    # solved normals by a lot, one from 1 % of σ away by next to nothing
+    px = _pixels(noise=0.01)
+    pix = np.arange(px.nrm.shape[0])
+    fsel = pix[::4]
+    fit = _fit(px, fsel)
+    far = refit_verdict(px, pix, fsel, (0.05, 1.3), fit)
+    near = refit_verdict(px, pix, fsel, (1.01 * fit["sigma"], fit["n_i"]), fit)
+    assert far["mean_change_deg"] > 0.2 and near["mean_change_deg"] < 0.02, (far, near)
+    # the median (what `_settled` reads, the rounds' own statistic): here most pixels lie beyond the
+    # lobe's reach and solve alike under both models
+    assert near["change_deg"] <= far["change_deg"] <= far["mean_change_deg"], (far, near)
+    # the angles between the two solves of each held-out pixel: none when nothing moves
+    same = refit_verdict(px, pix, fsel, (fit["sigma"], fit["n_i"]), fit)
+    assert same["change_deg"] == same["mean_change_deg"] == 0.0 and same["tie"], same
