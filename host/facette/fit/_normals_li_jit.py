@@ -116,9 +116,7 @@ def _model(nx, ny, nz, s, sh, fres, btab, g1tab, sigma, spec, lights, n_lights, 
             half_sh = 0.5 / sh[i]
             ch = min(max((cs + co) * half_sh, 0.0), 1.0)
             ch2 = ch * ch
-            # the lobe only where tan θ_h < 3σ: beyond, Beckmann's D is below exp(−9) ≈ 1.2e-4 of its
-            # peak (4σ: exp(−16)) and the light gets its volume part only (issue 50: see the module doc)
-            if 1.0 - ch2 < 9.0 * s2 * ch2 and ch2 > 0.0:
+            if 1.0 - ch2 < 16.0 * s2 * ch2 and ch2 > 0.0:
                 g1s, dg1s = smith_g1_dlog_scaled(csc, inv_sigma, g1tab)
                 ich = 1.0 / ch
                 ich2 = ich * ich

@@ -42,7 +42,7 @@ def _model(n, s, sh, fres, btab, sigma, spec):
             half_sh = 0.5 / sh[i]
             ch = min(max((cs + co) * half_sh, 0.0), 1.0)
             ch2 = ch * ch
-            if 1.0 - ch2 < 9.0 * s2 * ch2 and ch2 > 0.0:      # the kernel's reach, 3σ
+            if 1.0 - ch2 < 16.0 * s2 * ch2 and ch2 > 0.0:
                 g1s, dg1s = smith_g1_dlog_scaled(min(cs, 1.0), inv_sigma, SMITH_G1_TABLE)
                 ich = 1.0 / ch
                 ich2 = ich * ich

@@ -101,9 +101,7 @@ def test_the_verdict_says_how_far_the_refit_would_move_the_held_out_normals():
     far = refit_verdict(px, pix, fsel, (0.05, 1.3), fit)
     near = refit_verdict(px, pix, fsel, (1.01 * fit["sigma"], fit["n_i"]), fit)
     assert far["mean_change_deg"] > 0.2 and near["mean_change_deg"] < 0.02, (far, near)
-    # the median (what `_settled` reads, the rounds' own statistic): here most pixels lie beyond the
-    # lobe's reach and solve alike under both models
-    assert near["change_deg"] <= far["change_deg"] <= far["mean_change_deg"], (far, near)
+    assert far["change_deg"] > near["change_deg"], (far, near)          # the median
     # the angles between the two solves of each held-out pixel: none when nothing moves
     same = refit_verdict(px, pix, fsel, (fit["sigma"], fit["n_i"]), fit)
     assert same["change_deg"] == same["mean_change_deg"] == 0.0 and same["tie"], same
