@@ -122,29 +122,17 @@ def _search_one(em, ok, n0, starts, s, sh, fres, btab, g1tab, sigma, spec, itera
 
 
 @njit(cache=True, parallel=True, nogil=True)
-def _search_all(e, usable, n0, starts, s, sh, fres, btab, g1tab, sigma, spec, iterations, keep, min_sep_cos,
+def _search_all(em, ok, n0, starts, s, sh, fres, btab, g1tab, sigma, spec, iterations, keep, min_sep_cos,
                 cast_ratio, floor, max_step, step_tol, out, chunk):
-    n_pix, m, c = e.shape
+    n_pix, m = em.shape
     n_chunks = (n_pix + chunk - 1) // chunk
     for q in prange(n_chunks):
         ws = _workspace(m)
         buf = _buffers(m)
-        em = np.empty(m)
-        ok = np.empty(m, np.bool_)
         for p in range(q * chunk, min((q + 1) * chunk, n_pix)):
-            # the channels' mean, a light used where usable and finite in every channel (as `_refine_all`)
-            for i in range(m):
-                good = usable[p, i]
-                tot = 0.0
-                for ch in range(c):
-                    v = e[p, i, ch]
-                    good = good and np.isfinite(v)
-                    tot += v
-                ok[i] = good
-                em[i] = tot / c if good else 0.0
             st = starts[p if starts.shape[0] > 1 else 0]        # the pixel's starts, or the common ones
-            _search_one(em, ok, n0[p], st, s, sh, fres, btab, g1tab, sigma, spec, iterations, keep, min_sep_cos,
-                        cast_ratio, floor, max_step, step_tol, ws, buf, out[p])
+            _search_one(em[p], ok[p], n0[p], st, s, sh, fres, btab, g1tab, sigma, spec, iterations, keep,
+                        min_sep_cos, cast_ratio, floor, max_step, step_tol, ws, buf, out[p])
 
 
 def search_minima_compiled(e, usable, normals, starts, lights, sigma, n_i, iterations, keep, min_sep_deg,
@@ -155,10 +143,12 @@ def search_minima_compiled(e, usable, normals, starts, lights, sigma, n_i, itera
     the solve's (facette.fit._normals_li); keep : starts solved per pixel (those of lowest cost at the start);
     min_sep_deg : two minima closer than this are one. Returns (best (N, 3) float32, cost_here (N,),
     cost_best (N,), cost_second (N,) float64, inf where no other minimum was found)."""
-    e = np.ascontiguousarray(e, np.float32)
+    e = np.asarray(e, np.float32)
     n_pix, m, _ = e.shape
     s = np.ascontiguousarray(lights, np.float64)
-    usable = np.ascontiguousarray(np.broadcast_to(np.asarray(usable, bool), (n_pix, m)))
+    # the channels' mean, a light used where usable and finite in every channel (as the compiled solve)
+    ok = np.ascontiguousarray(np.broadcast_to(np.asarray(usable, bool), (n_pix, m)) & np.isfinite(e).all(2))
+    em = np.ascontiguousarray(np.where(ok, e.astype(np.float64).mean(2), 0.0))
     spec = bool(float(sigma) >= 1e-9 and float(n_i) != 1.0)
     sh = np.sqrt(np.maximum((1 + s[:, 2]) / 2, 1e-12))
     fres = fresnel_dielectric(sh, n_i).astype(np.float64)
@@ -167,7 +157,7 @@ def search_minima_compiled(e, usable, normals, starts, lights, sigma, n_i, itera
     starts = starts[None] if starts.ndim == 2 else starts
     out = np.empty((n_pix, 6))
     chunk = max(1, min(int(chunk), -(-n_pix // (4 * numba.get_num_threads()))))
-    _search_all(e, usable, np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(starts, np.float64),
+    _search_all(em, ok, np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(starts, np.float64),
                 s, sh, fres, btab, SMITH_G1_TABLE, max(float(sigma), 1e-6), spec, int(iterations), int(keep),
                 math.cos(math.radians(min_sep_deg)), cast_ratio, floor, max_step, float(step_tol), out, chunk)
     return out[:, :3].astype(np.float32), out[:, 3], out[:, 4], out[:, 5]
