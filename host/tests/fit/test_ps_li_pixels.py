@@ -160,8 +160,9 @@ def test_a_pixel_apart_from_its_neighbours_gets_their_mean_as_a_start_and_its_ow
     lights = thesis_light_directions()
     im = render(sc, lights, "glossy", noise=0.002, rng=np.random.default_rng(1)).astype(np.float32)
     base = ps_woodham1980(im, lights, mask=sc.mask)
+    # the minima search off: it would bring the pushed pixels back before the neighbours do (its test below)
     settings = Settings(iterations=24, fine_iterations=2, fit_pixels=50, t_residual=0.05, engine=engine,
-                        highlight_start="all", diffuse_models=("approx",), neighbour_deg=10.0)
+                        highlight_start="all", diffuse_models=("approx",), neighbour_deg=10.0, minima_search=False)
     px = Pixels.start(im, lights, 1, None, base, settings, 0)
     pix = np.arange(px.idx.size)
     px.store(pix, px.refine(pix, 0.05, 1.2))
@@ -196,3 +197,36 @@ def test_a_pixel_apart_from_its_neighbours_gets_their_mean_as_a_start_and_its_ow
     # no pixel this far from its neighbours: nothing tried
     px.settings = replace(settings, neighbour_deg=90.0)
     assert px.neighbour_round(pix, 0.05, 1.2) == ([], [])
+
+
+def test_the_minima_search_brings_back_a_pixel_whose_solve_stopped_in_another_minimum():
+    """`search_minima`: pixels pushed 35° off (as a solve stopped in another minimum) stand apart
+    from their neighbours and are searched; each comes back to its own normal, the pixels that
+    agree with their neighbours are left as they were (not searched), and the searched ones get
+    the gap of their two best minima. Under more than SEARCH_MAX_LIGHTS lights nothing is searched."""
+    from facette.fit._ps_li_minima import SEARCH_MAX_LIGHTS
+    sc = sphere_on_plane(40, 40)
+    lights = thesis_light_directions()
+    im = render(sc, lights, "glossy", noise=0.002, rng=np.random.default_rng(1)).astype(np.float32)
+    base = ps_woodham1980(im, lights, mask=sc.mask)
+    settings = Settings(iterations=24, fine_iterations=2, fit_pixels=50, t_residual=0.05, engine="auto",
+                        highlight_start="all", diffuse_models=("approx",), neighbour_deg=10.0)
+    px = Pixels.start(im, lights, 1, None, base, settings, 0)
+    pix = np.arange(px.idx.size)
+    px.store(pix, px.refine(pix, 0.05, 1.2))
+    truth = sc.normals.reshape(-1, 3)[px.idx].astype(np.float32)
+    flat = np.flatnonzero(sc.normals.reshape(-1, 3)[px.idx, 2] > 0.999)
+    pushed = flat[[40, 160, 300]]
+    c, s = np.cos(np.radians(35)), np.sin(np.radians(35))
+    px.nrm[pushed] = _unit(px.nrm[pushed] @ np.float32([[c, 0, -s], [0, 1, 0], [s, 0, c]]))
+    before = px.nrm.copy()
+    searched, moved = px.search_minima(pix, 0.05, 1.2)
+    assert lights.shape[0] <= SEARCH_MAX_LIGHTS and searched < pix.size and moved >= pushed.size
+    assert angle_deg(px.nrm[pushed], truth[pushed]).max() < 2, angle_deg(px.nrm[pushed], truth[pushed])
+    alone = np.isnan(px.minima_gap)                        # not searched: untouched
+    assert alone.sum() > pix.size // 2 and np.array_equal(px.nrm[alone], before[alone])
+    assert ((px.minima_gap[~alone] >= 0) & (px.minima_gap[~alone] <= 1)).all()
+    many = np.concatenate([lights, lights])                 # 24 lights: no search
+    px24 = Pixels.start(np.concatenate([im, im]), many, 1, None, ps_woodham1980(np.concatenate([im, im]), many,
+                        mask=sc.mask), settings, 0)
+    assert px24.search_minima(pix, 0.05, 1.2) == (0, 0)
