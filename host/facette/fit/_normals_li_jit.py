@@ -49,7 +49,7 @@ from facette.brdf._lobe_jit import SMITH_G1_TABLE, smith_g1_dlog_scaled, smith_g
 # the B table's builder, imported here too (tests, `_normals_li` take it from this module)
 from ._normals_li_table import TABLE_BLOCK, TABLE_GRID, _volume_table, volume_table  # noqa: F401
 
-__all__ = ["volume_table", "refine_distant_compiled", "TABLE_GRID"]
+__all__ = ["volume_table", "refine_distant_compiled", "model_constants", "chunk_for", "TABLE_GRID"]
 
 CHUNK = 256               # pixels per work item of the threaded per-pixel loop (at most)
 # The extra start is tried where the first leaves a relative RMS residual ≥ this. 0: everywhere.
@@ -410,6 +410,22 @@ def _refine_all(e, usable, n0, n1, has1, s, sh, fres, btab, g1tab, sigma, spec, 
             out_it[p] = bit
 
 
+def model_constants(lights, sigma, n_i, volume_model, table=None):
+    """What the compiled solves read of the model under distant lights (m, 3): (lights float64, cos of
+    each half-angle to the view, its Fresnel factor, the volume table (`table` when given), σ floored,
+    whether there is a lobe)."""
+    s = np.ascontiguousarray(lights, np.float64)
+    sh = np.sqrt(np.maximum((1 + s[:, 2]) / 2, 1e-12))
+    fres = fresnel_dielectric(sh, n_i).astype(np.float64)
+    btab = volume_table(lights, sigma, n_i, volume_model=volume_model) if table is None else table
+    return s, sh, fres, btab, max(float(sigma), 1e-6), bool(float(sigma) >= 1e-9 and float(n_i) != 1.0)
+
+
+def chunk_for(n_pix, chunk):
+    """Pixels per work item of a threaded loop: `chunk`, fewer when there are not four per thread."""
+    return max(1, min(int(chunk), -(-n_pix // (4 * numba.get_num_threads()))))
+
+
 def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, extra_start=None,
                             extra_rows=None, cast_ratio=0.25, floor=0.03, max_step=0.15,
                             step_tol=2e-4, table=None, volume_model="approx", chunk=CHUNK, second_above=None):
@@ -428,11 +444,7 @@ def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, 
     # finiteness is tested in the kernel, pixel by pixel (the (N, m, C) isfinite and the zeroed copy
     # took 0.6 s of the 12 MP scan's full-size step)
     usable = np.ascontiguousarray(np.broadcast_to(np.asarray(usable, bool), (n_pix, m)))
-    sig = max(float(sigma), 1e-6)
-    spec = bool(float(sigma) >= 1e-9 and float(n_i) != 1.0)
-    sh = np.sqrt(np.maximum((1 + s[:, 2]) / 2, 1e-12))
-    fres = fresnel_dielectric(sh, n_i).astype(np.float64)
-    btab = volume_table(lights, sigma, n_i, volume_model=volume_model) if table is None else table
+    s, sh, fres, btab, sig, spec = model_constants(lights, sigma, n_i, volume_model, table)
     n0 = np.ascontiguousarray(normals, np.float64)
     n1 = n0 if extra_start is None else np.ascontiguousarray(extra_start, np.float64)
     has1 = np.zeros(n_pix, bool) if extra_start is None else (
@@ -445,7 +457,7 @@ def refine_distant_compiled(e, lights, normals, sigma, n_i, usable, iterations, 
     out_it = np.empty(n_pix, np.int32)
     if second_above is None:
         second_above = SECOND_START_ABOVE_MANY if m >= MANY_LIGHTS else SECOND_START_ABOVE
-    chunk = max(1, min(int(chunk), -(-n_pix // (4 * numba.get_num_threads()))))
+    chunk = chunk_for(n_pix, chunk)
     _refine_all(e, usable, n0, n1, has1, s, sh, fres, btab, SMITH_G1_TABLE, sig, spec, int(iterations), cast_ratio,
                 floor, max_step, float(step_tol), float(second_above), out_n, out_k, out_used, out_cost, out_rel,
                 out_it, chunk)

@@ -13,14 +13,12 @@ minimum more than `min_sep` from it (the second minimum: how sure the pixel is o
 """
 import math
 
-import numba
 import numpy as np
 from numba import njit, prange
 
-from facette.brdf import fresnel_dielectric
 from facette.brdf._lobe_jit import SMITH_G1_TABLE
 
-from ._normals_li_jit import _kappa, _model, _solve_one, _workspace, volume_table
+from ._normals_li_jit import _kappa, _model, _solve_one, _workspace, chunk_for, model_constants
 
 __all__ = ["search_minima_compiled"]
 
@@ -145,19 +143,15 @@ def search_minima_compiled(e, usable, normals, starts, lights, sigma, n_i, itera
     cost_best (N,), cost_second (N,) float64, inf where no other minimum was found)."""
     e = np.asarray(e, np.float32)
     n_pix, m, _ = e.shape
-    s = np.ascontiguousarray(lights, np.float64)
+    s, sh, fres, btab, sig, spec = model_constants(lights, sigma, n_i, volume_model, table)
     # the channels' mean, a light used where usable and finite in every channel (as the compiled solve)
     ok = np.ascontiguousarray(np.broadcast_to(np.asarray(usable, bool), (n_pix, m)) & np.isfinite(e).all(2))
     em = np.ascontiguousarray(np.where(ok, e.astype(np.float64).mean(2), 0.0))
-    spec = bool(float(sigma) >= 1e-9 and float(n_i) != 1.0)
-    sh = np.sqrt(np.maximum((1 + s[:, 2]) / 2, 1e-12))
-    fres = fresnel_dielectric(sh, n_i).astype(np.float64)
-    btab = volume_table(lights, sigma, n_i, volume_model=volume_model) if table is None else table
     starts = np.asarray(starts, np.float64)
     starts = starts[None] if starts.ndim == 2 else starts
     out = np.empty((n_pix, 6))
-    chunk = max(1, min(int(chunk), -(-n_pix // (4 * numba.get_num_threads()))))
     _search_all(em, ok, np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(starts, np.float64),
-                s, sh, fres, btab, SMITH_G1_TABLE, max(float(sigma), 1e-6), spec, int(iterations), int(keep),
-                math.cos(math.radians(min_sep_deg)), cast_ratio, floor, max_step, float(step_tol), out, chunk)
+                s, sh, fres, btab, SMITH_G1_TABLE, sig, spec, int(iterations), int(keep),
+                math.cos(math.radians(min_sep_deg)), cast_ratio, floor, max_step, float(step_tol), out,
+                chunk_for(n_pix, chunk))
     return out[:, :3].astype(np.float32), out[:, 3], out[:, 4], out[:, 5]

@@ -61,9 +61,9 @@ def held_out_gain(px, hold, x0, fit):
     errors; and the median and mean angle (°) between each pixel's two solved normals: how far a
     round that re-estimates the pixels against the refit would move them (`_ps_li._settled`)."""
     values, lights, ok = px.gather(hold), px.lights_of(hold), px.all_ok[hold]
-    normals = [px.refine(hold, s, n, first_round=False).normals for s, n in (x0, (fit["sigma"], fit["n_i"]))]
-    costs = [_pixel_costs(values, lights, nrm, ok, s, n, px.vm)
-             for nrm, (s, n) in zip(normals, (x0, (fit["sigma"], fit["n_i"])))]
+    models = (x0, (fit["sigma"], fit["n_i"]))
+    normals = [px.refine(hold, s, n, first_round=False).normals for s, n in models]
+    costs = [_pixel_costs(values, lights, nrm, ok, s, n, px.vm) for nrm, (s, n) in zip(normals, models)]
     # the angle from the chord, 2 asin(|a − b| / 2): exact at 0, where arccos of a float32 dot is 0.02° off
     chord = np.linalg.norm(normals[0].astype(np.float64) - normals[1], axis=1)
     moved = np.degrees(2 * np.arcsin(np.minimum(chord / 2, 1.0)))

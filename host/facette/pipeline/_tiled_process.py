@@ -165,7 +165,8 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
     left out of the band's solve, added to its shadow flags (the band's samples leave them out). one:
     `band_loop`'s (a capture held whole, one band: its flags kept, its images in one["images"])."""
     t0 = time.perf_counter()
-    if getattr(spec, "prepared", None) is not None:      # the one band held whole (`_whole.HeldBands`): counted
+    held = getattr(spec, "prepared", None) is not None
+    if held:      # the one band held whole (`_whole.HeldBands`): counted
         counts = None
         if not mask.any():
             return r0, r1, None, counts, 0.0, 0.0, None
@@ -187,8 +188,9 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
     if model is not None:
         bag.update(model=model, row0=r0)
     found = None if hidden_bins is None else (hidden_bins, hidden_bin)
-    solve, hidden = (getattr(spec, "without_hidden", None) or without_hidden)(solve, found, mask, r0,
-                                                                              PS_METHODS.canonical(method))
+    # held whole, the copy without the hidden values that li_alternating's model read is taken again
+    solve, hidden = (spec.without_hidden if held else without_hidden)(solve, found, mask, r0,
+                                                                       PS_METHODS.canonical(method))
     part = flag_hidden(photometric_stereo(solve, dirs, method=method, options=dict(bag, mask=solved)), hidden)
     del solve, hidden
     if weights is not None:                    # the albedo's R, G, B only (`_channels.results_in_rgb`)
