@@ -31,7 +31,8 @@ MAX_PANELS = 6   # incidence bins drawn (spread over the filled ones)
 
 def fmt(x, digits=3):
     """A number for people: ints with thin-space thousands, floats to `digits` significant
-    digits without exponent between 1e-4 and 1e6, '–' for None or NaN."""
+    digits without exponent between 1e-3 and 1e6 (below, 0.000206 would be six decimals
+    nobody reads), '–' for None or NaN."""
     if x is None or isinstance(x, str):
         return "–" if x is None else x
     if isinstance(x, (bool, np.bool_)):
@@ -44,7 +45,7 @@ def fmt(x, digits=3):
     if x == 0:
         return "0"
     ax = abs(x)
-    if ax >= 1e6 or ax < 1e-4:
+    if ax >= 1e6 or ax < 1e-3:
         return f"{x:.{digits - 1}e}"
     if ax >= 10 ** digits:
         return f"{round(x):,}".replace(",", "\u2009")
@@ -57,6 +58,8 @@ def fmt_pm(value, sd):
     if sd is None or not np.isfinite(sd) or sd <= 0:
         return fmt(value, 4)
     dec = max(0, 1 - int(math.floor(math.log10(sd))))
+    if dec > 5:   # an uncertainty below 1e-4: exponents, not six decimals
+        return f"{value:.2e} ± {sd:.1e}"
     return f"{value:.{dec}f} ± {sd:.{dec}f}"
 
 

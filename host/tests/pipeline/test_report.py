@@ -17,6 +17,9 @@ def test_numbers_are_rounded_for_people():
     assert fmt(0.6598307291666666) == "0.660"
     assert fmt(3072) == "3\u2009072" and fmt(None) == "–" and fmt(float("nan")) == "–"
     assert fmt(12.3456) == "12.3" and fmt(4567.8) == "4\u2009568" and fmt(2.5e-6) == "2.50e-06"
+    # the CI run that printed "0.000206": below 1e-3 a float takes an exponent
+    assert fmt(0.000206) == "2.06e-04" and fmt(0.00123) == "0.00123"
+    assert fmt_pm(3.2e-5, 2.1e-6) == "3.20e-05 ± 2.1e-06"
     assert fmt_pm(0.04421811753969342, 0.0011010062404600064) == "0.0442 ± 0.0011"
     assert fmt_pm(1.1366120278569514, 0.02330286482447957) == "1.137 ± 0.023"
 
