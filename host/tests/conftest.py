@@ -47,3 +47,16 @@ def unchanged():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod.unchanged
+
+
+@pytest.fixture
+def force_bands(monkeypatch):
+    """force_bands(rows): a --memory run reads its small capture over bands of `rows` rows, as a
+    capture larger than its budget is read: its whole reading said not to fit the budget
+    (`pipeline._streamed.read_in_bands`), its bands `rows` high (`pipeline._tiles.rows_per_tile`)."""
+    from facette.pipeline import _streamed, _tiled_process
+
+    def force(rows):
+        monkeypatch.setattr(_streamed, "whole_bytes", lambda *size: float("inf"))
+        monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: rows)
+    return force

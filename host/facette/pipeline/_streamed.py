@@ -28,19 +28,23 @@ def solved(source, o, res, outputs, stages, claim):
 def read_in_bands(source, o, outputs, stages=()):
     """Whether `process` reads the capture band by band (`banded_process`), else whole, as the band
     loop's one band (`_whole`): a budget (--memory, or the default's when the capture does not fit
-    whole, `_budget`) that cannot hold the whole reading (`_budget.whole_bytes`) or whose band is shorter
-    than the image, or a scheduler, on a capture's folder
-    whose outputs need no image after photometric stereo (`streamed`). A capture whose one band
-    fits the budget is read whole whether or not --memory was given: the same files either way. The
-    relighting files alone always over bands (`_relight_only`: nothing needs the photographs whole)."""
+    whole, `_budget`) that cannot hold the whole reading (`_budget.whole_bytes`, the figure the budget's
+    note says), or a scheduler, on a capture's folder whose outputs need no image after photometric
+    stereo (`streamed`). A capture whose whole reading fits the budget is read whole whether or not
+    --memory was given: the same files either way. The bands' own model (`_tiles.rows_per_tile`, 124
+    bytes per pixel-light for li_alternating against the whole reading's 66) is not asked: it made
+    `--memory 12GB` read a 12 MP x 12 capture in two bands while the note said it needs ~10.1 GB whole.
+    The relighting files alone always over bands (`_relight_only`: nothing needs the photographs whole)."""
     if o.memory is None or not streamed(source, outputs):
         return False
     size = capture_size(source)
     if o.scheduler is not None or size is None or relight_only(stages):
         return True
     m, h, w = size
-    return whole_bytes(m, h, w) > o.memory_bytes or \
-        band_rows(w, h, m, o.memory, o.method, None, 0, 0 if o.channels == "green" else SOLVE_CHANNEL_BYTES) < h
+    # a budget under the process's floor (its libraries, one band) is refused whichever way it reads:
+    # band_rows raises with the size to give
+    band_rows(w, h, m, o.memory, o.method, None, 0, 0 if o.channels == "green" else SOLVE_CHANNEL_BYTES)
+    return whole_bytes(m, h, w) > o.memory_bytes
 
 
 def banded_process(source, o, res, outputs, stages, claim):

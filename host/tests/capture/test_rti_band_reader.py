@@ -9,7 +9,7 @@ from facette.calib.lp import write_lp
 from facette.capture import load_input, open_bands
 from facette.capture.rti import RTIBands, rti_files
 from facette.pipeline import _whole as process_module   # where the whole reading loads the capture
-from facette.pipeline import _tiled_process, process
+from facette.pipeline import process
 from facette.recon.synthetic import render, sphere_on_plane
 
 H, W, ROWS = 40, 52, 7
@@ -60,7 +60,7 @@ def test_bands_read_the_whole_readings_values(tmp_path, kind):
     assert np.isnan(whole.images).any()                       # the clipped values are unknown in both
 
 
-def test_process_with_memory_reads_an_rti_capture_band_by_band(tmp_path, monkeypatch):
+def test_process_with_memory_reads_an_rti_capture_band_by_band(tmp_path, monkeypatch, force_bands):
     folder = _capture(tmp_path / "c", "jpg")
     kw = dict(outputs=["normals", "albedo", "mask", "height"], method="rank_trimmed", channels="green",
               light_gains=False, shadows="off")
@@ -69,7 +69,7 @@ def test_process_with_memory_reads_an_rti_capture_band_by_band(tmp_path, monkeyp
     def refuse(*a, **k):
         raise AssertionError("the whole photographs were loaded")
     monkeypatch.setattr(process_module, "load_input", refuse)
-    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: ROWS)
+    force_bands(ROWS)
     tiled = process(folder, memory="1GB", **kw)
     assert tiled.ps.info["tiles"] == 6
     assert np.array_equal(whole.mask, tiled.mask) and np.array_equal(whole.object_mask, tiled.object_mask)

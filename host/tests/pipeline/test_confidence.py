@@ -29,14 +29,13 @@ def test_process_writes_the_uncertainty(tmp_path):
     assert "Uncertainty of the normal" in (tmp_path / "out" / "report.html").read_text()
 
 
-def test_memory_bands_give_the_whole_images_uncertainty(tmp_path, monkeypatch):
-    from facette.pipeline import _tiled_process
+def test_memory_bands_give_the_whole_images_uncertainty(tmp_path, monkeypatch, force_bands):
     L = thesis_light_directions()
     sc = sphere_on_plane(24, 32)
     imgs = render(sc, L, "matte")
     write_diligent(tmp_path / "in", np.round(imgs / imgs.max() * 50000).astype(np.uint16), L, None, sc.mask)
     whole = process(tmp_path / "in", outputs=["normals"], method="rank_trimmed")
-    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: 5)    # bands (one would hold it all)
+    force_bands(5)    # bands (one would hold it all)
     res = process(tmp_path / "in", outputs=["normals"], out_dir=tmp_path / "out", method="rank_trimmed",
                   memory="2GB")
     _, channels = read_exr(tmp_path / "out" / "normal.exr")     # over bands too (pipeline._band_uncertainty)

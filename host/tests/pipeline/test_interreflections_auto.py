@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from facette.errors import InsufficientData, NotAReflectance
-from facette.pipeline import _tiled_process, process
+from facette.pipeline import process
 from facette.recon._interreflect_scale import DIFFUSE_CORRELATION, GATHER_CORRELATION
 from facette.recon.synthetic import angular_error_deg
 
@@ -93,7 +93,7 @@ def test_the_default_method_removes_where_identified(tmp_path, relief, direct_re
     assert direct.interreflections["scale_identified"] is False and direct.interreflections["cpu_seconds"] >= 0
 
 
-def test_left_in_with_the_reason_elsewhere(tmp_path, relief, monkeypatch):
+def test_left_in_with_the_reason_elsewhere(tmp_path, relief, monkeypatch, force_bands):
     # the rig simulator renders none (its truth carries the sensor model)
     sim = process(_scan(tmp_path / "sim", relief, truth={"sensor": np.zeros(1)}), outputs=["normals"],
                   method="woodham1980")
@@ -102,7 +102,7 @@ def test_left_in_with_the_reason_elsewhere(tmp_path, relief, monkeypatch):
     one = process(_scan(tmp_path / "one", relief), outputs=["normals"], method="woodham1980", memory="1GB")
     assert one.interreflections is not None and any("fits one band" in n for n in one.notes)
     # --memory reads the images by bands (a band shorter than the image): left in by default
-    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: 16)
+    force_bands(16)
     banded = process(_scan(tmp_path / "banded", relief), outputs=["normals"], method="woodham1980", memory="1GB")
     assert banded.interreflections is None and any("--memory reads the images by bands" in n for n in banded.notes)
 

@@ -6,7 +6,6 @@ import pytest
 
 from facette.io.diligent import write_diligent
 from facette.pipeline import process
-from facette.pipeline import _tiled_process
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
 L = thesis_light_directions()
@@ -29,9 +28,9 @@ def folder(tmp_path_factory):
     return path
 
 
-def test_process_with_and_without_memory_writes_the_same_bytes(folder, tmp_path, monkeypatch):
+def test_process_with_and_without_memory_writes_the_same_bytes(folder, tmp_path, monkeypatch, force_bands):
     whole = process(folder, outputs=OUTPUTS, out_dir=tmp_path / "whole", **LI)
-    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: 5)
+    force_bands(5)
     banded = process(folder, outputs=OUTPUTS, out_dir=tmp_path / "banded", memory="1GB", **LI)
     assert banded.ps.info["tiles"] > 1 and banded.ps.method == whole.ps.method == "li_alternating"
     for res in (whole, banded):           # the gap was filled in both (over bands: from the map on disk)

@@ -9,6 +9,8 @@ import pytest
 from facette.io.diligent import write_diligent
 from facette.pipeline import ProcessOptions, process
 from facette.pipeline import _tiled_process
+from facette.pipeline import _streamed
+from facette.pipeline._budget import whole_bytes
 from facette.pipeline._streamed import read_in_bands
 from facette.pipeline._whole import HeldBands
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
@@ -51,13 +53,23 @@ def test_held_bands_prepare_the_one_band_once_and_serve_it_without_a_copy():
         bands.solve_read(0, 3)
 
 
-def test_read_in_bands_only_when_the_band_is_shorter_than_the_image(folder, monkeypatch):
+def test_read_in_bands_only_when_the_whole_reading_does_not_fit(folder, force_bands):
     outputs = ["normals"]
     assert not read_in_bands(folder, ProcessOptions(), outputs)                      # no budget: whole
     assert not read_in_bands(folder, ProcessOptions(memory="2GB"), outputs)          # one band fits
     assert read_in_bands(folder, ProcessOptions(memory="2GB", scheduler="tcp://127.0.0.1:9"), outputs)
-    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: 5)
+    force_bands(5)
     assert read_in_bands(folder, ProcessOptions(memory="2GB"), outputs)
+
+
+def test_the_budget_s_note_figure_decides_whether_a_capture_is_read_whole(folder, monkeypatch):
+    """Not the bands' own model (124 bytes per pixel-light for li_alternating): it split a 12 MP x 12
+    capture under --memory 12GB while the note said the capture needs ~10.1 GB whole."""
+    monkeypatch.setattr(_streamed, "capture_size", lambda source: (12, 3000, 4000))
+    need = whole_bytes(12, 3000, 4000)
+    assert 9.5e9 < need < 10.5e9
+    for memory, bands in (("12GB", False), (str(need), False), (str(need - 1), True), ("2GB", True)):
+        assert read_in_bands(folder, ProcessOptions(memory=memory), ["normals"]) == bands, memory
 
 
 def test_memory_that_holds_one_band_writes_the_files_of_a_run_without_it(folder, tmp_path):

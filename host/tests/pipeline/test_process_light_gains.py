@@ -65,10 +65,9 @@ def test_lights_bunched_near_the_axis_or_many_keep_their_intensities_and_say_why
 
 
 
-def test_the_gains_read_over_bands_are_the_whole_images_gains(tmp_path, monkeypatch):
+def test_the_gains_read_over_bands_are_the_whole_images_gains(tmp_path, monkeypatch, force_bands):
     from facette.fit import _light_gains
-    from facette.pipeline import _tiled_process
-    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: 14)     # bands of 14 rows,
+    force_bands(14)     # bands of 14 rows,
     monkeypatch.setattr(_light_gains, "GAIN_PIXELS", 1000)                         # binned 2 x 2 as they come
     lights = thesis_light_directions()
     sc = sphere_on_plane(48, 56)

@@ -13,7 +13,6 @@ from facette.io.diligent import write_diligent
 from facette.io.exr import write_exr
 from facette.pipeline import BANDED_METHODS, ProcessOptions, process
 from facette.pipeline import _whole as process_module   # where the whole reading loads the capture
-from facette.pipeline import _tiled_process
 from facette.recon.synthetic import render, sphere_on_plane, thesis_light_directions
 
 L = thesis_light_directions()
@@ -72,9 +71,9 @@ def scan(tmp_path_factory):
 
 
 @pytest.fixture
-def small_bands(monkeypatch):
+def small_bands(monkeypatch, force_bands):
     """Bands of ROWS rows whatever the budget."""
-    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: ROWS)
+    force_bands(ROWS)
 
 
 def _same(whole, tiled):

@@ -70,12 +70,11 @@ TIMES = ("cpu_seconds", "seconds_before_solve", "cpu_seconds_before_solve")
 
 @pytest.mark.parametrize("method, bins", [("rank_trimmed", None), ("li_alternating", (1000, 2304)),
                                           ("woodham1980", (1000, 2304))])
-def test_over_bands_the_step_gives_the_whole_run_s_normals(groove, monkeypatch, method, bins):
+def test_over_bands_the_step_gives_the_whole_run_s_normals(groove, monkeypatch, method, bins, force_bands):
     # bands of 5 rows (--memory): the images binned band by band on the whole image's bins, the alternation
     # on them, each band's solve without its rows of the hidden lights. bins: the decision's 4 x 4 and the
     # alternation's 2 x 2 (the shadow pass then reads bands of 4 rows, the solve's of 5 start inside bins)
     import facette.pipeline._shadows as shadows
-    from facette.pipeline import _tiled_process
     d, folder = groove
     if bins:
         monkeypatch.setattr(shadows, "SHADOW_PIXELS", bins[0])
@@ -83,7 +82,7 @@ def test_over_bands_the_step_gives_the_whole_run_s_normals(groove, monkeypatch, 
     options = dict(outputs=["normals", "albedo"], method=method, interreflections=False, shadows="on",
                    ps_options={"coarse_pixels": 400} if method == "li_alternating" else {})
     whole = process(folder, **options)
-    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: 5)
+    force_bands(5)
     bands = process(folder, **options, memory="1GB")
     assert bands.ps.info["tiles"] > 1 and bands.ps.info["rows_per_tile"] == 5
     q, qb = whole.quality["shadows"], bands.quality["shadows"]

@@ -46,16 +46,16 @@ def _on_disk(a):
     return a is not None
 
 
-def test_memory_fits_the_model_from_the_bands(tmp_path, monkeypatch):
+def test_memory_fits_the_model_from_the_bands(tmp_path, monkeypatch, force_bands):
     # --memory: the photographs never held whole, the model fitted from their spill after the
     # heights (pipeline._rti_bands keeps them), close to the untiled run's (the same normals and
     # heights; the residual's gram summed in another order)
     from test_process_memory import WHOLE, _never_whole
-    from facette.pipeline import _relight_model_stage as stage, _tiled_process
+    from facette.pipeline import _relight_model_stage as stage
     folder = _folder(tmp_path)
     whole = process(folder, outputs=["relight"], method="rank_trimmed", **WHOLE)
     _never_whole(monkeypatch)
-    monkeypatch.setattr(_tiled_process, "rows_per_tile", lambda *a, **k: 8)
+    force_bands(8)
     monkeypatch.setattr(stage, "MODEL_BAND_BYTES", 24 * 48 * 3 * 4 * 5)      # the model's bands: 5 rows
     banded = process(folder, outputs=["relight"], out_dir=tmp_path / "out", method="rank_trimmed", memory="1GB")
     assert banded.ps.info["tiles"] > 1 and banded.relight_model is not None
