@@ -30,9 +30,8 @@ MAX_PANELS = 6   # incidence bins drawn (spread over the filled ones)
 # ----------------------------------------------------------------------------- numbers
 
 def fmt(x, digits=3):
-    """A number for people: ints with thin-space thousands, floats to `digits` significant
-    digits without exponent between 1e-3 and 1e6 (below, 0.000206 would be six decimals
-    nobody reads), '–' for None or NaN."""
+    """A number for people: ints with thin-space thousands, floats to `digits` significant digits
+    without exponent between 1e-3 and 1e6 (not six decimals: 0.000206), '–' for None or NaN."""
     if x is None or isinstance(x, str):
         return "–" if x is None else x
     if isinstance(x, (bool, np.bool_)):
@@ -57,10 +56,8 @@ def fmt_pm(value, sd):
     """'value ± sd' with sd to 2 significant digits and value to the same decimal place."""
     if sd is None or not np.isfinite(sd) or sd <= 0:
         return fmt(value, 4)
-    dec = max(0, 1 - int(math.floor(math.log10(sd))))
-    if dec > 5:   # an uncertainty below 1e-4: exponents, not six decimals
-        return f"{value:.2e} ± {sd:.1e}"
-    return f"{value:.{dec}f} ± {sd:.{dec}f}"
+    dec = max(0, 1 - int(math.floor(math.log10(sd))))     # below 1e-4 an exponent, not six decimals
+    return f"{value:.2e} ± {sd:.1e}" if dec > 5 else f"{value:.{dec}f} ± {sd:.{dec}f}"
 
 
 def _pct(x):
