@@ -123,10 +123,16 @@ class _Spill:
         self.left = self.masked = 0
         self.parts, self.preview = [], []
 
+    def target(self, r0, r1):
+        """Where a fit of rows r0..r1 may write its coefficients (`recon._rti`'s `out`): the rows of a
+        spill in memory, None for a disk array (written by `add`, its pages handed back)."""
+        return None if isinstance(self.data, np.memmap) else self.data[r0:r1]
+
     def add(self, r0, fit, counts, parts):
         coeffs = fit.coeffs
-        self.data[r0:r0 + len(coeffs)] = coeffs
-        release(self.data)
+        if not np.may_share_memory(coeffs, self.data):       # not fitted in place (`target`)
+            self.data[r0:r0 + len(coeffs)] = coeffs
+            release(self.data)
         lo, hi = column_range(np.ascontiguousarray(coeffs, np.float32).reshape(-1, self.tail[-1]))
         self.lo = lo if self.lo is None else np.minimum(self.lo, lo)
         self.hi = hi if self.hi is None else np.maximum(self.hi, hi)
@@ -268,7 +274,7 @@ def _fit_pass(out, read, mask, spans, wanted, exposure, lights):
             seconds["ptm"] += t2 - t1
             t1 = t2
         if order is not None:
-            fit = fit_hsh(images, dirs, order=order, mask=band, **kw)
+            fit = fit_hsh(images, dirs, order=order, mask=band, out=out.spills["rti"].target(r0, r1), **kw)
             counts = fill_left(fit, images, band)
             out.spills["rti"].add(r0, fit, counts, relight_error_parts(fit, images, dirs, band, starts))
             del fit
@@ -283,12 +289,13 @@ def _fit_ptms(out, images, dirs, band, starts, r0, kw):
     directions: the per-channel fit is then dropped, LRGB kept as before, said)."""
     fits = {}
     if "ptm" in out.spills:
-        fit = fits["ptm"] = fit_ptm_lrgb(images, dirs, mask=band, **kw)
+        fit = fits["ptm"] = fit_ptm_lrgb(images, dirs, mask=band, out=out.spills["ptm"].target(r0, r0 + len(band)), **kw)
         out.spills["ptm"].add(r0, fit, fill_left(fit, images, band), relight_error_parts(fit, images, dirs, band, starts))
         out.rgb[r0:r0 + len(band)] = ptm_rgb_bytes(fit.rgb)
         release(out.rgb)
     if "ptm_rgb" in out.spills:
-        fit = fits["ptm_rgb"] = fit_ptm_rgb(images, dirs, kw["white"], kw["encoding"])
+        fit = fits["ptm_rgb"] = fit_ptm_rgb(images, dirs, kw["white"], kw["encoding"],
+                                            out=out.spills["ptm_rgb"].target(r0, r0 + len(band)))
         out.spills["ptm_rgb"].add(r0, fit, fill_left(fit, images, band),
                                   relight_error_parts(fit, images, dirs, band, starts))
     if len(fits) == 2:
