@@ -188,10 +188,9 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2, rcond=_RCOND,
     """Per-pixel weighted least squares, light-major: values(e (m, n, c)) -> (y (m, n, c),
     w (m, n)), e float32 for far lights (the pixels with every light known share one float32
     product; the others are solved in float64), float64 for per-pixel directions.
-    Returns (coeffs (H*W, c, n_terms) float32, valid (H*W,)); coeffs in `out` when given (a C-contiguous
-    float32 array of H*W*c*n_terms values, every one written: a caller's full-size array filled band by
-    band without a copy or the band's own pages, pipeline._rti_bands).
-    Blocks of pixels run on `workers` threads (numpy's products and solves release the GIL)."""
+    Returns (coeffs (H*W, c, n_terms) float32, valid (H*W,)); coeffs in `out` if given (C-contiguous float32,
+    every value written: a full-size array filled band by band, pipeline._rti_bands). Blocks of pixels run
+    on `workers` threads (numpy's products and solves release the GIL)."""
     m, h, w, c = images.shape
     flat = images.reshape(m, h * w, c)
     far = dirs.ndim == 2
@@ -295,10 +294,8 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
     sample's L is its projection on rgb (least squares), divided by `white`.
     encoding "srgb": rgb is sRGB-encoded and L fitted to the projections of the sRGB-encoded
     samples (images / white, clipped to [0, 1]) on it: L · rgb is what a viewer shows.
-    photographed=True: the samples as photographed, colour and all (`recon._rti_photo`).
-    out: (H, W, 6) float32 C-contiguous, where the coefficients go (`_solve_blocks`), or None.
-    Returns a `PTMFit`.
-    """
+    photographed=True: the samples as photographed, colour and all (`recon._rti_photo`); out:
+    (H, W, 6) float32 for the coefficients (`_solve_blocks`), or None. Returns a `PTMFit`."""
     from facette.recon._rti_jit import ptm_colour_block     # numba loads only when this runs
     _check_encoding(encoding)
     images, dirs = _check(images, light_dirs)
@@ -355,9 +352,7 @@ def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile
     images / white (white: the `white_percentile` of the masked values by default); encoding
     "srgb": to their sRGB encoding (images / white clipped to [0, 1]), what a viewer shows.
     photographed=True: the samples as photographed (`recon._rti_photo`); out: (H, W, 3, order²)
-    float32 C-contiguous for the coefficients, or None (`fit_ptm_lrgb`'s).
-    Returns an `HSHFit`.
-    """
+    float32 for the coefficients, or None. Returns an `HSHFit`."""
     _check_encoding(encoding)
     images, dirs = _check(images, light_dirs)
     m, h, w, _ = images.shape
