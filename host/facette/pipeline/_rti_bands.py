@@ -51,6 +51,10 @@ PREVIEW_PIXELS = 1 << 20        # pixels of the fits kept in ProcessResult.ptm /
 # float64 copy divided by the fall-off, the fall-off, the directions (float64 x 3) and the PTM's
 # luminance (76 bytes), per pixel the PTM's colour and coefficients and the HSH's (~170 bytes)
 BYTES_PER_PIXEL_LIGHT, BYTES_PER_PIXEL = 80, 200
+# a stage's fits from whole images held in memory up to this (4288x2848 HDR, 12 lights: the LRGB PTM's 0.08
+# GB, the HSH's 0.33; 1.3 of the two stages' 6 CPU s were the temporary file's page faults and write-backs),
+# above it on disk as over bands (12 MP: the HSH's 1.3 GB, not beside the images held whole)
+IN_MEMORY_BYTES = 2 ** 30
 FILE_NAMES = {"ptm": "relight.ptm", "rti": "relight.rti"}      # pipeline._process.FILES's
 
 
@@ -163,8 +167,8 @@ class RelightBands:
     spill (temporary files without a name, gone with this object or at `close()`); model_images:
     the photographs for the relighting model (`ImagesSpill`, output "relight") or None."""
 
-    def __init__(self, shape, stride, in_memory=False):
-        self.shape, self.stride, self.in_memory = shape, stride, in_memory
+    def __init__(self, shape, stride, whole=False):
+        self.shape, self.stride, self.whole, self.in_memory = shape, stride, whole, False
         self.ptm = self.hsh = self.model_images = None
         self.ok, self.notes, self.fit_errors, self.timings = {}, {"ptm": [], "rti": []}, {}, {}
         self.spills, self.rgb, self.exposure = {}, None, None
@@ -188,7 +192,7 @@ class RelightBands:
         self.spills, self.rgb, self.model_images = {}, None, None
 
 
-def relight_bands(read, mask, outputs, o, ps_rows, lights, inp, exposure=None, rows=None, in_memory=False):
+def relight_bands(read, mask, outputs, o, ps_rows, lights, inp, exposure=None, rows=None, whole=False):
     """relight.ptm and relight.rti fitted over bands (`relight_rows` of photometric stereo's
     `ps_rows` rows), as `process`'s ptm and hsh stages fit them on the whole images.
 
@@ -198,9 +202,9 @@ def relight_bands(read, mask, outputs, o, ps_rows, lights, inp, exposure=None, r
     ProcessOptions (method, rti_encoding, hsh_order); lights: m; inp: the input (`exposure_of`).
     Output "relight": the photographs are kept for the relighting model (`RelightBands.model_images`)
     in the same pass. exposure: the files' `Exposure` when known (the whole images': `whole_bands`),
-    rows: the fit bands' rows (None: from `ps_rows`); in_memory: the fits held in memory, not spilled
-    to disk (`read` gives whole images' rows), and relight.ptm's format chosen before the fits
-    (`_ptm_format_first`). Returns a `RelightBands` (close it), or None when none of these is asked for."""
+    rows: the fit bands' rows (None: from `ps_rows`); whole: `read` gives rows of whole images in memory:
+    relight.ptm's format chosen before the fits (`_ptm_format_first`), the fits held in memory up to
+    IN_MEMORY_BYTES. Returns a `RelightBands` (close it), or None when none of these is asked for."""
     want_ptm, want_hsh = "ptm" in outputs, bool({"rti", "relight-web"} & set(outputs))   # the web folder: HSH's
     order, order_note = hsh_order_for(lights, o.hsh_order) if want_hsh else (None, None)
     if not want_ptm and not want_hsh and "relight" not in outputs:
@@ -209,7 +213,7 @@ def relight_bands(read, mask, outputs, o, ps_rows, lights, inp, exposure=None, r
     rows, aligned = _aligned(relight_rows(ps_rows, w, lights, o.method) if rows is None else rows, w, h)
     spans = [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
     stride = max(1, int(np.ceil(np.sqrt(h * w / PREVIEW_PIXELS))))
-    out = RelightBands((h, w), stride, in_memory)
+    out = RelightBands((h, w), stride, whole)
     if "relight" in outputs:
         out.model_images = ImagesSpill(lights, h, w)
     if not want_ptm and not want_hsh:
@@ -248,9 +252,11 @@ def _fit_pass(out, read, mask, spans, wanted, exposure, lights):
     step = relight_error_step(h, w, lights)        # fit_relight_error's sample of rows
     kw = dict(white=exposure.white, encoding=exposure.encoding, photographed=True)
     t0 = time.perf_counter()
-    if want_ptm == "auto" and out.in_memory:      # whole images: the format first, then only its fit
+    if want_ptm == "auto" and out.whole:          # whole images: the format first, then only its fit
         want_ptm = _ptm_format_first(out, read, mask, spans, step, exposure, kw)
     seconds = {"read": 0.0, "ptm": time.perf_counter() - t0, "hsh": 0.0}
+    spilled = {"auto": 99, "lrgb": 27, "rgb": 72}.get(want_ptm, 0) + (0 if order is None else 12 * order * order)
+    out.in_memory = out.whole and spilled * h * w <= IN_MEMORY_BYTES       # bytes a pixel, as `_Spill`s hold them
     if want_ptm in ("auto", "lrgb"):
         out.spills["ptm"] = _Spill((h, w), (6,), out.stride, out.in_memory)
         out.rgb = _full_size((h, w, 3), np.uint8, out.in_memory)
@@ -430,7 +436,7 @@ def whole_bands(relight, res, inp, images, light_dirs, o, outputs, exposure=None
     def read(r0, r1):
         return images[:, r0:r1], light_dirs if np.ndim(light_dirs) == 2 else light_dirs[r0:r1]
     return WholeBands(lambda: relight_bands(read, res.object_mask, [x for x in outputs if x != "relight"], o, None, m,
-                                            inp, exposure=res.rti_exposure, rows=rows, in_memory=True))
+                                            inp, exposure=res.rti_exposure, rows=rows, whole=True))
 
 
 def relight_exposure(res, inp, images, o):
