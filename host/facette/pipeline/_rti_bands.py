@@ -130,7 +130,7 @@ class _Spill:
     def target(self, r0, r1):
         """Where a fit of rows r0..r1 may write its coefficients (`recon._rti`'s `out`): the rows of a
         spill in memory, None for a disk array (written by `add`, its pages handed back)."""
-        return None if isinstance(self.data, np.memmap) else self.data[r0:r1]
+        return self.data[r0:r1] if self.in_memory() else None
 
     def add(self, r0, fit, counts, parts):
         coeffs = fit.coeffs
@@ -143,14 +143,21 @@ class _Spill:
         self.left, self.masked = self.left + counts[0], self.masked + counts[1]
         self.parts.extend(parts)
         rows = [r - r0 for r in range(-(-r0 // self.stride) * self.stride, r0 + len(coeffs), self.stride)]
-        self.preview.append({k: getattr(fit, k)[rows, ::self.stride] for k in ("coeffs", "rgb", "valid")
-                             if hasattr(fit, k)})
+        kept = ("rgb", "valid") if self.in_memory() else ("coeffs", "rgb", "valid")    # in memory: `joined`'s
+        self.preview.append({k: getattr(fit, k)[rows, ::self.stride] for k in kept if hasattr(fit, k)})
+
+    def in_memory(self):
+        return not isinstance(self.data, np.memmap)
 
     def rows(self, r0, r1):
         """Rows r0..r1 of the coefficients (`_band_of`)."""
         return _band_of(self.data, r0, r1)
 
     def joined(self, name):
+        """Every `stride`-th pixel of the fit's `name` (coeffs, rgb, valid); the coefficients of a spill in
+        memory taken from it at once (0.15 of the two stages' CPU s went to the band copies joined)."""
+        if name == "coeffs" and self.in_memory():
+            return np.ascontiguousarray(self.data[::self.stride, ::self.stride])
         return np.concatenate([p[name] for p in self.preview])
 
     def error(self):
