@@ -10,6 +10,7 @@ import json
 import numpy as np
 import pygltflib as gl
 
+from facette._threads import run_blocks
 from facette.io.atomic import write_bytes_atomic
 from facette.io.png import encode_png
 
@@ -77,10 +78,11 @@ def write_glb(path, vertices_mm, faces, normals, tangents, uv, base_color, norma
     for label, arr in (("vertices", v), ("normals", n), ("tangents", t), ("uv", uv)):
         if not np.isfinite(arr).all():
             raise ValueError(f"{label} must be finite")
-    pngs = [_u8_image("base_color", base_color, 3), _u8_image("normal_map", normal_map, 3),
-            _u8_image("metallic_roughness", metallic_roughness, 3)]
+    # the textures encoded two at a time (OpenCV's encoder gives the GIL up): 4288x2848, 0.3 CPU s
+    encodes = [lambda: _u8_image("base_color", base_color, 3), lambda: _u8_image("normal_map", normal_map, 3),
+               lambda: _u8_image("metallic_roughness", metallic_roughness, 3), lambda: _specular(specular, 3)]
+    *pngs, (spec_ext, spec_png) = run_blocks(lambda encode: encode(), encodes)
     labels = ["baseColor", "normal", "metallicRoughness"]
-    spec_ext, spec_png = _specular(specular, len(pngs))
     if spec_png is not None:
         pngs.append(spec_png)
         labels.append("specularColor")

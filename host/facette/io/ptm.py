@@ -29,6 +29,7 @@ __all__ = ["write_ptm_lrgb", "write_ptm_lrgb_rows", "write_ptm_rgb_rows", "ptm_r
            "column_range", "read_ptm", "PTMFile", "ptm_weights", "FULL"]
 
 ROWS = 64                  # image rows quantized at a time
+COMPILED = True            # the bytes by the compiled quantisation (io._quantize_jit), else numpy's steps
 FULL = 255.0               # the luminance every reader takes as full brightness
 
 
@@ -118,13 +119,8 @@ def write_ptm_lrgb_rows(path, width, height, coeff_range, coeff_rows, rgb_rows):
     bottom_up = [(max(0, r1 - ROWS), r1) for r1 in range(h, 0, -ROWS)]
     with atomic_path(path, needed=len(header) + 9 * w * h) as tmp, open(tmp, "wb") as out:
         out.write(header.encode("ascii"))
-        for r0, r1 in bottom_up:         # by rows, in place: no full-size float64 temporaries
-            x = np.asarray(coeff_rows(r0, r1)).astype(np.float64)
-            x *= FULL
-            x /= scale
-            x += bias
-            np.round(x, out=x)
-            out.write(np.clip(x, 0, 255, out=x).astype(np.uint8)[::-1].tobytes())   # bottom row first
+        for r0, r1 in bottom_up:         # by rows: no full-size float64 temporaries
+            out.write(_ptm_bytes(np.asarray(coeff_rows(r0, r1)), scale, bias)[::-1].tobytes())   # bottom row first
         for r0, r1 in bottom_up:
             c = np.asarray(rgb_rows(r0, r1))
             if c.dtype != np.uint8:
@@ -133,6 +129,24 @@ def write_ptm_lrgb_rows(path, width, height, coeff_range, coeff_rows, rgb_rows):
                 c = ptm_rgb_bytes(c)
             out.write(c[::-1].tobytes())
     return {"scale": [float(s) for s in scale], "bias": [int(b) for b in bias]}
+
+
+def _ptm_bytes(c, scale, bias):
+    """The bytes (..., 6) uint8 of coefficients c (..., 6): compiled when COMPILED (`_quantize_jit.ptm_bytes`,
+    numpy's bytes in one pass), else numpy's float64 steps."""
+    if COMPILED and np.issubdtype(c.dtype, np.floating):
+        from facette.io._quantize_jit import ptm_bytes        # numba loads only when this runs
+        c = np.ascontiguousarray(c)
+        out = np.empty(c.shape, np.uint8)
+        ptm_bytes(c.reshape(-1, c.shape[-1]), FULL, np.asarray(scale, np.float64), np.asarray(bias),
+                  out.reshape(-1, c.shape[-1]))
+        return out
+    x = c.astype(np.float64)
+    x *= FULL
+    x /= scale
+    x += bias
+    np.round(x, out=x)
+    return np.clip(x, 0, 255, out=x).astype(np.uint8)
 
 
 def write_ptm_rgb_rows(path, width, height, coeff_range, coeff_rows):
@@ -159,12 +173,7 @@ def write_ptm_rgb_rows(path, width, height, coeff_range, coeff_rows):
         out.write(header.encode("ascii"))
         for c in range(3):
             for r0, r1 in bottom_up:
-                x = np.asarray(coeff_rows(r0, r1))[:, :, c].astype(np.float64)      # (rows, W, 6)
-                x *= FULL
-                x /= scale
-                x += bias
-                np.round(x, out=x)
-                out.write(np.clip(x, 0, 255, out=x).astype(np.uint8)[::-1].tobytes())
+                out.write(_ptm_bytes(np.asarray(coeff_rows(r0, r1))[:, :, c], scale, bias)[::-1].tobytes())
     return {"scale": [float(s) for s in scale], "bias": [int(b) for b in bias]}
 
 

@@ -25,6 +25,7 @@ __all__ = ["write_hsh_rti", "write_hsh_rti_rows", "read_hsh_rti", "HSHFile", "hs
 HSH_FILE_TYPE = 3          # RTIViewer's file types: 1 PTM, 2 spherical harmonics, 3 HSH
 HSH_BASIS_TYPE = 2
 ROWS = 64                  # image rows quantized at a time
+COMPILED = True            # the bytes by the compiled quantisation (io._quantize_jit), else numpy's steps
 
 
 def write_hsh_rti(path, coeffs, comments=()):
@@ -68,14 +69,26 @@ def write_hsh_rti_rows(path, width, height, coeff_range, coeff_rows, comments=()
         out.write(header.encode("utf-8"))
         out.write(scale.tobytes())
         out.write(bias.tobytes())
-        for r in range(0, h, ROWS):      # by rows, in place: no full-size float64 temporaries
-            x = np.asarray(coeff_rows(r, min(h, r + ROWS))).astype(np.float64)
-            x -= bias
-            x /= scale
-            x *= 255.0
-            np.round(x, out=x)
-            out.write(np.clip(x, 0, 255, out=x).astype(np.uint8).tobytes())   # top row first; R terms, G, B
+        for r in range(0, h, ROWS):      # by rows: no full-size float64 temporaries
+            out.write(_rti_bytes(np.asarray(coeff_rows(r, min(h, r + ROWS))), bias, scale).tobytes())
     return {"scale": [float(s) for s in scale], "bias": [float(b) for b in bias]}
+
+
+def _rti_bytes(c, bias, scale):
+    """The bytes (..., T) uint8 of a band of coefficients c (..., T): top row first; R terms, G, B.
+    Compiled when COMPILED (`_quantize_jit.rti_bytes`: numpy's bytes in one pass), else numpy's float64 steps."""
+    if COMPILED and np.issubdtype(c.dtype, np.floating):
+        from facette.io._quantize_jit import rti_bytes        # numba loads only when this runs
+        c = np.ascontiguousarray(c)
+        out = np.empty(c.shape, np.uint8)
+        rti_bytes(c.reshape(-1, c.shape[-1]), bias, scale, out.reshape(-1, c.shape[-1]))
+        return out
+    x = c.astype(np.float64)
+    x -= bias
+    x /= scale
+    x *= 255.0
+    np.round(x, out=x)
+    return np.clip(x, 0, 255, out=x).astype(np.uint8)
 
 
 def hsh_weights(light, terms=9):

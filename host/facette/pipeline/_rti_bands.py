@@ -51,6 +51,10 @@ PREVIEW_PIXELS = 1 << 20        # pixels of the fits kept in ProcessResult.ptm /
 # float64 copy divided by the fall-off, the fall-off, the directions (float64 x 3) and the PTM's
 # luminance (76 bytes), per pixel the PTM's colour and coefficients and the HSH's (~170 bytes)
 BYTES_PER_PIXEL_LIGHT, BYTES_PER_PIXEL = 80, 200
+# a stage's fits from whole images held in memory up to this (4288x2848 HDR, 12 lights: the LRGB PTM's 0.08
+# GB, the HSH's 0.33; 1.3 of the two stages' 6 CPU s were the temporary file's page faults and write-backs),
+# above it on disk as over bands (12 MP: the HSH's 1.3 GB, not beside the images held whole)
+IN_MEMORY_BYTES = 2 ** 30
 FILE_NAMES = {"ptm": "relight.ptm", "rti": "relight.rti"}      # pipeline._process.FILES's
 
 
@@ -94,39 +98,66 @@ def band_reader(bands, near, light_dirs):
     return read
 
 
+def _full_size(shape, dtype, in_memory):
+    """An image-sized array for the fits: in memory (`in_memory`: the images are held whole, the
+    fits beside them), else in a temporary file (`_memory.disk_array`)."""
+    return np.empty(shape, dtype) if in_memory else disk_array(shape, dtype)
+
+
+def _band_of(array, r0, r1):
+    """Rows r0..r1 of a spill: a view of one in memory, a copy of a disk array's (its pages handed back)."""
+    if not isinstance(array, np.memmap):
+        return array[r0:r1]
+    band = np.array(array[r0:r1])
+    release(array)
+    return band
+
+
 class _Spill:
     """A fit's float32 coefficients (H, W, *tail) written band after band into a temporary file
-    (`_memory.disk_array`, its pages handed back after each band), their range over every pixel
-    (`column_range` of (·, T)), the counts of `fill_left`, the relighting error's parts and every
-    `stride`-th pixel of the fit (the preview)."""
+    (`_memory.disk_array`, its pages handed back after each band) or, `in_memory`, an array (whole
+    images: at 4288x2848 the file's page faults and write-backs cost 1.3 CPU s of the 6), their range
+    over every pixel (`column_range` of (·, T)), the counts of `fill_left`, the relighting error's parts
+    and every `stride`-th pixel of the fit (the preview)."""
 
-    def __init__(self, shape, tail, stride):
-        self.data = disk_array(tuple(shape) + tuple(tail), np.float32)
+    def __init__(self, shape, tail, stride, in_memory=False):
+        self.data = _full_size(tuple(shape) + tuple(tail), np.float32, in_memory)
         self.tail, self.stride = tuple(tail), stride
         self.lo = self.hi = None
         self.left = self.masked = 0
         self.parts, self.preview = [], []
 
+    def target(self, r0, r1):
+        """Where a fit of rows r0..r1 may write its coefficients (`recon._rti`'s `out`): the rows of a
+        spill in memory, None for a disk array (written by `add`, its pages handed back)."""
+        return self.data[r0:r1] if self.in_memory() else None
+
     def add(self, r0, fit, counts, parts):
         coeffs = fit.coeffs
-        self.data[r0:r0 + len(coeffs)] = coeffs
-        release(self.data)
+        if not np.may_share_memory(coeffs, self.data):       # not fitted in place (`target`)
+            self.data[r0:r0 + len(coeffs)] = coeffs
+            release(self.data)
         lo, hi = column_range(np.ascontiguousarray(coeffs, np.float32).reshape(-1, self.tail[-1]))
         self.lo = lo if self.lo is None else np.minimum(self.lo, lo)
         self.hi = hi if self.hi is None else np.maximum(self.hi, hi)
         self.left, self.masked = self.left + counts[0], self.masked + counts[1]
         self.parts.extend(parts)
         rows = [r - r0 for r in range(-(-r0 // self.stride) * self.stride, r0 + len(coeffs), self.stride)]
-        self.preview.append({k: getattr(fit, k)[rows, ::self.stride] for k in ("coeffs", "rgb", "valid")
-                             if hasattr(fit, k)})
+        kept = ("rgb", "valid") if self.in_memory() else ("coeffs", "rgb", "valid")    # in memory: `joined`'s
+        self.preview.append({k: getattr(fit, k)[rows, ::self.stride] for k in kept if hasattr(fit, k)})
+
+    def in_memory(self):
+        return not isinstance(self.data, np.memmap)
 
     def rows(self, r0, r1):
-        """Rows r0..r1 of the coefficients, a copy in memory (the file's pages handed back)."""
-        band = np.array(self.data[r0:r1])
-        release(self.data)
-        return band
+        """Rows r0..r1 of the coefficients (`_band_of`)."""
+        return _band_of(self.data, r0, r1)
 
     def joined(self, name):
+        """Every `stride`-th pixel of the fit's `name` (coeffs, rgb, valid); the coefficients of a spill in
+        memory taken from it at once (0.15 of the two stages' CPU s went to the band copies joined)."""
+        if name == "coeffs" and self.in_memory():
+            return np.ascontiguousarray(self.data[::self.stride, ::self.stride])
         return np.concatenate([p[name] for p in self.preview])
 
     def error(self):
@@ -143,8 +174,8 @@ class RelightBands:
     spill (temporary files without a name, gone with this object or at `close()`); model_images:
     the photographs for the relighting model (`ImagesSpill`, output "relight") or None."""
 
-    def __init__(self, shape, stride):
-        self.shape, self.stride = shape, stride
+    def __init__(self, shape, stride, whole=False):
+        self.shape, self.stride, self.whole, self.in_memory = shape, stride, whole, False
         self.ptm = self.hsh = self.model_images = None
         self.ok, self.notes, self.fit_errors, self.timings = {}, {"ptm": [], "rti": []}, {}, {}
         self.spills, self.rgb, self.exposure = {}, None, None
@@ -156,11 +187,7 @@ class RelightBands:
         if self.ptm_format == "rgb":
             return write_ptm_rgb_rows(path, w, h, (s.lo, s.hi), s.rows)
 
-        def rgb(r0, r1):
-            band = np.array(self.rgb[r0:r1])
-            release(self.rgb)
-            return band
-        return write_ptm_lrgb_rows(path, w, h, (s.lo, s.hi), s.rows, rgb)
+        return write_ptm_lrgb_rows(path, w, h, (s.lo, s.hi), s.rows, lambda r0, r1: _band_of(self.rgb, r0, r1))
 
     def write_rti(self, path, comments):
         h, w = self.shape
@@ -172,7 +199,7 @@ class RelightBands:
         self.spills, self.rgb, self.model_images = {}, None, None
 
 
-def relight_bands(read, mask, outputs, o, ps_rows, lights, inp, exposure=None, rows=None):
+def relight_bands(read, mask, outputs, o, ps_rows, lights, inp, exposure=None, rows=None, whole=False):
     """relight.ptm and relight.rti fitted over bands (`relight_rows` of photometric stereo's
     `ps_rows` rows), as `process`'s ptm and hsh stages fit them on the whole images.
 
@@ -182,8 +209,9 @@ def relight_bands(read, mask, outputs, o, ps_rows, lights, inp, exposure=None, r
     ProcessOptions (method, rti_encoding, hsh_order); lights: m; inp: the input (`exposure_of`).
     Output "relight": the photographs are kept for the relighting model (`RelightBands.model_images`)
     in the same pass. exposure: the files' `Exposure` when known (the whole images': `whole_bands`),
-    rows: the fit bands' rows (None: from `ps_rows`). Returns a `RelightBands` (close it), or None
-    when none of these is asked for."""
+    rows: the fit bands' rows (None: from `ps_rows`); whole: `read` gives rows of whole images in memory:
+    relight.ptm's format chosen before the fits (`_ptm_format_first`), the fits held in memory up to
+    IN_MEMORY_BYTES. Returns a `RelightBands` (close it), or None when none of these is asked for."""
     want_ptm, want_hsh = "ptm" in outputs, bool({"rti", "relight-web"} & set(outputs))   # the web folder: HSH's
     order, order_note = hsh_order_for(lights, o.hsh_order) if want_hsh else (None, None)
     if not want_ptm and not want_hsh and "relight" not in outputs:
@@ -192,7 +220,7 @@ def relight_bands(read, mask, outputs, o, ps_rows, lights, inp, exposure=None, r
     rows, aligned = _aligned(relight_rows(ps_rows, w, lights, o.method) if rows is None else rows, w, h)
     spans = [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
     stride = max(1, int(np.ceil(np.sqrt(h * w / PREVIEW_PIXELS))))
-    out = RelightBands((h, w), stride)
+    out = RelightBands((h, w), stride, whole)
     if "relight" in outputs:
         out.model_images = ImagesSpill(lights, h, w)
     if not want_ptm and not want_hsh:
@@ -229,15 +257,20 @@ def _fit_pass(out, read, mask, spans, wanted, exposure, lights):
     h, w = out.shape
     want_ptm, order = wanted                       # want_ptm: False or the format asked (`ptm_format`)
     step = relight_error_step(h, w, lights)        # fit_relight_error's sample of rows
-    if want_ptm in ("auto", "lrgb"):
-        out.spills["ptm"] = _Spill((h, w), (6,), out.stride)
-        out.rgb = disk_array((h, w, 3), np.uint8)
-    if want_ptm in ("auto", "rgb"):
-        out.spills["ptm_rgb"] = _Spill((h, w), (3, 6), out.stride)
-    if order is not None:
-        out.spills["rti"] = _Spill((h, w), (3, order * order), out.stride)
-    seconds = {"read": 0.0, "ptm": 0.0, "hsh": 0.0}
     kw = dict(white=exposure.white, encoding=exposure.encoding, photographed=True)
+    t0 = time.perf_counter()
+    if want_ptm == "auto" and out.whole:          # whole images: the format first, then only its fit
+        want_ptm = _ptm_format_first(out, read, mask, spans, step, exposure, kw)
+    seconds = {"read": 0.0, "ptm": time.perf_counter() - t0, "hsh": 0.0}
+    spilled = {"auto": 99, "lrgb": 27, "rgb": 72}.get(want_ptm, 0) + (0 if order is None else 12 * order * order)
+    out.in_memory = out.whole and spilled * h * w <= IN_MEMORY_BYTES       # bytes a pixel, as `_Spill`s hold them
+    if want_ptm in ("auto", "lrgb"):
+        out.spills["ptm"] = _Spill((h, w), (6,), out.stride, out.in_memory)
+        out.rgb = _full_size((h, w, 3), np.uint8, out.in_memory)
+    if want_ptm in ("auto", "rgb"):
+        out.spills["ptm_rgb"] = _Spill((h, w), (3, 6), out.stride, out.in_memory)
+    if order is not None:
+        out.spills["rti"] = _Spill((h, w), (3, order * order), out.stride, out.in_memory)
     for r0, r1 in spans:
         t0 = time.perf_counter()
         images, dirs = read(r0, r1)
@@ -254,7 +287,7 @@ def _fit_pass(out, read, mask, spans, wanted, exposure, lights):
             seconds["ptm"] += t2 - t1
             t1 = t2
         if order is not None:
-            fit = fit_hsh(images, dirs, order=order, mask=band, **kw)
+            fit = fit_hsh(images, dirs, order=order, mask=band, out=out.spills["rti"].target(r0, r1), **kw)
             counts = fill_left(fit, images, band)
             out.spills["rti"].add(r0, fit, counts, relight_error_parts(fit, images, dirs, band, starts))
             del fit
@@ -269,12 +302,13 @@ def _fit_ptms(out, images, dirs, band, starts, r0, kw):
     directions: the per-channel fit is then dropped, LRGB kept as before, said)."""
     fits = {}
     if "ptm" in out.spills:
-        fit = fits["ptm"] = fit_ptm_lrgb(images, dirs, mask=band, **kw)
+        fit = fits["ptm"] = fit_ptm_lrgb(images, dirs, mask=band, out=out.spills["ptm"].target(r0, r0 + len(band)), **kw)
         out.spills["ptm"].add(r0, fit, fill_left(fit, images, band), relight_error_parts(fit, images, dirs, band, starts))
         out.rgb[r0:r0 + len(band)] = ptm_rgb_bytes(fit.rgb)
         release(out.rgb)
     if "ptm_rgb" in out.spills:
-        fit = fits["ptm_rgb"] = fit_ptm_rgb(images, dirs, kw["white"], kw["encoding"])
+        fit = fits["ptm_rgb"] = fit_ptm_rgb(images, dirs, kw["white"], kw["encoding"],
+                                            out=out.spills["ptm_rgb"].target(r0, r0 + len(band)))
         out.spills["ptm_rgb"].add(r0, fit, fill_left(fit, images, band),
                                   relight_error_parts(fit, images, dirs, band, starts))
     if len(fits) == 2:
@@ -287,17 +321,49 @@ def _fit_ptms(out, images, dirs, band, starts, r0, kw):
             out.loo.extend(parts)
 
 
+def _loo_choice(out):
+    """relight.ptm's format by the leave-one-light-out errors summed in out.loo: the one with the smaller
+    (ties: LRGB, half the bytes), said in out.notes."""
+    num_l, num_r, n = (sum(x) for x in zip(*out.loo)) if out.loo else (0.0, 0.0, 0)
+    rms_l, rms_r = (255 * np.sqrt(v / max(n, 1)) for v in (num_l, num_r))
+    choice = "rgb" if n and num_r < num_l else "lrgb"
+    out.notes["ptm"].append(f"relight.ptm: PTM_FORMAT_{choice.upper()} (leave-one-light-out RMS on the object "
+                            f"{rms_r:.2f} grey levels per channel, {rms_l:.2f} luminance x colour)")
+    return choice
+
+
+def _ptm_format_first(out, read, mask, spans, step, exposure, kw):
+    """relight.ptm's format ("lrgb" or "rgb") before the fits, from whole images: both PTMs fitted on the
+    relighting error's rows only (each pixel's fit is its own: the values of the fits over every row
+    there) and `_loo_choice` on their leave-one-light-out errors, the choice `_fit_ptms` and
+    `_ptm_choice` make after fitting both everywhere; the other format is then not fitted (at 4288x2848,
+    12 lights, 1.2 of the PTM stage's CPU s were the dropped fit). Per-pixel light directions: "lrgb",
+    said, as `_fit_ptms` says it."""
+    for r0, r1 in spans:
+        # the error's blocks of two rows (`_fit_pass`'s starts), side by side: block k at rows 2k, 2k + 1
+        blocks = [np.arange(a, min(a + 2, r1)) - r0 for a in range(-(-r0 // step) * step, r1, step)]
+        if not blocks:
+            continue
+        rows, starts = np.concatenate(blocks), np.cumsum([0] + [len(b) for b in blocks[:-1]])
+        images, dirs = read(r0, r1)
+        if np.ndim(dirs) != 2:
+            out.notes["ptm"].append("relight.ptm: PTM_FORMAT_LRGB (per-pixel light directions: the choice of the "
+                                    "format by leave-one-light-out error needs far lights)")
+            return "lrgb"
+        images, band = exposure.photographs(images[:, rows]), mask[r0:r1][rows]
+        lrgb = fit_ptm_lrgb(images, dirs, mask=band, **kw)
+        rgb = fit_ptm_rgb(images, dirs, kw["white"], kw["encoding"])
+        out.loo.extend(ptm_loo_parts(lrgb, rgb, images, dirs, band, starts))
+    return _loo_choice(out)
+
+
 def _ptm_choice(out):
     """relight.ptm's format ("lrgb" or "rgb"): the one spill left, or of both the one with the smaller
-    leave-one-light-out error (ties: LRGB, half the bytes), said; the other spill dropped."""
+    leave-one-light-out error (`_loo_choice`); the other spill dropped."""
     if "ptm_rgb" not in out.spills:
         return "lrgb"
     if "ptm" in out.spills:
-        num_l, num_r, n = (sum(x) for x in zip(*out.loo)) if out.loo else (0.0, 0.0, 0)
-        rms_l, rms_r = (255 * np.sqrt(v / max(n, 1)) for v in (num_l, num_r))
-        choice = "rgb" if n and num_r < num_l else "lrgb"
-        out.notes["ptm"].append(f"relight.ptm: PTM_FORMAT_{choice.upper()} (leave-one-light-out RMS on the object "
-                                f"{rms_r:.2f} grey levels per channel, {rms_l:.2f} luminance x colour)")
+        choice = _loo_choice(out)
         del out.spills["ptm" if choice == "rgb" else "ptm_rgb"]
         if choice == "lrgb":
             return choice
@@ -377,7 +443,7 @@ def whole_bands(relight, res, inp, images, light_dirs, o, outputs, exposure=None
     def read(r0, r1):
         return images[:, r0:r1], light_dirs if np.ndim(light_dirs) == 2 else light_dirs[r0:r1]
     return WholeBands(lambda: relight_bands(read, res.object_mask, [x for x in outputs if x != "relight"], o, None, m,
-                                            inp, exposure=res.rti_exposure, rows=rows))
+                                            inp, exposure=res.rti_exposure, rows=rows, whole=True))
 
 
 def relight_exposure(res, inp, images, o):

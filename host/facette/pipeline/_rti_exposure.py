@@ -94,16 +94,19 @@ class HDRWhite:
         self.top = np.empty(0)
 
     def add(self, images, mask):
+        from facette.recon._rti_jit import brightest_above     # numba loads only when this runs
         sel = np.asarray(mask, bool)
-        if not sel.any():
+        count = int(np.count_nonzero(sel))
+        if not count:
             return
-        e = np.asarray(images)[:, sel]                         # (m, k, 3)
-        top = np.max(e, axis=-1)                               # NaN where any channel is unknown
-        bad = np.isnan(top)
-        self.n += top.size
-        self.unknown += int(bad.sum())
-        top = top[~bad]
-        top = np.concatenate([self.top, top[top > 0]])
+        e = np.asarray(images)
+        # a sample at or below the keep-th largest kept cannot change the top `keep` values: not copied
+        floor = float(self.top.min()) if self.top.size >= self.keep else 0.0
+        buf = np.empty(len(e) * count, e.dtype)
+        k, n, unknown = brightest_above(e, sel, floor, buf)     # NaN where any channel is unknown: counted
+        self.n += n
+        self.unknown += unknown
+        top = np.concatenate([self.top, buf[:k]])
         if top.size > self.keep:
             top = np.partition(top, top.size - self.keep)[top.size - self.keep:]
         self.top = top

@@ -167,18 +167,22 @@ def _white_of(top):
     return float(np.percentile(vals, WHITE_PERCENTILE)) if vals.size else 1.0
 
 
-def _sample_choice(fit, sample, white, shadow, n_planes, exponents=SHININESS):
+def _sample_choice(fit, sample, white, shadow, n_planes, exponents=SHININESS, done=None):
     """(exponent, leave-one-light-out error) of the model fitted to the sample pixels alone
-    (with the cast shadows `shadow`, a _Shadows, or None), the exponent the best of `exponents`."""
+    (with the cast shadows `shadow`, a _Shadows, or None), the exponent the best of `exponents`.
+    done: {(exponent, shadows or not): (error, prediction)} of the fits made already (filled here):
+    the shadows' judgement fits the exponent chosen without them, and the choice with them again."""
     r, c, lin, shown = sample
     vis = None if shadow is None else shadow.at(r, c)
     y, s = fit.values(lin[:, None], None if shown is None else shown[:, None], 0, slice(None), white)   # (m, n, C)
-    best = None
+    best, done = None, {} if done is None else done
     for k in exponents if 1 in fit.terms else SHININESS[:1]:
-        b = fit.basis(r, c, k, vis)
-        pred = _predict(b, _fit_block(y, s, b, fit.terms))
-        ok = np.all(s < SATURATED, axis=-1)[..., None]
-        err = float(np.sum(ok * (srgb_encode(np.clip(pred, 0, 1)) - s) ** 2))
+        if (k, shadow is None) not in done:
+            b = fit.basis(r, c, k, vis)
+            pred = _predict(b, _fit_block(y, s, b, fit.terms))
+            ok = np.all(s < SATURATED, axis=-1)[..., None]
+            done[k, shadow is None] = float(np.sum(ok * (srgb_encode(np.clip(pred, 0, 1)) - s) ** 2)), pred
+        err, pred = done[k, shadow is None]
         if best is None or err < best[0]:
             best = (err, k, pred)
     _, k, pred = best
@@ -227,14 +231,16 @@ def fit_relight_bands(read, light_dirs, mask, normals, heights=None, n_planes=No
         notes = []
         if shadow is not None and shadows == "auto" and judge is not None:
             # the shadows judged with the exponent chosen without them (EXPONENT_ONCE); kept, their own
-            k_flat, loo_flat = _sample_choice(fit, sample, white, None, judge)
-            k, loo = _sample_choice(fit, sample, white, shadow, judge, (k_flat,) if EXPONENT_ONCE else SHININESS)
+            done = {}               # the fits of the sample made: not made again
+            k_flat, loo_flat = _sample_choice(fit, sample, white, None, judge, done=done)
+            k, loo = _sample_choice(fit, sample, white, shadow, judge, (k_flat,) if EXPONENT_ONCE else SHININESS,
+                                    done=done)
             if loo_flat < loo:
                 notes.append(f"no cast shadows: without them the fitted lights left out are predicted better "
                              f"(on {len(picks)} pixels: {loo_flat:.4g} against {loo:.4g})")
                 shadow, k = None, k_flat
             elif EXPONENT_ONCE:
-                k = _sample_choice(fit, sample, white, shadow, None)[0]
+                k = _sample_choice(fit, sample, white, shadow, None, done=done)[0]
         else:
             k = _sample_choice(fit, sample, white, shadow, None)[0]
         return _fit_passes(fit, k, shadow, white, heights if shadow is not None else None, planes, notes)

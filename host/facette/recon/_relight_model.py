@@ -223,13 +223,18 @@ def display_weight(lin):
 _SUBSETS = [s for s in ((0, 1, 2), (0, 1), (0, 2), (1, 2), (0,), (1,), (2,))]
 
 
-def _normal_equations(basis, values, weights):
+def _normal_equations(basis, values, weights, compiled=True):
     """(gram (N, 3, 3), rhs (N, 3, C)) float64 of weighted least squares per pixel: the float32
     products summed over the lights in float64 (one product at a time: 3x faster than an einsum
-    in float64, the same to 2e-8)."""
-    wb = basis * weights[..., None]
+    in float64, the same to 2e-8). float32 inputs (the fits'): in one compiled pass
+    (`_relight_jit.normal_equations`, the same bits; compiled=False: numpy's reductions)."""
     npx, nc = basis.shape[1], values.shape[-1]
     gram, rhs = np.empty((npx, 3, 3)), np.empty((npx, 3, nc))
+    if compiled and basis.dtype == values.dtype == weights.dtype == np.float32 and len(basis):
+        from facette.recon._relight_jit import normal_equations     # numba loads only when this runs
+        normal_equations(basis, values, weights, gram, rhs)
+        return gram, rhs
+    wb = basis * weights[..., None]
     for j in range(3):
         for k in range(j, 3):
             gram[:, j, k] = gram[:, k, j] = np.add.reduce(wb[..., j] * basis[..., k], axis=0, dtype=np.float64)
@@ -257,9 +262,12 @@ def _nnls3(basis, values, weights, terms):
         if not set(sub) <= set(terms):
             continue
         idx = np.array(sub)
-        g = gram[px][:, idx][:, :, idx] + ridge[px, :, None] * np.eye(len(idx))
-        x = np.linalg.solve(g, rhs[px][:, idx])                             # (n, s, C)
-        gain = np.einsum("nsc,nsc->nc", x, rhs[px][:, idx])                 # x·b at the optimum
+        whole = len(px) == npx                  # every pixel still solved: no copies of them
+        g = (gram if len(idx) == 3 else gram[:, idx][:, :, idx]) if whole else gram[np.ix_(px, idx, idx)]
+        g = g + (ridge if whole else ridge[px])[:, :, None] * np.eye(len(idx))
+        b = (rhs if len(idx) == 3 else rhs[:, idx]) if whole else rhs[np.ix_(px, idx)]
+        x = np.linalg.solve(g, b)                                           # (n, s, C)
+        gain = np.einsum("nsc,nsc->nc", x, b)                               # x·b at the optimum
         ok = np.all(x >= 0, axis=1) & (gain > best_gain[px])
         for c in range(nc):
             sel = ok[:, c]

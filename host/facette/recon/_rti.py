@@ -184,12 +184,13 @@ def _ridge_solve(ata, atb, n_terms, rcond=_RCOND):
     return np.linalg.solve(ata, np.swapaxes(atb, 1, 2)).swapaxes(1, 2)
 
 
-def _solve_blocks(images, dirs, basis, n_terms, values, workers=2, rcond=_RCOND):
+def _solve_blocks(images, dirs, basis, n_terms, values, workers=2, rcond=_RCOND, out=None):
     """Per-pixel weighted least squares, light-major: values(e (m, n, c)) -> (y (m, n, c),
     w (m, n)), e float32 for far lights (the pixels with every light known share one float32
     product; the others are solved in float64), float64 for per-pixel directions.
-    Returns (coeffs (H*W, c, n_terms) float32, valid (H*W,)).
-    Blocks of pixels run on `workers` threads (numpy's products and solves release the GIL)."""
+    Returns (coeffs (H*W, c, n_terms) float32, valid (H*W,)); coeffs in `out` if given (C-contiguous float32,
+    every value written: a full-size array filled band by band, pipeline._rti_bands). Blocks of pixels run
+    on `workers` threads (numpy's products and solves release the GIL)."""
     m, h, w, c = images.shape
     flat = images.reshape(m, h * w, c)
     far = dirs.ndim == 2
@@ -207,7 +208,7 @@ def _solve_blocks(images, dirs, basis, n_terms, values, workers=2, rcond=_RCOND)
     # float32 storage (and the shared far-light product above): the files quantise to 8 bits
     # (PTM) and 8 bits per term (RTI), 2^-24 relative is far below either; 12 MP HSH
     # coefficients take 330 MB instead of 660. Pixels with unknown lights are solved in float64.
-    coeffs = np.zeros((h * w, c, n_terms), np.float32)
+    coeffs = np.zeros((h * w, c, n_terms), np.float32) if out is None else out.reshape(h * w, c, n_terms)
     valid = np.zeros(h * w, bool)
 
     def block(a):
@@ -282,7 +283,7 @@ def _top_percentile(select, starts, percentile, stride=37):
 
 
 def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.0, encoding="linear",
-                 photographed=False):
+                 photographed=False, out=None):
     """Fit a luminance PTM (LRGB, Malzbender et al. 2001 §3.2) to every pixel.
 
     images : (m, H, W, 3) linear values (NaN = unknown); light_dirs : (m, 3) or (H, W, m, 3)
@@ -293,9 +294,8 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
     sample's L is its projection on rgb (least squares), divided by `white`.
     encoding "srgb": rgb is sRGB-encoded and L fitted to the projections of the sRGB-encoded
     samples (images / white, clipped to [0, 1]) on it: L · rgb is what a viewer shows.
-    photographed=True: the samples as photographed, colour and all (`recon._rti_photo`).
-    Returns a `PTMFit`.
-    """
+    photographed=True: the samples as photographed, colour and all (`recon._rti_photo`); out:
+    (H, W, 6) float32 for the coefficients (`_solve_blocks`), or None. Returns a `PTMFit`."""
     from facette.recon._rti_jit import ptm_colour_block     # numba loads only when this runs
     _check_encoding(encoding)
     images, dirs = _check(images, light_dirs)
@@ -306,7 +306,7 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
     lum = np.empty((m, h * w))                            # NaN where the value is unknown
     if photographed:
         from facette.recon._rti_photo import fit_ptm_displayed
-        return fit_ptm_displayed(images, dirs, mask, white, white_percentile, encoding, rgb, peak, lum)
+        return fit_ptm_displayed(images, dirs, mask, white, white_percentile, encoding, rgb, peak, lum, out)
 
     def colour(a):     # a block of pixels, compiled: one pass instead of numpy's ten
         ptm_colour_block(flat[:, a:a + _BLOCK], rgb, peak, lum, a)
@@ -338,22 +338,21 @@ def fit_ptm_lrgb(images, light_dirs, mask=None, white=None, white_percentile=99.
         e *= scale
         return e, ok.astype(np.float64)
 
-    coeffs, valid = _solve_blocks(lum_img, dirs, ptm_basis, 6, values)
+    coeffs, valid = _solve_blocks(lum_img, dirs, ptm_basis, 6, values, out=out)
     valid &= peak > 0
     return PTMFit(coeffs[:, 0].reshape(h, w, 6), rgb.reshape(h, w, 3), float(white),
                   valid.reshape(h, w), encoding)
 
 
 def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile=99.0, encoding="linear",
-            photographed=False):
+            photographed=False, out=None):
     """Fit RGB hemispherical harmonics of `order` (2: 4 terms, 3: 9 terms) to every pixel.
 
     Same inputs as `fit_ptm_lrgb`; each colour channel gets its own coefficients, fitted to
     images / white (white: the `white_percentile` of the masked values by default); encoding
     "srgb": to their sRGB encoding (images / white clipped to [0, 1]), what a viewer shows.
-    photographed=True: the samples as photographed (`recon._rti_photo`).
-    Returns an `HSHFit`.
-    """
+    photographed=True: the samples as photographed (`recon._rti_photo`); out: (H, W, 3, order²)
+    float32 for the coefficients, or None. Returns an `HSHFit`."""
     _check_encoding(encoding)
     images, dirs = _check(images, light_dirs)
     m, h, w, _ = images.shape
@@ -366,7 +365,7 @@ def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile
         raise ValueError(f"white level must be > 0, got {white}")
     if photographed:
         from facette.recon._rti_photo import fit_hsh_displayed
-        return fit_hsh_displayed(images, dirs, order, white, encoding)
+        return fit_hsh_displayed(images, dirs, order, white, encoding, out)
 
     if encoding == "srgb":
         from facette.recon._rti_jit import srgb_scale_inplace, srgb_table
@@ -381,7 +380,7 @@ def fit_hsh(images, light_dirs, order=3, mask=None, white=None, white_percentile
             e /= e.dtype.type(white)
         return e, ok.astype(np.float64)
 
-    coeffs, valid = _solve_blocks(images, dirs, lambda d: hsh_basis(d, order), n_terms, values)
+    coeffs, valid = _solve_blocks(images, dirs, lambda d: hsh_basis(d, order), n_terms, values, out=out)
     return HSHFit(coeffs.reshape(h, w, 3, n_terms), order, float(white), valid.reshape(h, w), encoding)
 
 

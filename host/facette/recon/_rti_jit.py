@@ -7,7 +7,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["ptm_colour_block", "srgb_lum_block", "srgb_scale_inplace", "srgb_table", "SRGB_STEPS", "linear_table",
-           "display_inplace", "display_colour_lum_block"]
+           "display_inplace", "display_colour_lum_block", "brightest_above"]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -141,3 +141,28 @@ def display_colour_lum_block(e, rgb, peak, lum, start, scale, lut):
         c0, c1, c2, c_sq = _chroma(t0, t1, t2, rgb, peak, p)      # displayed sums are >= 0: as they are
         for li in range(m):
             lum[li, p] = (d[li, 0] * c0 + d[li, 1] * c1 + d[li, 2] * c2) / c_sq
+
+
+@njit(cache=True, nogil=True)
+def brightest_above(e, mask, floor, out):
+    """The brightest channel of the samples e (m, b, W, 3) of the pixels where mask (b, W): those
+    above `floor` (and > 0) written to out[:k]; returns (k, samples looked at, samples with a NaN
+    channel). What `np.max(e[:, mask], axis=-1)` and the tests after it give, in one pass without
+    the (m, pixels, 3) copy (`pipeline._rti_exposure.HDRWhite`: 1.2 CPU s at 3 MP x 12 lights)."""
+    m, b, w = e.shape[0], e.shape[1], e.shape[2]
+    k = n = unknown = 0
+    for li in range(m):
+        for r in range(b):
+            for c in range(w):
+                if not mask[r, c]:
+                    continue
+                n += 1
+                x, y, z = e[li, r, c, 0], e[li, r, c, 1], e[li, r, c, 2]
+                if math.isnan(x) or math.isnan(y) or math.isnan(z):
+                    unknown += 1
+                    continue
+                t = max(max(x, y), z)
+                if t > 0 and t > floor:
+                    out[k] = t
+                    k += 1
+    return k, n, unknown

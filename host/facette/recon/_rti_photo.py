@@ -42,7 +42,7 @@ def _display_table(encoding):
     return srgb_table() if encoding == "srgb" else linear_table()
 
 
-def fit_ptm_displayed(images, dirs, mask, white, white_percentile, encoding, rgb, peak, lum):
+def fit_ptm_displayed(images, dirs, mask, white, white_percentile, encoding, rgb, peak, lum, out=None):
     """`fit_ptm_lrgb`'s photographed=True: the LRGB split of the displayed samples, then their fit."""
     from facette.recon._rti_jit import display_colour_lum_block
     m, h, w, _ = images.shape
@@ -59,12 +59,12 @@ def fit_ptm_displayed(images, dirs, mask, white, white_percentile, encoding, rgb
     def values(e):                          # every sample known: clipped ones are at the top
         return e, np.broadcast_to(ones, e.shape[:2])
 
-    coeffs, valid = _solve_blocks(lum.reshape(m, h, w, 1), dirs, ptm_basis, 6, values, rcond=PHOTO_RCOND)
+    coeffs, valid = _solve_blocks(lum.reshape(m, h, w, 1), dirs, ptm_basis, 6, values, rcond=PHOTO_RCOND, out=out)
     return PTMFit(coeffs[:, 0].reshape(h, w, 6), rgb.reshape(h, w, 3), float(white), valid.reshape(h, w), encoding)
 
 
-def fit_hsh_displayed(images, dirs, order, white, encoding):
-    """`fit_hsh`'s photographed=True, white known."""
+def fit_hsh_displayed(images, dirs, order, white, encoding, out=None):
+    """`fit_hsh`'s photographed=True, white known (out: `fit_hsh`'s)."""
     from facette.recon._rti_jit import display_inplace
     m, h, w, _ = images.shape
     n_terms = order * order
@@ -75,5 +75,6 @@ def fit_hsh_displayed(images, dirs, order, white, encoding):
         display_inplace(e, 1.0 / white, lut)
         return e, np.broadcast_to(ones, e.shape[:2])
 
-    coeffs, valid = _solve_blocks(images, dirs, lambda d: hsh_basis(d, order), n_terms, shown, rcond=PHOTO_RCOND)
+    coeffs, valid = _solve_blocks(images, dirs, lambda d: hsh_basis(d, order), n_terms, shown, rcond=PHOTO_RCOND,
+                                  out=out)
     return HSHFit(coeffs.reshape(h, w, 3, n_terms), order, float(white), valid.reshape(h, w), encoding)

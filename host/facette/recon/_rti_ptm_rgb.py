@@ -33,9 +33,10 @@ class PTMRGBFit(HSHFit):
         return ptm_basis(d)
 
 
-def fit_ptm_rgb(images, dirs, white, encoding):
+def fit_ptm_rgb(images, dirs, white, encoding, out=None):
     """The per-channel PTM of images (m, H, W, 3) under dirs (m, 3) or (H, W, m, 3), as
-    photographed with `white` known (`fit_hsh(..., photographed=True)`'s fit in the PTM's basis)."""
+    photographed with `white` known (`fit_hsh(..., photographed=True)`'s fit in the PTM's basis;
+    out: (H, W, 3, 6) float32 for the coefficients, or None)."""
     from facette.recon._rti_jit import display_inplace
     from facette.recon._rti_photo import PHOTO_RCOND, _display_table
     m, h, w, _ = images.shape
@@ -46,7 +47,7 @@ def fit_ptm_rgb(images, dirs, white, encoding):
         display_inplace(e, 1.0 / white, lut)
         return e, np.broadcast_to(ones, e.shape[:2])
 
-    coeffs, valid = _solve_blocks(images, dirs, ptm_basis, 6, shown, rcond=PHOTO_RCOND)
+    coeffs, valid = _solve_blocks(images, dirs, ptm_basis, 6, shown, rcond=PHOTO_RCOND, out=out)
     return PTMRGBFit(coeffs.reshape(h, w, 3, 6), None, float(white), valid.reshape(h, w), encoding)
 
 

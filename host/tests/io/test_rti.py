@@ -139,3 +139,28 @@ def test_rows_form_writes_the_same_bytes_asking_top_band_first(tmp_path):
     assert write_hsh_rti_rows(tmp_path / "b.rti", w, h, (lo, hi), rows, ["c"]) == whole
     assert (tmp_path / "a.rti").read_bytes() == (tmp_path / "b.rti").read_bytes()
     assert asked == [(0, 64), (64, 128), (128, 130)]
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_compiled_quantisation_writes_numpys_bytes(tmp_path, monkeypatch, dtype):
+    # relight.rti and both relight.ptm formats: the compiled pass gives the bytes of numpy's float64 steps
+    # (values half a step apart, signed zeros, the extremes of each term)
+    from facette.io import ptm as ptm_io, rti as rti_io
+    rng = np.random.default_rng(4)
+    h, w = 70, 33
+    hsh = (rng.standard_normal((h, w, 3, 9)) * 0.3).astype(dtype)
+    hsh[1], hsh[2] = 0.0, -0.0
+    hsh[3, :, :, 0] = np.linspace(-1, 1, 255 * 4 + 1)[:w * 3].reshape(w, 3)
+    lrgb = (rng.standard_normal((h, w, 6)) * 0.4).astype(dtype)
+    per_channel = (rng.standard_normal((h, w, 3, 6)) * 0.2).astype(dtype)
+    files = {}
+    for compiled in (True, False):
+        monkeypatch.setattr(rti_io, "COMPILED", compiled)
+        monkeypatch.setattr(ptm_io, "COMPILED", compiled)
+        rti_io.write_hsh_rti(tmp_path / f"{compiled}.rti", hsh, ["c"])
+        ptm_io.write_ptm_lrgb(tmp_path / f"{compiled}.ptm", lrgb, np.full((h, w, 3), 0.5))
+        ptm_io.write_ptm_rgb_rows(tmp_path / f"{compiled}_rgb.ptm", w, h,
+                                  ptm_io.column_range(per_channel.reshape(-1, 6)), lambda r0, r1: per_channel[r0:r1])
+        files[compiled] = [(tmp_path / f"{compiled}{ext}").read_bytes() for ext in (".rti", ".ptm", "_rgb.ptm")]
+    assert files[True] == files[False]
+    assert len(set(files[True][0][-3 * 9 * w * h:])) > 200        # the bytes span the range

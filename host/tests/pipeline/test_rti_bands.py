@@ -167,3 +167,40 @@ def test_ptm_format_auto_takes_a_polynomial_per_channel_where_the_colour_moves(t
            for name, colour, f in (("rgb", ptm_rgb_colour, rgb), ("lrgb", ptm_colour, lrgb))}
     assert err["rgb"] < 0.8 * err["lrgb"] and err["rgb"] < 0.045, err
     assert shown["auto"].fit_errors["ptm_relative_rms"] < shown["lrgb"].fit_errors["ptm_relative_rms"]
+
+
+@pytest.mark.parametrize("material,albedo,chosen", [("satin", (0.7, 0.08, 0.05), "RGB"), ("matte", (0.5, 0.5, 0.5), "LRGB")])
+def test_whole_images_choose_the_ptm_format_first_and_write_the_bytes_of_both_fits(tmp_path, material, albedo, chosen):
+    """From whole images (`whole`) relight.ptm's format is chosen on the relighting error's rows
+    before the fits and only that format is fitted, held in memory (or on disk above IN_MEMORY_BYTES);
+    the files, the note (both errors) and the errors are those of fitting both formats everywhere and
+    spilling them to disk (the bands' way), each of the 13 row bands taking the untiled fit's rows."""
+    from facette.pipeline._options import ProcessOptions
+    from facette.pipeline._rti_exposure import Exposure
+    from facette.recon.synthetic import render, sphere_on_plane
+    m = 24
+    az = np.radians(np.arange(m) * 360.0 / m)
+    el = np.radians(np.tile([25.0, 40.0, 55.0, 70.0], m // 4))
+    dirs = np.c_[np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]
+    imgs = render(sphere_on_plane(50, 44, radius=18), dirs, material, albedo=albedo, cast_shadows=False, ks=3.0)
+    imgs = np.asarray(imgs / np.percentile(imgs, 99.5), np.float32)
+    mask = np.ones(imgs.shape[1:3], bool)
+    exposure = Exposure(1.0, "srgb", None, "hdr", 0.5)
+    runs = {}
+    for name, whole, cap in (("memory", True, None), ("chosen first, on disk", True, 0), ("bands", False, None)):
+        with pytest.MonkeyPatch.context() as mp:
+            if cap is not None:
+                mp.setattr(_rti_bands, "IN_MEMORY_BYTES", cap)
+            fits = _rti_bands.relight_bands(lambda r0, r1: (imgs[:, r0:r1], dirs), mask, ["ptm", "rti"],
+                                            ProcessOptions(), None, m, None, exposure=exposure, rows=4, whole=whole)
+        fits.write_ptm(tmp_path / f"{name}.ptm")
+        fits.write_rti(tmp_path / f"{name}.rti", ["c"])
+        runs[name] = fits
+        assert isinstance(fits.spills["ptm"].data, np.memmap) is (name != "memory"), name
+    for name in ("chosen first, on disk", "bands"):
+        for ext in ("ptm", "rti"):
+            assert (tmp_path / f"memory.{ext}").read_bytes() == (tmp_path / f"{name}.{ext}").read_bytes(), (name, ext)
+        assert runs[name].ptm_format == runs["memory"].ptm_format == chosen.lower()
+        assert runs[name].notes == runs["memory"].notes and f"PTM_FORMAT_{chosen} (" in runs[name].notes["ptm"][0]
+        assert runs[name].fit_errors == runs["memory"].fit_errors
+        assert runs[name].loo == runs["memory"].loo and len(runs[name].loo) > 1

@@ -113,3 +113,20 @@ def test_auto_keeps_cast_shadows_where_they_predict_better(scene):
     auto = fit_relight_model(lin[train], dirs[train], sc.mask, sc.normals, heights=heights)
     flat = fit_relight_model(lin[train], dirs[train], sc.mask, sc.normals)
     assert auto.heights is not None and auto.loo_error < flat.loo_error
+
+
+def test_compiled_normal_equations_are_numpys_bit_for_bit():
+    # the compiled sums are numpy's float32 products summed light after light in float64: the same
+    # bits (signed zeros too: a pixel all of whose products are -0.0), so the model's maps do not move
+    from facette.recon._relight_model import _normal_equations
+    rng = np.random.default_rng(3)
+    m, n = 12, 5000
+    basis = rng.normal(size=(m, n, 3)).astype(np.float32)
+    basis[:, :7, 1] = 0.0
+    basis[:, :7, 0] = -1.0
+    values = rng.normal(size=(m, n, 3)).astype(np.float32) * np.float32(1e3)
+    weights = rng.random((m, n)).astype(np.float32)
+    weights[:, 3] = 0.0
+    fast, slow = _normal_equations(basis, values, weights), _normal_equations(basis, values, weights, compiled=False)
+    for a, b in zip(fast, slow):
+        assert a.shape == b.shape and np.array_equal(a.view(np.uint64), b.view(np.uint64))
