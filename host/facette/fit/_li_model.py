@@ -115,7 +115,7 @@ def _relative_fit_values(e, usable):
     # residuals relative to each pixel's mean value: every pixel weighs alike whatever its K_d, and a
     # highlight's misfit counts in full (relative to the value itself it would count ≤ 1 and
     # missing the lobe altogether would be cheap)
-    # ... at least the quantisation noise's floor under few lights (`_li_noise`: 8-bit darks)
+    # ... at least the quantisation noise's floor under few lights when asked for (`_li_noise`: 8-bit darks)
     den = np.maximum(mean_e, max(relative_floor(e, usable), 1e-12))[:, None, None]
     return e0, w, np.broadcast_to(ok[..., None], e.shape), den
 

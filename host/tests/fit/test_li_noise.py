@@ -29,10 +29,11 @@ def test_unusable_and_non_finite_values_do_not_count_and_too_few_pixels_give_no_
     assert quantum_step(e[:1], usable[:1]) == 0.0
 
 
-def test_the_floor_is_the_noise_sigmas_over_the_robust_scale_and_none_under_many_lights():
+def test_the_floor_is_the_noise_sigmas_over_the_robust_scale_and_none_under_many_lights_or_by_default():
     step = 1 / 255
     e = _lattice(step)
     ok = np.ones(e.shape[:2], bool)
-    assert np.isclose(relative_floor(e, ok, f_scale=0.05), NOISE_SIGMAS * step / np.sqrt(12) / 0.05, rtol=1e-3)
+    assert np.isclose(relative_floor(e, ok, f_scale=0.05, sigmas=4.0), 4.0 * step / np.sqrt(12) / 0.05, rtol=1e-3)
     many = _lattice(step, m=FLOOR_MAX_LIGHTS + 1)
-    assert relative_floor(many, np.ones(many.shape[:2], bool)) == 0.0
+    assert relative_floor(many, np.ones(many.shape[:2], bool), sigmas=4.0) == 0.0
+    assert NOISE_SIGMAS == 0.0 and relative_floor(e, ok) == 0.0          # off unless asked for
