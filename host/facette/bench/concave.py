@@ -55,15 +55,19 @@ def scene(shape, material, lights, cache, size=SIZE, spp=SPP):
                         cache_dir=cache, kd=KD[kd])
 
 
-def _folder(d, workdir, name):
-    """The render as a user's DiLiGenT-style folder (16-bit PNGs, the light intensities relative)."""
+def _folder(d, workdir, name, bits=16):
+    """The render as a user's DiLiGenT-style folder (16-bit PNGs, the light intensities relative);
+    bits=8: its values cut to 256 levels first (as DiLiGenT's shipped crops: a dark value of 3 / 255
+    carries a quantisation error of ~10 %), written as 16-bit levels × 257."""
     from facette.io.diligent import write_diligent
     im = d["images"]
-    k = PNG_TOP / float(np.nanmax(im))
+    step = 1 if bits == 16 else 257
+    k = PNG_TOP / step / float(np.nanmax(im))
     folder = Path(workdir) / name
     if not folder.is_dir():
-        write_diligent(folder, np.clip(np.round(im * k), 0, 65535).astype(np.uint16), d["light_dirs"],
-                       np.full((len(im), 3), k / 65535.0), d["mask"])
+        levels = np.clip(np.round(im * k), 0, 65535 // step) * step
+        write_diligent(folder, levels.astype(np.uint16), d["light_dirs"], np.full((len(im), 3), k * step / 65535.0),
+                       d["mask"])
     return folder
 
 
@@ -147,19 +151,22 @@ def main(argv=None):
     ap.add_argument("--model-reuse", choices=("on", "off"), default="on",
                     help="off: li_alternating's solves after the inter-reflection decision make their own model "
                          "choice again (pipeline._interreflections.REUSE_DECISION_MODEL), to compare")
+    ap.add_argument("--bits", type=int, choices=(8, 16), default=16,
+                    help="8: the renders cut to 8-bit levels before process reads them (as DiLiGenT's crops)")
     args = ap.parse_args(argv)
     from facette.pipeline import _interreflections
     _interreflections.REUSE_DECISION_MODEL = args.model_reuse == "on"
     variants = [v.strip() for v in args.variants.split(",")]
     print(f"Mitsuba 3 path-traced concave scenes, {SIZE}x{SIZE} px, {SPP} spp, max_depth 4, through "
-          f"`facette process` on 16-bit DiLiGenT-style folders (cached in {args.cache}); error on the frame "
+          f"`facette process` on {args.bits}-bit DiLiGenT-style folders (cached in {args.cache}); error on the frame "
           "eroded by 1 px; ratio = mean / least squares' mean (or the first variant's); s: process's wall "
           "seconds, cpu s its CPU seconds")
     print(f"{'scene':34s} {'variant':22s} {'mean°':>6s} {'median°':>7s} {'p95°':>6s} {'ratio':>6s} {'s':>6s} {'cpu s':>6s}")
     ratios = {}
     with tempfile.TemporaryDirectory() as work:
         for label, lights, d in _scenes(args):
-            _row(label, d, _folder(d, work, label.replace("/", "_").replace(" ", "_")), variants, ratios, lights)
+            _row(label, d, _folder(d, work, label.replace("/", "_").replace(" ", "_"), args.bits), variants, ratios,
+                 lights)
     print("\nMean ratio over the scenes:")
     for (lights, v), r in ratios.items():
         print(f"  {lights:6s} {v:22s} {np.nanmean(r):.2f} (scenes: {', '.join(f'{x:.2f}' for x in r)})")

@@ -16,6 +16,7 @@ from scipy.optimize import least_squares
 from facette._threads import run_blocks
 from facette.brdf import kd_from_kappa, li_shading_terms
 from ._li_fit_lm import li_jacobian, robust_lm
+from ._li_noise import relative_floor
 
 __all__ = ["choose_material_model", "fit_bounds", "METAL_FIT_BOUNDS", "fit_li_per_pixel_kd", "li_fit_cost", "LI_FIT_BOUNDS", "LI_VOLUME_MODEL", "DIFFUSE", "LOBE_MIN_GAIN"]
 
@@ -114,7 +115,8 @@ def _relative_fit_values(e, usable):
     # residuals relative to each pixel's mean value: every pixel weighs alike whatever its K_d, and a
     # highlight's misfit counts in full (relative to the value itself it would count ≤ 1 and
     # missing the lobe altogether would be cheap)
-    den = np.maximum(mean_e, 1e-12)[:, None, None]
+    # ... at least the quantisation noise's floor under few lights when asked for (`_li_noise`: 8-bit darks)
+    den = np.maximum(mean_e, max(relative_floor(e, usable), 1e-12))[:, None, None]
     return e0, w, np.broadcast_to(ok[..., None], e.shape), den
 
 

@@ -49,9 +49,10 @@ as `photometric_stereo(method="li_alternating")`.
 
 5. Neighbour starts (`neighbour_deg`), after a search of the minima (under ≤ 16 lights, not a
    metal's lobe: `Pixels.search_minima`, fit._ps_li_minima: a pixel > 7° from its neighbours' mean
-   tries 24 hemisphere starts and its lights' half-vectors and keeps the cheapest minimum over every
-   usable light; rig12 concave paint renders 15.57 -> 15.28° summed, DiLiGenT 12 lights 6.92 ->
-   6.90°): a solved pixel whose normal is more than 10° from the
+   tries 24 hemisphere starts and its lights' half-vectors and moves to the cheapest minimum over every
+   usable light if it is nearer its neighbours; the 8 rig12 concave paint renders 12.98 -> 12.01° summed) and
+   a solve from the neighbours' mean of the pixels with a cast-shadow flag no neighbour shares
+   (`Pixels.solve_isolated_flags`, fit._ps_li_flags): a solved pixel whose normal is more than 10° from the
    mean of its 5 × 5 neighbours is solved again from that mean and from its own normal, and keeps
    the solve of lower robust cost (`Pixels.neighbour_round`): its own values choose, the
    neighbours only propose. Under 12 lights a pixel's cost has several minima and the solve
@@ -350,7 +351,8 @@ def _fit_material(px, pix, region, model, rounds, tol_deg, rounds_log, row0=0, s
         tried, moved = px.neighbour_round(pix, *x0)
         mat["neighbour_starts"] = {"above_deg": px.settings.neighbour_deg, "pixels_tried": sum(tried),
                                    "pixels_moved": sum(moved), "moved_per_round": moved,
-                                   "seconds": time.perf_counter() - t_nb}
+                                   "seconds": time.perf_counter() - t_nb,
+                                   **{k: dict(zip(("tried", "moved"), v)) for k, v in px.searched.items() if v[0]}}
     if x0 is not None and x0[1] >= 1.0:
         t_sh = time.perf_counter()
         lifted = px.settle_shadows(pix, *x0)

@@ -24,7 +24,9 @@ from facette.brdf import kappa_from_kd, li_shading_terms
 from facette.recon._ps import _ls_normals, _pixel_dirs, _shading
 from ._li_model import PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model, is_metal
 from ._normals_li import CAST_SHADOW_RATIO, RefineResult, refine_normals_li
-from ._ps_li_minima import SEARCH_ABOVE_DEG, SEARCH_MAX_LIGHTS, relative_gap, search_pixel_minima
+from ._ps_li_flags import isolated_flags
+from ._ps_li_minima import (SEARCH_ABOVE_DEG, SEARCH_MAX_LIGHTS, TOWARD_NEIGHBOURS, relative_gap,
+                            search_pixel_minima)
 
 CORRECTION_PASSES = 3       # fixed-point passes of `_lambertian_correction`
 LOBE_TAN = 2.5             # a light is inside the lobe when tan θ_h < LOBE_TAN σ (D > 0.2 % of its peak)
@@ -56,6 +58,7 @@ class Settings:
     diffuse_models: tuple      # the volume models the model choice tries, the first the default
     neighbour_deg: float = 0.0  # `neighbour_round`'s threshold (0: no neighbour starts)
     minima_search: bool = True  # `neighbour_round` runs `search_minima` first
+    isolated_flags: bool = True  # ... and `solve_isolated_flags`
 
 
 @dataclass
@@ -84,6 +87,7 @@ class Pixels:
     outlier: np.ndarray = None  # (N,) bool: the initial solution left a light out as a shadow or a highlight
     mean_lights: np.ndarray = None   # per-pixel lights: the image's mean (m, 3) for the correction, None: these pixels'
     minima_gap: np.ndarray = None    # (N,) `search_minima`'s relative gap of the two best minima' costs (NaN: none)
+    searched: dict = None            # `neighbour_round`'s first steps: (pixels tried, moved) of each
 
     @classmethod
     def start(cls, images, light_dirs, channel, saturation, base, settings, seed):
@@ -265,8 +269,9 @@ class Pixels:
         Returns (pixels tried, pixels whose normal moved by > 1°, per round). The minima search
         (`search_minima`) runs first (settings.minima_search): the neighbours then spread what it found."""
         cand = pix[self.refined[pix]]
-        if self.settings.minima_search:
-            self.search_minima(cand, sigma, n_i)
+        st = self.settings
+        self.searched = {"minima_search": self.search_minima(cand, sigma, n_i) if st.minima_search else (0, 0),
+                         "isolated_flags": self.solve_isolated_flags(cand, sigma, n_i) if st.isolated_flags else (0, 0)}
         tried, moved = [], []
         for _ in range(rounds):
             mean = _neighbour_means(self.nrm, self.idx, self.shape)
@@ -302,14 +307,37 @@ class Pixels:
             return 0, 0
         mm = search_pixel_minima(self.gather(sel), self.all_ok[sel], self.nrm[sel], self.s_all, sigma, n_i, self.vm)
         self.minima_gap[sel] = relative_gap(mm.cost_best, mm.cost_second)
+        return int(sel.size), self._move_to_cheaper(sel, mm, sigma, n_i, mean[sel])
+
+    def solve_isolated_flags(self, cand, sigma, n_i):
+        """The pixels of `cand` with a light left out as a cast shadow that all their neighbours keep
+        (facette.fit._ps_li_flags) solved again from their neighbours' mean; each moves where that
+        minimum's robust cost over every usable light is lower. Under the lights `search_minima` runs
+        under. Returns (pixels tried, pixels whose normal moved by > 1°)."""
+        if self.s_all.ndim != 2 or self.s_all.shape[0] > SEARCH_MAX_LIGHTS or is_metal(n_i):
+            return 0, 0
+        sel = cand[isolated_flags(self.shadow, self.all_ok, self.idx, self.shape)[cand]]
+        if not sel.size:
+            return 0, 0
+        mean = _neighbour_means(self.nrm, self.idx, self.shape)[sel]
+        mm = search_pixel_minima(self.gather(sel), self.all_ok[sel], self.nrm[sel], self.s_all, sigma, n_i, self.vm,
+                                 keep=1, starts=mean[:, None, :])
+        return int(sel.size), self._move_to_cheaper(sel, mm, sigma, n_i, mean)
+
+    def _move_to_cheaper(self, sel, mm, sigma, n_i, mean):
+        """The pixels of `sel` whose `Minima` `mm` found a cheaper minimum > 1° away, nearer their
+        neighbours' `mean` than their normal (with TOWARD_NEIGHBOURS), solved from it (`solve_from`:
+        their K_d, kept lights, residual); how many moved by > 1°."""
         go = (mm.cost_best < mm.cost_here) & (angle_deg(mm.normals, self.nrm[sel]) > 1.0)
+        if TOWARD_NEIGHBOURS:
+            go &= angle_deg(mm.normals, mean) < angle_deg(self.nrm[sel], mean)
         if not go.any():
-            return int(sel.size), 0
+            return 0
         todo = sel[go]
         rr = join_blocks(self.solve_from(todo, mm.normals[go], sigma, n_i, self.settings.iterations))
         went = int((angle_deg(rr.normals, self.nrm[todo]) > 1.0).sum())
         self.store(todo, rr)
-        return int(sel.size), went
+        return went
 
     def settle_shadows(self, pix, sigma, n_i):
         """The lights the BRDF-aware solve left out of the pixels of `pix` stay cast shadows only

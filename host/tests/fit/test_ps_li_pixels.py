@@ -230,3 +230,32 @@ def test_the_minima_search_brings_back_a_pixel_whose_solve_stopped_in_another_mi
     px24 = Pixels.start(np.concatenate([im, im]), many, 1, None, ps_woodham1980(np.concatenate([im, im]), many,
                         mask=sc.mask), settings, 0)
     assert px24.search_minima(pix, 0.05, 1.2) == (0, 0)
+
+
+def test_a_cheaper_minimum_is_taken_only_toward_the_neighbours():
+    """`_move_to_cheaper` (the minima search's and the isolated flags' last step): of two pixels each
+    offered a minimum its cost calls cheaper, the one pushed 35° off whose minimum is the plane's own
+    normal (nearer its neighbours' mean) moves there; the plane pixel offered a minimum 35° off (further
+    from its neighbours) keeps its normal."""
+    from facette.fit._ps_li_minima import Minima
+    sc = sphere_on_plane(40, 40)
+    lights = thesis_light_directions()
+    im = render(sc, lights, "glossy", noise=0.002, rng=np.random.default_rng(1)).astype(np.float32)
+    settings = Settings(iterations=24, fine_iterations=2, fit_pixels=50, t_residual=0.05, engine="auto",
+                        highlight_start="all", diffuse_models=("approx",), neighbour_deg=10.0)
+    px = Pixels.start(im, lights, 1, None, ps_woodham1980(im, lights, mask=sc.mask), settings, 0)
+    pix = np.arange(px.idx.size)
+    px.store(pix, px.refine(pix, 0.05, 1.2))
+    truth = sc.normals.reshape(-1, 3)[px.idx].astype(np.float32)
+    flat = np.flatnonzero(sc.normals.reshape(-1, 3)[px.idx, 2] > 0.999)
+    pushed, kept = flat[40], flat[300]
+    c, s = np.cos(np.radians(35)), np.sin(np.radians(35))
+    turn = np.float32([[c, 0, -s], [0, 1, 0], [s, 0, c]])
+    px.nrm[pushed] = _unit(px.nrm[[pushed]] @ turn)[0]
+    before = px.nrm[kept].copy()
+    sel = np.array([pushed, kept])
+    offered = np.stack([truth[pushed], _unit(truth[[kept]] @ turn)[0]])
+    mm = Minima(normals=offered, cost_here=np.ones(2), cost_best=np.zeros(2), cost_second=np.full(2, np.inf))
+    moved = px._move_to_cheaper(sel, mm, 0.05, 1.2, _neighbour_means(px.nrm, px.idx, px.shape)[sel])
+    assert moved == 1
+    assert angle_deg(px.nrm[pushed], truth[pushed]) < 2 and np.array_equal(px.nrm[kept], before)
