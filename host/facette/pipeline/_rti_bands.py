@@ -51,9 +51,8 @@ PREVIEW_PIXELS = 1 << 20        # pixels of the fits kept in ProcessResult.ptm /
 # float64 copy divided by the fall-off, the fall-off, the directions (float64 x 3) and the PTM's
 # luminance (76 bytes), per pixel the PTM's colour and coefficients and the HSH's (~170 bytes)
 BYTES_PER_PIXEL_LIGHT, BYTES_PER_PIXEL = 80, 200
-# a stage's fits from whole images held in memory up to this (4288x2848 HDR, 12 lights: the LRGB PTM's 0.08
-# GB, the HSH's 0.33; 1.3 of the two stages' 6 CPU s were the temporary file's page faults and write-backs),
-# above it on disk as over bands (12 MP: the HSH's 1.3 GB, not beside the images held whole)
+# a stage's fits from whole images held in memory up to this (4288x2848, 12 lights: PTM 0.08 GB, HSH 0.33; the
+# file's page faults were 1.3 of 6 CPU s), above it on disk (12 MP: the HSH's 1.3 GB, not beside the images)
 IN_MEMORY_BYTES = 2 ** 30
 FILE_NAMES = {"ptm": "relight.ptm", "rti": "relight.rti"}      # pipeline._process.FILES's
 
@@ -99,8 +98,7 @@ def band_reader(bands, near, light_dirs):
 
 
 def _full_size(shape, dtype, in_memory):
-    """An image-sized array for the fits: in memory (`in_memory`: the images are held whole, the
-    fits beside them), else in a temporary file (`_memory.disk_array`)."""
+    """An image-sized array for the fits: in memory (`in_memory`), else in a temp file (`disk_array`)."""
     return np.empty(shape, dtype) if in_memory else disk_array(shape, dtype)
 
 
@@ -128,8 +126,7 @@ class _Spill:
         self.parts, self.preview = [], []
 
     def target(self, r0, r1):
-        """Where a fit of rows r0..r1 may write its coefficients (`recon._rti`'s `out`): the rows of a
-        spill in memory, None for a disk array (written by `add`, its pages handed back)."""
+        """Where rows r0..r1's fit writes (`recon._rti`'s `out`): a spill in memory's rows, else None (`add`)."""
         return self.data[r0:r1] if self.in_memory() else None
 
     def add(self, r0, fit, counts, parts):
