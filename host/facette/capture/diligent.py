@@ -8,7 +8,7 @@ import numpy as np
 from facette._threads import run_blocks
 from facette.capture.base import Bands
 from facette.capture.usable import MIN_LEVELS
-from facette.io.diligent import png_radiance, size_mismatch
+from facette.io.diligent import size_mismatch
 from facette.io.png import read_png
 
 __all__ = ["DiligentBands"]
@@ -47,12 +47,9 @@ class _Staged:
         return raw.reshape(r1 - r0, w, c)
 
     def band(self, r0, r1, intensities):
-        """(m, r1 - r0, W, 3) float32 radiance of rows r0..r1 (as `read_diligent`)."""
-        h, w, c = self.shape
-        out = np.empty((len(self.paths), r1 - r0, w, 3), np.float32)
-        for i in range(len(self.paths)):
-            png_radiance(self._raw(i, r0, r1), intensities[i], out[i])
-        return out
+        """(m, r1 - r0, W, 3) float32 radiance of rows r0..r1 (as `read_diligent`: `band_usable`'s)."""
+        bits = 16 if self.dtype == np.uint16 else 8
+        return self.band_usable(r0, r1, intensities, np.asarray(intensities)[:, 1] * (2.0 ** bits - 1))[0]
 
     def band_usable(self, r0, r1, intensities, levels):
         """(`band`'s radiance, usable (m, r1 - r0, W): `usable_from_levels` of its green channel times
@@ -64,8 +61,8 @@ class _Staged:
         m = len(self.paths)
         out, usable = np.empty((m, r1 - r0, w, 3), np.float32), np.empty((m, r1 - r0, w), bool)
         tables = getattr(self, "_tables", None)
-        if tables is None or tables[0] is not intensities or tables[1] is not levels:
-            self._tables = tables = (intensities, levels, [None] * m)
+        if tables is None or not (np.array_equal(tables[0], intensities) and np.array_equal(tables[1], levels)):
+            self._tables = tables = (np.array(intensities), np.array(levels), [None] * m)
 
         def convert(i):
             if tables[2][i] is None:
