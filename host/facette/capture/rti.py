@@ -22,6 +22,7 @@ from facette.calib.mirror_sphere import Circle, mirror_sphere_directions
 from facette.errors import BadInputError
 from facette.io.lights import check_lights, photograph_paths
 from facette.io.png import read_mask
+from facette._threads import run_blocks
 from facette.capture.base import Bands
 from facette.capture.masks import masks_from
 from facette.capture.usable import usable_from_levels
@@ -205,15 +206,15 @@ class RTIBands(Bands):
     encoding : "srgb", "linear" or None (from the bit depth: 8-bit sRGB, else linear)."""
 
     def __init__(self, paths, inten, encoding=None, work=None):
-        self.paths, self.inten, self.store, self.scale = list(paths), inten, [], None
-        for k, p in enumerate(self.paths):
-            raw = self._decoded(k, p, encoding)
-            if work is None:
-                self.store.append(raw)
-            else:
-                self.store.append(Path(work) / f"rti_{k:04d}.raw")
-                np.ascontiguousarray(raw).tofile(self.store[-1])
-            del raw
+        self.paths, self.inten, self.scale, self.store = list(paths), inten, None, [None] * len(paths)
+
+        def stage(k):      # the decoders (PIL, OpenCV) and the writes give the GIL up: two at once
+            raw = self.store[k] = self._decoded(k, self.paths[k], encoding)
+            if work is not None:
+                self.store[k] = Path(work) / f"rti_{k:04d}.raw"
+                np.ascontiguousarray(raw).tofile(self.store[k])
+        stage(0)           # the first sets the size, depth and encoding the others are checked against
+        run_blocks(stage, range(1, len(self.paths)))
 
     def _decoded(self, k, p, encoding):
         """Photograph k's stored values (`_read_image`); the first sets the size, depth and encoding."""
@@ -286,8 +287,7 @@ class RTIBands(Bands):
         m = len(self.store)
         images = np.empty((m, r1 - r0, self.w, 3), np.float32)
         usable = np.empty((m, r1 - r0, self.w), bool)
-        for k in range(m):
-            self._convert(k, self._stored(k, r0, r1), images[k], usable[k])
+        run_blocks(lambda k: self._convert(k, self._stored(k, r0, r1), images[k], usable[k]), range(m))  # numpy: no GIL
         return images, usable
 
     def _convert(self, k, stored, image, usable):

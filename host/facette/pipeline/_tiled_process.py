@@ -189,8 +189,10 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
         bag.update(model=model, row0=r0)
     found = None if hidden_bins is None else (hidden_bins, hidden_bin)
     # held whole, the copy without the hidden values that li_alternating's model read is taken again
-    solve, hidden = (spec.without_hidden if held else without_hidden)(solve, found, mask, r0,
-                                                                       PS_METHODS.canonical(method))
+    if held:
+        solve, hidden = spec.without_hidden(solve, found, mask, r0, PS_METHODS.canonical(method))
+    else:              # the solve's stack is its own when a channel was appended: its values taken out in place
+        solve, hidden = without_hidden(solve, found, mask, r0, PS_METHODS.canonical(method), solve is not images)
     part = flag_hidden(photometric_stereo(solve, dirs, method=method, options=dict(bag, mask=solved)), hidden)
     del solve, hidden
     if weights is not None:                    # the albedo's R, G, B only (`_channels.results_in_rgb`)
@@ -424,7 +426,8 @@ def solve_reader(bands, inp, near, bag, weights, method_name):
         images, usable = bands.read(r0, r1, None if flat is None else flat[r0:r1])
         images, solve, dirs, solved, _ = solve_inputs(images, usable, r0, r1, inp.mask[r0:r1], near, bag, weights)
         images, solve = divided(images, solve, gains)
-        return images, without_hidden(solve, hidden, inp.mask[r0:r1], r0, method_name)[0], dirs, solved
+        return images, without_hidden(solve, hidden, inp.mask[r0:r1], r0, method_name, solve is not images)[0], \
+            dirs, solved
     return read
 
 

@@ -2,9 +2,9 @@
 
 The per-pixel methods give each pixel's normal from that pixel's values alone, so a band of
 rows solved on its own gives the same normals as the whole image. `ps_tiled` stages the PNG
-photographs once (each decoded in turn and written to a raw scratch file: OpenCV decodes whole
+photographs once (two at a time, each decoded and written to a raw scratch file: OpenCV decodes whole
 images only), then reads the m lights' values of one band at a time and runs the method on it.
-Peak memory: one decoded photograph (H x W x 3 x 2 bytes, while staging), then the outputs
+Peak memory: two decoded photographs (H x W x 3 x 2 bytes each, while staging), then the outputs
 kept (up to 32 bytes per pixel, or none when each band is handed to `on_band` as it comes)
 and one band's working set (`rows_per_tile`); not the m x H x W x 3 float32 images (1.7 GB at
 12 MP, 14 GB at 100 MP).
@@ -68,7 +68,7 @@ def parse_memory(text):
 def rows_per_tile(width, height, lights, memory, method=PS_DEFAULT, keep=tuple(FIELD_BYTES),
                   per_light_flags=False, held=0, extra_per_pixel_light=0):
     """Rows of a band so that `ps_tiled` stays within `memory` (bytes, or a text for
-    `parse_memory`). Staging (one decoded photograph and its RGB copy, 12 bytes per pixel at 16
+    `parse_memory`). Staging (two decoded RGB photographs at once, 12 bytes per pixel at 16
     bits) comes first; then `held` (bytes the caller holds besides: the process's libraries and
     its maps at the image's size, so that the budget is the whole process's), the outputs kept
     whole (`keep`, FIELD_BYTES each, and 2 x lights bytes per pixel with `per_light_flags`), the
