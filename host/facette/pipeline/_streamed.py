@@ -41,10 +41,12 @@ def read_in_bands(source, o, outputs, stages=()):
     if o.scheduler is not None or size is None or relight_only(stages):
         return True
     m, h, w = size
-    # a budget under the process's floor (its libraries, one band) is refused whichever way it reads:
-    # band_rows raises with the size to give
+    if whole_bytes(m, h, w) > o.memory_bytes:
+        return True         # the bands refuse a budget under their floor themselves (`rows_per_tile`)
+    # a budget under the process's floor (its libraries, one band) is refused read whole too: band_rows
+    # raises with the size to give (--memory 500MB: "give at least 0.7 GB")
     band_rows(w, h, m, o.memory, o.method, None, 0, 0 if o.channels == "green" else SOLVE_CHANNEL_BYTES)
-    return whole_bytes(m, h, w) > o.memory_bytes
+    return False
 
 
 def banded_process(source, o, res, outputs, stages, claim):
