@@ -27,8 +27,8 @@ BAND_ROWS = 256
 
 def whole_memory(source, outputs=("normals", "height")):
     """The least --memory in whole GB (e.g. "20GB") in which `process` reads `source` whole, as its one
-    band (`_streamed.read_in_bands`: the whole reading and the band's rows must both fit: at 12 MP x 12
-    lights the first asks 10.1 GB, the second 20 GB)."""
+    band (`_streamed.read_in_bands`: the whole reading's figure must fit, 10.1 GB at 12 MP x 12 lights;
+    until this stop the band's rows had to fit too, 20 GB)."""
     from facette.pipeline._options import ProcessOptions
     from facette.pipeline._streamed import read_in_bands
     total = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
