@@ -13,7 +13,7 @@ minimum is kept too: the relative gap between the two is how sure the pixel is o
 Only pixels that need it are searched: those whose normal stands more than SEARCH_ABOVE_DEG from
 their 5 × 5 neighbours' mean (`Pixels.search_minima`); distant lights only (the compiled solve).
 
-A pixel moves to the cheaper minimum only toward its neighbours (TOWARD_NEIGHBOURS): nearer their mean
+A pixel moves to the cheaper minimum only toward its neighbours (`Pixels._move_to_cheaper`): nearer their mean
 than its normal. Why: on DiLiGenT cat under 12 lights (looked at, not chosen on), searching from 4° took
 the mean from 5.16 to 5.24°: 6141 pixels searched, 1041 moved, 368 of them nearer the truth by > 1° and
 603 further. The moves that lost started near their neighbours (median 7° from their mean) and went
@@ -21,6 +21,12 @@ further (11°); their darkest values were lit, 8-bit (5 of 255), and the minimum
 normal cost more than the one found (9.4 against 7.6): the data decide there, the search cannot. The
 moves that gained came from 21° to 9° off, their darkest values cast shadows (1 of 255). Summed over the
 moved pixels' errors: toward the neighbours −5980°, away +5048° (at 7°: −6091°, +1892°).
+Chosen on the 8 concave paint renders, 12 rig lights, through `process` (the scenes' mean errors summed,
+16-bit: 12.98 -> 12.01°, craters paint 2.59 -> 2.10, dark cup 1.65 -> 1.20; bench concave --bits 8, the
+dark cup left aside: 15.49 -> 14.73. That cup swings 2.79 / 4.58 / 3.39° (before / this / with the
+isolated flags too): its inter-reflections are removed at a scale of 5.9, from normals a few pixels apart;
+left in, 3.04 -> 3.03). With it, searching from 4° instead of 7 summed 11.96 (16-bit) and 15.20 (8-bit
+with the isolated flags, the cup aside; 7: 14.73).
 """
 from dataclasses import dataclass
 
@@ -29,8 +35,7 @@ import numpy as np
 from ._normals_li import CAST_SHADOW_RATIO, MAX_STEP, SCALE_FLOOR
 from ._orientation import hemisphere
 
-__all__ = ["search_pixel_minima", "Minima", "minima_starts", "relative_gap", "SEARCH_ABOVE_DEG", "SEARCH_MAX_LIGHTS",
-           "TOWARD_NEIGHBOURS"]
+__all__ = ["search_pixel_minima", "Minima", "minima_starts", "relative_gap", "SEARCH_ABOVE_DEG", "SEARCH_MAX_LIGHTS"]
 
 MINIMA_STARTS = 24     # fixed start directions over the hemisphere (Fibonacci set, z > 0.1)
 KEEP = 3               # starts solved per pixel: those of lowest cost at the start
@@ -45,16 +50,6 @@ STEP_TOL = 1e-3        # rad: a start's solve stops below this step (the rounds'
 # through `process` (none, > 7, > 4 deg, all): summed 15.57, 15.28, 15.20, 15.35 deg; 4 was measured
 # too late to be confirmed on the benches
 SEARCH_ABOVE_DEG = 7.0
-# a searched pixel moves to a cheaper minimum only when it is nearer its 5 x 5 neighbours' mean than its
-# normal: a surface is continuous at the pixel's scale, so a cheaper minimum that leaves the neighbours
-# further behind fits the data's error (a cast shadow's edge, light gathered, 8-bit darks), not the
-# surface (the module doc). Chosen on the 8 concave paint renders, 12 rig lights, through `process`
-# (the scenes' mean errors summed, 16-bit: 12.98 -> 12.01 deg, craters paint 2.59 -> 2.10, dark cup
-# 1.65 -> 1.20; bench concave --bits 8, the dark cup left aside: 15.49 -> 14.73. That cup swings 2.79 /
-# 4.58 / 3.39 deg (before / this / with the isolated flags too): its inter-reflections are removed at a
-# scale of 5.9, from normals a few pixels apart; left in, 3.04 -> 3.03). With it, searching from 4 deg
-# instead of 7 summed 11.96 (16-bit) and 15.20 (8-bit with the isolated flags, the cup aside; 7: 14.73)
-TOWARD_NEIGHBOURS = True
 # under many lights the values decide the minimum (the issue is the rig's 12): no search above this
 # many lights, so that DiLiGenT's 96 and a dome's give the same normals as without it
 SEARCH_MAX_LIGHTS = 16

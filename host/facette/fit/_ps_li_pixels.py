@@ -25,8 +25,7 @@ from facette.recon._ps import _ls_normals, _pixel_dirs, _shading
 from ._li_model import PROFILE_TABLE_GRID, PROFILE_VALUES, choose_material_model, is_metal
 from ._normals_li import CAST_SHADOW_RATIO, RefineResult, refine_normals_li
 from ._ps_li_flags import isolated_flags
-from ._ps_li_minima import (SEARCH_ABOVE_DEG, SEARCH_MAX_LIGHTS, TOWARD_NEIGHBOURS, relative_gap,
-                            search_pixel_minima)
+from ._ps_li_minima import SEARCH_ABOVE_DEG, SEARCH_MAX_LIGHTS, relative_gap, search_pixel_minima
 
 CORRECTION_PASSES = 3       # fixed-point passes of `_lambertian_correction`
 LOBE_TAN = 2.5             # a light is inside the lobe when tan θ_h < LOBE_TAN σ (D > 0.2 % of its peak)
@@ -299,7 +298,7 @@ class Pixels:
         Returns (pixels searched, pixels whose normal moved by > 1°)."""
         if self.minima_gap is None:
             self.minima_gap = np.full(self.idx.size, np.nan, np.float32)
-        if self.s_all.ndim != 2 or self.s_all.shape[0] > SEARCH_MAX_LIGHTS or is_metal(n_i):
+        if not self._searched_under(n_i):
             return 0, 0
         mean = _neighbour_means(self.nrm, self.idx, self.shape)
         sel = cand[angle_deg(self.nrm[cand], mean[cand]) > SEARCH_ABOVE_DEG]
@@ -314,7 +313,7 @@ class Pixels:
         (facette.fit._ps_li_flags) solved again from their neighbours' mean; each moves where that
         minimum's robust cost over every usable light is lower. Under the lights `search_minima` runs
         under. Returns (pixels tried, pixels whose normal moved by > 1°)."""
-        if self.s_all.ndim != 2 or self.s_all.shape[0] > SEARCH_MAX_LIGHTS or is_metal(n_i):
+        if not self._searched_under(n_i):
             return 0, 0
         sel = cand[isolated_flags(self.shadow, self.all_ok, self.idx, self.shape)[cand]]
         if not sel.size:
@@ -324,13 +323,17 @@ class Pixels:
                                  keep=1, starts=mean[:, None, :])
         return int(sel.size), self._move_to_cheaper(sel, mm, sigma, n_i, mean)
 
+    def _searched_under(self, n_i):
+        """Whether these lights and this material are searched: distant lights, at most
+        SEARCH_MAX_LIGHTS, not a metal's lobe (`search_minima`)."""
+        return self.s_all.ndim == 2 and self.s_all.shape[0] <= SEARCH_MAX_LIGHTS and not is_metal(n_i)
+
     def _move_to_cheaper(self, sel, mm, sigma, n_i, mean):
         """The pixels of `sel` whose `Minima` `mm` found a cheaper minimum > 1° away, nearer their
-        neighbours' `mean` than their normal (with TOWARD_NEIGHBOURS), solved from it (`solve_from`:
-        their K_d, kept lights, residual); how many moved by > 1°."""
+        neighbours' `mean` than their normal (fit._ps_li_minima's doc: toward the neighbours only), solved
+        from it (`solve_from`: their K_d, kept lights, residual); how many moved by > 1°."""
         go = (mm.cost_best < mm.cost_here) & (angle_deg(mm.normals, self.nrm[sel]) > 1.0)
-        if TOWARD_NEIGHBOURS:
-            go &= angle_deg(mm.normals, mean) < angle_deg(self.nrm[sel], mean)
+        go &= angle_deg(mm.normals, mean) < angle_deg(self.nrm[sel], mean)
         if not go.any():
             return 0
         todo = sel[go]
