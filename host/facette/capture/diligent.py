@@ -22,7 +22,6 @@ class _Staged:
     def __init__(self, folder, names, work):
         work = Path(work)
         self.paths = [work / f"{i:04d}.raw" for i in range(len(names))]
-        self._tables = None       # `band_usable`'s lookup tables: (intensities, levels, a table per light)
         first = self._stage(folder, names[0], self.paths[0])
         self.shape, self.dtype = first
 
@@ -61,7 +60,7 @@ class _Staged:
         h, w, c = self.shape
         m = len(self.paths)
         out, usable = np.empty((m, r1 - r0, w, 3), np.float32), np.empty((m, r1 - r0, w), bool)
-        tables = self._tables
+        tables = getattr(self, "_tables", None)
         if tables is None or not (np.array_equal(tables[0], intensities) and np.array_equal(tables[1], levels)):
             self._tables = tables = (np.array(intensities), np.array(levels), [None] * m)
 
