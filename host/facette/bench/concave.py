@@ -170,7 +170,19 @@ def main(argv=None):
     print("\nMean ratio over the scenes:")
     for (lights, v), r in ratios.items():
         print(f"  {lights:6s} {v:22s} {np.nanmean(r):.2f} (scenes: {', '.join(f'{x:.2f}' for x in r)})")
+    _few_against_many(ratios)
     return 0
+
+
+def _few_against_many(ratios):
+    """The issue's test: each variant's mean ratio to least squares under the rig's 12 lights against
+    under 96 (printed when both ran on the same scenes): 12 lights as good as 96 when ≤ 1."""
+    for v in dict.fromkeys(v for _, v in ratios):
+        few, many = ratios.get(("rig12", v)), ratios.get(("96", v))
+        if v == "least squares" or not few or not many or len(few) != len(many):
+            continue
+        print(f"  rig12 / 96 {v:22s} {np.nanmean(few) / np.nanmean(many):.2f} "
+              f"({np.nanmean(few):.3f} against {np.nanmean(many):.3f})")
 
 
 if __name__ == "__main__":

@@ -5,7 +5,9 @@ mean value (facette.fit._li_model). An 8-bit photograph's dark pixel (DiLiGenT's
 object: a mean of 4 levels of 255) carries a quantisation error of ±0.5 level, 7 % of its mean at one
 sigma (1/√12 of a level): more than the fit's robust scale (5 %), so the dark pixels' noise outweighs
 the highlights' misfit and the model choice finds no lobe (a dark paint σ 0.05 crater field, 12 rig
-lights, 8-bit: 88 % of its values ≤ 5 levels, the last call fits σ 0.001, n_i 1: no BRDF step). The
+lights, 8-bit: 88 % of its values ≤ 5 levels, the last call fits σ 0.001, n_i 1: no BRDF step; there
+the lobe clears the bar, and it is the fit that slides to n_i 1, pulled by the few pixels solved on
+the lobe's peak: now fitted again on the pixels that cleared it, `_li_model.KEPT_MAX_LIGHTS`). The
 noise is the sum of a constant part (quantisation, read noise) and one that grows with the value
 (var = a + b I): `relative_floor` gives the constant part's floor, the smallest denominator at which
 its noise is NOISE_SIGMAS below the robust scale.

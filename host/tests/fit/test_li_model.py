@@ -64,3 +64,39 @@ def test_the_line_searches_find_a_unimodal_profiles_lowest_point_with_fewer_solv
                 assert len(set(calls)) == len(calls)
             calls.clear()
             assert set(_line_search(line, dict(k), cost, "all")) == set(line) and len(calls) == len(line) - len(k)
+
+
+def _glossy_with_pixels_on_the_peak(fraction, seed=1):
+    """A glossy sphere's pixels (Cook–Torrance σ 0.05, n_i 1.2, 12 rig lights) and normals with
+    `fraction` of them on a light's mirror direction (a solve stopped on the lobe's peak)."""
+    lights = thesis_light_directions()
+    e, ok, n = _pixels("glossy", lights, sphere_on_plane(40, 40), np.random.default_rng(0))
+    rng = np.random.default_rng(seed)
+    bad = rng.choice(len(e), int(fraction * len(e)), replace=False)
+    h = lights + np.array([0.0, 0.0, 1.0])
+    n = n.copy()
+    n[bad] = (h / np.linalg.norm(h, axis=1, keepdims=True))[rng.integers(0, len(lights), bad.size)]
+    return e, ok, n, lights
+
+
+def test_a_lobe_whose_fit_slides_to_no_interface_is_fitted_again_on_the_pixels_that_cleared_the_bar(monkeypatch):
+    # a tenth of the pixels on the lobe's peak carry most of the all-pixel cost: from the grid
+    # point (the truth) the fit slides to n_i < 1.02 to lower them; on the grid point's kept
+    # pixels (the trimmed cost that cleared the bar) it stays at the truth
+    from facette.fit import _li_model
+    e, ok, n, lights = _glossy_with_pixels_on_the_peak(0.1)
+    kept = _li_model._trimmed(_li_model._pixel_costs(e, lights, n, ok, 0.05, 1.2, "lambert"))[1]
+    best = dict(sigma=0.05, n_i=1.2, volume_model="lambert", normals=n, kept=kept, gain=0.5)
+
+    def solve(sigma, n_i, vm, search=True, grid=65):     # a solve that stops where it stopped
+        return n
+    fit, _ = _li_model._warm_up(e, lights, ok, solve, best)
+    assert fit["refit_on"] == "kept"
+    assert abs(fit["sigma"] - 0.05) < 0.005 and abs(fit["n_i"] - 1.2) < 0.02, (fit["sigma"], fit["n_i"])
+    # an earlier solve's lobe (no kept pixels given, `_ps_li_start`): its own trimmed pixels
+    again, _ = _li_model._warm_up(e, lights, ok, solve, dict(best, kept=None))
+    assert again["refit_on"] == "kept" and abs(again["n_i"] - fit["n_i"]) < 1e-9
+    # under many lights (above KEPT_MAX_LIGHTS) the fit is left as it was: slid to no interface
+    monkeypatch.setattr(_li_model, "KEPT_MAX_LIGHTS", len(lights) - 1)
+    slid, _ = _li_model._warm_up(e, lights, ok, solve, best)
+    assert slid["n_i"] < _li_model.LAMBERTIAN_N_I and "refit_on" not in slid, slid["n_i"]
