@@ -566,16 +566,16 @@ def report_fit_section(res):
     return _fit_section(res, _truth_brdf(truth), truth_kd)[0]
 
 
-def write_report(res, path, fit_html=None):
-    """Write report.html for a `ProcessResult`: summary, relighting viewer, BRDF fit with
-    uncertainties and residuals, error against truth, maps, options, timings.
-    fit_html : `report_fit_section(res)` when already drawn."""
+def report_pictures(res):
+    """The report's drawn parts: {"viewer": (html, note), "truth": the truth section's html, "figs": the
+    maps [(title, png)]}. They need the maps, the heights, the relighting model and the BRDF fit, not
+    the notes, the checks against truth or the timings: `process` draws them on a worker as soon as
+    those stages are done, while the relighting files are still fitted, and `write_report` assembles
+    the page at the end."""
     import matplotlib
     matplotlib.use("Agg", force=False)
     viewer_html, kd_map, kd_mask, viewer_note = _viewer(res)
     truth = res.inputs.truth if res.inputs is not None else None
-    if fit_html is None:
-        fit_html = report_fit_section(res)
     figs = []
     st = max(1, int(np.ceil(max(res.normals.shape[:2]) / 800)))   # pictures need no more
     n, mask, ps = decimated(res.normals, st), res.mask[::st, ::st], res.ps    # disk maps: by bands
@@ -608,6 +608,18 @@ def write_report(res, path, fit_html=None):
         err = np.degrees(np.arccos(np.clip(np.sum(n * tn, -1), -1, 1)))
         figs.append(_map("Angular error against truth (deg)", np.where(mask, err, np.nan),
                          cmap="inferno", vmin=0, vmax=10, label="deg"))
+    return {"viewer": (viewer_html, viewer_note), "truth": _truth_section(res, kd_map, kd_mask), "figs": figs}
+
+
+def write_report(res, path, fit_html=None, pictures=None):
+    """Write report.html for a `ProcessResult`: summary, relighting viewer, BRDF fit with
+    uncertainties and residuals, error against truth, maps, options, timings.
+    fit_html : `report_fit_section(res)` when already drawn; pictures : `report_pictures(res)` when
+    already drawn (else both drawn here)."""
+    if fit_html is None:
+        fit_html = report_fit_section(res)
+    pictures = report_pictures(res) if pictures is None else pictures
+    (viewer_html, viewer_note), figs, ps = pictures["viewer"], pictures["figs"], res.ps
     timings = "".join(f"<tr><td>{html.escape(k)}</td><td>{fmt(v, 2)} s</td></tr>" for k, v in res.timings.items())
     opts = _rows({k: (", ".join(v) if isinstance(v, list) else v) for k, v in res.options.items()})
     info = _rows(ps.info or {})
@@ -620,7 +632,7 @@ td,th{{padding:0 1em;text-align:left}}img{{max-width:100%}}.summary{{background:
 {_summary(res, viewer_note)}
 {viewer_html}
 {fit_html}
-{_truth_section(res, kd_map, kd_mask)}
+{pictures["truth"]}
 <h2>Maps</h2>{_figures(figs)}
 <h2>Photometric stereo</h2><table>{info}</table>
 <h2>Options</h2><table>{opts}</table>
