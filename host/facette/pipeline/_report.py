@@ -19,8 +19,8 @@ from facette.io.atomic import write_text_atomic
 from facette.fit import FitModel, cell_spread_directions, incidence_spread
 from facette.capture import NO_PITCH_NOTE
 from facette.pipeline._confidence import confidence_maps
+from facette.pipeline._report_overlay import mask_overlay
 from facette.pipeline._viewer import viewer_data, viewer_section
-from facette.recon import srgb_encode
 
 __all__ = ["write_report", "fmt", "fmt_pm", "fit_predictions"]
 
@@ -534,27 +534,6 @@ def _viewer(res):
     return viewer_section(data), (kd_map, data["decimation"]), arrays["mask"], note
 
 
-def _mask_overlay(res, st):
-    """(title, RGB): mask.png over the photograph (the median over the lights, sRGB): the
-    object as photographed, the rest dimmed and tinted blue, the object's outline red."""
-    obj = getattr(res, "object_mask", None)
-    if obj is None or res.inputs is None or res.inputs.images is None:
-        return None
-    from facette.capture._pixels_jit import median_over_lights   # numba: loaded on first use
-    obj, ims = obj[::st, ::st], res.inputs.images[:, ::st, ::st]
-    photo = np.empty(ims.shape[1:], ims.dtype)  # np.nanmedian: 9 s of 40 on the 16-bit DiLiGenT ball
-    median_over_lights(ims.reshape(ims.shape[:2] + (-1,)), photo.reshape(photo.shape[0], -1), slice(None), workers=2)
-    photo = np.nan_to_num(photo, nan=1.0)                                # NaN: saturated everywhere
-    top = float(np.percentile(photo[obj], 99)) if obj.any() else float(np.max(photo) or 1.0)
-    rgb = srgb_encode(photo / max(top, 1e-12))
-    out = np.where(obj[..., None], rgb, 0.35 * rgb + np.array([0.0, 0.05, 0.25]))
-    edge = obj & ~(np.roll(obj, 1, 0) & np.roll(obj, -1, 0) & np.roll(obj, 1, 1) & np.roll(obj, -1, 1))
-    out[edge] = [1.0, 0.1, 0.1]
-    full = res.object_mask
-    return (f"mask.png over the photograph (median over the lights): the object, {int(full.sum()):,} of "
-            f"{full.size:,} px, outlined red; the rest dimmed", out)
-
-
 def report_fit_section(res):
     """The report's BRDF section (html: parameters, uncertainties, the fit against the data,
     residuals): it needs only the fit, the filtered reflectance and the truth, so `process`
@@ -596,7 +575,7 @@ def report_pictures(res):
         figs.append(_map("Lights flagged as specular",
                          np.where(mask, ps.specular[::st, ::st].sum(-1), np.nan), cmap="Blues",
                          label="lights"))
-    overlay = _mask_overlay(res, st)
+    overlay = mask_overlay(res, st)
     if overlay is not None:
         figs.append(_map(*overlay))
     if res.height is not None:
