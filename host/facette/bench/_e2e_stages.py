@@ -49,6 +49,7 @@ WRAPPED = [
     ("glTF inputs", "facette.pipeline._process", "gltf_inputs"),
     ("checks against truth", "facette.pipeline._process", "truth_errors"),
     ("relighting files' exposure", "facette.pipeline._process", "record_exposure"),
+    ("report's pictures", "facette.pipeline._process", "report_pictures"),
     ("report.html", "facette.pipeline._process", "write_report"),
     ("map writes (exr/png/ply/npz/json)", "facette.pipeline._process", "write_exr"),
     ("map writes (exr/png/ply/npz/json)", "facette.pipeline._process", "write_mask"),
