@@ -12,7 +12,7 @@ PACKAGE = Path(facette.__file__).parent
 MAX_FILE, MAX_FUNCTION = 500, 100
 STRICT = ("scan/", "fit/_ps_li")    # path prefixes that no listing can exempt
 # the longer ones left (issue 27, December 2026): path -> lines at most
-LONG_FILES = {"pipeline/_report.py": 629,
+LONG_FILES = {"pipeline/_report.py": 620,
               "recon/_ps.py": 518}
 LONG_FUNCTIONS = {"fit/_normals_li_jit.py _solve_one": 141,
                   "recon/_interreflect.py remove_interreflections": 120,

@@ -10,7 +10,9 @@ seconds are each stage's own. The modules a scan preloads during its acquisition
 (`pipeline.preload`) are loaded before the clock starts. "rest" is what no wrapper saw (the
 record, the checks against truth, between stages). Rows "of which: ..." (`PARTS`) are parts of the
 stage named after them (the shadow step's heights, li_alternating's coarse rounds, its full-size round),
-counted in that stage's row too. `facette bench e2e --stages SCAN_DIR` prints the table.
+counted in that stage's row too. `facette bench e2e --stages SCAN_DIR [--held held|arriving]` prints the table; `--held` gives `process` the
+lights held in memory as the one-button scan does (`held_scan`), "arriving" also made into its inputs as they
+arrived (pipeline._arriving): the load after the last frame of a scan, not of `facette process`.
 """
 import tempfile
 import threading
@@ -47,6 +49,7 @@ WRAPPED = [
     ("glTF inputs", "facette.pipeline._process", "gltf_inputs"),
     ("checks against truth", "facette.pipeline._process", "truth_errors"),
     ("relighting files' exposure", "facette.pipeline._process", "record_exposure"),
+    ("report's pictures", "facette.pipeline._process", "report_pictures"),
     ("report.html", "facette.pipeline._process", "write_report"),
     ("map writes (exr/png/ply/npz/json)", "facette.pipeline._process", "write_exr"),
     ("map writes (exr/png/ply/npz/json)", "facette.pipeline._process", "write_mask"),
@@ -127,18 +130,46 @@ def _wrapped(table, t_start):
             setattr(mod, fn_name, fn)
 
 
-def stage_table(scan_dir, outputs=None, **options):
+def held_scan(scan_dir, arriving=True):
+    """The scan directory object of `scan_dir` as the one-button scan hands it to `process`: each light's
+    HDR pair read and held (`ScanDirectory.hold_light`), and, with `arriving`, made into process's inputs as
+    it arrives (`pipeline.ArrivingLights`, waited for): what the scan does before its last frame."""
+    from facette.io.exr import read_exr
+    from facette.pipeline import ArrivingLights
+    from facette.scan import ScanDirectory
+    from facette.scan.hdr import HeldLight, _stat
+
+    sd = ScanDirectory(scan_dir)
+    on_held = ArrivingLights() if arriving else None
+    for rec in sd.manifest.hdr.lights:
+        img, var = Path(scan_dir) / rec.file, Path(scan_dir) / rec.var_file
+        sd.hold_light(rec.index, HeldLight(img, var, read_exr(img)[0], read_exr(var)[0], (_stat(img), _stat(var))))
+        if on_held is not None:
+            on_held(sd, rec.index)
+    if on_held is not None:
+        on_held.wait()
+    return sd
+
+
+def stage_table(scan_dir, outputs=None, held=None, **options):
     """{stage: (wall s, CPU s, start s, end s)} of one `process` of `scan_dir` (every default output
     unless `outputs`; **options: ProcessOptions fields), with "total" (wall, process CPU) and
-    "rest" (the total CPU no stage recorded). Results go to a temporary folder."""
+    "rest" (the total CPU no stage recorded). Results go to a temporary folder. held: None, the scan
+    read from its files; "held", its lights held in memory as the one-button scan hands them over;
+    "arriving", also made into the inputs as they arrived (`held_scan`: before the clock starts)."""
     from facette.pipeline import preload, process
 
     preload()                 # as a scan does during its acquisition
+    source = Path(scan_dir) if held is None else held_scan(scan_dir, arriving=held == "arriving")
     table = {}
     with tempfile.TemporaryDirectory(prefix="facette-stages-") as tmp:
         t0, c0 = time.perf_counter(), time.process_time()
         with _wrapped(table, t0):
-            process(Path(scan_dir), outputs=outputs, out_dir=Path(tmp) / "results", **options)
+            try:
+                process(source, outputs=outputs, out_dir=Path(tmp) / "results", **options)
+            finally:
+                if held is not None:
+                    source.release_held_lights()
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     table = {k: tuple(v) for k, v in table.items()}
     table["rest"] = (float("nan"), cpu - sum(v[1] for k, v in table.items() if not k.startswith(WITHIN)),

@@ -53,7 +53,7 @@ relighting model fitted at each side, and that stage's time (bench/_e2e_viewer.p
 
 Usage: facette bench e2e [--sizes default,1072x712,128x96] [--full] [--runs N] [--keep DIR]
                          [--memory SIZE] [--outputs LIST] [--scan-only]
-       facette bench e2e --stages SCAN_DIR | --viewer SCAN_DIR [--sides 1100,550]
+       facette bench e2e --stages SCAN_DIR [--held held|arriving] | --viewer SCAN_DIR [--sides 1100,550]
 """
 from __future__ import annotations
 
@@ -311,10 +311,11 @@ def _on_kept_scan(args):
         import facette.pipeline._relight_model_stage as stage
         from facette.bench._e2e_stages import print_stage_table, stage_table
         stage.MODEL_SIDE = args.model_side or stage.MODEL_SIDE
-        print(f"`facette process` on {args.stages}, every default output, the report's model at "
+        print(f"`facette process` on {args.stages}" + (f" (its lights {args.held}, as the one-button scan hands them "
+              "over)" if args.held else "") + ", every default output, the report's model at "
               f"{stage.MODEL_SIDE} px, stage by stage, one after the other (CPU: the process's over the stage; "
               "rest: no stage's)")
-        print_stage_table(stage_table(args.stages))
+        print_stage_table(stage_table(args.stages, held=args.held))
     if args.viewer:
         from facette.bench._e2e_viewer import viewer_rows
         print(f"the report viewer on {args.viewer}: its relighting model fitted at each side")
@@ -339,6 +340,9 @@ def main(argv=None):
     p.add_argument("--scan-only", action="store_true",
                    help="only the scan command: no merge alone, process alone or rig apart")
     p.add_argument("--stages", metavar="SCAN_DIR", help="each stage's time of `facette process` on a kept scan")
+    p.add_argument("--held", choices=("held", "arriving"),
+                   help="--stages: the lights held in memory as the one-button scan hands them to process; "
+                        "arriving: also made into its inputs as they arrived (before the clock)")
     p.add_argument("--viewer", metavar="SCAN_DIR", help="the report viewer's PSNR per model side on a kept scan")
     p.add_argument("--sides", default="1100,550", help="--viewer: the report model's sides (default 1100,550)")
     p.add_argument("--model-side", type=int, help="--stages: the report model's side (default: "

@@ -35,8 +35,9 @@ def load_input(source, mask=None, pixel_pitch_mm=None, allow_incomplete=False, c
         raise FileNotFoundError(f"{path} is not a directory; give a scan directory (with scan.json) "
                                 "or a DiLiGenT-style folder (with filenames.txt)")
     if (path / "scan.json").is_file():
-        take_held = source.take_held_light if isinstance(source, ScanDirectory) else None
-        inp = load_scan(path, pixel_pitch_mm, allow_incomplete, take_held)
+        held = isinstance(source, ScanDirectory)
+        inp = load_scan(path, pixel_pitch_mm, allow_incomplete, source.take_held_light if held else None,
+                        source.prepared if held else None)
         if inp.incomplete:
             inp.notes.insert(0, f"the scan is incomplete ({inp.incomplete}): these results come from "
                                 "part of its data; run the same scan command to resume it")

@@ -205,10 +205,27 @@ def scan_lights(scan_dir, data, lights):
     return dirs, inten, positions, []      # checked, those below the horizon left out: `merged_lights`
 
 
-def load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None):
+def load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None, prepared=None):
     data, complete = scan_manifest(scan_dir, allow_incomplete)
-    images, usable, lights, hdr_notes = _load_hdr_images(scan_dir, data, take_held)
-    dirs, inten, positions, light_notes = scan_lights(scan_dir, data, lights)
+    # prepared: the images made as the one-button scan's lights arrived (pipeline._arriving), when they still hold
+    got = None if prepared is None else prepared.stacks(scan_dir, data)
+    if got is not None:
+        images, usable, lights, hdr_notes, (profile_pitch, profile_notes) = got
+        dirs, inten, positions, light_notes = scan_lights(scan_dir, data, lights)
+    else:
+        images, usable, lights, hdr_notes = _load_hdr_images(scan_dir, data, take_held)
+        dirs, inten, positions, light_notes = scan_lights(scan_dir, data, lights)
+        _divide_intensities(images, inten)
+        profile_pitch, profile_notes = _apply_profile(images, data, scan_dir)
+    mask, material = auto_masks(images)
+    # the object: the lit pixels and those saturated under some light (which auto_masks, blind
+    # to unknown values, leaves out)
+    obj = mask | np.isnan(images[..., 1]).any(axis=0)
+    return scan_input(scan_dir, data, complete, images, dirs, positions, mask, material, usable, obj,
+                      pixel_pitch_mm or profile_pitch, hdr_notes, light_notes, profile_notes)
+
+
+def _divide_intensities(images, inten):
     m, h, w, c = images.shape
     if images.flags.c_contiguous:   # a light's row as one (W·3) run: 7x faster than broadcasting (..., 3)
         rows = images.reshape(m, h, w * c)                       # a view
@@ -216,13 +233,6 @@ def load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None):
             rows[k] /= np.tile(inten[k].astype(np.float32), w)
     else:
         images /= inten[:, None, None, :].astype(np.float32)
-    profile_pitch, profile_notes = _apply_profile(images, data, scan_dir)
-    mask, material = auto_masks(images)
-    # the object: the lit pixels and those saturated under some light (which auto_masks, blind
-    # to unknown values, leaves out)
-    obj = mask | np.isnan(images[..., 1]).any(axis=0)
-    return scan_input(scan_dir, data, complete, images, dirs, positions, mask, material, usable, obj,
-                      pixel_pitch_mm or profile_pitch, hdr_notes, light_notes, profile_notes)
 
 
 def scan_input(scan_dir, data, complete, images, dirs, positions, mask, material, usable, obj, pitch,

@@ -202,6 +202,14 @@ def _preload_processing():
     preload()
 
 
+def _arriving(outputs):
+    """What `_process` does to each light, done as the scan's lights arrive (pipeline.ArrivingLights): the
+    solve's channel too when photometric stereo will run."""
+    from facette.pipeline import OUTPUTS, ArrivingLights, stages_needed
+
+    return ArrivingLights(solve_channel="ps" in stages_needed(outputs or OUTPUTS))
+
+
 def _process(scan, memory=None, outputs=None):
     """Run the processing chain on the scan just taken (the `ScanDirectory` `run_scan` returned,
     with the lights it merged held in memory unless a `memory` budget was given), with `facette
@@ -310,10 +318,11 @@ def run(args):
             hid_button.wait_press()
             hid_button.close()
         try:
+            hold = not args.no_process and not args.memory
             scan = rig.scan(args.directory, profile=profile, exposures=args.exposures, lights=args.lights,
                             light_current_mA=args.current, mode=args.mode, button=button,
                             progress=not args.quiet, merge_hdr=not args.no_process,
-                            hold_hdr=not args.no_process and not args.memory)
+                            hold_hdr=hold, on_held=_arriving(args.outputs) if hold else None)
         except ScanError as exc:
             st = rig.device.stats
             if st["timeouts"]:

@@ -10,8 +10,9 @@ from facette.capture import PSInput, auto_masks, load_input, margin_of
 from ._options import GAINS_AUTO, IR_AUTO
 from ._process import ALL_OUTPUTS, OUTPUTS, STAGES_FOR, ProcessOptions, ProcessResult, preload, process, stages_needed
 from ._batch import batch, process_scan
+from ._arriving import ArrivingLights
 from ._tiles import WHOLE_IMAGE_METHODS, TILED_METHODS, BANDED_METHODS, parse_memory, rows_per_tile, ps_tiled
 
 __all__ = ["CHANNELS", "CHANNELS_DEFAULT", "GAINS_AUTO", "IR_AUTO", "PSInput", "auto_masks", "load_input", "margin_of", "ALL_OUTPUTS", "OUTPUTS", "PROCESS_DEFAULT", "STAGES_FOR", "ProcessOptions", "ProcessResult", "preload", "process",
            "stages_needed", "batch", "process_scan", "WHOLE_IMAGE_METHODS", "TILED_METHODS", "BANDED_METHODS", "parse_memory",
-           "rows_per_tile", "ps_tiled"]
+           "rows_per_tile", "ps_tiled", "ArrivingLights"]

@@ -52,7 +52,7 @@ from facette.pipeline._relight_later import relight_after_maps
 from facette.pipeline._rti_exposure import record_exposure
 from facette.pipeline._streamed import solved
 from facette.pipeline._quality import check_fit_cells, truth_errors
-from facette.pipeline._report import report_fit_section, write_report
+from facette.pipeline._report import report_fit_section, report_pictures, write_report
 from facette.pipeline._relight_model_stage import model_input, relight_model_stage, save_relight_model
 from facette.pipeline._samples import _samples_stage  # bench/recon.py imports it from here too
 
@@ -243,7 +243,7 @@ def _from_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir, 
     res.timings["total_compute"] = time.perf_counter() - t_all
     if out_dir is not None:
         t0 = time.perf_counter()
-        _write_last(res, Path(out_dir), outputs, drawn, budget=o.memory_bytes)
+        _write_last(res, Path(out_dir), outputs, drawn)
         if inp.lights_file is not None:       # the sphere's lights, beside the results (never the input)
             res.files["lp"] = str(write_lp(Path(out_dir) / LP_NAME, *inp.lights_file))
         write_record(Path(out_dir), record_options, inp, res, previous)
@@ -339,13 +339,66 @@ def _after_ps(res, inp, stages, outputs, images, direct, light_dirs, o, out_dir,
     # started in this order: the maps (on disk in a second), the shape (heights, then the longest chain)
     tasks = [(maps, out is not None or confidence), (shape, "integrate" in stages), (reflectance, "samples" in stages),
              (lambda: relit("rti"), "hsh" in stages), (lambda: relit("ptm"), "ptm" in stages)]
+    # what needs the maps, the shape and the reflectance, started on the pool as soon as they are done (beside the
+    # relighting files, not after them): model.glb, and the report's pictures (the page is assembled last)
+    last = [(lambda: _model_glb(res, out, drawn), out is not None and "gltf" in outputs),
+            (lambda: _report_pictures(res, drawn), out is not None and "report" in outputs)]
     t0, budget = time.perf_counter(), o.memory_bytes     # with a budget, the heap back after each stage
     with ThreadPoolExecutor(workers) as pool:
-        futures = [pool.submit(handing_back(fn, budget) if budget else fn) for fn, wanted in tasks if wanted]
+        def submit(fn):
+            return pool.submit(handing_back(fn, budget) if budget else fn)
+        later, first = [], [fn for fn, wanted in tasks[:3] if wanted]
+        join = _Join(len(first), lambda: later.extend(submit(fn) for fn, wanted in last if wanted))
+        futures = [submit(join.after(fn)) for fn in first] + [submit(fn) for fn, wanted in tasks[3:] if wanted]
+        if not first:
+            join.done()
         # in the order of `tasks` whatever finished first; re-raises a stage's error here
         notes = [n for f in futures for n in f.result()]
+    notes += [n for f in later for n in f.result()]
     res.timings["after_ps"] = time.perf_counter() - t0
     return notes
+
+
+class _Join:
+    """Calls `then()` once `count` functions wrapped by `after` have returned (not when one raised: its
+    error comes out of its future)."""
+
+    def __init__(self, count, then):
+        self.count, self.then, self.lock = count, then, threading.Lock()
+
+    def after(self, fn):
+        def run():
+            out = fn()
+            self.done()
+            return out
+        return run
+
+    def done(self):
+        with self.lock:
+            self.count -= 1
+            fire = self.count <= 0
+        if fire:
+            self.then()
+
+
+def _model_glb(res, out, drawn):
+    """model.glb (the mesh, with the relighting model's maps and the BRDF fit's verdict as its material) made
+    and written; its material's notes kept in drawn["gltf_notes"] (the report lists them, after the others)."""
+    if res.mesh is None or not len(res.mesh[1]):
+        drawn["gltf_notes"] = ["gltf: the mesh has no triangles (empty mask); model.glb not written"]
+        return []
+    material, drawn["gltf_notes"] = gltf_material(res)
+    t0 = time.perf_counter()
+    kwargs, _ = gltf_inputs(res, res.options.get("mesh_step", 1), material)
+    write_glb(out / FILES["gltf"], **kwargs)
+    res.timings["write_gltf"] = time.perf_counter() - t0
+    return []
+
+
+def _report_pictures(res, drawn):
+    """The report's pictures (pipeline._report.report_pictures) into drawn["pictures"]."""
+    drawn["pictures"] = _timed(res, "report_pictures", report_pictures, res)
+    return []
 
 
 def _writers(res, out, outputs, ascii_ply, relight=None):
@@ -416,32 +469,13 @@ def _rti_comments(res):
     return lines
 
 
-def _write_last(res, out, outputs, drawn, budget=None):
-    """What needs every stage: model.glb (mesh and BRDF), made and written on a thread while the report
-    (matplotlib, main thread only) is drawn (before it, with a --memory budget); then the list of files written."""
-    with ThreadPoolExecutor(1) as pool:
-        future = None
-        if "gltf" in outputs:
-            if res.mesh is not None and len(res.mesh[1]):
-                material, notes = gltf_material(res)        # the report lists these notes
-                res.notes.extend(notes)
-
-                def glb():
-                    t0 = time.perf_counter()
-                    kwargs, _ = gltf_inputs(res, res.options.get("mesh_step", 1), material)
-                    write_glb(out / FILES["gltf"], **kwargs)
-                    res.timings["write_gltf"] = time.perf_counter() - t0
-
-                future = pool.submit(handing_back(glb, budget) if budget else glb)
-                if budget:
-                    future.result()
-            else:
-                res.notes.append("gltf: the mesh has no triangles (empty mask); model.glb not written")
-        if "report" in outputs:
-            _timed(res, "write_report", write_report, res, out / FILES["report"], drawn.get("fit"))
-            res.files["report"] = str(out / FILES["report"])
-        if future is not None:
-            future.result()                      # re-raise a write error here
+def _write_last(res, out, outputs, drawn):
+    """What needs every stage: the report, assembled from the pictures the stages after photometric stereo drew
+    (model.glb was written beside them, its notes listed here); then the list of files written."""
+    res.notes.extend(drawn.pop("gltf_notes", []))        # the report lists these notes
+    if "report" in outputs:
+        _timed(res, "write_report", write_report, res, out / FILES["report"], drawn.get("fit"), drawn.get("pictures"))
+        res.files["report"] = str(out / FILES["report"])
     for o in outputs:
         if (out / FILES[o]).exists() and o != "report":
             res.files[o] = str(out / FILES[o])

@@ -19,8 +19,8 @@ from facette.io.atomic import write_text_atomic
 from facette.fit import FitModel, cell_spread_directions, incidence_spread
 from facette.capture import NO_PITCH_NOTE
 from facette.pipeline._confidence import confidence_maps
+from facette.pipeline._report_overlay import mask_overlay
 from facette.pipeline._viewer import viewer_data, viewer_section
-from facette.recon import srgb_encode
 
 __all__ = ["write_report", "fmt", "fmt_pm", "fit_predictions"]
 
@@ -534,27 +534,6 @@ def _viewer(res):
     return viewer_section(data), (kd_map, data["decimation"]), arrays["mask"], note
 
 
-def _mask_overlay(res, st):
-    """(title, RGB): mask.png over the photograph (the median over the lights, sRGB): the
-    object as photographed, the rest dimmed and tinted blue, the object's outline red."""
-    obj = getattr(res, "object_mask", None)
-    if obj is None or res.inputs is None or res.inputs.images is None:
-        return None
-    from facette.capture._pixels_jit import median_over_lights   # numba: loaded on first use
-    obj, ims = obj[::st, ::st], res.inputs.images[:, ::st, ::st]
-    photo = np.empty(ims.shape[1:], ims.dtype)  # np.nanmedian: 9 s of 40 on the 16-bit DiLiGenT ball
-    median_over_lights(ims.reshape(ims.shape[:2] + (-1,)), photo.reshape(photo.shape[0], -1), slice(None), workers=2)
-    photo = np.nan_to_num(photo, nan=1.0)                                # NaN: saturated everywhere
-    top = float(np.percentile(photo[obj], 99)) if obj.any() else float(np.max(photo) or 1.0)
-    rgb = srgb_encode(photo / max(top, 1e-12))
-    out = np.where(obj[..., None], rgb, 0.35 * rgb + np.array([0.0, 0.05, 0.25]))
-    edge = obj & ~(np.roll(obj, 1, 0) & np.roll(obj, -1, 0) & np.roll(obj, 1, 1) & np.roll(obj, -1, 1))
-    out[edge] = [1.0, 0.1, 0.1]
-    full = res.object_mask
-    return (f"mask.png over the photograph (median over the lights): the object, {int(full.sum()):,} of "
-            f"{full.size:,} px, outlined red; the rest dimmed", out)
-
-
 def report_fit_section(res):
     """The report's BRDF section (html: parameters, uncertainties, the fit against the data,
     residuals): it needs only the fit, the filtered reflectance and the truth, so `process`
@@ -566,16 +545,16 @@ def report_fit_section(res):
     return _fit_section(res, _truth_brdf(truth), truth_kd)[0]
 
 
-def write_report(res, path, fit_html=None):
-    """Write report.html for a `ProcessResult`: summary, relighting viewer, BRDF fit with
-    uncertainties and residuals, error against truth, maps, options, timings.
-    fit_html : `report_fit_section(res)` when already drawn."""
+def report_pictures(res):
+    """The report's drawn parts: {"viewer": (html, note), "truth": the truth section's html, "figs": the
+    maps [(title, png)]}. They need the maps, the heights, the relighting model and the BRDF fit, not
+    the notes, the checks against truth or the timings: `process` draws them on a worker as soon as
+    those stages are done, while the relighting files are still fitted, and `write_report` assembles
+    the page at the end."""
     import matplotlib
     matplotlib.use("Agg", force=False)
     viewer_html, kd_map, kd_mask, viewer_note = _viewer(res)
     truth = res.inputs.truth if res.inputs is not None else None
-    if fit_html is None:
-        fit_html = report_fit_section(res)
     figs = []
     st = max(1, int(np.ceil(max(res.normals.shape[:2]) / 800)))   # pictures need no more
     n, mask, ps = decimated(res.normals, st), res.mask[::st, ::st], res.ps    # disk maps: by bands
@@ -596,7 +575,7 @@ def write_report(res, path, fit_html=None):
         figs.append(_map("Lights flagged as specular",
                          np.where(mask, ps.specular[::st, ::st].sum(-1), np.nan), cmap="Blues",
                          label="lights"))
-    overlay = _mask_overlay(res, st)
+    overlay = mask_overlay(res, st)
     if overlay is not None:
         figs.append(_map(*overlay))
     if res.height is not None:
@@ -608,6 +587,18 @@ def write_report(res, path, fit_html=None):
         err = np.degrees(np.arccos(np.clip(np.sum(n * tn, -1), -1, 1)))
         figs.append(_map("Angular error against truth (deg)", np.where(mask, err, np.nan),
                          cmap="inferno", vmin=0, vmax=10, label="deg"))
+    return {"viewer": (viewer_html, viewer_note), "truth": _truth_section(res, kd_map, kd_mask), "figs": figs}
+
+
+def write_report(res, path, fit_html=None, pictures=None):
+    """Write report.html for a `ProcessResult`: summary, relighting viewer, BRDF fit with
+    uncertainties and residuals, error against truth, maps, options, timings.
+    fit_html : `report_fit_section(res)` when already drawn; pictures : `report_pictures(res)` when
+    already drawn (else both drawn here)."""
+    if fit_html is None:
+        fit_html = report_fit_section(res)
+    pictures = report_pictures(res) if pictures is None else pictures
+    (viewer_html, viewer_note), figs, ps = pictures["viewer"], pictures["figs"], res.ps
     timings = "".join(f"<tr><td>{html.escape(k)}</td><td>{fmt(v, 2)} s</td></tr>" for k, v in res.timings.items())
     opts = _rows({k: (", ".join(v) if isinstance(v, list) else v) for k, v in res.options.items()})
     info = _rows(ps.info or {})
@@ -620,7 +611,7 @@ td,th{{padding:0 1em;text-align:left}}img{{max-width:100%}}.summary{{background:
 {_summary(res, viewer_note)}
 {viewer_html}
 {fit_html}
-{_truth_section(res, kd_map, kd_mask)}
+{pictures["truth"]}
 <h2>Maps</h2>{_figures(figs)}
 <h2>Photometric stereo</h2><table>{info}</table>
 <h2>Options</h2><table>{opts}</table>

@@ -16,10 +16,10 @@ from facette.pipeline._channels import results_in_rgb
 from facette.pipeline._filled import normals_of
 from facette.pipeline._interreflections import interreflections_wanted, solve_without_interreflections
 from facette.pipeline._light_gains import divided, light_gains_of_bands
-from facette.pipeline._quality import check_samples, light_geometry
+from facette.pipeline._quality import carried, check_samples, light_geometry
 from facette.pipeline._shadows import with_shadows, without_hidden
 from facette.pipeline._tiled_process import (band_loop, one_band_note, read_whole_notes, solve_channel, solve_inputs,
-                                             solve_reader, solve_setup)
+                                             solve_options, solve_reader, solve_setup)
 from facette.pipeline._tiles import BANDED_METHODS
 from facette.recon import dark_level_notes, near_light_directions
 
@@ -36,10 +36,15 @@ class HeldBands(ArrayBands):
     in place, as the whole reading always did): no copy of the stack, one solve's stack."""
     prepared = None
 
-    def prepare(self, inp, near, bag, weights, method_name):
-        """Make the one band as the solve sees it (`_tiled_process.solve_inputs`) from the photographs."""
+    def prepare(self, inp, near, bag, weights, method_name, arrived=None):
+        """Make the one band as the solve sees it (`_tiled_process.solve_inputs`) from the photographs; the
+        solve's stack the one-button scan made as its lights arrived (`arrived`: pipeline._arriving) when it
+        is that of these photographs, weights and saturation (far lights: nothing else to divide)."""
         h = self.images.shape[1]
-        self.prepared = solve_inputs(self.images, self.usable, 0, h, inp.mask, near, bag, weights)
+        solve = None if arrived is None or near is not None else \
+            arrived.solve_stack(self.images, weights, bag.get("saturation"))
+        self.prepared = solve_inputs(self.images, self.usable, 0, h, inp.mask, near, bag, weights) if solve is None \
+            else (self.images, solve, bag.get("light_dirs"), carried(inp.mask, self.usable), solve_options(bag, weights))
         self.mask, self.method_name, self.gains = inp.mask, method_name, None
 
     def _divided(self, gains):
@@ -120,7 +125,8 @@ def whole_process(source, o, res, stages, claim):
     # "weighted" channels: their noise measured on the images the solve sees (the fall-off divided out)
     ps, images, direct = _one_band(res, o, inp, PS_METHODS.canonical(o.method), None if o.channels != "weighted" else
                                    inp.images if falloff is None else
-                                   inp.images / np.transpose(falloff, (2, 0, 1))[..., None])
+                                   inp.images / np.transpose(falloff, (2, 0, 1))[..., None],
+                                   getattr(source, "prepared", None))
     del falloff
     res.ps = ps
     res.notes.extend(dark_level_notes(ps.info.get("dark_offset")))
@@ -132,18 +138,19 @@ def whole_process(source, o, res, stages, claim):
     return inp, images, direct, light_dirs, previous
 
 
-def _one_band(res, o, inp, method_name, noisy=None):
+def _one_band(res, o, inp, method_name, noisy=None, arrived=None):
     """(PSResult, images as the stages after photometric stereo read them, the images the method saw)
     of the band loop on the whole image as its one band. The inter-reflections' step (whole images
     only) between the gains and the cast shadows, as over the whole stack; when it changed the images
     or the solve's start, or the method is not per-pixel, the solve on the whole stack it read.
-    noisy: the images "weighted" channels measure their noise on (None: another choice)."""
+    noisy: the images "weighted" channels measure their noise on (None: another choice). arrived: what the
+    one-button scan made as its lights arrived (pipeline._arriving) or None."""
     h = inp.mask.shape[0]
     bands = HeldBands(inp.images, inp.usable)
     weights, used = solve_channel(o, res.notes, noisy, inp.mask)
     del noisy
     near, bag, model_bag = solve_setup(o, inp, weights)
-    bands.prepare(inp, near, bag, weights, method_name)
+    bands.prepare(inp, near, bag, weights, method_name, arrived)
     read = solve_reader(bands, inp, near, bag, weights, method_name)      # bands.solve_read: no copy
     gains = light_gains_of_bands(res, o, inp, method_name, lambda r0, r1: read(r0, r1)[1:3], h, model_bag)
     banded, removal = method_name in BANDED_METHODS, interreflections_wanted(o, inp, res.notes, whole=True)

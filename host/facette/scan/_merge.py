@@ -10,10 +10,11 @@ __all__ = ["MergeDuringScan"]
 
 class MergeDuringScan:
     """Merges the lights of scan directory `sd` while it is acquired (`n_exposures` per light);
-    `hold`: keep each merged light in memory (`ScanDirectory.hold_light`)."""
+    `hold`: keep each merged light in memory (`ScanDirectory.hold_light`); `on_held`: called with (sd, light)
+    as each is held (`ScanOptions.on_held`)."""
 
-    def __init__(self, sd, n_exposures, hold=False):
-        self.sd, self.n_exposures = sd, n_exposures
+    def __init__(self, sd, n_exposures, hold=False, on_held=None):
+        self.sd, self.n_exposures, self.on_held = sd, n_exposures, on_held
         self.merger = LightMerger(sd.path, hold=hold)
 
     def _complete(self, light, done):
@@ -46,6 +47,8 @@ class MergeDuringScan:
                 self.sd.journal("hdr_light", light=light, time_s=rec.time_s)
                 if held is not None:
                     self.sd.hold_light(light, held)
+                    if self.on_held is not None:
+                        self.on_held(self.sd, light)
         if records:
             m = self.sd.manifest
             _, source = scan_sensor(m, self.merger.sensor)

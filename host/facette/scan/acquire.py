@@ -71,6 +71,10 @@ class ScanOptions:
         (``facette.process(scan)``), which then does not read the HDR files back
         (4288x2848, 12 lights: ~2 CPU s less after the last frame, ~50 MB per light held
         until processing takes it or `release_held_lights` drops it).
+    on_held : with hold_hdr, callable(sd, light) called on the scan's thread as each merged light is
+        held: the processing that follows starts its per-light work there, before the last frame
+        (`facette.pipeline.ArrivingLights`: it takes the light, `ScanDirectory.take_held`, and leaves
+        what it made in `sd.prepared` for ``facette.process``).
     """
     exposures: object = None
     lights: object = None
@@ -88,6 +92,7 @@ class ScanOptions:
     save_truth: bool = True
     merge_hdr: bool = False
     hold_hdr: bool = False
+    on_held: object = None
 
     def check(self, rig):
         """Refuse what cannot be asked of this rig (ValueError / BadInputError), before anything
@@ -224,7 +229,8 @@ def _acquire(rig, sd, plan, options, button):
     """Take every (light, exposure) still missing, in device runs (a reset runs the missing
     ones again), merging each complete light on a worker with ``merge_hdr``."""
     all_pairs = plan.all_pairs()
-    merge = MergeDuringScan(sd, len(plan.exposures), hold=options.hold_hdr) if options.merge_hdr else None
+    merge = MergeDuringScan(sd, len(plan.exposures), hold=options.hold_hdr,
+                            on_held=options.on_held if options.hold_hdr else None) if options.merge_hdr else None
     if merge is not None:
         merge.submit_stale(len(plan.lights))   # a resumed scan: lights complete, not merged yet
     progress = None

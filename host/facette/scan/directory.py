@@ -53,6 +53,9 @@ class ScanDirectory:
         self.manifest = None
         self.notes = []
         self._held = {}
+        # what the processing that follows made of the held lights while they arrived (ScanOptions.on_held's,
+        # e.g. facette.pipeline.ArrivingLights: `facette.process` takes it from here), or None
+        self.prepared = None
         self._lock_fh = None
         self.reload()
 
@@ -248,16 +251,24 @@ class ScanDirectory:
         is not finite in any channel) of a held light, exactly as in its two files; None when
         it was not held or either file changed since (then read the files). The arrays leave
         the directory object: a second call returns None."""
-        held = self._held.pop(int(light), None)
+        held = self.take_held(light)
         return None if held is None else held.arrays()
+
+    def take_held(self, light):
+        """The `HeldLight` itself (its arrays, and `unchanged()`: whether its files are still as written),
+        leaving the directory object; None when it was not held."""
+        return self._held.pop(int(light), None)
 
     def held_lights(self):
         """The indices of the lights held in memory."""
         return sorted(self._held)
 
     def release_held_lights(self):
-        """Drop every light held in memory that processing did not take."""
+        """Drop every light held in memory that processing did not take, and what was prepared from them."""
         self._held.clear()
+        prepared, self.prepared = self.prepared, None
+        if prepared is not None:
+            prepared.close()
 
 
 def read_scan_manifest(scan_dir):

@@ -50,11 +50,18 @@ class HeldLight:
     def arrays(self):
         """(radiance, green variance) when both files are unchanged since they were written (as
         `hdr_up_to_date` judges them: size and mtime), else None (then read the files)."""
+        return (self.radiance, self.green) if self.unchanged() else None
+
+    def unchanged(self):
+        """Both files are as they were written (size and mtime)."""
         try:
-            now = tuple(_stat(p) for p in self.paths)
+            return tuple(_stat(p) for p in self.paths) == self.written
         except OSError:
-            return None
-        return (self.radiance, self.green) if now == self.written else None
+            return False
+
+    def release(self):
+        """Drop the arrays (once copied); `unchanged` still answers."""
+        self.radiance = self.green = None
 
 
 class MissingFrameWarning(UserWarning):
