@@ -42,7 +42,6 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from facette._select_jit import median_in_place
 from facette.brdf import fresnel_dielectric
 from facette.brdf._lobe_jit import SMITH_G1_TABLE, smith_g1_dlog_scaled, smith_g1_dlog_tabulated
 
@@ -70,6 +69,7 @@ MANY_LIGHTS = 24
 SECOND_START_ABOVE_MANY = 0.05
 
 
+SMALL_PART = 16          # `_median`: parts of fewer values are insertion-sorted
 COST_PRODUCT_MAX = 1e200   # the Cauchy cost's running product is logged and restarted above this
 
 @njit(cache=True)
@@ -148,10 +148,64 @@ def _residuals(e, a, b, k, n, r_out):
 
 
 @njit(cache=True)
+def _median(v, n):
+    """np.median of v[:n] (v reordered), as `median_in_place` gives it: quickselect with a
+    median-of-three pivot down to SMALL_PART values, then insertion sort of that part, which holds
+    both middle values of an even count or the largest below them at its left."""
+    half = n >> 1
+    lo = 0
+    hi = n - 1
+    while hi - lo >= SMALL_PART:
+        mid = (lo + hi) >> 1
+        # median of three to v[mid]: fewer and more even partitions than the middle value alone
+        if v[mid] < v[lo]:
+            v[mid], v[lo] = v[lo], v[mid]
+        if v[hi] < v[lo]:
+            v[hi], v[lo] = v[lo], v[hi]
+        if v[hi] < v[mid]:
+            v[hi], v[mid] = v[mid], v[hi]
+        pivot = v[mid]
+        i = lo
+        j = hi
+        while i <= j:
+            while v[i] < pivot:
+                i += 1
+            while v[j] > pivot:
+                j -= 1
+            if i <= j:
+                v[i], v[j] = v[j], v[i]
+                i += 1
+                j -= 1
+        if half <= j:
+            hi = j
+        elif half >= i:
+            lo = i
+        else:              # v[half] == pivot, between the two parts
+            lo = hi = half
+            break
+    for a in range(lo + 1, hi + 1):       # insertion sort of v[lo:hi + 1]
+        x = v[a]
+        b = a - 1
+        while b >= lo and v[b] > x:
+            v[b + 1] = v[b]
+            b -= 1
+        v[b + 1] = x
+    upper = v[half]
+    if n & 1:
+        return upper
+    if half - 1 >= lo:
+        return (v[half - 1] + upper) / 2
+    lower = v[0]           # the largest of the values below the part
+    for a in range(1, half):
+        lower = max(lower, v[a])
+    return (lower + upper) / 2
+
+
+@njit(cache=True)
 def _scale(r, n, mean_e, buf, floor):
     for t in range(n):
         buf[t] = abs(r[t])
-    med = median_in_place(buf, n) if n > 0 else 0.0
+    med = _median(buf, n) if n > 0 else 0.0
     return max(max(1.4826 * med, floor * mean_e), 1e-12)
 
 
@@ -360,6 +414,7 @@ def _refine_all(e, usable, n0, n1, has1, s, sh, fres, btab, g1tab, sigma, spec, 
         kept_best = np.empty(m, np.int64)
         a_best = np.empty(m)
         b_best = np.empty(m)
+        w_best = np.empty(m)
         em = np.empty(m)
         ok = np.empty(m, np.bool_)
         for p in range(q * chunk, min((q + 1) * chunk, n_pix)):
@@ -390,16 +445,17 @@ def _refine_all(e, usable, n0, n1, has1, s, sh, fres, btab, g1tab, sigma, spec, 
                     kept_best[:bkeep] = ws[12][:bkeep]
                     a_best[:bkeep] = a_sol[:bkeep]
                     b_best[:bkeep] = b_sol[:bkeep]
-            # κ per channel at the chosen normal, with the mean channel's robust weights
+            # κ per channel at the chosen normal, with the mean channel's robust weights (the
+            # weights and their sum Σ w b are the channels' own: taken once, the same numbers)
+            den = 0.0
+            for t in range(bkeep):
+                rr = (em[kept_best[t]] - a_best[t] - b_best[t] * k_mean) / bscale
+                w_best[t] = b_best[t] / (1.0 + rr * rr)
+                den += w_best[t] * b_best[t]
             for ch in range(c):
                 num = 0.0
-                den = 0.0
                 for t in range(bkeep):
-                    i = kept_best[t]
-                    rr = (em[i] - a_best[t] - b_best[t] * k_mean) / bscale
-                    wgt = b_best[t] / (1.0 + rr * rr)
-                    num += wgt * (e[p, i, ch] - a_best[t])
-                    den += wgt * b_best[t]
+                    num += w_best[t] * (e[p, kept_best[t], ch] - a_best[t])
                 out_k[p, ch] = max(num / max(den, 1e-20), 0.0)
             out_n[p, 0], out_n[p, 1], out_n[p, 2] = bx, by, bz
             out_used[p, :] = False
