@@ -45,6 +45,8 @@ from numba import njit, prange
 from facette.brdf import fresnel_dielectric
 from facette.brdf._lobe_jit import SMITH_G1_TABLE, smith_g1_dlog_scaled, smith_g1_dlog_tabulated
 
+from ._normals_li_median import median_in_place as _median
+
 # the B table's builder, imported here too (tests, `_normals_li` take it from this module)
 from ._normals_li_table import TABLE_BLOCK, TABLE_GRID, _volume_table, volume_table  # noqa: F401
 
@@ -69,7 +71,6 @@ MANY_LIGHTS = 24
 SECOND_START_ABOVE_MANY = 0.05
 
 
-SMALL_PART = 16          # `_median`: parts of fewer values are insertion-sorted
 COST_PRODUCT_MAX = 1e200   # the Cauchy cost's running product is logged and restarted above this
 
 @njit(cache=True)
@@ -145,60 +146,6 @@ def _kappa(e, a, b, w, n):
 def _residuals(e, a, b, k, n, r_out):
     for t in range(n):
         r_out[t] = e[t] - a[t] - b[t] * k
-
-
-@njit(cache=True)
-def _median(v, n):
-    """np.median of v[:n] (v reordered), as `median_in_place` gives it: quickselect with a
-    median-of-three pivot down to SMALL_PART values, then insertion sort of that part, which holds
-    both middle values of an even count or the largest below them at its left."""
-    half = n >> 1
-    lo = 0
-    hi = n - 1
-    while hi - lo >= SMALL_PART:
-        mid = (lo + hi) >> 1
-        # median of three to v[mid]: fewer and more even partitions than the middle value alone
-        if v[mid] < v[lo]:
-            v[mid], v[lo] = v[lo], v[mid]
-        if v[hi] < v[lo]:
-            v[hi], v[lo] = v[lo], v[hi]
-        if v[hi] < v[mid]:
-            v[hi], v[mid] = v[mid], v[hi]
-        pivot = v[mid]
-        i = lo
-        j = hi
-        while i <= j:
-            while v[i] < pivot:
-                i += 1
-            while v[j] > pivot:
-                j -= 1
-            if i <= j:
-                v[i], v[j] = v[j], v[i]
-                i += 1
-                j -= 1
-        if half <= j:
-            hi = j
-        elif half >= i:
-            lo = i
-        else:              # v[half] == pivot, between the two parts
-            lo = hi = half
-            break
-    for a in range(lo + 1, hi + 1):       # insertion sort of v[lo:hi + 1]
-        x = v[a]
-        b = a - 1
-        while b >= lo and v[b] > x:
-            v[b + 1] = v[b]
-            b -= 1
-        v[b + 1] = x
-    upper = v[half]
-    if n & 1:
-        return upper
-    if half - 1 >= lo:
-        return (v[half - 1] + upper) / 2
-    lower = v[0]           # the largest of the values below the part
-    for a in range(1, half):
-        lower = max(lower, v[a])
-    return (lower + upper) / 2
 
 
 @njit(cache=True)
