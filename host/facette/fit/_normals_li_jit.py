@@ -42,10 +42,9 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from facette._select_jit import median_in_place
 from facette.brdf import fresnel_dielectric
 from facette.brdf._lobe_jit import SMITH_G1_TABLE, smith_g1_dlog_scaled, smith_g1_dlog_tabulated
-
-from ._normals_li_median import median_in_place as _median
 
 # the B table's builder, imported here too (tests, `_normals_li` take it from this module)
 from ._normals_li_table import TABLE_BLOCK, TABLE_GRID, _volume_table, volume_table  # noqa: F401
@@ -152,7 +151,7 @@ def _residuals(e, a, b, k, n, r_out):
 def _scale(r, n, mean_e, buf, floor):
     for t in range(n):
         buf[t] = abs(r[t])
-    med = _median(buf, n) if n > 0 else 0.0
+    med = median_in_place(buf, n) if n > 0 else 0.0
     return max(max(1.4826 * med, floor * mean_e), 1e-12)
 
 

@@ -1,7 +1,7 @@
-"""The LI solve's median (facette.fit._normals_li_median) gives np.median's value."""
+"""facette._select_jit: the order statistics of the compiled loops are numpy's."""
 import numpy as np
 
-from facette.fit._normals_li_median import SMALL_PART, median_in_place
+from facette._select_jit import SMALL_PART, kth_smallest, median_in_place
 
 
 def test_median_is_numpys_for_every_count_with_and_without_ties():
@@ -17,3 +17,13 @@ def test_median_reorders_only_the_first_n_values():
     v = np.array([5.0, 1.0, 4.0, 2.0, 3.0, 9.0, -7.0])
     assert median_in_place(v, 5) == 3.0
     assert sorted(v[:5]) == [1.0, 2.0, 3.0, 4.0, 5.0] and list(v[5:]) == [9.0, -7.0]
+
+
+def test_kth_smallest_is_the_sorted_value_and_partitions_below_it():
+    rng = np.random.default_rng(4)
+    for n in range(1, 3 * SMALL_PART + 40):
+        for values in (rng.random(n).astype(np.float32), rng.integers(0, 4, n).astype(np.float32)):
+            for kth in {0, n // 3, n // 2, n - 1}:
+                v = values.copy()
+                assert kth_smallest(v, n, kth) == np.sort(values)[kth]
+                assert (v[:kth] <= v[kth]).all() and sorted(v) == sorted(values)
