@@ -360,6 +360,7 @@ def _refine_all(e, usable, n0, n1, has1, s, sh, fres, btab, g1tab, sigma, spec, 
         kept_best = np.empty(m, np.int64)
         a_best = np.empty(m)
         b_best = np.empty(m)
+        w_best = np.empty(m)
         em = np.empty(m)
         ok = np.empty(m, np.bool_)
         for p in range(q * chunk, min((q + 1) * chunk, n_pix)):
@@ -390,16 +391,17 @@ def _refine_all(e, usable, n0, n1, has1, s, sh, fres, btab, g1tab, sigma, spec, 
                     kept_best[:bkeep] = ws[12][:bkeep]
                     a_best[:bkeep] = a_sol[:bkeep]
                     b_best[:bkeep] = b_sol[:bkeep]
-            # κ per channel at the chosen normal, with the mean channel's robust weights
+            # κ per channel at the chosen normal, with the mean channel's robust weights (the
+            # weights and their sum Σ w b are the channels' own: taken once, the same numbers)
+            den = 0.0
+            for t in range(bkeep):
+                rr = (em[kept_best[t]] - a_best[t] - b_best[t] * k_mean) / bscale
+                w_best[t] = b_best[t] / (1.0 + rr * rr)
+                den += w_best[t] * b_best[t]
             for ch in range(c):
                 num = 0.0
-                den = 0.0
                 for t in range(bkeep):
-                    i = kept_best[t]
-                    rr = (em[i] - a_best[t] - b_best[t] * k_mean) / bscale
-                    wgt = b_best[t] / (1.0 + rr * rr)
-                    num += wgt * (e[p, i, ch] - a_best[t])
-                    den += wgt * b_best[t]
+                    num += w_best[t] * (e[p, kept_best[t], ch] - a_best[t])
                 out_k[p, ch] = max(num / max(den, 1e-20), 0.0)
             out_n[p, 0], out_n[p, 1], out_n[p, 2] = bx, by, bz
             out_used[p, :] = False

@@ -56,6 +56,7 @@ from facette._memory import disk_array, hand_back, release
 from facette.fit import li_model
 from facette.methods import PS_METHODS, options_for, photometric_stereo
 from facette.capture import open_bands, open_capture, source_path
+from facette.pipeline._band_threads import InFlight, in_order_on_threads
 from facette.pipeline._channels import SOLVE_CHANNEL, channel_weights, with_solve_channel
 from facette.pipeline._light_gains import divided, gained, light_gains_of_bands
 from facette.pipeline._quality import add_counts, carried, check_counts, light_geometry, sample_counts
@@ -208,11 +209,14 @@ def _ps_task(spec, r0, r1, flat, near, method, bag, mask, count_in, samples=None
     return r0, r1, part, counts, read_s, time.perf_counter() - t0, taken
 
 
-def _map(fn, calls, client=None, in_flight=None):
+def _map(fn, calls, client=None, in_flight=None, threads=1):
     """fn(*args) for each args of `calls`: here one after the other (none in flight beside the
-    one running), or as tasks on a dask.distributed `client`, at most `in_flight` at a time (default
-    twice its threads) so that finished bands do not pile up; results as they finish. A task
-    whose worker dies is run again by the scheduler elsewhere."""
+    one running; `threads` > 1: that many at once, in order, `_band_threads`), or as tasks on a dask.distributed
+    `client`, at most `in_flight` at a time (default twice its threads) so that finished bands do not pile up;
+    results as they finish. A task whose worker dies is run again by the scheduler elsewhere."""
+    if client is None and threads > 1:
+        yield from in_order_on_threads(fn, calls, threads)
+        return
     if client is None:
         for args in calls:
             yield fn(*args)
@@ -305,9 +309,10 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
     try:
         if o.scheduler is not None:
             client = connect_scheduler(o.scheduler)      # bad input within seconds, not a 30 s traceback
+        flight = InFlight(lambda w, h, m, maps_bytes: band_rows(w, h, m, o.memory, o.method, rows, maps_bytes, 0 if
+                                                                weights is None else SOLVE_CHANNEL_BYTES), rows is not None)
         inp, bands, top, n = open_capture(
-            source, work, lambda w, h, m, maps_bytes: band_rows(w, h, m, o.memory, o.method, rows, maps_bytes,
-                                                            0 if weights is None else SOLVE_CHANNEL_BYTES),
+            source, work, flight.rows_for,
             lambda fn, calls: _map(fn, calls, client), o.allow_incomplete, o.pixel_pitch_mm, o.mask, o.capture,
             lambda: hand_back(o.memory_bytes))
         try:
@@ -317,7 +322,8 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
                 on_input(inp)
             res.timings["load"] = time.perf_counter() - t0
             t0 = time.perf_counter()
-            ps, counts, near, n, gains = band_loop(res, o, inp, bands, n, weights, used, client, samples)
+            ps, counts, near, n, gains = band_loop(res, o, inp, bands, n, weights, used, client, samples,
+                                                   threads=flight.threads)
             if relight is not None:          # ptm, rti: fitted over the same bands (pipeline._rti_bands)
                 t1 = time.perf_counter()
                 relight(inp, ps, top, gained(band_reader(bands, near, None if near else inp.light_dirs), gains), n)
@@ -338,7 +344,7 @@ def streamed_ps(source, o, res, on_input=None, rows=None, samples=False, relight
         res.notes.append("near lights: per-pixel directions and 1/r^2 fall-off from the light positions")
     where = f" as tasks on the scheduler {o.scheduler}" if o.scheduler is not None else ""
     res.notes.append(f"--memory {o.memory}: photometric stereo over {ps.info['tiles']} bands of {n} rows{where}, "
-                     "the images read band by band (never held whole)")
+                     f"{flight.said(ps.info['tiles'])}the images read band by band (never held whole)")
     res.timings["ps"] = time.perf_counter() - t0
     return inp, ps, (None if near else inp.light_dirs), top
 
@@ -356,14 +362,14 @@ def solve_channel(o, notes, images=None, mask=None):
     return weights, {"channels": o.channels, "weights": [round(float(x), 4) for x in weights]}
 
 
-def band_loop(res, o, inp, bands, n, weights, used, client=None, samples=False, one=None):
+def band_loop(res, o, inp, bands, n, weights, used, client=None, samples=False, one=None, threads=1):
     """Photometric stereo over bands of `n` rows of the reader `bands` (its steps: the lights' gains,
     the cast shadows, li_alternating's model, each a pass over the bands, then the solve band by
     band): (PSResult, the quality counts summed or None, near (positions, shape, pitch) or None, the
     band height solved, the gains or None). one: a dict for a capture held whole solved as one band
     (`pipeline._whole`): the quality was counted already, the per-light flags are kept, the maps
     stay in memory, and one["images"] receives the band's images as the solve saw them (its band prepared
-    once and served to every pass and the solve without a copy: `HeldBands`)."""
+    once and served to every pass and the solve without a copy: `HeldBands`). threads: bands solved at once."""
     h, w = inp.mask.shape
     m = len(inp.light_dirs)
     near, bag, _ = solve_setup(o, inp, weights)
@@ -379,6 +385,7 @@ def band_loop(res, o, inp, bands, n, weights, used, client=None, samples=False, 
     gains, hidden, model = _gains_shadows_and_model(res, o, inp, bands, near, bag, weights, n,
                                                     NOT_READ if one is None else one.get("gains", NOT_READ))
     n = rows_for_model(o.method, model, h, n)
+    threads = threads if client is None and one is None and n < h else 1     # one band: no second
     hand_back(o.memory_bytes)
     hidden_bins, hidden_bin = hidden or (None, 1)
     if client is not None:     # once to every worker, not with each band
@@ -388,7 +395,7 @@ def band_loop(res, o, inp, bands, n, weights, used, client=None, samples=False, 
               inp.mask[r0:r1], None if obj is None else obj[r0:r1], take(r0, r1), weights, model, gains,
               hidden_bins, hidden_bin, one)
              for r0, r1 in _bands(h, n))
-    ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client), on_disk=one is None)
+    ps, counts = _assemble((h, w), o.method, _map(_ps_task, calls, client, threads=threads), on_disk=one is None)
     hand_back(o.memory_bytes)   # the bands' heap: not under the stages after them
     ps.info.update(tiles=len(_bands(h, n)), rows_per_tile=n, channels=used)   # pipeline._channels
     if o.channels not in ("green", "mean") and one is None:

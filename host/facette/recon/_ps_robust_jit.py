@@ -15,12 +15,25 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from facette._select_jit import sort_prefix
+from facette._select_jit import SORT_BELOW, kth_smallest, sort_prefix
 
 __all__ = ["rank_trimmed_pixels"]
 
 _F32 = np.float32
 CHUNK = 1024          # pixels per work item of the threaded loop (one set of work arrays each)
+
+
+@njit(cache=True, nogil=True)
+def _bounds(v, u, lo, hi):
+    """(the lo-th, the hi-th smallest) of v[:u] (v reordered): by insertion sort up to SORT_BELOW
+    values, else two quickselects (the second on the part below the hi-th), the same values as the
+    sort's. The window needs only its two bounds: numpy's sort of every pixel's 60 values was ~40 %
+    of rank_trimmed under a 60-light dome (6 MP band: 4.9 -> ~3 CPU µs a pixel, one thread)."""
+    if u <= SORT_BELOW or lo > hi or hi >= u:
+        sort_prefix(v, u)
+        return v[lo], v[hi]
+    v_hi = kth_smallest(v, u, hi)
+    return (kth_smallest(v, hi, lo) if lo < hi else v_hi), v_hi
 
 
 @njit(cache=True, nogil=True)
@@ -37,15 +50,13 @@ def _window(key, use, m, trim, min_keep, tol, srt, out):
         for i in range(m):
             out[i] = False
         return 0
-    sort_prefix(srt, u)
     lo = int(math.ceil(trim * (u - 1) - 1e-9))
     hi = int(math.floor((1 - trim) * (u - 1) + 1e-9))
     want = min(u, min_keep)
     if hi - lo + 1 < want:
         lo = (u - want) // 2
         hi = lo + want - 1
-    v_lo = srt[min(max(lo, 0), m - 1)]
-    v_hi = srt[min(max(hi, 0), m - 1)]
+    v_lo, v_hi = _bounds(srt, u, min(max(lo, 0), m - 1), min(max(hi, 0), m - 1))
     if tol != 0:                  # in float32, as the array code's
         tf = _F32(tol)
         v_lo = v_lo - tf * abs(v_lo)

@@ -9,13 +9,18 @@ RIG = np.array([[np.sin(np.radians(t)) * np.cos(np.radians(p)), np.sin(np.radian
                  np.cos(np.radians(t))] for k in range(6) for t, p in ((30, 60 * k), (15, 30 + 60 * k))])
 
 
-def _scene(n=400, sigma=0.1, n_i=1.3, seed=0):
+# a dome's lights (MANY_LIGHTS or more: the solve's second start only where the first explains poorly)
+DOME = np.array([[np.sin(np.radians(t)) * np.cos(np.radians(p)), np.sin(np.radians(t)) * np.sin(np.radians(p)),
+                  np.cos(np.radians(t))] for k in range(12) for t, p in ((20, 30 * k), (45, 15 + 30 * k), (65, 30 * k))])
+
+
+def _scene(n=400, sigma=0.1, n_i=1.3, seed=0, lights=RIG):
     rng = np.random.default_rng(seed)
     v = rng.normal(size=(n, 3)) * [0.5, 0.5, 0]
     v[:, 2] = 1
     normals = (v / np.linalg.norm(v, axis=1, keepdims=True)).astype(np.float32)
     kd = rng.uniform(0.2, 0.8, size=(n, 3))
-    a, b = li_shading_terms(normals, RIG, sigma, n_i)
+    a, b = li_shading_terms(normals, lights, sigma, n_i)
     e = a[..., None] + b[..., None] * li_kappa(kd, n_i)[:, None, :]
     return normals, kd, e.astype(np.float32)
 
@@ -234,7 +239,8 @@ def test_compiled_engine_same_result_on_one_thread_and_on_all():
     assert np.median(_err(serial[0], normals)) < 0.05   # and it did solve something
 
 
-def test_compiled_solve_equals_the_all_lights_reference_bit_for_bit():
+@pytest.mark.parametrize("lights", [RIG, DOME], ids=["rig, 12 lights", "dome, 36 lights"])
+def test_compiled_solve_equals_the_all_lights_reference_bit_for_bit(lights):
     # the kernel evaluates only the kept lights (packed to the front): a light left out weighed 0
     # in every sum, so the result must be that of evaluating every light (li_solve_reference),
     # to the last bit, also for unusable values, cast shadows, too few lights and no light at all
