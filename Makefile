@@ -32,7 +32,7 @@ help:
 
 setup: deps venv node-deps firmware-posix warmup
 
-# every numba kernel compiled once and cached (__pycache__ beside each module, git-ignored), so
+# every numba kernel compiled once and cached (host/facette/__pycache__/kernels-DIGEST, git-ignored), so
 # that the first `facette process` does not compile them (a fresh clone's first run: see
 # facette/pipeline/_warmup.py). Again after each change of the kernels' files.
 warmup: $(VENV)/.warmed

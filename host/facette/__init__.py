@@ -9,7 +9,12 @@ Scripting entry points (see docs/conventions.md, "Scripting")::
 """
 import importlib
 
+from facette._kernel_cache import use_kernel_cache
+
 __version__ = "0.1.0"
+
+# numba's cache of the compiled kernels, one folder per version of their sources (see _kernel_cache)
+use_kernel_cache()
 
 # Lowest layer first (docs/ARCHITECTURE.md).
 _SUBPACKAGES = ("device", "camera", "io", "hdr", "recon", "reflect", "brdf", "fit", "calib", "methods", "sim",

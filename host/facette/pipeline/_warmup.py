@@ -1,7 +1,8 @@
 """Compile every numba kernel once, ahead of the first real run: `python -m facette.pipeline._warmup`.
 
-The kernels are `@njit(cache=True)`: numba writes the machine code it compiles to a cache (the
-`__pycache__` folder beside each module, or NUMBA_CACHE_DIR when set) and later processes load
+The kernels are `@njit(cache=True)`: numba writes the machine code it compiles to a cache (a folder
+named by a digest of the kernels' sources, facette._kernel_cache, or NUMBA_CACHE_DIR when set) and
+later processes load
 it instead of compiling (0.1 s against ~15 s for the whole set). On a fresh machine that cache
 is empty, so the first `facette process` paid for the compilation (the demo scan's photometric
 stereo: 18.3 s the first time, 1.45 s the second). `make setup` runs this module: it runs the
@@ -9,9 +10,10 @@ real chain, `process` with every output, on two tiny generated inputs (a scan di
 DiLiGenT-style folder, 96x128 px) and every photometric-stereo method on the same images, so that
 each kernel is compiled for the array types the real runs hand it, and cached.
 
-A kernel whose source file changes (a `git pull`) is compiled again on its next use: numba keys
-its cache on the file's path and modification time. Run this module again after an update to
-pay that before a scan rather than during one.
+When any kernel's source changes (a `git pull`), the digest changes and every kernel is compiled
+again on its next use (numba alone would recompile only the changed file's kernels, and keep the old
+code of a kernel it inlined into another file's). Run this module again after an update to pay that
+before a scan rather than during one; it deletes the caches of earlier sources.
 """
 import sys
 import tempfile
@@ -88,6 +90,11 @@ def warm_up(verbose=True, size=SIZE):
 
 
 def main():
+    import shutil
+
+    from facette._kernel_cache import stale_kernel_caches
+    for old in stale_kernel_caches():
+        shutil.rmtree(old, ignore_errors=True)
     seconds = warm_up()
     print(f"warm-up: every kernel compiled and cached in {seconds:.0f} s", flush=True)
     return 0
