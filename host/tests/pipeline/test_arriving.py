@@ -31,6 +31,7 @@ def _scan(rig, path, arriving):
 def test_the_lights_made_as_they_arrive_are_the_files_values(rig, tmp_path):
     arriving = ArrivingLights()
     sd = _scan(rig, tmp_path / "s", arriving)
+    arriving.wait()          # the scan returns as its last light is handed over, not once it is taken
     assert sd.prepared is arriving and sd.held_lights() == []      # every light taken as it came
     inp = load_input(sd)
     ref = load_input(tmp_path / "s")                                 # read from hdr/, as `facette process` does
