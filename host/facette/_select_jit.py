@@ -3,8 +3,8 @@ a copy or a sort: the per-pixel LI solve (facette.fit._normals_li_jit) and the m
 lights of `process`'s loading and report (facette.pipeline._pixels_jit); and the bounds of
 rank_trimmed's windows (facette.recon._ps_robust_jit: two `kth_smallest`, or a small sort).
 
-numba's cache keys a kernel on its own file: after editing this one, clear the callers'
-__pycache__/*.nbc so that they recompile with it.
+numba inlines these into their callers' cached machine code: facette._kernel_cache gives every
+version of the kernels' sources a cache folder of its own, so a caller never keeps an old copy.
 """
 from numba import njit
 

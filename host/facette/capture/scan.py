@@ -16,7 +16,7 @@ from facette.capture.masks import auto_masks
 from facette.capture.usable import usable_from_green
 from facette.scan import MissingFrameWarning, ScanDirectory, merge_scan, stale_lights
 
-__all__ = ["ScanBands", "load_scan", "merged_lights", "scan_manifest", "scan_lights", "scan_input", "profile_flat"]
+__all__ = ["ScanBands", "divide_intensities", "load_scan", "merged_lights", "scan_manifest", "scan_lights", "scan_input", "profile_flat"]
 
 
 def _unreadable(path, exc):
@@ -215,7 +215,7 @@ def load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None, 
     else:
         images, usable, lights, hdr_notes = _load_hdr_images(scan_dir, data, take_held)
         dirs, inten, positions, light_notes = scan_lights(scan_dir, data, lights)
-        _divide_intensities(images, inten)
+        divide_intensities(images, inten)
         profile_pitch, profile_notes = _apply_profile(images, data, scan_dir)
     mask, material = auto_masks(images)
     # the object: the lit pixels and those saturated under some light (which auto_masks, blind
@@ -225,7 +225,8 @@ def load_scan(scan_dir, pixel_pitch_mm, allow_incomplete=False, take_held=None, 
                       pixel_pitch_mm or profile_pitch, hdr_notes, light_notes, profile_notes)
 
 
-def _divide_intensities(images, inten):
+def divide_intensities(images, inten):
+    """images (m, H, W, 3) /= each light's intensity (m, 3), in place (also one light's stack, [k:k + 1])."""
     m, h, w, c = images.shape
     if images.flags.c_contiguous:   # a light's row as one (W·3) run: 7x faster than broadcasting (..., 3)
         rows = images.reshape(m, h, w * c)                       # a view

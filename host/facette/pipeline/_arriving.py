@@ -22,7 +22,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from facette.capture.scan import merged_lights, profile_flat, scan_lights
+from facette.capture.scan import divide_intensities, merged_lights, profile_flat, scan_lights
 from facette.capture.usable import usable_from_green
 from facette.pipeline._channels import CHANNELS_DEFAULT
 
@@ -91,8 +91,7 @@ class ArrivingLights:
         img[...] = radiance
         img[np.isnan(v_green)] = np.nan
         self.usable[k] = usable_from_green(img[..., 1], v_green)
-        h, w, c = img.shape
-        img.reshape(h, w * c)[...] /= np.tile(self.inten[k].astype(np.float32), w)
+        divide_intensities(self.images[k:k + 1], self.inten[k:k + 1])
         if self.flat is not None:
             np.divide(img, self.flat, out=img)
         if self.solve is not None:

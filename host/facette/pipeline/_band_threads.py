@@ -48,8 +48,9 @@ class InFlight:
 
     def said(self, tiles):
         """The note's words for it ("two at a time, " or "")."""
-        return "two at a time, " if self.threads == 2 and tiles > 1 else \
-            f"{self.threads} at a time, " if self.threads > 1 and tiles > 1 else ""
+        if self.threads == 1 or tiles == 1:
+            return ""
+        return f"{'two' if self.threads == 2 else self.threads} at a time, "
 
 
 def in_order_on_threads(fn, calls, threads):
